@@ -1,0 +1,48 @@
+# Every target sets up what it needs itself: on a fresh machine `make demo` and `make test`
+# are the only set-up. The virtual environment is rebuilt when pyproject.toml changes.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-stamp
+TOOLS := .tools
+GLTF_VALIDATOR := $(TOOLS)/node_modules/gltf-validator/package.json
+OUT ?= demo-out
+
+.PHONY: demo test bench lint studio tools clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[dev,scale,studio,bench,physics]'
+	touch $(STAMP)
+
+# Khronos glTF validator (npm registry) for the glTF tests; skipped with a notice if npm is absent.
+$(GLTF_VALIDATOR):
+	@if command -v npm >/dev/null; then \
+		mkdir -p $(TOOLS) && npm install --silent --no-audit --no-fund --prefix $(TOOLS) gltf-validator@2; \
+	else echo "npm not found: glTF validator tests will be skipped"; fi
+
+tools: $(STAMP) $(GLTF_VALIDATOR)
+	@bash scripts/ensure_chromium.sh || echo "chromium unavailable: browser tests will be skipped"
+
+demo: $(STAMP)
+	$(VENV)/bin/biomorph demo --out $(OUT)
+	@echo "open $(OUT)/report.html"
+
+test: tools
+	$(VENV)/bin/ruff check src tests bench
+	$(VENV)/bin/pytest -n 2 --durations=15
+
+bench: $(STAMP)
+	@for f in bench/*.py; do echo "== $$f"; $(PY) $$f || exit 1; done
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check src tests bench
+	$(VENV)/bin/ruff format --check src tests bench || true
+
+studio: $(STAMP)
+	$(VENV)/bin/biomorph studio
+
+clean:
+	rm -rf $(VENV) $(TOOLS) $(OUT) .pytest_cache .ruff_cache

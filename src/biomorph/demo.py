@@ -1,0 +1,38 @@
+"""``biomorph demo``: run every pillar on built-in data and write an HTML report."""
+
+from __future__ import annotations
+
+import importlib
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from biomorph.report import Section, Table, write_report
+
+PILLARS = ("creature", "tree", "motion", "leaf")
+
+
+def run_demo(out_dir: str | Path, only: Sequence[str] | None = None) -> Path:
+    """Run each available pillar's ``run_demo(out_dir)``; write ``out_dir/report.html``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    sections: list[Section] = []
+    timings: list[tuple[str, str]] = []
+    from biomorph.core.demo import run_demo as core_demo
+
+    sections.extend(core_demo(out / "core"))
+    for pillar in PILLARS:
+        if only and pillar not in only:
+            continue
+        try:
+            mod = importlib.import_module(f"biomorph.{pillar}.demo")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"biomorph.{pillar}.demo":
+                raise
+            continue
+        t0 = time.perf_counter()
+        sections.extend(mod.run_demo(out / pillar))
+        timings.append((pillar, f"{time.perf_counter() - t0:.2f}"))
+    if timings:
+        sections.append(Section("Run times", tables=[Table(["pillar", "seconds"], timings)]))
+    return write_report(out / "report.html", sections, title="biomorph demo")

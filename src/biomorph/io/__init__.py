@@ -1,0 +1,112 @@
+"""File formats, one module per format, dispatched by file extension.
+
+=================  ==============================  =====================================
+function           extensions                      returns / takes
+=================  ==============================  =====================================
+read_points        .las .laz .ply .xyz .txt .csv   PointCloud
+                   .asc .pts .npy
+write_points       same                            PointCloud
+read_graph         .ply .mtg                       BranchGraph
+write_graph        .ply .mtg                       BranchGraph
+read_bvh           .bvh                            Motion
+write_bvh          .bvh                            Motion
+read_motion        .bvh .htr .asf (+ .amc)         Motion
+write_mesh         .obj .ply .glb                  (vertices, faces) / trimesh.Trimesh
+write_gltf         .glb                            JointSkeleton / Motion / mesh
+=================  ==============================  =====================================
+
+Every reader raises :class:`biomorph.errors.FormatError` (file, line, expectation) on
+malformed input; every writer writes atomically (see :mod:`biomorph.io.atomic`).
+Format modules are imported lazily so heavy libraries load only when used.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from pathlib import Path
+from typing import Any
+
+from biomorph.errors import FormatError, UnsupportedFormatError
+
+PathLike = str | os.PathLike[str]
+
+POINT_FORMATS = {".las": "las", ".laz": "las", ".ply": "ply", ".xyz": "xyz", ".txt": "xyz",
+                 ".csv": "xyz", ".asc": "xyz", ".pts": "xyz", ".npy": "npy"}
+GRAPH_FORMATS = {".ply": "ply", ".mtg": "mtg"}
+MESH_FORMATS = {".obj": "obj", ".ply": "ply", ".glb": "gltf"}
+MOTION_FORMATS = {".bvh": "bvh", ".htr": "htr", ".asf": "asf", ".amc": "asf"}
+
+
+def _module(table: dict[str, str], path: PathLike, what: str) -> Any:
+    ext = Path(path).suffix.lower()
+    name = table.get(ext)
+    if name is None:
+        known = " ".join(sorted(table))
+        raise UnsupportedFormatError(f"{os.fspath(path)}: cannot handle {what} files with "
+                                     f"extension {ext or '(none)'!r}; expected one of {known}")
+    return importlib.import_module(f"biomorph.io.{name}")
+
+
+def _check_readable(path: PathLike) -> None:
+    p = Path(path)
+    if not p.exists():
+        raise FormatError(path, "file does not exist")
+    if p.is_dir():
+        raise FormatError(path, "is a directory; expected a file")
+
+
+def read_points(path: PathLike, **kwargs: Any):
+    """Read a point cloud (float64, attributes kept) from any supported format."""
+    mod = _module(POINT_FORMATS, path, "point cloud")
+    _check_readable(path)
+    return mod.read_points(path, **kwargs)
+
+
+def write_points(path: PathLike, cloud, **kwargs: Any) -> Path:
+    """Write a PointCloud; the format follows the extension."""
+    return _module(POINT_FORMATS, path, "point cloud").write_points(path, cloud, **kwargs)
+
+
+def read_graph(path: PathLike, **kwargs: Any):
+    """Read a BranchGraph (skeleton PLY with vertex+edge elements, or MTG)."""
+    mod = _module(GRAPH_FORMATS, path, "skeleton graph")
+    _check_readable(path)
+    return mod.read_graph(path, **kwargs)
+
+
+def write_graph(path: PathLike, graph, **kwargs: Any) -> Path:
+    """Write a BranchGraph (PLY or MTG)."""
+    return _module(GRAPH_FORMATS, path, "skeleton graph").write_graph(path, graph, **kwargs)
+
+
+def read_bvh(path: PathLike, **kwargs: Any):
+    """Read a BVH file into a :class:`biomorph.motion.Motion`."""
+    _check_readable(path)
+    return importlib.import_module("biomorph.io.bvh").read_bvh(path, **kwargs)
+
+
+def write_bvh(path: PathLike, motion, **kwargs: Any) -> Path:
+    """Write a Motion (or a JointSkeleton in rest pose) as BVH."""
+    return importlib.import_module("biomorph.io.bvh").write_bvh(path, motion, **kwargs)
+
+
+def read_motion(path: PathLike, **kwargs: Any):
+    """Read BVH, HTR or ASF/AMC motion into a Motion (format by extension)."""
+    mod = _module(MOTION_FORMATS, path, "motion")
+    _check_readable(path)
+    return mod.read_motion(path, **kwargs)
+
+
+def write_mesh(path: PathLike, mesh, **kwargs: Any) -> Path:
+    """Write a mesh given as ``(vertices, faces)``, a dict or a ``trimesh.Trimesh``."""
+    return _module(MESH_FORMATS, path, "mesh").write_mesh(path, mesh, **kwargs)
+
+
+def write_gltf(path: PathLike, obj, **kwargs: Any) -> Path:
+    """Write a skinned JointSkeleton (optionally animated by a Motion) or meshes as .glb."""
+    return importlib.import_module("biomorph.io.gltf").write_gltf(path, obj, **kwargs)
+
+
+__all__ = ["read_points", "write_points", "read_graph", "write_graph", "read_bvh",
+           "write_bvh", "read_motion", "write_mesh", "write_gltf"]
