@@ -14,12 +14,16 @@ import sys
 from pathlib import Path
 from typing import Annotated
 
-import click
 import typer
 from rich.console import Console
 
 from biomorph import __version__
 from biomorph.errors import BiomorphError
+
+try:  # typer >= 0.20 vendors click; older releases use click itself
+    from typer._click.exceptions import ClickException as _ClickException
+except ImportError:  # pragma: no cover
+    from click.exceptions import ClickException as _ClickException
 
 PILLARS = ("creature", "tree", "motion", "leaf")
 
@@ -140,12 +144,12 @@ def run(argv: list[str] | None = None) -> int:
     except BiomorphError as exc:
         err_console.print(f"[bold red]error:[/] {exc}", markup=True, highlight=False)
         return 2
-    except click.exceptions.Exit as exc:
+    except typer.Exit as exc:
         return int(exc.exit_code or 0)
-    except click.ClickException as exc:
+    except _ClickException as exc:
         exc.show()
         return 2 if exc.exit_code == 2 else int(exc.exit_code)
-    except (KeyboardInterrupt, click.exceptions.Abort):
+    except (KeyboardInterrupt, typer.Abort):
         err_console.print("interrupted; no partial output was written")
         return 130
     except OSError as exc:  # unreadable/unwritable paths, full disk

@@ -62,7 +62,8 @@ def render_html(sections: Sequence[Section], base: Path, title: str = "biomorph 
             parts.extend(f"<p>{html.escape(p)}</p>" for p in sec.text.split("\n\n"))
         for img in sec.images:
             rel = os.path.relpath(Path(img), base)
-            parts.append(f"<figure><img src='{html.escape(rel)}' alt='{html.escape(Path(img).stem)}'>"
+            alt = html.escape(Path(img).stem)
+            parts.append(f"<figure><img src='{html.escape(rel)}' alt='{alt}'>"
                          f"<figcaption>{html.escape(Path(img).name)}</figcaption></figure>")
         for tab in sec.tables:
             parts.append("<table>")

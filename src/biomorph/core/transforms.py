@@ -33,7 +33,8 @@ def identity(shape: tuple[int, ...] = ()) -> Array:
     return out
 
 
-def make_transform(rotation: ArrayLike | None = None, translation: ArrayLike | None = None) -> Array:
+def make_transform(rotation: ArrayLike | None = None,
+                   translation: ArrayLike | None = None) -> Array:
     """Build ``(..., 4, 4)`` transforms from a rotation and a translation (metres).
 
     ``rotation`` is either 3x3 matrices ``(..., 3, 3)`` or quaternions ``(..., 4)``;
