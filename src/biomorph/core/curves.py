@@ -1,0 +1,264 @@
+"""Curves: cubic Béziers, polylines by arc length, and interpolating splines.
+
+All functions are vectorised: control polygons may carry leading batch axes
+``(..., 4, d)`` and parameters are arrays. Splines wrap scipy's well-kept interpolators
+(natural cubic, PCHIP) and add a Catmull–Rom spline (cubic Hermite with centred tangents),
+input validation with clear errors, and an ``extrapolate`` policy (``"clamp"`` holds the end
+values, which is what editing curves — blend weights, speed keys — want).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import CubicHermiteSpline, CubicSpline, PchipInterpolator
+
+from biomorph.errors import ParameterError
+
+Array = NDArray[np.float64]
+
+# 16-point Gauss–Legendre rule on [0, 1] for arc-length integrals of cubic segments
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(16)
+_GL_X = 0.5 * (_GL_X + 1.0)
+_GL_W = 0.5 * _GL_W
+
+
+# --------------------------------------------------------------------------- Bézier
+def _bernstein(t: Array) -> Array:
+    mt = 1.0 - t
+    return np.stack([mt**3, 3 * mt**2 * t, 3 * mt * t**2, t**3], axis=-1)
+
+
+def _check_ctrl(ctrl: ArrayLike) -> Array:
+    c = np.asarray(ctrl, dtype=float)
+    if c.ndim < 2 or c.shape[-2] != 4:
+        raise ParameterError(f"cubic Bézier control points have shape {c.shape}; "
+                             "expected (..., 4, d)")
+    return c
+
+
+def bezier_eval(ctrl: ArrayLike, t: ArrayLike) -> Array:
+    """Points of cubic Béziers ``ctrl (..., 4, d)`` at parameters ``t``.
+
+    Scalar ``t`` gives ``(..., d)``; ``t`` of shape ``(m,)`` gives ``(..., m, d)``.
+    """
+    c = _check_ctrl(ctrl)
+    t_arr = np.asarray(t, dtype=float)
+    basis = _bernstein(np.atleast_1d(t_arr))  # (m, 4)
+    out = np.einsum("mk,...kd->...md", basis, c)
+    return out[..., 0, :] if t_arr.ndim == 0 else out
+
+
+def bezier_derivative(ctrl: ArrayLike, t: ArrayLike, order: int = 1) -> Array:
+    """Derivative of order 1, 2 or 3 with respect to ``t`` (same shapes as :func:`bezier_eval`)."""
+    c = _check_ctrl(ctrl)
+    t_arr = np.asarray(t, dtype=float)
+    tt = np.atleast_1d(t_arr)
+    if order == 1:
+        d = 3.0 * np.diff(c, axis=-2)  # (...,3,d) quadratic
+        mt = 1.0 - tt
+        basis = np.stack([mt**2, 2 * mt * tt, tt**2], axis=-1)
+    elif order == 2:
+        d = 6.0 * np.diff(c, n=2, axis=-2)  # (...,2,d) linear
+        basis = np.stack([1.0 - tt, tt], axis=-1)
+    elif order == 3:
+        d = 6.0 * np.diff(c, n=3, axis=-2)
+        basis = np.ones((tt.size, 1))
+    else:
+        raise ParameterError(f"derivative order {order} not in 1, 2, 3")
+    out = np.einsum("mk,...kd->...md", basis, d)
+    return out[..., 0, :] if t_arr.ndim == 0 else out
+
+
+def bezier_split(ctrl: ArrayLike, t: float) -> tuple[Array, Array]:
+    """Split at ``t`` by de Casteljau: two control polygons covering [0, t] and [t, 1]."""
+    c = _check_ctrl(ctrl)
+    p01 = (1 - t) * c[..., 0, :] + t * c[..., 1, :]
+    p12 = (1 - t) * c[..., 1, :] + t * c[..., 2, :]
+    p23 = (1 - t) * c[..., 2, :] + t * c[..., 3, :]
+    p012 = (1 - t) * p01 + t * p12
+    p123 = (1 - t) * p12 + t * p23
+    mid = (1 - t) * p012 + t * p123
+    left = np.stack([c[..., 0, :], p01, p012, mid], axis=-2)
+    right = np.stack([mid, p123, p23, c[..., 3, :]], axis=-2)
+    return left, right
+
+
+def bezier_arc_length(ctrl: ArrayLike, t0: float = 0.0, t1: float = 1.0,
+                      segments: int = 8) -> Array:
+    """Arc length of cubic Béziers between ``t0`` and ``t1`` (Gauss–Legendre, piecewise).
+
+    Returns shape ``(...)``. Accurate to ~1e-10 relative for well-behaved curves.
+    """
+    edges = np.linspace(t0, t1, segments + 1)
+    h = np.diff(edges)
+    nodes = (edges[:-1, None] + h[:, None] * _GL_X[None, :]).ravel()
+    weights = (h[:, None] * _GL_W[None, :]).ravel()
+    speed = np.linalg.norm(bezier_derivative(ctrl, nodes), axis=-1)
+    return speed @ weights
+
+
+def bezier_arclength_params(ctrl: ArrayLike, n: int, samples: int = 256) -> Array:
+    """Parameters ``t`` of ``n`` points spaced equally by arc length (ends included).
+
+    Works on batches: ``ctrl (..., 4, d)`` gives ``(..., n)``. The arc-length function is
+    tabulated at ``samples`` parameters (trapezoid on the speed) and inverted linearly.
+    """
+    if n < 2:
+        raise ParameterError(f"need at least 2 points along the curve, got n={n}")
+    c = _check_ctrl(ctrl)
+    tt = np.linspace(0.0, 1.0, samples)
+    speed = np.linalg.norm(bezier_derivative(c, tt), axis=-1)  # (..., samples)
+    cum = np.concatenate([np.zeros(speed.shape[:-1] + (1,)),
+                          np.cumsum(0.5 * (speed[..., 1:] + speed[..., :-1]) * np.diff(tt),
+                                    axis=-1)], axis=-1)
+    total = cum[..., -1:]
+    flat = cum.reshape(-1, samples)
+    tot = flat[:, -1:]
+    # normalise each curve's table to [0, 1] and offset rows by 2 so one searchsorted
+    # over the flattened tables inverts every curve at once
+    u = np.where(tot > 0, flat / np.where(tot > 0, tot, 1.0), tt[None, :])
+    rows = np.arange(flat.shape[0])[:, None] * 2.0
+    table = (u + rows).ravel()
+    query = (np.linspace(0.0, 1.0, n)[None, :] + rows).ravel()
+    j = np.clip(np.searchsorted(table, query, side="right") - 1, 0, table.size - 2)
+    j = np.minimum(j, (np.arange(flat.shape[0])[:, None] * samples + samples - 2)
+                   .repeat(n, axis=1).ravel())
+    t_all = np.tile(tt, flat.shape[0])
+    du = table[j + 1] - table[j]
+    frac = np.where(du > 0, (query - table[j]) / np.where(du > 0, du, 1.0), 0.0)
+    out = t_all[j] + frac * (t_all[j + 1] - t_all[j])
+    out = out.reshape(flat.shape[0], n)
+    out[:, 0], out[:, -1] = 0.0, 1.0
+    target_shape = total.shape[:-1] + (n,)
+    return out.reshape(target_shape)
+
+
+# --------------------------------------------------------------------------- polylines
+def polyline_arc_length(points: ArrayLike) -> Array:
+    """Cumulative arc length ``s`` (starting at 0) along a polyline ``(..., n, d)``."""
+    p = np.asarray(points, dtype=float)
+    seg = np.linalg.norm(np.diff(p, axis=-2), axis=-1)
+    return np.concatenate([np.zeros(seg.shape[:-1] + (1,)), np.cumsum(seg, axis=-1)], axis=-1)
+
+
+def resample_polyline(points: ArrayLike, n: int | None = None,
+                      s: ArrayLike | None = None) -> Array:
+    """Points along a polyline ``(n_in, d)`` at ``n`` equal arc-length steps or at arc
+    lengths ``s`` (metres from the start, clamped to the length)."""
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[0] < 2:
+        raise ParameterError(f"polyline needs shape (n>=2, d), got {p.shape}")
+    cum = polyline_arc_length(p)
+    if (n is None) == (s is None):
+        raise ParameterError("give exactly one of n (point count) or s (arc lengths)")
+    if n is not None:
+        if n < 2:
+            raise ParameterError(f"resample needs n >= 2, got {n}")
+        s_new = np.linspace(0.0, cum[-1], n)
+    else:
+        s_new = np.clip(np.asarray(s, dtype=float), 0.0, cum[-1])
+    # drop zero-length steps so np.interp sees strictly increasing abscissae
+    keep = np.concatenate([[True], np.diff(cum) > 0])
+    if keep.sum() < 2:
+        return np.repeat(p[:1], len(s_new), axis=0)
+    return np.stack([np.interp(s_new, cum[keep], p[keep, k]) for k in range(p.shape[1])],
+                    axis=-1)
+
+
+# --------------------------------------------------------------------------- splines
+Extrapolate = Literal["clamp", "extrapolate"]
+
+
+def _check_knots(x: ArrayLike, y: ArrayLike, name: str, minimum: int = 2) -> tuple[Array, Array]:
+    xa = np.asarray(x, dtype=float).reshape(-1)
+    ya = np.asarray(y, dtype=float)
+    if xa.size < minimum:
+        raise ParameterError(f"{name} needs at least {minimum} keys, got {xa.size}")
+    if ya.shape[0] != xa.size:
+        raise ParameterError(f"{name}: {xa.size} key positions but {ya.shape[0]} key values")
+    if not (np.isfinite(xa).all() and np.isfinite(ya).all()):
+        raise ParameterError(f"{name}: keys hold NaN or inf")
+    if np.any(np.diff(xa) <= 0):
+        i = int(np.flatnonzero(np.diff(xa) <= 0)[0])
+        raise ParameterError(f"{name}: key positions must increase strictly; "
+                             f"x[{i}]={xa[i]:g} then x[{i + 1}]={xa[i + 1]:g}")
+    return xa, ya
+
+
+class _Spline:
+    """Common evaluation with an extrapolation policy."""
+
+    def __init__(self, x: Array, impl, extrapolate: Extrapolate) -> None:
+        if extrapolate not in ("clamp", "extrapolate"):
+            raise ParameterError(f"extrapolate must be 'clamp' or 'extrapolate', "
+                                 f"got {extrapolate!r}")
+        self.x = x
+        self._impl = impl
+        self.extrapolate = extrapolate
+
+    def __call__(self, t: ArrayLike) -> Array:
+        t = np.asarray(t, dtype=float)
+        if self.extrapolate == "clamp":
+            t = np.clip(t, self.x[0], self.x[-1])
+        return self._impl(t)
+
+    def derivative(self, order: int = 1):
+        """The derivative as a callable (zero outside the keys when clamped)."""
+        d = self._impl.derivative(order)
+        x0, x1, clamp = self.x[0], self.x[-1], self.extrapolate == "clamp"
+
+        def f(t: ArrayLike) -> Array:
+            t = np.asarray(t, dtype=float)
+            out = d(np.clip(t, x0, x1) if clamp else t)
+            if clamp:
+                outside = (t < x0) | (t > x1)
+                out = np.where(outside.reshape(outside.shape + (1,) * (out.ndim - t.ndim)),
+                               0.0, out)
+            return out
+
+        return f
+
+    def integral(self, a: float, b: float) -> Array:
+        """Integral from ``a`` to ``b`` (inside the keys)."""
+        return self._impl.integrate(a, b)
+
+
+class NaturalCubicSpline(_Spline):
+    """C2 interpolating cubic with zero second derivative at both ends.
+
+    ``y`` may be ``(n,)`` or ``(n, d)``. Two keys give a straight line.
+    """
+
+    def __init__(self, x: ArrayLike, y: ArrayLike, extrapolate: Extrapolate = "clamp") -> None:
+        xa, ya = _check_knots(x, y, "natural cubic spline")
+        super().__init__(xa, CubicSpline(xa, ya, bc_type="natural", axis=0), extrapolate)
+
+
+class MonotoneSpline(_Spline):
+    """Shape-preserving C1 cubic (PCHIP, Fritsch–Carlson): no overshoot between keys,
+    monotone data stay monotone."""
+
+    def __init__(self, x: ArrayLike, y: ArrayLike, extrapolate: Extrapolate = "clamp") -> None:
+        xa, ya = _check_knots(x, y, "monotone spline")
+        super().__init__(xa, PchipInterpolator(xa, ya, axis=0), extrapolate)
+
+
+class CatmullRomSpline(_Spline):
+    """C1 cubic Hermite through the keys with centred (Catmull–Rom) tangents
+    ``(y[i+1] - y[i-1]) / (x[i+1] - x[i-1])`` and one-sided tangents at the ends."""
+
+    def __init__(self, x: ArrayLike, y: ArrayLike, extrapolate: Extrapolate = "clamp") -> None:
+        xa, ya = _check_knots(x, y, "Catmull-Rom spline")
+        dydx = np.empty_like(ya)
+        dydx[1:-1] = (ya[2:] - ya[:-2]) / (xa[2:] - xa[:-2]).reshape((-1,) + (1,) * (ya.ndim - 1))
+        dydx[0] = (ya[1] - ya[0]) / (xa[1] - xa[0])
+        dydx[-1] = (ya[-1] - ya[-2]) / (xa[-1] - xa[-2])
+        super().__init__(xa, CubicHermiteSpline(xa, ya, dydx, axis=0), extrapolate)
+
+
+__all__ = ["bezier_eval", "bezier_derivative", "bezier_split", "bezier_arc_length",
+           "bezier_arclength_params", "polyline_arc_length", "resample_polyline",
+           "NaturalCubicSpline", "MonotoneSpline", "CatmullRomSpline"]
