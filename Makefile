@@ -20,7 +20,7 @@ $(STAMP): pyproject.toml
 # Khronos glTF validator (npm registry) for the glTF tests; skipped with a notice if npm is absent.
 $(GLTF_VALIDATOR):
 	@if command -v npm >/dev/null; then \
-		mkdir -p $(TOOLS) && npm install --silent --no-audit --no-fund --prefix $(TOOLS) gltf-validator@2; \
+		mkdir -p $(TOOLS) && npm install --silent --no-audit --no-fund --prefix $(TOOLS) gltf-validator@2.0.0-dev.3.10; \
 	else echo "npm not found: glTF validator tests will be skipped"; fi
 
 tools: $(STAMP) $(GLTF_VALIDATOR)
