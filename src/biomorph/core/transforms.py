@@ -199,7 +199,10 @@ def quat_from_axis_angle(axis: str | ArrayLike, angle: ArrayLike) -> Array:
         vec = np.asarray(axis, dtype=float)
         vec = vec / np.linalg.norm(vec, axis=-1, keepdims=True)
     half = 0.5 * angle[..., None]
-    return np.concatenate(np.broadcast_arrays(vec * np.sin(half), np.cos(half)), axis=-1)
+    xyz, w = vec * np.sin(half), np.cos(half)
+    lead = np.broadcast_shapes(xyz.shape[:-1], w.shape[:-1])
+    return np.concatenate([np.broadcast_to(xyz, lead + (3,)), np.broadcast_to(w, lead + (1,))],
+                          axis=-1)
 
 
 def quat_to_rotvec(q: ArrayLike) -> Array:
