@@ -1,0 +1,332 @@
+"""Point-cloud preparation for tree skeletonisation (seed 001, thesis §3.2 and beyond).
+
+Every function is pure: it takes a :class:`~biomorph.core.pointcloud.PointCloud` and returns a
+new one. Coordinates are metres, Z up, in the cloud's frame (``xyz``); the original
+(possibly georeferenced) frame is ``xyz + offset`` and is never changed by these functions.
+
+Steps, in the order :func:`prepare` applies them:
+
+1. :func:`validate_cloud` -- empty, too few points, NaN/inf, coplanar/collinear clouds fail
+   with an :class:`~biomorph.errors.InputError` naming the cloud's source.
+2. :func:`centre` -- bottom centre of the bounding box to the origin; ``offset`` accumulates.
+3. :func:`filter_attribute` -- keep points whose attribute (e.g. LAS ``Deviation``) lies in
+   a range.
+4. :func:`downsample` -- random ratio, random per voxel (thesis) or voxel centroid.
+5. :func:`remove_outliers` -- statistical outlier removal on the k-NN mean distance.
+6. ground removal (:mod:`biomorph.tree.ground`) so the ground is never skeletonised.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from biomorph.core.pointcloud import PointCloud
+from biomorph.errors import InputError, ParameterError
+
+__all__ = ["validate_cloud", "centre", "filter_attribute", "downsample", "remove_outliers",
+           "point_spacing", "prepare", "PreparedCloud", "has_ground"]
+
+#: Minimum number of points a cloud needs to be skeletonised.
+MIN_POINTS = 10
+
+
+def _name(cloud: PointCloud) -> str:
+    return cloud.source or "point cloud"
+
+
+def validate_cloud(cloud: PointCloud) -> None:
+    """Raise :class:`InputError` if ``cloud`` cannot be skeletonised.
+
+    Checks: at least :data:`MIN_POINTS` points, finite coordinates, and a truly 3-D spread
+    (the PCA eigenvalues of the coordinates: the smallest must exceed ``1e-10`` of the
+    largest and the second ``1e-10`` of it as well, else the points are coplanar or collinear).
+    The message names the cloud's ``source``.
+    """
+    name = _name(cloud)
+    n = cloud.n_points
+    if n == 0:
+        raise InputError(f"{name} is empty; expected at least {MIN_POINTS} points")
+    if n < MIN_POINTS:
+        raise InputError(f"{name} has {n} point{'s' if n != 1 else ''}; expected at least "
+                         f"{MIN_POINTS} to skeletonise a tree")
+    xyz = cloud.xyz
+    finite = np.isfinite(xyz).all(axis=1)
+    if not finite.all():
+        bad = int(np.flatnonzero(~finite)[0])
+        raise InputError(f"{name}: point {bad} has a non-finite coordinate (NaN or inf); "
+                         f"expected finite numbers ({int((~finite).sum())} bad points)")
+    d = xyz - xyz.mean(axis=0)
+    ev = np.linalg.eigvalsh(d.T @ d / n)  # ascending
+    top = ev[2]
+    if top <= 0 or ev[1] <= 1e-10 * top:
+        raise InputError(f"{name}: all {n} points lie on one line (or coincide); expected a "
+                         "3-D tree point cloud")
+    if ev[0] <= 1e-10 * top:
+        raise InputError(f"{name}: all {n} points are coplanar; expected a 3-D tree point "
+                         "cloud with volume")
+
+
+def centre(cloud: PointCloud) -> PointCloud:
+    """Move the bottom centre of the bounding box to the origin.
+
+    The shift is added to ``offset`` so ``world_xyz`` is unchanged. Coordinates are kept in
+    float64 relative to the offset, so georeferenced clouds (~1e6 m) keep sub-micrometre
+    precision once centred (round-off of ``world_xyz`` stays below ~1e-9 m at 1e6 m).
+    """
+    lo, hi = cloud.bounds()
+    shift = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    return cloud.with_(xyz=cloud.xyz - shift, offset=cloud.offset + shift)
+
+
+def filter_attribute(cloud: PointCloud, name: str, max_value: float | None = None,
+                     min_value: float | None = None) -> PointCloud:
+    """Keep the points whose attribute ``name`` lies in ``[min_value, max_value]``.
+
+    Used e.g. with the LAS ``Deviation`` attribute (thesis: drop noisy returns). Raises
+    :class:`ParameterError` if the attribute is missing or no bound is given.
+    """
+    if name not in cloud.attributes:
+        have = ", ".join(sorted(cloud.attributes)) or "none"
+        raise ParameterError(f"{_name(cloud)} has no attribute {name!r} to filter on; "
+                             f"available: {have}")
+    if max_value is None and min_value is None:
+        raise ParameterError("filter_attribute needs max_value and/or min_value")
+    v = np.asarray(cloud.attributes[name], dtype=float)
+    keep = np.ones(cloud.n_points, dtype=bool)
+    if max_value is not None:
+        keep &= v <= max_value
+    if min_value is not None:
+        keep &= v >= min_value
+    return cloud.select(keep)
+
+
+def _voxel_keys(xyz: NDArray[np.float64], voxel_size: float) -> NDArray[np.int64]:
+    """Unique-able integer key per point of the voxel it falls into."""
+    ijk = np.floor((xyz - xyz.min(axis=0)) / voxel_size).astype(np.int64)
+    dims = ijk.max(axis=0) + 1
+    return (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+
+
+def downsample(cloud: PointCloud, method: str = "ratio", ratio: float | None = None,
+               voxel_size: float | None = None, seed: int = 0) -> PointCloud:
+    """Reduce the number of points.
+
+    Parameters
+    ----------
+    method : ``"ratio"`` keeps a random fraction ``ratio`` of all points (thesis method 1);
+        ``"voxel"`` keeps a random fraction ``ratio`` (default: one point) of the points of
+        each cube of edge ``voxel_size`` metres (thesis method 2, spatially even);
+        ``"centroid"`` replaces the points of each voxel by their centroid (attributes of one
+        point of the voxel are kept).
+    ratio : fraction in (0, 1].
+    voxel_size : voxel edge in metres (``"voxel"`` and ``"centroid"``).
+    seed : random seed; the same seed gives the same subset.
+    """
+    rng = np.random.default_rng(seed)
+    n = cloud.n_points
+    if ratio is not None and not (0 < ratio <= 1):
+        raise ParameterError(f"downsample ratio must lie in (0, 1]; got {ratio}")
+    if method == "ratio":
+        if ratio is None:
+            raise ParameterError("downsample method 'ratio' needs ratio in (0, 1]")
+        k = max(1, int(round(ratio * n)))
+        idx = np.sort(rng.choice(n, size=k, replace=False))
+        return cloud.select(idx)
+    if method not in ("voxel", "centroid"):
+        raise ParameterError(f"downsample method must be 'ratio', 'voxel' or 'centroid'; "
+                             f"got {method!r}")
+    if voxel_size is None or not voxel_size > 0:
+        raise ParameterError(f"downsample method {method!r} needs voxel_size > 0 (metres); "
+                             f"got {voxel_size}")
+    if n == 0:
+        return cloud
+    keys = _voxel_keys(cloud.xyz, voxel_size)
+    if method == "centroid":
+        uniq, first, inv, counts = np.unique(keys, return_index=True, return_inverse=True,
+                                             return_counts=True)
+        sums = np.zeros((uniq.size, 3))
+        np.add.at(sums, inv, cloud.xyz)
+        rep = cloud.select(first)
+        return rep.with_(xyz=sums / counts[:, None])
+    perm = rng.permutation(n)
+    k = keys[perm]
+    order = np.argsort(k, kind="stable")
+    ks = k[order]
+    start = np.r_[0, np.flatnonzero(np.diff(ks)) + 1]
+    counts = np.diff(np.r_[start, ks.size])
+    rank = np.arange(ks.size) - np.repeat(start, counts)
+    quota = np.ones_like(counts) if ratio is None else np.maximum(
+        1, np.round(ratio * counts).astype(np.int64))
+    keep = rank < np.repeat(quota, counts)
+    idx = np.sort(perm[order[keep]])
+    return cloud.select(idx)
+
+
+def remove_outliers(cloud: PointCloud, k: int = 16, std_ratio: float = 2.0, *,
+                    return_mask: bool = False) -> PointCloud | tuple[PointCloud, NDArray]:
+    """Statistical outlier removal.
+
+    A point is an outlier when its mean distance to its ``k`` nearest neighbours exceeds
+    ``mean + std_ratio * std`` of that statistic over the cloud. With ``return_mask`` the
+    boolean inlier mask is returned as well.
+    """
+    if k < 1:
+        raise ParameterError(f"remove_outliers k must be >= 1; got {k}")
+    n = cloud.n_points
+    if n <= k + 1:
+        keep = np.ones(n, dtype=bool)
+    else:
+        d, _ = cKDTree(cloud.xyz).query(cloud.xyz, k=k + 1, workers=-1)
+        md = d[:, 1:].mean(axis=1)
+        keep = md <= md.mean() + std_ratio * md.std()
+    out = cloud.select(keep)
+    return (out, keep) if return_mask else out
+
+
+def point_spacing(cloud: PointCloud, max_samples: int = 200_000, seed: int = 0) -> float:
+    """Median nearest-neighbour distance (metres), over at most ``max_samples`` query points.
+
+    Duplicate points (distance 0) are ignored; raises :class:`InputError` for fewer than two
+    distinct points.
+    """
+    xyz = cloud.xyz
+    if xyz.shape[0] < 2:
+        raise InputError(f"{_name(cloud)} has fewer than 2 points; cannot estimate spacing")
+    tree = cKDTree(xyz)
+    q = xyz
+    if xyz.shape[0] > max_samples:
+        q = xyz[np.random.default_rng(seed).choice(xyz.shape[0], max_samples, replace=False)]
+    d, _ = tree.query(q, k=4, workers=-1)
+    d = d[:, 1:]
+    d = np.where(d > 0, d, np.inf).min(axis=1)
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        raise InputError(f"{_name(cloud)}: all points coincide; cannot estimate spacing")
+    return float(np.median(d))
+
+
+def has_ground(cloud: PointCloud, cell: float | None = None) -> bool:
+    """Heuristic: does the cloud contain a ground surface below the tree(s)?
+
+    The XY plane is cut into cells (``cell`` metres; default ``max(0.5, extent/20)``). A cell
+    counts as *low* when its lowest point lies less than ``0.5 m + 0.15 * d`` above the lowest
+    point of the cloud, ``d`` being the horizontal distance to that point (slopes up to
+    ~8.5°). A single segmented tree has low cells only at its stem base; a plot with terrain
+    has them almost everywhere. Ground is assumed when more than half the occupied cells are
+    low and there are at least 6 of them.
+    """
+    xyz = cloud.xyz
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    ext = float(max(hi[0] - lo[0], hi[1] - lo[1]))
+    c = cell if cell else max(0.5, ext / 20)
+    ij = np.floor((xyz[:, :2] - lo[:2]) / c).astype(np.int64)
+    key = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]
+    uniq, inv = np.unique(key, return_inverse=True)
+    zmin = np.full(uniq.size, np.inf)
+    np.minimum.at(zmin, inv, xyz[:, 2])
+    cent = np.zeros((uniq.size, 2))
+    np.add.at(cent, inv, xyz[:, :2])
+    cent /= np.bincount(inv, minlength=uniq.size)[:, None]
+    i0 = int(np.argmin(xyz[:, 2]))
+    dist = np.linalg.norm(cent - xyz[i0, :2], axis=1)
+    low = zmin - xyz[i0, 2] < 0.5 + 0.15 * dist
+    return bool(low.sum() >= 6 and low.mean() > 0.5)
+
+
+_centre = centre
+_downsample = downsample
+
+
+@dataclass(frozen=True)
+class PreparedCloud:
+    """Result of :func:`prepare`.
+
+    ``cloud``: the vegetation points ready for skeletonisation; ``ground``: the removed ground
+    points (or ``None``); ``steps``: per step what was done -- ``{"name": {"points_in": ...,
+    "points_out": ..., "seconds": ..., **details}}`` in execution order.
+    """
+
+    cloud: PointCloud
+    ground: PointCloud | None = None
+    steps: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+
+def prepare(cloud: PointCloud, *, centre: bool = True,  # noqa: PLR0913
+            filter: dict[str, Any] | tuple | None = None,  # noqa: A002
+            downsample: dict[str, Any] | float | None = None,
+            outliers: bool | dict[str, Any] = True, ground: str | None = "auto",
+            seed: int = 0, ground_params: dict[str, Any] | None = None) -> PreparedCloud:
+    """Validate, centre, filter, downsample, de-noise and remove ground, in that order.
+
+    Parameters
+    ----------
+    centre : move the bottom centre of the bbox to the origin (offset kept).
+    filter : ``{"name": "Deviation", "max_value": 50}`` (or a tuple ``(name, max, min)``).
+    downsample : a ratio (float) or keyword arguments of :func:`downsample`.
+    outliers : ``True`` for defaults, a dict of :func:`remove_outliers` arguments, or False.
+    ground : ``"auto"`` (the default method of :func:`biomorph.tree.ground.remove_ground`,
+        only if :func:`has_ground` detects a ground surface), ``"csf"``, ``"grid"`` or None.
+    seed : random seed of the downsampling.
+    """
+    steps: dict[str, dict[str, Any]] = {}
+    validate_cloud(cloud)
+    cur = cloud
+
+    def record(name: str, before: int, t0: float, **extra: Any) -> None:
+        steps[name] = {"points_in": before, "points_out": cur.n_points,
+                       "seconds": time.perf_counter() - t0, **extra}
+
+    if centre:
+        t0 = time.perf_counter()
+        n0 = cur.n_points
+        cur = _centre(cur)
+        record("centre", n0, t0, offset=[float(v) for v in cur.offset])
+    if filter is not None:
+        t0 = time.perf_counter()
+        n0 = cur.n_points
+        if isinstance(filter, dict):
+            cur = filter_attribute(cur, **filter)
+            record("filter", n0, t0, **filter)
+        else:
+            cur = filter_attribute(cur, *filter)
+            record("filter", n0, t0, args=list(filter))
+    if downsample is not None:
+        t0 = time.perf_counter()
+        n0 = cur.n_points
+        kw = {"method": "ratio", "ratio": float(downsample)} if isinstance(
+            downsample, (int, float)) else dict(downsample)
+        kw.setdefault("seed", seed)
+        cur = _downsample(cur, **kw)
+        record("downsample", n0, t0, **kw)
+    if outliers:
+        t0 = time.perf_counter()
+        n0 = cur.n_points
+        kw = {} if outliers is True else dict(outliers)
+        cur = remove_outliers(cur, **kw)
+        record("outliers", n0, t0, **kw)
+    ground_cloud = None
+    if ground is not None:
+        from biomorph.tree.ground import DEFAULT_METHOD, remove_ground
+
+        t0 = time.perf_counter()
+        n0 = cur.n_points
+        method = ground
+        run = True
+        if ground == "auto":
+            method = DEFAULT_METHOD
+            run = has_ground(cur)
+        if run:
+            veg, mask = remove_ground(cur, method=method, **(ground_params or {}))
+            ground_cloud = cur.select(mask)
+            cur = veg
+            record("ground", n0, t0, method=method, ground_points=int(mask.sum()))
+        else:
+            record("ground", n0, t0, method=None, detail="no ground surface detected")
+    validate_cloud(cur)
+    return PreparedCloud(cloud=cur, ground=ground_cloud, steps=steps)

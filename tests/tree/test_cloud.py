@@ -1,0 +1,118 @@
+"""Cloud preparation: validation, centring, filtering, downsampling, outliers, prepare."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from biomorph.core.pointcloud import PointCloud
+from biomorph.errors import InputError, ParameterError
+from biomorph.tree.cloud import (
+    centre,
+    downsample,
+    filter_attribute,
+    has_ground,
+    point_spacing,
+    prepare,
+    remove_outliers,
+    validate_cloud,
+)
+from biomorph.tree.synthetic import generate_tree, simulate_scan
+
+
+def _blob(n=500, seed=0, offset=(0.0, 0.0, 0.0)):
+    rng = np.random.default_rng(seed)
+    return PointCloud(rng.normal(size=(n, 3)) + np.asarray(offset), source="blob.xyz",
+                      attributes={"dev": rng.uniform(0, 10, n)})
+
+
+@pytest.mark.parametrize("xyz, word", [
+    (np.zeros((0, 3)), "empty"),
+    (np.ones((1, 3)), "1 point"),
+    (np.random.default_rng(0).normal(size=(5, 3)), "5 points"),
+    (np.c_[np.random.default_rng(0).normal(size=(50, 2)), np.zeros(50)], "coplanar"),
+    (np.outer(np.arange(50.0), [1, 2, 3]), "one line"),
+    (np.ones((50, 3)), "one line"),
+])
+def test_validate_rejects_bad_clouds(xyz, word):
+    with pytest.raises(InputError, match=word) as e:
+        validate_cloud(PointCloud(xyz, source="bad.laz"))
+    assert "bad.laz" in str(e.value)
+
+
+def test_validate_rejects_nan():
+    xyz = np.random.default_rng(0).normal(size=(50, 3))
+    xyz[7, 1] = np.nan
+    with pytest.raises(InputError, match="point 7 .*non-finite"):
+        validate_cloud(PointCloud(xyz, source="nan.xyz"))
+
+
+def test_centre_keeps_world_coordinates_georeferenced():
+    c = _blob(offset=(512345.678, 5401234.567, 300.0))
+    c2 = centre(c)
+    lo, hi = c2.bounds()
+    assert abs(lo[2]) < 1e-12 and abs(lo[0] + hi[0]) < 1e-5 and abs(lo[1] + hi[1]) < 1e-5
+    np.testing.assert_allclose(c2.world_xyz, c.world_xyz, rtol=0, atol=1e-9)
+    c3 = centre(c2)  # idempotent-ish, offsets accumulate
+    np.testing.assert_allclose(c3.world_xyz, c.world_xyz, rtol=0, atol=1e-9)
+    assert c.offset.sum() == 0  # input untouched
+
+
+def test_filter_attribute():
+    c = _blob()
+    f = filter_attribute(c, "dev", max_value=5)
+    assert (f.attributes["dev"] <= 5).all() and 0 < f.n_points < c.n_points
+    with pytest.raises(ParameterError, match="no attribute 'Deviation'"):
+        filter_attribute(c, "Deviation", max_value=1)
+
+
+@pytest.mark.parametrize("method", ["ratio", "voxel", "centroid"])
+def test_downsample_methods_deterministic(method):
+    c = _blob(5000)
+    kw = {"ratio": 0.3} if method == "ratio" else {"voxel_size": 0.5, "ratio": 0.3}
+    a = downsample(c, method, seed=3, **kw)
+    b = downsample(c, method, seed=3, **kw)
+    assert np.array_equal(a.xyz, b.xyz)
+    assert 0 < a.n_points < c.n_points
+    if method == "ratio":
+        assert a.n_points == 1500
+    if method == "centroid":  # one point per occupied voxel
+        keys = np.unique(np.floor((c.xyz - c.xyz.min(0)) / 0.5), axis=0)
+        assert a.n_points == keys.shape[0]
+
+
+def test_downsample_bad_parameters():
+    c = _blob()
+    with pytest.raises(ParameterError, match="ratio"):
+        downsample(c, "ratio", ratio=1.5)
+    with pytest.raises(ParameterError, match="voxel_size"):
+        downsample(c, "voxel")
+    with pytest.raises(ParameterError, match="method"):
+        downsample(c, "nope", ratio=0.5)
+
+
+def test_remove_outliers_drops_far_points():
+    c = _blob(2000)
+    xyz = np.vstack([c.xyz, [[50, 50, 50], [-40, 10, 0]]])
+    out, keep = remove_outliers(PointCloud(xyz), return_mask=True)
+    assert not keep[-1] and not keep[-2] and keep[:-2].mean() > 0.9
+
+
+def test_point_spacing_grid():
+    g = np.stack(np.meshgrid(*[np.arange(10) * 0.02] * 3), -1).reshape(-1, 3)
+    assert point_spacing(PointCloud(g)) == pytest.approx(0.02)
+
+
+def test_has_ground_and_prepare_removes_ground():
+    truth = generate_tree("aspen", seed=1)
+    scan = simulate_scan(truth, n_points=6000, seed=1)
+    nog = scan.select(~scan.attributes["is_ground"])
+    assert has_ground(scan) and not has_ground(nog)
+    p = prepare(scan, outliers=False)
+    assert p.ground is not None and "ground" in p.steps
+    # almost all true ground removed, almost all wood kept
+    assert p.cloud.attributes["is_ground"].mean() < 0.02
+    assert p.cloud.n_points > 0.9 * nog.n_points
+    p2 = prepare(nog, downsample=0.5)
+    assert p2.ground is None and p2.steps["downsample"]["points_out"] == nog.n_points // 2
+    assert list(p2.steps) == ["centre", "downsample", "outliers", "ground"]
