@@ -158,7 +158,8 @@ class JointSkeleton:
             q = np.broadcast_to(q, lead + (n, 4))
             roots = self.parent < 0
             t[..., roots, :] = rp[..., None, :]
-        return tf.make_transform(q, t)
+        # explicit matrices: (n, 4) quaternions with n == 4 look like one 4x4 matrix
+        return tf.make_transform(tf.quat_to_matrix(q), t)
 
     def world_matrices(self, local: ArrayLike | None = None) -> NDArray[np.float64]:
         """World transforms ``(..., n, 4, 4)`` from local ones (default: rest pose).
