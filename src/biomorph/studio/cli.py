@@ -1,0 +1,50 @@
+"""``biomorph studio``: start the browser studio (registered on the root CLI)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def studio(
+    host: Annotated[str, typer.Option("--host", help="Interface to bind. Loopback by default; "
+                                      "anything else exposes the studio and the data folder "
+                                      "to the network.")] = "127.0.0.1",
+    port: Annotated[int, typer.Option("--port", help="TCP port (0 picks a free one).")] = 8080,
+    data: Annotated[Path, typer.Option("--data", help="Folder files are opened from and "
+                                       "saved to (nothing outside it is reachable).")] = Path("."),
+    max_upload_mb: Annotated[float, typer.Option("--max-upload-mb",
+                                                 help="Largest accepted upload.")] = 64.0,
+) -> None:
+    """Open the four pillars in the browser: creature, motion, tree, leaf (plus files).
+
+    Example: biomorph studio --data ./my-data --port 8080   (then open the printed URL)
+    """
+    from biomorph.errors import ParameterError
+    from biomorph.studio.server import StudioApp
+
+    if not 0 <= port <= 65535:
+        raise ParameterError(f"--port {port} is outside 0..65535")
+    if max_upload_mb <= 0:
+        raise ParameterError(f"--max-upload-mb must be positive, got {max_upload_mb}")
+    app = StudioApp(data, host=host, port=port, max_upload_bytes=int(max_upload_mb * 1e6))
+    try:
+        url = app.start()
+    except OSError as exc:
+        raise ParameterError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from exc
+    typer.echo(f"biomorph studio: open {url}  (data folder {app.sandbox.root}; Ctrl-C stops)")
+    if host not in ("127.0.0.1", "localhost", "::1"):
+        typer.echo(f"warning: listening on {host}, not only this machine", err=True)
+    try:
+        app.wait()
+    except KeyboardInterrupt:
+        typer.echo("stopping the studio")
+    finally:
+        app.stop()
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``studio`` command to the root ``biomorph`` app."""
+    app.command("studio")(studio)

@@ -1,0 +1,1 @@
+"""One module per studio tab: ``files``, ``creature``, ``motion``, ``tree``, ``leaf``."""

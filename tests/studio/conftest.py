@@ -1,0 +1,195 @@
+"""Browser-test harness: the studio in-process on a free port, Debian's chromium headless.
+
+Playwright never downloads a browser here: it drives ``/usr/bin/chromium`` (installed by
+``scripts/ensure_chromium.sh``). Tests needing it are marked ``browser`` and skip with a
+reason when it is absent. Set ``BIOMORPH_STUDIO_SCREENSHOTS=docs/img`` to keep one
+screenshot per tab (``studio_<tab>.png``) for the README.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import shutil
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+CHROMIUM = Path(os.environ.get("BIOMORPH_CHROMIUM", "/usr/bin/chromium"))
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                 "--no-first-run", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync"]
+VIEWPORT = {"width": 1100, "height": 720}
+
+
+def wait_for(cond: Callable[[], object], timeout: float = 10.0, what: str = "condition"
+             ) -> object:
+    """Poll ``cond`` until truthy; fail the test naming ``what`` after ``timeout`` seconds."""
+    end = time.monotonic() + timeout
+    while True:
+        value = cond()
+        if value:
+            return value
+        if time.monotonic() > end:
+            pytest.fail(f"timed out after {timeout:.0f} s waiting for {what}")
+        time.sleep(0.05)
+
+
+def png_stats(png: bytes) -> tuple[float, int]:
+    """(pixel variance, number of distinct colours) of a PNG screenshot."""
+    from PIL import Image
+
+    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=np.float64)
+    colours = np.unique(img.reshape(-1, 3).astype(np.uint8), axis=0)
+    return float(img.var()), int(len(colours))
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[object]:
+    """A headless Debian chromium driven by Playwright (session-wide)."""
+    if not CHROMIUM.exists():
+        pytest.skip(f"{CHROMIUM} is absent: run `bash scripts/ensure_chromium.sh` "
+                    "(apt install chromium) to enable the studio browser tests")
+    sync_api = pytest.importorskip("playwright.sync_api",
+                                   reason="the playwright package is not installed")
+    os.environ.setdefault("PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD", "1")
+    with sync_api.sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+class Studio:
+    """A running :class:`StudioApp` plus helpers to drive its page."""
+
+    def __init__(self, app, page) -> None:
+        self.app = app
+        self.page = page
+
+    # -------------------------------------------------------------- driving the page
+    def open_tab(self, label: str) -> None:
+        self.page.get_by_role("tab", name=label, exact=True).click()
+
+    def click(self, label: str) -> None:
+        self.page.get_by_role("button", name=label, exact=True).click()
+
+    def set_slider(self, handle, value: float) -> None:
+        """Type ``value`` into the number box beside a slider and commit it."""
+        from biomorph.studio.base import element_id
+
+        box = self.page.locator(f'[id="{element_id(handle)}"] ~ div input')
+        box.fill(str(value))
+        box.press("Enter")
+        box.blur()
+
+    def set_number(self, handle, value: float) -> None:
+        from biomorph.studio.base import element_id
+
+        box = self.page.locator(f'input[id="{element_id(handle)}"]')
+        box.fill(str(value))
+        box.press("Enter")
+        box.blur()
+
+    def set_checkbox(self, handle, value: bool) -> None:
+        from biomorph.studio.base import element_id
+
+        box = self.page.locator(f'input[id="{element_id(handle)}"]')
+        if box.is_checked() != value:
+            box.click()
+
+    def select(self, handle, option: str) -> None:
+        """Choose ``option`` in a dropdown."""
+        from biomorph.studio.base import element_id
+
+        self.page.locator(f'[id="{element_id(handle)}"]').click()
+        self.page.get_by_role("option", name=option, exact=True).click()
+
+    def upload(self, handle, path: Path) -> None:
+        from biomorph.studio.base import element_id
+
+        self.page.set_input_files(f'[id="file_upload_{element_id(handle)}"]', str(path))
+
+    def expect_text(self, text: str, timeout: float = 10.0) -> None:
+        """Wait until ``text`` is visible somewhere in the page."""
+        self.page.get_by_text(text, exact=False).first.wait_for(state="visible",
+                                                                 timeout=timeout * 1000)
+
+    # -------------------------------------------------------------- checks
+    def canvas_png(self) -> bytes:
+        """Screenshot of the 3-D view alone (the GUI panel excluded)."""
+        self.page.wait_for_timeout(400)  # let three.js draw the latest messages
+        box = self.page.locator("canvas").first.bounding_box()
+        assert box is not None, "no WebGL canvas in the page"
+        clip = {"x": box["x"] + 20, "y": box["y"] + 170,
+                "width": max(box["width"] * 0.7 - 40, 10), "height": box["height"] - 260}
+        return self.page.screenshot(clip=clip)
+
+    def assert_scene_not_blank(self) -> None:
+        var, colours = png_stats(self.canvas_png())
+        assert var > 20.0 and colours > 8, (f"3-D view looks blank (variance {var:.1f}, "
+                                            f"{colours} colours)")
+
+    def assert_scene_changed(self, before: bytes, min_pixels: int = 300) -> None:
+        """The 3-D view differs from the screenshot ``before`` in at least ``min_pixels``."""
+        from PIL import Image
+
+        a = np.asarray(Image.open(io.BytesIO(before)).convert("L"), dtype=np.int16)
+        after = self.canvas_png()
+        b = np.asarray(Image.open(io.BytesIO(after)).convert("L"), dtype=np.int16)
+        assert a.shape == b.shape
+        changed = int((np.abs(a - b) > 12).sum())
+        assert changed >= min_pixels, f"3-D view barely changed ({changed} pixels)"
+
+    def close_notifications(self) -> None:
+        for btn in self.page.locator(".mantine-Notification-closeButton").all():
+            try:
+                btn.click(timeout=1000)
+            except Exception:  # noqa: BLE001 - already gone
+                pass
+
+    def screenshot(self, tab: str, tmp: Path) -> Path:
+        """Full-page screenshot; copied to $BIOMORPH_STUDIO_SCREENSHOTS if set."""
+        self.close_notifications()
+        self.page.wait_for_timeout(600)
+        out = tmp / f"studio_{tab}.png"
+        self.page.screenshot(path=str(out))
+        var, _ = png_stats(out.read_bytes())
+        assert var > 20.0, f"screenshot of the {tab} tab is blank"
+        keep = os.environ.get("BIOMORPH_STUDIO_SCREENSHOTS")
+        if keep:
+            Path(keep).mkdir(parents=True, exist_ok=True)
+            shutil.copy(out, Path(keep) / out.name)
+        return out
+
+
+@pytest.fixture(scope="module")
+def studio_app(tmp_path_factory):
+    """A studio on a free loopback port over a fresh data folder (1 MB upload limit)."""
+    from biomorph.studio import StudioApp
+
+    data = tmp_path_factory.mktemp("studio_data")
+    app = StudioApp(data, host="127.0.0.1", port=0, max_upload_bytes=1_000_000)
+    app.start()
+    try:
+        yield app
+    finally:
+        app.stop()
+
+
+@pytest.fixture
+def studio(studio_app, browser) -> Iterator[Studio]:
+    """A fresh page connected to the module's studio."""
+    ctx = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
+    page = ctx.new_page()
+    page.goto(studio_app.url)
+    page.get_by_role("tab", name="Files").wait_for(timeout=20000)
+    wait_for(lambda: len(studio_app.server.get_clients()) > 0, what="the page to connect")
+    try:
+        yield Studio(studio_app, page)
+    finally:
+        ctx.close()
