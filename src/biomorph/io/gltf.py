@@ -1,0 +1,806 @@
+"""glTF 2.0 binary (.glb) writer: skinned skeletons, skeletal animation, plain meshes.
+
+What gets written
+-----------------
+* **JointSkeleton** → one node per joint (TRS = the joint's local rest transform: translation
+  ``offset``, rotation ``rest_rotation``), all under one armature node; a skin over all joints
+  with inverse bind matrices (inverse rest world matrices, column-major float32); one box
+  (or octahedron) per bone, from the joint towards each child (leaf joints: towards the BVH
+  ``End Site``, or a small cube), rigidly skinned to the joint through ``JOINTS_0`` /
+  ``WEIGHTS_0``. The skinned mesh node sits at the scene root with no transform, as the
+  spec asks, so Blender imports an armature with one bone per joint.
+* **Motion-like objects** (duck-typed: ``.skeleton``, ``.rotation`` ``float[f, n, 4]`` pose
+  quaternions xyzw applied after each joint's rest rotation, ``.root_position``
+  ``float[f, 3]``, ``.frame_time`` seconds) → the skeleton above plus one animation: a
+  rotation channel per joint (rest · pose, hemisphere-continuous) and a translation channel
+  per root joint, LINEAR samplers, float32 key times ``k · frame_time``.
+* **Meshes** (:class:`biomorph.core.mesh.Mesh` or anything ``Mesh.from_any`` accepts, or a
+  list of them) → plain mesh nodes with ``POSITION`` (with min/max), ``NORMAL``,
+  ``TEXCOORD_0`` (v flipped: glTF's origin is top-left), ``COLOR_0`` (RGBA unsigned byte,
+  normalised) and each ``face_ids`` entry as a per-vertex custom attribute ``_<NAME>_ID``
+  (unsigned short when the ids fit in 0..65535, else float). Vertices shared by faces with
+  different ids are split so every face keeps its ids. A list of meshes is merged into a
+  single primitive (with a ``_MESH_ID`` attribute giving each vertex's list index) unless
+  ``merge=False``: 100,000 small leaves become one draw call, not 100,000 nodes.
+* **Mesh frames** (``frames=[mesh0, mesh1, …]``, equal topology) → one mesh with a morph
+  target per frame after the first and a weight animation that steps through them (linear
+  blends between consecutive frames), for growing leaves.
+
+Frames and units: metres, seconds, glTF is Y-up. ``y_up=True`` (default) means the input is
+already Y-up (creatures, motion); pass ``y_up=False`` for Z-up data (trees, leaves) and it is
+rotated by −90° about x, ``(x, y, z) → (x, z, −y)``, on the way out.
+
+Buffers are built with numpy (``tobytes``), every buffer view 4-byte aligned with its
+``target`` set for vertex/index data; indices are ``uint16`` when they fit, ``uint32``
+otherwise. Files are written atomically. Example::
+
+    from biomorph.io.gltf import write_gltf, read_gltf_summary
+    write_gltf("walk.glb", motion)                   # skinned, animated armature
+    write_gltf("canopy.glb", leaves, y_up=False)     # list of Z-up leaf meshes, merged
+    read_gltf_summary("walk.glb")["animations"]      # -> 1
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pygltflib as g
+from numpy.typing import ArrayLike, NDArray
+
+from biomorph.core import transforms as tf
+from biomorph.core.mesh import Mesh
+from biomorph.core.skeleton import JointSkeleton
+from biomorph.errors import FormatError, InputError, ParameterError
+from biomorph.io.atomic import atomic_path
+
+PathLike = str | os.PathLike[str]
+
+ARRAY_BUFFER = 34962
+ELEMENT_ARRAY_BUFFER = 34963
+
+_COMPONENT = {np.dtype("float32"): g.FLOAT, np.dtype("uint32"): g.UNSIGNED_INT,
+              np.dtype("uint16"): g.UNSIGNED_SHORT, np.dtype("uint8"): g.UNSIGNED_BYTE,
+              np.dtype("int16"): g.SHORT, np.dtype("int8"): g.BYTE}
+_TYPE = {1: g.SCALAR, 2: g.VEC2, 3: g.VEC3, 4: g.VEC4, 16: g.MAT4}
+
+#: rotation taking Z-up data into glTF's Y-up frame: (x, y, z) -> (x, z, -y)
+_Z_TO_Y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+_Z_TO_Y_QUAT = np.array([-np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)])
+
+_BONE_MATERIAL = g.Material(
+    name="bone", doubleSided=False,
+    pbrMetallicRoughness=g.PbrMetallicRoughness(baseColorFactor=[0.89, 0.85, 0.78, 1.0],
+                                                metallicFactor=0.0, roughnessFactor=0.7))
+_MESH_MATERIAL = g.Material(
+    name="surface", doubleSided=True,
+    pbrMetallicRoughness=g.PbrMetallicRoughness(baseColorFactor=[1.0, 1.0, 1.0, 1.0],
+                                                metallicFactor=0.0, roughnessFactor=0.8))
+
+
+# =========================================================================== buffer builder
+class _Builder:
+    """Collects binary chunks (4-byte aligned) and the glTF document that points into them."""
+
+    def __init__(self, name: str | None) -> None:
+        self.doc = g.GLTF2(asset=g.Asset(version="2.0", generator="biomorph"))
+        self.doc.scene = 0
+        self.doc.scenes = [g.Scene(name=name, nodes=[])]
+        self.chunks: list[bytes] = []
+        self.size = 0
+        self._materials: dict[str, int] = {}
+
+    def view(self, data: bytes, target: int | None = None, stride: int | None = None) -> int:
+        """Append ``data`` as a new buffer view (aligned to 4 bytes); return its index."""
+        pad = -self.size % 4
+        if pad:
+            self.chunks.append(b"\0" * pad)
+            self.size += pad
+        self.doc.bufferViews.append(g.BufferView(buffer=0, byteOffset=self.size,
+                                                 byteLength=len(data), target=target,
+                                                 byteStride=stride))
+        self.chunks.append(data)
+        self.size += len(data)
+        return len(self.doc.bufferViews) - 1
+
+    def accessor(self, arr: NDArray, *, target: int | None = None, bounds: bool = False,
+                 normalized: bool = False, matrix: bool = False, view: int | None = None,
+                 offset: int = 0) -> int:
+        """Add an accessor for ``arr`` (``(count,)`` or ``(count, k)``, or ``(count, 4, 4)``
+        with ``matrix=True``: written column-major). ``bounds`` writes exact min/max."""
+        a = np.asarray(arr)
+        if matrix:
+            a = np.ascontiguousarray(np.swapaxes(a, -1, -2)).reshape(len(a), 16)
+        comp = _COMPONENT[a.dtype]
+        width = 1 if a.ndim == 1 else a.shape[1]
+        data = np.ascontiguousarray(a.astype(a.dtype.newbyteorder("<"), copy=False))
+        if view is None:
+            elem = data.dtype.itemsize * width
+            if target == ARRAY_BUFFER and elem % 4:
+                # vertex attribute elements must start on 4-byte boundaries: pad each one
+                stride = elem + (-elem % 4)
+                padded = np.zeros((len(data), stride), np.uint8)
+                padded[:, :elem] = data.reshape(len(data), -1).view(np.uint8)
+                view = self.view(padded.tobytes(), target, stride=stride)
+            else:
+                view = self.view(data.tobytes(), target)
+        acc = g.Accessor(bufferView=view, byteOffset=offset or None, componentType=comp,
+                         count=int(a.shape[0]), type=g.MAT4 if matrix else _TYPE[width],
+                         normalized=True if normalized else None)
+        if bounds:
+            flat = a.reshape(len(a), -1)
+            lo, hi = flat.min(axis=0), flat.max(axis=0)
+            cast = float if a.dtype.kind == "f" else int
+            acc.min = [cast(x) for x in lo]
+            acc.max = [cast(x) for x in hi]
+        self.doc.accessors.append(acc)
+        return len(self.doc.accessors) - 1
+
+    def material(self, mat: g.Material) -> int:
+        if mat.name not in self._materials:
+            self.doc.materials.append(g.Material(**{k: v for k, v in vars(mat).items()}))
+            self._materials[mat.name] = len(self.doc.materials) - 1
+        return self._materials[mat.name]
+
+    def node(self, node: g.Node, root: bool = False) -> int:
+        self.doc.nodes.append(node)
+        idx = len(self.doc.nodes) - 1
+        if root:
+            self.doc.scenes[0].nodes.append(idx)
+        return idx
+
+    def glb_parts(self) -> list[bytes]:
+        """GLB pieces: 12-byte header, JSON chunk (space padded), BIN chunk (zero padded)."""
+        pad = -self.size % 4
+        size = self.size + pad
+        if size:
+            self.doc.buffers = [g.Buffer(byteLength=size)]
+        text = self.doc.gltf_to_json(separators=(",", ":"), indent=None)
+        js = text.encode("utf-8")
+        js += b" " * (-len(js) % 4)
+        total = 12 + 8 + len(js) + (8 + size if size else 0)
+        parts = [struct.pack("<4sII", b"glTF", 2, total), struct.pack("<I4s", len(js), b"JSON"),
+                 js]
+        if size:
+            parts += [struct.pack("<I4s", size, b"BIN\0"), *self.chunks, b"\0" * pad]
+        return parts
+
+    def glb(self) -> bytes:
+        """The whole file as bytes."""
+        return b"".join(self.glb_parts())
+
+    def save(self, path: PathLike) -> Path:
+        """Write atomically (temporary file + rename), chunk by chunk without joining."""
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+            for part in self.glb_parts():
+                fh.write(part)
+        return Path(path)
+
+
+# =========================================================================== helpers
+def _unit_rows(v: NDArray, fallback: NDArray | None = None) -> NDArray:
+    """Rows of ``v`` scaled to unit length; zero rows take ``fallback`` (default +y)."""
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    out = np.divide(v, n, out=np.zeros_like(v), where=n > 1e-12)
+    bad = n[..., 0] <= 1e-12
+    if bad.any():
+        out[bad] = np.array([0.0, 1.0, 0.0]) if fallback is None else fallback[bad]
+    return out
+
+
+def _float32(name: str, arr: ArrayLike) -> NDArray[np.float32]:
+    a = np.asarray(arr, dtype=np.float64)
+    if not np.isfinite(a).all():
+        raise InputError(f"{name} holds NaN or inf; expected finite values")
+    if np.abs(a).max(initial=0.0) > 3.0e38:
+        raise InputError(f"{name} exceeds the float32 range; expected |value| < 3e38")
+    return a.astype(np.float32)
+
+
+def _id_attribute_name(key: str) -> str:
+    base = "".join(ch if ch.isalnum() else "_" for ch in str(key)).upper().strip("_") or "FACE"
+    if not base.endswith("_ID") and base != "ID":
+        base += "_ID"
+    return "_" + base
+
+
+def _id_array(name: str, ids: NDArray[np.int64]) -> NDArray:
+    """Per-vertex ids as unsigned short (0..65535) or float32 (exact up to 2**24)."""
+    if ids.size == 0 or (ids.min() >= 0 and ids.max() <= 65535):
+        return ids.astype(np.uint16)
+    if np.abs(ids).max() > 2**24:
+        raise InputError(f"face id {name!r} holds {int(np.abs(ids).max())}; glTF custom "
+                         "attributes store ids exactly only up to 16777216")
+    return ids.astype(np.float32)
+
+
+def _node_transform(name: str, translation: NDArray | None, rotation: NDArray | None
+                    ) -> g.Node:
+    node = g.Node(name=name)
+    if translation is not None and np.any(translation != 0):
+        node.translation = [float(x) for x in translation]
+    if rotation is not None and not (np.allclose(rotation[:3], 0) and rotation[3] > 0):
+        node.rotation = [float(x) for x in rotation]
+    return node
+
+
+# =========================================================================== meshes
+def _per_vertex_ids(mesh: Mesh) -> tuple[Mesh, dict[str, NDArray[np.int64]]]:
+    """Turn per-face ids into per-vertex ids, splitting vertices shared by faces that differ.
+
+    Returns the (possibly re-indexed) mesh and the per-vertex id arrays. Unreferenced
+    vertices keep id 0 when no split is needed and are dropped when one is.
+    """
+    if not mesh.face_ids:
+        return mesh, {}
+    keys = list(mesh.face_ids)
+    ids = np.stack([mesh.face_ids[k] for k in keys], axis=1)  # (m, k)
+    corner_v = mesh.faces.reshape(-1)
+    corner_ids = np.repeat(ids, 3, axis=0)  # (3m, k)
+    n = mesh.n_vertices
+    lo = np.full((n, len(keys)), np.iinfo(np.int64).max)
+    hi = np.full((n, len(keys)), np.iinfo(np.int64).min)
+    np.minimum.at(lo, corner_v, corner_ids)
+    np.maximum.at(hi, corner_v, corner_ids)
+    used = np.zeros(n, bool)
+    used[corner_v] = True
+    if np.all(lo[used] == hi[used]):
+        per_vertex = np.where(used[:, None], lo, 0)
+        return mesh, {k: per_vertex[:, i] for i, k in enumerate(keys)}
+    # split: one output vertex per distinct (vertex, ids) corner
+    rows = np.concatenate([corner_v[:, None], corner_ids], axis=1)
+    uniq, inverse = np.unique(rows, axis=0, return_inverse=True)
+    src = uniq[:, 0]
+    faces = inverse.reshape(-1, 3)
+    new = Mesh(mesh.vertices[src], faces,
+               normals=None if mesh.normals is None else mesh.normals[src],
+               uv=None if mesh.uv is None else mesh.uv[src],
+               vertex_colors=None if mesh.vertex_colors is None else mesh.vertex_colors[src],
+               face_ids=mesh.face_ids)
+    return new, {k: uniq[:, 1 + i] for i, k in enumerate(keys)}
+
+
+def _as_meshes(obj: Any) -> list[Mesh]:
+    if isinstance(obj, Mesh | Mapping) or (isinstance(obj, tuple) and len(obj) == 2
+                                           and not isinstance(obj[0], Mesh | Mapping)
+                                           and np.asarray(obj[0]).ndim == 2):
+        return [Mesh.from_any(obj)]
+    if isinstance(obj, Sequence) and not isinstance(obj, str | bytes):
+        return [Mesh.from_any(m) for m in obj]
+    return [Mesh.from_any(obj)]
+
+
+def _merge(meshes: list[Mesh]) -> Mesh:
+    """One mesh from many, with a ``mesh`` face id = position in the list (if > 1)."""
+    if len(meshes) == 1:
+        return meshes[0]
+    merged = Mesh.merge(meshes)
+    if "mesh" in merged.face_ids:
+        return merged
+    counts = np.fromiter((m.n_faces for m in meshes), dtype=np.int64, count=len(meshes))
+    return merged.with_(face_ids={**merged.face_ids,
+                                  "mesh": np.repeat(np.arange(len(meshes)), counts)})
+
+
+def _indices(builder: _Builder, faces: NDArray, n_vertices: int) -> int:
+    # 65535 is the primitive-restart value of uint16 indices and must not occur
+    dtype = np.uint16 if n_vertices <= 65535 else np.uint32
+    return builder.accessor(faces.reshape(-1).astype(dtype), target=ELEMENT_ARRAY_BUFFER)
+
+
+def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool,
+                    extra: dict[str, NDArray] | None = None) -> g.Primitive:
+    if mesh.n_faces == 0 or mesh.n_vertices == 0:
+        raise InputError(f"mesh has {mesh.n_vertices} vertices and {mesh.n_faces} faces; "
+                         "expected at least one triangle")
+    mesh, vertex_ids = _per_vertex_ids(mesh)
+    rot = np.eye(3) if y_up else _Z_TO_Y
+    pos = _float32("mesh vertices", mesh.vertices @ rot.T)
+    attrs: dict[str, int] = {"POSITION": builder.accessor(pos, target=ARRAY_BUFFER,
+                                                          bounds=True)}
+    if mesh.normals is not None:
+        nrm = _unit_rows(np.asarray(mesh.normals, float) @ rot.T).astype(np.float32)
+        attrs["NORMAL"] = builder.accessor(nrm, target=ARRAY_BUFFER)
+    if mesh.uv is not None:
+        uv = np.array(mesh.uv, dtype=np.float64)
+        uv[:, 1] = 1.0 - uv[:, 1]
+        attrs["TEXCOORD_0"] = builder.accessor(_float32("mesh uv", uv), target=ARRAY_BUFFER)
+    if mesh.vertex_colors is not None:
+        col = np.ascontiguousarray(mesh.vertex_colors, dtype=np.uint8)
+        attrs["COLOR_0"] = builder.accessor(col, target=ARRAY_BUFFER, normalized=True)
+    for key, ids in vertex_ids.items():
+        attrs[_id_attribute_name(key)] = builder.accessor(_id_array(key, ids),
+                                                          target=ARRAY_BUFFER)
+    for key, arr in (extra or {}).items():
+        attrs[key] = builder.accessor(arr, target=ARRAY_BUFFER)
+    # pygltflib's Attributes takes custom names (``_PLANT_ID``) as keyword arguments
+    return g.Primitive(attributes=g.Attributes(**attrs),
+                       indices=_indices(builder, mesh.faces, mesh.n_vertices),
+                       material=builder.material(_MESH_MATERIAL), mode=g.TRIANGLES)
+
+
+def _add_mesh_nodes(builder: _Builder, meshes: list[Mesh], *, merge: bool, y_up: bool,
+                    name: str | None) -> list[int]:
+    groups = [_merge(meshes)] if merge else meshes
+    nodes = []
+    for i, mesh in enumerate(groups):
+        label = name or "mesh"
+        if len(groups) > 1:
+            label = f"{label}_{i}"
+        prim = _mesh_primitive(builder, mesh, y_up)
+        builder.doc.meshes.append(g.Mesh(name=label, primitives=[prim]))
+        nodes.append(builder.node(g.Node(name=label, mesh=len(builder.doc.meshes) - 1),
+                                  root=True))
+    return nodes
+
+
+# =========================================================================== bones
+# unit solids in a bone frame: x, y across (half-width 0.5), z along the bone from 0 to 1;
+# listed as triangles with their own corners so flat normals come out per triangle
+_BOX = np.array([[-.5, -.5, 0], [.5, -.5, 0], [.5, .5, 0], [-.5, .5, 0],
+                 [-.5, -.5, 1], [.5, -.5, 1], [.5, .5, 1], [-.5, .5, 1]])
+_BOX_TRIS = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                      [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+_OCTA = np.array([[0, 0, 0], [-.5, -.5, .15], [.5, -.5, .15], [.5, .5, .15], [-.5, .5, .15],
+                  [0, 0, 1]])
+_OCTA_TRIS = np.array([[0, 2, 1], [0, 3, 2], [0, 4, 3], [0, 1, 4],
+                       [5, 1, 2], [5, 2, 3], [5, 3, 4], [5, 4, 1]])
+_SHAPES = {"box": (_BOX, _BOX_TRIS), "octahedron": (_OCTA, _OCTA_TRIS)}
+
+
+def _bone_frames(direction: NDArray) -> tuple[NDArray, NDArray]:
+    """Two unit vectors perpendicular to each (unit) direction row."""
+    helper = np.where(np.abs(direction[:, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    u = _unit_rows(np.cross(helper, direction))
+    v = np.cross(direction, u)
+    return u, v
+
+
+def _bone_solids(skeleton: JointSkeleton, world: NDArray, shape: str,
+                 width: float | ArrayLike | None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Bone geometry in bind (rest world) space.
+
+    Returns ``(positions (k, 3), normals (k, 3), joint (k,), faces (t, 3))``: one solid per
+    parent→child bone (and per End Site), owned by the parent joint; a cube at leaf joints
+    without an End Site (and at a lone root).
+    """
+    n = len(skeleton)
+    parent = skeleton.parent
+    child = np.flatnonzero(parent >= 0)
+    owner = [parent[child]]
+    local_end = [skeleton.offset[child]]
+    has_end = np.isfinite(skeleton.end_site).all(axis=1)
+    owner.append(np.flatnonzero(has_end))
+    local_end.append(skeleton.end_site[has_end])
+    owner_a = np.concatenate(owner)
+    end_a = np.concatenate(local_end)
+    length = np.linalg.norm(end_a, axis=1)
+    keep = length > 1e-9
+    owner_a, end_a, length = owner_a[keep], end_a[keep], length[keep]
+    n_child = np.bincount(owner_a, minlength=n)
+    tips = np.flatnonzero(n_child == 0)
+
+    med = float(np.median(length)) if length.size else 0.0
+    if med == 0.0:  # no bones: size cubes by the skeleton's extent
+        ext = np.ptp(world[:, :3, 3], axis=0).max() if n > 1 else 0.0
+        med = ext * 0.1 if ext > 0 else 0.1
+    if width is None:
+        w_bone = np.maximum(0.12 * length, 0.04 * med)
+        w_tip = np.full(tips.size, 0.08 * med)
+    else:
+        w = np.asarray(width, dtype=float)
+        if w.ndim == 0:
+            w = np.full(n, float(w))
+        if w.shape != (n,) or not np.isfinite(w).all() or np.any(w <= 0):
+            raise ParameterError(f"bone_width must be a positive number or {n} positive "
+                                 f"numbers (one per joint, metres); got {np.asarray(width)!r}")
+        w_bone, w_tip = w[owner_a], w[tips]
+    template, tris = _SHAPES[shape]
+
+    # frames in the owner joint's local space, then into bind space
+    d = end_a / length[:, None] if length.size else np.zeros((0, 3))
+    u, v = _bone_frames(d)
+    axes_b = np.stack([u * w_bone[:, None], v * w_bone[:, None], end_a], axis=1)  # (b,3,3)
+    origin_b = np.zeros((len(owner_a), 3))
+    # tip cubes centred on the joint, axis-aligned in its local frame
+    cube_t, cube_tris = _BOX, _BOX_TRIS
+    axes_t = np.eye(3)[None] * w_tip[:, None, None]
+    origin_t = np.tile([0.0, 0.0, -0.5], (tips.size, 1)) * w_tip[:, None]
+
+    def solids(templ: NDArray, tri: NDArray, axes: NDArray, origin: NDArray,
+               joints: NDArray) -> tuple[NDArray, NDArray]:
+        corners = templ[tri].reshape(-1, 3)  # (3t, 3) unshared corners
+        local = origin[:, None, :] + np.einsum("kc,bcj->bkj", corners, axes)
+        rot, trans = world[joints, :3, :3], world[joints, :3, 3]
+        bind = np.einsum("bij,bkj->bki", rot, local) + trans[:, None, :]
+        return bind.reshape(-1, 3), np.repeat(joints, len(corners))
+
+    p1, j1 = solids(template, tris, axes_b, origin_b, owner_a)
+    p2, j2 = solids(cube_t, cube_tris, axes_t, origin_t, tips)
+    pos = np.concatenate([p1, p2])
+    joint = np.concatenate([j1, j2])
+    tri_pts = pos.reshape(-1, 3, 3)
+    fn = _unit_rows(np.cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0]))
+    normals = np.repeat(fn, 3, axis=0)
+    faces = np.arange(len(pos)).reshape(-1, 3)
+    return pos, normals, joint, faces
+
+
+def _joint_meshes(skeleton: JointSkeleton, world: NDArray, meshes: Mapping[Any, Any]
+                  ) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Per-joint meshes given in the joint's local frame, moved to bind space."""
+    pos, nrm, jnt, fcs = [], [], [], []
+    base = 0
+    for key, obj in meshes.items():
+        j = skeleton.index(key) if isinstance(key, str) else int(key)
+        if not 0 <= j < len(skeleton):
+            raise ParameterError(f"meshes key {key!r} is not a joint index in 0..{len(skeleton)-1}")
+        m = Mesh.from_any(obj)
+        if m.normals is None:
+            m = m.compute_normals()
+        rot, trans = world[j, :3, :3], world[j, :3, 3]
+        pos.append(m.vertices @ rot.T + trans)
+        nrm.append(_unit_rows(m.normals @ rot.T))
+        jnt.append(np.full(m.n_vertices, j))
+        fcs.append(m.faces + base)
+        base += m.n_vertices
+    if not pos:
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros((0, 3), int)
+    return np.concatenate(pos), np.concatenate(nrm), np.concatenate(jnt), np.concatenate(fcs)
+
+
+# =========================================================================== skeleton
+def _converted_rest(skeleton: JointSkeleton, y_up: bool) -> tuple[NDArray, NDArray]:
+    """Local rest translation and (unit) rotation per joint, roots turned to Y-up."""
+    trans = np.array(skeleton.offset, dtype=float)
+    rot = tf.quat_normalize(np.asarray(skeleton.rest_rotation, dtype=float))
+    if not y_up:
+        roots = skeleton.parent < 0
+        trans[roots] = trans[roots] @ _Z_TO_Y.T
+        rot[roots] = tf.quat_multiply(_Z_TO_Y_QUAT, rot[roots])
+    return trans, rot
+
+
+def _add_skeleton(builder: _Builder, skeleton: JointSkeleton, *, bone_shape: str | None,
+                  bone_width: Any, joint_meshes: Mapping[Any, Any] | None, y_up: bool,
+                  name: str | None) -> list[int]:
+    """Joint nodes, armature node, skin and skinned bone mesh; returns joint node indices."""
+    n = len(skeleton)
+    if n > 65535:
+        raise InputError(f"skeleton has {n} joints; glTF JOINTS_0 holds at most 65535")
+    check = np.concatenate([skeleton.offset.ravel(), skeleton.rest_rotation.ravel()])
+    if not np.isfinite(check).all():
+        raise InputError("skeleton offsets or rest rotations hold NaN or inf")
+    trans, rot = _converted_rest(skeleton, y_up)
+    world = skeleton.world_matrices(tf.make_transform(tf.quat_to_matrix(rot), trans))
+
+    first = len(builder.doc.nodes)
+    nodes = [_node_transform(nm, trans[i], rot[i]) for i, nm in enumerate(skeleton.names)]
+    order = np.argsort(skeleton.parent, kind="stable")
+    sorted_parent = skeleton.parent[order]
+    starts = np.searchsorted(sorted_parent, np.arange(n))
+    ends = np.searchsorted(sorted_parent, np.arange(n), side="right")
+    for i in range(n):
+        if ends[i] > starts[i]:
+            nodes[i].children = [int(c) + first for c in order[starts[i]:ends[i]]]
+    for node in nodes:
+        builder.node(node)
+    roots = np.flatnonzero(skeleton.parent < 0)
+    armature = builder.node(g.Node(name=name or "armature",
+                                   children=[int(r) + first for r in roots]), root=True)
+    joints = list(range(first, first + n))
+
+    ibm = tf.invert_rigid(world).astype(np.float32)
+    ibm[:, 3, :] = np.array([0, 0, 0, 1], np.float32)  # exact last row
+    skin = g.Skin(name=f"{name or 'armature'}_skin", joints=joints, skeleton=armature,
+                  inverseBindMatrices=builder.accessor(ibm, matrix=True))
+    builder.doc.skins.append(skin)
+
+    parts = []
+    if bone_shape is not None:
+        if bone_shape not in _SHAPES:
+            raise ParameterError(f"bone_shape must be one of {', '.join(_SHAPES)} or None; "
+                                 f"got {bone_shape!r}")
+        parts.append(_bone_solids(skeleton, world, bone_shape, bone_width))
+    if joint_meshes:
+        parts.append(_joint_meshes(skeleton, world, joint_meshes))
+    parts = [p for p in parts if len(p[0])]
+    if parts:
+        base = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+        pos = np.concatenate([p[0] for p in parts])
+        nrm = np.concatenate([p[1] for p in parts])
+        jnt = np.concatenate([p[2] for p in parts])
+        faces = np.concatenate([p[3] + b for p, b in zip(parts, base, strict=True)])
+        jdtype = np.uint8 if n <= 256 else np.uint16
+        joints0 = np.zeros((len(pos), 4), jdtype)
+        joints0[:, 0] = jnt
+        weights0 = np.zeros((len(pos), 4), np.float32)
+        weights0[:, 0] = 1.0
+        attrs = g.Attributes(
+            POSITION=builder.accessor(_float32("bone vertices", pos), target=ARRAY_BUFFER,
+                                      bounds=True),
+            NORMAL=builder.accessor(nrm.astype(np.float32), target=ARRAY_BUFFER),
+            JOINTS_0=builder.accessor(joints0, target=ARRAY_BUFFER),
+            WEIGHTS_0=builder.accessor(weights0, target=ARRAY_BUFFER))
+        prim = g.Primitive(attributes=attrs, indices=_indices(builder, faces, len(pos)),
+                           material=builder.material(_BONE_MATERIAL), mode=g.TRIANGLES)
+        label = f"{name or 'armature'}_bones"
+        builder.doc.meshes.append(g.Mesh(name=label, primitives=[prim]))
+        builder.node(g.Node(name=label, mesh=len(builder.doc.meshes) - 1,
+                            skin=len(builder.doc.skins) - 1), root=True)
+    return joints
+
+
+# =========================================================================== animation
+def _is_motion(obj: Any) -> bool:
+    return all(hasattr(obj, a) for a in ("skeleton", "rotation", "root_position",
+                                         "frame_time"))
+
+
+def _key_times(frames: int, frame_time: float) -> NDArray[np.float32]:
+    ft = float(frame_time)
+    if not np.isfinite(ft) or ft <= 0:
+        raise InputError(f"frame_time is {frame_time!r} s; expected a positive number")
+    times = (np.arange(frames, dtype=np.float64) * ft).astype(np.float32)
+    if frames > 1 and np.any(np.diff(times) <= 0):
+        raise InputError(f"{frames} frames at frame_time {ft} s do not give strictly increasing "
+                         "float32 key times; shorten the motion")
+    return times
+
+
+def _add_motion(builder: _Builder, motion: Any, joints: list[int], y_up: bool,
+                name: str | None) -> None:
+    skeleton: JointSkeleton = motion.skeleton
+    n = len(skeleton)
+    rot = np.asarray(motion.rotation, dtype=float)
+    root_pos = np.asarray(motion.root_position, dtype=float)
+    if rot.ndim != 3 or rot.shape[1:] != (n, 4) or rot.shape[0] < 1:
+        raise InputError(f"motion rotation has shape {rot.shape}; expected (frames, {n}, 4)")
+    f = rot.shape[0]
+    if root_pos.shape != (f, 3):
+        raise InputError(f"motion root_position has shape {root_pos.shape}; expected ({f}, 3)")
+    if not (np.isfinite(rot).all() and np.isfinite(root_pos).all()):
+        raise InputError("motion rotation or root_position holds NaN or inf")
+    if np.any(np.linalg.norm(rot, axis=-1) < 1e-9):
+        raise InputError("motion rotation holds a zero quaternion; expected unit quaternions")
+    times = _key_times(f, motion.frame_time)
+    _, rest = _converted_rest(skeleton, True)
+    q = tf.quat_multiply(rest, tf.quat_normalize(rot))  # (f, n, 4)
+    roots = np.flatnonzero(skeleton.parent < 0)
+    if not y_up:
+        q[:, roots] = tf.quat_multiply(_Z_TO_Y_QUAT, q[:, roots])
+        root_pos = root_pos @ _Z_TO_Y.T
+    q = tf.quat_normalize(tf.quat_continuous(q, axis=0)).astype(np.float32)
+
+    t_acc = builder.accessor(times, bounds=True)
+    # all rotation outputs in one buffer view, joint-major, one accessor per joint
+    block = np.ascontiguousarray(np.swapaxes(q, 0, 1))  # (n, f, 4)
+    view = builder.view(block.tobytes())
+    samplers, channels = [], []
+    for j in range(n):
+        acc = builder.accessor(block[j], view=view, offset=j * f * 16)
+        samplers.append(g.AnimationSampler(input=t_acc, output=acc, interpolation="LINEAR"))
+        channels.append(g.AnimationChannel(
+            sampler=len(samplers) - 1,
+            target=g.AnimationChannelTarget(node=joints[j], path="rotation")))
+    tr_acc = builder.accessor(_float32("motion root_position", root_pos))
+    for r in roots:
+        samplers.append(g.AnimationSampler(input=t_acc, output=tr_acc, interpolation="LINEAR"))
+        channels.append(g.AnimationChannel(
+            sampler=len(samplers) - 1,
+            target=g.AnimationChannelTarget(node=joints[int(r)], path="translation")))
+    builder.doc.animations.append(g.Animation(name=name or "motion", samplers=samplers,
+                                              channels=channels))
+
+
+def _add_frames(builder: _Builder, frames: Sequence[Any], frame_time: float, y_up: bool,
+                name: str | None) -> None:
+    """Mesh frames of equal topology as morph targets with a stepping weight animation."""
+    meshes = [Mesh.from_any(m) for m in frames]
+    if len(meshes) < 2:
+        raise InputError(f"frames holds {len(meshes)} mesh(es); expected at least 2")
+    base = meshes[0]
+    for k, m in enumerate(meshes[1:], start=1):
+        if m.n_vertices != base.n_vertices or m.faces.shape != base.faces.shape or \
+                not np.array_equal(m.faces, base.faces):
+            raise InputError(f"frame {k} has different topology ({m.n_vertices} vertices, "
+                             f"{m.n_faces} faces) from frame 0 ({base.n_vertices}, "
+                             f"{base.n_faces}); morph frames need identical faces")
+    if base.face_ids:
+        base = base.with_(face_ids={})  # ids would split vertices and break the targets
+    times = _key_times(len(meshes), frame_time)
+    rot = np.eye(3) if y_up else _Z_TO_Y
+    prim = _mesh_primitive(builder, base, y_up)
+    base_pos = base.vertices @ rot.T
+    targets = []
+    for m in meshes[1:]:
+        delta = _float32("frame vertices", m.vertices @ rot.T - base_pos)
+        targets.append({"POSITION": builder.accessor(delta, target=ARRAY_BUFFER,
+                                                     bounds=True)})
+    prim.targets = targets
+    k = len(targets)
+    label = name or "frames"
+    builder.doc.meshes.append(g.Mesh(name=label, primitives=[prim], weights=[0.0] * k))
+    node = builder.node(g.Node(name=label, mesh=len(builder.doc.meshes) - 1), root=True)
+    weights = np.zeros((len(meshes), k), np.float32)
+    weights[np.arange(1, len(meshes)), np.arange(k)] = 1.0
+    sampler = g.AnimationSampler(input=builder.accessor(times, bounds=True),
+                                 output=builder.accessor(weights.reshape(-1)),
+                                 interpolation="LINEAR")
+    builder.doc.animations.append(g.Animation(
+        name=f"{label}_growth", samplers=[sampler],
+        channels=[g.AnimationChannel(sampler=0, target=g.AnimationChannelTarget(
+            node=node, path="weights"))]))
+
+
+# =========================================================================== public API
+def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
+               bone_shape: str | None = "box", bone_width: float | ArrayLike | None = None,
+               meshes: Any = None, y_up: bool = True, name: str | None = None, merge: bool = True,
+               frames: Sequence[Any] | None = None, frame_time: float = 1 / 30) -> Path:
+    """Write a skeleton, an animated skeleton, meshes or mesh frames as binary glTF (.glb).
+
+    Parameters
+    ----------
+    path : output ``.glb`` file, written atomically.
+    obj : a :class:`~biomorph.core.skeleton.JointSkeleton`; a Motion-like object (``.skeleton``,
+        ``.rotation`` ``(f, n, 4)``, ``.root_position`` ``(f, 3)`` metres, ``.frame_time`` s);
+        a mesh or a list of meshes; or ``None`` when only ``meshes``/``frames`` are given.
+        Objects with a ``.skeleton`` but no motion (e.g. a generated creature) are unwrapped.
+    motion : animate ``obj`` (a JointSkeleton) with this Motion-like object instead.
+    bone_shape : ``"box"`` (default), ``"octahedron"`` or ``None`` (skin without geometry).
+    bone_width : bone thickness in metres (scalar or one per joint); default 12 % of each
+        bone's length, at least 4 % of the median bone length.
+    meshes : extra geometry. With a skeleton, a mapping ``{joint name or index: mesh}`` gives
+        meshes in that joint's local frame, rigidly skinned to it (bone models); a mesh or a
+        list of meshes is added unskinned in world space.
+    y_up : the input is Y-up (default). ``False`` for Z-up data: rotated into glTF's Y-up.
+    name : scene / armature / mesh name.
+    merge : merge a list of meshes into one primitive with a ``_MESH_ID`` attribute (default)
+        instead of one node per mesh.
+    frames : equal-topology meshes written as morph targets with a weight animation.
+    frame_time : seconds between ``frames``.
+
+    Returns the written path.
+    """
+    builder = _Builder(name)
+    skeleton = None
+    if obj is not None and not isinstance(obj, JointSkeleton) and _is_motion(obj):
+        if motion is not None:
+            raise ParameterError("obj is already a motion; pass motion= only with a skeleton")
+        motion, skeleton = obj, obj.skeleton
+    elif isinstance(obj, JointSkeleton):
+        skeleton = obj
+    elif obj is not None and isinstance(getattr(obj, "skeleton", None), JointSkeleton):
+        skeleton = obj.skeleton
+    if motion is not None:
+        if not _is_motion(motion):
+            raise ParameterError(f"motion is a {type(motion).__name__}; expected an object with "
+                                 ".skeleton, .rotation, .root_position and .frame_time")
+        if skeleton is None:
+            skeleton = motion.skeleton
+        if len(motion.skeleton) != len(skeleton):
+            raise InputError(f"motion animates {len(motion.skeleton)} joints; the skeleton "
+                             f"has {len(skeleton)}")
+    if not isinstance(y_up, bool | np.bool_):
+        raise ParameterError(f"y_up must be True or False; got {y_up!r}")
+    if skeleton is not None:
+        joint_meshes = meshes if isinstance(meshes, Mapping) and not (
+            "vertices" in meshes and "faces" in meshes) else None
+        joints = _add_skeleton(builder, skeleton, bone_shape=bone_shape, bone_width=bone_width,
+                               joint_meshes=joint_meshes, y_up=y_up, name=name)
+        if motion is not None:
+            _add_motion(builder, motion, joints, y_up, name)
+        if meshes is not None and joint_meshes is None:
+            _add_mesh_nodes(builder, _as_meshes(meshes), merge=merge, y_up=y_up, name=None)
+    else:
+        parts = []
+        if obj is not None:
+            parts.extend(_as_meshes(obj))
+        if meshes is not None:
+            parts.extend(_as_meshes(meshes))
+        if parts:
+            _add_mesh_nodes(builder, parts, merge=merge, y_up=y_up, name=name)
+        elif frames is None:
+            raise InputError("nothing to write: expected a JointSkeleton, a motion, meshes or "
+                             "frames")
+    if frames is not None:
+        _add_frames(builder, frames, frame_time, y_up, name)
+    return builder.save(path)
+
+
+def write_mesh(path: PathLike, mesh: Any, *, y_up: bool = True, name: str | None = None,
+               merge: bool = True) -> Path:
+    """Write one mesh or a list of meshes as ``.glb`` (see :func:`write_gltf`)."""
+    return write_gltf(path, None, meshes=_as_meshes(mesh), y_up=y_up, name=name, merge=merge)
+
+
+def write_mesh_animation(path: PathLike, frames: Sequence[Any], frame_time: float, *,
+                         y_up: bool = True, name: str | None = None) -> Path:
+    """Write equal-topology mesh frames (e.g. a growing leaf) as a morph-target animation."""
+    return write_gltf(path, None, frames=frames, frame_time=frame_time, y_up=y_up, name=name)
+
+
+# =========================================================================== reading back
+def read_gltf_summary(path: PathLike) -> dict[str, Any]:
+    """What a .glb/.gltf file holds, for ``biomorph info``.
+
+    Keys: ``nodes``, ``skins``, ``joints`` (over all skins), ``animations``, ``duration``
+    (s, longest animation), ``meshes``, ``primitives``, ``vertices``, ``triangles``,
+    ``attributes`` (sorted vertex attribute names), ``bounds`` (``[min, max]`` of all
+    POSITION accessors, unskinned, or ``None``), ``generator``.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FormatError(path, "file does not exist")
+    try:
+        doc = g.GLTF2().load(os.fspath(p))
+    except Exception as exc:  # pygltflib raises many kinds on malformed input
+        raise FormatError(path, f"not a readable glTF/GLB file ({type(exc).__name__}: "
+                                f"{exc}); expected glTF 2.0") from None
+    if doc is None or doc.asset is None:
+        raise FormatError(path, "not a glTF 2.0 file: no asset header")
+    accessors = doc.accessors or []
+
+    def count(idx: int | None) -> int:
+        if idx is None or not 0 <= idx < len(accessors):
+            raise FormatError(path, f"accessor index {idx!r} out of range 0..{len(accessors)-1}")
+        return int(accessors[idx].count)
+
+    vertices = triangles = primitives = 0
+    attributes: set[str] = set()
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for mesh in doc.meshes or []:
+        for prim in mesh.primitives:
+            primitives += 1
+            attrs = {k: v for k, v in vars(prim.attributes).items() if v is not None}
+            attributes.update(attrs)
+            if "POSITION" not in attrs:
+                continue
+            nv = count(attrs["POSITION"])
+            vertices += nv
+            acc = accessors[attrs["POSITION"]]
+            if acc.min is not None and acc.max is not None and len(acc.min) == 3:
+                lo, hi = np.minimum(lo, acc.min), np.maximum(hi, acc.max)
+            mode = 4 if prim.mode is None else prim.mode
+            ni = nv if prim.indices is None else count(prim.indices)
+            if mode == 4:
+                triangles += ni // 3
+            elif mode in (5, 6):
+                triangles += max(ni - 2, 0)
+    duration = 0.0
+    for anim in doc.animations or []:
+        for s in anim.samplers:
+            acc = accessors[s.input] if s.input is not None and 0 <= s.input < len(accessors) \
+                else None
+            if acc is not None and acc.max:
+                duration = max(duration, float(acc.max[0]))
+    return {
+        "nodes": len(doc.nodes or []),
+        "skins": len(doc.skins or []),
+        "joints": int(sum(len(s.joints) for s in doc.skins or [])),
+        "animations": len(doc.animations or []),
+        "duration": duration,
+        "meshes": len(doc.meshes or []),
+        "primitives": primitives,
+        "vertices": vertices,
+        "triangles": triangles,
+        "attributes": sorted(attributes),
+        "bounds": None if not np.isfinite(lo).all() else [lo.tolist(), hi.tolist()],
+        "generator": doc.asset.generator,
+    }
+
+
+def _debug_json(path: PathLike) -> dict[str, Any]:
+    """The JSON chunk of a .glb file (for tests and debugging)."""
+    data = Path(path).read_bytes()
+    (length,) = struct.unpack_from("<I", data, 12)
+    return json.loads(data[20:20 + length])
+
+
+__all__ = ["write_gltf", "write_mesh", "write_mesh_animation", "read_gltf_summary"]

@@ -1,0 +1,447 @@
+"""glTF writer: structure, numbers read back, Khronos validation, trimesh round trip."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pygltflib
+import pytest
+import trimesh
+
+import biomorph.io as bmio
+from biomorph.core import transforms as tf
+from biomorph.core.mesh import Mesh
+from biomorph.core.skeleton import JointSkeleton
+from biomorph.errors import BiomorphError, FormatError, InputError, ParameterError
+from biomorph.io.gltf import read_gltf_summary, write_gltf, write_mesh, write_mesh_animation
+from tests.gltf_validator import assert_valid_glb
+
+NAN3 = [np.nan] * 3
+DTYPES = {5126: np.float32, 5125: np.uint32, 5123: np.uint16, 5121: np.uint8}
+WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+
+
+# ----------------------------------------------------------------------------- helpers
+def skeleton(rest: bool = True) -> JointSkeleton:
+    """A small biped-ish hierarchy with rest rotations, End Sites and a 3-way fork."""
+    names = ["hips", "spine", "head", "l_leg", "l_foot", "r_leg", "r_foot"]
+    parent = [-1, 0, 1, 0, 3, 0, 5]
+    offset = [[0, 1.0, 0], [0, 0.25, 0], [0, 0.3, 0.02], [0.1, -0.05, 0], [0, -0.45, 0],
+              [-0.1, -0.05, 0], [0, -0.45, 0]]
+    rest_rot = tf.quat_identity((7,))
+    if rest:
+        rest_rot[1] = tf.quat_from_axis_angle("z", 0.2)
+        rest_rot[3] = tf.quat_from_axis_angle([1, 1, 0], 0.4)
+    end = [NAN3, NAN3, [0, 0.15, 0], NAN3, [0, 0, 0.12], NAN3, NAN3]
+    return JointSkeleton(names, parent, offset, rest_rotation=rest_rot, end_site=end)
+
+
+def motion(frames: int = 12, sk: JointSkeleton | None = None) -> SimpleNamespace:
+    """A hand-made Motion-like object: every joint swings about its own axis."""
+    sk = sk or skeleton()
+    t = np.linspace(0, 1, frames)[:, None]
+    axes = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 0], [1, 1, 0], [0, 0, 1],
+                     [1, 0, 1]], float)[: len(sk)]
+    rot = tf.quat_from_axis_angle(axes[None], np.sin(3 * t) * np.linspace(0.2, 1.4, len(sk)))
+    root = np.c_[np.linspace(0, 2, frames), 1 + 0.05 * np.sin(6 * t[:, 0]), np.zeros(frames)]
+    return SimpleNamespace(skeleton=sk, rotation=rot, root_position=root, frame_time=1 / 30)
+
+
+def load(path):
+    doc = pygltflib.GLTF2().load(str(path))
+    return doc, doc.binary_blob()
+
+
+def accessor(doc, blob, idx) -> np.ndarray:
+    """Read accessor ``idx`` as a numpy array (handles byteStride; MAT4 -> (n, 4, 4))."""
+    acc = doc.accessors[idx]
+    view = doc.bufferViews[acc.bufferView]
+    dtype = np.dtype(DTYPES[acc.componentType])
+    width = WIDTH[acc.type]
+    elem = dtype.itemsize * width
+    stride = view.byteStride or elem
+    start = (view.byteOffset or 0) + (acc.byteOffset or 0)
+    raw = np.frombuffer(blob, np.uint8, count=stride * (acc.count - 1) + elem, offset=start)
+    rows = np.lib.stride_tricks.as_strided(raw, (acc.count, elem), (stride, 1))
+    out = np.ascontiguousarray(rows).view(dtype).reshape(acc.count, width)
+    if acc.type == "MAT4":
+        return np.swapaxes(out.reshape(-1, 4, 4), 1, 2)  # stored column-major
+    return out[:, 0] if width == 1 else out
+
+
+def trs(node) -> np.ndarray:
+    t = node.translation or [0, 0, 0]
+    r = node.rotation or [0, 0, 0, 1]
+    return tf.make_transform(tf.quat_to_matrix(np.array(r, float)), np.array(t, float))
+
+
+def node_world(doc, local: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """World matrices of all nodes from per-node local matrices (scene roots down)."""
+    world: dict[int, np.ndarray] = {}
+    stack = [(i, np.eye(4)) for i in doc.scenes[doc.scene].nodes]
+    while stack:
+        i, parent = stack.pop()
+        world[i] = parent @ local[i]
+        stack.extend((c, world[i]) for c in doc.nodes[i].children or [])
+    return world
+
+
+# ----------------------------------------------------------------------------- skeleton
+def test_skeleton_hierarchy_trs_and_inverse_binds(tmp_path):
+    sk = skeleton()
+    path = write_gltf(tmp_path / "skel.glb", sk, name="biped")
+    assert_valid_glb(path, max_warnings=0)
+    doc, blob = load(path)
+    skin = doc.skins[0]
+    joints = skin.joints
+    assert [doc.nodes[j].name for j in joints] == list(sk.names)
+    # hierarchy: node children reproduce the parent array
+    parent_of = {c: i for i, n in enumerate(doc.nodes) for c in (n.children or [])}
+    got_parent = [joints.index(parent_of[j]) if parent_of.get(j) in joints else -1
+                  for j in joints]
+    assert got_parent == list(sk.parent)
+    # local TRS = rest offset and rest rotation
+    local = np.stack([trs(doc.nodes[j]) for j in joints])
+    np.testing.assert_allclose(local, sk.local_matrices(), atol=1e-6)
+    # inverse bind matrices = inverse rest world (column-major on disk)
+    ibm = accessor(doc, blob, skin.inverseBindMatrices)
+    np.testing.assert_allclose(ibm @ sk.world_matrices(), np.broadcast_to(np.eye(4), ibm.shape),
+                               atol=1e-5)
+    # skinned mesh node at the scene root, without a transform
+    mesh_nodes = [i for i, n in enumerate(doc.nodes) if n.skin is not None]
+    assert len(mesh_nodes) == 1 and mesh_nodes[0] in doc.scenes[0].nodes
+    node = doc.nodes[mesh_nodes[0]]
+    assert node.translation is None and node.rotation is None and node.matrix is None
+    prim = doc.meshes[node.mesh].primitives[0]
+    # rigid skinning: one joint per vertex with weight 1
+    j0 = accessor(doc, blob, prim.attributes.JOINTS_0)
+    w0 = accessor(doc, blob, prim.attributes.WEIGHTS_0)
+    assert np.all(w0[:, 0] == 1) and np.all(w0[:, 1:] == 0) and np.all(j0[:, 1:] == 0)
+    # every joint with a child or an End Site owns geometry; the bare leaf r_foot gets a cube
+    assert set(np.unique(j0[:, 0])) == set(range(len(sk)))
+    # buffer view targets on vertex and index data
+    targets = {doc.bufferViews[doc.accessors[a].bufferView].target
+               for a in (prim.attributes.POSITION, prim.attributes.JOINTS_0)}
+    assert targets == {34962}
+    assert doc.bufferViews[doc.accessors[prim.indices].bufferView].target == 34963
+
+
+def test_bone_boxes_span_parent_to_child(tmp_path):
+    sk = skeleton()
+    path = write_gltf(tmp_path / "b.glb", sk, bone_width=0.02)
+    doc, blob = load(path)
+    prim = doc.meshes[0].primitives[0]
+    pos = accessor(doc, blob, prim.attributes.POSITION)
+    joint = accessor(doc, blob, prim.attributes.JOINTS_0)[:, 0]
+    world = sk.world_positions()
+    # the spine's geometry (owned by joint 1) reaches from the spine joint to the head joint
+    sp = pos[joint == 1]
+    d = world[2] - world[1]
+    along = (sp - world[1]) @ d / (d @ d)
+    assert along.min() == pytest.approx(0, abs=1e-5) and along.max() == pytest.approx(1, abs=1e-5)
+    across = np.linalg.norm((sp - world[1]) - along[:, None] * d, axis=1)
+    assert across.max() == pytest.approx(0.02 * np.sqrt(0.5), rel=1e-3)
+    # the feet's End Site box reaches the End Site
+    foot_tip = world[4] + tf.quat_rotate(tf.matrix_to_quat(sk.world_matrices()[4, :3, :3]),
+                                         [0, 0, 0.12])
+    assert np.min(np.linalg.norm(pos[joint == 4] - foot_tip, axis=1)) < 0.02
+
+
+def test_bone_shapes_and_multiple_roots(tmp_path):
+    sk = JointSkeleton(["a", "b", "fin", "fin_tip"], [-1, 0, -1, 2],
+                       [[0, 0, 0], [0, 1, 0], [1, 0, 0], [0.5, 0, 0]])
+    for shape in ("box", "octahedron", None):
+        path = write_gltf(tmp_path / f"{shape}.glb", sk, bone_shape=shape)
+        assert_valid_glb(path)
+        info = read_gltf_summary(path)
+        assert info["joints"] == 4 and info["skins"] == 1
+        assert (info["meshes"] == 0) == (shape is None)
+    doc, _ = load(tmp_path / "box.glb")
+    armature = doc.skins[0].skeleton
+    assert doc.nodes[armature].children == [doc.skins[0].joints[0], doc.skins[0].joints[2]]
+
+
+def test_joint_meshes_and_static_meshes(tmp_path):
+    sk = skeleton()
+    cube = trimesh.creation.box((0.05, 0.05, 0.05))
+    path = write_gltf(tmp_path / "jm.glb", sk, meshes={"head": cube, 4: cube}, bone_shape=None)
+    assert_valid_glb(path)
+    doc, blob = load(path)
+    prim = doc.meshes[0].primitives[0]
+    joint = accessor(doc, blob, prim.attributes.JOINTS_0)[:, 0]
+    pos = accessor(doc, blob, prim.attributes.POSITION)
+    assert set(joint) == {2, 4}
+    np.testing.assert_allclose(pos[joint == 2].mean(axis=0), sk.world_positions()[2], atol=1e-5)
+    path = write_gltf(tmp_path / "sm.glb", sk, meshes=[cube, cube])
+    assert_valid_glb(path)
+    assert read_gltf_summary(path)["meshes"] == 2  # bones + merged static meshes
+
+
+# ----------------------------------------------------------------------------- animation
+def test_animation_keys_round_trip_and_skinning(tmp_path):
+    mo = motion(frames=15)
+    sk = mo.skeleton
+    path = write_gltf(tmp_path / "walk.glb", mo)
+    report = assert_valid_glb(path, max_warnings=0)
+    assert report["info"]["animationCount"] == 1
+    doc, blob = load(path)
+    anim = doc.animations[0]
+    joints = doc.skins[0].joints
+    rot = {}
+    trans = {}
+    for ch in anim.channels:
+        s = anim.samplers[ch.sampler]
+        assert s.interpolation == "LINEAR"
+        times = accessor(doc, blob, s.input)
+        assert times.dtype == np.float32
+        np.testing.assert_allclose(times, np.arange(15) / 30, atol=1e-6)
+        (rot if ch.target.path == "rotation" else trans)[ch.target.node] = \
+            accessor(doc, blob, s.output)
+    assert sorted(rot) == sorted(joints) and list(trans) == [joints[0]]
+    expected = tf.quat_multiply(sk.rest_rotation, mo.rotation)
+    for j, node in enumerate(joints):
+        dots = np.abs(np.sum(rot[node] * expected[:, j], axis=1))
+        np.testing.assert_allclose(dots, 1, atol=1e-5)
+    np.testing.assert_allclose(trans[joints[0]], mo.root_position, atol=1e-6)
+    # glTF skinning at frame k moves each bone vertex exactly like the skeleton's pose
+    prim = doc.meshes[0].primitives[0]
+    pos = accessor(doc, blob, prim.attributes.POSITION).astype(float)
+    jnt = accessor(doc, blob, prim.attributes.JOINTS_0)[:, 0]
+    ibm = accessor(doc, blob, doc.skins[0].inverseBindMatrices).astype(float)
+    k = 9
+    local = {i: trs(n) for i, n in enumerate(doc.nodes)}
+    for node in joints:
+        t = trans[node][k] if node in trans else doc.nodes[node].translation
+        local[node] = tf.make_transform(tf.quat_to_matrix(rot[node][k].astype(float)), t)
+    world = node_world(doc, local)
+    jm = np.stack([world[n] for n in joints]) @ ibm
+    skinned = tf.apply(jm[jnt], pos)
+    pose_world = sk.world_matrices(sk.local_matrices(mo.rotation[k], mo.root_position[k]))
+    expected_pos = tf.apply(pose_world[jnt] @ tf.invert(sk.world_matrices())[jnt], pos)
+    np.testing.assert_allclose(skinned, expected_pos, atol=1e-4)
+
+
+def test_motion_keyword_and_wrapped_objects(tmp_path):
+    mo = motion(frames=4)
+    a = write_gltf(tmp_path / "a.glb", mo.skeleton, motion=mo)
+    creature = SimpleNamespace(skeleton=mo.skeleton)  # e.g. a generated creature
+    b = write_gltf(tmp_path / "b.glb", creature)
+    assert read_gltf_summary(a)["animations"] == 1
+    assert read_gltf_summary(b)["animations"] == 0
+    assert read_gltf_summary(a)["duration"] == pytest.approx(3 / 30)
+    single = SimpleNamespace(skeleton=mo.skeleton, rotation=mo.rotation[:1],
+                             root_position=mo.root_position[:1], frame_time=0.1)
+    assert_valid_glb(write_gltf(tmp_path / "one.glb", single))
+
+
+def test_z_up_conversion(tmp_path):
+    sk = JointSkeleton(["trunk", "branch"], [-1, 0], [[1, 2, 3], [0, 0, 1]])
+    path = write_gltf(tmp_path / "z.glb", sk, y_up=False)
+    assert_valid_glb(path)
+    doc, blob = load(path)
+    joints = doc.skins[0].joints
+    world = node_world(doc, {i: trs(n) for i, n in enumerate(doc.nodes)})
+    # Z-up (x, y, z) -> Y-up (x, z, -y)
+    np.testing.assert_allclose(world[joints[0]][:3, 3], [1, 3, -2], atol=1e-6)
+    np.testing.assert_allclose(world[joints[1]][:3, 3], [1, 4, -2], atol=1e-6)
+    ibm = accessor(doc, blob, doc.skins[0].inverseBindMatrices)
+    np.testing.assert_allclose(ibm[1] @ world[joints[1]], np.eye(4), atol=1e-6)
+    mo = SimpleNamespace(skeleton=sk, rotation=tf.quat_identity((3, 2)),
+                         root_position=np.tile([1.0, 2, 3], (3, 1)), frame_time=0.5)
+    path = write_gltf(tmp_path / "zm.glb", mo, y_up=False)
+    assert_valid_glb(path)
+    doc, blob = load(path)
+    tr = [c for c in doc.animations[0].channels if c.target.path == "translation"][0]
+    np.testing.assert_allclose(
+        accessor(doc, blob, doc.animations[0].samplers[tr.sampler].output)[0], [1, 3, -2])
+
+
+# ----------------------------------------------------------------------------- meshes
+def leaf_mesh(seed: int = 0, n: int = 6) -> Mesh:
+    """A strip of quads with normals, uv, colours and per-face ids."""
+    rng = np.random.default_rng(seed)
+    s = np.linspace(0, 1, n)
+    v = np.concatenate([np.c_[s, -0.1 + 0 * s, s**2], np.c_[s, 0.1 + 0 * s, s**2]])
+    v += rng.normal(0, 0.001, v.shape)
+    i = np.arange(n - 1)
+    faces = np.concatenate([np.c_[i, i + 1, n + i], np.c_[i + 1, n + i + 1, n + i]])
+    m = Mesh(v, faces, uv=np.c_[np.r_[s, s], np.r_[0 * s, 0 * s + 1]],
+             vertex_colors=np.tile([30, 160, 40, 255], (2 * n, 1)),
+             face_ids={"plant": np.full(len(faces), seed), "leaf": np.arange(len(faces)) % 2})
+    return m.compute_normals()
+
+
+def test_mesh_attributes_round_trip(tmp_path):
+    m = leaf_mesh(3)
+    path = write_mesh(tmp_path / "leaf.glb", m, y_up=False)
+    assert_valid_glb(path)
+    doc, blob = load(path)
+    prim = doc.meshes[0].primitives[0]
+    a = vars(prim.attributes)
+    assert {"POSITION", "NORMAL", "TEXCOORD_0", "COLOR_0", "_PLANT_ID", "_LEAF_ID"} <= set(
+        k for k, v in a.items() if v is not None)
+    pos = accessor(doc, blob, a["POSITION"])
+    acc = doc.accessors[a["POSITION"]]
+    np.testing.assert_array_equal(acc.min, pos.min(axis=0))
+    np.testing.assert_array_equal(acc.max, pos.max(axis=0))
+    faces = accessor(doc, blob, prim.indices).reshape(-1, 3)
+    assert faces.dtype == np.uint16
+    # the "leaf" id alternates between neighbouring faces, so shared vertices were split
+    assert len(pos) > m.n_vertices
+    leaf = accessor(doc, blob, a["_LEAF_ID"])
+    plant = accessor(doc, blob, a["_PLANT_ID"])
+    assert leaf.dtype == np.uint16 and np.all(plant == 3)
+    # ids constant over each face and equal to the face's id, in the original face order
+    assert np.all(leaf[faces] == leaf[faces][:, :1])
+    np.testing.assert_array_equal(leaf[faces[:, 0]], m.face_ids["leaf"])
+    # geometry preserved: Z-up converted to Y-up (x, z, -y)
+    orig = m.vertices[m.faces] @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]]).T
+    np.testing.assert_allclose(pos[faces], orig, atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(accessor(doc, blob, a["NORMAL"]), axis=1), 1,
+                               atol=1e-6)
+    uv = accessor(doc, blob, a["TEXCOORD_0"])
+    np.testing.assert_allclose(uv[faces], m.uv[m.faces] * [1, -1] + [0, 1], atol=1e-6)
+    col = accessor(doc, blob, a["COLOR_0"])
+    assert doc.accessors[a["COLOR_0"]].normalized and np.all(col == [30, 160, 40, 255])
+
+
+def test_no_split_when_ids_agree_and_large_ids_as_float(tmp_path):
+    m = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], [[0, 1, 2], [1, 3, 2]],
+             face_ids={"plant": [70000, 70000], "organ": [-1, -1]})
+    path = write_mesh(tmp_path / "ids.glb", m)
+    assert_valid_glb(path)
+    doc, blob = load(path)
+    a = vars(doc.meshes[0].primitives[0].attributes)
+    ids = accessor(doc, blob, a["_PLANT_ID"])
+    assert ids.dtype == np.float32 and np.all(ids == 70000) and len(ids) == 4
+    assert np.all(accessor(doc, blob, a["_ORGAN_ID"]) == -1)
+
+
+def test_many_meshes_merge_into_one_primitive(tmp_path):
+    parts = [leaf_mesh(i % 50, n=3) for i in range(3000)]
+    path = write_gltf(tmp_path / "canopy.glb", parts, y_up=False, name="canopy")
+    assert_valid_glb(path)
+    info = read_gltf_summary(path)
+    assert info["nodes"] == 1 and info["meshes"] == 1 and info["primitives"] == 1
+    assert info["triangles"] == sum(p.n_faces for p in parts)
+    assert "_MESH_ID" in info["attributes"]
+    doc, blob = load(path)
+    a = vars(doc.meshes[0].primitives[0].attributes)
+    mesh_id = accessor(doc, blob, a["_MESH_ID"])
+    faces = accessor(doc, blob, doc.meshes[0].primitives[0].indices).reshape(-1, 3)
+    np.testing.assert_array_equal(mesh_id[faces[:, 0]], np.repeat(np.arange(3000), 4))
+    # separate nodes on request
+    few = write_gltf(tmp_path / "few.glb", parts[:3], merge=False)
+    assert_valid_glb(few)
+    assert read_gltf_summary(few)["meshes"] == 3
+
+
+def test_uint32_indices_for_large_meshes(tmp_path):
+    n = 260  # 67,600 vertices > 65,535
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float))
+    v = np.c_[x.ravel(), y.ravel(), np.zeros(n * n)]
+    i = (np.arange(n - 1)[:, None] + n * np.arange(n - 1)[None]).ravel()
+    faces = np.concatenate([np.c_[i, i + 1, i + n], np.c_[i + 1, i + n + 1, i + n]])
+    path = write_mesh(tmp_path / "big.glb", (v, faces))
+    assert_valid_glb(path)
+    doc, blob = load(path)
+    idx = doc.accessors[doc.meshes[0].primitives[0].indices]
+    assert idx.componentType == pygltflib.UNSIGNED_INT and idx.count == faces.size
+    assert read_gltf_summary(path)["vertices"] == n * n
+
+
+def test_trimesh_loads_what_we_write(tmp_path):
+    m = leaf_mesh(1)
+    scene = trimesh.load(write_mesh(tmp_path / "m.glb", m))
+    geom = list(scene.geometry.values())
+    assert len(geom) == 1
+    tm = geom[0]
+    assert len(tm.faces) == m.n_faces
+    assert {"_PLANT_ID", "_LEAF_ID"} <= set(tm.vertex_attributes)
+    np.testing.assert_allclose(tm.area, m.area(), rtol=1e-5)
+    skel = trimesh.load(write_gltf(tmp_path / "s.glb", skeleton()))
+    info = read_gltf_summary(tmp_path / "s.glb")
+    assert sum(len(g.vertices) for g in skel.geometry.values()) == info["vertices"]
+    assert sum(len(g.faces) for g in skel.geometry.values()) == info["triangles"]
+
+
+def test_morph_frames_animation(tmp_path):
+    base = leaf_mesh(0)
+    frames = [base.with_(vertices=base.vertices * (0.5 + 0.25 * k), normals=None)
+              for k in range(4)]
+    path = write_mesh_animation(tmp_path / "grow.glb", frames, frame_time=0.5, y_up=False)
+    assert_valid_glb(path)
+    doc, blob = load(path)
+    prim = doc.meshes[0].primitives[0]
+    assert len(prim.targets) == 3
+    w = accessor(doc, blob, doc.animations[0].samplers[0].output).reshape(4, 3)
+    np.testing.assert_array_equal(w, [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    base_pos = accessor(doc, blob, prim.attributes.POSITION)
+    last = base_pos + accessor(doc, blob, prim.targets[2]["POSITION"])
+    np.testing.assert_allclose(last, frames[3].vertices[:, [0, 2, 1]] * [1, 1, -1], atol=1e-6)
+    with pytest.raises(InputError, match="topology"):
+        write_mesh_animation(tmp_path / "bad.glb", [base, leaf_mesh(0, n=5)], 0.1)
+
+
+def test_dispatch_from_biomorph_io(tmp_path):
+    assert_valid_glb(bmio.write_mesh(tmp_path / "d.glb", leaf_mesh(0)))
+    assert_valid_glb(bmio.write_gltf(tmp_path / "s.glb", skeleton()))
+
+
+# ----------------------------------------------------------------------------- errors
+def test_bad_input_raises_and_leaves_no_file(tmp_path):
+    out = tmp_path / "x.glb"
+    out.write_bytes(b"old")
+    sk = skeleton()
+    bad = [
+        lambda: write_gltf(out, sk, bone_shape="sphere"),
+        lambda: write_gltf(out, sk, bone_width=-1.0),
+        lambda: write_gltf(out, None),
+        lambda: write_mesh(out, (np.zeros((0, 3)), np.zeros((0, 3), int))),
+        lambda: write_gltf(out, SimpleNamespace(skeleton=sk, rotation=np.full((2, 7, 4), np.nan),
+                                                root_position=np.zeros((2, 3)), frame_time=0.1)),
+        lambda: write_gltf(out, SimpleNamespace(skeleton=sk, rotation=tf.quat_identity((2, 7)),
+                                                root_position=np.zeros((3, 3)), frame_time=0.1)),
+        lambda: write_gltf(out, SimpleNamespace(skeleton=sk, rotation=tf.quat_identity((2, 7)),
+                                                root_position=np.zeros((2, 3)), frame_time=0)),
+        lambda: write_gltf(out, sk, meshes={"tail": trimesh.creation.box()}),
+    ]
+    for call in bad:
+        with pytest.raises(BiomorphError):
+            call()
+    with pytest.raises(ParameterError, match="bone_shape"):
+        bad[0]()
+    assert out.read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.glb"]
+
+
+def test_failed_save_leaves_no_partial_file(tmp_path, monkeypatch):
+    from biomorph.io import gltf
+
+    real = gltf._Builder.glb_parts
+
+    def interrupted(self):
+        parts = real(self)
+
+        def gen():
+            yield parts[0]  # the header reaches the disk, then Ctrl-C
+            raise KeyboardInterrupt
+
+        return gen()
+
+    monkeypatch.setattr(gltf._Builder, "glb_parts", interrupted)
+    (tmp_path / "x.glb").write_bytes(b"old")
+    with pytest.raises(KeyboardInterrupt):
+        write_gltf(tmp_path / "x.glb", skeleton())
+    assert [p.name for p in tmp_path.iterdir()] == ["x.glb"]
+    assert (tmp_path / "x.glb").read_bytes() == b"old"
+
+
+def test_summary_rejects_garbage(tmp_path):
+    junk = tmp_path / "junk.glb"
+    junk.write_bytes(b"glTF\x02\x00\x00\x00garbage")
+    with pytest.raises(FormatError, match="junk.glb"):
+        read_gltf_summary(junk)
+    with pytest.raises(FormatError, match="does not exist"):
+        read_gltf_summary(tmp_path / "missing.glb")
