@@ -1,0 +1,635 @@
+"""BVH (Biovision Hierarchy) reader and writer.
+
+Reading
+-------
+``read_bvh(path) -> Motion``. The HIERARCHY is parsed token by token (``{``/``}`` may sit on
+any line, keywords are case-insensitive, tabs, CRLF and runs of whitespace are accepted,
+``End Site`` blocks are kept in ``skeleton.end_site``). Every joint may carry any subset of
+the six channels in any order; the channel names are kept in ``skeleton.channels`` so a
+file round-trips. The MOTION block is parsed in one vectorised pass (a compiled float
+scanner over the raw bytes, exponent notation allowed) after which the value count must be
+``frames × channels`` and every data line must hold exactly ``channels`` values; otherwise a
+:class:`FormatError` names the first bad line.
+
+Conversions: Euler channels (degrees) become pose quaternions. A channel order ``Z X Y``
+means ``R = Rz · Rx · Ry`` (the BVH convention, see :mod:`biomorph.core.transforms`);
+quaternions are made hemisphere-continuous over time. Root position channels become
+``Motion.root_position`` (they replace the root OFFSET; a missing axis takes the OFFSET
+value). Position channels on any other joint become ``Motion.joint_translation`` (the
+joint's local translation per frame, replacing its OFFSET). Lengths stay in file units.
+
+Writing
+-------
+``write_bvh(path, motion_or_skeleton, precision=6)`` writes each joint's channels in the
+skeleton's channel order (defaults: root ``Xposition Yposition Zposition Zrotation
+Xrotation Yrotation``, other joints ``Zrotation Xrotation Yrotation``), Euler angles unwrapped
+over time so the curves are continuous, fixed-point with ``precision`` decimals. The file is
+written atomically.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from biomorph.core import transforms as tf
+from biomorph.core.skeleton import JointSkeleton
+from biomorph.errors import FormatError, InputError, ParameterError
+from biomorph.io.atomic import atomic_path
+
+_CHANNELS = {c.lower(): c for c in ("Xposition", "Yposition", "Zposition",
+                                    "Xrotation", "Yrotation", "Zrotation")}
+_TOKEN = re.compile(r"[{}]|[^\s{}]+")
+_DEFAULT_ROOT = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+_DEFAULT_JOINT = ("Zrotation", "Xrotation", "Yrotation")
+
+
+# --------------------------------------------------------------------------- compiled kernels
+@njit(cache=True)
+def _scan_floats(buf, start, out, n_per_line):  # pragma: no cover - compiled
+    """Parse whitespace-separated decimal numbers from ``buf[start:]`` into ``out``.
+
+    Returns ``(count, status, err_pos, bad_line_pos, bad_line_count)``: status 0 ok,
+    1 more values than ``out`` holds, 2 a malformed token starting at ``err_pos``.
+    ``bad_line_pos`` is the byte offset of the first line whose value count differs from
+    ``n_per_line`` (-1 if none)."""
+    n = out.size
+    k = 0
+    i = start
+    size = buf.size
+    line_start = start
+    line_count = 0
+    bad_line = -1
+    bad_count = 0
+    while i < size:
+        c = buf[i]
+        if c == 10:  # newline closes a line
+            if line_count != 0 and line_count != n_per_line and bad_line < 0:
+                bad_line = line_start
+                bad_count = line_count
+            line_count = 0
+            i += 1
+            line_start = i
+            continue
+        if c == 32 or c == 9 or c == 13 or c == 11 or c == 12:
+            i += 1
+            continue
+        tok = i
+        if k >= n:
+            return k, 1, tok, bad_line, bad_count
+        neg = False
+        if c == 45:
+            neg = True
+            i += 1
+        elif c == 43:
+            i += 1
+        mant = 0
+        nd = 0
+        exp10 = 0
+        digits = 0
+        while i < size and 48 <= buf[i] <= 57:
+            if nd < 18:
+                mant = mant * 10 + (buf[i] - 48)
+                if mant > 0:
+                    nd += 1
+            else:
+                exp10 += 1
+            digits += 1
+            i += 1
+        if i < size and buf[i] == 46:
+            i += 1
+            while i < size and 48 <= buf[i] <= 57:
+                if nd < 18:
+                    mant = mant * 10 + (buf[i] - 48)
+                    exp10 -= 1
+                    if mant > 0:
+                        nd += 1
+                digits += 1
+                i += 1
+        if digits == 0:
+            return k, 2, tok, bad_line, bad_count
+        if i < size and (buf[i] == 101 or buf[i] == 69):
+            i += 1
+            eneg = False
+            if i < size and (buf[i] == 45 or buf[i] == 43):
+                eneg = buf[i] == 45
+                i += 1
+            ed = 0
+            ev = 0
+            while i < size and 48 <= buf[i] <= 57:
+                if ev < 10000:
+                    ev = ev * 10 + (buf[i] - 48)
+                ed += 1
+                i += 1
+            if ed == 0:
+                return k, 2, tok, bad_line, bad_count
+            exp10 += -ev if eneg else ev
+        if i < size:
+            c2 = buf[i]
+            if not (c2 == 32 or c2 == 9 or c2 == 10 or c2 == 13 or c2 == 11 or c2 == 12):
+                return k, 2, tok, bad_line, bad_count
+        v = float(mant)
+        if exp10 > 0:
+            v = v * 10.0 ** exp10
+        elif exp10 < 0:
+            if exp10 >= -22:
+                v = v / 10.0 ** (-exp10)
+            else:
+                v = v / 1e22 / 10.0 ** (-exp10 - 22)
+        out[k] = -v if neg else v
+        k += 1
+        line_count += 1
+    if line_count != 0 and line_count != n_per_line and bad_line < 0:
+        bad_line = line_start
+        bad_count = line_count
+    return k, 0, -1, bad_line, bad_count
+
+
+@njit(cache=True)
+def _euler_kernel(data, rot_cols, rot_axes, out):  # pragma: no cover - compiled
+    """Pose quaternions from Euler columns (degrees) with hemisphere continuity.
+
+    ``rot_cols[j, m]`` is the data column of joint j's m-th rotation channel (-1 none),
+    ``rot_axes[j, m]`` its axis 0/1/2; the rotation is the product in listed order."""
+    f, n = out.shape[0], out.shape[1]
+    d2r = np.pi / 180.0
+    for t in range(f):
+        for j in range(n):
+            x = 0.0
+            y = 0.0
+            z = 0.0
+            w = 1.0
+            for m in range(3):
+                col = rot_cols[j, m]
+                if col < 0:
+                    continue
+                h = 0.5 * data[t, col] * d2r
+                s = np.sin(h)
+                c = np.cos(h)
+                ax = rot_axes[j, m]
+                # (x,y,z,w) * (axis*s, c)
+                if ax == 0:
+                    bx, by, bz = s, 0.0, 0.0
+                elif ax == 1:
+                    bx, by, bz = 0.0, s, 0.0
+                else:
+                    bx, by, bz = 0.0, 0.0, s
+                nx = w * bx + x * c + y * bz - z * by
+                ny = w * by - x * bz + y * c + z * bx
+                nz = w * bz + x * by - y * bx + z * c
+                nw = w * c - x * bx - y * by - z * bz
+                x, y, z, w = nx, ny, nz, nw
+            if t > 0:
+                dot = (x * out[t - 1, j, 0] + y * out[t - 1, j, 1] + z * out[t - 1, j, 2]
+                       + w * out[t - 1, j, 3])
+                if dot < 0:
+                    x, y, z, w = -x, -y, -z, -w
+            out[t, j, 0] = x
+            out[t, j, 1] = y
+            out[t, j, 2] = z
+            out[t, j, 3] = w
+
+
+@njit(cache=True)
+def _format_fixed(values, precision, out):  # pragma: no cover - compiled
+    """Write ``values (f, c)`` as fixed-point text rows into byte buffer ``out``; return the
+    number of bytes used (-1 if a value is too large)."""
+    f, c = values.shape
+    scale = 10.0 ** precision
+    p10 = np.int64(1)
+    for _ in range(precision):
+        p10 *= 10
+    pos = 0
+    digits = np.empty(24, dtype=np.uint8)
+    for t in range(f):
+        for j in range(c):
+            v = values[t, j]
+            a = abs(v)
+            if not a < 1e12:
+                return -1
+            x = np.int64(np.floor(a * scale + 0.5))
+            if v < 0 and x != 0:
+                out[pos] = 45
+                pos += 1
+            ip = x // p10
+            fp = x - ip * p10
+            nd = 0
+            if ip == 0:
+                digits[0] = 48
+                nd = 1
+            while ip > 0:
+                digits[nd] = 48 + ip % 10
+                ip //= 10
+                nd += 1
+            for q in range(nd - 1, -1, -1):
+                out[pos] = digits[q]
+                pos += 1
+            if precision > 0:
+                out[pos] = 46
+                pos += 1
+                for q in range(precision - 1, -1, -1):
+                    d = fp
+                    for _ in range(q):
+                        d //= 10
+                    out[pos] = 48 + d % 10
+                    pos += 1
+            out[pos] = 32 if j < c - 1 else 10
+            pos += 1
+    return pos
+
+
+# --------------------------------------------------------------------------- reading
+def _line_of(buf: bytes, pos: int) -> int:
+    return buf.count(b"\n", 0, pos) + 1
+
+
+class _Tokens:
+    def __init__(self, text: str, path: str | os.PathLike[str]) -> None:
+        self.items: list[tuple[str, int]] = []
+        for ln, line in enumerate(text.splitlines(), start=1):
+            for m in _TOKEN.finditer(line):
+                self.items.append((m.group(0), ln))
+        self.i = 0
+        self.path = path
+        self.last_line = max(1, text.count("\n") + 1)
+
+    def peek(self) -> tuple[str, int] | None:
+        return self.items[self.i] if self.i < len(self.items) else None
+
+    def next(self, expect: str) -> tuple[str, int]:
+        if self.i >= len(self.items):
+            raise FormatError(self.path, f"file ends inside HIERARCHY; expected {expect}",
+                              line=self.last_line)
+        tok = self.items[self.i]
+        self.i += 1
+        return tok
+
+    def number(self, what: str) -> float:
+        tok, ln = self.next(what)
+        try:
+            return float(tok)
+        except ValueError:
+            raise FormatError(self.path, f"{what}: {tok!r} is not a number", line=ln) from None
+
+
+def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
+    toks = _Tokens(text, path)
+    first = toks.next("HIERARCHY")
+    if first[0].upper() != "HIERARCHY":
+        raise FormatError(path, f"file starts with {first[0]!r}; expected HIERARCHY (not a BVH "
+                                "file?)", line=first[1])
+    names: list[str] = []
+    parent: list[int] = []
+    offset: list[list[float]] = []
+    channels: list[tuple[str, ...]] = []
+    end_site: dict[int, list[float]] = {}
+    stack: list[int] = []  # open joints (-2 marks an End Site block)
+    while True:
+        tok = toks.peek()
+        if tok is None:
+            if stack:
+                raise FormatError(path, f"file ends inside joint {names[stack[-1]]!r}; expected "
+                                        "'}' and a MOTION section", line=toks.last_line)
+            raise FormatError(path, "no MOTION section; expected 'MOTION' after the hierarchy",
+                              line=toks.last_line)
+        word, ln = toks.next("a keyword")
+        key = word.upper()
+        if key in ("ROOT", "JOINT"):
+            if key == "JOINT" and not stack:
+                raise FormatError(path, "JOINT outside any ROOT; expected ROOT first", line=ln)
+            parts = []
+            while toks.peek() is not None and toks.peek()[1] == ln and toks.peek()[0] != "{":
+                parts.append(toks.next("a name")[0])
+            name = " ".join(parts)
+            if not name:
+                raise FormatError(path, f"{key} without a name; expected '{key} <name>'", line=ln)
+            if name in names:
+                raise FormatError(path, f"joint name {name!r} occurs twice; expected unique names",
+                                  line=ln)
+            brace, bl = toks.next("'{'")
+            if brace != "{":
+                raise FormatError(path, f"found {brace!r} after {key} {name}; expected '{{'",
+                                  line=bl)
+            names.append(name)
+            parent.append(stack[-1] if stack else -1)
+            offset.append([np.nan] * 3)
+            channels.append(())
+            stack.append(len(names) - 1)
+        elif key == "END":
+            site, sl = toks.next("'Site'")
+            brace, bl = toks.next("'{'")
+            if site.upper() != "SITE" or brace != "{":
+                raise FormatError(path, f"malformed End Site ({site} {brace}); expected "
+                                        "'End Site {'", line=ln)
+            if not stack or stack[-1] < 0:
+                raise FormatError(path, "End Site outside a joint", line=ln)
+            stack.append(-2 - stack[-1])  # encode owner joint
+        elif key == "OFFSET":
+            vals = [toks.number("OFFSET value") for _ in range(3)]
+            if not stack:
+                raise FormatError(path, "OFFSET outside a joint", line=ln)
+            top = stack[-1]
+            if top <= -2:
+                end_site[-2 - top] = vals
+            else:
+                offset[top] = vals
+        elif key == "CHANNELS":
+            if not stack or stack[-1] <= -2:
+                raise FormatError(path, "CHANNELS outside a joint", line=ln)
+            cnt_tok, cl = toks.next("channel count")
+            try:
+                cnt = int(cnt_tok)
+            except ValueError:
+                raise FormatError(path, f"channel count {cnt_tok!r} is not an integer",
+                                  line=cl) from None
+            if not 0 <= cnt <= 6:
+                raise FormatError(path, f"CHANNELS {cnt}; expected 0 to 6 channels", line=cl)
+            chans = []
+            for _ in range(cnt):
+                c, cl2 = toks.next("a channel name")
+                canon = _CHANNELS.get(c.lower())
+                if canon is None:
+                    raise FormatError(path, f"channel {c!r} unknown (or fewer channels than "
+                                            f"CHANNELS {cnt} announces); expected "
+                                            "Xposition..Zrotation", line=cl2)
+                if canon in chans:
+                    raise FormatError(path, f"channel {canon} listed twice", line=cl2)
+                chans.append(canon)
+            channels[stack[-1]] = tuple(chans)
+        elif word == "}":
+            if not stack:
+                raise FormatError(path, "unbalanced '}'", line=ln)
+            top = stack.pop()
+            if top >= 0 and np.isnan(offset[top][0]):
+                raise FormatError(path, f"joint {names[top]!r} has no OFFSET", line=ln)
+        elif key == "MOTION":
+            if stack:
+                raise FormatError(path, f"MOTION inside joint {names[stack[-1]]!r}; a '}}' is "
+                                        "missing", line=ln)
+            break
+        else:
+            raise FormatError(path, f"unexpected {word!r} in HIERARCHY; expected ROOT, JOINT, "
+                                    "End Site, OFFSET, CHANNELS, '}' or MOTION", line=ln)
+    if not names:
+        raise FormatError(path, "no ROOT joint in HIERARCHY", line=1)
+    end = np.full((len(names), 3), np.nan)
+    for j, v in end_site.items():
+        end[j] = v
+    return names, parent, np.asarray(offset, float), channels, end
+
+
+_NUM = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+
+
+def read_bvh(path: str | os.PathLike[str], up: str | None = None):
+    """Read a BVH file into a :class:`biomorph.motion.Motion` (see the module docstring).
+
+    ``up="z"`` converts a Z-up file to Y-up (rotating the root about X by -90°); by default
+    the file is kept as is and ``motion.meta["up_guess"]`` says which axis looks vertical.
+    """
+    from biomorph.motion.motion import Motion, guess_up_axis
+
+    p = Path(path)
+    try:
+        raw = p.read_bytes()
+    except FileNotFoundError:
+        raise FormatError(path, "file does not exist") from None
+    except IsADirectoryError:
+        raise FormatError(path, "is a directory; expected a BVH file") from None
+    m = re.search(rb"(?im)^[ \t]*MOTION[ \t]*\r?$", raw)
+    if m is None:
+        if not raw.strip():
+            raise FormatError(path, "file is empty; expected a BVH file", line=1)
+        raw_text = raw.decode("utf-8", errors="replace")
+        _parse_hierarchy(raw_text, path)  # raises the precise hierarchy error
+        raise FormatError(path, "no MOTION section", line=_line_of(raw, len(raw)))
+    header = raw[:m.end()].decode("utf-8", errors="replace")
+    names, parent, offset, channels, end = _parse_hierarchy(header, path)
+    # Frames: / Frame Time:
+    pos = m.end()
+    motion_line = _line_of(raw, m.start())
+    fr = re.compile(rb"[ \t\r\n]*Frames[ \t]*:?[ \t]*(\S+)[ \t]*\r?\n")
+    ft = re.compile(rb"[ \t\r\n]*Frame[ \t]*Time[ \t]*:?[ \t]*(\S+)[ \t]*\r?(?:\n|$)")
+    m1 = fr.match(raw, pos)
+    if m1 is None:
+        raise FormatError(path, "missing 'Frames: <count>' after MOTION", line=motion_line + 1)
+    try:
+        n_frames = int(m1.group(1))
+    except ValueError:
+        raise FormatError(path, f"Frames: {m1.group(1).decode(errors='replace')!r} is not an "
+                                "integer", line=_line_of(raw, m1.start(1))) from None
+    m2 = ft.match(raw, m1.end())
+    if m2 is None:
+        raise FormatError(path, "missing 'Frame Time: <seconds>' after Frames:",
+                          line=_line_of(raw, m1.end()))
+    try:
+        frame_time = float(m2.group(1))
+    except ValueError:
+        frame_time = float("nan")
+    if not np.isfinite(frame_time) or frame_time <= 0:
+        raise FormatError(path, f"Frame Time {m2.group(1).decode(errors='replace')!r}; expected "
+                                "seconds per frame > 0", line=_line_of(raw, m2.start(1)))
+    if n_frames < 1:
+        raise FormatError(path, f"Frames: {n_frames}; expected at least one frame",
+                          line=_line_of(raw, m1.start(1)))
+    n_ch = sum(len(c) for c in channels)
+    data_start = m2.end()
+    buf = np.frombuffer(raw, dtype=np.uint8)
+    out = np.empty(n_frames * n_ch, dtype=np.float64)
+    count, status, err, bad_line, bad_count = _scan_floats(buf, data_start, out, max(n_ch, 1))
+    first_data_line = _line_of(raw, data_start)
+    if status == 2:
+        tok = raw[err:err + 40].split()[0].decode(errors="replace")
+        raise FormatError(path, f"MOTION value {tok!r} is not a number (frame "
+                                f"{count // max(n_ch, 1)}, channel {count % max(n_ch, 1)})",
+                          line=_line_of(raw, err))
+    if bad_line >= 0 and n_ch > 0:
+        ln = _line_of(raw, bad_line)
+        raise FormatError(path, f"frame line holds {bad_count} values; expected {n_ch} "
+                                "(the CHANNELS of the hierarchy)", line=ln)
+    if status == 1:
+        ln = _line_of(raw, err)
+        raise FormatError(path, f"more data than 'Frames: {n_frames}' announces (frame line "
+                                f"{ln - first_data_line + 1}); expected {n_frames} frames",
+                          line=ln)
+    if count < n_frames * n_ch:
+        raise FormatError(path, f"file ends after {count // n_ch} complete frames; 'Frames: "
+                                f"{n_frames}' announces {n_frames} (truncated file?)",
+                          line=_line_of(raw, len(raw)))
+    data = out.reshape(n_frames, n_ch)
+    n = len(names)
+    rot_cols = np.full((n, 3), -1, dtype=np.int64)
+    rot_axes = np.zeros((n, 3), dtype=np.int64)
+    pos_cols = np.full((n, 3), -1, dtype=np.int64)
+    col = 0
+    for j, chans in enumerate(channels):
+        k = 0
+        for c in chans:
+            axis = "XYZ".index(c[0])
+            if c.endswith("rotation"):
+                rot_cols[j, k] = col
+                rot_axes[j, k] = axis
+                k += 1
+            else:
+                pos_cols[j, axis] = col
+            col += 1
+    rotation = np.empty((n_frames, n, 4))
+    _euler_kernel(data, rot_cols, rot_axes, rotation)
+    translation = None
+    root_pos = np.empty((n_frames, 3))
+    for a in range(3):
+        root_pos[:, a] = data[:, pos_cols[0, a]] if pos_cols[0, a] >= 0 else offset[0, a]
+    inner = [j for j in range(1, n) if (pos_cols[j] >= 0).any()]
+    if inner:
+        translation = np.broadcast_to(offset, (n_frames, n, 3)).copy()
+        translation[:, 0] = root_pos
+        for j in inner:
+            for a in range(3):
+                if pos_cols[j, a] >= 0:
+                    translation[:, j, a] = data[:, pos_cols[j, a]]
+    wraps = 0
+    rc = rot_cols[rot_cols >= 0]
+    if rc.size and n_frames > 1:
+        wraps = int(np.count_nonzero(np.abs(np.diff(data[:, rc], axis=0)) > 180.0))
+    try:
+        skel = JointSkeleton(names, parent, offset, channels=channels, end_site=end)
+    except InputError as exc:
+        raise FormatError(path, str(exc)) from None
+    meta = {"source": os.fspath(path), "format": "bvh", "units": "file units",
+            "euler_wraps_in_file": wraps}
+    mo = Motion(skel, rotation, root_pos, frame_time, translation, meta)
+    mo.meta["up_guess"] = guess_up_axis(mo)
+    if up is not None:
+        from biomorph.motion.align import to_y_up
+
+        mo = to_y_up(mo, up)
+    return mo
+
+
+read_motion = read_bvh
+
+
+# --------------------------------------------------------------------------- writing
+def _children_lists(parent: np.ndarray) -> list[list[int]]:
+    kids: list[list[int]] = [[] for _ in range(len(parent))]
+    for j, p in enumerate(parent):
+        if p >= 0:
+            kids[int(p)].append(j)
+    return kids
+
+
+def _fmt(v: float, precision: int) -> str:
+    s = f"{v:.{precision}f}"
+    return s[1:] if s.startswith("-") and float(s) == 0 else s
+
+
+def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int = 6) -> Path:
+    """Write a Motion (or a JointSkeleton as a one-frame rest pose) as BVH; atomic.
+
+    Rotations are written as Euler angles (degrees) in each joint's channel order, composed
+    with the joint's rest rotation (BVH has none), and unwrapped over time. Joints without
+    channels in ``skeleton.channels`` get the defaults (root 6, others 3 rotations)."""
+    from biomorph.motion.motion import Motion
+
+    if not isinstance(precision, (int, np.integer)) or not 0 <= precision <= 12:
+        raise ParameterError(f"precision {precision!r}; expected an integer 0..12")
+    if isinstance(motion_or_skeleton, JointSkeleton):
+        sk = motion_or_skeleton
+        mo = Motion(sk, tf.quat_identity((1, sk.n_joints)), sk.offset[:1].copy(), 1.0 / 30)
+    elif isinstance(motion_or_skeleton, Motion):
+        mo = motion_or_skeleton
+    else:
+        raise ParameterError(f"cannot write {type(motion_or_skeleton).__name__} as BVH; "
+                             "expected a Motion or a JointSkeleton")
+    sk = mo.skeleton
+    n = sk.n_joints
+    if sk.channels is not None:
+        chans = [tuple(c) for c in sk.channels]
+    else:
+        chans = [_DEFAULT_ROOT if sk.parent[j] < 0 else _DEFAULT_JOINT for j in range(n)]
+    if any(p < 0 for p in sk.parent[1:]) and mo.joint_translation is None:
+        pass  # extra roots: their OFFSET is used
+    trans = mo.local_translations()
+    f = mo.n_frames
+    cols: list[np.ndarray] = []
+    orders = mo.rotation_orders
+    has_rest = not np.allclose(sk.rest_rotation, tf.quat_identity((n,)), atol=0.0)
+    for j in range(n):
+        rot_names = [c for c in chans[j] if c.endswith("rotation")]
+        euler = None
+        if rot_names:
+            q = mo.rotation[:, j]
+            if has_rest:
+                q = tf.quat_multiply(sk.rest_rotation[j], q)
+            order = orders[j]
+            with warnings.catch_warnings():  # gimbal lock: scipy picks a valid solution
+                warnings.simplefilter("ignore", UserWarning)
+                e = tf.quat_to_euler(q, order)
+            euler = np.degrees(tf.unwrap_euler(e, axis=0))
+        for c in chans[j]:
+            a = "XYZ".index(c[0])
+            if c.endswith("rotation"):
+                cols.append(euler[:, orders[j].index(c[0])])
+            else:
+                cols.append(trans[:, j, a])
+    data = np.column_stack(cols) if cols else np.zeros((f, 0))
+    if data.size and not np.isfinite(data).all():
+        bad = int(np.argwhere(~np.isfinite(data))[0][0])
+        raise InputError(f"cannot write BVH: frame {bad} holds NaN or inf")
+    kids = _children_lists(sk.parent)
+    lines = ["HIERARCHY"]
+
+    def emit(j: int, depth: int) -> None:
+        ind = "\t" * depth
+        kw = "ROOT" if sk.parent[j] < 0 else "JOINT"
+        lines.append(f"{ind}{kw} {sk.names[j]}")
+        lines.append(f"{ind}{{")
+        off = sk.offset[j]
+        lines.append(f"{ind}\tOFFSET " + " ".join(_fmt(v, precision) for v in off))
+        lines.append(f"{ind}\tCHANNELS {len(chans[j])}" +
+                     ("" if not chans[j] else " " + " ".join(chans[j])))
+        for k in kids[j]:
+            emit(k, depth + 1)
+        if not kids[j] and np.all(np.isfinite(sk.end_site[j])):
+            lines.append(f"{ind}\tEnd Site")
+            lines.append(f"{ind}\t{{")
+            lines.append(f"{ind}\t\tOFFSET " + " ".join(_fmt(v, precision)
+                                                        for v in sk.end_site[j]))
+            lines.append(f"{ind}\t}}")
+        elif kids[j] and np.all(np.isfinite(sk.end_site[j])):
+            pass  # BVH allows an End Site only on leaves
+        lines.append(f"{ind}}}")
+
+    import sys
+
+    limit = sys.getrecursionlimit()
+    if int(sk.depth.max()) + 50 > limit:
+        sys.setrecursionlimit(int(sk.depth.max()) + 100)
+    for r in np.flatnonzero(sk.parent < 0):
+        emit(int(r), 0)
+    lines.append("MOTION")
+    lines.append(f"Frames: {f}")
+    lines.append(f"Frame Time: {float(mo.frame_time)!r}")
+    head = ("\n".join(lines) + "\n").encode("utf-8")
+    if data.shape[1]:
+        c = data.shape[1]
+        buf = np.empty(f * c * (precision + 16), dtype=np.uint8)
+        used = _format_fixed(np.ascontiguousarray(data), int(precision), buf)
+        if used < 0:
+            raise InputError("cannot write BVH: a channel value exceeds 1e12 in magnitude")
+        body = buf[:used].tobytes()
+    else:
+        body = b"\n" * f
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(head)
+            fh.write(body)
+    return Path(path)
+
+
+__all__ = ["read_bvh", "read_motion", "write_bvh"]

@@ -1,0 +1,366 @@
+"""The :class:`Motion` type: a joint skeleton animated over frames.
+
+Data layout (structure of arrays, one row per frame):
+
+* ``skeleton`` – :class:`biomorph.core.skeleton.JointSkeleton` (names, parents, rest offsets,
+  rest rotations, BVH channel names per joint, End Sites).
+* ``rotation`` – ``float[f, n, 4]`` unit quaternions, scalar-last ``(x, y, z, w)``: the pose
+  rotation of every joint *applied after its rest rotation* (local transform of joint ``j`` is
+  ``T(offset_j) · R(rest_j) · R(rotation[:, j])``). Hemisphere-continuous over time: consecutive
+  quaternions of one joint have a non-negative dot product, so every component is a
+  continuous signal that can be filtered or interpolated.
+* ``root_position`` – ``float[f, 3]`` translation of the root joint in its parent (world)
+  frame; it *replaces* the root's rest offset (BVH convention).
+* ``frame_time`` – seconds between frames (``fps = 1 / frame_time``).
+* ``joint_translation`` – optional ``float[f, n, 3]`` local translation of every joint per frame
+  (NaN-free: joints without position channels hold their rest offset, the root column equals
+  ``root_position``). Present only when some non-root joint is translated (BVH position
+  channels on inner joints, HTR per-segment translations); ``None`` otherwise.
+* ``meta`` – free-form information from the reader (source path, units, up axis, number of
+  ±180° Euler wraps in the file, …). Never used by the maths.
+
+Units: lengths in the file's units for BVH (BVH has no unit field), metres for HTR and
+ASF/AMC (converted from the declared units); angles in radians; time in seconds. Motion
+data are Y-up by convention; :func:`guess_up_axis` detects Z-up files and
+:func:`biomorph.motion.align.to_y_up` converts them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from biomorph.core import transforms as tf
+from biomorph.core.skeleton import JointSkeleton
+from biomorph.errors import InputError, ParameterError
+
+Array = NDArray[np.float64]
+
+ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
+POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
+DEFAULT_ORDER = "ZXY"
+
+
+def _readonly(a: ArrayLike, shape_tail: tuple[int, ...], name: str) -> Array:
+    arr = np.asarray(a, dtype=np.float64)
+    if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != shape_tail:
+        raise InputError(f"Motion.{name} has shape {arr.shape}; expected (frames, "
+                         f"{', '.join(map(str, shape_tail))})")
+    if arr.flags.writeable:
+        arr = np.array(arr, dtype=np.float64, order="C", copy=True)
+        arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """A skeleton animated over ``n_frames`` frames (see the module docstring for layout).
+
+    Example
+    -------
+    >>> import biomorph as bm                                   # doctest: +SKIP
+    >>> mo = bm.io.read_bvh("walk.bvh")                         # doctest: +SKIP
+    >>> mo.n_frames, mo.fps, mo.world_positions().shape         # doctest: +SKIP
+    (327, 120.0, (327, 31, 3))
+    """
+
+    skeleton: JointSkeleton
+    rotation: Array
+    root_position: Array
+    frame_time: float
+    joint_translation: Array | None = None
+    meta: dict[str, Any] = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        n = self.skeleton.n_joints
+        rot = _readonly(self.rotation, (n, 4), "rotation")
+        pos = _readonly(self.root_position, (3,), "root_position")
+        if pos.shape[0] != rot.shape[0]:
+            raise InputError(f"Motion has {rot.shape[0]} rotation frames but {pos.shape[0]} "
+                             "root positions; expected the same number")
+        ft = float(self.frame_time)
+        if not np.isfinite(ft) or ft <= 0:
+            raise InputError(f"frame time {self.frame_time!r} s is not positive; "
+                             "expected seconds per frame > 0")
+        object.__setattr__(self, "rotation", rot)
+        object.__setattr__(self, "root_position", pos)
+        object.__setattr__(self, "frame_time", ft)
+        if self.joint_translation is not None:
+            jt = _readonly(self.joint_translation, (n, 3), "joint_translation")
+            if jt.shape[0] != rot.shape[0]:
+                raise InputError(f"joint_translation has {jt.shape[0]} frames; expected "
+                                 f"{rot.shape[0]}")
+            object.__setattr__(self, "joint_translation", jt)
+        object.__setattr__(self, "meta", dict(self.meta))
+
+    # ------------------------------------------------------------------ basic properties
+    @property
+    def n_frames(self) -> int:
+        return int(self.rotation.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        return self.skeleton.n_joints
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.skeleton.names
+
+    @property
+    def fps(self) -> float:
+        """Frames per second (``1 / frame_time``)."""
+        return 1.0 / self.frame_time
+
+    @property
+    def duration(self) -> float:
+        """Seconds from the first to the last frame, ``(n_frames - 1) * frame_time``."""
+        return max(self.n_frames - 1, 0) * self.frame_time
+
+    def __len__(self) -> int:
+        return self.n_frames
+
+    def __repr__(self) -> str:
+        return (f"Motion({self.n_frames} frames @ {self.fps:.6g} fps, {self.n_joints} joints, "
+                f"root {self.skeleton.names[0]!r})")
+
+    def with_(self, **changes: Any) -> Motion:
+        """A copy with some fields replaced (the motion itself is immutable)."""
+        return replace(self, **changes)
+
+    @property
+    def rotation_orders(self) -> tuple[str, ...]:
+        """Per joint, the axes of its rotation channels in file order (``"ZXY"`` default).
+
+        A joint with fewer than three rotation channels gets its listed axes followed by
+        the missing ones (which are then always zero in the file)."""
+        chans = self.skeleton.channels
+        out = []
+        for j in range(self.n_joints):
+            axes = ""
+            if chans is not None:
+                axes = "".join(c[0].upper() for c in chans[j] if c.lower().endswith("rotation"))
+            if len(axes) < 3:
+                axes = axes + "".join(a for a in DEFAULT_ORDER if a not in axes) if axes \
+                    else DEFAULT_ORDER
+            out.append(axes)
+        return tuple(out)
+
+    # ------------------------------------------------------------------ frames
+    def __getitem__(self, index: int | slice | ArrayLike) -> Motion:
+        """Frames ``index`` (slice, int or integer array) as a new Motion."""
+        if isinstance(index, (int, np.integer)):
+            index = slice(int(index), int(index) + 1 if int(index) != -1 else None)
+        if not isinstance(index, slice):
+            index = np.asarray(index, dtype=np.int64)
+        rot = self.rotation[index]
+        if rot.shape[0] == 0:
+            raise InputError(f"frame selection {index!r} is empty; the motion has "
+                             f"{self.n_frames} frames")
+        jt = None if self.joint_translation is None else self.joint_translation[index]
+        return Motion(self.skeleton, rot, self.root_position[index], self.frame_time, jt,
+                      self.meta)
+
+    def frames(self, start: int, stop: int) -> Motion:
+        """Frames ``start <= i < stop`` with a clear error if the range is empty or outside."""
+        check_range(self, start, stop)
+        return self[start:stop]
+
+    def sample(self, t: ArrayLike) -> Motion:
+        """Motion at fractional frame indices ``t`` (clamped to the clip).
+
+        Rotations by slerp, translations linearly. Integer ``t`` returns the stored frames
+        exactly (no rounding from interpolation)."""
+        t = np.clip(np.asarray(t, dtype=float).reshape(-1), 0.0, self.n_frames - 1)
+        rot, pos, jt = sample_arrays(self, t)
+        return Motion(self.skeleton, rot, pos, self.frame_time, jt, self.meta)
+
+    def resample(self, fps: float) -> Motion:
+        """The motion at another frame rate (slerp for rotations, linear for translations).
+
+        The duration is kept; the new frame count is ``floor(duration * fps + 1e-9) + 1``."""
+        fps = float(fps)
+        if not np.isfinite(fps) or fps <= 0:
+            raise ParameterError(f"fps {fps} is not positive; expected frames per second > 0")
+        n_new = int(np.floor(self.duration * fps + 1e-9)) + 1
+        t = np.arange(n_new) * (self.fps / fps)
+        out = self.sample(t)
+        return out.with_(frame_time=1.0 / fps)
+
+    def concatenate(self, *others: Motion) -> Motion:
+        """This motion followed by ``others`` (same joint names); frame time of the first."""
+        return concatenate([self, *others])
+
+    # ------------------------------------------------------------------ kinematics
+    def local_translations(self, frames: ArrayLike | slice | None = None) -> Array:
+        """Local translation of every joint ``float[f, n, 3]`` (root = root position)."""
+        sel = slice(None) if frames is None else frames
+        if self.joint_translation is not None:
+            return np.array(self.joint_translation[sel])
+        pos = self.root_position[sel]
+        t = np.broadcast_to(self.skeleton.offset, pos.shape[:-1] + self.skeleton.offset.shape)
+        t = np.array(t)
+        t[..., 0, :] = pos
+        return t
+
+    def world_matrices(self, frames: ArrayLike | slice | None = None) -> Array:
+        """World 4x4 transforms of every joint ``float[f, n, 4, 4]`` (vectorised FK)."""
+        sel = slice(None) if frames is None else frames
+        q = tf.quat_multiply(self.skeleton.rest_rotation, self.rotation[sel])
+        return self.skeleton.world_matrices(_transforms(q, self.local_translations(sel)))
+
+    def world_positions(self, frames: ArrayLike | slice | None = None) -> Array:
+        """World position of every joint ``float[f, n, 3]`` (file units / metres)."""
+        return self.world_matrices(frames)[..., :3, 3]
+
+    def world_rotations(self, frames: ArrayLike | slice | None = None) -> Array:
+        """World orientation quaternions ``float[f, n, 4]`` of every joint."""
+        sel = slice(None) if frames is None else frames
+        q = tf.quat_multiply(self.skeleton.rest_rotation, self.rotation[sel])
+        out = np.array(q)
+        sk = self.skeleton
+        for level in sk.levels[1:]:
+            out[..., level, :] = tf.quat_multiply(out[..., sk.parent[level], :], q[..., level, :])
+        return out
+
+    # ------------------------------------------------------------------ Euler views
+    def euler(self, joint: int | str, degrees: bool = False, order: str | None = None,
+              include_rest: bool = False) -> Array:
+        """Euler angles ``float[f, 3]`` of ``joint`` in its channel order (or ``order``),
+        unwrapped over time (no ±360° jumps). ``include_rest`` composes the rest rotation
+        (what a BVH file stores when the skeleton has non-identity rest rotations)."""
+        j = self.skeleton.index(joint) if isinstance(joint, str) else int(joint)
+        o = order or self.rotation_orders[j]
+        q = self.rotation[:, j]
+        if include_rest:
+            q = tf.quat_multiply(self.skeleton.rest_rotation[j], q)
+        e = tf.quat_to_euler(q, o, degrees=degrees)
+        return tf.unwrap_euler(e, degrees=degrees, axis=0)
+
+    def channel(self, joint: int | str, name: str, degrees: bool = False) -> Array:
+        """One scalar channel ``float[f]`` of a joint: ``"Xrotation"``.. (Euler, unwrapped,
+        in the joint's channel order) or ``"Xposition"``.. (local translation)."""
+        j = self.skeleton.index(joint) if isinstance(joint, str) else int(joint)
+        key = _channel_key(name)
+        axis = "XYZ".index(key[0])
+        if key.endswith("position"):
+            return self.local_translations()[:, j, axis]
+        order = self.rotation_orders[j]
+        return self.euler(j, degrees=degrees)[:, order.index(key[0])]
+
+
+def _transforms(q: Array, t: Array) -> Array:
+    """4x4 transforms from quaternions ``(..., 4)`` and translations ``(..., 3)`` (no
+    shape guessing, unlike ``make_transform`` which cannot tell 4 joints from a 4x4)."""
+    out = np.zeros(q.shape[:-1] + (4, 4))
+    out[..., :3, :3] = tf.quat_to_matrix(q)
+    out[..., :3, 3] = t
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def _channel_key(name: str) -> str:
+    s = name.strip().lower()
+    table = {"rx": "Xrotation", "ry": "Yrotation", "rz": "Zrotation",
+             "tx": "Xposition", "ty": "Yposition", "tz": "Zposition"}
+    if s in table:
+        return table[s]
+    for c in ROTATION_CHANNELS + POSITION_CHANNELS:
+        if s == c.lower():
+            return c
+    raise ParameterError(f"channel {name!r} is not one of Xrotation Yrotation Zrotation "
+                         "Xposition Yposition Zposition (or rx ry rz tx ty tz)")
+
+
+def check_range(motion: Motion, start: int, stop: int, what: str = "frame range") -> None:
+    """Raise :class:`ParameterError` unless ``0 <= start < stop <= n_frames``."""
+    if not (0 <= start < stop <= motion.n_frames):
+        raise ParameterError(f"{what} {start}:{stop} is empty or outside the clip; expected "
+                             f"0 <= start < stop <= {motion.n_frames}")
+
+
+def sample_arrays(motion: Motion, t: Array) -> tuple[Array, Array, Array | None]:
+    """Rotations (slerp), root positions and joint translations (linear) at frames ``t``."""
+    n = motion.n_frames
+    i0 = np.floor(t).astype(np.int64)
+    i0 = np.clip(i0, 0, n - 1)
+    i1 = np.minimum(i0 + 1, n - 1)
+    frac = t - i0
+    exact = frac == 0.0
+    q0 = motion.rotation[i0]
+    q1 = motion.rotation[i1]
+    if np.all(exact):
+        rot = np.array(q0)
+    else:
+        rot = tf.quat_slerp(q0, q1, np.broadcast_to(frac[:, None], q0.shape[:-1]))
+        rot[exact] = q0[exact]
+    rot = tf.quat_continuous(rot, axis=0)
+    f = frac[:, None]
+    pos = motion.root_position[i0] * (1.0 - f) + motion.root_position[i1] * f
+    pos[exact] = motion.root_position[i0[exact]]
+    jt = None
+    if motion.joint_translation is not None:
+        a = motion.joint_translation[i0]
+        b = motion.joint_translation[i1]
+        jt = a * (1.0 - f[:, :, None]) + b * f[:, :, None]
+        jt[exact] = a[exact]
+    return rot, pos, jt
+
+
+def same_skeleton(a: JointSkeleton, b: JointSkeleton, what: str = "motions") -> None:
+    """Raise :class:`InputError` unless both skeletons have the same joint names in order."""
+    if a.names != b.names:
+        extra = sorted(set(a.names) ^ set(b.names))
+        detail = (f"joints only in one of them: {', '.join(extra[:6])}" if extra
+                  else "same joints in a different order")
+        raise InputError(f"{what} do not share a skeleton ({a.n_joints} vs {b.n_joints} "
+                         f"joints; {detail}); expected identical joint names")
+
+
+def concatenate(motions: Sequence[Motion]) -> Motion:
+    """Frames of several motions one after another (same joint names, hemisphere-continuous
+    at the joins). The first motion's skeleton and frame time are used."""
+    if not motions:
+        raise InputError("nothing to concatenate; expected at least one motion")
+    first = motions[0]
+    for m in motions[1:]:
+        same_skeleton(first.skeleton, m.skeleton)
+    rot = tf.quat_continuous(np.concatenate([m.rotation for m in motions]), axis=0)
+    pos = np.concatenate([m.root_position for m in motions])
+    jt = None
+    if any(m.joint_translation is not None for m in motions):
+        jt = np.concatenate([m.local_translations() for m in motions])
+    return Motion(first.skeleton, rot, pos, first.frame_time, jt, first.meta)
+
+
+def guess_up_axis(motion: Motion) -> str:
+    """``"y"`` or ``"z"``: the axis along which the root stays highest above the feet.
+
+    Feet are joints whose name contains foot/toe/ankle (else the lowest leaf joints of the
+    rest pose). The up axis is the one maximising the mean |root - feet| over the clip;
+    ties (and skeletons without feet) give ``"y"``."""
+    names = [s.lower() for s in motion.names]
+    feet = [i for i, s in enumerate(names) if any(k in s for k in ("foot", "toe", "ankle"))]
+    step = max(1, motion.n_frames // 200)
+    pos = motion.world_positions(slice(None, None, step))
+    if not feet:
+        leaves = np.setdiff1d(np.arange(motion.n_joints), motion.skeleton.parent)
+        feet = list(leaves)
+    d = np.abs(pos[:, 0, :] - pos[:, feet, :].mean(axis=1)).mean(axis=0)
+    return "z" if d[2] > 1.2 * d[1] and d[2] > d[0] else "y"
+
+
+def preview_positions(motion: Motion, frame: int) -> tuple[Array, Array]:
+    """World joint positions ``(n, 3)`` and bone segments ``(m, 2, 3)`` of one frame (for
+    interactive viewers: cheap, one frame of FK)."""
+    if not 0 <= frame < motion.n_frames:
+        raise ParameterError(f"frame {frame} outside the clip; expected 0..{motion.n_frames - 1}")
+    w = motion.world_matrices(slice(frame, frame + 1))[0]
+    return w[:, :3, 3], motion.skeleton.bone_segments(w)
+
+
+__all__ = ["Motion", "concatenate", "check_range", "same_skeleton", "guess_up_axis",
+           "preview_positions", "sample_arrays", "ROTATION_CHANNELS", "POSITION_CHANNELS"]

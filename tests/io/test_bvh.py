@@ -1,0 +1,168 @@
+"""BVH reader/writer: real dialects, round trip, written edge cases, precise errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from biomorph.core import transforms as tf
+from biomorph.errors import FormatError
+from biomorph.io.bvh import read_bvh, write_bvh
+from tests.conftest import shared_file
+
+# file, frames, joints, fps, euler wraps (±180° jumps between frames in the file)
+REAL = [
+    ("cmu_01_01.bvh", 2752, 31, 120.0, 0),
+    ("fairmotion_sinusoidal.bvh", 120, 4, 60.0, 0),
+    ("ad_fair1_zombie_walk.bvh", 779, 27, 30.0, 16),
+    ("ad_fair1_jumping.bvh", 654, 27, 1 / 0.008342, None),
+    ("ad_cmu1_jumping_jacks.bvh", 125, 31, None, None),
+    ("ad_rokoko_jesse_dance.bvh", 1007, 60, 100.0, 18),
+    ("dme_comp_3d_2_raw.bvh", 64, 31, None, None),
+    ("dme_comp_3d_2_fixed.bvh", 64, 31, None, None),
+    ("xia_neutral_01_000_walk.bvh", 327, 31, None, None),
+    ("xia_angry_13_000_run.bvh", 140, 31, None, None),
+]
+
+
+@pytest.mark.parametrize("name,frames,joints,fps,wraps", REAL)
+def test_real_file_reads_and_round_trips(tmp_path, name, frames, joints, fps, wraps):
+    mo = read_bvh(shared_file("motion", name))
+    assert mo.n_frames == frames and mo.n_joints == joints
+    if fps is not None:
+        assert mo.fps == pytest.approx(fps, rel=1e-4)
+    if wraps is not None:
+        assert mo.meta["euler_wraps_in_file"] == wraps
+    # unit, hemisphere-continuous quaternions
+    assert np.allclose(np.linalg.norm(mo.rotation, axis=-1), 1.0, atol=1e-12)
+    assert (np.sum(mo.rotation[1:] * mo.rotation[:-1], axis=-1) >= 0).all()
+    out = write_bvh(tmp_path / "rt.bvh", mo)
+    back = read_bvh(out)
+    assert back.names == mo.names
+    assert back.skeleton.channels == mo.skeleton.channels
+    assert back.frame_time == mo.frame_time
+    assert np.allclose(back.root_position, mo.root_position, atol=1e-6)
+    assert np.max(tf.quat_angle(back.rotation, mo.rotation)) < 1e-6
+    # written Euler curves are continuous (no ±360 jumps)
+    assert back.meta["euler_wraps_in_file"] == 0
+    # writing again is idempotent to the last digit
+    again = write_bvh(tmp_path / "rt2.bvh", back)
+    assert again.read_bytes() == out.read_bytes()
+
+
+def test_mixed_orders_and_z_up():
+    mo = read_bvh(shared_file("motion", "ad_cmu1_jumping_jacks.bvh"))
+    assert {"ZYX", "ZXY"} <= set(mo.rotation_orders)
+    zombie = read_bvh(shared_file("motion", "ad_fair1_zombie_walk.bvh"))
+    assert {"XYZ", "YXZ"} <= set(zombie.rotation_orders)
+    assert zombie.meta["up_guess"] == "z"
+    yup = read_bvh(shared_file("motion", "ad_fair1_zombie_walk.bvh"), up="z")
+    # root height (file Z ≈ 23–25) is now on Y
+    assert 20 < yup.root_position[:, 1].mean() < 27
+    assert np.allclose(yup.root_position[:, 1], zombie.root_position[:, 2])
+
+
+def test_sinusoidal_values_round_trip_to_6_decimals(tmp_path):
+    src = shared_file("motion", "fairmotion_sinusoidal.bvh")
+    out = write_bvh(tmp_path / "s.bvh", read_bvh(src))
+
+    def values(p):
+        text = p.read_text()
+        body = text.split("Frame Time:")[1].split("\n", 1)[1]
+        return np.array(body.split(), float)
+
+    assert np.allclose(values(src), values(out), atol=1.5e-6)
+
+
+HAND = """HIERARCHY\r
+ROOT\troot\r
+{\r
+  OFFSET 1 2 3\r
+  CHANNELS 6 Zrotation Xposition Yrotation Yposition Xrotation Zposition\r
+  JOINT   mid {\r
+    OFFSET 0 1.5e1 0\r
+    CHANNELS 5 Xposition Yrotation  Xrotation Zrotation Zposition\r
+    JOINT tip\r
+    {\r
+      OFFSET 0 2 0\r
+      CHANNELS 3 Yrotation Zrotation Xrotation\r
+      End Site\r
+      {\r
+        OFFSET 0 1E0 0\r
+      }\r
+    }\r
+  }\r
+}\r
+MOTION\r
+Frames:\t3\r
+Frame Time: 0.0333333\r
+10 0.5 20 1 30 -2  0.1 40 50 60 0.2  70 80 90\r
+-10 0.6 -20 1 -30 -2 0.2 -40 -50 -60 0.3 -70 -80 -90\r
+1e1 7.5e-1 2.0E+1 1 3e1 -2 0 0 0 0 0 179.5 -179.5 0\r
+"""
+
+
+def test_hand_written_dialect(tmp_path):
+    p = tmp_path / "hand.bvh"
+    p.write_bytes(HAND.encode())
+    mo = read_bvh(p)
+    assert mo.names == ("root", "mid", "tip")
+    assert mo.skeleton.channels[0] == ("Zrotation", "Xposition", "Yrotation", "Yposition",
+                                       "Xrotation", "Zposition")
+    assert mo.rotation_orders == ("ZYX", "YXZ", "YZX")
+    assert np.allclose(mo.skeleton.offset[1], [0, 15, 0])
+    assert np.allclose(mo.skeleton.end_site[2], [0, 1, 0])
+    assert np.isnan(mo.skeleton.end_site[0]).all()
+    assert np.allclose(mo.root_position[0], [0.5, 1, -2])
+    assert np.allclose(mo.root_position[2], [0.75, 1, -2])
+    # position channels on an inner joint: Xposition/Zposition given, Y from OFFSET
+    assert mo.joint_translation is not None
+    assert np.allclose(mo.joint_translation[0, 1], [0.1, 15, 0.2])
+    # R = Rz · Ry · Rx for channel order Zrotation Yrotation Xrotation (root)
+    expect = tf.euler_to_quat([10, 20, 30], "ZYX", degrees=True)
+    assert tf.quat_angle(mo.rotation[0, 0], expect) < 1e-7
+    # world positions: vectorised FK agrees with a hand computation for frame 0
+    w = mo.world_positions()
+    r = tf.quat_to_matrix(expect)
+    assert np.allclose(w[0, 1], mo.root_position[0] + r @ [0.1, 15, 0.2])
+    out = write_bvh(tmp_path / "out.bvh", mo)
+    back = read_bvh(out)
+    assert back.skeleton.channels == mo.skeleton.channels
+    assert np.allclose(back.joint_translation, mo.joint_translation, atol=1e-6)
+    assert np.max(tf.quat_angle(back.rotation, mo.rotation)) < 1e-6
+
+
+def _broken(tmp_path, text: str):
+    p = tmp_path / "bad.bvh"
+    p.write_text(text)
+    with pytest.raises(FormatError) as info:
+        read_bvh(p)
+    return info.value
+
+
+GOOD = HAND.replace("\r", "")
+
+
+@pytest.mark.parametrize("mutate,line,needle", [
+    (lambda s: s.rsplit("\n", 2)[0] + "\n", None, "truncated"),          # last frame missing
+    (lambda s: s.replace("0.1 40 50 60", "0.1 40 50"), 23, "expected 14"),  # short line
+    (lambda s: s.replace("-30 -2", "-30 abc"), 24, "'abc' is not a number"),
+    (lambda s: s.replace("Frames:\t3\n", ""), 21, "Frames"),
+    (lambda s: s.replace("Frame Time: 0.0333333\n", ""), 22, "Frame Time"),
+    (lambda s: s.replace("Frames:\t3", "Frames: 2"), 25, "more data"),
+    (lambda s: s.replace("CHANNELS 5", "CHANNELS 4"), 8, "Zposition"),
+    (lambda s: s.replace("OFFSET 0 2 0", "OFFSET 0 x 0"), 11, "not a number"),
+    (lambda s: s.split("MOTION")[0].rsplit("}", 2)[0], None, "file ends"),
+    (lambda s: s.replace("Frame Time: 0.0333333", "Frame Time: 0"), 22, "Frame Time"),
+])
+def test_malformed_files_name_the_line(tmp_path, mutate, line, needle):
+    err = _broken(tmp_path, mutate(GOOD))
+    assert needle in str(err)
+    if line is not None:
+        assert err.line == line, str(err)
+    assert "bad.bvh" in str(err)
+
+
+def test_empty_and_non_bvh(tmp_path):
+    assert "empty" in str(_broken(tmp_path, ""))
+    assert "HIERARCHY" in str(_broken(tmp_path, "hello world\nMOTION\n"))
