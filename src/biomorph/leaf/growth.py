@@ -1,0 +1,178 @@
+"""Dynamics of a growing leaf (Fournier & Pradal 2012, "dynamic" part).
+
+State of a leaf at a time: normalised physiological age ``a ∈ [0, 1]``, current length
+``l`` (m, up to the final length ``L``), visible length ``h`` (the part above the sheath),
+a width factor (integral of ``dr/d(age)``) and an extra bending angle (integral of
+``dθ/d(age)``).
+
+Geometry of a growing leaf (see :func:`biomorph.leaf.mesh._profile`):
+
+* midrib — the collection ``N(age, s)`` interpolated **by age** at run time (angle form,
+  so unit length is kept); the current leaf is the part of that curve whose arc length is
+  ``l/L`` (the model's constraint ``∫_0^h |N'(t)| dt − l/L = 0``), i.e. the visible
+  midrib has length exactly ``h``;
+* width — ``r(s + l − h) · R / r_max``: the visible part shows the distal (tip) portion of
+  the mature width profile, because grass leaves grow from a basal meristem and the tip
+  emerges first;
+* twist and undulation follow the tissue (tip-relative coordinates) like the width.
+
+Time stepping integrates the four user rates ``d(age)/dt``, ``dl/dt``, ``dr/d(age)``,
+``dθ/d(age)`` (numbers or callables) by explicit Euler on a fine step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from biomorph.errors import ParameterError
+from biomorph.leaf.shape import LeafShape, check_age
+
+Rate = float | Callable[[float], float]
+
+#: Normalised age at which the blade reaches its final length (default extension phase).
+EXTENSION_END = 0.5
+#: Smallest relative length of a leaf (age 0): a just-visible tip.
+MIN_RELATIVE_LENGTH = 0.02
+
+
+@dataclass(frozen=True)
+class LeafState:
+    """State of a growing leaf. Lengths in metres, angles in radians."""
+
+    age: float
+    length: float
+    visible: float
+    width_factor: float = 1.0
+    bend: float = 0.0
+
+
+def relative_length(age: float, extension_end: float = EXTENSION_END) -> float:
+    """``l / L`` of a leaf of normalised ``age``: linear extension until ``extension_end``."""
+    a = check_age(age)
+    frac = 1.0 if extension_end <= 0 else min(1.0, a / extension_end)
+    return MIN_RELATIVE_LENGTH + (1.0 - MIN_RELATIVE_LENGTH) * frac
+
+
+def state_at_age(shape: LeafShape, age: float, extension_end: float = EXTENSION_END,
+                 hidden: float = 0.0, width_factor: float = 1.0, bend: float = 0.0
+                 ) -> LeafState:
+    """Default state of ``shape`` at ``age`` (length from :func:`relative_length`)."""
+    l_cur = shape.length * relative_length(age, extension_end)
+    return LeafState(check_age(age), l_cur, max(l_cur - hidden, 0.0), width_factor, bend)
+
+
+def _rate(value: Rate, x: float) -> float:
+    return float(value(x)) if callable(value) else float(value)
+
+
+@dataclass(frozen=True)
+class GrowthRates:
+    """The four user rates of the model (constants or callables).
+
+    age_rate : d(age)/dt (1/s), called with the time t (s).
+    length_rate : dl/dt (m/s), called with t; ``None`` → the length follows the age via
+        :func:`relative_length`.
+    width_rate : d(width factor)/d(age) (1 per unit age), called with the age.
+    bend_rate : dθ/d(age) (radians of extra bending at the tip per unit age), called with
+        the age; positive bends the leaf down.
+    """
+
+    age_rate: Rate = 1.0
+    length_rate: Rate | None = None
+    width_rate: Rate = 0.0
+    bend_rate: Rate = 0.0
+
+
+class LeafTimeline:
+    """States and meshes of a growing leaf over ``[0, duration]`` seconds.
+
+    Example
+    -------
+    >>> tl = LeafTimeline(LeafShape.from_preset("wheat"), GrowthRates(age_rate=0.1), 10.0)
+    >>> m = tl.mesh(5.0)        # mesh at t = 5 s
+    """
+
+    def __init__(self, shape: LeafShape, rates: GrowthRates | None = None,
+                 duration: float = 1.0, dt: float | None = None,
+                 initial: LeafState | None = None, hidden: float = 0.0,
+                 extension_end: float = EXTENSION_END) -> None:
+        if not np.isfinite(duration) or duration <= 0:
+            raise ParameterError(f"duration {duration!r} must be > 0 s")
+        self.shape = shape
+        self.rates = rates or GrowthRates(age_rate=1.0 / duration)
+        self.duration = float(duration)
+        self.hidden = float(hidden)
+        self.extension_end = extension_end
+        steps = 400 if dt is None else max(1, int(np.ceil(duration / dt)))
+        self.times = np.linspace(0.0, self.duration, steps + 1)
+        s0 = initial or state_at_age(shape, 0.0, extension_end, hidden)
+        self._states = self._integrate(s0)
+
+    def _integrate(self, s0: LeafState) -> NDArray[np.float64]:
+        r = self.rates
+        out = np.empty((self.times.size, 4))   # age, length, width factor, bend
+        a, l_cur, wf, bend = s0.age, s0.length, s0.width_factor, s0.bend
+        out[0] = a, l_cur, wf, bend
+        L = self.shape.length
+        for i in range(1, self.times.size):
+            t, dt = self.times[i - 1], self.times[i] - self.times[i - 1]
+            da = _rate(r.age_rate, t) * dt
+            a_new = float(np.clip(a + da, 0.0, 1.0))
+            da = a_new - a
+            if r.length_rate is None:
+                l_cur = L * relative_length(a_new, self.extension_end)
+            else:
+                l_cur = float(np.clip(l_cur + _rate(r.length_rate, t) * dt, 0.0, L))
+            wf = max(0.0, wf + _rate(r.width_rate, a) * da)
+            bend = bend + _rate(r.bend_rate, a) * da
+            a = a_new
+            out[i] = a, l_cur, wf, bend
+        return out
+
+    def state(self, t: float) -> LeafState:
+        """State at time ``t`` (s), linearly interpolated between integration steps."""
+        if not 0.0 <= t <= self.duration:
+            raise ParameterError(f"time {t!r} is outside [0, {self.duration}] s")
+        vals = [float(np.interp(t, self.times, self._states[:, c])) for c in range(4)]
+        a, l_cur, wf, bend = vals
+        return LeafState(min(max(a, 0.0), 1.0), l_cur, max(l_cur - self.hidden, 0.0), wf, bend)
+
+    def mesh(self, t: float, n_s: int = 40, n_u: int = 3, **kwargs):
+        """Mesh of the visible leaf at time ``t`` (a :class:`~biomorph.core.mesh.Mesh`)."""
+        from biomorph.leaf.mesh import LeafBatch, mesh_batch
+
+        batch = LeafBatch.from_shapes([self.shape], states=[self.state(t)],
+                                      s=np.linspace(0, 1, n_s), **kwargs)
+        return mesh_batch(batch, n_u)
+
+    def frames(self, n: int, **kwargs) -> list:
+        """``n`` meshes at equally spaced times from 0 to ``duration``."""
+        if n < 1:
+            raise ParameterError(f"frames={n}: expected at least 1")
+        return [self.mesh(float(t), **kwargs) for t in np.linspace(0, self.duration, n)]
+
+    def visible_area(self, t: float) -> float:
+        """Analytic visible blade area (m²) at time ``t`` (flat leaf)."""
+        return visible_area(self.shape, self.state(t))
+
+
+def visible_area(shape: LeafShape, state: LeafState, n: int = 2001) -> float:
+    """``∫`` of the width over the visible part (m²), by a fine trapezoid rule."""
+    L = shape.length
+    sigma = np.linspace(state.length - state.visible, state.length, n)
+    shat = np.clip((sigma + L - state.length) / L, 0, 1)
+    w = shape.width * state.width_factor * shape.r_at(shat)
+    return float(np.trapezoid(w, sigma))
+
+
+def with_state(state: LeafState, **changes) -> LeafState:
+    """A copy of ``state`` with fields replaced."""
+    return replace(state, **changes)
+
+
+__all__ = ["EXTENSION_END", "GrowthRates", "LeafState", "LeafTimeline", "relative_length",
+           "state_at_age", "visible_area", "with_state"]

@@ -1,0 +1,280 @@
+"""Vectorised meshing of many leaves at once.
+
+A :class:`LeafBatch` holds the evaluated profiles of ``N`` leaves sampled at ``K`` points
+along their visible midrib (structure of arrays); :func:`leaf_grid` turns it into surface
+points ``(N, K, n_u, 3)`` in one numpy pass and :func:`mesh_batch` into one
+:class:`~biomorph.core.mesh.Mesh` with unit vertex normals, UVs (u across the blade, v from
+base 0 to tip 1) and per-triangle ``plant`` / ``leaf`` ids.
+
+Frames: each leaf is built in its local frame (midrib in the x–z plane, x away from the
+stem, z up), rotated by its azimuth about +z and translated to its origin (metres).
+Triangles are counter-clockwise seen from the adaxial (upper) side.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from biomorph.core.mesh import Mesh
+from biomorph.errors import ParameterError
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class LeafBatch:
+    """Evaluated profiles of ``N`` leaves, ``K`` samples each (metres, radians).
+
+    phi : ``(N, K-1)`` tangent angle of each midrib segment (above the horizontal).
+    seg : ``(N, K-1)`` segment lengths (their sum is the visible length).
+    width : ``(N, K)`` full blade width at the samples.
+    theta : ``(N, K)`` twist angle about the midrib.
+    wave_amp : ``(N, K)`` margin undulation amplitude; wave_arg ``(N, K)`` its phase.
+    v : ``(N, K)`` texture coordinate along the leaf (0 base, 1 tip).
+    origin : ``(N, 3)`` base position; azimuth ``(N,)`` rotation about +z.
+    plant, leaf : ``(N,)`` integer ids written per triangle.
+    """
+
+    phi: Array
+    seg: Array
+    width: Array
+    theta: Array
+    wave_amp: Array
+    wave_arg: Array
+    v: Array
+    origin: Array
+    azimuth: Array
+    plant: NDArray[np.int64]
+    leaf: NDArray[np.int64]
+
+    @property
+    def n(self) -> int:
+        return int(self.width.shape[0])
+
+    @property
+    def k(self) -> int:
+        return int(self.width.shape[1])
+
+    @classmethod
+    def from_shapes(cls, shapes: Sequence, ages: Sequence[float | None] | None = None,
+                    s: ArrayLike | None = None, origin: ArrayLike | None = None,
+                    azimuth: ArrayLike | None = None, plant: ArrayLike | None = None,
+                    leaf: ArrayLike | None = None, twist: bool = True,
+                    undulation: bool = True, states: Sequence | None = None) -> LeafBatch:
+        """Evaluate leaf shapes (optionally growing: ``ages`` or explicit ``states``).
+
+        ``s`` are sample positions in [0, 1] along the visible leaf: ``(K,)`` shared,
+        ``(N, K)`` per leaf, or ``None`` for 31 equal steps.
+        """
+        from biomorph.leaf.growth import state_at_age
+
+        n = len(shapes)
+        if states is None:
+            ages_l = [None] * n if ages is None else list(ages)
+            states = [None if a is None else state_at_age(sh, a)
+                      for sh, a in zip(shapes, ages_l, strict=True)]
+        sg = np.linspace(0, 1, 31) if s is None else np.asarray(s, float)
+        sg = np.broadcast_to(sg, (n, sg.shape[-1]))
+        rows = [_profile(sh, st, sg[i], twist, undulation)
+                for i, (sh, st) in enumerate(zip(shapes, states, strict=True))]
+        cols = [np.array([r[c] for r in rows]) for c in range(7)]
+        return cls(*cols, *_placement(n, origin, azimuth, plant, leaf))
+
+
+def _placement(n: int, origin, azimuth, plant, leaf):
+    o = np.zeros((n, 3)) if origin is None else np.broadcast_to(
+        np.asarray(origin, float), (n, 3)).copy()
+    a = np.zeros(n) if azimuth is None else np.broadcast_to(np.asarray(azimuth, float), (n,))
+    p = np.zeros(n, np.int64) if plant is None else np.broadcast_to(
+        np.asarray(plant, np.int64), (n,))
+    lf = np.arange(n, dtype=np.int64) if leaf is None else np.broadcast_to(
+        np.asarray(leaf, np.int64), (n,))
+    return o, np.array(a), np.array(p), np.array(lf)
+
+
+def _profile(shape, state, s: Array, twist: bool, undulation: bool):
+    """Profiles of one leaf (or growing leaf ``state``) at visible fractions ``s``."""
+    L = shape.length
+    if state is None:
+        l_cur, h, wf, bend, age = L, L, 1.0, 0.0, None
+    else:
+        l_cur, h, wf, bend, age = state.length, state.visible, state.width_factor, \
+            state.bend, state.age
+    sigma = (l_cur - h) + s * h                   # metres from the base of the current leaf
+    shat = np.clip((sigma + L - l_cur) / L, 0, 1)  # mature coordinate of that tissue (tip-fixed)
+    smid = 0.5 * (sigma[1:] + sigma[:-1]) / L      # base-relative midrib coordinate
+    phi = shape.phi_at(smid, age) - bend * smid
+    seg = np.diff(s) * h
+    width = shape.width * wf * shape.r_at(shat)
+    theta = shape.twist * shat if twist else np.zeros_like(s)
+    if undulation and shape.undulation > 0:
+        amp = shape.undulation * (1.0 - shat)
+        arg = 2 * np.pi * shat * L / shape.wavelength + shape.phase
+    else:
+        amp, arg = np.zeros_like(s), np.zeros_like(s)
+    return phi, seg, width, theta, amp, arg, s.copy()
+
+
+def concat_batches(batches: Sequence[LeafBatch]) -> LeafBatch:
+    """One batch from several with the same ``K``."""
+    ks = {b.k for b in batches}
+    if len(ks) != 1:
+        raise ParameterError(f"batches have different sample counts {sorted(ks)}")
+    names = ("phi", "seg", "width", "theta", "wave_amp", "wave_arg", "v", "origin", "azimuth",
+             "plant", "leaf")
+    return LeafBatch(*[np.concatenate([getattr(b, f) for b in batches]) for f in names])
+
+
+def leaf_grid(batch: LeafBatch, u: ArrayLike) -> Array:
+    """Surface points ``(N, K, n_u, 3)`` (metres, world frame) at cross positions ``u``."""
+    ua = np.asarray(u, float)
+    from biomorph.leaf.shape import integrate_angles
+
+    xz = integrate_angles(batch.phi, batch.seg)                        # (N,K,2)
+    ph = batch.phi
+    phv = np.concatenate([ph[:, :1], 0.5 * (ph[:, 1:] + ph[:, :-1]), ph[:, -1:]], axis=1)
+    c, sn = np.cos(phv), np.sin(phv)
+    ct, st = np.cos(batch.theta), np.sin(batch.theta)
+    # cross-section direction d = cosθ j + sinθ n, surface normal m = cosθ n − sinθ j,
+    # with in-plane normal n = (−sinφ, 0, cosφ) and lateral axis j = (0, 1, 0)
+    d = np.stack([-st * sn, ct, st * c], axis=-1)                       # (N,K,3)
+    m = np.stack([-ct * sn, -st, ct * c], axis=-1)
+    base = np.stack([xz[..., 0], np.zeros_like(xz[..., 0]), xz[..., 1]], axis=-1)
+    off = (batch.width[..., None] * ua)[..., None] * d[:, :, None, :]   # (N,K,U,3)
+    pts = base[:, :, None, :] + off
+    if np.any(batch.wave_amp):
+        side = np.where(ua < 0, 0.5 * np.pi, 0.0)
+        wave = batch.wave_amp[..., None] * (2 * ua) ** 2 * np.sin(batch.wave_arg[..., None]
+                                                                  + side)
+        pts = pts + wave[..., None] * m[:, :, None, :]
+    ca, sa = np.cos(batch.azimuth), np.sin(batch.azimuth)
+    x = ca[:, None, None] * pts[..., 0] - sa[:, None, None] * pts[..., 1]
+    y = sa[:, None, None] * pts[..., 0] + ca[:, None, None] * pts[..., 1]
+    out = np.stack([x, y, pts[..., 2]], axis=-1)
+    return out + batch.origin[:, None, None, :]
+
+
+def _grid_faces(k: int, nu: int) -> NDArray[np.int64]:
+    """Face template ``(k-1, nu-1, 2, 3)`` of one leaf grid (row-major vertex index)."""
+    kk, jj = np.meshgrid(np.arange(k - 1), np.arange(nu - 1), indexing="ij")
+    a = kk * nu + jj
+    b = a + 1
+    d = a + nu
+    c = d + 1
+    t1 = np.stack([a, d, c], axis=-1)   # dropped when the upper row has zero width
+    t2 = np.stack([a, c, b], axis=-1)   # dropped when the lower row has zero width
+    return np.stack([t1, t2], axis=2)
+
+
+def mesh_batch(batch: LeafBatch, n_u: int = 3, normals: bool = True) -> Mesh:
+    """One mesh of all leaves in ``batch`` with ``n_u`` (>= 2) vertices across each blade.
+
+    Degenerate triangles at zero-width ends (closed tips/bases) are dropped, so a closed
+    tip strip yields ``n_u − 1`` triangles instead of ``2(n_u − 1)``.
+    """
+    if n_u < 2:
+        raise ParameterError(f"n_u={n_u}: a leaf needs at least 2 vertices across")
+    u = np.linspace(-0.5, 0.5, n_u)
+    pts = leaf_grid(batch, u)                                            # (N,K,U,3)
+    n, k = batch.n, batch.k
+    per = k * n_u
+    tmpl = _grid_faces(k, n_u)                                           # (K-1,U-1,2,3)
+    w = batch.width
+    keep = np.stack([w[:, 1:] > 0, w[:, :-1] > 0], axis=-1)              # (N,K-1,2)
+    keep = np.broadcast_to(keep[:, :, None, :], (n, k - 1, n_u - 1, 2))
+    faces = tmpl[None] + (np.arange(n, dtype=np.int64) * per)[:, None, None, None, None]
+    faces = faces[keep]
+    leaf_of_face = np.broadcast_to(np.arange(n)[:, None, None, None], keep.shape)[keep]
+    verts = pts.reshape(-1, 3)
+    nrm = _grid_normals(pts).reshape(-1, 3) if normals else None
+    uv = np.empty((n, k, n_u, 2))
+    uv[..., 0] = u + 0.5
+    uv[..., 1] = batch.v[:, :, None]
+    return Mesh(verts, faces, normals=nrm, uv=uv.reshape(-1, 2),
+                face_ids={"plant": batch.plant[leaf_of_face], "leaf": batch.leaf[leaf_of_face]})
+
+
+def _grid_normals(pts: Array) -> Array:
+    """Unit surface normals ``S_s × S_u`` from finite differences on the grid."""
+    ds = np.gradient(pts, axis=1)
+    du = np.gradient(pts, axis=2)
+    nrm = np.cross(ds, du)
+    length = np.linalg.norm(nrm, axis=-1, keepdims=True)
+    bad = length[..., 0] < 1e-14
+    if bad.any():
+        # zero-width rows (closed tip/base): borrow the neighbouring row's normal
+        nb = np.where(np.arange(pts.shape[1]) == 0, 1, np.arange(pts.shape[1]) - 1)
+        nrm = np.where(bad[..., None], nrm[:, nb], nrm)
+        length = np.linalg.norm(nrm, axis=-1, keepdims=True)
+    out = np.divide(nrm, length, out=np.zeros_like(nrm), where=length > 0)
+    out[~np.isfinite(out).all(axis=-1)] = 0.0
+    # fall back to +z for any remaining zero normal
+    zero = np.linalg.norm(out, axis=-1) == 0
+    out[zero] = (0.0, 0.0, 1.0)
+    return out
+
+
+def leaf_areas(mesh: Mesh, key: str = "leaf") -> Array:
+    """Area (m²) per id of ``mesh.face_ids[key]`` (index = id)."""
+    ids = mesh.face_ids[key]
+    return np.bincount(ids, weights=mesh.face_areas(), minlength=int(ids.max()) + 1 if
+                       ids.size else 0)
+
+
+def split_boundary_edge(mesh: Mesh) -> Mesh:
+    """Add exactly one triangle by splitting a boundary (margin) edge of the largest face.
+
+    The two new triangles lie in the plane of the old one, so area is unchanged and no
+    T-junction appears (the split edge belongs to a single face).
+    """
+    f = np.asarray(mesh.faces)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    key = np.sort(e, axis=1)
+    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    boundary = (cnt[inv.reshape(-1)] == 1).reshape(3, -1).T              # (m,3) per face edge
+    areas = mesh.face_areas()
+    cand = np.flatnonzero(boundary.any(axis=1))
+    if cand.size == 0:
+        raise ParameterError("mesh has no boundary edge to split")
+    fi = int(cand[np.argmax(areas[cand])])
+    ei = int(np.flatnonzero(boundary[fi])[0])
+    a, b, c = f[fi, ei], f[fi, (ei + 1) % 3], f[fi, (ei + 2) % 3]
+    v = np.asarray(mesh.vertices)
+    mid_idx = len(v)
+    verts = np.vstack([v, 0.5 * (v[a] + v[b])])
+    extra: dict = {}
+    if mesh.normals is not None:
+        nm = np.asarray(mesh.normals[a]) + np.asarray(mesh.normals[b])
+        nm = nm / (np.linalg.norm(nm) or 1.0)
+        extra["normals"] = np.vstack([mesh.normals, nm])
+    if mesh.uv is not None:
+        extra["uv"] = np.vstack([mesh.uv, 0.5 * (mesh.uv[a] + mesh.uv[b])])
+    new_faces = f.copy()
+    new_faces[fi] = (a, mid_idx, c)
+    new_faces = np.vstack([new_faces, [[mid_idx, b, c]]])
+    ids = {k: np.concatenate([val, [val[fi]]]) for k, val in mesh.face_ids.items()}
+    return Mesh(verts, new_faces, face_ids=ids, **extra)
+
+
+def mesh_leaf(shape, age: float | None = None, triangles: int | None = None, n_s: int = 60,
+              n_u: int = 3, twist: bool = True, undulation: bool = True,
+              plant: int = 0, leaf: int = 0) -> Mesh:
+    """Mesh of one leaf: a regular grid, or an exact triangle budget via reduction."""
+    if triangles is not None:
+        from biomorph.leaf.reduction import reduced_mesh
+
+        return reduced_mesh(shape, triangles, age=age, twist=twist, undulation=undulation,
+                            plant=plant, leaf=leaf)
+    if n_s < 2:
+        raise ParameterError(f"n_s={n_s}: a leaf needs at least 2 samples along the midrib")
+    batch = LeafBatch.from_shapes([shape], ages=[age], s=np.linspace(0, 1, n_s),
+                                  twist=twist, undulation=undulation, plant=[plant], leaf=[leaf])
+    return mesh_batch(batch, n_u)
+
+
+__all__ = ["LeafBatch", "concat_batches", "leaf_areas", "leaf_grid", "mesh_batch", "mesh_leaf",
+           "split_boundary_edge"]

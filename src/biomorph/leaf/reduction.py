@@ -1,0 +1,349 @@
+"""Reduction of a leaf to a polygon / triangle budget (Fournier & Pradal 2012, "reducible").
+
+The leaf is discretised along its midrib into points ``P_i = (x_i, z_i)/L`` and width
+points ``R_i = (s_i, w_i/L)`` (both in units of the leaf length, so errors are fractions of
+``L``). Removing interior point ``i`` costs
+
+    ε_i = √((ε_i^xy)² + (ε_i^r)²),   ε^xy = dist(P_i, [P_prev P_next]),
+                                     ε^r  = dist(R_i, [R_prev R_next]),
+
+with ``prev``/``next`` the current neighbours. Points sit in a binary min-heap keyed by ε;
+the smallest is removed and its two neighbours get new errors. The original
+implementation's heap went out of order (it was never re-heapified after updates, and the
+2nd and next-to-last points were always dropped); here every update pushes a fresh entry
+stamped with the point's current *version* and stale entries are skipped when popped
+(lazy deletion), so every pop returns the true minimum over the live points. The end points
+(base and tip) are never removed.
+
+The full removal order is computed once (numba, O(n log n)); any budget is then a prefix of
+it, which also gives the error-vs-triangles curve for free.
+
+Triangulation: one strip of two triangles between consecutive kept points (one triangle
+where one end has zero width, e.g. a closed tip). When the removal sequence jumps over the
+budget by one triangle, one margin edge is split, so the triangle count always **equals**
+the budget. The reduced midrib keeps the chord directions of the kept points but the arc
+length of the leaf (each segment keeps its length ``Δs·L``), and widths are scaled by one
+factor so the flat area equals the analytic ``L·∫r ds`` exactly.
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from biomorph.core.mesh import Mesh
+from biomorph.errors import ParameterError
+
+Array = NDArray[np.float64]
+
+
+# --------------------------------------------------------------------------- numba core
+@njit(cache=True)
+def _seg_dist(px, py, ax, ay, bx, by):  # pragma: no cover - compiled
+    dx = bx - ax
+    dy = by - ay
+    l2 = dx * dx + dy * dy
+    t = 0.0
+    if l2 > 0.0:
+        t = ((px - ax) * dx + (py - ay) * dy) / l2
+        if t < 0.0:
+            t = 0.0
+        elif t > 1.0:
+            t = 1.0
+    ex = px - (ax + t * dx)
+    ey = py - (ay + t * dy)
+    return np.sqrt(ex * ex + ey * ey)
+
+
+@njit(cache=True)
+def _err(i, a, b, x, z, s, w):  # pragma: no cover - compiled
+    exy = _seg_dist(x[i], z[i], x[a], z[a], x[b], z[b])
+    er = _seg_dist(s[i], w[i], s[a], w[a], s[b], w[b])
+    return np.sqrt(exy * exy + er * er)
+
+
+@njit(cache=True)
+def _push(hk, hi, hv, size, key, idx, ver):  # pragma: no cover - compiled
+    j = size
+    hk[j] = key
+    hi[j] = idx
+    hv[j] = ver
+    while j > 0:
+        p = (j - 1) // 2
+        if hk[p] <= hk[j]:
+            break
+        hk[p], hk[j] = hk[j], hk[p]
+        hi[p], hi[j] = hi[j], hi[p]
+        hv[p], hv[j] = hv[j], hv[p]
+        j = p
+    return size + 1
+
+
+@njit(cache=True)
+def _pop(hk, hi, hv, size):  # pragma: no cover - compiled
+    key, idx, ver = hk[0], hi[0], hv[0]
+    size -= 1
+    hk[0], hi[0], hv[0] = hk[size], hi[size], hv[size]
+    j = 0
+    while True:
+        a = 2 * j + 1
+        if a >= size:
+            break
+        b = a + 1
+        c = a if (b >= size or hk[a] <= hk[b]) else b
+        if hk[j] <= hk[c]:
+            break
+        hk[c], hk[j] = hk[j], hk[c]
+        hi[c], hi[j] = hi[j], hi[c]
+        hv[c], hv[j] = hv[j], hv[c]
+        j = c
+    return key, idx, ver, size
+
+
+@njit(cache=True)
+def _strip(wa, wb):  # pragma: no cover - compiled
+    return (1 if wa > 0.0 else 0) + (1 if wb > 0.0 else 0)
+
+
+@njit(cache=True)
+def reduction_order(x, z, s, w):  # pragma: no cover - compiled
+    """Removal order of the interior points, their error when removed, and the triangle
+    count after each removal (``order[k]``, ``errs[k]``, ``tris[k]``)."""
+    n = x.size
+    prev = np.arange(n) - 1
+    nxt = np.arange(n) + 1
+    ver = np.zeros(n, np.int64)
+    alive = np.ones(n, np.bool_)
+    cap = 3 * n + 8
+    hk = np.empty(cap)
+    hi = np.empty(cap, np.int64)
+    hv = np.empty(cap, np.int64)
+    size = 0
+    for i in range(1, n - 1):
+        size = _push(hk, hi, hv, size, _err(i, i - 1, i + 1, x, z, s, w), i, 0)
+    tri = 0
+    for i in range(n - 1):
+        tri += _strip(w[i], w[i + 1])
+    order = np.empty(max(n - 2, 0), np.int64)
+    errs = np.empty(max(n - 2, 0))
+    tris = np.empty(max(n - 2, 0), np.int64)
+    k = 0
+    while size > 0:
+        key, i, v, size = _pop(hk, hi, hv, size)
+        if not alive[i] or v != ver[i]:
+            continue            # stale entry (lazy deletion)
+        a, b = prev[i], nxt[i]
+        tri += _strip(w[a], w[b]) - _strip(w[a], w[i]) - _strip(w[i], w[b])
+        alive[i] = False
+        nxt[a] = b
+        prev[b] = a
+        order[k] = i
+        errs[k] = key
+        tris[k] = tri
+        k += 1
+        if a > 0:
+            ver[a] += 1
+            size = _push(hk, hi, hv, size, _err(a, prev[a], b, x, z, s, w), a, ver[a])
+        if b < n - 1:
+            ver[b] += 1
+            size = _push(hk, hi, hv, size, _err(b, a, nxt[b], x, z, s, w), b, ver[b])
+    return order, errs, tris
+
+
+def reduction_order_py(x: Array, z: Array, s: Array, w: Array):
+    """Pure-Python reference of :func:`reduction_order` (``heapq`` + version stamps)."""
+    n = len(x)
+
+    def err(i: int, a: int, b: int) -> float:
+        return float(_err.py_func(i, a, b, x, z, s, w))
+
+    prev = list(range(-1, n - 1))
+    nxt = list(range(1, n + 1))
+    ver = [0] * n
+    alive = [True] * n
+    heap = [(err(i, i - 1, i + 1), i, 0) for i in range(1, n - 1)]
+    heapq.heapify(heap)
+    order, errs = [], []
+    while heap:
+        key, i, v = heapq.heappop(heap)
+        if not alive[i] or v != ver[i]:
+            continue
+        a, b = prev[i], nxt[i]
+        alive[i] = False
+        nxt[a], prev[b] = b, a
+        order.append(i)
+        errs.append(key)
+        for j in (a, b):
+            if 0 < j < n - 1:
+                ver[j] += 1
+                heapq.heappush(heap, (err(j, prev[j], nxt[j]), j, ver[j]))
+    return np.array(order, np.int64), np.array(errs)
+
+
+# --------------------------------------------------------------------------- API
+@dataclass(frozen=True)
+class Reduction:
+    """Result of reducing one discretised leaf.
+
+    s : ``(n,)`` sample positions (visible fraction); x, z : midrib / L; w : width / L.
+    order, errors, triangles : removal sequence, ε of each removal, triangle count after it.
+    """
+
+    s: Array
+    x: Array
+    z: Array
+    w: Array
+    order: NDArray[np.int64]
+    errors: Array
+    triangles: NDArray[np.int64]
+
+    @property
+    def full_triangles(self) -> int:
+        """Triangles of the unreduced discretisation."""
+        w = self.w
+        return int(np.sum((w[:-1] > 0).astype(int) + (w[1:] > 0)))
+
+    @property
+    def min_triangles(self) -> int:
+        """Triangles of the coarsest mesh (base and tip only)."""
+        return int((self.w[0] > 0) + (self.w[-1] > 0))
+
+    def removed_for_budget(self, triangles: int) -> int:
+        """Number of removals so the count is ``triangles`` or one less (then split once)."""
+        if triangles < self.min_triangles:
+            raise ParameterError(f"triangle budget {triangles} is below the minimum mesh of "
+                                 f"this leaf ({self.min_triangles} triangle(s): base to tip)")
+        if triangles > self.full_triangles:
+            raise ParameterError(f"triangle budget {triangles} exceeds the discretisation "
+                                 f"({self.full_triangles}); use more points")
+        if triangles == self.full_triangles:
+            return 0
+        return int(np.argmax(self.triangles <= triangles)) + 1
+
+    def kept(self, removed: int) -> NDArray[np.int64]:
+        """Indices (ascending) of the points kept after ``removed`` removals."""
+        mask = np.ones(self.s.size, bool)
+        mask[self.order[:removed]] = False
+        return np.flatnonzero(mask)
+
+    def kept_for_points(self, n_points: int) -> NDArray[np.int64]:
+        """Indices of the ``n_points`` (>= 2) points kept."""
+        if not 2 <= n_points <= self.s.size:
+            raise ParameterError(f"n_points={n_points} must lie in 2..{self.s.size}")
+        return self.kept(self.s.size - n_points)
+
+    def error(self, kept: NDArray[np.int64]) -> tuple[float, float]:
+        """(midrib error, width error): max distance of all discretised points to the
+        reduced midrib polyline / width profile, in units of the leaf length."""
+        seg = np.clip(np.searchsorted(kept, np.arange(self.s.size), side="right") - 1, 0,
+                      kept.size - 2)
+        a, b = kept[seg], kept[seg + 1]
+        exy = _dist(self.x, self.z, a, b)
+        er = _dist(self.s, self.w, a, b)
+        return float(exy.max()), float(er.max())
+
+    def curve(self) -> tuple[NDArray[np.int64], Array, Array]:
+        """Error-vs-triangles curve: (triangles, midrib error, combined error bound).
+
+        The bound is the largest ε met on the way down to that level (non-increasing with
+        the budget by construction); the midrib error is the true max distance.
+        """
+        tri = np.concatenate([[self.full_triangles], self.triangles])
+        exy = np.array([self.error(self.kept(k))[0] for k in range(self.order.size + 1)])
+        bound = np.concatenate([[0.0], np.maximum.accumulate(self.errors)])
+        return tri, exy, bound
+
+
+def _dist(px: Array, py: Array, a: NDArray[np.int64], b: NDArray[np.int64]) -> Array:
+    ax, ay, bx, by = px[a], py[a], px[b], py[b]
+    dx, dy = bx - ax, by - ay
+    l2 = dx * dx + dy * dy
+    t = np.clip(np.divide((px - ax) * dx + (py - ay) * dy, l2, out=np.zeros_like(l2),
+                          where=l2 > 0), 0, 1)
+    return np.hypot(px - ax - t * dx, py - ay - t * dy)
+
+
+def _fine_profile(shape, n_points: int, age: float | None, twist: bool, undulation: bool,
+                  state=None):
+    from biomorph.leaf.growth import state_at_age
+    from biomorph.leaf.mesh import _profile
+
+    if n_points < 2:
+        raise ParameterError(f"n_points={n_points}: need at least 2 points")
+    st = state if state is not None else (None if age is None else state_at_age(shape, age))
+    s = np.linspace(0.0, 1.0, n_points)
+    return s, _profile(shape, st, s, twist, undulation)
+
+
+def reduce_profile(s: Array, x: Array, z: Array, w: Array) -> Reduction:
+    """Reduce a discretised leaf given directly (all in units of the leaf length)."""
+    arrs = [np.ascontiguousarray(a, dtype=np.float64) for a in (s, x, z, w)]
+    if len({a.size for a in arrs}) != 1 or arrs[0].size < 2:
+        raise ParameterError("s, x, z, w must have the same length >= 2")
+    order, errs, tris = reduction_order(*arrs[1:3], arrs[0], arrs[3])
+    return Reduction(*arrs, order, errs, tris)
+
+
+def reduce_leaf(shape, n_points: int = 200, age: float | None = None, state=None,
+                twist: bool = True, undulation: bool = True) -> Reduction:
+    """Discretise ``shape`` (at ``age``) into ``n_points`` and compute its reduction."""
+    s, prof = _fine_profile(shape, n_points, age, twist, undulation, state)
+    return _reduce_prof(s, prof)
+
+
+def _reduce_prof(s: Array, prof) -> Reduction:
+    from biomorph.leaf.shape import integrate_angles
+
+    phi, seg, width = prof[0], prof[1], prof[2]
+    L = max(float(seg.sum()), 1e-12)
+    xz = integrate_angles(phi, seg) / L
+    return reduce_profile(s, xz[:, 0], xz[:, 1], width / L)
+
+
+def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int | None = None,
+                 twist: bool = True, undulation: bool = True, plant: int = 0, leaf: int = 0,
+                 state=None, reduction: Reduction | None = None) -> Mesh:
+    """Mesh of ``shape`` with exactly ``triangles`` triangles (see module docstring)."""
+    from biomorph.leaf.mesh import LeafBatch, mesh_batch, split_boundary_edge
+
+    triangles = int(triangles)
+    if triangles < 1:
+        raise ParameterError(f"triangle budget {triangles} is below the minimum mesh "
+                             "(at least 1 triangle)")
+    n_pts = n_points or max(200, triangles // 2 + 3)
+    s, prof = _fine_profile(shape, n_pts, age, twist, undulation, state)
+    red = reduction or _reduce_prof(s, prof)
+    kept = red.kept(red.removed_for_budget(triangles))
+    batch = coarse_batch(s, prof, kept, plant, leaf)
+    mesh = mesh_batch(LeafBatch(*batch), n_u=2)
+    while mesh.n_faces < triangles:
+        mesh = split_boundary_edge(mesh)
+    return mesh
+
+
+def coarse_batch(s: Array, prof, kept: NDArray[np.int64], plant: int = 0, leaf: int = 0):
+    """Arrays of a one-leaf :class:`~biomorph.leaf.mesh.LeafBatch` through the kept points."""
+    from biomorph.leaf.shape import integrate_angles
+
+    phi, seg, width, theta, amp, arg, v = prof
+    xz = integrate_angles(phi, seg)
+    d = np.diff(xz[kept], axis=0)
+    phi_c = np.arctan2(d[:, 1], d[:, 0])
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    seg_c = np.diff(cum[kept])
+    w_c = width[kept]
+    exact = np.trapezoid(width, cum)
+    approx = np.trapezoid(w_c, cum[kept])
+    if approx > 0:
+        w_c = w_c * (exact / approx)
+    return (phi_c[None], seg_c[None], w_c[None], theta[kept][None], amp[kept][None],
+            arg[kept][None], v[kept][None], np.zeros((1, 3)), np.zeros(1),
+            np.array([plant], np.int64), np.array([leaf], np.int64))
+
+
+__all__ = ["Reduction", "coarse_batch", "reduce_leaf", "reduce_profile", "reduced_mesh",
+           "reduction_order", "reduction_order_py"]

@@ -1,0 +1,422 @@
+"""Leaf shape of a grass leaf: midrib N(s), width r(s), twist θ(s) and margin undulation.
+
+The surface (Fournier & Pradal 2012) is ``S(s, u) = N(s) + r(s) u d(s)`` with ``s ∈ [0, 1]``
+the normalised arc length along the midrib (0 = base, 1 = tip) and ``u ∈ [-0.5, 0.5]``
+across the blade. The midrib lies in the leaf's local x–z plane (x horizontal away from
+the stem, **z up**), so ``N(s) = L·(x(s), 0, z(s))``. ``d(s)`` is the cross-section
+direction: the lateral axis ``j = (0, 1, 0)`` turned by the twist angle θ(s) about the
+midrib tangent. Margin undulation displaces points along the surface normal by
+``A·(2|u|)²·sin(2π σ/λ + φ)·(1 − s)``: zero on the midrib, largest at the margins, fading
+to the tip.
+
+Representation
+--------------
+The midrib is stored in **angle form**: the tangent angle ``phi(s)`` (radians above the
+horizontal, piecewise linear between knots). Points are recovered by integrating the unit
+tangent with the midpoint rule, so every discretisation of the midrib has length exactly
+``L`` — the arc-length constraint of the model holds by construction and the plastic
+operators (which edit ``phi``) conserve length. Width is stored relative (max 1) and scaled
+by the maximal full width ``width`` (metres); the leaf area is ``L · width · ∫ r_rel ds``.
+
+Digitised data (cm, as in ``../shared/data/leaves``) are converted to metres by the
+callers (:func:`fit_leaf` takes a ``scale`` argument, default ``0.01`` m/cm).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from importlib import resources
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from biomorph.errors import InputError, ParameterError
+
+Array = NDArray[np.float64]
+
+PRESET_NAMES = ("maize", "wheat", "grass")
+
+
+# --------------------------------------------------------------------------- validation
+def _as_1d(name: str, values: ArrayLike) -> Array:
+    try:
+        arr = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be numbers; got {values!r}") from exc
+    if not np.isfinite(arr).all():
+        i = int(np.flatnonzero(~np.isfinite(arr))[0])
+        raise InputError(f"{name}[{i}] is {arr[i]}; expected finite numbers")
+    return arr
+
+
+def check_age(age: float) -> float:
+    """Return ``age`` as float if it lies in [0, 1] (normalised physiological age)."""
+    a = float(age)
+    if not np.isfinite(a) or a < 0.0 or a > 1.0:
+        raise ParameterError(f"age {age!r} is outside [0, 1]; the leaf age is normalised "
+                             "(0 = just initiated, 1 = mature and senescent)")
+    return a
+
+
+def midrib_arc_length(x: ArrayLike, y: ArrayLike) -> Array:
+    """Cumulative arc length ``s_i = Σ √(Δx² + Δy²)`` of digitised midrib points.
+
+    Raises :class:`InputError` for fewer than 2 points, non-finite values or duplicate
+    consecutive points (zero-length segments, i.e. non-increasing arc length).
+    """
+    xa, ya = _as_1d("midrib x", x), _as_1d("midrib y", y)
+    if xa.size != ya.size:
+        raise InputError(f"midrib has {xa.size} x values but {ya.size} y values")
+    if xa.size < 2:
+        raise InputError(f"midrib has {xa.size} point(s); expected at least 2 (base and tip)")
+    seg = np.hypot(np.diff(xa), np.diff(ya))
+    if np.any(seg <= 0):
+        i = int(np.flatnonzero(seg <= 0)[0])
+        raise InputError(f"midrib points {i} and {i + 1} are duplicates ({xa[i]:g}, {ya[i]:g});"
+                         " expected strictly increasing arc length")
+    return np.concatenate([[0.0], np.cumsum(seg)])
+
+
+def _check_width_profile(s: ArrayLike, r: ArrayLike) -> tuple[Array, Array]:
+    sa, ra = _as_1d("width s", s), _as_1d("width r", r)
+    if sa.size != ra.size:
+        raise InputError(f"width profile has {sa.size} s values but {ra.size} r values")
+    if sa.size < 2:
+        raise InputError(f"width profile has {sa.size} point(s); expected at least 2")
+    if np.any(np.diff(sa) <= 0):
+        i = int(np.flatnonzero(np.diff(sa) <= 0)[0])
+        raise InputError(f"width profile s must increase strictly; s[{i}]={sa[i]:g} then "
+                         f"s[{i + 1}]={sa[i + 1]:g}")
+    if np.any(ra < 0):
+        i = int(np.flatnonzero(ra < 0)[0])
+        raise InputError(f"width r[{i}]={ra[i]:g} is negative; expected widths >= 0")
+    if ra.max() <= 0:
+        raise InputError("width profile is zero everywhere; expected a positive maximum")
+    return sa, ra
+
+
+# --------------------------------------------------------------------------- angle form
+def angles_from_points(x: ArrayLike, y: ArrayLike) -> tuple[Array, Array, float]:
+    """Angle form of a digitised midrib.
+
+    Returns ``(s, phi, length)``: knots ``s`` in [0, 1] (0, the segment midpoints, 1) and
+    the unwrapped tangent angle ``phi`` (radians above +x) at the knots, piecewise linear
+    between them; ``length`` is the polyline length in the input units.
+    """
+    cum = midrib_arc_length(x, y)
+    xa, ya = np.asarray(x, float).reshape(-1), np.asarray(y, float).reshape(-1)
+    total = float(cum[-1])
+    seg_phi = np.unwrap(np.arctan2(np.diff(ya), np.diff(xa)))
+    mid = 0.5 * (cum[1:] + cum[:-1]) / total
+    s = np.concatenate([[0.0], mid, [1.0]])
+    phi = np.concatenate([[seg_phi[0]], seg_phi, [seg_phi[-1]]])
+    keep = np.concatenate([[True], np.diff(s) > 0])
+    return s[keep], phi[keep], total
+
+
+def integrate_angles(phi_seg: Array, seg_len: Array) -> Array:
+    """Midrib points from segment angles (midpoint rule), vectorised over leading axes.
+
+    ``phi_seg (..., k-1)`` radians, ``seg_len (..., k-1)`` metres → ``(..., k, 2)`` points
+    (horizontal, vertical) starting at the origin; every segment has exactly its length.
+    """
+    dx = seg_len * np.cos(phi_seg)
+    dz = seg_len * np.sin(phi_seg)
+    shape = phi_seg.shape[:-1] + (1,)
+    x = np.concatenate([np.zeros(shape), np.cumsum(dx, axis=-1)], axis=-1)
+    z = np.concatenate([np.zeros(shape), np.cumsum(dz, axis=-1)], axis=-1)
+    return np.stack([x, z], axis=-1)
+
+
+# --------------------------------------------------------------------------- collection
+@dataclass(frozen=True, eq=False)
+class MidribCollection:
+    """A collection ``N(age, s)`` of unit-length midribs measured at several ages.
+
+    Stored in angle form ``phi[a, k]`` at common knots ``s[k]``; ``ages`` are the stored
+    ages in the data's own unit (e.g. phyllochrons), mapped linearly onto the normalised
+    age [0, 1]. :meth:`phi_at` interpolates linearly **between** stored ages (the original
+    model only picked the nearest one).
+    """
+
+    ages: Array
+    s: Array
+    phi: Array
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        ages = _as_1d("collection ages", self.ages)
+        s = _as_1d("collection s", self.s)
+        phi = np.asarray(self.phi, dtype=float)
+        if phi.shape != (ages.size, s.size):
+            raise InputError(f"collection phi has shape {phi.shape}; expected "
+                             f"({ages.size}, {s.size})")
+        if ages.size < 1 or np.any(np.diff(ages) <= 0):
+            raise InputError("collection ages must increase strictly")
+        object.__setattr__(self, "ages", ages)
+        object.__setattr__(self, "s", s)
+        object.__setattr__(self, "phi", phi)
+
+    @classmethod
+    def from_curves(cls, ages: ArrayLike, curves: list[tuple[ArrayLike, ArrayLike]],
+                    n: int = 51, source: str = "") -> MidribCollection:
+        """Build from one digitised curve ``(x, y)`` per age (any units, any point count)."""
+        s_common = np.linspace(0.0, 1.0, n)
+        rows = []
+        for x, y in curves:
+            s, phi, _ = angles_from_points(x, y)
+            rows.append(np.interp(s_common, s, phi))
+        return cls(np.asarray(ages, float), s_common, np.array(rows), source)
+
+    def data_age(self, age: ArrayLike) -> Array:
+        """Stored-age value of normalised ``age`` in [0, 1]."""
+        a = np.asarray(age, dtype=float)
+        return self.ages[0] + a * (self.ages[-1] - self.ages[0])
+
+    def phi_at(self, age: ArrayLike, s: ArrayLike | None = None) -> Array:
+        """Tangent angle at normalised ``age`` (scalar or ``(n,)``), at ``s`` (default: knots).
+
+        Interpolates linearly in age between the two nearest stored curves (angle form:
+        the result still has unit length). Returns ``(len(s),)`` or ``(n, len(s))``.
+        """
+        a = np.asarray(age, dtype=float)
+        if np.any((a < 0) | (a > 1)):
+            raise ParameterError(f"age {a.min() if a.min() < 0 else a.max()!r} is outside "
+                                 "[0, 1]")
+        t = self.data_age(a)
+        if self.ages.size == 1:
+            rows = np.broadcast_to(self.phi[0], a.shape + self.phi.shape[1:])
+        else:
+            j = np.clip(np.searchsorted(self.ages, t, side="right") - 1, 0, self.ages.size - 2)
+            w = (t - self.ages[j]) / (self.ages[j + 1] - self.ages[j])
+            w = np.clip(w, 0.0, 1.0)[..., None]
+            rows = (1 - w) * self.phi[j] + w * self.phi[j + 1]
+        if s is None:
+            return np.array(rows)
+        sq = np.asarray(s, dtype=float)
+        if rows.ndim == 1:
+            return np.interp(sq, self.s, rows)
+        return np.stack([np.interp(sq, self.s, r) for r in rows])
+
+    def curve_at(self, age: float, n: int | None = None, form: str = "angle") -> Array:
+        """Unit-length midrib ``(n, 2)`` at normalised ``age``.
+
+        ``form="angle"`` interpolates the angle θ(age, s) (length exact by construction);
+        ``form="curve"`` interpolates the point positions N(age, s) between the two stored
+        curves and then solves the arc-length constraint (re-parametrises the interpolated
+        polyline by arc length and rescales it to unit length).
+        """
+        s = self.s if n is None else np.linspace(0, 1, n)
+        if form == "angle":
+            phi = self.phi_at(age, s)
+            mid = 0.5 * (phi[1:] + phi[:-1])
+            return integrate_angles(mid, np.diff(s))
+        if form != "curve":
+            raise ParameterError(f"form {form!r} unknown; expected 'angle' or 'curve'")
+        check_age(age)
+        t = float(self.data_age(age))
+        pts = [integrate_angles(0.5 * (p[1:] + p[:-1]), np.diff(self.s)) for p in self.phi]
+        if self.ages.size == 1:
+            xy = pts[0]
+        else:
+            j = int(np.clip(np.searchsorted(self.ages, t, side="right") - 1, 0,
+                            self.ages.size - 2))
+            w = float(np.clip((t - self.ages[j]) / (self.ages[j + 1] - self.ages[j]), 0, 1))
+            xy = (1 - w) * pts[j] + w * pts[j + 1]
+        return solve_arc_length(xy, 1.0, s)
+
+
+def solve_arc_length(points: ArrayLike, target: float, s: ArrayLike) -> Array:
+    """Re-parametrise a polyline by arc length and scale it so its length equals ``target``.
+
+    This solves the model's constraint ``∫_0^h |N'(t)| dt = l/L`` for the parameter ``h``:
+    points are returned at arc-length fractions ``s`` (in [0, 1]) of the scaled curve.
+    """
+    p = np.asarray(points, dtype=float)
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    if cum[-1] <= 0:
+        raise InputError("curve has zero length; cannot solve the arc-length constraint")
+    keep = np.concatenate([[True], seg > 0])
+    q = np.asarray(s, float) * cum[-1]
+    out = np.stack([np.interp(q, cum[keep], p[keep, k]) for k in range(p.shape[1])], axis=-1)
+    return (out - out[0]) * (target / cum[-1])
+
+
+# --------------------------------------------------------------------------- leaf shape
+@dataclass(frozen=True, eq=False)
+class LeafShape:
+    """Static shape of one grass leaf (immutable; every method returns new arrays).
+
+    Attributes
+    ----------
+    s, phi : midrib angle form — knots in [0, 1] and tangent angle (radians above the
+        horizontal, in the leaf's x–z plane) at the knots.
+    s_r, r : width profile — knots in [0, 1] and relative full width (max 1).
+    length : leaf length ``L`` along the midrib (metres).
+    width : maximal full width (metres).
+    twist : twist angle at the tip (radians); θ(s) = twist · s about the midrib.
+    undulation : margin undulation amplitude (metres, 0 = flat margins).
+    wavelength : undulation wavelength along the midrib (metres).
+    phase : undulation phase (radians).
+    collection : optional ``N(age, s)`` collection used by growing leaves.
+    name : label (preset name).
+    """
+
+    s: Array
+    phi: Array
+    s_r: Array
+    r: Array
+    length: float
+    width: float
+    twist: float = 0.0
+    undulation: float = 0.0
+    wavelength: float = 0.05
+    phase: float = 0.0
+    collection: MidribCollection | None = None
+    name: str = "leaf"
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        s = _as_1d("midrib s", self.s)
+        phi = _as_1d("midrib phi", self.phi)
+        if s.size != phi.size or s.size < 2:
+            raise InputError(f"midrib angle form needs >= 2 matching knots; got {s.size} s "
+                             f"and {phi.size} phi")
+        if np.any(np.diff(s) <= 0) or s[0] != 0 or s[-1] != 1:
+            raise InputError("midrib knots s must increase strictly from 0 to 1")
+        sr, rr = _check_width_profile(self.s_r, self.r)
+        if sr[0] != 0 or sr[-1] != 1:
+            raise InputError("width knots s must run from 0 to 1")
+        rr = rr / rr.max()
+        for name in ("length", "width"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v) or v <= 0:
+                raise ParameterError(f"leaf {name} {v!r} must be a positive number of metres")
+            object.__setattr__(self, name, v)
+        if float(self.undulation) < 0:
+            raise ParameterError(f"undulation amplitude {self.undulation!r} must be >= 0 m")
+        if float(self.wavelength) <= 0:
+            raise ParameterError(f"undulation wavelength {self.wavelength!r} must be > 0 m")
+        for name, arr in (("s", s), ("phi", phi), ("s_r", sr), ("r", rr)):
+            arr = arr.copy()
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        for name in ("twist", "undulation", "wavelength", "phase"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def from_preset(cls, name: str, **overrides: Any) -> LeafShape:
+        """A built-in preset (``maize``, ``wheat``, ``grass``) fitted to real leaves."""
+        data = load_presets()
+        if name not in data:
+            raise ParameterError(f"unknown leaf preset {name!r}; expected one of "
+                                 f"{', '.join(sorted(data))}")
+        p = data[name]
+        coll = None
+        if "collection" in p:
+            c = p["collection"]
+            coll = MidribCollection(np.array(c["ages"]), np.array(c["s"]), np.array(c["phi"]),
+                                    c.get("source", ""))
+        shape = cls(np.array(p["s"]), np.array(p["phi"]), np.array(p["s_r"]), np.array(p["r"]),
+                    p["length"], p["width"], twist=np.radians(p.get("twist_deg", 0.0)),
+                    undulation=p.get("undulation", 0.0), wavelength=p.get("wavelength", 0.05),
+                    collection=coll, name=name, meta={"source": p.get("source", "")})
+        return replace(shape, **overrides) if overrides else shape
+
+    @classmethod
+    def from_points(cls, x: ArrayLike, y: ArrayLike, s_width: ArrayLike, r: ArrayLike, *,
+                    width: float | None = None, length: float | None = None,
+                    scale: float = 0.01, **kwargs: Any) -> LeafShape:
+        """Fit a leaf to a digitised midrib ``(x_i, y_i)`` and a width profile ``(s, r)``.
+
+        ``x, y`` are in data units (default cm, ``scale`` converts to metres); the arc
+        length is normalised by the total length ``L`` (``length`` overrides it, metres).
+        ``s_width`` is normalised to [0, 1] by its own range (maize widths are measured
+        along the true leaf, longer than the projected midrib); ``r`` is the full width in
+        data units, or relative if ``width`` (metres) is given.
+        """
+        s, phi, total = angles_from_points(x, y)
+        sw, rw = _check_width_profile(s_width, r)
+        sw = (sw - sw[0]) / (sw[-1] - sw[0])
+        w = float(rw.max() * scale) if width is None else float(width)
+        L = float(total * scale) if length is None else float(length)
+        return cls(s, phi, sw, rw / rw.max(), L, w, **kwargs)
+
+    def with_(self, **changes: Any) -> LeafShape:
+        """A copy with some fields replaced."""
+        return replace(self, **changes)
+
+    # ------------------------------------------------------------------ evaluation
+    def phi_at(self, s: ArrayLike, age: float | None = None) -> Array:
+        """Tangent angle (radians) at ``s``; from the collection at ``age`` when given."""
+        if age is not None and self.collection is not None:
+            return self.collection.phi_at(check_age(age), s)
+        return np.interp(np.asarray(s, float), self.s, self.phi)
+
+    def r_at(self, s: ArrayLike) -> Array:
+        """Relative full width (max 1) at ``s``."""
+        return np.interp(np.asarray(s, float), self.s_r, self.r)
+
+    def width_at(self, s: ArrayLike) -> Array:
+        """Full width (metres) at ``s``."""
+        return self.width * self.r_at(s)
+
+    def form_factor(self) -> float:
+        """``∫_0^1 r_rel(s) ds`` (exact for the piecewise-linear profile)."""
+        return float(np.trapezoid(self.r, self.s_r))
+
+    def area(self) -> float:
+        """Analytic blade area ``L · ∫ r(s) ds`` (m²) of the flat, mature leaf."""
+        return self.length * self.width * self.form_factor()
+
+    def midrib(self, s: ArrayLike | int = 101, age: float | None = None) -> Array:
+        """Midrib points ``(n, 3)`` in metres at ``s`` (or ``n`` equal steps), Z-up.
+
+        The discretised midrib has length exactly ``L`` (midpoint-rule integration of the
+        tangent angle).
+        """
+        sg = np.linspace(0, 1, s) if np.ndim(s) == 0 else np.asarray(s, float)
+        mid = 0.5 * (sg[1:] + sg[:-1])
+        xz = integrate_angles(self.phi_at(mid, age), np.diff(sg) * self.length)
+        return np.stack([xz[:, 0], np.zeros(len(sg)), xz[:, 1]], axis=1)
+
+    def surface(self, s: ArrayLike, u: ArrayLike, age: float | None = None) -> Array:
+        """Surface points ``S(s, u)`` on the grid ``s × u``: array ``(len(s), len(u), 3)``."""
+        from biomorph.leaf.mesh import LeafBatch, leaf_grid
+
+        sg = np.asarray(s, float)
+        batch = LeafBatch.from_shapes([self], ages=None if age is None else [age], s=sg)
+        return leaf_grid(batch, np.asarray(u, float))[0]
+
+    def mesh(self, age: float | None = None, triangles: int | None = None, n_s: int = 60,
+             n_u: int = 3, twist: bool = True, undulation: bool = True):
+        """Triangle mesh (:class:`biomorph.core.mesh.Mesh`) of this leaf.
+
+        ``triangles`` gives an exact triangle budget (reduced mesh, see
+        :mod:`biomorph.leaf.reduction`); otherwise a regular ``n_s × n_u`` grid.
+        ``age`` in [0, 1] meshes the growing leaf at that age (see :mod:`biomorph.leaf.growth`).
+        """
+        from biomorph.leaf.mesh import mesh_leaf
+
+        return mesh_leaf(self, age=age, triangles=triangles, n_s=n_s, n_u=n_u, twist=twist,
+                         undulation=undulation)
+
+
+# --------------------------------------------------------------------------- presets
+@lru_cache(maxsize=1)
+def _presets_text() -> str:
+    return resources.files("biomorph.leaf").joinpath("presets.json").read_text("utf-8")
+
+
+def load_presets() -> dict[str, Any]:
+    """The preset table (a fresh dict each call; derived by ``bench/derive_leaf_presets.py``)."""
+    return json.loads(_presets_text())
+
+
+__all__ = ["LeafShape", "MidribCollection", "PRESET_NAMES", "angles_from_points", "check_age",
+           "integrate_angles", "load_presets", "midrib_arc_length", "solve_arc_length"]
