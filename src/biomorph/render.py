@@ -1,0 +1,386 @@
+"""Headless PNG previews (matplotlib Agg): three orthographic views and one perspective view.
+
+Every ``render_*`` function takes the object, the output ``.png`` path and ``up``
+(``"z"`` for trees and leaves, ``"y"`` for creatures and motion) so the subject stands
+upright; it writes the PNG atomically and returns its path. Views (after turning the data
+Z-up): *front* looks along +y (x right, z up), *side* looks along -x (y right, z up),
+*top* looks down -z (x right, y up); the fourth panel is a perspective view from the
+front-left-above. Clouds are subsampled (default at most 200 000 points drawn in the
+orthographic views, 40 000 in the perspective one, seeded) so previews of 10^7-point scans
+stay fast.
+
+Example
+-------
+>>> from biomorph.render import render_file                        # doctest: +SKIP
+>>> render_file("scan.laz", "preview.png")                         # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from biomorph.errors import InputError, ParameterError
+from biomorph.io.atomic import atomic_path
+
+PathLike = str | os.PathLike[str]
+
+#: screen-right, screen-up and toward-viewer axes of each orthographic view (Z-up frame)
+_VIEWS: dict[str, NDArray[np.float64]] = {
+    "front": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),
+    "side": np.array([[0, 1.0, 0], [0, 0, 1], [1, 0, 0]]),
+    "top": np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1]]),
+}
+_MAX_3D_POINTS = 40_000
+_MAX_3D_FACES = 20_000
+
+
+def _to_zup(xyz: ArrayLike, up: str) -> NDArray[np.float64]:
+    """Coordinates in a Z-up frame: Y-up data ``(x, y, z)`` become ``(x, -z, y)``."""
+    p = np.asarray(xyz, dtype=np.float64)
+    u = up.lower()
+    if u == "z":
+        return p
+    if u == "y":
+        return np.stack([p[..., 0], -p[..., 2], p[..., 1]], axis=-1)
+    raise ParameterError(f"up={up!r}; expected 'z' (trees, leaves) or 'y' (creatures, motion)")
+
+
+@dataclass
+class _Scene:
+    """Primitives to draw, already in the Z-up frame."""
+
+    points: list[tuple[NDArray, NDArray, float]] = field(default_factory=list)
+    segments: list[tuple[NDArray, NDArray, NDArray]] = field(default_factory=list)
+    triangles: list[tuple[NDArray, NDArray]] = field(default_factory=list)
+
+    def all_xyz(self) -> NDArray[np.float64]:
+        parts = [p for p, _, _ in self.points] + [s.reshape(-1, 3) for s, _, _ in self.segments]
+        parts += [t.reshape(-1, 3) for t, _ in self.triangles]
+        parts = [p for p in parts if p.size]
+        if not parts:
+            raise InputError("nothing to render: the object has no points, bones or faces")
+        return np.concatenate(parts)
+
+
+def _rgba(values: NDArray, cmap: str = "viridis") -> NDArray[np.float64]:
+    import matplotlib
+
+    v = np.asarray(values, dtype=np.float64)
+    finite = np.isfinite(v)
+    lo = v[finite].min() if finite.any() else 0.0
+    hi = v[finite].max() if finite.any() else 1.0
+    t = (v - lo) / (hi - lo) if hi > lo else np.full_like(v, 0.5)
+    return matplotlib.colormaps[cmap](np.nan_to_num(t, nan=0.5))
+
+
+def _draw(scene: _Scene, out_png: PathLike, title: str | None, dpi: int = 100,
+          size: float = 10.0) -> Path:
+    from matplotlib.collections import LineCollection, PolyCollection
+    from matplotlib.figure import Figure
+    from mpl_toolkits.mplot3d import Axes3D  # noqa: F401 - registers the 3d projection
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+    out = Path(out_png)
+    if out.suffix.lower() != ".png":
+        raise ParameterError(f"output {os.fspath(out_png)!r} must end with .png")
+    xyz = scene.all_xyz()
+    lo, hi = xyz.min(axis=0), xyz.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    extent = float(np.max(hi - lo)) or 1.0
+    fig = Figure(figsize=(size, size), dpi=dpi, layout="constrained")
+    light = np.array([0.3, -0.5, 0.8])
+    light /= np.linalg.norm(light)
+    for k, (name, rot) in enumerate(_VIEWS.items()):
+        ax = fig.add_subplot(2, 2, k + 1)
+        ax.set_title(name, fontsize=9)
+        ax.set_aspect("equal")
+        ax.tick_params(labelsize=7)
+        for tri, colors in scene.triangles:
+            proj = tri @ rot.T  # (m, 3, 3): right, up, toward viewer
+            depth = proj[:, :, 2].mean(axis=1)
+            order = np.argsort(depth)  # far first (painter's algorithm)
+            normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            nlen = np.linalg.norm(normal, axis=1, keepdims=True)
+            normal = np.divide(normal, nlen, out=np.zeros_like(normal), where=nlen > 0)
+            shade = 0.35 + 0.65 * np.abs(normal @ (rot[2] * 0.6 + light * 0.4))
+            fc = colors.copy()
+            fc[:, :3] *= np.clip(shade, 0, 1)[:, None]
+            ax.add_collection(PolyCollection(proj[order][:, :, :2], facecolors=fc[order],
+                                             edgecolors="none", antialiased=False))
+        for segs, colors, widths in scene.segments:
+            proj = segs @ rot.T
+            order = np.argsort(proj[:, :, 2].mean(axis=1))
+            ax.add_collection(LineCollection(proj[order][:, :, :2], colors=colors[order],
+                                             linewidths=widths[order], capstyle="round"))
+        for pts, colors, size_pt in scene.points:
+            proj = pts @ rot.T
+            order = np.argsort(proj[:, 2])
+            ax.scatter(proj[order, 0], proj[order, 1], s=size_pt, c=colors[order],
+                       linewidths=0, rasterized=True)
+        c2 = rot @ centre
+        half = 0.55 * extent
+        ax.set_xlim(c2[0] - half, c2[0] + half)
+        ax.set_ylim(c2[1] - half, c2[1] + half)
+    ax3 = fig.add_subplot(2, 2, 4, projection="3d")
+    ax3.set_title("perspective", fontsize=9)
+    ax3.set_proj_type("persp", focal_length=0.6)
+    for tri, colors in scene.triangles:
+        if tri.shape[0] > _MAX_3D_FACES:
+            pick = np.random.default_rng(0).choice(tri.shape[0], _MAX_3D_FACES, replace=False)
+            tri, colors = tri[pick], colors[pick]
+        ax3.add_collection3d(Poly3DCollection(tri, facecolors=colors, edgecolors="none"))
+    for segs, colors, widths in scene.segments:
+        ax3.add_collection3d(Line3DCollection(segs, colors=colors, linewidths=widths))
+    for pts, colors, size_pt in scene.points:
+        if pts.shape[0] > _MAX_3D_POINTS:
+            pick = np.random.default_rng(0).choice(pts.shape[0], _MAX_3D_POINTS, replace=False)
+            pts, colors = pts[pick], colors[pick]
+        ax3.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=size_pt, c=colors, linewidths=0,
+                    depthshade=False)
+    half = 0.5 * extent
+    ax3.set_xlim(centre[0] - half, centre[0] + half)
+    ax3.set_ylim(centre[1] - half, centre[1] + half)
+    ax3.set_zlim(centre[2] - half, centre[2] + half)
+    ax3.set_box_aspect((1, 1, 1))
+    ax3.view_init(elev=20, azim=-60)
+    ax3.tick_params(labelsize=6)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    with atomic_path(out) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
+    return out
+
+
+def _width_pt(radius: NDArray, extent: float, size: float = 10.0) -> NDArray[np.float64]:
+    """Line width in points showing a branch of ``radius`` (m) at true scale (min 0.4 pt)."""
+    panel_pt = size * 72.0 / 2.0
+    return np.clip(2.0 * np.asarray(radius, float) / (1.1 * extent) * panel_pt, 0.4, 30.0)
+
+
+# --------------------------------------------------------------------------- public API
+def render_cloud(cloud: Any, out_png: PathLike, up: str = "z", color_by: str | None = None,
+                 max_points: int = 200_000, seed: int = 0, title: str | None = None,
+                 graph: Any = None) -> Path:
+    """Preview a point cloud (``PointCloud`` or ``(n, 3)`` array), coloured by height or by
+    attribute ``color_by`` (RGB when the cloud has ``red green blue``); optionally with a
+    BranchGraph drawn on top. At most ``max_points`` points are drawn (seeded subsample)."""
+    from biomorph.core.pointcloud import PointCloud
+
+    if not isinstance(cloud, PointCloud):
+        cloud = PointCloud(np.asarray(cloud, dtype=float))
+    n = cloud.n_points
+    if n == 0:
+        raise InputError("point cloud is empty; nothing to render")
+    idx = np.arange(n)
+    if n > max_points:
+        idx = np.sort(np.random.default_rng(seed).choice(n, max_points, replace=False))
+    pts = _to_zup(cloud.xyz[idx], up)
+    attrs = cloud.attributes
+    if color_by is not None:
+        if color_by not in attrs:
+            raise ParameterError(f"color_by={color_by!r} is not an attribute of the cloud; "
+                                 f"attributes: {', '.join(attrs) or 'none'}")
+        colors = _rgba(np.asarray(attrs[color_by])[idx])
+    elif all(c in attrs for c in ("red", "green", "blue")):
+        rgb = np.stack([np.asarray(attrs[c], float)[idx] for c in ("red", "green", "blue")], 1)
+        rgb /= 65535.0 if rgb.max(initial=0) > 255 else 255.0
+        colors = np.concatenate([np.clip(rgb, 0, 1), np.ones((rgb.shape[0], 1))], axis=1)
+    else:
+        colors = _rgba(pts[:, 2], "viridis")
+    size_pt = float(np.clip(4000.0 / max(pts.shape[0], 1), 0.05, 6.0))
+    scene = _Scene(points=[(pts, colors, size_pt)])
+    if graph is not None:
+        _add_graph(scene, graph, up, extent=float(np.ptp(pts, axis=0).max()) or 1.0,
+                   color="crimson")
+    label = title or f"{cloud.source or 'point cloud'}: {n:,} points" + \
+        (f" ({pts.shape[0]:,} drawn)" if pts.shape[0] < n else "")
+    return _draw(scene, out_png, label)
+
+
+def _add_graph(scene: _Scene, graph: Any, up: str, extent: float | None = None,
+               color: str | None = None) -> None:
+    from biomorph.core.graph import BranchGraph
+
+    if not isinstance(graph, BranchGraph):
+        graph = getattr(graph, "graph", graph)
+    if not isinstance(graph, BranchGraph):
+        raise InputError(f"expected a BranchGraph, got {type(graph).__name__}")
+    pos = _to_zup(graph.position, up)
+    e = graph.edges
+    if extent is None:
+        extent = float(np.ptp(pos, axis=0).max()) if graph.n_nodes else 1.0
+        extent = extent or 1.0
+    if e.shape[0] == 0:
+        scene.points.append((pos, _rgba(np.zeros(graph.n_nodes)), 8.0))
+        return
+    segs = np.stack([pos[e[:, 0]], pos[e[:, 1]]], axis=1)
+    if graph.radius is not None:
+        widths = _width_pt(graph.radius[e[:, 1]], extent)
+    else:
+        widths = np.full(e.shape[0], 1.2)
+    if color is not None:
+        import matplotlib.colors as mcolors
+
+        colors = np.tile(mcolors.to_rgba(color), (e.shape[0], 1))
+        widths = np.clip(0.3 * widths, 0.3, 1.5)  # an overlay must not hide what is beneath
+    elif graph.depth is not None:
+        colors = _rgba(graph.depth[e[:, 1]], "plasma")
+    elif graph.roots.size > 1:
+        colors = _rgba(graph.trees[e[:, 1]] % 10, "tab10")
+    else:
+        colors = _rgba(graph.node_depth[e[:, 1]], "plasma")
+    scene.segments.append((segs, colors, widths))
+
+
+def render_graph(graph: Any, out_png: PathLike, up: str = "z", title: str | None = None,
+                 cloud: Any = None) -> Path:
+    """Preview a BranchGraph: line width by radius (true scale), colour by branch order
+    (``depth``; else tree, else topological depth); optionally over a point cloud (grey)."""
+    scene = _Scene()
+    if cloud is not None:
+        from biomorph.core.pointcloud import PointCloud
+
+        xyz = cloud.xyz if isinstance(cloud, PointCloud) else np.asarray(cloud, float)
+        if xyz.shape[0] > 100_000:
+            xyz = xyz[np.random.default_rng(0).choice(xyz.shape[0], 100_000, replace=False)]
+        scene.points.append((_to_zup(xyz, up), np.tile([0.6, 0.6, 0.6, 0.35],
+                                                       (xyz.shape[0], 1)), 0.3))
+    _add_graph(scene, graph, up)
+    g = getattr(graph, "graph", graph)
+    label = title or (f"skeleton graph: {g.n_nodes:,} nodes, {g.leaves.size:,} tips, "
+                      f"{g.total_length:.2f} m")
+    return _draw(scene, out_png, label)
+
+
+def _skeleton_segments(parent: NDArray, pos: NDArray) -> NDArray:
+    child = np.flatnonzero(parent >= 0)
+    return np.stack([pos[..., parent[child], :], pos[..., child, :]], axis=-2)
+
+
+def render_skeleton(skeleton: Any, out_png: PathLike, rotation: ArrayLike | None = None,
+                    root_position: ArrayLike | None = None, up: str = "y",
+                    title: str | None = None) -> Path:
+    """Preview a JointSkeleton in rest pose or in the pose ``rotation (n, 4)`` /
+    ``root_position (3,)``: bones coloured by hierarchy depth, joints as dots, root red."""
+    pos = skeleton.world_positions(rotation, root_position)
+    pos = _to_zup(pos, up)
+    segs = _skeleton_segments(skeleton.parent, pos)
+    depth = skeleton.depth
+    child = np.flatnonzero(skeleton.parent >= 0)
+    scene = _Scene()
+    if segs.shape[0]:
+        scene.segments.append((segs, _rgba(depth[child], "viridis"),
+                               np.full(segs.shape[0], 2.5)))
+    colors = np.tile([0.1, 0.1, 0.1, 1.0], (pos.shape[0], 1))
+    colors[skeleton.parent < 0] = [0.85, 0.1, 0.1, 1.0]
+    scene.points.append((pos, colors, 10.0))
+    label = title or f"skeleton: {skeleton.n_joints} joints"
+    return _draw(scene, out_png, label)
+
+
+def render_motion(motion: Any, out_png: PathLike, n_poses: int = 5, up: str | None = None,
+                  title: str | None = None) -> Path:
+    """Preview a Motion: ``n_poses`` poses evenly spaced in time, coloured early (dark) to
+    late (yellow). ``up`` defaults to the motion's guessed up axis (Y for most files)."""
+    if n_poses < 1:
+        raise ParameterError(f"n_poses={n_poses}; expected at least 1")
+    n_frames = int(np.asarray(motion.rotation).shape[0])
+    if n_frames == 0:
+        raise InputError("motion has no frames; nothing to render")
+    if up is None:
+        up = "y"
+        try:
+            from biomorph.motion.motion import guess_up_axis
+
+            up = guess_up_axis(motion)
+        except (ImportError, AttributeError, InputError):
+            pass
+    frames = np.unique(np.linspace(0, n_frames - 1, min(n_poses, n_frames)).round().astype(int))
+    if hasattr(motion, "world_positions"):
+        pos = np.asarray(motion.world_positions(frames))
+    else:
+        pos = motion.skeleton.world_positions(np.asarray(motion.rotation)[frames],
+                                              np.asarray(motion.root_position)[frames])
+    pos = _to_zup(pos, up)
+    parent = motion.skeleton.parent
+    scene = _Scene()
+    tcol = _rgba(frames if frames.size > 1 else np.zeros(1), "plasma")
+    for k in range(frames.size):
+        segs = _skeleton_segments(parent, pos[k])
+        if segs.shape[0]:
+            scene.segments.append((segs, np.tile(tcol[k], (segs.shape[0], 1)),
+                                   np.full(segs.shape[0], 2.0)))
+        scene.points.append((pos[k], np.tile(tcol[k], (pos.shape[1], 1)), 4.0))
+    step = max(1, n_frames // 500)
+    root_path = _to_zup(np.asarray(motion.root_position)[::step], up)
+    if root_path.shape[0] > 1:
+        path_segs = np.stack([root_path[:-1], root_path[1:]], axis=1)
+        scene.segments.append((path_segs, np.tile([0.5, 0.5, 0.5, 0.6], (len(path_segs), 1)),
+                               np.full(len(path_segs), 0.8)))
+    ft = float(motion.frame_time)
+    label = title or (f"motion: {motion.skeleton.n_joints} joints, {n_frames} frames "
+                      f"({(n_frames - 1) * ft:.2f} s), poses at "
+                      + ", ".join(f"{f * ft:.2f}" for f in frames) + " s")
+    return _draw(scene, out_png, label)
+
+
+def render_mesh(mesh: Any, out_png: PathLike, up: str = "z", title: str | None = None,
+                color_by: str | None = None) -> Path:
+    """Preview a mesh (anything ``Mesh.from_any`` accepts), Lambert-shaded, faces coloured
+    by ``face_ids[color_by]`` (default: the first face id key), else vertex colours, else
+    one colour."""
+    from biomorph.core.mesh import Mesh
+
+    m = Mesh.from_any(mesh)
+    if m.n_faces == 0:
+        raise InputError("mesh has no faces; nothing to render")
+    tri = _to_zup(m.vertices[m.faces], up)
+    key = color_by if color_by is not None else next(iter(m.face_ids), None)
+    if key is not None:
+        if key not in m.face_ids:
+            raise ParameterError(f"color_by={key!r} is not a face id of the mesh; face ids: "
+                                 f"{', '.join(m.face_ids) or 'none'}")
+        colors = _rgba(m.face_ids[key] % 20, "tab20")
+    elif m.vertex_colors is not None:
+        colors = m.vertex_colors[m.faces].astype(float).mean(axis=1) / 255.0
+        colors[:, 3] = 1.0
+    else:
+        colors = np.tile([0.55, 0.7, 0.45, 1.0], (m.n_faces, 1))
+    label = title or f"mesh: {m.n_vertices:,} vertices, {m.n_faces:,} faces, {m.area():.4g} m²"
+    return _draw(_Scene(triangles=[(tri, colors)]), out_png, label)
+
+
+def render_file(path: PathLike, out_png: PathLike, up: str | None = None) -> Path:
+    """Render any file biomorph reads (kind by extension / PLY header) to ``out_png``.
+
+    ``up`` defaults to ``"z"`` for clouds, graphs and meshes (``"y"`` for glTF, whose spec is
+    Y-up) and to the guessed up axis for motion."""
+    from biomorph.inspect import load
+
+    out = Path(out_png)
+    if out.suffix.lower() != ".png":
+        raise ParameterError(f"output {os.fspath(out_png)!r} must end with .png")
+    kind, obj = load(path)
+    name = Path(path).name
+    if kind == "points":
+        return render_cloud(obj, out, up=up or "z",
+                            title=f"{name}: {obj.n_points:,} points")
+    if kind == "graph":
+        return render_graph(obj, out, up=up or "z",
+                            title=f"{name}: {obj.n_nodes:,} nodes, {obj.leaves.size:,} tips, "
+                                  f"{obj.total_length:.2f} m")
+    if kind == "motion":
+        return render_motion(obj, out, up=up)
+    default_up = "y" if Path(path).suffix.lower() in (".glb", ".gltf") else "z"
+    return render_mesh(obj, out, up=up or default_up)
+
+
+__all__ = ["render_cloud", "render_graph", "render_skeleton", "render_mesh", "render_motion",
+           "render_file"]
+
