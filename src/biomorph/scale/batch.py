@@ -1,0 +1,295 @@
+"""Run one function over many items on a dask.distributed cluster, robustly and resumably.
+
+:func:`run_batch` is the scale-out runner the tree and creature batch commands call::
+
+    from biomorph.scale import run_batch
+
+    report = run_batch(files, skeletonize_file, key=lambda p: p.stem,
+                       done=lambda p: (out / f"{p.stem}.ply").exists(), workers=4)
+    print(report.summary())            # "trees: 118 ok, 2 failed, 40 skipped in 312.4 s"
+
+* **Where it runs**: a ``LocalCluster(n_workers=workers, threads_per_worker=1,
+  processes=True)`` by default (one process per core, so numba/numpy code does not fight
+  over the GIL); ``scheduler="tcp://host:8786"`` connects to an existing cluster instead;
+  ``workers=0`` — or a single item left to do — runs serially in this process (tests, small
+  jobs, debugging with breakpoints).
+* **Errors**: an exception in one item is caught where it happens and reported in
+  ``BatchReport.failed`` as ``(key, "ValueError: message")`` (the traceback is kept in
+  ``BatchReport.tracebacks``); the other items carry on. A worker process that dies counts
+  as a failure of the items it held.
+* **Resuming**: items whose ``done(item)`` is true are skipped (``BatchReport.skipped``).
+  With ``out_dir`` and no ``done``, the runner keeps its own markers in
+  ``out_dir/.batch_done/`` and writes ``out_dir/batch_report.json`` at the end.
+* **Ctrl-C** cancels outstanding futures, closes the client and the cluster, and re-raises
+  ``KeyboardInterrupt`` (the CLI exits with 130); finished items keep their markers.
+* **Determinism**: ``func`` runs once per item with the item alone as input, so results are
+  identical to a serial run (and returned in item order in ``BatchReport.results``).
+
+``func`` and the items must be picklable; functions defined at module level in an
+importable module are the safe choice (dask's cloudpickle also ships lambdas and closures).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import re
+import time
+import traceback
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any, Generic, TypeVar
+
+from biomorph.errors import BiomorphError, ParameterError
+from biomorph.progress import task
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+MARKER_DIR = ".batch_done"
+REPORT_NAME = "batch_report.json"
+
+
+@dataclass
+class BatchReport(Generic[R]):
+    """Outcome of :func:`run_batch`.
+
+    Attributes
+    ----------
+    ok : keys of items that finished, in item order.
+    failed : ``(key, "ExceptionType: message")`` per failed item, in item order.
+    skipped : keys of items skipped because ``done(item)`` was true.
+    seconds : wall-clock time of the whole batch (s), cluster start-up included.
+    item_seconds : ``{key: seconds}`` spent inside ``func`` per finished or failed item.
+    results : ``{key: result}`` of finished items, in item order.
+    tracebacks : ``{key: formatted traceback}`` of failed items.
+    workers : worker processes used (0 = serial, in-process).
+    scheduler : scheduler address, ``"local"`` for a LocalCluster, ``"serial"``.
+    """
+
+    description: str = "batch"
+    ok: list[str] = field(default_factory=list)
+    failed: list[tuple[str, str]] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    item_seconds: dict[str, float] = field(default_factory=dict)
+    results: dict[str, R] = field(default_factory=dict)
+    tracebacks: dict[str, str] = field(default_factory=dict)
+    workers: int = 0
+    scheduler: str = "serial"
+
+    @property
+    def total(self) -> int:
+        return len(self.ok) + len(self.failed) + len(self.skipped)
+
+    @property
+    def exit_code(self) -> int:
+        """0 when nothing failed, 1 otherwise (for CLI commands)."""
+        return 1 if self.failed else 0
+
+    def summary(self) -> str:
+        """One line: ``"trees: 118 ok, 2 failed, 40 skipped in 312.4 s"``."""
+        return (f"{self.description}: {len(self.ok)} ok, {len(self.failed)} failed, "
+                f"{len(self.skipped)} skipped in {self.seconds:.1f} s")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary for ``--json`` (results are left out: they may be any type)."""
+        times = list(self.item_seconds.values())
+        return {
+            "description": self.description,
+            "total": self.total,
+            "n_ok": len(self.ok),
+            "n_failed": len(self.failed),
+            "n_skipped": len(self.skipped),
+            "ok": list(self.ok),
+            "failed": [{"key": k, "error": msg, "traceback": self.tracebacks.get(k, "")}
+                       for k, msg in self.failed],
+            "skipped": list(self.skipped),
+            "seconds": round(self.seconds, 6),
+            "item_seconds": {k: round(v, 6) for k, v in self.item_seconds.items()},
+            "mean_item_seconds": round(sum(times) / len(times), 6) if times else 0.0,
+            "workers": self.workers,
+            "scheduler": self.scheduler,
+        }
+
+
+# --------------------------------------------------------------------------- worker side
+def _call(func: Callable[[Any], Any], item: Any) -> tuple[bool, Any, float, str]:
+    """Run ``func(item)`` catching any exception: ``(ok, result_or_message, seconds, tb)``."""
+    t0 = time.perf_counter()
+    try:
+        result = func(item)
+    except Exception as exc:  # reported per item; the batch carries on
+        return (False, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0,
+                traceback.format_exc())
+    return True, result, time.perf_counter() - t0, ""
+
+
+# --------------------------------------------------------------------------- client side
+def _marker(out_dir: Path, key: str) -> Path:
+    safe = re.sub(r"[^A-Za-z0-9._-]+", "_", key).strip(".") or "_"
+    if safe != key:  # keep distinct keys distinct after sanitising
+        safe = f"{safe}-{_digest(key)}"
+    return out_dir / MARKER_DIR / safe
+
+
+def _digest(text: str) -> str:
+    import hashlib
+
+    return hashlib.sha1(text.encode("utf-8")).hexdigest()[:10]
+
+
+@contextlib.contextmanager
+def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
+    """A dask client on a new LocalCluster or on ``scheduler``; both closed on exit."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:  # pragma: no cover - depends on the installed extras
+        raise BiomorphError("dask.distributed is not installed; install biomorph[scale] or "
+                            "run serially with workers=0") from None
+    cluster = None
+    client = None
+    try:
+        if scheduler is not None:
+            try:
+                client = Client(scheduler, timeout="20s")
+            except OSError as exc:
+                raise BiomorphError(f"cannot reach the dask scheduler at {scheduler!r} ({exc}); "
+                                    "expected an address like tcp://host:8786") from None
+        else:
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=logging.ERROR)
+            client = Client(cluster)
+        yield client
+    finally:
+        if client is not None:
+            with contextlib.suppress(Exception):
+                client.close()
+        if cluster is not None:
+            with contextlib.suppress(Exception):
+                cluster.close()
+
+
+def run_batch(items: Sequence[T], func: Callable[[T], R], *, out_dir: str | os.PathLike[str] |
+              None = None, key: Callable[[T], str] = str,
+              done: Callable[[T], bool] | None = None, workers: int | None = None,
+              scheduler: str | None = None, progress: bool = True,
+              description: str = "batch") -> BatchReport[R]:
+    """Apply ``func`` to every item, in parallel on dask.distributed; never stop on one error.
+
+    Parameters
+    ----------
+    items : the work items (paths, seeds, parameter dicts …); must be picklable.
+    func : ``func(item) -> result``; picklable (module-level function). Exceptions it raises
+        are reported per item.
+    out_dir : optional output folder; gets ``batch_report.json`` and, when ``done`` is not
+        given, the runner's own completion markers (``.batch_done/``) so re-runs resume.
+    key : names each item in the report (default ``str``); keys must be unique.
+    done : ``done(item) -> bool``; true items are skipped (e.g. "output file exists").
+    workers : worker processes (default: CPU count, at most the number of items);
+        ``0`` runs serially in this process.
+    scheduler : address of a running dask scheduler (``tcp://host:8786``); ``workers`` is
+        then ignored.
+    progress : show a rich progress bar on stderr when it is a terminal.
+    description : label for the bar and the report.
+
+    Returns a :class:`BatchReport`. ``KeyboardInterrupt`` cancels outstanding work, shuts the
+    cluster down and propagates.
+    """
+    t_start = time.perf_counter()
+    items = list(items)
+    if workers is not None and (not isinstance(workers, int) or workers < 0):
+        raise ParameterError(f"workers must be a non-negative integer (0 = serial); "
+                             f"got {workers!r}")
+    keys = [str(key(item)) for item in items]
+    if len(set(keys)) != len(keys):
+        from collections import Counter
+
+        dup = next(k for k, c in Counter(keys).items() if c > 1)
+        raise ParameterError(f"key {dup!r} names more than one item; keys must be unique")
+    out = None if out_dir is None else Path(out_dir)
+    markers = out is not None and done is None
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        if markers:
+            (out / MARKER_DIR).mkdir(exist_ok=True)
+
+    def is_done(i: int) -> bool:
+        if done is not None:
+            return bool(done(items[i]))
+        return markers and _marker(out, keys[i]).exists()  # type: ignore[arg-type]
+
+    report: BatchReport[R] = BatchReport(description=description)
+    todo = []
+    for i in range(len(items)):
+        if is_done(i):
+            report.skipped.append(keys[i])
+        else:
+            todo.append(i)
+
+    n_workers = (os.cpu_count() or 1) if workers is None else workers
+    n_workers = min(n_workers, len(todo))
+    serial = workers == 0 or (len(todo) <= 1 and scheduler is None)
+    outcomes: dict[int, tuple[bool, Any, float, str]] = {}
+
+    def record(i: int, outcome: tuple[bool, Any, float, str]) -> None:
+        outcomes[i] = outcome
+        if outcome[0] and markers:
+            _marker(out, keys[i]).touch()  # type: ignore[arg-type]
+
+    with task(description, total=len(todo), enabled=None if progress else False) as advance:
+        if serial or not todo:
+            report.workers, report.scheduler = 0, "serial"
+            for i in todo:
+                record(i, _call(func, items[i]))
+                advance()
+        else:
+            with _client(n_workers, scheduler) as client:
+                report.scheduler = scheduler or "local"
+                report.workers = len(client.scheduler_info().get("workers", {})) or n_workers
+                _run_distributed(client, func, items, todo, record, advance)
+
+    for i in todo:  # item order, not completion order
+        ok, value, seconds, tb = outcomes[i]
+        report.item_seconds[keys[i]] = seconds
+        if ok:
+            report.ok.append(keys[i])
+            report.results[keys[i]] = value
+        else:
+            report.failed.append((keys[i], value))
+            report.tracebacks[keys[i]] = tb
+    report.seconds = time.perf_counter() - t_start
+    if out is not None:
+        import json
+
+        from biomorph.io.atomic import write_text
+
+        write_text(out / REPORT_NAME, json.dumps(report.to_dict(), indent=2) + "\n")
+    return report
+
+
+def _run_distributed(client: Any, func: Callable[[Any], Any], items: list[Any],
+                     todo: list[int], record: Callable[[int, tuple[bool, Any, float, str]], None],
+                     advance: Callable[..., None]) -> None:
+    """Submit every item, collect results as they complete; cancel all on Ctrl-C."""
+    from dask.distributed import as_completed
+
+    futures = client.map(partial(_call, func), [items[i] for i in todo], pure=False)
+    index = {f.key: i for f, i in zip(futures, todo, strict=True)}
+    try:
+        for fut in as_completed(futures):
+            i = index[fut.key]
+            try:
+                outcome = fut.result()
+            except Exception as exc:  # the worker died or the task was lost
+                outcome = (False, f"{type(exc).__name__}: {exc}", 0.0, "")
+            record(i, outcome)
+            advance()
+            fut.release()
+    except BaseException:
+        with contextlib.suppress(Exception):
+            client.cancel(futures, force=True)
+        raise

@@ -1,0 +1,27 @@
+"""Tests of biomorph.scale. The tiny work functions live here (an importable module) so
+dask worker processes can unpickle them by reference."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+def square_stats(seed: int) -> dict[str, float]:
+    """A small deterministic job: statistics of seeded random numbers."""
+    x = np.random.default_rng(seed).normal(size=200)
+    return {"seed": seed, "mean": float(x.mean()), "sumsq": float((x**2).sum())}
+
+
+def fail_on_three(seed: int) -> int:
+    """Raises for item 3, squares the others."""
+    if seed == 3:
+        raise ValueError(f"item {seed} is cursed")
+    return seed * seed
+
+
+def slow(seed: int) -> int:
+    """Sleeps half a second (to be interrupted)."""
+    time.sleep(0.5)
+    return seed

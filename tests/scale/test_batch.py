@@ -1,0 +1,109 @@
+"""run_batch: serial == distributed, per-item failures, resume, Ctrl-C, report."""
+
+from __future__ import annotations
+
+import _thread
+import json
+import logging
+import multiprocessing
+import threading
+import time
+
+import pytest
+
+from biomorph.errors import ParameterError
+from biomorph.scale import BatchReport, run_batch
+from tests.scale import fail_on_three, slow, square_stats
+
+distributed = pytest.importorskip("dask.distributed")
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    """One 2-process cluster shared by the tests that pass an address."""
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       dashboard_address=":0", silence_logs=logging.ERROR)
+    yield cluster.scheduler_address
+    cluster.close()
+
+
+def test_local_cluster_matches_serial():
+    seeds = list(range(10))
+    serial = run_batch(seeds, square_stats, workers=0, progress=False)
+    par = run_batch(seeds, square_stats, workers=2, progress=False)
+    assert serial.scheduler == "serial" and serial.workers == 0
+    assert par.scheduler == "local" and par.workers == 2
+    assert par.results == serial.results  # exact floats, same order
+    assert list(par.results) == [str(s) for s in seeds]
+    assert par.ok == serial.ok == [str(s) for s in seeds]
+    assert par.failed == [] and set(par.item_seconds) == set(par.ok)
+
+
+def test_failing_item_is_reported_and_others_finish(scheduler):
+    for kwargs in ({"workers": 0}, {"scheduler": scheduler}):
+        rep = run_batch(range(6), fail_on_three, key=lambda s: f"seed{s}", progress=False,
+                        **kwargs)
+        assert rep.failed == [("seed3", "ValueError: item 3 is cursed")]
+        assert rep.ok == ["seed0", "seed1", "seed2", "seed4", "seed5"]
+        assert rep.results == {"seed0": 0, "seed1": 1, "seed2": 4, "seed4": 16, "seed5": 25}
+        assert "cursed" in rep.tracebacks["seed3"] and "fail_on_three" in rep.tracebacks["seed3"]
+        assert rep.exit_code == 1
+        assert rep.summary().startswith("batch: 5 ok, 1 failed, 0 skipped")
+
+
+def test_rerun_skips_done_items_with_markers(tmp_path, scheduler):
+    first = run_batch(range(6), fail_on_three, out_dir=tmp_path, scheduler=scheduler,
+                      progress=False, description="seeds")
+    assert first.skipped == [] and len(first.ok) == 5
+    saved = json.loads((tmp_path / "batch_report.json").read_text())
+    assert saved["n_ok"] == 5 and saved["failed"][0]["key"] == "3"
+    assert saved["description"] == "seeds"
+    # second run: only the failed item is tried again (serially: one item left)
+    second = run_batch(range(6), square_stats, out_dir=tmp_path, progress=False)
+    assert second.skipped == ["0", "1", "2", "4", "5"]
+    assert second.ok == ["3"] and second.scheduler == "serial"
+    third = run_batch(range(6), square_stats, out_dir=tmp_path, scheduler=scheduler,
+                      progress=False)
+    assert len(third.skipped) == 6 and third.ok == []
+
+
+def test_done_callable_decides_what_to_skip():
+    rep = run_batch(range(5), square_stats, done=lambda s: s % 2 == 0, workers=0,
+                    progress=False)
+    assert rep.skipped == ["0", "2", "4"] and rep.ok == ["1", "3"]
+    assert rep.to_dict()["n_skipped"] == 3
+
+
+def test_report_to_dict_is_json():
+    rep = run_batch(range(4), fail_on_three, workers=0, progress=False)
+    d = json.loads(json.dumps(rep.to_dict()))
+    assert d["total"] == 4 and d["n_ok"] == 3 and d["n_failed"] == 1
+    assert d["failed"][0]["error"] == "ValueError: item 3 is cursed"
+    assert set(d["item_seconds"]) == {"0", "1", "2", "3"}
+    assert isinstance(BatchReport().to_dict()["mean_item_seconds"], float)
+
+
+def test_bad_parameters():
+    with pytest.raises(ParameterError, match="unique"):
+        run_batch([1, 2, 3], square_stats, key=lambda s: "same", workers=0)
+    with pytest.raises(ParameterError, match="workers"):
+        run_batch([1, 2], square_stats, workers=-1)
+    empty = run_batch([], square_stats)
+    assert empty.total == 0 and empty.failed == []
+
+
+def test_ctrl_c_cancels_and_shuts_the_cluster_down():
+    before = set(multiprocessing.active_children())  # e.g. the module's shared cluster
+    timer = threading.Timer(4.0, _thread.interrupt_main)
+    timer.start()
+    t0 = time.perf_counter()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_batch(range(60), slow, workers=2, progress=False)  # ~15 s if not interrupted
+    finally:
+        timer.cancel()
+    assert time.perf_counter() - t0 < 12
+    deadline = time.monotonic() + 10
+    while set(multiprocessing.active_children()) - before and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert set(multiprocessing.active_children()) - before == set()
