@@ -34,6 +34,19 @@ def test_files_tab_opens_uploads_and_reports_errors(studio, tmp_path):
     studio.assert_scene_changed(before)
     studio.screenshot("files", tmp_path)
 
+    # a point cloud through biomorph.io.read_points
+    rng = np.random.default_rng(0)
+    pts = rng.normal(size=(3000, 3)) * [0.3, 0.3, 1.0] + [0, 0, 1.5]
+    np.savetxt(app.sandbox.root / "cloud.xyz", pts, fmt="%.5f")
+    studio.click("Refresh list")
+    wait_for(lambda: "cloud.xyz" in tab.file.options, what="cloud.xyz in the listing")
+    v0 = tab.version
+    studio.select(tab.file, "cloud.xyz")
+    studio.click("Open")
+    wait_for(lambda: tab.version > v0 and tab.loaded_kind == "points", what="the cloud")
+    assert tab.loaded.n_points == 3000
+    studio.expect_text("3,000 points")
+
     # a broken upload: the error is shown in the page and the page stays usable
     bad = tmp_path / "broken.obj"
     bad.write_text("this is not a mesh\n")

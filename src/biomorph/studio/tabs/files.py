@@ -164,8 +164,11 @@ class FilesTab(StudioTab):
             return
         f = int(min(self.frame.value, np.asarray(motion.rotation).shape[0] - 1))
         skel = motion.skeleton
-        world = skel.world_positions(np.asarray(motion.rotation)[f],
-                                     np.asarray(motion.root_position)[f])
+        if hasattr(motion, "world_positions"):  # handles per-joint translations too
+            world = motion.world_positions(slice(f, f + 1))[0]
+        else:
+            world = skel.world_positions(np.asarray(motion.rotation)[f],
+                                         np.asarray(motion.root_position)[f])
         _, size = draw.fit_camera(skel.world_positions())
         scale = 1.7 / size if size > 5 else 1.0  # centimetre BVH files -> about human size
         p = y_up_to_z_up(world) * scale
