@@ -167,7 +167,13 @@ def canopy(output: Annotated[Path, typer.Option("-o", "--output",
     Example: biomorph leaf canopy --plants 200 --rows 10 --spacing 0.15 --seed 1 -o field.glb
     """
     from biomorph.cli import out_console, print_json
-    from biomorph.leaf.canopy import FieldSpec, PlantSpec, build_field, field_mesh
+    from biomorph.leaf.canopy import (
+        FieldSpec,
+        PlantSpec,
+        build_field,
+        field_mesh,
+        leaf_area_index,
+    )
     from biomorph.leaf.shape import check_age
 
     _check_ext(output, MESH_EXT)
@@ -177,9 +183,10 @@ def canopy(output: Annotated[Path, typer.Option("-o", "--output",
     fld = build_field(spec, seed=seed)
     m = field_mesh(fld, triangles_per_leaf=triangles)
     write_leaf_mesh(output, m)
+    lai = leaf_area_index(fld, m)
     summary = {"file": str(output), "plants": plants, "leaves": fld.n_leaves,
-               "triangles": m.n_faces, "leaf_area_m2": m.area(), "ground_area_m2":
-               fld.ground_area, "lai": m.area() / fld.ground_area, "seed": seed}
+               "triangles": m.n_faces, "leaf_area_m2": lai * fld.ground_area,
+               "ground_area_m2": fld.ground_area, "lai": lai, "seed": seed}
     if as_json:
         print_json(summary)
     else:

@@ -141,18 +141,21 @@ class LeafTimeline:
         a, l_cur, wf, bend = vals
         return LeafState(min(max(a, 0.0), 1.0), l_cur, max(l_cur - self.hidden, 0.0), wf, bend)
 
-    def mesh(self, t: float, n_s: int = 40, n_u: int = 3, **kwargs):
+    def mesh(self, t: float, n_s: int = 40, n_u: int = 3, drop_degenerate: bool = True,
+             **kwargs):
         """Mesh of the visible leaf at time ``t`` (a :class:`~biomorph.core.mesh.Mesh`)."""
         from biomorph.leaf.mesh import LeafBatch, mesh_batch
 
         batch = LeafBatch.from_shapes([self.shape], states=[self.state(t)],
                                       s=np.linspace(0, 1, n_s), **kwargs)
-        return mesh_batch(batch, n_u)
+        return mesh_batch(batch, n_u, drop_degenerate=drop_degenerate)
 
     def frames(self, n: int, **kwargs) -> list:
-        """``n`` meshes at equally spaced times from 0 to ``duration``."""
+        """``n`` meshes at equally spaced times from 0 to ``duration``, all with the same
+        topology (usable as morph targets)."""
         if n < 1:
             raise ParameterError(f"frames={n}: expected at least 1")
+        kwargs.setdefault("drop_degenerate", False)
         return [self.mesh(float(t), **kwargs) for t in np.linspace(0, self.duration, n)]
 
     def visible_area(self, t: float) -> float:

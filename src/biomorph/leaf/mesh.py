@@ -170,11 +170,13 @@ def _grid_faces(k: int, nu: int) -> NDArray[np.int64]:
     return np.stack([t1, t2], axis=2)
 
 
-def mesh_batch(batch: LeafBatch, n_u: int = 3, normals: bool = True) -> Mesh:
+def mesh_batch(batch: LeafBatch, n_u: int = 3, normals: bool = True,
+               drop_degenerate: bool = True) -> Mesh:
     """One mesh of all leaves in ``batch`` with ``n_u`` (>= 2) vertices across each blade.
 
     Degenerate triangles at zero-width ends (closed tips/bases) are dropped, so a closed
-    tip strip yields ``n_u − 1`` triangles instead of ``2(n_u − 1)``.
+    tip strip yields ``n_u − 1`` triangles instead of ``2(n_u − 1)``. Pass
+    ``drop_degenerate=False`` to keep a fixed topology (animation frames, morph targets).
     """
     if n_u < 2:
         raise ParameterError(f"n_u={n_u}: a leaf needs at least 2 vertices across")
@@ -185,6 +187,8 @@ def mesh_batch(batch: LeafBatch, n_u: int = 3, normals: bool = True) -> Mesh:
     tmpl = _grid_faces(k, n_u)                                           # (K-1,U-1,2,3)
     w = batch.width
     keep = np.stack([w[:, 1:] > 0, w[:, :-1] > 0], axis=-1)              # (N,K-1,2)
+    if not drop_degenerate:
+        keep = np.ones_like(keep)
     keep = np.broadcast_to(keep[:, :, None, :], (n, k - 1, n_u - 1, 2))
     faces = tmpl[None] + (np.arange(n, dtype=np.int64) * per)[:, None, None, None, None]
     faces = faces[keep]

@@ -1,0 +1,304 @@
+"""Grass plants and fields of them, meshed in one vectorised pass.
+
+Plant (:class:`PlantSpec`): a vertical stem with ``leaves`` leaves in **distichous**
+phyllotaxy — successive leaves alternate by 180° in azimuth (plus Gaussian jitter) — at
+insertion heights that grow with the stem; leaf ``i`` (0 = lowest) appears at plant age
+``i · appearance`` and then ages over ``lifespan`` of the plant's life, so lower leaves are
+older (longer, more bent) and upper leaves younger; blade lengths follow a bell-shaped
+profile along the stem (longest in the middle, as in ``Wheat_dimension_profiles.csv``);
+each leaf's insertion angle is jittered by rotating its midrib in its own plane.
+
+Field (:class:`FieldSpec`): plants in ``rows`` rows ``row_spacing`` apart, ``plant_spacing``
+apart within a row, positions jittered; the leaf area index is the one-sided leaf area over
+the ground area ``rows·row_spacing × plants_per_row·plant_spacing``.
+
+Every random choice comes from ``np.random.default_rng(seed)``: the same seed gives the same
+canopy. All leaves of a field are evaluated as arrays ``(n_leaves, K)`` and meshed with
+:func:`biomorph.leaf.mesh.mesh_batch`; leaves of one field share a level of detail chosen by
+the reduction algorithm for the preset (``triangles_per_leaf``).
+
+Face ids: ``plant`` (0-based plant index), ``leaf`` (1-based leaf rank on its plant; 0 =
+stem, as CARIBU expects).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from biomorph.core.mesh import Mesh
+from biomorph.errors import ParameterError
+from biomorph.leaf.growth import EXTENSION_END, MIN_RELATIVE_LENGTH
+from biomorph.leaf.mesh import LeafBatch, mesh_batch
+from biomorph.leaf.shape import LeafShape, check_age
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PlantSpec:
+    """Parameters of one grass plant (metres, degrees for jitters)."""
+
+    preset: str = "wheat"
+    leaves: int = 6
+    age: float = 0.8
+    stem_height: float | None = None       # default: 2.5 × the preset leaf length
+    stem_radius: float = 0.002
+    appearance: float = 0.1                # plant-age interval between two leaves
+    lifespan: float = 0.5                  # leaf life as a fraction of the plant's life
+    azimuth_jitter_deg: float = 15.0
+    insertion_jitter_deg: float = 8.0
+    length_jitter: float = 0.08            # relative standard deviation
+    shape_overrides: dict = field(default_factory=dict)
+
+    def validate(self) -> None:
+        check_age(self.age)
+        if self.leaves < 1:
+            raise ParameterError(f"leaves per plant {self.leaves} must be >= 1")
+        for name in ("appearance", "lifespan", "stem_radius"):
+            if getattr(self, name) <= 0:
+                raise ParameterError(f"{name} {getattr(self, name)!r} must be > 0")
+        if self.stem_height is not None and self.stem_height <= 0:
+            raise ParameterError(f"stem_height {self.stem_height!r} must be > 0 m")
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    """A field: ``plants`` plants in ``rows`` rows (metres)."""
+
+    plants: int = 20
+    rows: int = 4
+    row_spacing: float = 0.15
+    plant_spacing: float | None = None     # default: row_spacing / 3
+    position_jitter: float = 0.01
+    plant: PlantSpec = field(default_factory=PlantSpec)
+
+    def validate(self) -> None:
+        if self.plants < 1 or self.rows < 1:
+            raise ParameterError(f"need at least 1 plant and 1 row; got plants={self.plants}, "
+                                 f"rows={self.rows}")
+        if self.rows > self.plants:
+            raise ParameterError(f"rows={self.rows} exceeds plants={self.plants}")
+        if self.row_spacing <= 0 or (self.plant_spacing is not None and
+                                     self.plant_spacing <= 0):
+            raise ParameterError(f"spacing must be > 0 m; got row spacing {self.row_spacing}")
+        if self.position_jitter < 0:
+            raise ParameterError(f"position_jitter {self.position_jitter} must be >= 0 m")
+        self.plant.validate()
+
+
+@dataclass(frozen=True, eq=False)
+class Field:
+    """Leaves of a field as arrays (one row per leaf) plus plant positions."""
+
+    shape: LeafShape
+    plant_pos: Array            # (P, 3) stem base positions
+    stem_height: Array          # (P,) current stem height
+    stem_radius: float
+    plant: NDArray[np.int64]    # (N,) plant index per leaf
+    rank: NDArray[np.int64]     # (N,) 1-based leaf rank
+    age: Array                  # (N,) leaf age in [0, 1]
+    length_scale: Array         # (N,) final length / preset length
+    incline: Array              # (N,) insertion-angle offset (radians, + = more erect)
+    azimuth: Array              # (N,)
+    origin: Array               # (N, 3) insertion point
+    ground_area: float
+
+    @property
+    def n_leaves(self) -> int:
+        return int(self.plant.size)
+
+
+def _plant_leaves(spec: PlantSpec, plant_age: float, rng: np.random.Generator):
+    n = spec.leaves
+    i = np.arange(n)
+    emerge = i * spec.appearance
+    present = plant_age >= emerge
+    age = np.clip((plant_age - emerge) / spec.lifespan, 0.0, 1.0)
+    x = i / max(n - 1, 1)
+    profile = 0.55 + 0.45 * np.sin(np.pi * (0.15 + 0.7 * x))
+    lscale = profile * np.clip(1 + spec.length_jitter * rng.standard_normal(n), 0.5, 1.5)
+    base_az = rng.uniform(0, 2 * np.pi)
+    az = base_az + np.pi * i + np.radians(spec.azimuth_jitter_deg) * rng.standard_normal(n)
+    incl = np.radians(spec.insertion_jitter_deg) * rng.standard_normal(n)
+    return present, age, lscale, az, incl
+
+
+def build_plant(spec: PlantSpec, seed: int | np.random.Generator = 0,
+                origin=(0.0, 0.0, 0.0), age: float | None = None) -> Field:
+    """One plant (a one-plant :class:`Field`)."""
+    fs = FieldSpec(plants=1, rows=1, row_spacing=1.0, plant_spacing=1.0, position_jitter=0.0,
+                   plant=spec)
+    return build_field(fs, seed=seed, origin=origin, age=age)
+
+
+def build_field(spec: FieldSpec, seed: int | np.random.Generator = 0, origin=(0.0, 0.0, 0.0),
+                age: float | None = None) -> Field:
+    """Place plants in rows and draw every leaf's parameters (deterministic given ``seed``).
+
+    ``age`` overrides the plant age (for growth animation: same seed, same plants).
+    """
+    spec.validate()
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    ps = spec.plant
+    plant_age = check_age(ps.age if age is None else age)
+    shape = LeafShape.from_preset(ps.preset, **ps.shape_overrides)
+    per_row = int(np.ceil(spec.plants / spec.rows))
+    dx = spec.plant_spacing or spec.row_spacing / 3.0
+    idx = np.arange(spec.plants)
+    row, col = idx // per_row, idx % per_row
+    pos = np.stack([col * dx, row * spec.row_spacing, np.zeros(spec.plants)], axis=1)
+    pos[:, :2] += spec.position_jitter * rng.standard_normal((spec.plants, 2))
+    pos += np.asarray(origin, float)
+    H = ps.stem_height or 2.5 * shape.length
+    elong = np.clip(plant_age / 0.8, 0.1, 1.0)
+    stem_h = np.full(spec.plants, H * elong)
+    cols = {k: [] for k in ("plant", "rank", "age", "ls", "az", "incl", "org")}
+    n = ps.leaves
+    rel_h = ((np.arange(n) + 1) / n) ** 1.3
+    for p in range(spec.plants):
+        present, a, ls, az, incl = _plant_leaves(ps, plant_age, rng)
+        k = np.flatnonzero(present)
+        cols["plant"].append(np.full(k.size, p))
+        cols["rank"].append(k + 1)
+        cols["age"].append(a[k])
+        cols["ls"].append(ls[k])
+        cols["az"].append(az[k])
+        cols["incl"].append(incl[k])
+        org = np.repeat(pos[p][None], k.size, axis=0)
+        org[:, 2] += stem_h[p] * rel_h[k]
+        cols["org"].append(org)
+    cat = {k: np.concatenate(v) if v else np.zeros(0) for k, v in cols.items()}
+    ground = spec.rows * spec.row_spacing * per_row * dx
+    return Field(shape, pos, stem_h, ps.stem_radius, cat["plant"].astype(np.int64),
+                 cat["rank"].astype(np.int64), cat["age"], cat["ls"], cat["incl"], cat["az"],
+                 cat["org"].reshape(-1, 3), float(ground))
+
+
+def _interp_rows(knots: Array, rows: Array, q: Array) -> Array:
+    """Linear interpolation of many rows sharing ``knots``: rows ``(N, M)``, q ``(N, K)``."""
+    j = np.clip(np.searchsorted(knots, q, side="right") - 1, 0, knots.size - 2)
+    w = np.clip((q - knots[j]) / (knots[j + 1] - knots[j]), 0.0, 1.0)
+    a = np.take_along_axis(rows, j, axis=1)
+    b = np.take_along_axis(rows, j + 1, axis=1)
+    return (1 - w) * a + w * b
+
+
+def batch_from_field(fld: Field, s: Array, twist: bool = True, undulation: bool = True
+                     ) -> LeafBatch:
+    """Vectorised profiles of every leaf of ``fld`` at visible fractions ``s`` ``(K,)``."""
+    shape = fld.shape
+    sg = np.asarray(s, float)
+    L = shape.length * fld.length_scale                                    # (N,)
+    rel = MIN_RELATIVE_LENGTH + (1 - MIN_RELATIVE_LENGTH) * np.clip(fld.age / EXTENSION_END,
+                                                                    0, 1)
+    l_cur = L * rel
+    sigma = sg[None, :] * l_cur[:, None]                                   # (N,K) metres
+    shat = np.clip((sigma + (L - l_cur)[:, None]) / L[:, None], 0, 1)
+    smid = 0.5 * (sigma[:, 1:] + sigma[:, :-1]) / L[:, None]
+    if shape.collection is not None:
+        c = shape.collection
+        rows = c.phi_at(fld.age)                                           # (N, M)
+        phi = _interp_rows(c.s, np.atleast_2d(rows), smid)
+    else:
+        phi = np.interp(smid, shape.s, shape.phi)
+    phi = phi + fld.incline[:, None]
+    seg = np.diff(sg)[None, :] * l_cur[:, None]
+    width = shape.width * fld.length_scale[:, None] * np.interp(shat, shape.s_r, shape.r)
+    theta = shape.twist * shat if twist else np.zeros_like(shat)
+    if undulation and shape.undulation > 0:
+        amp = shape.undulation * (1 - shat)
+        arg = 2 * np.pi * shat * L[:, None] / shape.wavelength + shape.phase
+    else:
+        amp = arg = np.zeros_like(shat)
+    v = np.broadcast_to(sg, shat.shape).copy()
+    return LeafBatch(phi, seg, width, theta, amp, arg, v, fld.origin, fld.azimuth, fld.plant,
+                     fld.rank)
+
+
+def lod_samples(shape: LeafShape, triangles: int, age: float = 0.8) -> Array:
+    """Sample positions (visible fractions) chosen by the reduction for a leaf of ``shape``
+    at ``age`` with about ``triangles`` triangles (strips of 2, closed tip 1)."""
+    from biomorph.leaf.reduction import reduce_leaf
+
+    red = reduce_leaf(shape, 200, age=age)
+    triangles = max(int(triangles), red.min_triangles)
+    kept = red.kept(red.removed_for_budget(min(triangles, red.full_triangles)))
+    return red.s[kept]
+
+
+def stem_mesh(fld: Field, sides: int = 6) -> Mesh:
+    """Prism stems (one per plant) with face ids ``plant`` and ``leaf = 0``."""
+    p = fld.plant_pos.shape[0]
+    ang = np.linspace(0, 2 * np.pi, sides, endpoint=False)
+    ring = np.stack([np.cos(ang), np.sin(ang), np.zeros(sides)], axis=1)       # (S,3)
+    bottom = fld.plant_pos[:, None, :] + fld.stem_radius * ring[None]
+    top = bottom.copy()
+    top[..., 2] += fld.stem_height[:, None]
+    verts = np.concatenate([bottom, top], axis=1).reshape(-1, 3)               # (P*2S,3)
+    j = np.arange(sides)
+    a, b = j, (j + 1) % sides
+    quad = np.concatenate([np.stack([a, b, b + sides], 1), np.stack([a, b + sides, a + sides],
+                                                                     1)])
+    faces = (quad[None] + (np.arange(p) * 2 * sides)[:, None, None]).reshape(-1, 3)
+    normals = np.tile(np.concatenate([ring, ring]), (p, 1))
+    uv = np.tile(np.concatenate([np.stack([j / sides, np.zeros(sides)], 1),
+                                 np.stack([j / sides, np.ones(sides)], 1)]), (p, 1))
+    plant = np.repeat(np.arange(p), 2 * sides)
+    return Mesh(verts, faces, normals=normals, uv=uv,
+                face_ids={"plant": plant, "leaf": np.zeros(plant.size, np.int64)})
+
+
+def field_mesh(fld: Field, triangles_per_leaf: int = 20, stems: bool = True,
+               twist: bool = True, undulation: bool = True, drop_degenerate: bool = True,
+               s: Array | None = None) -> Mesh:
+    """One mesh of the whole field (leaves, optionally stems)."""
+    if triangles_per_leaf < 1:
+        raise ParameterError(f"triangles per leaf {triangles_per_leaf} is below the minimum "
+                             "mesh (1)")
+    sg = lod_samples(fld.shape, triangles_per_leaf) if s is None else s
+    leaves = mesh_batch(batch_from_field(fld, sg, twist, undulation), n_u=2,
+                        drop_degenerate=drop_degenerate) if fld.n_leaves else None
+    parts = [m for m in (leaves, stem_mesh(fld) if stems else None) if m is not None]
+    return Mesh.merge(parts)
+
+
+def leaf_area_index(fld: Field, mesh: Mesh) -> float:
+    """One-sided leaf area (stems excluded) over ground area."""
+    leaf = mesh.face_ids["leaf"] > 0
+    return float(mesh.face_areas()[leaf].sum() / fld.ground_area)
+
+
+def plant_growth_frames(spec: PlantSpec | FieldSpec, frames: int, seed: int = 0,
+                        age_start: float = 0.05, age_end: float = 1.0,
+                        triangles_per_leaf: int = 20) -> list[Mesh]:
+    """Equal-topology meshes of a plant (or field) growing from ``age_start`` to
+    ``age_end``: every leaf exists in every frame (zero-size before it appears)."""
+    if frames < 1:
+        raise ParameterError(f"frames={frames}: expected at least 1")
+    fs = spec if isinstance(spec, FieldSpec) else FieldSpec(
+        plants=1, rows=1, row_spacing=1.0, plant_spacing=1.0, position_jitter=0.0, plant=spec)
+    full = build_field(fs, seed=seed, age=1.0)           # every leaf present
+    sg = lod_samples(full.shape, triangles_per_leaf)
+    out = []
+    ps = fs.plant
+    for a in np.linspace(age_start, age_end, frames):
+        emerge = (full.rank - 1) * ps.appearance
+        leaf_age = np.clip((a - emerge) / ps.lifespan, 0, 1)
+        present = a >= emerge
+        scale = np.where(present, full.length_scale, 1e-9)
+        elong = np.clip(a / 0.8, 0.1, 1.0)
+        stem_h = full.stem_height * elong
+        org = full.origin.copy()
+        org[:, 2] = full.plant_pos[full.plant, 2] + (org[:, 2] - full.plant_pos[full.plant, 2]
+                                                      ) * elong
+        fr = Field(full.shape, full.plant_pos, stem_h, full.stem_radius, full.plant, full.rank,
+                   leaf_age, scale, full.incline, full.azimuth, org, full.ground_area)
+        out.append(field_mesh(fr, s=sg, drop_degenerate=False))
+    return out
+
+
+__all__ = ["Field", "FieldSpec", "PlantSpec", "batch_from_field", "build_field", "build_plant",
+           "field_mesh", "leaf_area_index", "lod_samples", "plant_growth_frames", "stem_mesh"]
