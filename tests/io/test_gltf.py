@@ -15,7 +15,7 @@ from biomorph.core.mesh import Mesh
 from biomorph.core.skeleton import JointSkeleton
 from biomorph.errors import BiomorphError, FormatError, InputError, ParameterError
 from biomorph.io.gltf import read_gltf_summary, write_gltf, write_mesh, write_mesh_animation
-from tests.gltf_validator import assert_valid_glb
+from tests.gltf_validator import assert_valid_glb, validate_glb
 
 NAN3 = [np.nan] * 3
 DTYPES = {5126: np.float32, 5125: np.uint32, 5123: np.uint16, 5121: np.uint8}
@@ -436,6 +436,37 @@ def test_failed_save_leaves_no_partial_file(tmp_path, monkeypatch):
         write_gltf(tmp_path / "x.glb", skeleton())
     assert [p.name for p in tmp_path.iterdir()] == ["x.glb"]
     assert (tmp_path / "x.glb").read_bytes() == b"old"
+
+
+def test_validator_catches_a_broken_file(tmp_path):
+    """The validation helper itself can fail: a non-unit node rotation is an error."""
+    import json
+    import struct
+
+    data = write_gltf(tmp_path / "ok.glb", skeleton()).read_bytes()
+    (jlen,) = struct.unpack_from("<I", data, 12)
+    doc = json.loads(data[20:20 + jlen])
+    doc["nodes"][0]["rotation"] = [0, 0, 0.5, 0.5]
+    doc["skins"][0]["joints"].append(len(doc["nodes"]) + 5)
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    rest = data[20 + jlen:]
+    broken = tmp_path / "broken.glb"
+    broken.write_bytes(struct.pack("<4sII", b"glTF", 2, 20 + len(js) + len(rest))
+                       + struct.pack("<I4s", len(js), b"JSON") + js + rest)
+    report = validate_glb(broken)
+    codes = {m["code"] for m in report["issues"]["messages"] if m["severity"] == 0}
+    assert report["issues"]["numErrors"] >= 2 and "ROTATION_NON_UNIT" in codes
+    with pytest.raises(AssertionError, match="error"):
+        assert_valid_glb(broken)
+
+
+def test_list_of_vertex_face_pairs(tmp_path):
+    tri = ([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    one = write_mesh(tmp_path / "one.glb", [np.array(tri[0]), np.array(tri[1])])
+    two = write_mesh(tmp_path / "two.glb", [tri, tri])
+    assert read_gltf_summary(one)["triangles"] == 1
+    assert read_gltf_summary(two)["triangles"] == 2
 
 
 def test_summary_rejects_garbage(tmp_path):

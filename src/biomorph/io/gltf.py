@@ -265,10 +265,21 @@ def _per_vertex_ids(mesh: Mesh) -> tuple[Mesh, dict[str, NDArray[np.int64]]]:
     return new, {k: uniq[:, 1 + i] for i, k in enumerate(keys)}
 
 
+def _is_vertex_array(obj: Any) -> bool:
+    try:
+        arr = np.asarray(obj, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return arr.ndim == 2 and arr.shape[1] == 3
+
+
 def _as_meshes(obj: Any) -> list[Mesh]:
-    if isinstance(obj, Mesh | Mapping) or (isinstance(obj, tuple) and len(obj) == 2
-                                           and not isinstance(obj[0], Mesh | Mapping)
-                                           and np.asarray(obj[0]).ndim == 2):
+    """One mesh or a sequence of meshes -> list of :class:`Mesh`.
+
+    A 2-tuple/list whose first element is an ``(n, 3)`` array is one ``(vertices, faces)``.
+    """
+    if isinstance(obj, Mesh | Mapping) or (isinstance(obj, tuple | list) and len(obj) == 2
+                                           and _is_vertex_array(obj[0])):
         return [Mesh.from_any(obj)]
     if isinstance(obj, Sequence) and not isinstance(obj, str | bytes):
         return [Mesh.from_any(m) for m in obj]
