@@ -1,0 +1,395 @@
+"""Per-node branch radius from the cloud (seed 001 §5.1), vectorised over all nodes.
+
+For every skeleton node ``v`` (parent ``u``, children ``w_i``):
+
+1. **Cross-section plane** through ``v`` with normal ``n = (e_in + e_out) / ‖·‖``,
+   ``e_in = (v − u)/‖v − u‖``, ``e_out`` the normalised sum of the unit child directions
+   (eq. 5.1); tangents from ``n × e_z`` (eq. 5.2, any perpendicular pair when ``n ∥ e_z``).
+2. **Search cylinder** around the axis: half-height ``h`` (``search_depth``) and radius
+   ``R_s = search_factor × prior radius``; the prior is the median distance of the node's
+   own points (points whose nearest skeleton segment is at ``v``), so no trunk radius is
+   asked for. Points inside are projected onto the plane.
+3. **RANSAC circle** (``trials`` random triples, radius capped by ``R_s``, inlier band
+   ``tolerance``), then a **least-squares refit** on the inliers (algebraic Kåsa fit
+   followed by Gauss–Newton on the geometric distance).
+4. **Smoothing along the graph**: the log-ratio ``δ = log r_fit − log r_allometric`` is
+   smoothed by minimising ``Σ_ok (δ_v − δ̂_v)² + λ Σ_edges (δ_v − δ_parent)²`` — a
+   tree-structured system solved exactly (:func:`biomorph.tree.livny.solve_tree_system`).
+   Nodes without a reliable fit (few inliers, small angular coverage) take the allometric
+   taper anchored by their fitted neighbours, so tips taper and stems follow the data.
+5. Optional **re-centring**: nodes move to the fitted circle centre (fixes the graph
+   method's off-centre stems), if the move is smaller than ``R_s``.
+
+RANSAC and refit run in one numba kernel over all nodes (one seed, deterministic).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from biomorph.core.graph import BranchGraph
+from biomorph.errors import ParameterError
+from biomorph.tree.livny import allometric_radii, skeleton_distance, solve_tree_system
+
+__all__ = ["RadiusFit", "node_axes", "fit_radii", "fit_circles", "smooth_log_ratio", "cap_down"]
+
+
+def node_axes(graph: BranchGraph) -> NDArray[np.float64]:
+    """Unit branch direction at every node (eq. 5.1); ``e_z`` where undefined."""
+    n = graph.n_nodes
+    pos = graph.position
+    par = graph.parent
+    ch = np.flatnonzero(par >= 0)
+    e = pos[ch] - pos[par[ch]]
+    ln = np.linalg.norm(e, axis=1)
+    e = np.where(ln[:, None] > 0, e / np.maximum(ln, 1e-300)[:, None], 0.0)
+    e_in = np.zeros((n, 3))
+    e_in[ch] = e
+    out = np.zeros((n, 3))
+    np.add.at(out, par[ch], e)
+    on = np.linalg.norm(out, axis=1)
+    out = np.where(on[:, None] > 0, out / np.maximum(on, 1e-300)[:, None], 0.0)
+    ax = e_in + out
+    an = np.linalg.norm(ax, axis=1)
+    bad = an < 1e-9
+    ax[bad] = np.where(np.linalg.norm(e_in[bad], axis=1)[:, None] > 0, e_in[bad],
+                       np.array([0.0, 0.0, 1.0]))
+    an = np.linalg.norm(ax, axis=1)
+    return ax / an[:, None]
+
+
+def _tangents(nrm: NDArray) -> tuple[NDArray, NDArray]:
+    ez = np.array([0.0, 0.0, 1.0])
+    t0 = np.cross(nrm, ez)
+    ln = np.linalg.norm(t0, axis=1)
+    par = ln < 1e-9
+    t0[par] = np.array([1.0, 0.0, 0.0])
+    t0 /= np.linalg.norm(t0, axis=1)[:, None]
+    t1 = np.cross(nrm, t0)
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    return t0, t1
+
+
+@numba.njit(cache=True)
+def _circle3(x1, y1, x2, y2, x3, y3):
+    d = 2.0 * (x1 * (y2 - y3) + x2 * (y3 - y1) + x3 * (y1 - y2))
+    if abs(d) < 1e-18:
+        return 0.0, 0.0, -1.0
+    s1 = x1 * x1 + y1 * y1
+    s2 = x2 * x2 + y2 * y2
+    s3 = x3 * x3 + y3 * y3
+    cx = (s1 * (y2 - y3) + s2 * (y3 - y1) + s3 * (y1 - y2)) / d
+    cy = (s1 * (x3 - x2) + s2 * (x1 - x3) + s3 * (x2 - x1)) / d
+    return cx, cy, np.sqrt((x1 - cx) ** 2 + (y1 - cy) ** 2)
+
+
+@numba.njit(cache=True)
+def _lsq_circle(x, y, cx, cy, r, rmax):
+    """Kåsa algebraic fit then Gauss-Newton on the geometric residual."""
+    m = x.size
+    if m >= 3:
+        # Kåsa: x² + y² + D x + E y + F = 0
+        a = np.zeros((3, 3))
+        b = np.zeros(3)
+        for i in range(m):
+            row0, row1, row2 = x[i], y[i], 1.0
+            z = -(x[i] * x[i] + y[i] * y[i])
+            a[0, 0] += row0 * row0
+            a[0, 1] += row0 * row1
+            a[0, 2] += row0 * row2
+            a[1, 1] += row1 * row1
+            a[1, 2] += row1 * row2
+            a[2, 2] += row2 * row2
+            b[0] += row0 * z
+            b[1] += row1 * z
+            b[2] += row2 * z
+        a[1, 0] = a[0, 1]
+        a[2, 0] = a[0, 2]
+        a[2, 1] = a[1, 2]
+        if abs(np.linalg.det(a)) > 1e-24:
+            sol = np.linalg.solve(a, b)
+            kx = -sol[0] / 2
+            ky = -sol[1] / 2
+            rr = kx * kx + ky * ky - sol[2]
+            if rr > 0 and np.sqrt(rr) <= rmax:
+                cx, cy, r = kx, ky, np.sqrt(rr)
+    for _ in range(8):
+        jtj = np.zeros((3, 3))
+        jtr = np.zeros(3)
+        for i in range(m):
+            dx = x[i] - cx
+            dy = y[i] - cy
+            di = np.sqrt(dx * dx + dy * dy)
+            if di < 1e-12:
+                continue
+            res = di - r
+            j0 = -dx / di
+            j1 = -dy / di
+            j2 = -1.0
+            jtj[0, 0] += j0 * j0
+            jtj[0, 1] += j0 * j1
+            jtj[0, 2] += j0 * j2
+            jtj[1, 1] += j1 * j1
+            jtj[1, 2] += j1 * j2
+            jtj[2, 2] += j2 * j2
+            jtr[0] += j0 * res
+            jtr[1] += j1 * res
+            jtr[2] += j2 * res
+        jtj[1, 0] = jtj[0, 1]
+        jtj[2, 0] = jtj[0, 2]
+        jtj[2, 1] = jtj[1, 2]
+        for k in range(3):
+            jtj[k, k] += 1e-12
+        if abs(np.linalg.det(jtj)) < 1e-30:
+            break
+        step = np.linalg.solve(jtj, -jtr)
+        cx += step[0]
+        cy += step[1]
+        r += step[2]
+        if r > rmax:
+            r = rmax
+        if r <= 0:
+            r = 1e-6
+        if abs(step[0]) + abs(step[1]) + abs(step[2]) < 1e-10:
+            break
+    return cx, cy, r
+
+
+@numba.njit(cache=True)
+def _fit_kernel(u, w, indptr, rmax, rmin, tol_rel, tol_abs, tol_max, trials, min_inliers, seed,
+                out_cx, out_cy, out_r, out_n, out_cov):
+    np.random.seed(seed)  # noqa: NPY002 - numba's per-thread generator
+    m = indptr.size - 1
+    for v in range(m):
+        a = indptr[v]
+        b = indptr[v + 1]
+        k = b - a
+        out_r[v] = -1.0
+        out_n[v] = 0
+        out_cov[v] = 0.0
+        if k < 3:
+            continue
+        x = u[a:b]
+        y = w[a:b]
+        best_n = 0
+        best_res = 1e300
+        bcx = 0.0
+        bcy = 0.0
+        br = -1.0
+        for _ in range(trials):
+            i1 = np.random.randint(k)  # noqa: NPY002
+            i2 = np.random.randint(k)  # noqa: NPY002
+            i3 = np.random.randint(k)  # noqa: NPY002
+            if i1 == i2 or i2 == i3 or i1 == i3:
+                continue
+            cx, cy, r = _circle3(x[i1], y[i1], x[i2], y[i2], x[i3], y[i3])
+            if r <= rmin[v] or r > rmax[v]:
+                continue
+            tol = min(max(tol_rel * r, tol_abs), tol_max)
+            cnt = 0
+            res = 0.0
+            for i in range(k):
+                d = abs(np.sqrt((x[i] - cx) ** 2 + (y[i] - cy) ** 2) - r)
+                if d < tol:
+                    cnt += 1
+                    res += d
+            if cnt > best_n or (cnt == best_n and res < best_res):
+                best_n = cnt
+                best_res = res
+                bcx, bcy, br = cx, cy, r
+        if br <= 0 or best_n < min_inliers:
+            continue
+        tol = min(max(tol_rel * br, tol_abs), tol_max)
+        sel = np.zeros(k, dtype=np.bool_)
+        for i in range(k):
+            sel[i] = abs(np.sqrt((x[i] - bcx) ** 2 + (y[i] - bcy) ** 2) - br) < tol
+        xi = x[sel]
+        yi = y[sel]
+        cx, cy, r = _lsq_circle(xi, yi, bcx, bcy, br, rmax[v])
+        # angular coverage in 12 sectors around the fitted centre
+        occ = np.zeros(12, dtype=np.bool_)
+        for i in range(xi.size):
+            ang = np.arctan2(yi[i] - cy, xi[i] - cx)
+            s = int((ang + np.pi) / (2 * np.pi) * 12) % 12
+            occ[s] = True
+        out_cx[v] = cx
+        out_cy[v] = cy
+        out_r[v] = r
+        out_n[v] = xi.size
+        out_cov[v] = occ.sum() / 12.0
+
+
+@dataclass
+class RadiusFit:
+    """Per-node circle fits: ``centre`` (m, cloud frame), ``radius`` (m, -1 = no fit),
+    ``inliers`` count, angular ``coverage`` in [0, 1], ``ok`` mask of reliable fits."""
+
+    centre: NDArray[np.float64]
+    radius: NDArray[np.float64]
+    inliers: NDArray[np.int64]
+    coverage: NDArray[np.float64]
+    ok: NDArray[np.bool_]
+    search_radius: NDArray[np.float64]
+
+
+def fit_circles(graph: BranchGraph, xyz: NDArray[np.float64], prior: NDArray[np.float64], *,
+                search_factor: float = 1.5, search_depth: float | None = None,
+                min_search: float = 0.0, trials: int = 64, tolerance: float = 0.15,
+                tolerance_abs: float = 0.003, tolerance_max: float = 0.01,
+                min_inliers: int = 8, min_coverage: float = 0.25,
+                seed: int = 0, kdtree: cKDTree | None = None) -> RadiusFit:
+    """RANSAC + least-squares circle per node in its cross-section plane (steps 1–3).
+
+    ``prior``: radius guess per node (m); the search cylinder has radius
+    ``max(search_factor * prior, min_search)`` and half-height ``search_depth`` (default
+    half the median edge length). ``tolerance``: inlier band as a fraction of the radius,
+    clipped to [``tolerance_abs``, ``tolerance_max``] metres (a large circle through a few
+    points of neighbouring twigs must not pass as a stem).
+    """
+    n = graph.n_nodes
+    if search_factor <= 1:
+        raise ParameterError(f"search_factor must be > 1, got {search_factor}")
+    el = graph.edge_length
+    if search_depth is None:
+        search_depth = 0.5 * float(np.median(el[el > 0])) if (el > 0).any() else 0.02
+    kd = kdtree or cKDTree(xyz)
+    rs = np.maximum(search_factor * np.asarray(prior, dtype=float), min_search)
+    rs = np.maximum(rs, 1e-4)
+    axes = node_axes(graph)
+    t0, t1 = _tangents(axes)
+    lists = kd.query_ball_point(graph.position, np.sqrt(rs ** 2 + search_depth ** 2),
+                                workers=-1, return_sorted=False)
+    counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=n)
+    idx = np.fromiter((i for x in lists for i in x), dtype=np.int64, count=int(counts.sum()))
+    node = np.repeat(np.arange(n), counts)
+    rel = xyz[idx] - graph.position[node]
+    hn = np.einsum("ij,ij->i", rel, axes[node])
+    u = np.einsum("ij,ij->i", rel, t0[node])
+    w = np.einsum("ij,ij->i", rel, t1[node])
+    keep = (np.abs(hn) <= search_depth) & (u * u + w * w <= rs[node] ** 2)
+    node, u, w = node[keep], u[keep], w[keep]
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(node, minlength=n), out=indptr[1:])
+    cx = np.zeros(n)
+    cy = np.zeros(n)
+    r = np.zeros(n)
+    ni = np.zeros(n, dtype=np.int64)
+    cov = np.zeros(n)
+    rmin = np.full(n, 1e-4)
+    _fit_kernel(np.ascontiguousarray(u), np.ascontiguousarray(w), indptr, rs, rmin, tolerance,
+                tolerance_abs, tolerance_max, trials, min_inliers, seed, cx, cy, r, ni, cov)
+    centre = graph.position + cx[:, None] * t0 + cy[:, None] * t1
+    ok = (r > 0) & (ni >= min_inliers) & (cov >= min_coverage) & (r < 0.98 * rs)
+    return RadiusFit(centre, r, ni, cov, ok, rs)
+
+
+@numba.njit(cache=True)
+def _cap_down(parent, order, r, slack):
+    out = r.copy()
+    run = r.copy()                      # running minimum along the path from the root
+    for k in range(order.size):
+        v = order[k]
+        p = parent[v]
+        if p >= 0:
+            if run[p] < run[v]:
+                run[v] = run[p]
+            if out[v] > slack * run[p]:
+                out[v] = slack * run[p]
+    return out
+
+
+def cap_down(graph: BranchGraph, radius: NDArray[np.float64], slack: float = 1.1
+             ) -> NDArray[np.float64]:
+    """Limit every radius to ``slack`` times the smallest radius on its path to the root."""
+    return _cap_down(graph.parent, graph.order, np.asarray(radius, dtype=float), float(slack))
+
+
+def smooth_log_ratio(graph: BranchGraph, values: NDArray[np.float64], ok: NDArray[np.bool_],
+                     strength: float = 1.0) -> NDArray[np.float64]:
+    """Minimise ``Σ_ok (x_v − values_v)² + strength Σ_edges (x_v − x_parent)²`` exactly.
+
+    Nodes outside ``ok`` are filled from their neighbours. Trees without any ``ok`` node
+    get 0 (no correction).
+    """
+    par = graph.parent
+    ch = par >= 0
+    lam = np.where(ch, strength, 0.0)
+    diag = ok.astype(float) + lam
+    np.add.at(diag, par[ch], lam[ch])
+    diag += 1e-9
+    off = -lam
+    rhs = np.where(ok, values, 0.0)
+    return solve_tree_system(par, diag, off, rhs, graph.order)
+
+
+def fit_radii(graph: BranchGraph, xyz: NDArray[np.float64], *, recentre: bool = True,
+              search_factor: float = 1.5, search_depth: float | None = None,
+              smoothing: float = 1.0, passes: int = 2, trials: int = 64,
+              tolerance: float = 0.15, min_inliers: int = 8, min_coverage: float = 0.25,
+              allometry_exponent: float = 2.5, max_radius: float | None = None,
+              slack: float = 1.1, seed: int = 0) -> tuple[BranchGraph, RadiusFit]:
+    """Radii (and optionally re-centred positions) from the points; see the module doc.
+
+    Radii never exceed ``slack`` times the smallest radius on the path to the root (pipe
+    model: a branch is not thicker than the stem carrying it). Two passes by default: the
+    first searches around a prior from the node's own points, the second around the
+    smoothed first-pass radii. Returns the new graph (``radius`` set, ``weight`` = subtree
+    length) and the last :class:`RadiusFit`.
+    """
+    if graph.n_nodes == 0:
+        return graph, RadiusFit(np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64),
+                                np.zeros(0), np.zeros(0, bool), np.zeros(0))
+    kd = cKDTree(xyz)
+    el = graph.edge_length
+    med_edge = float(np.median(el[el > 0])) if (el > 0).any() else 0.05
+    d, near = skeleton_distance(xyz, graph.parent, graph.position)
+    n = graph.n_nodes
+    prior = np.full(n, np.nan)
+    cnt = np.bincount(near, minlength=n)
+    if near.size:
+        o = np.lexsort((d, near))                       # by node, then distance
+        starts = np.concatenate([[0], np.cumsum(cnt)])[:-1]
+        has = cnt > 0
+        prior[has] = d[o][starts[has] + cnt[has] // 2]  # per-node median distance
+    weight = graph.subtree_length()
+    tree = graph.trees
+    md = float(np.nanmedian(prior)) if np.isfinite(prior).any() else med_edge
+    allo = allometric_radii(graph.parent, graph.position, weight, md, tree=tree,
+                            exponent=allometry_exponent, order=graph.order)
+    prior = np.where(np.isfinite(prior), prior, allo)
+    g = graph
+    fit = None
+    radius = prior
+    for _ in range(max(passes, 1)):
+        fit = fit_circles(g, xyz, radius, search_factor=search_factor,
+                          search_depth=search_depth, min_search=0.5 * med_edge, trials=trials,
+                          tolerance=tolerance, min_inliers=min_inliers,
+                          min_coverage=min_coverage, seed=seed, kdtree=kd)
+        ok = fit.ok.copy()
+        delta = np.zeros(n)
+        delta[ok] = np.log(fit.radius[ok] / allo[ok])
+        sm = smooth_log_ratio(g, delta, ok, smoothing)
+        # robust: drop fits more than a factor 2 off the smoothed profile, smooth again
+        for _ in range(2):
+            bad = ok & (np.abs(delta - sm) > np.log(2.0))
+            if not bad.any():
+                break
+            ok &= ~bad
+            sm = smooth_log_ratio(g, delta, ok, smoothing)
+        # nodes of trees without any fit keep the allometric radii (scaled by distances)
+        radius = allo * np.exp(sm)
+        if max_radius is not None:
+            radius = np.minimum(radius, max_radius)
+        radius = cap_down(g, radius, slack)
+        if recentre:
+            shift = np.linalg.norm(fit.centre - g.position, axis=1)
+            move = ok & (shift < fit.search_radius)
+            pos = g.position.copy()
+            pos[move] = fit.centre[move]
+            g = g.with_(position=pos)
+    return g.with_(radius=radius, weight=g.subtree_length()), fit
