@@ -31,15 +31,15 @@ demo: $(STAMP)
 	@echo "open $(OUT)/report.html"
 
 test: tools
-	$(VENV)/bin/ruff check src tests bench
+	$(VENV)/bin/ruff check $(wildcard src tests bench)
 	$(VENV)/bin/pytest -n 2 --durations=15
 
 bench: $(STAMP)
 	@for f in bench/*.py; do echo "== $$f"; $(PY) $$f || exit 1; done
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests bench
-	$(VENV)/bin/ruff format --check src tests bench || true
+	$(VENV)/bin/ruff check $(wildcard src tests bench)
+	$(VENV)/bin/ruff format --check $(wildcard src tests bench) || true
 
 studio: $(STAMP)
 	$(VENV)/bin/biomorph studio
