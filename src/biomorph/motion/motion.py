@@ -290,14 +290,10 @@ def sample_arrays(motion: Motion, t: Array) -> tuple[Array, Array, Array | None]
     i1 = np.minimum(i0 + 1, n - 1)
     frac = t - i0
     exact = frac == 0.0
-    q0 = motion.rotation[i0]
-    q1 = motion.rotation[i1]
-    if np.all(exact):
-        rot = np.array(q0)
-    else:
-        rot = tf.quat_slerp(q0, q1, np.broadcast_to(frac[:, None], q0.shape[:-1]))
-        rot[exact] = q0[exact]
-    rot = tf.quat_continuous(rot, axis=0)
+    from biomorph.motion._kernels import sample_slerp
+
+    rot = np.empty((t.size,) + motion.rotation.shape[1:])
+    sample_slerp(motion.rotation, i0, np.ascontiguousarray(frac), rot)
     f = frac[:, None]
     pos = motion.root_position[i0] * (1.0 - f) + motion.root_position[i1] * f
     pos[exact] = motion.root_position[i0[exact]]

@@ -1,0 +1,266 @@
+"""Compiled inner loops of the motion operators (numba, cached).
+
+Quaternions are scalar-last ``(x, y, z, w)`` as everywhere in biomorph. These kernels do
+per-element work that NumPy would spread over many temporary arrays (slerp, log/exp maps,
+the equalizer's per-joint pipeline); each loops over frames × joints once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, inline="always")
+def _idx(j, f, mode):  # pragma: no cover - compiled
+    if f == 1:
+        return 0
+    if mode == 0:
+        return 0 if j < 0 else (f - 1 if j > f - 1 else j)
+    period = 2 * (f - 1)
+    j = abs(j) % period
+    return period - j if j > f - 1 else j
+
+
+@njit(cache=True)
+def lowpass_into(cur, nxt, step, mode):  # pragma: no cover - compiled
+    f = cur.size
+    lo = min(2 * step, f)
+    hi = max(f - 2 * step, lo)
+    for i in range(lo, hi):
+        nxt[i] = (0.375 * cur[i] + 0.25 * (cur[i - step] + cur[i + step])
+                  + 0.0625 * (cur[i - 2 * step] + cur[i + 2 * step]))
+    for i in range(0, lo):
+        nxt[i] = (0.375 * cur[i] + 0.25 * (cur[_idx(i - step, f, mode)]
+                                          + cur[_idx(i + step, f, mode)])
+                  + 0.0625 * (cur[_idx(i - 2 * step, f, mode)] + cur[_idx(i + 2 * step, f, mode)]))
+    for i in range(hi, f):
+        nxt[i] = (0.375 * cur[i] + 0.25 * (cur[_idx(i - step, f, mode)]
+                                          + cur[_idx(i + step, f, mode)])
+                  + 0.0625 * (cur[_idx(i - 2 * step, f, mode)] + cur[_idx(i + 2 * step, f, mode)]))
+
+
+@njit(cache=True)
+def equalize_rows(xt, gains, mode, out):  # pragma: no cover - compiled
+    """Equalize every row of ``xt (c, f)`` into ``out``: g0·G0 + Σ (g_k − g_{k−1}) G_k."""
+    c, f = xt.shape
+    levels = gains.size - 1
+    cur = np.empty(f)
+    nxt = np.empty(f)
+    for ch in range(c):
+        for i in range(f):
+            cur[i] = xt[ch, i]
+            out[ch, i] = gains[0] * cur[i]
+        step = 1
+        for k in range(levels):
+            lowpass_into(cur, nxt, step, mode)
+            dg = gains[k + 1] - gains[k]
+            if dg != 0.0:
+                for i in range(f):
+                    out[ch, i] += dg * nxt[i]
+            cur, nxt = nxt, cur
+            step *= 2
+
+
+@njit(cache=True, inline="always")
+def _qmul(ax, ay, az, aw, bx, by, bz, bw):  # pragma: no cover - compiled
+    return (aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz)
+
+
+@njit(cache=True, inline="always")
+def _qlog(x, y, z, w):  # pragma: no cover - compiled
+    """Rotation vector (angle in [0, pi]) of a unit quaternion."""
+    if w < 0:
+        x, y, z, w = -x, -y, -z, -w
+    s = np.sqrt(x * x + y * y + z * z)
+    if s < 1e-12:
+        return 2.0 * x, 2.0 * y, 2.0 * z
+    k = 2.0 * np.arctan2(s, w) / s
+    return k * x, k * y, k * z
+
+
+@njit(cache=True, inline="always")
+def _qexp(rx, ry, rz):  # pragma: no cover - compiled
+    a = np.sqrt(rx * rx + ry * ry + rz * rz)
+    if a < 1e-12:
+        k = 0.5 - a * a / 48.0
+    else:
+        k = np.sin(0.5 * a) / a
+    return k * rx, k * ry, k * rz, np.cos(0.5 * a)
+
+
+@njit(cache=True, inline="always")
+def _slerp(ax, ay, az, aw, bx, by, bz, bw, t):  # pragma: no cover - compiled
+    if t == 0.0:
+        return ax, ay, az, aw
+    d = ax * bx + ay * by + az * bz + aw * bw
+    if d < 0:
+        bx, by, bz, bw, d = -bx, -by, -bz, -bw, -d
+    if t == 1.0:
+        return bx, by, bz, bw
+    if d > 0.9999999:
+        w0 = 1.0 - t
+        w1 = t
+    else:
+        th = np.arccos(min(d, 1.0))
+        s = np.sin(th)
+        w0 = np.sin((1.0 - t) * th) / s
+        w1 = np.sin(t * th) / s
+    x = w0 * ax + w1 * bx
+    y = w0 * ay + w1 * by
+    z = w0 * az + w1 * bz
+    w = w0 * aw + w1 * bw
+    n = np.sqrt(x * x + y * y + z * z + w * w)
+    return x / n, y / n, z / n, w / n
+
+
+@njit(cache=True)
+def sample_slerp(rot, i0, frac, out):  # pragma: no cover - compiled
+    """``out[k, j] = slerp(rot[i0[k], j], rot[i0[k]+1, j], frac[k])`` (exact at frac 0/1),
+    hemisphere-continuous along k."""
+    f = rot.shape[0]
+    for k in range(i0.size):
+        a = i0[k]
+        b = min(a + 1, f - 1)
+        t = frac[k]
+        for j in range(rot.shape[1]):
+            x, y, z, w = _slerp(rot[a, j, 0], rot[a, j, 1], rot[a, j, 2], rot[a, j, 3],
+                                rot[b, j, 0], rot[b, j, 1], rot[b, j, 2], rot[b, j, 3], t)
+            if k > 0 and (x * out[k - 1, j, 0] + y * out[k - 1, j, 1] + z * out[k - 1, j, 2]
+                          + w * out[k - 1, j, 3]) < 0:
+                x, y, z, w = -x, -y, -z, -w
+            out[k, j, 0] = x
+            out[k, j, 1] = y
+            out[k, j, 2] = z
+            out[k, j, 3] = w
+
+
+@njit(cache=True)
+def blend_slerp(qa, qb, wb, out):  # pragma: no cover - compiled
+    """``out[k, j] = slerp(qa[k, j], qb[k, j], wb[k])``, hemisphere-continuous along k."""
+    for k in range(qa.shape[0]):
+        t = wb[k]
+        for j in range(qa.shape[1]):
+            x, y, z, w = _slerp(qa[k, j, 0], qa[k, j, 1], qa[k, j, 2], qa[k, j, 3],
+                                qb[k, j, 0], qb[k, j, 1], qb[k, j, 2], qb[k, j, 3], t)
+            if k > 0 and (x * out[k - 1, j, 0] + y * out[k - 1, j, 1] + z * out[k - 1, j, 2]
+                          + w * out[k - 1, j, 3]) < 0:
+                x, y, z, w = -x, -y, -z, -w
+            out[k, j, 0] = x
+            out[k, j, 1] = y
+            out[k, j, 2] = z
+            out[k, j, 3] = w
+
+
+@njit(cache=True)
+def _box_edge(src, dst, r):  # pragma: no cover - compiled
+    """Centred moving average of width 2r+1 over rows of ``src (f,)`` with edge hold."""
+    f = src.size
+    if r == 0:
+        for i in range(f):
+            dst[i] = src[i]
+        return
+    acc = 0.0
+    for m in range(-r, r + 1):
+        acc += src[min(max(m, 0), f - 1)]
+    inv = 1.0 / (2 * r + 1)
+    for i in range(f):
+        dst[i] = acc * inv
+        acc += src[min(i + r + 1, f - 1)] - src[max(i - r, 0)]
+
+
+@njit(cache=True)
+def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compiled
+    """The equalizer's rotation path for every joint of ``q (J, f, 4)`` (joint-major so
+    each joint's frames are contiguous in memory):
+
+    reference ``R`` = normalised double box filter (radius ``radius``) of the continuous
+    quaternions; ``x = log(R⁻¹ q)``; x filtered with the gains (telescoped reconstruction);
+    if the last gain is not 1, ``R' = M exp(g_K log(M⁻¹ R))`` about the mean ``M``;
+    ``out = R' exp(x')`` made hemisphere-continuous."""
+    nj, f = q.shape[0], q.shape[1]
+    levels = gains.size - 1
+    buf = np.empty(f)
+    tmp = np.empty(f)
+    ref = np.empty((f, 4))
+    xs = np.empty((3, f))
+    xo = np.empty((3, f))
+    cur = np.empty(f)
+    nxt = np.empty(f)
+    glast = gains[levels]
+    for j in range(nj):
+        for c in range(4):
+            for i in range(f):
+                buf[i] = q[j, i, c]
+            _box_edge(buf, tmp, radius)
+            _box_edge(tmp, buf, radius)
+            for i in range(f):
+                ref[i, c] = buf[i]
+        mx = 0.0
+        my = 0.0
+        mz = 0.0
+        mw = 0.0
+        for i in range(f):
+            n = np.sqrt(ref[i, 0] ** 2 + ref[i, 1] ** 2 + ref[i, 2] ** 2 + ref[i, 3] ** 2)
+            if n < 0.3:  # degenerate average (full turn inside the window): use the signal
+                for c in range(4):
+                    ref[i, c] = q[j, i, c]
+            else:
+                for c in range(4):
+                    ref[i, c] /= n
+            mx += ref[i, 0]
+            my += ref[i, 1]
+            mz += ref[i, 2]
+            mw += ref[i, 3]
+            # x = log(conj(R) q)
+            a, b, cc, d = _qmul(-ref[i, 0], -ref[i, 1], -ref[i, 2], ref[i, 3],
+                                q[j, i, 0], q[j, i, 1], q[j, i, 2], q[j, i, 3])
+            rx, ry, rz = _qlog(a, b, cc, d)
+            xs[0, i] = rx
+            xs[1, i] = ry
+            xs[2, i] = rz
+        for c in range(3):
+            for i in range(f):
+                cur[i] = xs[c, i]
+                xo[c, i] = gains[0] * cur[i]
+            step = 1
+            for k in range(levels):
+                lowpass_into(cur, nxt, step, mode)
+                dg = gains[k + 1] - gains[k]
+                if dg != 0.0:
+                    for i in range(f):
+                        xo[c, i] += dg * nxt[i]
+                cur, nxt = nxt, cur
+                step *= 2
+        if glast != 1.0:
+            mn = np.sqrt(mx * mx + my * my + mz * mz + mw * mw)
+            if mn > 1e-12:
+                mx /= mn
+                my /= mn
+                mz /= mn
+                mw /= mn
+            else:
+                mx, my, mz, mw = 0.0, 0.0, 0.0, 1.0
+            for i in range(f):
+                a, b, cc, d = _qmul(-mx, -my, -mz, mw, ref[i, 0], ref[i, 1], ref[i, 2],
+                                    ref[i, 3])
+                ux, uy, uz = _qlog(a, b, cc, d)
+                ex, ey, ez, ew = _qexp(glast * ux, glast * uy, glast * uz)
+                a, b, cc, d = _qmul(mx, my, mz, mw, ex, ey, ez, ew)
+                ref[i, 0] = a
+                ref[i, 1] = b
+                ref[i, 2] = cc
+                ref[i, 3] = d
+        for i in range(f):
+            ex, ey, ez, ew = _qexp(xo[0, i], xo[1, i], xo[2, i])
+            x, y, z, w = _qmul(ref[i, 0], ref[i, 1], ref[i, 2], ref[i, 3], ex, ey, ez, ew)
+            if i > 0 and (x * out[j, i - 1, 0] + y * out[j, i - 1, 1] + z * out[j, i - 1, 2]
+                          + w * out[j, i - 1, 3]) < 0:
+                x, y, z, w = -x, -y, -z, -w
+            out[j, i, 0] = x
+            out[j, i, 1] = y
+            out[j, i, 2] = z
+            out[j, i, 3] = w

@@ -1,0 +1,152 @@
+"""Cycle: turn a frame range into a seamless loop (seed §7.5 / Cycle.mel), with offset.
+
+Given the range ``S = frames[start:stop]`` (``N`` frames) and a transition of ``T`` frames,
+the loop has period ``P = N − T``. Its first ``T`` frames cross-fade from the frames that
+*follow* the loop end (``S[P + i]``) into the loop start (``S[i]``) with the C1 ease
+``w(i) = smoothstep((i + 1) / (T + 1))``; frames ``T .. P−1`` are ``S`` unchanged. The seam
+from the last loop frame ``S[P−1]`` to the next cycle's first frame (≈ ``S[P]``) is therefore
+as continuous as the capture itself, in pose and in velocity — exactly the seed's "two
+identical animations shifted against each other and blended where they overlap".
+
+Cycle with offset: the root's horizontal position and heading at ``S[P]`` relative to
+``S[0]`` define a rigid offset ``D`` (vertical rotation + horizontal translation). The tail
+frames are brought into the loop's frame by ``D⁻¹`` before blending, and cycle ``c`` is
+placed by ``D^c``, so the character keeps travelling (``offset=False`` loops in place; the
+vertical always loops).
+
+:func:`best_loop` searches start/stop (beyond the seed) minimising the pose distance plus
+velocity distance between the loop's first frame and the frame after its end.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from biomorph.core import transforms as tf
+from biomorph.errors import ParameterError
+from biomorph.motion.align import _up_index, heading, pose_features, transform_root
+from biomorph.motion.keys import smoothstep
+from biomorph.motion.motion import Motion, check_range, concatenate
+
+Array = NDArray[np.float64]
+
+
+def _offset_transform(seg: Motion, p: int, up: str) -> tuple[Array, Array, Array]:
+    """Quaternion ``R`` about the vertical, pivot and translation of ``D``: x -> R(x - a) + b
+    with a, b the horizontal root positions at frames 0 and ``p``."""
+    ui = _up_index(up)
+    h = heading(seg, up)
+    axis = np.zeros(3)
+    axis[ui] = 1.0
+    q = tf.quat_from_axis_angle(axis, float(h[p] - h[0]))
+    a = np.array(seg.root_position[0])
+    b = np.array(seg.root_position[p])
+    a[ui] = 0.0
+    b[ui] = 0.0
+    return q, a, b
+
+
+def make_cycle(motion: Motion, start: int, stop: int, transition: int, cycles: int = 1,
+               offset: bool = True, up: str = "y") -> Motion:
+    """Loop frames ``start:stop`` with a ``transition``-frame cross-fade; ``cycles`` copies.
+
+    Returns ``cycles × (stop − start − transition)`` frames; ``meta["cycle"]`` holds the
+    per-cycle root offset (heading change in rad, translation)."""
+    check_range(motion, start, stop, "cycle range")
+    n = stop - start
+    if not isinstance(transition, (int, np.integer)) or transition < 1 or transition >= n:
+        raise ParameterError(f"transition of {transition} frames does not fit the cycle range "
+                             f"of {n} frames; expected 1 <= transition < {n}")
+    if int(cycles) < 1:
+        raise ParameterError(f"cycles {cycles}; expected >= 1")
+    seg = motion[start:stop]
+    p = n - transition
+    q, a, b = _offset_transform(seg, p, up) if offset else (tf.quat_identity(), np.zeros(3),
+                                                             np.zeros(3))
+    # tail S[P:N] expressed in the loop's frame: D^-1 x = R^-1 (x - b) + a
+    tail = seg[p:]
+    if offset:
+        tail = transform_root(tail, tf.quat_conjugate(q), a - b, pivot=b)
+    else:
+        ui = _up_index(up)
+        shift = np.array(seg.root_position[0] - seg.root_position[p])
+        shift[ui] = 0.0
+        tail = transform_root(tail, tf.quat_identity(), shift)
+    head = seg[:transition]
+    w = smoothstep((np.arange(transition) + 1.0) / (transition + 1.0))
+    rot = tf.quat_slerp(tail.rotation, head.rotation,
+                        np.broadcast_to(w[:, None], head.rotation.shape[:-1]))
+    pos = (1 - w[:, None]) * tail.root_position + w[:, None] * head.root_position
+    loop_rot = np.concatenate([rot, seg.rotation[transition:p]])
+    loop_pos = np.concatenate([pos, seg.root_position[transition:p]])
+    jt = None
+    if seg.joint_translation is not None:
+        tj = tail.local_translations()
+        hj = head.local_translations()
+        bl = (1 - w[:, None, None]) * tj + w[:, None, None] * hj
+        jt = np.concatenate([bl, seg.joint_translation[transition:p]])
+        jt[:, 0] = loop_pos
+    loop = seg.with_(rotation=tf.quat_continuous(loop_rot, axis=0), root_position=loop_pos,
+                     joint_translation=jt)
+    parts = [loop]
+    for _ in range(1, int(cycles)):
+        parts.append(transform_root(parts[-1], q, b - a, pivot=a) if offset else loop)
+    out = concatenate(parts) if len(parts) > 1 else loop
+    meta = dict(out.meta)
+    ang = 2.0 * np.arctan2(np.linalg.norm(q[:3]), q[3]) * (1 if q[_up_index(up)] >= 0 else -1)
+    meta["cycle"] = {"start": start, "stop": stop, "transition": int(transition), "period": p,
+                     "cycles": int(cycles), "heading_offset": float(ang),
+                     "translation_offset": (b - a).tolist()}
+    return out.with_(meta=meta)
+
+
+def loop_cost(motion: Motion, velocity_weight: float = 1.0) -> tuple[Array, Array]:
+    """Per-frame pose features and velocities used by :func:`best_loop`."""
+    f = pose_features(motion)
+    v = np.gradient(f, axis=0) * velocity_weight * 4.0
+    return f, v
+
+
+def best_loop(motion: Motion, min_length: int = 30, max_length: int | None = None,
+              transition: int = 0, candidates: int = 400, velocity_weight: float = 1.0
+              ) -> tuple[int, int, float]:
+    """``(start, stop, cost)`` for ``make_cycle(motion, start, stop, transition)``: the loop
+    period ``P = stop − start − transition`` is chosen minimising
+    ``|pose(start) − pose(start + P)|² + |vel(start) − vel(start + P)|²`` over
+    ``min_length <= P <= max_length`` (non-root joint
+    quaternions; root excluded so travel does not count). Searched on a grid of at most
+    ``candidates`` frames, then refined ±grid step frame by frame."""
+    if transition < 0:
+        raise ParameterError(f"transition {transition}; expected >= 0")
+    f_all = motion.n_frames - int(transition)
+    max_length = f_all - 1 if max_length is None else int(max_length)
+    if min_length < 2 or min_length > max_length or min_length > f_all - 1:
+        raise ParameterError(f"loop length {min_length}..{max_length} frames does not fit a "
+                             f"clip of {f_all} frames")
+    feat, vel = loop_cost(motion[:f_all] if f_all > 0 else motion, velocity_weight)
+    x = np.concatenate([feat, vel], axis=1)
+    step = max(1, int(np.ceil(f_all / candidates)))
+    idx = np.arange(0, f_all, step)
+    sq = np.einsum("ij,ij->i", x[idx], x[idx])
+    d = sq[:, None] + sq[None, :] - 2 * x[idx] @ x[idx].T
+    length = idx[None, :] - idx[:, None]
+    d = np.where((length >= min_length) & (length <= max_length), d, np.inf)
+    i, j = np.unravel_index(np.argmin(d), d.shape)
+    if not np.isfinite(d[i, j]):
+        raise ParameterError("no loop range of the requested length fits the clip")
+    s0, e0 = int(idx[i]), int(idx[j])
+    best = (s0, e0, float(d[i, j]))
+    ss = np.arange(max(0, s0 - step), min(f_all, s0 + step + 1))
+    es = np.arange(max(0, e0 - step), min(f_all, e0 + step + 1))
+    dd = np.sum((x[ss][:, None] - x[es][None]) ** 2, axis=-1)
+    ll = es[None, :] - ss[:, None]
+    dd = np.where((ll >= min_length) & (ll <= max_length), dd, np.inf)
+    a, b = np.unravel_index(np.argmin(dd), dd.shape)
+    if dd[a, b] < best[2]:
+        best = (int(ss[a]), int(es[b]), float(dd[a, b]))
+    # pose(start) ~ pose(start + P): the frames the transition cross-fades
+    return best[0], best[1] + int(transition), max(best[2], 0.0)
+
+
+__all__ = ["make_cycle", "best_loop", "loop_cost"]

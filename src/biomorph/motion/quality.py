@@ -1,0 +1,109 @@
+"""Quality report for ``biomorph motion info``: rates, angular speed/acceleration per joint,
+Euler wraps, and a foot-skate measure.
+
+Foot skate (stated ground-height rule)
+--------------------------------------
+Feet are the joints whose name contains ``foot``, ``toe`` or ``ankle`` (else the leaf
+joints). Heights are measured along the up axis (``"y"``, or the axis detected for Z-up
+files). The **ground height** is the 2nd percentile of all foot-joint heights over the clip
+(robust to a few glitches); the **body scale** ``L`` is the median root height above that
+ground. A foot joint is **in contact** on a frame when its height is below
+``ground + 0.08·L`` (8 % of hip height). **Skate** is the mean horizontal speed of foot
+joints over their contact frames, reported in units/s and as ``L``/s (body-scale free).
+A clean capture has feet that stand still on the ground: skate near zero.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from biomorph.core import transforms as tf
+from biomorph.motion.align import _up_index
+from biomorph.motion.motion import Motion, guess_up_axis
+
+
+def angular_rates(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """Angular speed ``(f-1, n)`` (rad/s) and angular acceleration ``(f-2, n)`` (rad/s²) of
+    every joint's local rotation (from ``log(q_t⁻¹ q_{t+1})``)."""
+    q = motion.rotation
+    if motion.n_frames < 2:
+        return np.zeros((0, motion.n_joints)), np.zeros((0, motion.n_joints))
+    omega = tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(q[:-1]), q[1:])) * motion.fps
+    speed = np.linalg.norm(omega, axis=-1)
+    acc = np.linalg.norm(np.diff(omega, axis=0), axis=-1) * motion.fps
+    return speed, acc
+
+
+def euler_wraps(motion: Motion) -> int:
+    """Jumps larger than 180° between consecutive frames in the principal-value Euler angles
+    of every joint (what a naive exporter would write)."""
+    total = 0
+    import warnings
+
+    for j, order in enumerate(motion.rotation_orders):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            e = tf.quat_to_euler(motion.rotation[:, j], order, degrees=True)
+        total += int(np.count_nonzero(np.abs(np.diff(e, axis=0)) > 180.0))
+    return total
+
+
+def foot_skate(motion: Motion, up: str | None = None) -> dict[str, Any]:
+    """Foot-skate measure (see module docstring)."""
+    up = up or motion.meta.get("up_guess") or guess_up_axis(motion)
+    ui = _up_index(up)
+    names = [s.lower() for s in motion.names]
+    feet = [i for i, s in enumerate(names) if any(k in s for k in ("foot", "toe", "ankle"))]
+    if not feet:
+        feet = list(np.setdiff1d(np.arange(motion.n_joints), motion.skeleton.parent))
+    w = motion.world_positions()
+    h = w[:, feet, ui]
+    ground = float(np.percentile(h, 2))
+    scale = float(np.median(w[:, 0, ui] - ground))
+    scale = scale if scale > 0 else float(np.ptp(w[..., ui]) or 1.0)
+    contact = h < ground + 0.08 * scale
+    horiz = [a for a in range(3) if a != ui]
+    v = np.gradient(w[:, feet][:, :, horiz], axis=0) * motion.fps if motion.n_frames > 1 \
+        else np.zeros((1, len(feet), 2))
+    sp = np.linalg.norm(v, axis=-1)
+    skate = float(sp[contact].mean()) if contact.any() else 0.0
+    return {"feet": [motion.names[i] for i in feet], "up": up, "ground_height": ground,
+            "body_scale": scale, "contact_fraction": float(contact.mean()),
+            "skate_speed": skate, "skate_per_body_scale": skate / scale}
+
+
+def quality_report(motion: Motion, up: str | None = None, top: int = 5) -> dict[str, Any]:
+    """Everything ``motion info`` prints: sizes, rates, the ``top`` fastest joints (angular
+    speed/acceleration in degrees), Euler wraps in the file and in a principal-value export,
+    root travel and the foot-skate measure."""
+    speed, acc = angular_rates(motion)
+    deg = np.degrees
+    per_joint = []
+    if speed.size:
+        order = np.argsort(-speed.max(axis=0))[:top]
+        for j in order:
+            per_joint.append({"joint": motion.names[j],
+                              "max_speed_deg_s": float(deg(speed[:, j].max())),
+                              "mean_speed_deg_s": float(deg(speed[:, j].mean())),
+                              "max_acc_deg_s2": float(deg(acc[:, j].max())) if acc.size else 0.0})
+    root = motion.root_position
+    chans = motion.skeleton.channels
+    return {
+        "frames": motion.n_frames, "fps": motion.fps, "frame_time": motion.frame_time,
+        "duration_s": motion.duration, "joints": motion.n_joints,
+        "channels": int(sum(len(c) for c in chans)) if chans else None,
+        "root": motion.names[0],
+        "up_guess": motion.meta.get("up_guess") or guess_up_axis(motion),
+        "euler_wraps_in_file": motion.meta.get("euler_wraps_in_file"),
+        "euler_wraps_principal": euler_wraps(motion),
+        "mean_angular_speed_deg_s": float(deg(speed.mean())) if speed.size else 0.0,
+        "mean_angular_acc_deg_s2": float(deg(acc.mean())) if acc.size else 0.0,
+        "fastest_joints": per_joint,
+        "root_travel": float(np.linalg.norm(np.diff(root, axis=0), axis=-1).sum()),
+        "foot_skate": foot_skate(motion, up),
+    }
+
+
+__all__ = ["quality_report", "foot_skate", "angular_rates", "euler_wraps"]
