@@ -84,8 +84,10 @@ def reduction_curves(shape, path: PathLike, n_points: int = 200,
 
 
 def mesh_preview(meshes: Sequence[Mesh], path: PathLike, titles: Sequence[str] | None = None,
-                 elev: float = 20.0, azim: float = -60.0) -> Path:
-    """Render meshes side by side (3-D, flat shading by normal·light), Z-up."""
+                 elev: float = 20.0, azim: float = -60.0, same_scale: bool = False) -> Path:
+    """Render meshes side by side (3-D, flat shading by normal·light), Z-up.
+
+    ``same_scale`` uses one scale for all panels (e.g. a leaf at several ages)."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     plt = _plt()
@@ -93,6 +95,7 @@ def mesh_preview(meshes: Sequence[Mesh], path: PathLike, titles: Sequence[str] |
     fig = plt.figure(figsize=(3.2 * n, 3.6))
     light = np.array([0.3, -0.4, 0.85])
     light /= np.linalg.norm(light)
+    common = max(float((m.bounds()[1] - m.bounds()[0]).max()) / 2 for m in meshes)
     for i, m in enumerate(meshes):
         ax = fig.add_subplot(1, n, i + 1, projection="3d")
         tri = np.asarray(m.vertices)[np.asarray(m.faces)]
@@ -102,6 +105,8 @@ def mesh_preview(meshes: Sequence[Mesh], path: PathLike, titles: Sequence[str] |
                                              linewidths=0.2))
         lo, hi = m.bounds()
         c, r = (lo + hi) / 2, max((hi - lo).max() / 2, 1e-6)
+        if same_scale:
+            r = max(common, 1e-6)
         ax.set_xlim(c[0] - r, c[0] + r)
         ax.set_ylim(c[1] - r, c[1] + r)
         ax.set_zlim(c[2] - r, c[2] + r)
