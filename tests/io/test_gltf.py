@@ -179,6 +179,38 @@ def test_joint_meshes_and_static_meshes(tmp_path):
 
 
 # ----------------------------------------------------------------------------- animation
+def channels(doc, blob) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray], np.ndarray]:
+    """Rotation and translation keys per node, and the key times, of animation 0."""
+    anim = doc.animations[0]
+    rot: dict[int, np.ndarray] = {}
+    trans: dict[int, np.ndarray] = {}
+    times = None
+    for ch in anim.channels:
+        s = anim.samplers[ch.sampler]
+        assert s.interpolation == "LINEAR"
+        times = accessor(doc, blob, s.input)
+        (rot if ch.target.path == "rotation" else trans)[ch.target.node] = \
+            accessor(doc, blob, s.output)
+    return rot, trans, times
+
+
+def skinned_positions(doc, blob, frame: int) -> tuple[np.ndarray, np.ndarray]:
+    """glTF skinning by hand at key ``frame``: (bind positions, skinned positions)."""
+    rot, trans, _ = channels(doc, blob)
+    prim = doc.meshes[0].primitives[0]
+    pos = accessor(doc, blob, prim.attributes.POSITION).astype(float)
+    jnt = accessor(doc, blob, prim.attributes.JOINTS_0)[:, 0]
+    ibm = accessor(doc, blob, doc.skins[0].inverseBindMatrices).astype(float)
+    local = {}
+    for i, n in enumerate(doc.nodes):
+        r = rot[i][frame] if i in rot else (n.rotation or [0, 0, 0, 1])
+        t = trans[i][frame] if i in trans else (n.translation or [0, 0, 0])
+        local[i] = tf.make_transform(tf.quat_to_matrix(np.asarray(r, float)), t)
+    world = node_world(doc, local)
+    jm = np.stack([world[n] for n in doc.skins[0].joints]) @ ibm
+    return pos, tf.apply(jm[jnt], pos)
+
+
 def test_animation_keys_round_trip_and_skinning(tmp_path):
     mo = motion(frames=15)
     sk = mo.skeleton
@@ -186,40 +218,70 @@ def test_animation_keys_round_trip_and_skinning(tmp_path):
     report = assert_valid_glb(path, max_warnings=0)
     assert report["info"]["animationCount"] == 1
     doc, blob = load(path)
-    anim = doc.animations[0]
     joints = doc.skins[0].joints
-    rot = {}
-    trans = {}
-    for ch in anim.channels:
-        s = anim.samplers[ch.sampler]
-        assert s.interpolation == "LINEAR"
-        times = accessor(doc, blob, s.input)
-        assert times.dtype == np.float32
-        np.testing.assert_allclose(times, np.arange(15) / 30, atol=1e-6)
-        (rot if ch.target.path == "rotation" else trans)[ch.target.node] = \
-            accessor(doc, blob, s.output)
+    rot, trans, times = channels(doc, blob)
+    assert times.dtype == np.float32
+    np.testing.assert_allclose(times, np.arange(15) / 30, atol=1e-6)
     assert sorted(rot) == sorted(joints) and list(trans) == [joints[0]]
     expected = tf.quat_multiply(sk.rest_rotation, mo.rotation)
     for j, node in enumerate(joints):
         dots = np.abs(np.sum(rot[node] * expected[:, j], axis=1))
         np.testing.assert_allclose(dots, 1, atol=1e-5)
+        # hemisphere-continuous keys, so LINEAR interpolation takes the short way
+        assert np.all(np.sum(rot[node][1:] * rot[node][:-1], axis=1) > 0)
     np.testing.assert_allclose(trans[joints[0]], mo.root_position, atol=1e-6)
     # glTF skinning at frame k moves each bone vertex exactly like the skeleton's pose
-    prim = doc.meshes[0].primitives[0]
-    pos = accessor(doc, blob, prim.attributes.POSITION).astype(float)
-    jnt = accessor(doc, blob, prim.attributes.JOINTS_0)[:, 0]
-    ibm = accessor(doc, blob, doc.skins[0].inverseBindMatrices).astype(float)
     k = 9
-    local = {i: trs(n) for i, n in enumerate(doc.nodes)}
-    for node in joints:
-        t = trans[node][k] if node in trans else doc.nodes[node].translation
-        local[node] = tf.make_transform(tf.quat_to_matrix(rot[node][k].astype(float)), t)
-    world = node_world(doc, local)
-    jm = np.stack([world[n] for n in joints]) @ ibm
-    skinned = tf.apply(jm[jnt], pos)
+    pos, skinned = skinned_positions(doc, blob, k)
+    jnt = accessor(doc, blob, doc.meshes[0].primitives[0].attributes.JOINTS_0)[:, 0]
     pose_world = sk.world_matrices(sk.local_matrices(mo.rotation[k], mo.root_position[k]))
     expected_pos = tf.apply(pose_world[jnt] @ tf.invert(sk.world_matrices())[jnt], pos)
     np.testing.assert_allclose(skinned, expected_pos, atol=1e-4)
+
+
+def test_translated_inner_joints_and_scale(tmp_path):
+    mo = motion(frames=6)
+    sk = mo.skeleton
+    jt = np.broadcast_to(sk.offset, (6, len(sk), 3)).copy()
+    jt[:, 0] = mo.root_position
+    jt[:, 2, 1] += np.linspace(0, 0.1, 6)  # the head slides up its neck
+    mo.joint_translation = jt
+    path = write_gltf(tmp_path / "jt.glb", mo, scale=100.0)  # metres -> centimetres
+    assert_valid_glb(path, max_warnings=0)
+    doc, blob = load(path)
+    joints = doc.skins[0].joints
+    _, trans, _ = channels(doc, blob)
+    assert sorted(trans) == [joints[0], joints[2]]
+    np.testing.assert_allclose(trans[joints[2]], 100 * jt[:, 2], atol=1e-4)
+    np.testing.assert_allclose(trans[joints[0]], 100 * mo.root_position, atol=1e-4)
+    np.testing.assert_allclose(doc.nodes[joints[1]].translation, 100 * sk.offset[1], atol=1e-9)
+    # skinning with the translated head matches forward kinematics with those translations
+    k = 5
+    pos, skinned = skinned_positions(doc, blob, k)
+    jnt = accessor(doc, blob, doc.meshes[0].primitives[0].attributes.JOINTS_0)[:, 0]
+    q = tf.quat_multiply(sk.rest_rotation, mo.rotation[k])
+    loc = tf.make_transform(tf.quat_to_matrix(q), 100 * jt[k])
+    pose_world = sk.with_(offset=100 * sk.offset).world_matrices(loc)
+    rest_world = sk.with_(offset=100 * sk.offset).world_matrices()
+    expected_pos = tf.apply(pose_world[jnt] @ tf.invert(rest_world)[jnt], pos)
+    np.testing.assert_allclose(skinned, expected_pos, atol=1e-3)
+    with pytest.raises(ParameterError, match="scale"):
+        write_gltf(tmp_path / "bad.glb", sk, scale=0)
+
+
+def test_real_motion_types(tmp_path):
+    """The motion pillar's own Motion (duck-typed here) and a real CMU capture."""
+    from biomorph.motion.synthetic import walk
+    from tests.conftest import shared_file
+
+    mo = walk(n_frames=30)
+    assert_valid_glb(write_gltf(tmp_path / "walk.glb", mo), max_warnings=0)
+    real = bmio.read_bvh(shared_file("motion", "ad_cmu1_jumping_jacks.bvh"))
+    path = write_gltf(tmp_path / "jacks.glb", real, scale=0.056)
+    assert_valid_glb(path, max_warnings=0)
+    info = read_gltf_summary(path)
+    assert info["joints"] == 31 and info["animations"] == 1
+    assert info["duration"] == pytest.approx((real.n_frames - 1) * real.frame_time, rel=1e-6)
 
 
 def test_motion_keyword_and_wrapped_objects(tmp_path):

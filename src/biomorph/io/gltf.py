@@ -47,6 +47,7 @@ import os
 import struct
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -94,6 +95,7 @@ class _Builder:
         self.chunks: list[bytes] = []
         self.size = 0
         self._materials: dict[str, int] = {}
+        self.scale = 1.0  # multiplies mesh lengths (skeletons are scaled before)
 
     def view(self, data: bytes, target: int | None = None, stride: int | None = None) -> int:
         """Append ``data`` as a new buffer view (aligned to 4 bytes); return its index."""
@@ -311,7 +313,7 @@ def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool,
                          "expected at least one triangle")
     mesh, vertex_ids = _per_vertex_ids(mesh)
     rot = np.eye(3) if y_up else _Z_TO_Y
-    pos = _float32("mesh vertices", mesh.vertices @ rot.T)
+    pos = _float32("mesh vertices", (mesh.vertices * builder.scale) @ rot.T)
     attrs: dict[str, int] = {"POSITION": builder.accessor(pos, target=ARRAY_BUFFER,
                                                           bounds=True)}
     if mesh.normals is not None:
@@ -442,8 +444,8 @@ def _bone_solids(skeleton: JointSkeleton, world: NDArray, shape: str,
     return pos, normals, joint, faces
 
 
-def _joint_meshes(skeleton: JointSkeleton, world: NDArray, meshes: Mapping[Any, Any]
-                  ) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+def _joint_meshes(skeleton: JointSkeleton, world: NDArray, meshes: Mapping[Any, Any],
+                  scale: float = 1.0) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """Per-joint meshes given in the joint's local frame, moved to bind space."""
     pos, nrm, jnt, fcs = [], [], [], []
     base = 0
@@ -455,7 +457,7 @@ def _joint_meshes(skeleton: JointSkeleton, world: NDArray, meshes: Mapping[Any, 
         if m.normals is None:
             m = m.compute_normals()
         rot, trans = world[j, :3, :3], world[j, :3, 3]
-        pos.append(m.vertices @ rot.T + trans)
+        pos.append((m.vertices * scale) @ rot.T + trans)
         nrm.append(_unit_rows(m.normals @ rot.T))
         jnt.append(np.full(m.n_vertices, j))
         fcs.append(m.faces + base)
@@ -519,7 +521,7 @@ def _add_skeleton(builder: _Builder, skeleton: JointSkeleton, *, bone_shape: str
                                  f"got {bone_shape!r}")
         parts.append(_bone_solids(skeleton, world, bone_shape, bone_width))
     if joint_meshes:
-        parts.append(_joint_meshes(skeleton, world, joint_meshes))
+        parts.append(_joint_meshes(skeleton, world, joint_meshes, builder.scale))
     parts = [p for p in parts if len(p[0])]
     if parts:
         base = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
@@ -564,9 +566,8 @@ def _key_times(frames: int, frame_time: float) -> NDArray[np.float32]:
     return times
 
 
-def _add_motion(builder: _Builder, motion: Any, joints: list[int], y_up: bool,
-                name: str | None) -> None:
-    skeleton: JointSkeleton = motion.skeleton
+def _add_motion(builder: _Builder, motion: Any, skeleton: JointSkeleton, joints: list[int],
+                y_up: bool, name: str | None) -> None:
     n = len(skeleton)
     rot = np.asarray(motion.rotation, dtype=float)
     root_pos = np.asarray(motion.root_position, dtype=float)
@@ -600,11 +601,23 @@ def _add_motion(builder: _Builder, motion: Any, joints: list[int], y_up: bool,
             sampler=len(samplers) - 1,
             target=g.AnimationChannelTarget(node=joints[j], path="rotation")))
     tr_acc = builder.accessor(_float32("motion root_position", root_pos))
-    for r in roots:
-        samplers.append(g.AnimationSampler(input=t_acc, output=tr_acc, interpolation="LINEAR"))
+    moved: list[tuple[int, int]] = [(int(r), tr_acc) for r in roots]
+    jt = getattr(motion, "joint_translation", None)
+    if jt is not None:  # translated inner joints (BVH position channels, HTR)
+        jt = np.asarray(jt, dtype=float)
+        if jt.shape != (f, n, 3):
+            raise InputError(f"motion joint_translation has shape {jt.shape}; expected "
+                             f"({f}, {n}, 3)")
+        inner = skeleton.parent >= 0
+        varies = np.any(np.abs(jt - skeleton.offset) > 1e-9, axis=(0, 2)) & inner
+        for j in np.flatnonzero(varies):
+            moved.append((int(j), builder.accessor(
+                _float32("motion joint_translation", jt[:, j]))))
+    for j, acc in moved:
+        samplers.append(g.AnimationSampler(input=t_acc, output=acc, interpolation="LINEAR"))
         channels.append(g.AnimationChannel(
             sampler=len(samplers) - 1,
-            target=g.AnimationChannelTarget(node=joints[int(r)], path="translation")))
+            target=g.AnimationChannelTarget(node=joints[j], path="translation")))
     builder.doc.animations.append(g.Animation(name=name or "motion", samplers=samplers,
                                               channels=channels))
 
@@ -627,10 +640,10 @@ def _add_frames(builder: _Builder, frames: Sequence[Any], frame_time: float, y_u
     times = _key_times(len(meshes), frame_time)
     rot = np.eye(3) if y_up else _Z_TO_Y
     prim = _mesh_primitive(builder, base, y_up)
-    base_pos = base.vertices @ rot.T
+    base_pos = (base.vertices * builder.scale) @ rot.T
     targets = []
     for m in meshes[1:]:
-        delta = _float32("frame vertices", m.vertices @ rot.T - base_pos)
+        delta = _float32("frame vertices", (m.vertices * builder.scale) @ rot.T - base_pos)
         targets.append({"POSITION": builder.accessor(delta, target=ARRAY_BUFFER,
                                                      bounds=True)})
     prim.targets = targets
@@ -649,11 +662,25 @@ def _add_frames(builder: _Builder, frames: Sequence[Any], frame_time: float, y_u
             node=node, path="weights"))]))
 
 
+def _scaled(skeleton: JointSkeleton, motion: Any, k: float) -> tuple[JointSkeleton, Any]:
+    """Skeleton (and motion view) with every length multiplied by ``k``."""
+    sk = skeleton.with_(offset=skeleton.offset * k, end_site=skeleton.end_site * k)
+    if motion is None:
+        return sk, None
+    jt = getattr(motion, "joint_translation", None)
+    view = SimpleNamespace(skeleton=sk, rotation=motion.rotation,
+                           root_position=np.asarray(motion.root_position, dtype=float) * k,
+                           frame_time=motion.frame_time,
+                           joint_translation=None if jt is None else np.asarray(jt, float) * k)
+    return sk, view
+
+
 # =========================================================================== public API
 def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
                bone_shape: str | None = "box", bone_width: float | ArrayLike | None = None,
                meshes: Any = None, y_up: bool = True, name: str | None = None, merge: bool = True,
-               frames: Sequence[Any] | None = None, frame_time: float = 1 / 30) -> Path:
+               frames: Sequence[Any] | None = None, frame_time: float = 1 / 30,
+               scale: float = 1.0) -> Path:
     """Write a skeleton, an animated skeleton, meshes or mesh frames as binary glTF (.glb).
 
     Parameters
@@ -676,6 +703,8 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
         instead of one node per mesh.
     frames : equal-topology meshes written as morph targets with a weight animation.
     frame_time : seconds between ``frames``.
+    scale : multiplies every length on the way out (e.g. ``0.01`` for a BVH in centimetres);
+        ``bone_width`` is given in the input's units and scaled too.
 
     Returns the written path.
     """
@@ -700,13 +729,20 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
                              f"has {len(skeleton)}")
     if not isinstance(y_up, bool | np.bool_):
         raise ParameterError(f"y_up must be True or False; got {y_up!r}")
+    if not (isinstance(scale, int | float | np.number) and np.isfinite(scale) and scale > 0):
+        raise ParameterError(f"scale must be a positive finite number; got {scale!r}")
+    builder.scale = float(scale)
+    if scale != 1 and skeleton is not None:
+        skeleton, motion = _scaled(skeleton, motion, float(scale))
+        if bone_width is not None:
+            bone_width = np.asarray(bone_width, dtype=float) * scale
     if skeleton is not None:
         joint_meshes = meshes if isinstance(meshes, Mapping) and not (
             "vertices" in meshes and "faces" in meshes) else None
         joints = _add_skeleton(builder, skeleton, bone_shape=bone_shape, bone_width=bone_width,
                                joint_meshes=joint_meshes, y_up=y_up, name=name)
         if motion is not None:
-            _add_motion(builder, motion, joints, y_up, name)
+            _add_motion(builder, motion, skeleton, joints, y_up, name)
         if meshes is not None and joint_meshes is None:
             _add_mesh_nodes(builder, _as_meshes(meshes), merge=merge, y_up=y_up, name=None)
     else:
