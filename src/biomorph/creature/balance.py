@@ -1,0 +1,97 @@
+"""Static balance: support polygon, stability margin and tipping torques (new beyond the seed).
+
+The seed asks for torques ``M = r × F`` about the ground contacts, reduced to the sagittal
+plane. We do the 3-D version: the support polygon is the convex hull of the contact patches
+on the ground (x, z); the creature stands if its centre of mass projects inside with a
+margin. For every support edge the restoring torque is ``m g d`` with ``d`` the signed
+distance of the projected centre of mass to the edge (positive inside); the smallest is the
+torque needed to tip the creature over that edge.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+G = 9.81
+
+
+@dataclass(frozen=True)
+class BalanceReport:
+    """Result of the balance check (metres, kg, N·m)."""
+
+    applicable: bool               # False without legs on the ground (swims / rests on body)
+    stable: bool
+    margin: float                  # signed distance of the COM to the polygon boundary (m)
+    margin_fraction: float         # margin / body length
+    sagittal_margin: float         # the seed's 2-D view: COM x inside the contacts' x-range
+    tipping_torque: float          # smallest restoring torque about a support edge (N·m)
+    com: tuple[float, float, float]
+    support: tuple[tuple[float, float], ...]  # polygon (x, z), counter-clockwise
+    mass: float
+    repairs: int = 0
+    resamples: int = 0
+    reason: str = ""
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def convex_hull(points: NDArray) -> NDArray[np.float64]:
+    """Counter-clockwise convex hull (Andrew's monotone chain) of 2-D points ``(n, 2)``."""
+    p = np.unique(np.asarray(points, float).round(12), axis=0)
+    if len(p) <= 2:
+        return p
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list = []
+    for q in p:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], q) <= 0:
+            lower.pop()
+        lower.append(q)
+    upper: list = []
+    for q in p[::-1]:
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], q) <= 0:
+            upper.pop()
+        upper.append(q)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def edge_distances(poly: NDArray, q: NDArray) -> NDArray[np.float64]:
+    """Signed distances (positive inside) of point ``q`` to each edge of a CCW polygon."""
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    e = b - a
+    n = np.linalg.norm(e, axis=1)
+    cr = e[:, 0] * (q[1] - a[:, 1]) - e[:, 1] * (q[0] - a[:, 0])
+    return cr / np.where(n > 0, n, 1.0)
+
+
+def evaluate(com: NDArray, mass: float, patches: NDArray, body_length: float,
+             min_margin_fraction: float = 0.01) -> BalanceReport:
+    """Balance of a creature with centre of mass ``com (3,)`` (world, Y up) standing on
+    contact patches ``patches (k, 2)`` (x, z corner points on the ground)."""
+    c = np.asarray(com, float)
+    if patches is None or len(patches) == 0:
+        return BalanceReport(False, True, 0.0, 0.0, 0.0, 0.0, tuple(map(float, c)), (),
+                             float(mass), reason="no legs with ground contact")
+    q = np.array([c[0], c[2]])
+    poly = convex_hull(patches)
+    x0, x1 = float(np.min(patches[:, 0])), float(np.max(patches[:, 0]))
+    sag = min(q[0] - x0, x1 - q[0])
+    if len(poly) < 3:
+        margin = -float(np.min(np.linalg.norm(poly - q, axis=1))) if len(poly) else -1.0
+        torque = mass * G * margin
+    else:
+        d = edge_distances(poly, q)
+        margin = float(d.min())
+        torque = float(mass * G * margin)
+    frac = margin / max(body_length, 1e-12)
+    stable = frac >= min_margin_fraction
+    return BalanceReport(True, bool(stable), margin, float(frac), float(sag), float(torque),
+                         tuple(map(float, c)), tuple((float(a), float(b)) for a, b in poly),
+                         float(mass))

@@ -1,0 +1,361 @@
+"""Limbs by type: fins, arms, wings and legs with ground contact (seed §5.1, §6.7).
+
+A limb is a chain of three bones (upper, lower, distal: upper arm/forearm/hand or thigh/shank/
+foot) hanging from a girdle attachment point. Every joint has three rotational DOF with
+limits, as Euler angles ``(z, x, y)`` composed ``R = Rz · Rx · Ry`` relative to the parent
+bone's frame; at zero angles a bone points straight down (world −y), z is the lateral axis
+(flexion/extension in the sagittal plane), x the forward axis (abduction), y the bone's own
+axis (twist). Angles here are for the **right** limb (+z side); left limbs are mirrored.
+
+Limbs without ground contact follow the seed's rules: fins straight back, arms with the upper
+arm straight down, forearm 90° forward and the hand continuing it, wings with a random angle
+per joint from a per-joint interval. Legs with ground contact use the seed's iterative
+descent (:func:`descend`): start with every flexion DOF at its most bent limit; each
+iteration, for each joint and each DOF chosen with its probability, rotate by the current
+step towards the orientation where the bone points straight down (the seed's comparison of
+the child's negative local y with world y), clamp at vertical ("gerade noch erlaubt"),
+reject a rotation that puts any bone end below the ground, then multiply the step by 4/5 —
+and halve it when the contact point moved less than ``stall`` (0.1 frame px) — down to a
+minimum step. All constants are :class:`DescentParams` fields with the seed's values.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+LIMB_TYPES = ("leg", "arm", "wing", "fin")
+DEG = np.pi / 180.0
+
+
+@dataclass(frozen=True)
+class DescentParams:
+    """Constants of the ground-contact descent (seed §6.7 defaults).
+
+    Lengths are in the seed's annotation units (px of the 1000-px frame); the generator
+    converts them with the creature's scale.
+    """
+
+    step_deg: float = 30.0          # first step
+    shrink: float = 0.8             # ×4/5 per iteration
+    stall: float = 0.1              # px: less progress than this halves the step
+    min_step_deg: float = 0.05      # steps never get smaller ("bis zu einer Minimalgröße")
+    tolerance: float = 0.5          # px: contact counts as reached
+    max_iter: int = 120
+    p_flex: float = 0.9             # probability a flexion DOF is changed in an iteration
+    p_abduct: float = 0.05          # abduction kept rare so legs are not splayed (seed)
+    p_twist: float = 0.0            # twist does not move the contact point
+
+
+#: Anatomical limits (degrees) per limb role and joint: rows joint 0..2, columns z, x, y.
+#: Hind legs fold zig-zag (thigh forward, shank back, foot forward); fore legs the other way.
+LIMITS_DEG = {
+    "hind": np.array([[[-40, 100], [-60, 25], [-20, 20]],
+                      [[-150, 0], [-10, 10], [-15, 15]],
+                      [[0, 150], [-15, 15], [-15, 15]]], dtype=float),
+    "fore": np.array([[[-100, 40], [-60, 25], [-20, 20]],
+                      [[0, 150], [-10, 10], [-15, 15]],
+                      [[-150, 100], [-15, 15], [-15, 15]]], dtype=float),
+    "wing": np.array([[[-45, 45], [-120, -50], [-30, 30]],
+                      [[-60, 60], [-20, 20], [-30, 30]],
+                      [[-60, 60], [-20, 20], [-30, 30]]], dtype=float),
+    "fin": np.array([[[-120, -60], [-45, 45], [-30, 30]],
+                     [[-30, 30], [-20, 20], [-20, 20]],
+                     [[-30, 30], [-20, 20], [-20, 20]]], dtype=float),
+    "arm": np.array([[[-60, 120], [-60, 25], [-60, 60]],
+                     [[0, 150], [-10, 10], [-60, 60]],
+                     [[-60, 60], [-30, 30], [-20, 20]]], dtype=float),
+}
+
+#: Per-joint random intervals (degrees) of wing angles (z, x, y): a spread, slightly swept wing.
+WING_INTERVALS_DEG = np.array([[[-25, 15], [-105, -75], [-10, 10]],
+                               [[-35, 10], [-10, 10], [-10, 10]],
+                               [[-10, 35], [-10, 10], [-10, 10]]], dtype=float)
+
+SPRAWL_DEG = {"erect": 0.0, "crouched": -8.0, "sprawling": -25.0}
+
+
+# --------------------------------------------------------------------------- kinematics
+@numba.njit(cache=True)
+def _euler_into(a: float, b: float, c: float, out: np.ndarray) -> None:  # pragma: no cover
+    """``Rz(a) @ Rx(b) @ Ry(c)`` written into ``out (3, 3)`` without allocating."""
+    ca, sa = np.cos(a), np.sin(a)
+    cb, sb = np.cos(b), np.sin(b)
+    cc, sc = np.cos(c), np.sin(c)
+    out[0, 0] = ca * cc - sa * sb * sc
+    out[0, 1] = -sa * cb
+    out[0, 2] = ca * sc + sa * sb * cc
+    out[1, 0] = sa * cc + ca * sb * sc
+    out[1, 1] = ca * cb
+    out[1, 2] = sa * sc - ca * sb * cc
+    out[2, 0] = -cb * sc
+    out[2, 1] = sb
+    out[2, 2] = cb * cc
+
+
+@numba.njit(cache=True)
+def _matmul_into(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@numba.njit(cache=True)
+def _fk(base: np.ndarray, lengths: np.ndarray, ang: np.ndarray, rot_out: np.ndarray,
+        pts_out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Cumulative rotations (3,3,3) and joint points (4,3) of a 3-bone chain."""
+    e = np.empty((3, 3))
+    for k in range(3):
+        pts_out[0, k] = base[k]
+    for j in range(3):
+        _euler_into(ang[j, 0], ang[j, 1], ang[j, 2], e)
+        if j == 0:
+            for p in range(3):
+                for q in range(3):
+                    rot_out[0, p, q] = e[p, q]
+        else:
+            _matmul_into(rot_out[j - 1], e, rot_out[j])
+        for k in range(3):
+            pts_out[j + 1, k] = pts_out[j, k] - lengths[j] * rot_out[j, k, 1]
+
+
+@numba.njit(cache=True)
+def _descend_kernel(base, lengths, ang0, lo, hi, prob, n_active, contact, ground, step0,
+                    shrink, stall, min_step, tol, max_iter, rand):  # pragma: no cover
+    ang = ang0.copy()
+    rot = np.zeros((3, 3, 3))
+    pts = np.zeros((4, 3))
+    _fk(base, lengths, ang, rot, pts)
+    dist = pts[contact, 1] - ground
+    step = step0
+    it = 0
+    down = np.array([0.0, -1.0, 0.0])
+    eye = np.eye(3)
+    etmp = np.empty((3, 3))
+    mtmp = np.empty((3, 3))
+    while it < max_iter and dist > tol:
+        prev = dist
+        for j in range(n_active):
+            for k in range(3):
+                if rand[it, j, k] >= prob[j, k]:
+                    continue
+                # world axis of DOF k of joint j (Euler z, x, y composed in that order)
+                if j == 0:
+                    rp = eye
+                else:
+                    rp = rot[j - 1]
+                if k == 0:
+                    w = rp[:, 2].copy()
+                else:
+                    _euler_into(ang[j, 0], ang[j, 1] if k == 2 else 0.0, 0.0, etmp)
+                    _matmul_into(rp, etmp, mtmp)
+                    w = mtmp[:, 0].copy() if k == 1 else mtmp[:, 1].copy()
+                d = -rot[j][:, 1]
+                dp = d - (d @ w) * w
+                tp = down - (down @ w) * w
+                ndp = np.sqrt(dp @ dp)
+                ntp = np.sqrt(tp @ tp)
+                if ndp < 1e-9 or ntp < 1e-9:
+                    continue
+                cr = np.cross(dp, tp)
+                theta = np.arctan2(w @ cr, dp @ tp)  # rotation bringing d closest to down
+                if abs(theta) < 1e-12:
+                    continue
+                delta = min(step, abs(theta))  # clamp at vertical
+                if theta < 0:
+                    delta = -delta
+                old = ang[j, k]
+                new = min(max(old + delta, lo[j, k]), hi[j, k])
+                if new == old:
+                    continue
+                ang[j, k] = new
+                _fk(base, lengths, ang, rot, pts)
+                below = False
+                for q in range(1, contact + 1):
+                    if pts[q, 1] < ground - 1e-9:
+                        below = True
+                if below:
+                    ang[j, k] = old
+                    _fk(base, lengths, ang, rot, pts)
+        dist = pts[contact, 1] - ground
+        step = step * shrink
+        if prev - dist < stall:
+            step = step * 0.5
+        if step < min_step:
+            step = min_step
+        it += 1
+    return ang, dist, it
+
+
+def descend(base: NDArray, lengths: NDArray, start: NDArray, limits: NDArray, prob: NDArray,
+            ground: float, contact: int, rng: np.random.Generator,
+            params: DescentParams = DescentParams(), n_active: int = 3
+            ) -> tuple[NDArray[np.float64], float, int]:
+    """Run the seed's ground-contact descent for one 3-bone chain.
+
+    ``base (3,)`` attachment point, ``lengths (3,)``, ``start (3,3)`` angles (rad), ``limits
+    (3,3,2)`` rad, ``prob (3,3)`` per-DOF probabilities, ``ground`` height, ``contact`` the
+    chain point that should touch (2 = end of the second bone, 3 = tip), ``n_active`` joints
+    that may move. Units of lengths/ground/params must agree (frame px by default).
+    Returns ``(angles (3,3), remaining distance, iterations)``.
+    """
+    rand = rng.random((params.max_iter, 3, 3))
+    ang, dist, it = _descend_kernel(
+        np.asarray(base, float), np.asarray(lengths, float), np.asarray(start, float),
+        np.ascontiguousarray(limits[..., 0]), np.ascontiguousarray(limits[..., 1]),
+        np.asarray(prob, float), int(n_active), int(contact), float(ground),
+        params.step_deg * DEG, params.shrink, params.stall, params.min_step_deg * DEG,
+        params.tolerance, int(params.max_iter), rand)
+    return ang, float(dist), int(it)
+
+
+def forward(base: NDArray, lengths: NDArray, angles: NDArray
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Cumulative bone rotations ``(3,3,3)`` (world, bone along −y) and points ``(4,3)``."""
+    rot = np.zeros((3, 3, 3))
+    pts = np.zeros((4, 3))
+    _fk(np.asarray(base, float), np.asarray(lengths, float), np.asarray(angles, float), rot, pts)
+    return rot, pts
+
+
+def _snap(base, lengths, ang, limits, ground, contact, n_active):
+    """Close the last gap exactly: bisect one flexion angle (knee first) so the contact point
+    lies on the ground without any bone end below it. Returns new angles or ``None``."""
+    for j in ([1, 0, 2] if n_active == 3 else [1, 0]):
+        lo, hi = limits[j, 0]
+        a0 = ang[j, 0]
+
+        def h(a, j=j):
+            t = ang.copy()
+            t[j, 0] = a
+            _, p = forward(base, lengths, t)
+            return p[contact, 1] - ground, p
+
+        f0, _ = h(a0)
+        # search the direction that lowers the contact point
+        for target in (lo, hi):
+            ft, p = h(target)
+            if ft <= 0 <= f0:
+                a, b = a0, target
+                for _ in range(40):
+                    m = 0.5 * (a + b)
+                    fm, _ = h(m)
+                    if fm > 0:
+                        a = m
+                    else:
+                        b = m
+                t = ang.copy()
+                t[j, 0] = a
+                _, p = forward(base, lengths, t)
+                if np.all(p[1:contact + 1, 1] >= ground - 1e-6 * max(lengths.sum(), 1e-9)):
+                    return t
+    return None
+
+
+@dataclass(frozen=True)
+class LimbPose:
+    """Result of posing one (right) limb: angles, limits and the chain geometry."""
+
+    kind: str                      # leg | arm | wing | fin
+    role: str                      # fore | hind (which limit table)
+    angles: NDArray[np.float64]    # (3, 3) z, x, y per joint, rad
+    limits: NDArray[np.float64]    # (3, 3, 2) rad
+    rotations: NDArray[np.float64]  # (3, 3, 3) cumulative world rotations (bone along -y)
+    points: NDArray[np.float64]    # (4, 3) attach, two joints, tip
+    contact: NDArray[np.float64] | None  # contact point (3,) for legs
+    foot_flat: bool                # plantigrade: distal bone lies on the ground
+    residual: float                # remaining contact distance (same units as input)
+    iterations: int
+
+
+def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: str,
+             posture: str, rng: np.random.Generator, params: DescentParams = DescentParams(),
+             foot_clearance: float = 0.0) -> LimbPose:
+    """Pose a leg with ground contact by the seed's descent.
+
+    Digitigrade/unguligrade: the tip of the distal bone touches the ground. Plantigrade: the
+    wrist/ankle comes down to ``ground + foot_clearance`` and the distal bone is laid flat,
+    pointing forward (the ankle angle is then set, not searched).
+    """
+    limits = LIMITS_DEG[role] * DEG
+    start = np.zeros((3, 3))
+    # most bent flexion: hind thigh forward (max), shank back (min), foot forward (max)
+    start[:, 0] = np.where(role == "hind", [limits[0, 0, 1], limits[1, 0, 0], limits[2, 0, 1]],
+                           [limits[0, 0, 0], limits[1, 0, 1], limits[2, 0, 0]])
+    start[0, 1] = np.clip(SPRAWL_DEG.get(posture, 0.0) * DEG, limits[0, 1, 0], limits[0, 1, 1])
+    prob = np.array([[params.p_flex, params.p_abduct, params.p_twist]] * 3)
+    plant = stance == "plantigrade"
+    contact = 2 if plant else 3
+    n_active = 2 if plant else 3
+    g = ground + (foot_clearance if plant else 0.0)
+    ang, dist, it = descend(base, lengths, start, limits, prob, g, contact, rng, params,
+                            n_active)
+    if dist > params.tolerance:
+        snapped = _snap(np.asarray(base, float), np.asarray(lengths, float), ang, limits, g,
+                        contact, n_active)
+        if snapped is not None:
+            ang = snapped
+    rot, pts = forward(base, lengths, ang)
+    if plant:
+        # lay the distal bone flat, pointing forward: cumulative z-angle of +90°
+        cum_z = ang[0, 0] + ang[1, 0]
+        ang[2] = [np.clip(np.pi / 2 - cum_z, *limits[2, 0]), 0.0, 0.0]
+        rot, pts = forward(base, lengths, ang)
+        contact_pt = pts[2].copy()
+    else:
+        contact_pt = pts[3].copy()
+    resid = float(contact_pt[1] - g)
+    return LimbPose("leg", role, ang, limits, rot, pts, contact_pt, plant, resid, it)
+
+
+def pose_free(kind: str, base: NDArray, lengths: NDArray, rng: np.random.Generator,
+              splay_deg: float = 12.0) -> LimbPose:
+    """Pose a limb without ground contact: ``fin``, ``arm`` or ``wing`` (seed §5.1)."""
+    role = {"fin": "fin", "arm": "arm", "wing": "wing"}[kind]
+    limits = LIMITS_DEG[role] * DEG
+    ang = np.zeros((3, 3))
+    if kind == "fin":
+        ang[0, 0] = -np.pi / 2                # straight back (world -x)
+        ang[0, 1] = -splay_deg * DEG          # a little outwards
+    elif kind == "arm":
+        ang[1, 0] = np.pi / 2                 # upper arm down, forearm 90° forward, hand on
+    else:
+        iv = WING_INTERVALS_DEG * DEG
+        ang = rng.uniform(iv[..., 0], iv[..., 1])
+    ang = np.clip(ang, limits[..., 0], limits[..., 1])
+    rot, pts = forward(base, lengths, ang)
+    return LimbPose(kind, role, ang, limits, rot, pts, None, False, 0.0, 0)
+
+
+def lift_clear(pose: LimbPose, base: NDArray, lengths: NDArray, ground: float,
+               clearance: float) -> LimbPose:
+    """Swing a free limb backwards/up in 15° steps until no bone end is below the ground."""
+    ang = pose.angles.copy()
+    lim = pose.limits
+    for _ in range(12):
+        rot, pts = forward(base, lengths, ang)
+        if np.all(pts[1:, 1] >= ground + clearance):
+            return LimbPose(pose.kind, pose.role, ang, lim, rot, pts, None, False, 0.0, 0)
+        # fold: proximal joint backwards, then distal joints towards the proximal bone
+        if ang[0, 0] - 15 * DEG >= lim[0, 0, 0]:
+            ang[0, 0] -= 15 * DEG
+        elif ang[1, 0] + 15 * DEG <= lim[1, 0, 1]:
+            ang[1, 0] += 15 * DEG
+        else:
+            ang[0, 1] = max(ang[0, 1] - 15 * DEG, lim[0, 1, 0])
+    rot, pts = forward(base, lengths, ang)
+    return LimbPose(pose.kind, pose.role, ang, lim, rot, pts, None, False, 0.0, 0)
+
+
+def max_reach(lengths: NDArray, stance: str, posture: str) -> float:
+    """Vertical reach of the straightened leg (down to the contact point), with the posture's
+    fixed abduction."""
+    abd = abs(SPRAWL_DEG.get(posture, 0.0)) * DEG
+    L = np.asarray(lengths, float)
+    reach = L[0] * np.cos(abd) + L[1]
+    if stance != "plantigrade":
+        reach += L[2]
+    return float(reach)
