@@ -244,10 +244,28 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
                 mw /= mn
             else:
                 mx, my, mz, mw = 0.0, 0.0, 0.0, 1.0
+            px, py, pz = 0.0, 0.0, 0.0
             for i in range(f):
                 a, b, cc, d = _qmul(-mx, -my, -mz, mw, ref[i, 0], ref[i, 1], ref[i, 2],
                                     ref[i, 3])
                 ux, uy, uz = _qlog(a, b, cc, d)
+                # unwrap the log map over time: u + 2πk·û is the same rotation; take the
+                # representative nearest the previous frame (a joint may turn past 180°)
+                ang = np.sqrt(ux * ux + uy * uy + uz * uz)
+                if i > 0 and ang > 1e-9:
+                    nx, ny, nz = ux / ang, uy / ang, uz / ang
+                    best = 1e300
+                    bx, by, bz = ux, uy, uz
+                    for kk in range(-3, 4):
+                        cx = ux + 2 * np.pi * kk * nx
+                        cy = uy + 2 * np.pi * kk * ny
+                        cz = uz + 2 * np.pi * kk * nz
+                        dd = (cx - px) ** 2 + (cy - py) ** 2 + (cz - pz) ** 2
+                        if dd < best:
+                            best = dd
+                            bx, by, bz = cx, cy, cz
+                    ux, uy, uz = bx, by, bz
+                px, py, pz = ux, uy, uz
                 ex, ey, ez, ew = _qexp(glast * ux, glast * uy, glast * uz)
                 a, b, cc, d = _qmul(mx, my, mz, mw, ex, ey, ez, ew)
                 ref[i, 0] = a
