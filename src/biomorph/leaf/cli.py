@@ -198,6 +198,8 @@ def canopy(output: Annotated[Path, typer.Option("-o", "--output",
 def reduce_curve(output: Annotated[Path, typer.Option("-o", "--output", help="curve.png")],
                  preset: Preset = "wheat",
                  points: Annotated[int, typer.Option(help="Discretisation points.")] = 200,
+                 leaves: Annotated[int, typer.Option(
+                     help="Leaves in the field timed for the time curve.")] = 500,
                  as_json: Json = False) -> None:
     """Plot error vs triangles and time vs triangles of the reduction (paper's figure 6).
 
@@ -209,9 +211,12 @@ def reduce_curve(output: Annotated[Path, typer.Option("-o", "--output", help="cu
     _check_ext(output, (".png",))
     if points < 3:
         raise ParameterError(f"--points {points}: expected at least 3")
+    if leaves < 1:
+        raise ParameterError(f"--leaves {leaves}: expected at least 1")
     from biomorph.leaf.shape import LeafShape
 
-    table = reduction_curves(LeafShape.from_preset(preset), output, n_points=points)
+    table = reduction_curves(LeafShape.from_preset(preset), output, n_points=points,
+                             leaves=leaves)
     if as_json:
         print_json({"file": str(output), **table})
     else:

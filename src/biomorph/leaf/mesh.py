@@ -229,24 +229,27 @@ def leaf_areas(mesh: Mesh, key: str = "leaf") -> Array:
                        ids.size else 0)
 
 
-def split_boundary_edge(mesh: Mesh) -> Mesh:
-    """Add exactly one triangle by splitting a boundary (margin) edge of the largest face.
+def split_boundary_edge(mesh: Mesh, face: int | None = None, edge: int | None = None) -> Mesh:
+    """Add exactly one triangle by splitting a boundary (margin) edge at its midpoint.
 
-    The two new triangles lie in the plane of the old one, so area is unchanged and no
-    T-junction appears (the split edge belongs to a single face).
+    Without ``face``/``edge`` the largest face owning a boundary edge is chosen. The two new
+    triangles lie in the plane of the old one, so area is unchanged and no T-junction
+    appears (the split edge belongs to a single face).
     """
     f = np.asarray(mesh.faces)
-    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    key = np.sort(e, axis=1)
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    boundary = (cnt[inv.reshape(-1)] == 1).reshape(3, -1).T              # (m,3) per face edge
-    areas = mesh.face_areas()
-    cand = np.flatnonzero(boundary.any(axis=1))
-    if cand.size == 0:
-        raise ParameterError("mesh has no boundary edge to split")
-    fi = int(cand[np.argmax(areas[cand])])
-    ei = int(np.flatnonzero(boundary[fi])[0])
-    a, b, c = f[fi, ei], f[fi, (ei + 1) % 3], f[fi, (ei + 2) % 3]
+    if face is None or edge is None:
+        n = np.int64(max(mesh.n_vertices, 1))
+        e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        key = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
+        _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+        boundary = (cnt[inv] == 1).reshape(3, -1).T                      # (m,3) per face edge
+        cand = np.flatnonzero(boundary.any(axis=1))
+        if cand.size == 0:
+            raise ParameterError("mesh has no boundary edge to split")
+        areas = mesh.face_areas()
+        face = int(cand[np.argmax(areas[cand])])
+        edge = int(np.flatnonzero(boundary[face])[0])
+    a, b, c = f[face, edge], f[face, (edge + 1) % 3], f[face, (edge + 2) % 3]
     v = np.asarray(mesh.vertices)
     mid_idx = len(v)
     verts = np.vstack([v, 0.5 * (v[a] + v[b])])
@@ -257,10 +260,9 @@ def split_boundary_edge(mesh: Mesh) -> Mesh:
         extra["normals"] = np.vstack([mesh.normals, nm])
     if mesh.uv is not None:
         extra["uv"] = np.vstack([mesh.uv, 0.5 * (mesh.uv[a] + mesh.uv[b])])
-    new_faces = f.copy()
-    new_faces[fi] = (a, mid_idx, c)
-    new_faces = np.vstack([new_faces, [[mid_idx, b, c]]])
-    ids = {k: np.concatenate([val, [val[fi]]]) for k, val in mesh.face_ids.items()}
+    new_faces = np.vstack([f, [[mid_idx, b, c]]])
+    new_faces[face] = (a, mid_idx, c)
+    ids = {k: np.append(val, val[face]) for k, val in mesh.face_ids.items()}
     return Mesh(verts, new_faces, face_ids=ids, **extra)
 
 

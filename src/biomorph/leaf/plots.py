@@ -56,7 +56,8 @@ def time_vs_triangles(shape, budgets: Sequence[int], leaves: int = 500, repeat: 
 
 
 def reduction_curves(shape, path: PathLike, n_points: int = 200,
-                     budgets: Sequence[int] | None = None) -> dict:
+                     budgets: Sequence[int] | None = None, leaves: int = 500,
+                     repeat: int = 3) -> dict:
     """Write the two-panel reduction figure; return its numbers as a dict of lists."""
     from biomorph.leaf.reduction import reduce_leaf
 
@@ -64,7 +65,7 @@ def reduction_curves(shape, path: PathLike, n_points: int = 200,
     tri, exy, bound = red.curve()
     if budgets is None:
         budgets = [b for b in (3, 5, 9, 15, 21, 31, 51, 101, 201) if b <= red.full_triangles]
-    times = time_vs_triangles(shape, budgets)
+    times = time_vs_triangles(shape, budgets, leaves=leaves, repeat=repeat)
     plt = _plt()
     fig, ax = plt.subplots(1, 2, figsize=(10, 4))
     ax[0].loglog(tri, np.maximum(exy, 1e-6), label="midrib error (max distance)")
@@ -73,7 +74,7 @@ def reduction_curves(shape, path: PathLike, n_points: int = 200,
     ax[0].set_ylabel("error / leaf length")
     ax[0].set_title(f"{shape.name}: error vs triangles")
     ax[0].legend()
-    ax[1].plot(budgets, np.asarray(times) * 1e3, "D-", label="mesh + light proxy, 500 leaves")
+    ax[1].plot(budgets, np.asarray(times) * 1e3, "D-", label=f"mesh + light proxy, {leaves} leaves")
     ax[1].set_xlabel("triangles per leaf")
     ax[1].set_ylabel("time (ms)")
     ax[1].set_title("computation time falls with triangle count")

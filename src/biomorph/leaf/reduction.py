@@ -320,8 +320,15 @@ def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int 
     kept = red.kept(red.removed_for_budget(triangles))
     batch = coarse_batch(s, prof, kept, plant, leaf)
     mesh = mesh_batch(LeafBatch(*batch), n_u=2)
-    while mesh.n_faces < triangles:
-        mesh = split_boundary_edge(mesh)
+    if mesh.n_faces < triangles:
+        # one triangle short: split a left-margin edge (a, a+2) of a strip's first triangle
+        f = np.asarray(mesh.faces)
+        left = np.flatnonzero((f[:, 1] - f[:, 0] == 2) & (f[:, 0] % 2 == 0))
+        if left.size:
+            face = int(left[np.argmax(mesh.face_areas()[left])])
+            mesh = split_boundary_edge(mesh, face, 0)
+        else:
+            mesh = split_boundary_edge(mesh)
     return mesh
 
 
