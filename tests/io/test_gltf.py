@@ -430,7 +430,7 @@ def test_trimesh_loads_what_we_write(tmp_path):
 
 def test_morph_frames_animation(tmp_path):
     base = leaf_mesh(0)
-    frames = [base.with_(vertices=base.vertices * (0.5 + 0.25 * k), normals=None)
+    frames = [base.with_(vertices=base.vertices * (0.5 + 0.25 * k)).compute_normals()
               for k in range(4)]
     path = write_mesh_animation(tmp_path / "grow.glb", frames, frame_time=0.5, y_up=False)
     assert_valid_glb(path)
@@ -441,7 +441,16 @@ def test_morph_frames_animation(tmp_path):
     np.testing.assert_array_equal(w, [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
     base_pos = accessor(doc, blob, prim.attributes.POSITION)
     last = base_pos + accessor(doc, blob, prim.targets[2]["POSITION"])
-    np.testing.assert_allclose(last, frames[3].vertices[:, [0, 2, 1]] * [1, 1, -1], atol=1e-6)
+    # face ids survive (vertices split the same way in every frame)
+    faces = accessor(doc, blob, prim.indices).reshape(-1, 3)
+    leaf = accessor(doc, blob, vars(prim.attributes)["_LEAF_ID"])
+    np.testing.assert_array_equal(leaf[faces[:, 0]], base.face_ids["leaf"])
+    want = frames[3].vertices[frames[3].faces][..., [0, 2, 1]] * [1, 1, -1]
+    np.testing.assert_allclose(last[faces], want, atol=1e-6)
+    nrm = accessor(doc, blob, prim.attributes.NORMAL) + accessor(doc, blob,
+                                                                  prim.targets[2]["NORMAL"])
+    want_n = frames[3].normals[frames[3].faces][..., [0, 2, 1]] * [1, 1, -1]
+    np.testing.assert_allclose(nrm[faces], want_n, atol=1e-5)
     with pytest.raises(InputError, match="topology"):
         write_mesh_animation(tmp_path / "bad.glb", [base, leaf_mesh(0, n=5)], 0.1)
 

@@ -232,14 +232,16 @@ def _node_transform(name: str, translation: NDArray | None, rotation: NDArray | 
 
 
 # =========================================================================== meshes
-def _per_vertex_ids(mesh: Mesh) -> tuple[Mesh, dict[str, NDArray[np.int64]]]:
+def _per_vertex_ids(mesh: Mesh) -> tuple[Mesh, dict[str, NDArray[np.int64]],
+                                          NDArray[np.int64] | None]:
     """Turn per-face ids into per-vertex ids, splitting vertices shared by faces that differ.
 
-    Returns the (possibly re-indexed) mesh and the per-vertex id arrays. Unreferenced
-    vertices keep id 0 when no split is needed and are dropped when one is.
+    Returns the (possibly re-indexed) mesh, the per-vertex id arrays and the source vertex
+    of each output vertex (``None`` when nothing was split). Unreferenced vertices keep id 0
+    when no split is needed and are dropped when one is.
     """
     if not mesh.face_ids:
-        return mesh, {}
+        return mesh, {}, None
     keys = list(mesh.face_ids)
     ids = np.stack([mesh.face_ids[k] for k in keys], axis=1)  # (m, k)
     corner_v = mesh.faces.reshape(-1)
@@ -253,7 +255,7 @@ def _per_vertex_ids(mesh: Mesh) -> tuple[Mesh, dict[str, NDArray[np.int64]]]:
     used[corner_v] = True
     if np.all(lo[used] == hi[used]):
         per_vertex = np.where(used[:, None], lo, 0)
-        return mesh, {k: per_vertex[:, i] for i, k in enumerate(keys)}
+        return mesh, {k: per_vertex[:, i] for i, k in enumerate(keys)}, None
     # split: one output vertex per distinct (vertex, ids) corner
     rows = np.concatenate([corner_v[:, None], corner_ids], axis=1)
     uniq, inverse = np.unique(rows, axis=0, return_inverse=True)
@@ -264,7 +266,7 @@ def _per_vertex_ids(mesh: Mesh) -> tuple[Mesh, dict[str, NDArray[np.int64]]]:
                uv=None if mesh.uv is None else mesh.uv[src],
                vertex_colors=None if mesh.vertex_colors is None else mesh.vertex_colors[src],
                face_ids=mesh.face_ids)
-    return new, {k: uniq[:, 1 + i] for i, k in enumerate(keys)}
+    return new, {k: uniq[:, 1 + i] for i, k in enumerate(keys)}, src
 
 
 def _is_vertex_array(obj: Any) -> bool:
@@ -306,12 +308,13 @@ def _indices(builder: _Builder, faces: NDArray, n_vertices: int) -> int:
     return builder.accessor(faces.reshape(-1).astype(dtype), target=ELEMENT_ARRAY_BUFFER)
 
 
-def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool,
-                    extra: dict[str, NDArray] | None = None) -> g.Primitive:
+def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool
+                    ) -> tuple[g.Primitive, NDArray[np.int64] | None]:
+    """A triangle primitive for ``mesh``; also the vertex mapping if ids split vertices."""
     if mesh.n_faces == 0 or mesh.n_vertices == 0:
         raise InputError(f"mesh has {mesh.n_vertices} vertices and {mesh.n_faces} faces; "
                          "expected at least one triangle")
-    mesh, vertex_ids = _per_vertex_ids(mesh)
+    mesh, vertex_ids, src = _per_vertex_ids(mesh)
     rot = np.eye(3) if y_up else _Z_TO_Y
     pos = _float32("mesh vertices", (mesh.vertices * builder.scale) @ rot.T)
     attrs: dict[str, int] = {"POSITION": builder.accessor(pos, target=ARRAY_BUFFER,
@@ -329,12 +332,11 @@ def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool,
     for key, ids in vertex_ids.items():
         attrs[_id_attribute_name(key)] = builder.accessor(_id_array(key, ids),
                                                           target=ARRAY_BUFFER)
-    for key, arr in (extra or {}).items():
-        attrs[key] = builder.accessor(arr, target=ARRAY_BUFFER)
     # pygltflib's Attributes takes custom names (``_PLANT_ID``) as keyword arguments
-    return g.Primitive(attributes=g.Attributes(**attrs),
+    prim = g.Primitive(attributes=g.Attributes(**attrs),
                        indices=_indices(builder, mesh.faces, mesh.n_vertices),
                        material=builder.material(_MESH_MATERIAL), mode=g.TRIANGLES)
+    return prim, src
 
 
 def _add_mesh_nodes(builder: _Builder, meshes: list[Mesh], *, merge: bool, y_up: bool,
@@ -345,7 +347,7 @@ def _add_mesh_nodes(builder: _Builder, meshes: list[Mesh], *, merge: bool, y_up:
         label = name or "mesh"
         if len(groups) > 1:
             label = f"{label}_{i}"
-        prim = _mesh_primitive(builder, mesh, y_up)
+        prim, _ = _mesh_primitive(builder, mesh, y_up)
         builder.doc.meshes.append(g.Mesh(name=label, primitives=[prim]))
         nodes.append(builder.node(g.Node(name=label, mesh=len(builder.doc.meshes) - 1),
                                   root=True))
@@ -635,17 +637,23 @@ def _add_frames(builder: _Builder, frames: Sequence[Any], frame_time: float, y_u
             raise InputError(f"frame {k} has different topology ({m.n_vertices} vertices, "
                              f"{m.n_faces} faces) from frame 0 ({base.n_vertices}, "
                              f"{base.n_faces}); morph frames need identical faces")
-    if base.face_ids:
-        base = base.with_(face_ids={})  # ids would split vertices and break the targets
     times = _key_times(len(meshes), frame_time)
     rot = np.eye(3) if y_up else _Z_TO_Y
-    prim = _mesh_primitive(builder, base, y_up)
-    base_pos = (base.vertices * builder.scale) @ rot.T
+    prim, src = _mesh_primitive(builder, base, y_up)  # ids of frame 0 label all frames
+    pick = slice(None) if src is None else src
+    base_pos = (base.vertices[pick] * builder.scale) @ rot.T
+    with_normals = all(m.normals is not None for m in meshes)
+    if with_normals:
+        base_nrm = _unit_rows(np.asarray(base.normals, float)[pick] @ rot.T)
     targets = []
     for m in meshes[1:]:
-        delta = _float32("frame vertices", (m.vertices * builder.scale) @ rot.T - base_pos)
-        targets.append({"POSITION": builder.accessor(delta, target=ARRAY_BUFFER,
-                                                     bounds=True)})
+        delta = _float32("frame vertices",
+                         (m.vertices[pick] * builder.scale) @ rot.T - base_pos)
+        target = {"POSITION": builder.accessor(delta, target=ARRAY_BUFFER, bounds=True)}
+        if with_normals:  # normal displacements, so shading follows the shape
+            dn = _unit_rows(np.asarray(m.normals, float)[pick] @ rot.T) - base_nrm
+            target["NORMAL"] = builder.accessor(dn.astype(np.float32), target=ARRAY_BUFFER)
+        targets.append(target)
     prim.targets = targets
     k = len(targets)
     label = name or "frames"
