@@ -15,7 +15,7 @@ from biomorph.core.mesh import Mesh
 from biomorph.core.skeleton import JointSkeleton
 from biomorph.errors import BiomorphError, FormatError, InputError, ParameterError
 from biomorph.io.gltf import read_gltf_summary, write_gltf, write_mesh, write_mesh_animation
-from tests.gltf_validator import assert_valid_glb, validate_glb
+from tests.gltf_validator import assert_valid_glb, validate_glb, validate_many
 
 NAN3 = [np.nan] * 3
 DTYPES = {5126: np.float32, 5125: np.uint32, 5123: np.uint16, 5121: np.uint8}
@@ -458,6 +458,48 @@ def test_morph_frames_animation(tmp_path):
 def test_dispatch_from_biomorph_io(tmp_path):
     assert_valid_glb(bmio.write_mesh(tmp_path / "d.glb", leaf_mesh(0)))
     assert_valid_glb(bmio.write_gltf(tmp_path / "s.glb", skeleton()))
+
+
+# ----------------------------------------------------------------------------- random
+def test_random_skeletons_motions_and_meshes_validate(tmp_path):
+    """Random hierarchies (several roots, zero/tiny/huge offsets, random rest rotations,
+    End Sites), random non-normalised motions, random meshes with ids: all valid."""
+    paths = []
+    for seed in range(8):
+        rng = np.random.default_rng(seed)
+        n = int(rng.integers(1, 30))
+        parent = [-1] + [int(rng.integers(-1, i)) for i in range(1, n)]
+        off = rng.normal(size=(n, 3)) * rng.choice([0, 1, 1e-3, 100], size=(n, 1))
+        end = np.where(rng.random((n, 1)) < 0.3, rng.normal(size=(n, 3)), np.nan)
+        sk = JointSkeleton([f"j{i}" for i in range(n)], parent, off,
+                           rest_rotation=tf.quat_normalize(rng.normal(size=(n, 4))),
+                           end_site=end)
+        f = int(rng.integers(1, 40))
+        mo = SimpleNamespace(skeleton=sk, rotation=rng.normal(size=(f, n, 4)),
+                             root_position=rng.normal(size=(f, 3)),
+                             frame_time=float(rng.uniform(0.001, 1)))
+        path = write_gltf(tmp_path / f"sk{seed}.glb", mo, y_up=bool(seed % 2),
+                          bone_shape=("box", "octahedron", None)[seed % 3])
+        doc, blob = load(path)
+        world = node_world(doc, {i: trs(nd) for i, nd in enumerate(doc.nodes)})
+        ibm = accessor(doc, blob, doc.skins[0].inverseBindMatrices)
+        w = np.stack([world[j] for j in doc.skins[0].joints])
+        np.testing.assert_allclose(ibm @ w, np.broadcast_to(np.eye(4), w.shape),
+                                   atol=1e-4 * max(1.0, np.abs(w).max()))
+        paths.append(path)
+    for seed in range(6):
+        rng = np.random.default_rng(100 + seed)
+        nv, nf = int(rng.integers(3, 200)), int(rng.integers(1, 300))
+        m = Mesh(rng.normal(size=(nv, 3)) * 10 ** rng.uniform(-3, 3),
+                 rng.integers(0, nv, (nf, 3)),
+                 normals=rng.normal(size=(nv, 3)) * (rng.random((nv, 1)) > 0.1),
+                 uv=rng.random((nv, 2)), vertex_colors=rng.integers(0, 256, (nv, 4)),
+                 face_ids={"plant": rng.integers(0, 3, nf), "organ": rng.integers(-2, 10**5, nf)})
+        paths.append(write_gltf(tmp_path / f"m{seed}.glb", [m] * (1 + seed % 3),
+                                y_up=bool(seed % 2)))
+    for path, report in zip(paths, validate_many(paths), strict=True):
+        issues = report["issues"]
+        assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, (path, issues)
 
 
 # ----------------------------------------------------------------------------- errors
