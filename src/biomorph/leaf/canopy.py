@@ -218,12 +218,12 @@ def batch_from_field(fld: Field, s: Array, twist: bool = True, undulation: bool 
                      fld.rank)
 
 
-def lod_samples(shape: LeafShape, triangles: int, age: float = 0.8) -> Array:
+def lod_samples(shape: LeafShape, triangles: int, age: float = 0.8, reduction=None) -> Array:
     """Sample positions (visible fractions) chosen by the reduction for a leaf of ``shape``
     at ``age`` with about ``triangles`` triangles (strips of 2, closed tip 1)."""
     from biomorph.leaf.reduction import reduce_leaf
 
-    red = reduce_leaf(shape, 200, age=age)
+    red = reduction or reduce_leaf(shape, 200, age=age)
     triangles = max(int(triangles), red.min_triangles)
     kept = red.kept(red.removed_for_budget(min(triangles, red.full_triangles)))
     return red.s[kept]

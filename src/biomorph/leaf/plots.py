@@ -36,18 +36,26 @@ def time_vs_triangles(shape, budgets: Sequence[int], leaves: int = 500, repeat: 
                       seed: int = 0) -> np.ndarray:
     """Seconds to mesh a ``leaves``-leaf field at each per-leaf triangle budget and compute
     its per-triangle light interception proxy (projected area × cos of the sun angle)."""
-    from biomorph.leaf.canopy import FieldSpec, PlantSpec, build_field, field_mesh
+    from biomorph.leaf.canopy import (
+        FieldSpec,
+        PlantSpec,
+        build_field,
+        field_mesh,
+        lod_samples,
+    )
 
     spec = FieldSpec(plants=max(leaves // 6, 1), rows=max(leaves // 60, 1),
                      plant=PlantSpec(preset=shape.name if shape.name in
                                      ("wheat", "maize", "grass") else "wheat", leaves=6, age=1.0))
     fld = build_field(spec, seed=seed)
+    red = None
     out = []
     for b in budgets:
         best = np.inf
+        s = lod_samples(fld.shape, int(b), reduction=red)
         for _ in range(repeat):
             t0 = time.perf_counter()
-            m = field_mesh(fld, triangles_per_leaf=int(b), stems=False)
+            m = field_mesh(fld, triangles_per_leaf=int(b), stems=False, s=s)
             n = m.face_normals_unnormalised()
             _ = np.abs(n[:, 2]).sum() * 0.5           # horizontal projected area
             best = min(best, time.perf_counter() - t0)
