@@ -72,7 +72,7 @@ __all__ = [
     "LivnyResult", "skeletonize_graph", "find_roots", "neighbour_graph", "bridge_components",
     "shortest_path_forest", "contract", "importance_weights", "orientation_field",
     "refine_positions", "solve_tree_system", "allometric_radii", "skeleton_distance",
-    "estimate_spacing", "densify",
+    "estimate_spacing", "densify", "extend_tips",
 ]
 
 
@@ -247,42 +247,57 @@ def bridge_components(xyz: NDArray[np.float64], graph: sparse.csr_matrix,
     if n0 <= 1:
         return graph, n0
     tree = tree or cKDTree(xyz)
-    add_r, add_c = [], []
+    add_r: list[int] = []
+    add_c: list[int] = []
     ncomp, cur = n0, lab
     for _ in range(max_rounds):
         if ncomp <= 1:
             break
         sizes = np.bincount(cur, minlength=ncomp)
         big = int(np.argmax(sizes))
-        order = np.argsort(cur, kind="stable")
-        starts = np.concatenate([[0], np.cumsum(sizes)])
-        best_r, best_c = [], []
-        for comp in range(ncomp):
-            if comp == big:
-                continue
-            members = order[starts[comp]:starts[comp + 1]]
-            found = None
-            kk = 8
-            while kk <= min(256, n):
-                d, nb = tree.query(xyz[members], k=min(kk, n))
-                other = cur[np.minimum(nb, n - 1)] != comp
-                other &= nb < n
-                if other.any():
-                    dd = np.where(other, d, np.inf)
-                    flat = int(np.argmin(dd))
-                    i, j = divmod(flat, dd.shape[1])
-                    found = (members[i], nb[i, j])
-                    break
-                kk *= 4
-            if found is None:  # exact: nearest point outside the component
-                outside = np.flatnonzero(cur != comp)
-                d, j = cKDTree(xyz[outside]).query(xyz[members])
-                i = int(np.argmin(d))
-                found = (members[i], outside[j[i]])
-            best_r.append(found[0])
-            best_c.append(found[1])
-        add_r.extend(best_r)
-        add_c.extend(best_c)
+        best_d = np.full(ncomp, np.inf)
+        best_r = np.full(ncomp, -1, dtype=np.int64)
+        best_c = np.full(ncomp, -1, dtype=np.int64)
+        todo = np.flatnonzero(cur != big)          # points of every component but the largest
+        kk = 8
+        while todo.size and kk <= 256:
+            kq = min(kk, n)
+            d, nb = tree.query(xyz[todo], k=kq, workers=-1)
+            d = d.reshape(todo.size, kq)
+            nb = nb.reshape(todo.size, kq)
+            valid = nb < n
+            other = valid & (cur[np.minimum(nb, n - 1)] != cur[todo][:, None])
+            has = other.any(axis=1)
+            first = np.argmax(other, axis=1)
+            rows = np.flatnonzero(has)
+            dd = d[rows, first[rows]]
+            comp = cur[todo[rows]]
+            o = np.lexsort((dd, comp))              # per component, nearest first
+            comp_o = comp[o]
+            lead = np.ones(o.size, dtype=bool)
+            lead[1:] = comp_o[1:] != comp_o[:-1]
+            sel = o[lead]
+            cs = comp[sel]
+            better = dd[sel] < best_d[cs]
+            cs, sel = cs[better], sel[better]
+            best_d[cs] = dd[sel]
+            best_r[cs] = todo[rows[sel]]
+            best_c[cs] = nb[rows[sel], first[rows[sel]]]
+            # components that found nothing yet: retry their points with a larger k
+            missing = np.zeros(ncomp, dtype=bool)
+            missing[np.flatnonzero(best_r < 0)] = True
+            missing[big] = False
+            todo = todo[missing[cur[todo]]]
+            kk *= 4
+        for comp in np.flatnonzero((best_r < 0) & (np.arange(ncomp) != big)):
+            members = np.flatnonzero(cur == comp)   # exact fallback, rare
+            outside = np.flatnonzero(cur != comp)
+            d, j = cKDTree(xyz[outside]).query(xyz[members])
+            i = int(np.argmin(d))
+            best_r[comp], best_c[comp] = members[i], outside[j[i]]
+        found = best_r >= 0
+        add_r.extend(best_r[found].tolist())
+        add_c.extend(best_c[found].tolist())
         r = np.asarray(add_r)
         c = np.asarray(add_c)
         extra = sparse.coo_matrix((np.ones(r.size), (r, c)), shape=(n, n))
@@ -368,8 +383,12 @@ def _voxel_level_edges(xyz, level, tree, ok, cell):
     return np.concatenate(rows), np.concatenate(cols)
 
 
+LEVEL_CELL = 1.5  #: voxel size of the level-set connectivity, in node spacings
+
+
 def contract(xyz: NDArray[np.float64], graph: sparse.csr_matrix, path_length: NDArray,
-             point_tree: NDArray[np.int64], spacing: float) -> Contraction:
+             point_tree: NDArray[np.int64], spacing: float,
+             cell: float | None = None) -> Contraction:
     """Contract points into geodesic level-set pieces of width ``spacing`` (see module doc).
 
     ``path_length`` is the distance along the shortest-path forest from the root set;
@@ -395,7 +414,8 @@ def contract(xyz: NDArray[np.float64], graph: sparse.csr_matrix, path_length: ND
         r = np.concatenate([r, lvl0])
         c = np.concatenate([c, first[t0]])
     if spacing > 0:
-        vr, vc = _voxel_level_edges(xyz, level, point_tree, ok, spacing)
+        vr, vc = _voxel_level_edges(xyz, level, point_tree, ok,
+                                    cell if cell else LEVEL_CELL * spacing)
         r = np.concatenate([r, vr])
         c = np.concatenate([c, vc])
     a = sparse.csr_matrix((np.ones(r.size, dtype=np.int8), (r, c)), shape=(n, n))
@@ -698,6 +718,49 @@ def densify(graph: BranchGraph, spacing: float) -> BranchGraph:
                        depth=copy(graph.depth), tree_id=copy(graph.tree_id))
 
 
+def extend_tips(graph: BranchGraph, xyz: NDArray[np.float64], reach: float,
+                kdtree: cKDTree | None = None, quantile: float = 0.9) -> BranchGraph:
+    """Move every tip forward along its last edge to the end of its points.
+
+    Contracted vertices sit at the centroid of their level piece, so every tip ends about
+    half a node spacing (or more, after cleanup) short of the branch's last points. For each
+    tip, points within ``reach`` (m) that lie ahead of it (positive projection on the last
+    edge, lateral offset < ``reach / 2``) give the new tip at the ``quantile`` of their
+    projections. Returns a new graph; tips without points ahead stay.
+    """
+    tips = graph.leaves[graph.parent[graph.leaves] >= 0]
+    if tips.size == 0 or reach <= 0:
+        return graph
+    kd = kdtree or cKDTree(xyz)
+    pos = graph.position
+    d = pos[tips] - pos[graph.parent[tips]]
+    ln = np.linalg.norm(d, axis=1)
+    ok = ln > 0
+    tips, d = tips[ok], d[ok] / ln[ok, None]
+    lists = kd.query_ball_point(pos[tips], reach, return_sorted=False)
+    cnt = np.fromiter((len(x) for x in lists), dtype=np.int64, count=tips.size)
+    idx = np.fromiter((i for x in lists for i in x), dtype=np.int64, count=int(cnt.sum()))
+    owner = np.repeat(np.arange(tips.size), cnt)
+    rel = xyz[idx] - pos[tips][owner]
+    t = np.einsum("ij,ij->i", rel, d[owner])
+    lat = np.linalg.norm(rel - t[:, None] * d[owner], axis=1)
+    keep = (t > 0) & (lat < 0.5 * reach)
+    owner, t = owner[keep], t[keep]
+    if owner.size == 0:
+        return graph
+    o = np.lexsort((t, owner))
+    owner, t = owner[o], t[o]
+    counts = np.bincount(owner, minlength=tips.size)
+    starts = np.concatenate([[0], np.cumsum(counts)])[:-1]
+    has = counts > 0
+    q = starts[has] + np.floor(quantile * (counts[has] - 1)).astype(np.int64)
+    step = np.zeros(tips.size)
+    step[has] = t[q]
+    newpos = pos.copy()
+    newpos[tips] += step[:, None] * d
+    return graph.with_(position=newpos)
+
+
 # ----------------------------------------------------------------------------- driver
 
 @dataclass
@@ -734,8 +797,8 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     n_trees : number of trees, or ``None`` to find them by density clustering.
     k : neighbours per point in the neighbour graph (ignored if ``search_radius`` given).
     search_radius : radius-search neighbour graph instead of kNN (metres).
-    node_spacing : contraction level width (metres); default 4× the median point spacing,
-        clipped to [0.5 %, 2 %] of the cloud height; 0 keeps every point as a vertex.
+    node_spacing : contraction level width (metres); default 3× the median point spacing,
+        clipped to [0.3 %, 2 %] of the cloud height; 0 keeps every point as a vertex.
     max_iter : cap of the re-weighting iterations (step vi); 1 = no re-weighting.
     reweight : strength of the step-vi weight change (0..1).
     height : height above ground per point (from ground removal), for the root slice.
@@ -766,7 +829,7 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     spacing_pts = estimate_spacing(xyz)
     extent = float(np.ptp(xyz[:, 2]))
     if node_spacing is None:
-        node_spacing = float(np.clip(4 * spacing_pts, 0.005 * extent, 0.02 * extent))
+        node_spacing = float(np.clip(3 * spacing_pts, 0.003 * extent, 0.02 * extent))
         node_spacing = max(node_spacing, 1e-4)
     roots, root_tree = find_roots(xyz, n_trees=n_trees, height=height, root_slice=root_slice,
                                   min_tree_distance=min_tree_distance,

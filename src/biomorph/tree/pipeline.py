@@ -206,6 +206,7 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
             graph = tclean.prune_small_trees(graph, 2 * spacing)
             params.update(cleanup=True, radius_ratio=radius_ratio, length_factor=length_factor,
                           overlap=overlap, min_branch_length=mbl)
+        graph = livny.extend_tips(graph, xyz, 2.0 * spacing)
         graph = livny.densify(graph, spacing)
         timings["t4"] = time.perf_counter() - t0
         timings["cleanup"] = timings["t4"]
