@@ -121,14 +121,14 @@ def _add_pillar_apps() -> None:
         try:
             mod = importlib.import_module(f"biomorph.{pillar}.cli")
         except ModuleNotFoundError as exc:
-            if exc.name != f"biomorph.{pillar}.cli":
+            if exc.name not in (f"biomorph.{pillar}", f"biomorph.{pillar}.cli"):
                 raise
             continue
         app.add_typer(mod.app, name=pillar)
     try:
         studio = importlib.import_module("biomorph.studio.cli")
     except ModuleNotFoundError as exc:
-        if exc.name != "biomorph.studio.cli":
+        if exc.name not in ("biomorph.studio", "biomorph.studio.cli"):
             raise
     else:
         studio.register(app)

@@ -27,7 +27,7 @@ def run_demo(out_dir: str | Path, only: Sequence[str] | None = None) -> Path:
         try:
             mod = importlib.import_module(f"biomorph.{pillar}.demo")
         except ModuleNotFoundError as exc:
-            if exc.name != f"biomorph.{pillar}.demo":
+            if exc.name not in (f"biomorph.{pillar}", f"biomorph.{pillar}.demo"):
                 raise
             continue
         t0 = time.perf_counter()
