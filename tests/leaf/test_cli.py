@@ -92,3 +92,54 @@ def test_reduce_curve(tmp_path, capsys) -> None:
     s = json.loads(capsys.readouterr().out)
     assert out.read_bytes()[:4] == b"\x89PNG"
     assert len(s["time_s"]) == len(s["budgets"]) and s["midrib_error"][-1] > 0
+
+
+@pytest.mark.parametrize("midrib,widths,match", [
+    ("x,y\n0,0\n", None, "at least 2"),
+    ("x,y\n0,0\n1,5\n1,5\n3,8\n", None, "duplicates"),
+    ("x,y\n0,0\n1,5\n3,8\n", "s,r\n0,1\n0.5,-0.2\n1,0\n", "negative"),
+    ("x,y\n0,0\n1,5\n3,8\n", "s,r\n0,1\n0.5,1\n0.5,0.8\n1,0\n", "increase strictly"),
+    ("x,z\n0,0\n1,5\n", None, "expected columns x and y"),
+])
+def test_fit_from_digitised_files_bad_input(tmp_path, capsys, midrib, widths, match) -> None:
+    m = tmp_path / "mid.csv"
+    m.write_text(midrib)
+    args = ["leaf", "mesh", "--midrib", str(m)]
+    if widths:
+        w = tmp_path / "w.csv"
+        w.write_text(widths)
+        args += ["--widths", str(w)]
+    out = tmp_path / "leaf.obj"
+    assert run([*args, "-o", str(out)]) == 2
+    assert match in capsys.readouterr().err.replace("\n", " ")
+    assert not out.exists()
+
+
+def test_fit_from_digitised_file(tmp_path, capsys) -> None:
+    m = tmp_path / "mid.csv"
+    m.write_text("x,y\n0,0\n2,10\n6,18\n12,22\n18,21\n")
+    w = tmp_path / "w.csv"
+    w.write_text("s,r\n0,1.0\n10,1.6\n20,1.2\n32,0\n")
+    out = tmp_path / "leaf.ply"
+    assert run(["leaf", "mesh", "--midrib", str(m), "--widths", str(w), "--n-s", "300",
+                "--undulation", "0", "--twist", "0",
+                "-o", str(out), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["width_m"] == pytest.approx(0.016)
+    assert s["area_m2"] == pytest.approx(s["analytic_area_m2"], rel=5e-3)
+
+
+def test_glb_outputs_pass_khronos_validator(tmp_path) -> None:
+    from tests.gltf_validator import validate_many, validator_missing
+
+    reason = validator_missing()
+    if reason:
+        pytest.skip(reason)
+    files = [tmp_path / n for n in ("leaf.glb", "grow.glb", "plant.glb", "field.glb")]
+    assert run(["leaf", "mesh", "--preset", "maize", "-o", str(files[0])]) == 0
+    assert run(["leaf", "grow", "--frames", "4", "-o", str(files[1])]) == 0
+    assert run(["leaf", "grow", "--plant", "--leaves", "3", "--frames", "3", "-o",
+                str(files[2])]) == 0
+    assert run(["leaf", "canopy", "--plants", "6", "--rows", "2", "-o", str(files[3])]) == 0
+    for f, rep in zip(files, validate_many(files), strict=True):
+        assert rep["issues"]["numErrors"] == 0, (f, rep["issues"]["messages"][:5])

@@ -42,12 +42,50 @@ def write_leaf_mesh(path: Path, mesh) -> Path:
     return io.write_mesh(path, mesh)
 
 
+def read_points_csv(path: Path, columns: tuple[str, str]):
+    """Two named columns of a CSV file (header line required) as float arrays."""
+    import csv
+
+    import numpy as np
+
+    from biomorph.errors import FormatError
+
+    if not path.is_file():
+        raise FormatError(path, "file does not exist")
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        names = reader.fieldnames or []
+        if any(c not in names for c in columns):
+            raise FormatError(path, f"expected columns {' and '.join(columns)}; found "
+                                    f"{', '.join(names) or 'none'}", line=1)
+        vals = []
+        for i, row in enumerate(reader, start=2):
+            try:
+                vals.append([float(row[c]) for c in columns])
+            except (TypeError, ValueError):
+                raise FormatError(path, f"non-numeric value in {dict(row)}", line=i) from None
+    arr = np.array(vals, float).reshape(-1, 2)
+    return arr[:, 0], arr[:, 1]
+
+
 def _shape(preset: str, length: float | None, width: float | None, twist: float | None,
-           undulation: float | None):
+           undulation: float | None, midrib: Path | None = None, widths: Path | None = None):
     import numpy as np
 
     from biomorph.leaf.shape import LeafShape
 
+    base = LeafShape.from_preset(preset)
+    if midrib is not None:
+        x, y = read_points_csv(midrib, ("x", "y"))
+        if widths is not None:
+            s, r = read_points_csv(widths, ("s", "r"))
+        else:
+            s, r = base.s_r, base.r
+        fitted = LeafShape.from_points(x, y, s, r, width=None if widths else base.width,
+                                       name=midrib.stem)
+        base = base.with_(s=fitted.s, phi=fitted.phi, s_r=fitted.s_r, r=fitted.r,
+                          length=fitted.length, width=fitted.width, collection=None,
+                          name=fitted.name)
     changes: dict = {}
     if length is not None:
         changes["length"] = length
@@ -57,7 +95,7 @@ def _shape(preset: str, length: float | None, width: float | None, twist: float 
         changes["twist"] = float(np.radians(twist))
     if undulation is not None:
         changes["undulation"] = undulation
-    return LeafShape.from_preset(preset, **changes)
+    return base.with_(**changes) if changes else base
 
 
 @app.command()
@@ -71,8 +109,12 @@ def mesh(output: Annotated[Path, typer.Option("-o", "--output", help="leaf.obj|.
          undulation: Annotated[float | None, typer.Option(
              help="Margin undulation amplitude (m).")] = None,
          n_s: Annotated[int, typer.Option("--n-s", help="Samples along the midrib.")] = 60,
+         midrib: Annotated[Path | None, typer.Option(
+             help="Fit to a digitised midrib: CSV with columns x,y (cm).")] = None,
+         widths: Annotated[Path | None, typer.Option(
+             help="Width profile for --midrib: CSV with columns s,r (cm).")] = None,
          as_json: Json = False) -> None:
-    """Mesh one leaf.
+    """Mesh one leaf (a preset, or fitted to your digitised midrib with --midrib).
 
     Example: biomorph leaf mesh --preset wheat --age 0.7 --triangles 50 -o leaf.obj
     """
@@ -82,7 +124,9 @@ def mesh(output: Annotated[Path, typer.Option("-o", "--output", help="leaf.obj|.
     _check_ext(output, MESH_EXT)
     if age is not None:
         check_age(age)
-    shape = _shape(preset, length, width, twist, undulation)
+    if widths is not None and midrib is None:
+        raise ParameterError("--widths needs --midrib (the width profile of your leaf)")
+    shape = _shape(preset, length, width, twist, undulation, midrib, widths)
     m = shape.mesh(age=age, triangles=triangles, n_s=n_s)
     write_leaf_mesh(output, m)
     summary = {"file": str(output), "preset": preset, "triangles": m.n_faces,
@@ -104,8 +148,11 @@ def grow(output: Annotated[Path, typer.Option("-o", "--output", help="DIR or FIL
          width_rate: Annotated[float, typer.Option(help="d(width factor)/d(age).")] = 0.0,
          bend_rate: Annotated[float, typer.Option(help="dθ/d(age) (degrees).")] = 0.0,
          fmt: Annotated[str, typer.Option("--format", help="Frame format in a DIR.")] = "obj",
+         plant: Annotated[bool, typer.Option("--plant", help="Grow a whole plant.")] = False,
+         leaves: Annotated[int, typer.Option(help="Leaves of the --plant.")] = 8,
+         seed: Annotated[int, typer.Option(help="Random seed of the --plant.")] = 0,
          as_json: Json = False) -> None:
-    """Grow a leaf: a glTF with one morph target per frame, or a folder of frames.
+    """Grow a leaf (or a plant): a glTF with one morph target per frame, or a folder.
 
     Example: biomorph leaf grow --preset wheat --frames 24 -o grow.glb
     """
@@ -127,10 +174,16 @@ def grow(output: Annotated[Path, typer.Option("-o", "--output", help="DIR or FIL
     if not is_glb:
         _check_ext(Path("x." + fmt), MESH_EXT)
     shape = LeafShape.from_preset(preset)
-    rates = GrowthRates(age_rate=(age_end - age_start) / duration, width_rate=width_rate,
-                        bend_rate=float(np.radians(bend_rate)))
-    tl = LeafTimeline(shape, rates, duration, initial=state_at_age(shape, age_start))
-    meshes = tl.frames(frames)
+    if plant:
+        from biomorph.leaf.canopy import PlantSpec, plant_growth_frames
+
+        meshes = plant_growth_frames(PlantSpec(preset=preset, leaves=leaves), frames, seed=seed,
+                                     age_start=max(age_start, 0.01), age_end=age_end)
+    else:
+        rates = GrowthRates(age_rate=(age_end - age_start) / duration, width_rate=width_rate,
+                            bend_rate=float(np.radians(bend_rate)))
+        tl = LeafTimeline(shape, rates, duration, initial=state_at_age(shape, age_start))
+        meshes = tl.frames(frames)
     areas = [m.area() for m in meshes]
     if is_glb:
         from biomorph.io.gltf import write_gltf
