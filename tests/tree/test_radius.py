@@ -1,0 +1,76 @@
+"""Per-node radius by RANSAC circle fits, smoothing and re-centring (seed 001 §5.1)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from biomorph.core.graph import BranchGraph
+from biomorph.tree import radius as rd
+from tests.tree.test_livny import cylinder_points
+
+
+def _chain(a, b, n):
+    t = np.linspace(0, 1, n)[:, None]
+    pos = np.asarray(a, float) + t * (np.subtract(b, a))
+    return BranchGraph(pos, np.arange(-1, n - 1))
+
+
+def test_node_axes_of_a_fork_and_a_chain():
+    pos = np.array([[0, 0, 0], [0, 0, 1.0], [1, 0, 2], [-1, 0, 2]])
+    g = BranchGraph(pos, np.array([-1, 0, 1, 1]))
+    ax = rd.node_axes(g)
+    assert np.allclose(ax[0], [0, 0, 1]) and np.allclose(ax[1], [0, 0, 1])
+    assert np.allclose(ax[2], np.array([1, 0, 1]) / np.sqrt(2))
+
+
+def test_fit_recovers_radius_with_noise_and_outliers():
+    rng = np.random.default_rng(0)
+    stem = cylinder_points((0, 0, 0), (0, 0, 2), 0.12, 6000, rng, noise=0.002)
+    clutter = rng.uniform([-0.3, -0.3, 0], [0.3, 0.3, 2], (600, 3))   # 10 % outliers
+    pts = np.vstack([stem, clutter])
+    g = _chain((0, 0, 0), (0, 0, 2), 21)
+    out, fit = rd.fit_radii(g, pts)
+    inner = slice(2, -2)
+    assert np.median(out.radius[inner]) == pytest.approx(0.12, rel=0.03)
+    assert fit.ok[inner].mean() > 0.8
+
+
+def test_recentring_moves_an_off_centre_skeleton_onto_the_axis():
+    rng = np.random.default_rng(1)
+    pts = cylinder_points((0, 0, 0), (0, 0, 2), 0.1, 5000, rng, noise=0.001)
+    g = _chain((0.06, 0, 0), (0.06, 0, 2), 21)          # on the stem surface side
+    out, _ = rd.fit_radii(g, pts, recentre=True)
+    off = np.linalg.norm(out.position[2:-2, :2], axis=1)
+    assert np.median(off) < 0.01
+    out2, _ = rd.fit_radii(g, pts, recentre=False)
+    assert np.allclose(out2.position, g.position)
+
+
+def test_radii_taper_and_never_exceed_the_parent_stem():
+    rng = np.random.default_rng(2)
+    stem = cylinder_points((0, 0, 0), (0, 0, 2), 0.1, 5000, rng)
+    branch = cylinder_points((0, 0, 1), (1, 0, 1.6), 0.03, 1500, rng)
+    pts = np.vstack([stem, branch])
+    s = np.linspace(0, 1, 11)[:, None]
+    pos = np.vstack([s * [0, 0, 2], [0, 0, 1] + s[1:] * [1, 0, 0.6]])
+    parent = np.concatenate([np.arange(-1, 10), [5], np.arange(11, 20)])
+    g = BranchGraph(pos, parent)
+    out, _ = rd.fit_radii(g, pts)
+    assert np.median(out.radius[1:9]) == pytest.approx(0.1, rel=0.1)
+    assert np.median(out.radius[12:19]) == pytest.approx(0.03, rel=0.25)
+    assert out.radius[11:].max() <= 1.1 * out.radius[:6].min() + 1e-12
+
+
+def test_smoothing_fills_unfitted_nodes_from_neighbours():
+    g = _chain((0, 0, 0), (0, 0, 1), 5)
+    ok = np.array([True, False, False, False, True])
+    vals = np.array([1.0, 0, 0, 0, 1.0])
+    sm = rd.smooth_log_ratio(g, vals, ok, strength=1.0)
+    assert np.allclose(sm, 1.0, atol=1e-6)
+
+
+def test_cap_down_limits_growth_toward_the_tips():
+    g = _chain((0, 0, 0), (0, 0, 1), 5)
+    r = rd.cap_down(g, np.array([0.1, 0.05, 0.5, 0.04, 0.2]), slack=1.0)
+    assert np.allclose(r, [0.1, 0.05, 0.05, 0.04, 0.04])
