@@ -332,6 +332,39 @@ def concatenate(motions: Sequence[Motion]) -> Motion:
     return Motion(first.skeleton, rot, pos, first.frame_time, jt, first.meta)
 
 
+def dfs_preorder(parent: ArrayLike) -> NDArray[np.int64]:
+    """Depth-first pre-order of a joint hierarchy (children in index order) — the order a
+    BVH file lists its joints in."""
+    par = np.asarray(parent, dtype=np.int64)
+    kids: list[list[int]] = [[] for _ in range(par.size)]
+    roots = []
+    for j, p in enumerate(par):
+        (kids[int(p)] if p >= 0 else roots).append(j)
+    out: list[int] = []
+    stack = roots[::-1]
+    while stack:
+        j = stack.pop()
+        out.append(j)
+        stack.extend(kids[j][::-1])
+    return np.asarray(out, dtype=np.int64)
+
+
+def reorder_joints(skeleton: JointSkeleton, order: ArrayLike) -> tuple[JointSkeleton,
+                                                                          NDArray[np.int64]]:
+    """The skeleton with joints permuted to ``order`` (new index -> old index), parents
+    remapped; returns it and ``order`` for permuting per-joint arrays (``arr[:, order]``)."""
+    order = np.asarray(order, dtype=np.int64)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(order.size)
+    par = skeleton.parent[order]
+    par = np.where(par >= 0, inv[np.maximum(par, 0)], -1)
+    sk = JointSkeleton([skeleton.names[i] for i in order], par, skeleton.offset[order],
+                       skeleton.rest_rotation[order], skeleton.limits[order],
+                       None if skeleton.channels is None else
+                       [skeleton.channels[i] for i in order], skeleton.end_site[order])
+    return sk, order
+
+
 def guess_up_axis(motion: Motion) -> str:
     """``"y"`` or ``"z"``: the axis along which the root stays highest above the feet.
 
@@ -358,5 +391,6 @@ def preview_positions(motion: Motion, frame: int) -> tuple[Array, Array]:
     return w[:, :3, 3], motion.skeleton.bone_segments(w)
 
 
-__all__ = ["Motion", "concatenate", "check_range", "same_skeleton", "guess_up_axis",
-           "preview_positions", "sample_arrays", "ROTATION_CHANNELS", "POSITION_CHANNELS"]
+__all__ = ["Motion", "concatenate", "dfs_preorder", "reorder_joints", "check_range",
+           "same_skeleton", "guess_up_axis", "preview_positions", "sample_arrays",
+           "ROTATION_CHANNELS", "POSITION_CHANNELS"]

@@ -7,7 +7,7 @@ import numpy as np
 
 from biomorph.core import transforms as tf
 from biomorph.core.skeleton import JointSkeleton
-from biomorph.motion.motion import Motion
+from biomorph.motion.motion import Motion, dfs_preorder, reorder_joints
 
 # name, parent, offset (m)
 _BODY = [
@@ -63,7 +63,8 @@ def humanoid(n_joints: int | None = None) -> JointSkeleton:
         if name in ("Head", "LeftHand", "RightHand", "LeftToeBase", "RightToeBase") and \
                 i not in parent:
             end[i] = {"Head": (0, 0.15, 0)}.get(name, (0, 0, 0.05))
-    return JointSkeleton(names, parent, offset, channels=channels, end_site=end)
+    sk = JointSkeleton(names, parent, offset, channels=channels, end_site=end)
+    return reorder_joints(sk, dfs_preorder(sk.parent))[0]  # BVH (depth-first) joint order
 
 
 def walk(n_frames: int = 240, fps: float = 60.0, n_joints: int | None = None,
@@ -98,8 +99,9 @@ def walk(n_frames: int = 240, fps: float = 60.0, n_joints: int | None = None,
     e[:, idx["Spine"], 2] = 6 * np.sin(ph)  # torso twist
     e[:, idx["Hips"], 2] = -4 * np.sin(ph) + turn_deg_s * t
     e[:, idx["Neck"], 1] = 3 * np.sin(2 * ph)
-    for j in range(21, n):
-        e[:, j, 0] = 10 + 8 * np.sin(ph + 0.3 * j)
+    for j, name in enumerate(sk.names):
+        if "Finger" in name:
+            e[:, j, 0] = 10 + 8 * np.sin(ph + 0.3 * j)
     if noise_deg > 0:
         e += np.random.default_rng(seed).normal(0, noise_deg, e.shape)
     q = tf.euler_to_quat(e, "ZXY", degrees=True)
