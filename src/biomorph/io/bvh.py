@@ -448,6 +448,12 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None):
         raise FormatError(path, f"MOTION value {tok!r} is not a number (frame "
                                 f"{count // max(n_ch, 1)}, channel {count % max(n_ch, 1)})",
                           line=_line_of(raw, err))
+    last_line = _line_of(raw, len(raw.rstrip()))
+    if (status == 0 and count < n_frames * n_ch and bad_line >= 0
+            and _line_of(raw, bad_line) == last_line):
+        raise FormatError(path, f"file ends inside frame {count // n_ch} (its line holds "
+                                f"{bad_count} of {n_ch} values); 'Frames: {n_frames}' announces "
+                                f"{n_frames} frames (truncated file?)", line=last_line)
     if bad_line >= 0 and n_ch > 0:
         ln = _line_of(raw, bad_line)
         raise FormatError(path, f"frame line holds {bad_count} values; expected {n_ch} "
