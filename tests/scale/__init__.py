@@ -25,3 +25,12 @@ def slow(seed: int) -> int:
     """Sleeps half a second (to be interrupted)."""
     time.sleep(0.5)
     return seed
+
+
+def die_on_two(seed: int) -> int:
+    """Kills its worker process for item 2 (a segfault stand-in); returns the seed otherwise."""
+    if seed == 2:
+        import os
+
+        os._exit(13)
+    return seed

@@ -153,24 +153,61 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
     cluster = None
     client = None
     try:
-        if scheduler is not None:
-            try:
-                client = Client(scheduler, timeout="20s")
-            except OSError as exc:
-                raise BiomorphError(f"cannot reach the dask scheduler at {scheduler!r} ({exc}); "
-                                    "expected an address like tcp://host:8786") from None
-        else:
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=":0", silence_logs=logging.ERROR)
-            client = Client(cluster)
+        # Ctrl-C while the cluster starts would orphan half-started worker processes:
+        # hold it until start-up is complete, then shut down cleanly below
+        with _held_interrupt() as interrupted:
+            if scheduler is not None:
+                try:
+                    client = Client(scheduler, timeout="20s")
+                except OSError as exc:
+                    raise BiomorphError(f"cannot reach the dask scheduler at {scheduler!r} "
+                                        f"({exc}); expected an address like tcp://host:8786"
+                                        ) from None
+            else:
+                try:
+                    cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                           processes=True, dashboard_address=":0",
+                                           silence_logs=logging.ERROR)
+                except (RuntimeError, OSError) as exc:
+                    raise BiomorphError(
+                        f"could not start a dask LocalCluster with {workers} workers ({exc}); "
+                        "a script that calls run_batch must do so under "
+                        "`if __name__ == '__main__':` (workers are spawned processes), "
+                        "or use workers=0") from None
+                client = Client(cluster)
+        if interrupted():
+            raise KeyboardInterrupt
         yield client
     finally:
-        if client is not None:
-            with contextlib.suppress(Exception):
-                client.close()
-        if cluster is not None:
-            with contextlib.suppress(Exception):
-                cluster.close()
+        with _held_interrupt() as interrupted:
+            if client is not None:
+                with contextlib.suppress(Exception):
+                    client.close()
+            if cluster is not None:
+                with contextlib.suppress(Exception):
+                    cluster.close()
+        if interrupted():
+            raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _held_interrupt() -> Iterator[Callable[[], bool]]:
+    """Defer SIGINT (Ctrl-C) for the duration of the block; yields ``interrupted()``.
+
+    Only possible in the main thread; elsewhere the block runs unprotected.
+    """
+    import signal
+    import threading
+
+    hits: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: hits.append(signum))
+    try:
+        yield lambda: bool(hits)
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def run_batch(items: Sequence[T], func: Callable[[T], R], *, out_dir: str | os.PathLike[str] |
@@ -285,7 +322,11 @@ def _run_distributed(client: Any, func: Callable[[Any], Any], items: list[Any],
             try:
                 outcome = fut.result()
             except Exception as exc:  # the worker died or the task was lost
-                outcome = (False, f"{type(exc).__name__}: {exc}", 0.0, "")
+                name = type(exc).__name__
+                msg = (f"{name}: the worker process died while running this item "
+                       "(crash, os._exit or out of memory); see the dask worker log"
+                       if name == "KilledWorker" else f"{name}: {exc}")
+                outcome = (False, msg, 0.0, "")
             record(i, outcome)
             advance()
             fut.release()
