@@ -116,8 +116,15 @@ class Studio:
 
     def expect_text(self, text: str, timeout: float = 10.0) -> None:
         """Wait until ``text`` is visible somewhere in the page."""
-        self.page.get_by_text(text, exact=False).first.wait_for(state="visible",
-                                                                 timeout=timeout * 1000)
+        loc = self.page.get_by_text(text, exact=False)
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if any(el.is_visible() for el in loc.all()):
+                return
+            self.page.wait_for_timeout(100)
+        found = [(el.is_visible(), el.inner_text()[:80]) for el in loc.all()]
+        pytest.fail(f"{text!r} not visible in the page after {timeout:.0f} s; "
+                    f"matches (visible, text): {found}")
 
     # -------------------------------------------------------------- checks
     def canvas_png(self) -> bytes:

@@ -67,6 +67,7 @@ class StudioApp:
         self._frames: dict[str, Any] = {}
         self._upload_owner: dict[str, StudioTab] = {}
         self._view = None
+        self._focus: dict[str, tuple[Any, float]] = {}
         self._stopped = threading.Event()
 
     # ------------------------------------------------------------------ lifecycle
@@ -154,12 +155,45 @@ class StudioApp:
             except Exception:  # noqa: BLE001, S112 - a client that just left
                 continue
 
+    def focus(self, key: str, centre: Any, size: float, force: bool = False) -> None:
+        """Remember where tab ``key``'s content is (world frame, Z up) and point the cameras
+        at it if that tab is shown and the extent changed a lot (or ``force``)."""
+        import numpy as np
+
+        centre = np.asarray(centre, dtype=float).reshape(3)
+        size = float(max(size, 1e-3))
+        old = self._focus.get(key)
+        self._focus[key] = (centre, size)
+        changed = old is None or not (0.5 < size / old[1] < 2.0) or \
+            float(np.linalg.norm(centre - old[0])) > 0.5 * size
+        if (changed or force) and self._frames.get(key) is not None and \
+                self._frames[key].visible:
+            self._aim(centre, size)
+
+    def _aim(self, centre: Any, size: float) -> None:
+        import numpy as np
+
+        eye = centre + np.array([0.9, -1.3, 0.7]) * size
+        self.server.initial_camera.look_at = tuple(centre)
+        self.server.initial_camera.position = tuple(eye)
+        for client in list(self.server.get_clients().values()):
+            try:
+                with client.atomic():
+                    client.camera.look_at = centre
+                    client.camera.position = eye
+            except Exception:  # noqa: BLE001, S112 - a client that just left
+                continue
+
     def show_scene(self, key: str) -> None:
-        """Make tab ``key``'s 3-D content the visible one."""
+        """Make tab ``key``'s 3-D content the visible one (and aim the cameras at it)."""
+        switched = False
         for k, frame in self._frames.items():
             visible = k == key
             if frame.visible != visible:
                 frame.visible = visible
+                switched = switched or visible
+        if switched and key in self._focus:
+            self._aim(*self._focus[key])
         if self._view is not None:
             label = next((t.label for t in self.tabs.values() if t.key == key), None)
             if label is not None and self._view.value != label:
