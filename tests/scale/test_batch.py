@@ -20,9 +20,13 @@ distributed = pytest.importorskip("dask.distributed")
 
 @pytest.fixture(scope="module")
 def scheduler():
-    """One 2-process cluster shared by the tests that pass an address."""
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       dashboard_address=":0", silence_logs=logging.ERROR)
+    """One 2-process cluster shared by the tests that pass an address. A task whose worker
+    dies is not retried elsewhere (allowed-failures 0), so a crash is reported at once."""
+    import dask
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                           dashboard_address=":0", silence_logs=logging.ERROR)
     yield cluster.scheduler_address
     cluster.close()
 
@@ -132,12 +136,8 @@ def test_ctrl_c_during_cluster_start_leaves_no_workers(monkeypatch):
     assert _no_new_children(before)
 
 
-def test_dead_worker_fails_its_item_only():
-    import dask
-
-    # no retries on other workers, so the crash is reported at once
-    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
-        rep = run_batch(range(6), die_on_two, workers=2, progress=False)
+def test_dead_worker_fails_its_item_only(scheduler):
+    rep = run_batch(range(6), die_on_two, scheduler=scheduler, progress=False)
     failed = dict(rep.failed)
     assert "worker process died" in failed["2"]
     assert set(rep.ok) | set(failed) == {str(i) for i in range(6)}
