@@ -218,8 +218,27 @@ def load(path: PathLike) -> tuple[str, Any]:
     return kind, load_mesh(path)
 
 
+def describe_gltf(path: PathLike) -> dict[str, Any]:
+    """Summary of a .glb/.gltf file from its document (no scene flattening): nodes, skins,
+    joints, animations and duration (s), meshes, vertices, faces, attributes, bbox."""
+    from biomorph.io.gltf import read_gltf_summary
+
+    info = read_gltf_summary(path)
+    p = Path(path)
+    out: dict[str, Any] = {"path": os.fspath(path), "kind": "mesh",
+                           "format": p.suffix.lower().lstrip("."), "bytes": p.stat().st_size}
+    bounds = info.pop("bounds")
+    info["faces"] = info.pop("triangles")
+    out |= info
+    if bounds is not None:
+        out["bbox_min"], out["bbox_max"] = _round(np.array(bounds[0])), _round(np.array(bounds[1]))
+    return out
+
+
 def describe(path: PathLike) -> dict[str, Any]:
     """What ``path`` holds: kind, format, size in bytes and a kind-specific summary."""
+    if Path(path).suffix.lower() in (".glb", ".gltf"):
+        return describe_gltf(path)
     kind, obj = load(path)
     p = Path(path)
     head: dict[str, Any] = {"path": os.fspath(path), "kind": kind,
@@ -234,4 +253,5 @@ def describe(path: PathLike) -> dict[str, Any]:
 
 
 __all__ = ["describe", "file_kind", "load", "load_mesh", "load_motion", "describe_cloud",
-           "describe_graph", "describe_motion", "describe_mesh", "median_spacing"]
+           "describe_graph", "describe_motion", "describe_mesh", "describe_gltf",
+           "median_spacing"]

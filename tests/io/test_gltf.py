@@ -502,6 +502,22 @@ def test_random_skeletons_motions_and_meshes_validate(tmp_path):
         assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, (path, issues)
 
 
+def test_biomorph_info_reports_gltf(tmp_path, capsys):
+    import json
+
+    from biomorph.cli import run
+
+    path = write_gltf(tmp_path / "walk.glb", motion(frames=31))
+    capsys.readouterr()
+    assert run(["info", str(path), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["joints"] == 7 and info["animations"] == 1 and info["duration"] == 1.0
+    assert info["faces"] == read_gltf_summary(path)["triangles"] > 0
+    bare = write_gltf(tmp_path / "bare.glb", skeleton(), bone_shape=None)
+    assert run(["info", str(bare), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["faces"] == 0
+
+
 # ----------------------------------------------------------------------------- errors
 def test_bad_input_raises_and_leaves_no_file(tmp_path):
     out = tmp_path / "x.glb"

@@ -840,7 +840,7 @@ def read_gltf_summary(path: PathLike) -> dict[str, Any]:
         "skins": len(doc.skins or []),
         "joints": int(sum(len(s.joints) for s in doc.skins or [])),
         "animations": len(doc.animations or []),
-        "duration": duration,
+        "duration": round(duration, 6),
         "meshes": len(doc.meshes or []),
         "primitives": primitives,
         "vertices": vertices,
