@@ -58,7 +58,7 @@ def test_budget_is_met_exactly_and_area_is_exact(preset: str) -> None:
     for budget in (1, 2, 3, 4, 7, 15, 16, 50, 101):
         m = reduced_mesh(leaf, budget)
         assert m.n_faces == budget
-        assert m.area() == pytest.approx(leaf.area(), rel=1e-4)
+        assert m.area() == pytest.approx(leaf.area(), rel=1e-9)
     with pytest.raises(ParameterError, match="below the minimum"):
         reduced_mesh(leaf, 0)
 
@@ -96,4 +96,4 @@ def test_wheat_450_median_midrib_error() -> None:
             area_err.append(abs(m.area() / leaf.area() - 1))
     med = float(np.median(errs))
     assert med <= 0.0105, med
-    assert max(area_err) < 1e-4
+    assert max(area_err) < 1e-9

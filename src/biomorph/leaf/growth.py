@@ -159,14 +159,21 @@ class LeafTimeline:
         return [self.mesh(float(t), **kwargs) for t in np.linspace(0, self.duration, n)]
 
     def visible_area(self, t: float) -> float:
-        """Analytic visible blade area (m²) at time ``t`` (flat leaf)."""
+        """Exact visible blade area (m²) at time ``t`` (flat leaf)."""
         return visible_area(self.shape, self.state(t))
 
 
-def visible_area(shape: LeafShape, state: LeafState, n: int = 2001) -> float:
-    """``∫`` of the width over the visible part (m²), by a fine trapezoid rule."""
+def visible_area(shape: LeafShape, state: LeafState | None = None) -> float:
+    """Exact flat area (m²) of the visible part: the width is piecewise linear in the arc
+    length, so the trapezoid rule over the width knots is exact."""
     L = shape.length
-    sigma = np.linspace(state.length - state.visible, state.length, n)
+    if state is None:
+        return shape.area()
+    lo, hi = state.length - state.visible, state.length
+    if hi <= lo:
+        return 0.0
+    knots = shape.s_r * L - (L - state.length)            # width knots in current-leaf metres
+    sigma = np.unique(np.concatenate([[lo, hi], knots[(knots > lo) & (knots < hi)]]))
     shat = np.clip((sigma + L - state.length) / L, 0, 1)
     w = shape.width * state.width_factor * shape.r_at(shat)
     return float(np.trapezoid(w, sigma))

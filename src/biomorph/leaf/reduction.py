@@ -318,7 +318,10 @@ def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int 
     s, prof = _fine_profile(shape, n_pts, age, twist, undulation, state)
     red = reduction or _reduce_prof(s, prof)
     kept = red.kept(red.removed_for_budget(triangles))
-    batch = coarse_batch(s, prof, kept, plant, leaf)
+    from biomorph.leaf.growth import state_at_age, visible_area
+
+    st = state if state is not None else (None if age is None else state_at_age(shape, age))
+    batch = coarse_batch(s, prof, kept, plant, leaf, exact_area=visible_area(shape, st))
     mesh = mesh_batch(LeafBatch(*batch), n_u=2)
     if mesh.n_faces < triangles:
         # one triangle short: split a left-margin edge (a, a+2) of a strip's first triangle
@@ -332,8 +335,12 @@ def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int 
     return mesh
 
 
-def coarse_batch(s: Array, prof, kept: NDArray[np.int64], plant: int = 0, leaf: int = 0):
-    """Arrays of a one-leaf :class:`~biomorph.leaf.mesh.LeafBatch` through the kept points."""
+def coarse_batch(s: Array, prof, kept: NDArray[np.int64], plant: int = 0, leaf: int = 0,
+                 exact_area: float | None = None):
+    """Arrays of a one-leaf :class:`~biomorph.leaf.mesh.LeafBatch` through the kept points.
+
+    Widths are scaled by one factor so the flat strip area equals ``exact_area`` (default:
+    the trapezoid area of the fine discretisation)."""
     from biomorph.leaf.shape import integrate_angles
 
     phi, seg, width, theta, amp, arg, v = prof
@@ -343,7 +350,7 @@ def coarse_batch(s: Array, prof, kept: NDArray[np.int64], plant: int = 0, leaf: 
     cum = np.concatenate([[0.0], np.cumsum(seg)])
     seg_c = np.diff(cum[kept])
     w_c = width[kept]
-    exact = np.trapezoid(width, cum)
+    exact = np.trapezoid(width, cum) if exact_area is None else exact_area
     approx = np.trapezoid(w_c, cum[kept])
     if approx > 0:
         w_c = w_c * (exact / approx)
