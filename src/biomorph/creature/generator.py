@@ -210,6 +210,8 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> dic
             4 if rng.random() < (lv - 2) / 2 else 2)
         if cls == "fish":
             legs = 0
+    if cls == "fish":  # fish: the shoulder girdle sits right behind the head (no neck)
+        pts[0:3] = pts[3]
     pts = sp.c1_fix(pts)
     xy, s, region = sp.sample(pts)
     rl = sp.region_lengths(s, region)
@@ -343,6 +345,15 @@ def step_limbs(spine: dict, girdles: tuple[gd.Girdle, ...], opts: Options,
             need = (attach[i][1][1] - ground) / opts.stand_fraction
             if need > r:
                 lengths[i] = lengths[i] * (need / r)
+            # a leg far too long for its height would start (fully bent) below the ground:
+            # shorten it until its start pose clears the ground (rule propagation)
+            role = "hind" if places[i][0] == "hip" else "fore"
+            start = lb.start_pose(role, posture)
+            for _ in range(30):
+                _, p0 = lb.forward(attach[i][1], lengths[i], start)
+                if p0[1:, 1].min() >= ground:
+                    break
+                lengths[i] = lengths[i] * 0.9
         # neck and tail must stay above the ground (bones), keeping C1 at the joins
         clear = ground + 0.02 * max(s[-1], 1.0)
         for which, reg in (("tail", 2), ("neck", 0)):
@@ -358,6 +369,7 @@ def step_limbs(spine: dict, girdles: tuple[gd.Girdle, ...], opts: Options,
             role = "hind" if gname == "hip" else "fore"
             pose = lb.pose_leg(base, lengths[i], ground, role, stance, posture, rng,
                                opts.descent)
+            lengths[i] = pose.lengths
         else:
             pose = lb.pose_free(spec.kind, base, lengths[i], rng)
         poses.append(pose)
@@ -558,7 +570,8 @@ def _assemble(spine: dict, limbs: dict, skull: dict, opts: Options) -> dict[str,
                     q0, q1 = np.array([ank[0], ank[2]]), np.array([tip[0], tip[2]])
                 else:
                     c = np.array([tip[0], tip[2]])
-                    q0, q1 = c - 0.25 * L3[2] * dh, c + 0.1 * L3[2] * dh
+                    pad = max(0.12 * L3[2], wdt)
+                    q0, q1 = c - pad * dh, c + pad * dh
                 patches += [q0 + wdt * perp, q0 - wdt * perp, q1 + wdt * perp, q1 - wdt * perp]
     names = blocks["names"]
     side = np.concatenate(blocks["side"])
@@ -611,21 +624,101 @@ def _repair_shift(asm: dict, report: bal.BalanceReport, limbs: dict) -> dict[str
     return shifts
 
 
+def _depth_first(asm: dict) -> dict:
+    """Reorder joints depth-first (children after their parent, subtrees contiguous) — the
+    order BVH files and most DCC tools use — remapping parent, mirror and contact indices."""
+    par = asm["parent"]
+    n = asm["n"]
+    kids: list[list[int]] = [[] for _ in range(n)]
+    for j in range(n):
+        if par[j] >= 0:
+            kids[par[j]].append(j)
+    order: list[int] = []
+    stack = [j for j in range(n) if par[j] < 0][::-1]
+    while stack:
+        j = stack.pop()
+        order.append(j)
+        stack.extend(kids[j][::-1])
+    perm = np.array(order)
+    inv = np.empty(n, np.int64)
+    inv[perm] = np.arange(n)
+    out = dict(asm)
+    for k in ("W", "pos", "blen", "box", "vol", "mass_c", "mass_sz", "lim", "anat_a", "anat_l",
+              "side"):
+        out[k] = asm[k][perm]
+    for k in ("names", "kind", "region"):
+        out[k] = [asm[k][i] for i in perm]
+    p = par[perm]
+    out["parent"] = np.where(p >= 0, inv[np.maximum(p, 0)], -1)
+    out["mirror"] = inv[asm["mirror"][perm]]
+    out["contact_joint"] = inv[asm["contact_joint"]] if len(asm["contact_joint"]) else \
+        asm["contact_joint"]
+    return out
+
+
+def _limb_mass_and_patches(limbs: dict) -> tuple[float, NDArray, NDArray]:
+    """Volume, volume-weighted centre sum and contact patches (x, z) of all limbs (both
+    sides) straight from the poses — the cheap part of a balance re-check."""
+    vol, mom, patches = 0.0, np.zeros(3), []
+    for (_g, _k, spec, _at), pose, L3 in zip(limbs["places"], limbs["poses"], limbs["lengths"],
+                                             strict=True):
+        v = ms.limb_volume(L3, spec.kind)
+        mid = 0.5 * (pose.points[:3] + pose.points[1:])
+        vol += 2 * v.sum()
+        mom += 2 * (v[:, None] * mid * [1, 1, 0]).sum(axis=0)
+        if pose.contact is not None:
+            rb = ms.BONE_FRACTION * ms.LIMB_RADIUS[spec.kind] * L3
+            for sgn in (1.0, -1.0):
+                tip, ank = pose.points[3], pose.points[2]
+                dh = np.array([tip[0] - ank[0], sgn * (tip[2] - ank[2])])
+                nd = np.linalg.norm(dh)
+                dh = dh / nd if nd > 1e-9 else np.array([1.0, 0.0])
+                perp = np.array([-dh[1], dh[0]])
+                wdt = max(1.5 * rb[2], 0.02 * L3.sum())
+                if pose.foot_flat:
+                    q0, q1 = np.array([ank[0], sgn * ank[2]]), np.array([tip[0], sgn * tip[2]])
+                else:
+                    c = np.array([tip[0], sgn * tip[2]])
+                    pad = max(0.12 * L3[2], wdt)
+                    q0, q1 = c - pad * dh, c + pad * dh
+                patches += [q0 + wdt * perp, q0 - wdt * perp, q1 + wdt * perp, q1 - wdt * perp]
+    return vol, mom, np.array(patches).reshape(-1, 2)
+
+
 def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
            rng: np.random.Generator, attempt_info: dict | None = None) -> Creature:
-    """Assemble bones, repair balance, size from weight and return a :class:`Creature`."""
+    """Assemble bones, repair balance, size from weight and return a :class:`Creature`.
+
+    Repair (new beyond the seed): while the centre of mass is not inside the support polygon
+    with the required margin, the leg-bearing girdle on the failing side is shifted along the
+    spine by the missing distance and its legs are grounded again (up to 6 times); the
+    cheap re-check uses the fixed spine/skull masses plus the re-posed limbs.
+    """
     asm = _assemble(spine, limbs, skull, opts)
     report = _balance_px(asm, opts)
     repairs = 0
-    while report.applicable and not report.stable and repairs < 6:
-        shifts = _repair_shift(asm, report, limbs)
-        if shifts is None:
-            break
-        limbs = step_limbs(spine, girdles, opts, _rng(opts.seed, "limbs", 100 + repairs),
-                           shifts)
+    if report.applicable and not report.stable:
+        body = np.isin(np.array(asm["kind"]), ("spine", "skull", "girdle"))
+        bvol = float(asm["vol"][body].sum())
+        bmom = (asm["vol"][body, None] * asm["mass_c"][body]).sum(axis=0)
+        bl = float(np.ptp(asm["pos"][:, 0]))
+        work = dict(asm)
+        while repairs < 6:
+            shifts = _repair_shift(work, report, limbs)
+            if shifts is None:
+                break
+            limbs = step_limbs(spine, girdles, opts, _rng(opts.seed, "limbs", 100 + repairs),
+                               shifts)
+            lvol, lmom, patches = _limb_mass_and_patches(limbs)
+            com = (bmom + lmom) / max(bvol + lvol, 1e-30)
+            report = bal.evaluate(com, bvol + lvol, patches, bl, opts.min_margin_fraction)
+            work = dict(work, patches=patches)
+            repairs += 1
+            if report.stable:
+                break
         asm = _assemble(spine, limbs, skull, opts)
         report = _balance_px(asm, opts)
-        repairs += 1
+    asm = _depth_first(asm)
     # size from weight: metres per px
     vol_px = float(asm["vol"].sum())
     scale = ms.size_scale(spine["weight"], vol_px, spine["cls"])

@@ -269,6 +269,7 @@ class LimbPose:
     foot_flat: bool                # plantigrade: distal bone lies on the ground
     residual: float                # remaining contact distance (same units as input)
     iterations: int
+    lengths: NDArray[np.float64] | None = None  # final segment lengths (if stretched)
 
 
 def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: str,
@@ -281,11 +282,8 @@ def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: 
     pointing forward (the ankle angle is then set, not searched).
     """
     limits = LIMITS_DEG[role] * DEG
-    start = np.zeros((3, 3))
     # most bent flexion: hind thigh forward (max), shank back (min), foot forward (max)
-    start[:, 0] = np.where(role == "hind", [limits[0, 0, 1], limits[1, 0, 0], limits[2, 0, 1]],
-                           [limits[0, 0, 0], limits[1, 0, 1], limits[2, 0, 0]])
-    start[0, 1] = np.clip(SPRAWL_DEG.get(posture, 0.0) * DEG, limits[0, 1, 0], limits[0, 1, 1])
+    start = start_pose(role, posture)
     prob = np.array([[params.p_flex, params.p_abduct, params.p_twist]] * 3)
     plant = stance == "plantigrade"
     contact = 2 if plant else 3
@@ -299,16 +297,27 @@ def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: 
         if snapped is not None:
             ang = snapped
     rot, pts = forward(base, lengths, ang)
+    resid0 = pts[contact, 1] - g
+    if resid0 > params.tolerance and base[1] - pts[contact, 1] > 1e-9:
+        # last resort: scale the chain about the attachment so the contact touches exactly
+        f = (base[1] - g) / (base[1] - pts[contact, 1])
+        if np.all(base[1] + f * (pts[1:contact + 1, 1] - base[1]) >= g - 1e-9):
+            lengths = np.asarray(lengths, float) * f
+            rot, pts = forward(base, lengths, ang)
     if plant:
         # lay the distal bone flat, pointing forward: cumulative z-angle of +90°
         cum_z = ang[0, 0] + ang[1, 0]
         ang[2] = [np.clip(np.pi / 2 - cum_z, *limits[2, 0]), 0.0, 0.0]
         rot, pts = forward(base, lengths, ang)
+        if pts[3, 1] < g - 1e-6 * float(np.sum(lengths)):
+            # the foot cannot lie flat within the ankle's limits: stand on the toes instead
+            return pose_leg(base, lengths, ground, role, "digitigrade", posture, rng, params)
         contact_pt = pts[2].copy()
     else:
         contact_pt = pts[3].copy()
     resid = float(contact_pt[1] - g)
-    return LimbPose("leg", role, ang, limits, rot, pts, contact_pt, plant, resid, it)
+    return LimbPose("leg", role, ang, limits, rot, pts, contact_pt, plant, resid, it,
+                    np.asarray(lengths, float))
 
 
 def pose_free(kind: str, base: NDArray, lengths: NDArray, rng: np.random.Generator,
@@ -348,6 +357,16 @@ def lift_clear(pose: LimbPose, base: NDArray, lengths: NDArray, ground: float,
             ang[0, 1] = max(ang[0, 1] - 15 * DEG, lim[0, 1, 0])
     rot, pts = forward(base, lengths, ang)
     return LimbPose(pose.kind, pose.role, ang, lim, rot, pts, None, False, 0.0, 0)
+
+
+def start_pose(role: str, posture: str) -> NDArray[np.float64]:
+    """The descent's start: every flexion DOF at its most bent limit, posture abduction."""
+    limits = LIMITS_DEG[role] * DEG
+    start = np.zeros((3, 3))
+    start[:, 0] = ([limits[0, 0, 1], limits[1, 0, 0], limits[2, 0, 1]] if role == "hind"
+                   else [limits[0, 0, 0], limits[1, 0, 1], limits[2, 0, 0]])
+    start[0, 1] = np.clip(SPRAWL_DEG.get(posture, 0.0) * DEG, limits[0, 1, 0], limits[0, 1, 1])
+    return start
 
 
 def max_reach(lengths: NDArray, stance: str, posture: str) -> float:

@@ -62,8 +62,8 @@ def join_angles(points: ArrayLike) -> NDArray[np.float64]:
         t_out = bezier_derivative(c[b], 0.0)
         if np.linalg.norm(t_in) < _EPS or np.linalg.norm(t_out) < _EPS:
             continue
-        cosang = t_in @ t_out / (np.linalg.norm(t_in) * np.linalg.norm(t_out))
-        out[k] = float(np.arccos(np.clip(cosang, -1.0, 1.0)))
+        cross = t_in[0] * t_out[1] - t_in[1] * t_out[0]
+        out[k] = float(abs(np.arctan2(cross, t_in @ t_out)))
     return out
 
 

@@ -1,0 +1,221 @@
+"""``biomorph creature …``: generate, batch, dataset, annotate."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from biomorph.errors import ParameterError
+
+app = typer.Typer(name="creature", no_args_is_help=True, add_completion=False,
+                  help="Procedural vertebrate skeletons (PCA over 44 species, seed 000).")
+
+
+def _options(seed, legs, wings, arms, centaur, weight, neck_length, tail_length, cls, k,
+             temperature, allow_unstable, dataset):
+    from biomorph.creature.generator import Options
+
+    if cls is not None:
+        cls = cls.strip().lower()
+    return Options(seed=seed, legs=legs, wings=wings, arms=arms, centaur=centaur, weight=weight,
+                   neck_length=neck_length, tail_length=tail_length, cls=cls, k=k,
+                   temperature=temperature, require_stable=not allow_unstable,
+                   dataset=None if dataset is None else str(dataset)).validate()
+
+
+@app.command()
+def generate(
+    output: Annotated[Path, typer.Option("-o", "--output", help="Output file: .glb .bvh .obj "
+                                         ".osim .xml .json")] = Path("creature.glb"),
+    seed: Annotated[int, typer.Option(help="Random seed (same seed → same creature).")] = 0,
+    legs: Annotated[int | None, typer.Option(help="Legs with ground contact: 0, 2, 4 or 6.")
+                    ] = None,
+    wings: Annotated[bool | None, typer.Option("--wings/--no-wings",
+                                               help="Force wings on or off.")] = None,
+    arms: Annotated[bool, typer.Option("--arms", help="Add a pair of arms.")] = False,
+    centaur: Annotated[bool, typer.Option("--centaur", help="Extra girdle with arms below the "
+                                          "head (lengthens the neck if needed).")] = False,
+    weight: Annotated[float | None, typer.Option(help="Body weight in kg.")] = None,
+    neck_length: Annotated[float | None, typer.Option(
+        help="Neck chord in frame units (1 = the skeleton's largest extent).")] = None,
+    tail_length: Annotated[float | None, typer.Option(help="Tail chord in frame units.")
+                           ] = None,
+    cls: Annotated[str | None, typer.Option("--class", help="fish, amphibian, reptile, bird "
+                                            "or mammal.")] = None,
+    k: Annotated[int | None, typer.Option(help="Sample from the top k PCA components.")
+                 ] = None,
+    temperature: Annotated[float, typer.Option(help="Variance scale of sampling.")] = 1.0,
+    bone_shape: Annotated[str, typer.Option(help="box or bone (glb/obj).")] = "box",
+    walk: Annotated[bool, typer.Option("--walk", help="Add a procedural walk cycle "
+                                       "(glb/bvh).")] = False,
+    settle: Annotated[bool, typer.Option("--settle", help="Also let MuJoCo settle the creature "
+                                         "for 2 s and report whether it tips.")] = False,
+    allow_unstable: Annotated[bool, typer.Option("--allow-unstable",
+                                                 help="Do not repair/resample.")] = False,
+    dataset: Annotated[Path | None, typer.Option(help="Species CSV (default: built-in).")
+                       ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+) -> None:
+    """Generate one creature and write it.
+
+    Example: biomorph creature generate --seed 7 --legs 4 --no-wings -o horse.glb
+    """
+    from biomorph.cli import out_console, print_json
+    from biomorph.creature.export import check_extension, export
+    from biomorph.creature.generator import Generator
+    from biomorph.creature.mesh import SHAPES
+
+    check_extension(output)
+    if bone_shape not in SHAPES:
+        raise ParameterError(f"--bone-shape {bone_shape!r}; expected one of {', '.join(SHAPES)}")
+    opts = _options(seed, legs, wings, arms, centaur, weight, neck_length, tail_length, cls, k,
+                    temperature, allow_unstable, dataset)
+    creature = Generator(opts).run()
+    summary = creature.summary()
+    if settle:
+        from biomorph.io.mjcf import settle as _settle
+        summary["mujoco_settle"] = _settle(creature)
+    path = export(creature, output, bone_shape=bone_shape, walk=walk)
+    summary["output"] = str(path)
+    if as_json:
+        print_json(summary)
+    else:
+        out_console.print(f"wrote {path}: {summary['class']}, {summary['legs']} legs, "
+                          f"{summary['joints']} joints, {summary['mass_kg']} kg, "
+                          f"{summary['height_m']} m tall, stable={summary['stable']}")
+
+
+def _batch_item(item: dict) -> dict:
+    """Generate and write one chunk of seeds (module level so dask can pickle it)."""
+    from biomorph.creature.export import export
+    from biomorph.creature.generator import Generator, Options
+
+    out = Path(item["out"])
+    stats = {"n": 0, "stable": 0, "joints": 0}
+    for seed in item["seeds"]:
+        c = Generator(Options(seed=seed)).run()
+        export(c, out / f"creature_{seed:06d}{item['ext']}")
+        stats["n"] += 1
+        stats["stable"] += int(c.balance is None or not c.balance.applicable
+                               or c.balance.stable)
+        stats["joints"] += len(c)
+    return stats
+
+
+@app.command()
+def batch(
+    count: Annotated[int, typer.Option(help="Number of creatures.")] = 100,
+    out: Annotated[Path, typer.Option(help="Output folder.")] = Path("creatures"),
+    fmt: Annotated[str, typer.Option("--format", help="glb, bvh, obj, osim, xml or json.")
+                   ] = "glb",
+    seed_start: Annotated[int, typer.Option(help="First seed.")] = 0,
+    chunk: Annotated[int, typer.Option(help="Creatures per task.")] = 100,
+    workers: Annotated[int | None, typer.Option(help="Worker processes (0 = serial).")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+) -> None:
+    """Generate many creatures in parallel on dask.distributed (resumable).
+
+    Example: biomorph creature batch --count 10000 --out creatures --workers 2
+    """
+    from biomorph.cli import out_console, print_json
+    from biomorph.creature.export import check_extension
+    from biomorph.scale.batch import run_batch
+
+    ext = check_extension(f"x.{fmt.lstrip('.')}")
+    if count < 1:
+        raise ParameterError(f"--count {count}; expected at least 1")
+    if chunk < 1:
+        raise ParameterError(f"--chunk {chunk}; expected at least 1")
+    seeds = list(range(seed_start, seed_start + count))
+    items = [{"seeds": seeds[i:i + chunk], "out": str(out), "ext": ext}
+             for i in range(0, count, chunk)]
+    out.mkdir(parents=True, exist_ok=True)
+    report = run_batch(items, _batch_item, out_dir=out,
+                       key=lambda it: f"{it['seeds'][0]:06d}-{it['seeds'][-1]:06d}",
+                       workers=workers, scheduler=scheduler, description="creatures")
+    made = sum(r["n"] for r in report.results.values())
+    stable = sum(r["stable"] for r in report.results.values())
+    summary = {"count": made, "stable": stable, "failed_chunks": len(report.failed),
+               "skipped_chunks": len(report.skipped), "seconds": round(report.seconds, 2),
+               "out": str(out), "format": ext}
+    if as_json:
+        print_json(summary)
+    else:
+        out_console.print(f"{made} creatures in {report.seconds:.1f} s → {out} "
+                          f"({len(report.failed)} failed chunks)")
+    if report.failed:
+        raise typer.Exit(1)
+
+
+@app.command()
+def dataset(
+    plot: Annotated[Path | None, typer.Option(help="Write the PC1/PC2 plot (PNG).")] = None,
+    path: Annotated[Path | None, typer.Option("--dataset", help="Species CSV.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+) -> None:
+    """List the species dataset and the PCA spectrum beside the seed's.
+
+    Example: biomorph creature dataset --plot pca.png
+    """
+    from biomorph.cli import out_console, print_json
+    from biomorph.creature.dataset import load_species
+    from biomorph.creature.pca import SEED_SPECTRUM, fit_dataset, spectrum_summary
+
+    table = load_species(path)
+    ours = spectrum_summary(fit_dataset(table, reparam=False))
+    if plot is not None:
+        from biomorph.creature.plots import pca_plot
+        pca_plot(plot, table)
+    rows = [{"name": table.name[i], "class": table.cls[i], "weight_kg": float(table.weight[i]),
+             "wings": int(table.wings[i]), "legs": int(table.legs[i]),
+             "vertebrae": table.counts[i].tolist()} for i in range(len(table))]
+    if as_json:
+        print_json({"species": rows, "spectrum": ours, "seed_spectrum": SEED_SPECTRUM,
+                    "plot": None if plot is None else str(plot)})
+        return
+    from rich.table import Table
+
+    t = Table(title=f"{len(table)} species")
+    for h in ("name", "class", "kg", "wings", "legs", "C/T/Ca"):
+        t.add_column(h)
+    for r in rows:
+        t.add_row(r["name"], r["class"], f"{r['weight_kg']:g}", str(r["wings"]), str(r["legs"]),
+                  "/".join(map(str, r["vertebrae"])))
+    out_console.print(t)
+    out_console.print(f"PCA: first eigenvalue {ours['first']:.3f} of {ours['total']:.3f} "
+                      f"(seed 0.349 of 0.583); six components {ours['six_components']:.1%} "
+                      "(seed 92.2%)")
+
+
+@app.command()
+def annotate(
+    svg: Annotated[Path, typer.Argument(help="Inkscape SVG with named paths.")],
+    name: Annotated[str | None, typer.Option(help="Species name (default: file stem).")
+                    ] = None,
+    cls: Annotated[str, typer.Option("--class", help="Animal class.")] = "mammal",
+    weight: Annotated[float, typer.Option(help="Weight in kg.")] = 1.0,
+    wings: Annotated[bool, typer.Option("--wings/--no-wings")] = False,
+    legs: Annotated[int, typer.Option(help="Legs with ground contact: 0, 2 or 4.")] = 4,
+    out: Annotated[Path, typer.Option("--dataset", help="Species CSV to append to (created "
+                                      "from the built-in 44 if absent).")
+                   ] = Path("species.csv"),
+    as_json: Annotated[bool, typer.Option("--json", help="Print the parsed row.")] = False,
+) -> None:
+    """Read an annotated side view (paths neck, back, tail, upper_arm, …) and append it.
+
+    Example: biomorph creature annotate okapi.svg --class mammal --weight 250 --dataset my.csv
+    """
+    from biomorph.cli import out_console, print_json
+    from biomorph.creature.dataset import append_species
+    from biomorph.io.svg_annotations import species_row
+
+    row = species_row(svg, name=name or svg.stem, cls=cls, weight=weight, wings=wings,
+                      legs=legs)
+    path = append_species(out, row)
+    if as_json:
+        print_json({"row": row, "dataset": str(path)})
+    else:
+        out_console.print(f"appended {row['name']} to {path}")

@@ -1,0 +1,121 @@
+"""Generated creatures: the quality properties of the issue on a sample of seeds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from biomorph.creature import spine as sp
+from biomorph.creature.generator import Generator, Options, generate
+from biomorph.errors import ParameterError
+
+N = 40
+
+
+@pytest.fixture(scope="module")
+def creatures():
+    return [generate(seed) for seed in range(N)]
+
+
+def check_quality(c) -> None:
+    """The issue's quality bars for one creature."""
+    h = c.height
+    # every ground-contact foot within 1 % of body height of the ground
+    if len(c.contacts):
+        assert np.all(np.abs(c.contacts[:, 1]) <= 0.01 * h), c.contacts
+    # no bone below ground (joints and bone ends)
+    tol = 1e-6 * h
+    assert c.joint_positions[:, 1].min() >= -tol - 0.002 * h
+    assert c.bone_ends[:, 1].min() >= -tol - 0.002 * h
+    # joints within limits: the rest pose is inside every stored range, and limb angles
+    # inside their anatomical limits
+    lim = c.skeleton.limits
+    assert np.all(lim[..., 0] <= 1e-12) and np.all(lim[..., 1] >= -1e-12)
+    a, al = c.anatomical_angles, c.anatomical_limits
+    assert np.all(a >= al[..., 0] - 1e-9) and np.all(a <= al[..., 1] + 1e-9)
+    # exact left/right symmetry
+    m = c.mirror
+    p = c.joint_positions
+    assert np.array_equal(p[m] * [1, 1, -1], p)
+    q = c.skeleton.rest_rotation
+    assert np.array_equal(q[m] * [-1, -1, 1, 1], q)
+    # spine tangent continuity at the joins
+    ang = np.degrees(sp.join_angles(c.spine_points))
+    assert np.all(np.nan_to_num(ang) <= 1.0)
+    # statically stable as returned
+    b = c.balance
+    assert (not b.applicable) or b.stable
+    assert np.isclose(c.total_mass, c.params["weight_kg"], rtol=1e-6)
+
+
+def test_quality_over_seeds(creatures):
+    for c in creatures:
+        check_quality(c)
+    legs = {c.params["legs"] for c in creatures}
+    assert len(legs) >= 3  # variety of body plans
+
+
+def test_same_seed_same_creature():
+    a, b = generate(123), generate(123)
+    assert a.names == b.names
+    assert np.array_equal(a.skeleton.offset, b.skeleton.offset)
+    assert np.array_equal(a.mass, b.mass)
+
+
+def test_conditions_are_honoured():
+    for legs in (0, 2, 4, 6):
+        c = generate(5, legs=legs, wings=False)
+        assert c.kind.count("leg") == 3 * legs
+        check_quality(c)
+    c = generate(9, legs=4, wings=True)
+    assert c.kind.count("wing") == 6
+    c = generate(2, legs=4, centaur=True)
+    assert any(n.startswith("centaur1_") for n in c.names)
+    check_quality(c)
+    c = generate(4, weight=250.0)
+    assert np.isclose(c.total_mass, 250.0)
+    c = generate(1, cls="fish")
+    assert c.params["class"] == "fish" and c.kind.count("leg") == 0
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(legs=7), "legs=7"), (dict(weight=-1.0), "weight"), (dict(cls="dragon"), "dragon"),
+    (dict(cls="fish", wings=True), "wings"), (dict(legs=6, wings=True), "shoulder")])
+def test_impossible_requests(kwargs, match):
+    with pytest.raises(ParameterError, match=match):
+        generate(0, **kwargs)
+
+
+def test_stepwise_undo_reroll_and_edits():
+    g = Generator(Options(seed=21, legs=4, wings=False))
+    assert g.step() == "spine" and g.step() == "girdles"
+    g.undo()
+    assert g.next_step == "girdles"
+    c1 = g.run()
+    full = generate(21, legs=4, wings=False)
+    assert np.array_equal(c1.skeleton.offset, full.skeleton.offset)
+    # re-roll the skull: only the skull (and finish) change
+    g.reroll("skull")
+    c2 = g.creature
+    assert c2.kind.count("leg") == c1.kind.count("leg")
+    g.undo()
+    assert np.array_equal(g.creature.skeleton.offset, c1.skeleton.offset)
+    # edit: hind legs become fins -> impossible to stand on front legs alone? allowed (fins at
+    # hip), but legs at the shoulder without hind legs are refused for set_limb to leg
+    g.add_limb_pair("shoulder", "wing")
+    assert g.creature.kind.count("wing") == 6
+    check_quality(g.creature)
+    with pytest.raises(ParameterError, match="cannot attach"):
+        g.add_limb_pair("hip", "wing")
+    with pytest.raises(ParameterError, match="two limb pairs|already holds"):
+        g.add_limb_pair("shoulder", "arm")
+    n_neck = sum(r == "neck" for r in g.creature.region)
+    g.set_neck_length(1.5)
+    check_quality(g.creature)
+    assert sum(r == "neck" for r in g.creature.region) >= n_neck
+
+
+def test_nearby_parameters_give_similar_creatures():
+    a = generate(7, legs=4, wings=False, weight=100.0, require_stable=False)
+    b = generate(7, legs=4, wings=False, weight=101.0, require_stable=False)
+    assert abs(a.height - b.height) / a.height < 0.05
