@@ -13,7 +13,8 @@ What gets written
   quaternions xyzw applied after each joint's rest rotation, ``.root_position``
   ``float[f, 3]``, ``.frame_time`` seconds) → the skeleton above plus one animation: a
   rotation channel per joint (rest · pose, hemisphere-continuous) and a translation channel
-  per root joint, LINEAR samplers, float32 key times ``k · frame_time``.
+  per root joint (and per translated inner joint when the motion has ``joint_translation``),
+  LINEAR samplers, float32 key times ``k · frame_time``.
 * **Meshes** (:class:`biomorph.core.mesh.Mesh` or anything ``Mesh.from_any`` accepts, or a
   list of them) → plain mesh nodes with ``POSITION`` (with min/max), ``NORMAL``,
   ``TEXCOORD_0`` (v flipped: glTF's origin is top-left), ``COLOR_0`` (RGBA unsigned byte,
@@ -24,11 +25,12 @@ What gets written
   ``merge=False``: 100,000 small leaves become one draw call, not 100,000 nodes.
 * **Mesh frames** (``frames=[mesh0, mesh1, …]``, equal topology) → one mesh with a morph
   target per frame after the first and a weight animation that steps through them (linear
-  blends between consecutive frames), for growing leaves.
+  blends between consecutive frames), for growing leaves; face ids and normals are kept.
 
 Frames and units: metres, seconds, glTF is Y-up. ``y_up=True`` (default) means the input is
 already Y-up (creatures, motion); pass ``y_up=False`` for Z-up data (trees, leaves) and it is
-rotated by −90° about x, ``(x, y, z) → (x, z, −y)``, on the way out.
+rotated by −90° about x, ``(x, y, z) → (x, z, −y)``, on the way out. ``scale`` multiplies
+every length (``0.01`` turns a centimetre BVH into metres).
 
 Buffers are built with numpy (``tobytes``), every buffer view 4-byte aligned with its
 ``target`` set for vertex/index data; indices are ``uint16`` when they fit, ``uint32``
@@ -42,7 +44,6 @@ otherwise. Files are written atomically. Example::
 
 from __future__ import annotations
 
-import json
 import os
 import struct
 from collections.abc import Mapping, Sequence
@@ -700,8 +701,8 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
         Objects with a ``.skeleton`` but no motion (e.g. a generated creature) are unwrapped.
     motion : animate ``obj`` (a JointSkeleton) with this Motion-like object instead.
     bone_shape : ``"box"`` (default), ``"octahedron"`` or ``None`` (skin without geometry).
-    bone_width : bone thickness in metres (scalar or one per joint); default 12 % of each
-        bone's length, at least 4 % of the median bone length.
+    bone_width : bone thickness in the skeleton's units (scalar or one per joint); default
+        12 % of each bone's length, at least 4 % of the median bone length.
     meshes : extra geometry. With a skeleton, a mapping ``{joint name or index: mesh}`` gives
         meshes in that joint's local frame, rigidly skinned to it (bone models); a mesh or a
         list of meshes is added unskinned in world space.
@@ -770,9 +771,10 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
 
 
 def write_mesh(path: PathLike, mesh: Any, *, y_up: bool = True, name: str | None = None,
-               merge: bool = True) -> Path:
+               merge: bool = True, scale: float = 1.0) -> Path:
     """Write one mesh or a list of meshes as ``.glb`` (see :func:`write_gltf`)."""
-    return write_gltf(path, None, meshes=_as_meshes(mesh), y_up=y_up, name=name, merge=merge)
+    return write_gltf(path, None, meshes=_as_meshes(mesh), y_up=y_up, name=name, merge=merge,
+                      scale=scale)
 
 
 def write_mesh_animation(path: PathLike, frames: Sequence[Any], frame_time: float, *,
@@ -849,13 +851,6 @@ def read_gltf_summary(path: PathLike) -> dict[str, Any]:
         "bounds": None if not np.isfinite(lo).all() else [lo.tolist(), hi.tolist()],
         "generator": doc.asset.generator,
     }
-
-
-def _debug_json(path: PathLike) -> dict[str, Any]:
-    """The JSON chunk of a .glb file (for tests and debugging)."""
-    data = Path(path).read_bytes()
-    (length,) = struct.unpack_from("<I", data, 12)
-    return json.loads(data[20:20 + length])
 
 
 __all__ = ["write_gltf", "write_mesh", "write_mesh_animation", "read_gltf_summary"]
