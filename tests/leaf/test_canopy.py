@@ -62,3 +62,10 @@ def test_bad_field() -> None:
         build_field(FieldSpec(plants=2, rows=5))
     with pytest.raises(ParameterError, match="outside"):
         build_field(FieldSpec(plant=PlantSpec(age=2.0)))
+
+
+def test_density_sets_ground_area() -> None:
+    fld = build_field(FieldSpec(plants=40, rows=4, row_spacing=0.2, density=250.0), seed=0)
+    assert 40 / fld.ground_area == pytest.approx(250.0)
+    with pytest.raises(ParameterError, match="density"):
+        build_field(FieldSpec(density=-1.0))

@@ -97,3 +97,10 @@ def test_wheat_450_median_midrib_error() -> None:
     med = float(np.median(errs))
     assert med <= 0.0105, med
     assert max(area_err) < 1e-9
+
+
+def test_polygon_budget() -> None:
+    red = reduce_leaf(LeafShape.from_preset("maize"), 100)
+    assert red.kept_for_polygons(5).size == 6
+    with pytest.raises(ParameterError, match="polygon budget"):
+        red.kept_for_polygons(0)

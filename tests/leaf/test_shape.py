@@ -105,3 +105,15 @@ def test_surface_grid_matches_mesh_vertices() -> None:
     # width across the blade at mid-leaf equals r(s)·W for an untwisted leaf
     flat = shape.with_(twist=0.0).surface([0.5, 0.6], [-0.5, 0.5])[0]
     assert np.linalg.norm(flat[1] - flat[0]) == pytest.approx(shape.width_at(0.5))
+
+
+def test_parametric_leaf() -> None:
+    leaf = LeafShape.parametric(0.6, 0.05, insertion_deg=70, bending_deg=120, base_width=0.5,
+                                widest_at=0.3, tip_power=1.5)
+    assert leaf.r_at(0.0) == pytest.approx(0.5) and leaf.r_at(0.3) == pytest.approx(1.0)
+    assert leaf.r_at(1.0) == 0.0
+    assert np.degrees(leaf.phi_at(0.0)) == pytest.approx(70)
+    assert np.degrees(leaf.phi_at(1.0)) == pytest.approx(-50)
+    assert leaf.mesh(n_s=300).area() == pytest.approx(leaf.area(), rel=5e-3)
+    with pytest.raises(BiomorphError, match="widest_at"):
+        LeafShape.parametric(0.6, 0.05, widest_at=1.0)

@@ -71,8 +71,9 @@ class FieldSpec:
     plants: int = 20
     rows: int = 4
     row_spacing: float = 0.15
-    plant_spacing: float | None = None     # default: row_spacing / 3
+    plant_spacing: float | None = None     # default: from density, else row_spacing / 3
     position_jitter: float = 0.01
+    density: float | None = None           # plants per m²; sets plant_spacing
     plant: PlantSpec = field(default_factory=PlantSpec)
 
     def validate(self) -> None:
@@ -84,6 +85,8 @@ class FieldSpec:
         if self.row_spacing <= 0 or (self.plant_spacing is not None and
                                      self.plant_spacing <= 0):
             raise ParameterError(f"spacing must be > 0 m; got row spacing {self.row_spacing}")
+        if self.density is not None and self.density <= 0:
+            raise ParameterError(f"density {self.density!r} must be > 0 plants/m²")
         if self.position_jitter < 0:
             raise ParameterError(f"position_jitter {self.position_jitter} must be >= 0 m")
         self.plant.validate()
@@ -146,7 +149,8 @@ def build_field(spec: FieldSpec, seed: int | np.random.Generator = 0, origin=(0.
     plant_age = check_age(ps.age if age is None else age)
     shape = LeafShape.from_preset(ps.preset, **ps.shape_overrides)
     per_row = int(np.ceil(spec.plants / spec.rows))
-    dx = spec.plant_spacing or spec.row_spacing / 3.0
+    dx = spec.plant_spacing or (1.0 / (spec.density * spec.row_spacing) if spec.density
+                                else spec.row_spacing / 3.0)
     idx = np.arange(spec.plants)
     row, col = idx // per_row, idx % per_row
     pos = np.stack([col * dx, row * spec.row_spacing, np.zeros(spec.plants)], axis=1)

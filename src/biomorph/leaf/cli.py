@@ -209,6 +209,8 @@ def canopy(output: Annotated[Path, typer.Option("-o", "--output",
            plants: Annotated[int, typer.Option(help="Number of plants.")] = 20,
            rows: Annotated[int, typer.Option(help="Number of rows.")] = 4,
            spacing: Annotated[float, typer.Option(help="Row spacing (m).")] = 0.15,
+           density: Annotated[float | None, typer.Option(
+               help="Plants per m² (sets the spacing within rows).")] = None,
            preset: Preset = "wheat",
            leaves: Annotated[int, typer.Option(help="Leaves per plant.")] = 6,
            triangles: Annotated[int, typer.Option(help="Triangles per leaf (about).")] = 20,
@@ -231,7 +233,7 @@ def canopy(output: Annotated[Path, typer.Option("-o", "--output",
 
     _check_ext(output, MESH_EXT)
     check_age(age)
-    spec = FieldSpec(plants=plants, rows=rows, row_spacing=spacing,
+    spec = FieldSpec(plants=plants, rows=rows, row_spacing=spacing, density=density,
                      plant=PlantSpec(preset=preset, leaves=leaves, age=age))
     fld = build_field(spec, seed=seed)
     m = field_mesh(fld, triangles_per_leaf=triangles)

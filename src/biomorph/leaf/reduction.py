@@ -236,6 +236,14 @@ class Reduction:
             raise ParameterError(f"n_points={n_points} must lie in 2..{self.s.size}")
         return self.kept(self.s.size - n_points)
 
+    def kept_for_polygons(self, polygons: int) -> NDArray[np.int64]:
+        """Indices kept for a budget of ``polygons`` (>= 1) quads/strips (the paper's polygon
+        budget: one polygon between consecutive kept points)."""
+        if polygons < 1:
+            raise ParameterError(f"polygon budget {polygons} is below the minimum mesh "
+                                 "(1 polygon: base to tip)")
+        return self.kept_for_points(polygons + 1)
+
     def error(self, kept: NDArray[np.int64]) -> tuple[float, float]:
         """(midrib error, width error): max distance of all discretised points to the
         reduced midrib polyline / width profile, in units of the leaf length."""

@@ -347,6 +347,31 @@ class LeafShape:
         L = float(total * scale) if length is None else float(length)
         return cls(s, phi, sw, rw / rw.max(), L, w, **kwargs)
 
+    @classmethod
+    def parametric(cls, length: float, width: float, insertion_deg: float = 60.0,
+                   bending_deg: float = 90.0, base_width: float = 0.6, widest_at: float = 0.35,
+                   tip_power: float = 2.0, n: int = 51, **kwargs: Any) -> LeafShape:
+        """A leaf from a few numbers instead of digitised data.
+
+        Midrib: insertion angle above the horizontal (degrees) and total bending along the
+        leaf (degrees, distributed with curvature growing linearly towards the tip, as in
+        grass leaves that droop at the end). Width (relative): ``base_width`` at the base,
+        rising as a quarter sine to 1 at ``widest_at``, then ``1 − ((s − s_w)/(1 − s_w))^p``
+        to 0 at the tip (``tip_power`` p; 1 = straight taper, 2 = rounded).
+        """
+        if not 0 < widest_at < 1:
+            raise ParameterError(f"widest_at {widest_at!r} must lie in (0, 1)")
+        if not 0 <= base_width <= 1:
+            raise ParameterError(f"base_width {base_width!r} must lie in [0, 1]")
+        if tip_power <= 0:
+            raise ParameterError(f"tip_power {tip_power!r} must be > 0")
+        s = np.linspace(0.0, 1.0, n)
+        phi = np.radians(insertion_deg) - np.radians(bending_deg) * s ** 2
+        rise = base_width + (1 - base_width) * np.sin(0.5 * np.pi * s / widest_at)
+        fall = 1 - ((s - widest_at) / (1 - widest_at)) ** tip_power
+        r = np.where(s <= widest_at, rise, np.clip(fall, 0.0, 1.0))
+        return cls(s, phi, s, r, length, width, **kwargs)
+
     def with_(self, **changes: Any) -> LeafShape:
         """A copy with some fields replaced."""
         return replace(self, **changes)
