@@ -10,7 +10,7 @@ t2 (ii) **preprocessing** -- optional density threshold (``min_points`` per voxe
    6/18/26-neighbourhood (``closing_radius`` iterations) or a ball of radius
    ``closing_radius`` voxels, then a closing with a *horizontal disc* of ``disc_radius``
    voxels (default: the stem radius estimated from the lowest metre of the cloud) to fill
-   hollow stems, and a per-slice hole fill for rings the disc could not close.
+   hollow stems, and optionally (``fill_slices``) a per-slice hole fill for closed rings.
 t3 (iii) **thinning** -- Palágyi & Kuba 1999, 8 directional subiterations
    (:mod:`biomorph.tree.thinning`).
 t4 (iv, v) **graph** -- 26-adjacency of the skeleton voxels with weights 3/4/5 (face / edge /
@@ -135,7 +135,7 @@ def _sparse_closing(vol: NDArray[np.bool_], offs: NDArray[np.int64]) -> NDArray[
     g = np.zeros(int(np.prod(shp)), dtype=bool)
     for o in okeys:
         g[keys + o] = True
-    dk = np.flatnonzero(g)
+    dk = np.unique((keys[:, None] + okeys[None, :]).ravel())
     keep = np.ones(dk.size, dtype=bool)
     for o in okeys:
         keep &= g[dk + o]
@@ -198,14 +198,14 @@ def preprocess_volume(counts: NDArray[np.integer], *, min_points: int = 1, min_s
     stats: dict[str, int] = {"occupied": int((counts > 0).sum())}
     vol = counts >= max(min_points, 1)
     stats["dense"] = int(vol.sum())
-    s26 = np.ones((3, 3, 3), dtype=bool)
-    if min_size > 1:
-        lab, n = ndimage.label(vol, structure=s26)
-        if n:
-            sizes = np.bincount(lab.ravel(), minlength=n + 1)
-            small = sizes < min_size
-            small[0] = False
-            vol &= ~small[lab]
+    if min_size > 1 and vol.any():
+        ijk = np.argwhere(vol)
+        lab = _components26(ijk, vol.shape)
+        small = np.bincount(lab)[lab] < min_size
+        if small.any():
+            vol = vol.copy()
+            bad = ijk[small]
+            vol[bad[:, 0], bad[:, 1], bad[:, 2]] = False
     stats["filtered"] = int(vol.sum())
     if closing not in (None, 0, "none") and closing_radius > 0:
         if closing == "ball":
@@ -227,6 +227,34 @@ _HALF = np.array([(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz 
                   if (dx, dy, dz) > (0, 0, 0)], dtype=np.int64)
 
 
+def _adjacency26(ijk: NDArray[np.int64], shape: tuple[int, ...]
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """26-adjacent pairs ``(rows, cols, weights 3/4/5)`` among voxels ``ijk`` (each pair
+    once), by sorted linear keys and binary search -- cost ∝ voxels, not grid size."""
+    n = ijk.shape[0]
+    shp = np.array(shape, dtype=np.int64) + 2
+    key = ((ijk[:, 0] + 1) * shp[1] + ijk[:, 1] + 1) * shp[2] + ijk[:, 2] + 1
+    order = np.argsort(key)
+    skey = key[order]
+    rows, cols, wts = [], [], []
+    for off in _HALF:
+        nk = key + (off[0] * shp[1] + off[1]) * shp[2] + off[2]
+        pos = np.minimum(np.searchsorted(skey, nk), n - 1)
+        hit = skey[pos] == nk
+        rows.append(np.flatnonzero(hit))
+        cols.append(order[pos[hit]])
+        wts.append(np.full(int(hit.sum()), 2 + int(np.abs(off).sum()), dtype=np.float64))
+    return np.concatenate(rows), np.concatenate(cols), np.concatenate(wts)
+
+
+def _components26(ijk: NDArray[np.int64], shape: tuple[int, ...]) -> NDArray[np.int64]:
+    """26-connected component label of each voxel in ``ijk``."""
+    n = ijk.shape[0]
+    r, c, w = _adjacency26(ijk, shape)
+    g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
+    return connected_components(g, directed=False)[1]
+
+
 def skeleton_graph(skel: NDArray[np.bool_], *, keep_largest: int | None = None,
                    min_component_voxels: int = 1, bridge_gap: float = 0.0
                    ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
@@ -244,22 +272,7 @@ def skeleton_graph(skel: NDArray[np.bool_], *, keep_largest: int | None = None,
     n = ijk.shape[0]
     if n == 0:
         return ijk, np.zeros(0, np.int64), np.zeros(0, np.int64)
-    shape = np.array(skel.shape, dtype=np.int64) + 2
-    key = ((ijk[:, 0] + 1) * shape[1] + ijk[:, 1] + 1) * shape[2] + ijk[:, 2] + 1
-    order = np.argsort(key)
-    skey = key[order]
-    rows, cols, wts = [], [], []
-    for off in _HALF:
-        nk = key + (off[0] * shape[1] + off[1]) * shape[2] + off[2]
-        pos = np.searchsorted(skey, nk)
-        pos = np.minimum(pos, n - 1)
-        hit = skey[pos] == nk
-        rows.append(np.flatnonzero(hit))
-        cols.append(order[pos[hit]])
-        wts.append(np.full(int(hit.sum()), 2 + int(np.abs(off).sum()), dtype=np.float64))
-    r = np.concatenate(rows)
-    c = np.concatenate(cols)
-    w = np.concatenate(wts)
+    r, c, w = _adjacency26(ijk, skel.shape)
     g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
     ncomp, lab = connected_components(g, directed=False)
     if bridge_gap > 0 and ncomp > 1:
@@ -318,12 +331,15 @@ def _inscribed_radius(vol: NDArray[np.bool_], ijk: NDArray[np.int64]) -> NDArray
     (the inscribed-ball radius), from a k-d tree of the volume's surface voxels."""
     from scipy.spatial import cKDTree
 
+    occ = np.argwhere(vol)
     v = np.pad(vol, 1)
-    inner = v[1:-1, 1:-1, 1:-1].copy()
+    inner = np.ones(occ.shape[0], dtype=bool)
     for ax in range(3):
         for sh in (-1, 1):
-            inner &= np.roll(v, sh, axis=ax)[1:-1, 1:-1, 1:-1]
-    surf = np.argwhere(vol & ~inner)
+            q = occ + 1
+            q[:, ax] += sh
+            inner &= v[q[:, 0], q[:, 1], q[:, 2]]
+    surf = occ[~inner]
     if surf.shape[0] == 0:
         return np.full(ijk.shape[0], 0.5)
     d, _ = cKDTree(surf).query(ijk, workers=-1)
@@ -386,7 +402,7 @@ def _smooth_chains(g: BranchGraph, iterations: int) -> BranchGraph:
 def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # noqa: PLR0913
                       min_points: int = 1, min_size: int = 10,
                       closing: str | int | None = "ball", closing_radius: float = 1,
-                      disc_radius: float | None = None, fill_slices: bool = True,
+                      disc_radius: float | None = None, fill_slices: bool = False,
                       keep_largest: int | None = None, min_component_voxels: int = 10,
                       bridge_gap: float | None = None,
                       prune_length: float | None = None, prune_rounds: int = 2,
@@ -405,7 +421,9 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
     disc_radius : horizontal disc radius (voxels) for hollow stems; default: the stem radius
         estimated from the lowest metre of the cloud, plus one voxel, at most
         ``max_disc_radius`` (0 disables).
-    fill_slices : fill enclosed holes in each horizontal slice.
+    fill_slices : also fill every enclosed hole in each horizontal slice (off by default:
+        the disc closing fills hollow stems, and a slice-wise fill can close large loops of
+        crown branches into bubbles).
     keep_largest, min_component_voxels : which skeleton components (trees) to keep.
     bridge_gap : join skeleton end voxels to another component within this distance (m;
         default 6 cells; 0 = off, as in the thesis) -- see :func:`skeleton_graph`.
