@@ -196,6 +196,17 @@ def _euler_kernel(data, rot_cols, rot_axes, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _count_wraps(data, cols):  # pragma: no cover - compiled
+    """Number of jumps larger than 180 between consecutive rows in the given columns."""
+    n = 0
+    for t in range(1, data.shape[0]):
+        for c in cols:
+            if abs(data[t, c] - data[t - 1, c]) > 180.0:
+                n += 1
+    return n
+
+
+@njit(cache=True)
 def _format_fixed(values, precision, out):  # pragma: no cover - compiled
     """Write ``values (f, c)`` as fixed-point text rows into byte buffer ``out``; return the
     number of bytes used (-1 if a value is too large)."""
@@ -448,9 +459,8 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None):
         raise FormatError(path, f"MOTION value {tok!r} is not a number (frame "
                                 f"{count // max(n_ch, 1)}, channel {count % max(n_ch, 1)})",
                           line=_line_of(raw, err))
-    last_line = _line_of(raw, len(raw.rstrip()))
     if (status == 0 and count < n_frames * n_ch and bad_line >= 0
-            and _line_of(raw, bad_line) == last_line):
+            and _line_of(raw, bad_line) == (last_line := _line_of(raw, len(raw.rstrip())))):
         raise FormatError(path, f"file ends inside frame {count // n_ch} (its line holds "
                                 f"{bad_count} of {n_ch} values); 'Frames: {n_frames}' announces "
                                 f"{n_frames} frames (truncated file?)", line=last_line)
@@ -498,16 +508,17 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None):
             for a in range(3):
                 if pos_cols[j, a] >= 0:
                     translation[:, j, a] = data[:, pos_cols[j, a]]
-    wraps = 0
     rc = rot_cols[rot_cols >= 0]
-    if rc.size and n_frames > 1:
-        wraps = int(np.count_nonzero(np.abs(np.diff(data[:, rc], axis=0)) > 180.0))
+    wraps = int(_count_wraps(data, rc)) if rc.size and n_frames > 1 else 0
     try:
         skel = JointSkeleton(names, parent, offset, channels=channels, end_site=end)
     except InputError as exc:
         raise FormatError(path, str(exc)) from None
     meta = {"source": os.fspath(path), "format": "bvh", "units": "file units",
             "euler_wraps_in_file": wraps}
+    for arr in (rotation, root_pos, translation):  # fresh arrays: hand them over, no copy
+        if arr is not None:
+            arr.setflags(write=False)
     mo = Motion(skel, rotation, root_pos, frame_time, translation, meta)
     mo.meta["up_guess"] = guess_up_axis(mo)
     if up is not None:

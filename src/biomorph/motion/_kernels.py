@@ -282,3 +282,45 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
             out[j, i, 1] = y
             out[j, i, 2] = z
             out[j, i, 3] = w
+
+
+@njit(cache=True)
+def blend_average(q, w, out):  # pragma: no cover - compiled
+    """Normalised weighted quaternion average of N clips: ``q (N, f, n, 4)``, weights
+    ``w (f, N)``; signs aligned to the heaviest clip; exact copy where a weight is 1;
+    hemisphere-continuous along f."""
+    nc, f, nj = q.shape[0], q.shape[1], q.shape[2]
+    for k in range(f):
+        h = 0
+        for i in range(1, nc):
+            if w[k, i] > w[k, h]:
+                h = i
+        for j in range(nj):
+            rx, ry, rz, rw = q[h, k, j, 0], q[h, k, j, 1], q[h, k, j, 2], q[h, k, j, 3]
+            if w[k, h] == 1.0:
+                x, y, z, ww = rx, ry, rz, rw
+            else:
+                x = 0.0
+                y = 0.0
+                z = 0.0
+                ww = 0.0
+                for i in range(nc):
+                    wi = w[k, i]
+                    if wi == 0.0:
+                        continue
+                    d = (q[i, k, j, 0] * rx + q[i, k, j, 1] * ry + q[i, k, j, 2] * rz
+                         + q[i, k, j, 3] * rw)
+                    s = wi if d >= 0 else -wi
+                    x += s * q[i, k, j, 0]
+                    y += s * q[i, k, j, 1]
+                    z += s * q[i, k, j, 2]
+                    ww += s * q[i, k, j, 3]
+                nrm = np.sqrt(x * x + y * y + z * z + ww * ww)
+                x, y, z, ww = x / nrm, y / nrm, z / nrm, ww / nrm
+            if k > 0 and (x * out[k - 1, j, 0] + y * out[k - 1, j, 1] + z * out[k - 1, j, 2]
+                          + ww * out[k - 1, j, 3]) < 0:
+                x, y, z, ww = -x, -y, -z, -ww
+            out[k, j, 0] = x
+            out[k, j, 1] = y
+            out[k, j, 2] = z
+            out[k, j, 3] = ww

@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from biomorph.core import transforms as tf
 from biomorph.errors import InputError, ParameterError
-from biomorph.motion.motion import Motion
+from biomorph.motion.motion import Motion, frozen
 
 Array = NDArray[np.float64]
 _UP = {"x": 0, "y": 1, "z": 2}
@@ -56,7 +56,7 @@ def transform_root(motion: Motion, rotation: ArrayLike, translation: ArrayLike =
     if motion.joint_translation is not None:
         jt = np.array(motion.joint_translation)
         jt[:, 0] = pos
-    return motion.with_(rotation=rot, root_position=pos, joint_translation=jt)
+    return motion.with_(rotation=frozen(rot), root_position=frozen(pos), joint_translation=jt)
 
 
 def reorient(motion: Motion, angle: float, translate: ArrayLike = (0.0, 0.0, 0.0),

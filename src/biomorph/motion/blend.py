@@ -31,9 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from biomorph.core import transforms as tf
 from biomorph.errors import InputError, ParameterError
-from biomorph.motion._kernels import blend_slerp
+from biomorph.motion._kernels import blend_average, blend_slerp
 from biomorph.motion.align import (
     align_root_to,
     dtw_path,
@@ -43,7 +42,7 @@ from biomorph.motion.align import (
     pose_features,
 )
 from biomorph.motion.keys import Curve, Keys, curve_from_keys, smoothstep
-from biomorph.motion.motion import Motion, same_skeleton, sample_arrays
+from biomorph.motion.motion import Motion, frozen, same_skeleton, sample_arrays
 
 Array = NDArray[np.float64]
 
@@ -207,15 +206,8 @@ def blend(clips: Sequence[Motion], offsets: ArrayLike | None = None,
         rot = np.empty_like(qa)
         blend_slerp(qa, qb, np.ascontiguousarray(b), rot)
     else:
-        heavy = np.argmax(w, axis=1)
-        q = np.stack(rots, axis=1)  # (f, N, n, 4)
-        ref = q[np.arange(p.n_frames), heavy]  # (f, n, 4)
-        sign = np.where(np.sum(q * ref[:, None], axis=-1, keepdims=True) < 0, -1.0, 1.0)
-        acc = np.sum(w[:, :, None, None] * sign * q, axis=1)
-        rot = acc / np.linalg.norm(acc, axis=-1, keepdims=True)
-        one = np.max(w, axis=1) == 1.0
-        rot[one] = ref[one]
-        rot = tf.quat_continuous(rot, axis=0)
+        rot = np.empty_like(rots[0])
+        blend_average(np.stack(rots), np.ascontiguousarray(w), rot)
     pos = np.einsum("fi,ifk->fk", w, np.stack(poss))
     exact = w == 1.0
     for i in range(len(clips)):
@@ -229,7 +221,7 @@ def blend(clips: Sequence[Motion], offsets: ArrayLike | None = None,
         jt[:, 0] = pos
     meta = dict(clips[0].meta)
     meta["blend"] = {"offsets": p.offsets.tolist(), "scales": p.scales.tolist()}
-    return Motion(clips[0].skeleton, rot, pos, clips[0].frame_time, jt, meta)
+    return Motion(clips[0].skeleton, frozen(rot), frozen(pos), clips[0].frame_time, jt, meta)
 
 
 __all__ = ["blend", "plan", "auto_offset", "BlendPlan"]

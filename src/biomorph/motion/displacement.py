@@ -29,7 +29,7 @@ from biomorph.core import transforms as tf
 from biomorph.errors import ParameterError
 from biomorph.motion.align import reorient, transform_root
 from biomorph.motion.keys import Keys, key_arrays
-from biomorph.motion.motion import Motion
+from biomorph.motion.motion import Motion, frozen
 
 Array = NDArray[np.float64]
 KINDS = ("rotation", "position")
@@ -109,7 +109,7 @@ def apply_offsets(motion: Motion, joint: str | int, offset: Array, kind: str = "
         if rows.size:
             rot[rows, j] = tf.quat_multiply(rot[rows, j], tf.quat_from_rotvec(offset[rows]))
             rot[:, j] = tf.quat_continuous(rot[:, j], axis=0)
-        return motion.with_(rotation=rot)
+        return motion.with_(rotation=frozen(rot))
     if j == 0:
         pos = motion.root_position + offset
         jt = None

@@ -45,7 +45,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from biomorph.errors import ParameterError
 from biomorph.motion._kernels import equalize_rotations, equalize_rows, lowpass_into
-from biomorph.motion.motion import Motion
+from biomorph.motion.motion import Motion, frozen
 
 Array = NDArray[np.float64]
 KERNEL = np.array([1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16])
@@ -207,6 +207,10 @@ def equalize(motion: Motion, gains: ArrayLike = DEFAULT_GAINS,
     meta = dict(motion.meta)
     meta.setdefault("history", [])
     meta["history"] = [*meta["history"], f"equalize gains={list(map(float, g))}"]
+    if rot is not motion.rotation:
+        frozen(rot)
+    if pos is not motion.root_position:
+        frozen(pos)
     return motion.with_(rotation=rot, root_position=pos, joint_translation=jt, meta=meta)
 
 

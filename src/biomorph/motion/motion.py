@@ -45,6 +45,14 @@ POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 DEFAULT_ORDER = "ZXY"
 
 
+def frozen(a: Array | None) -> Array | None:
+    """Mark a freshly computed array read-only so :class:`Motion` takes it without copying
+    (internal: only for arrays nobody else holds)."""
+    if a is not None:
+        a.setflags(write=False)
+    return a
+
+
 def _readonly(a: ArrayLike, shape_tail: tuple[int, ...], name: str) -> Array:
     arr = np.asarray(a, dtype=np.float64)
     if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != shape_tail:
@@ -303,7 +311,7 @@ def sample_arrays(motion: Motion, t: Array) -> tuple[Array, Array, Array | None]
         b = motion.joint_translation[i1]
         jt = a * (1.0 - f[:, :, None]) + b * f[:, :, None]
         jt[exact] = a[exact]
-    return rot, pos, jt
+    return frozen(rot), frozen(pos), frozen(jt)
 
 
 def same_skeleton(a: JointSkeleton, b: JointSkeleton, what: str = "motions") -> None:
@@ -392,5 +400,5 @@ def preview_positions(motion: Motion, frame: int) -> tuple[Array, Array]:
 
 
 __all__ = ["Motion", "concatenate", "dfs_preorder", "reorder_joints", "check_range",
-           "same_skeleton", "guess_up_axis", "preview_positions", "sample_arrays",
+           "same_skeleton", "guess_up_axis", "frozen", "preview_positions", "sample_arrays",
            "ROTATION_CHANNELS", "POSITION_CHANNELS"]

@@ -1,0 +1,117 @@
+"""Motion pillar benchmark: every MotionLab operator on a 1-minute 120 fps 60-joint clip
+(target ≤ 30 ms each), BVH read of 100k frames × 60 joints (target < 2 s), and a 1-hour take
+(432,000 frames × 60 joints): BVH read (target ≤ 5 s) and equalize (target ≤ 10 s).
+
+Usage: .venv/bin/python bench/motion.py [--quick]     (--quick skips the 1-hour take)
+
+Prints a markdown table. Times are the median of several runs (wall clock, after one
+warm-up call that loads the compiled kernels); the machine's load average is printed too,
+because on a shared machine wall-clock times scale with it.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def median_ms(fn, repeat: int = 5) -> float:
+    fn()
+    ts = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t0)
+    return 1000 * float(np.median(ts))
+
+
+def tiled_bvh(src: Path, dst: Path, copies: int) -> int:
+    """Write ``dst``: the hierarchy of ``src`` with its MOTION rows repeated ``copies`` times
+    (fast way to make a huge, valid file)."""
+    text = src.read_bytes()
+    head, rest = text.split(b"MOTION", 1)
+    lines = rest.split(b"\n", 3)  # '', Frames, Frame Time, body
+    frames = int(lines[1].split(b":")[1])
+    body = lines[3]
+    with open(dst, "wb") as fh:
+        fh.write(head + b"MOTION\nFrames: " + str(frames * copies).encode() + b"\n" +
+                 lines[2] + b"\n")
+        for _ in range(copies):
+            fh.write(body)
+    return frames * copies
+
+
+def main() -> None:
+    import biomorph.motion as bm
+    from biomorph.io.bvh import read_bvh, write_bvh
+    from biomorph.motion.synthetic import walk
+
+    quick = "--quick" in sys.argv
+    rows: list[tuple[str, str, str, str]] = []
+    m = walk(7200, 120, n_joints=60, noise_deg=0.5)
+    a, b = m[:4000], m[3400:]
+    c = walk(2400, 120, n_joints=60, speed=2.5, stride_hz=1.4, noise_deg=0.5, seed=2)
+    ops = [
+        ("equalize (5 gains, all joints)", lambda: bm.equalize(m, [0, 0.5, 1, 1.3, 1])),
+        ("equalize (last gain 0.8)", lambda: bm.equalize(m, [0, 1, 1, 1, 0.8])),
+        ("displacement edit (2 keys, one joint)",
+         lambda: bm.displace(m, "LeftArm", {3000: [0, 0, 0.5], 3100: [0.2, 0, 0]}, fade=60)),
+        ("layers (3 layers)", lambda: bm.apply_layers(m, [
+            bm.Layer.make("a", "LeftArm", {1000: [0, 0, 0.3]}),
+            bm.Layer.make("b", "RightArm", {2000: [0, 0.2, 0]}, weight=0.5),
+            bm.Layer.make("c", "Hips", {3000: [0, 0.05, 0]}, kind="position")])),
+        ("re-orient", lambda: bm.reorient(m, 0.5, (1, 0, 2))),
+        ("blend 2 clips (120-frame transition)", lambda: bm.blend([a, b], transition=120)),
+        ("blend 3 clips", lambda: bm.blend([a, b, c], transition=120)),
+        ("speed curve (3 keys)", lambda: bm.change_speed(m, {0: 1, 3600: 2, 7199: 1})),
+        ("cycle (400-frame range, ×10)", lambda: bm.make_cycle(m, 100, 500, 60, cycles=10)),
+        ("resample 120 → 30 fps", lambda: m.resample(30)),
+        ("world positions (FK, all frames)", lambda: m.world_positions()),
+    ]
+    for name, fn in ops:
+        ms = median_ms(fn)
+        target = "≤ 30 ms" if not name.startswith(("resample", "world")) else "—"
+        rows.append((name, "7,200 f × 60 j", f"{ms:.1f} ms", target))
+    with tempfile.TemporaryDirectory(prefix="bm-motion-") as tmp:
+        p = Path(tmp) / "minute.bvh"
+        rows.append(("BVH write", "7,200 f × 60 j", f"{median_ms(lambda: write_bvh(p, m), 3):.0f}"
+                     " ms", "—"))
+        rows.append(("BVH read", "7,200 f × 60 j", f"{median_ms(lambda: read_bvh(p), 3):.0f} ms",
+                     "—"))
+        big = Path(tmp) / "100k.bvh"
+        n100 = tiled_bvh(p, big, 14)  # 100,800 frames
+        t0 = time.perf_counter()
+        mo = read_bvh(big)
+        rows.append(("BVH read", f"{n100:,} f × 60 j ({big.stat().st_size / 1e6:.0f} MB)",
+                     f"{time.perf_counter() - t0:.2f} s", "< 2 s"))
+        del mo
+        big.unlink()
+        if not quick:
+            hour = Path(tmp) / "hour.bvh"
+            nh = tiled_bvh(p, hour, 60)  # 432,000 frames = 1 h at 120 fps
+            t0 = time.perf_counter()
+            mo = read_bvh(hour)
+            rows.append(("BVH read (1-hour take)",
+                         f"{nh:,} f × 60 j ({hour.stat().st_size / 1e6:.0f} MB)",
+                         f"{time.perf_counter() - t0:.2f} s", "≤ 5 s"))
+            hour.unlink()
+            t0 = time.perf_counter()
+            bm.equalize(mo, [0, 0.5, 1, 1.3, 1])
+            rows.append(("equalize (1-hour take)", f"{nh:,} f × 60 j",
+                         f"{time.perf_counter() - t0:.2f} s", "≤ 10 s"))
+            del mo
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"Motion benchmark (load average {load:.1f} on {os.cpu_count()} cores)\n")
+    print("| operation | data | time | target |")
+    print("|---|---|---|---|")
+    for r in rows:
+        print("| " + " | ".join(r) + " |")
+
+
+if __name__ == "__main__":
+    main()
