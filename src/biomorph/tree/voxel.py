@@ -120,26 +120,46 @@ def _offsets(kind: str | int, r: float) -> NDArray[np.int64]:
     return np.stack([x[m], y[m], z[m]], axis=1).astype(np.int64)
 
 
-def _sparse_closing(vol: NDArray[np.bool_], offs: NDArray[np.int64]) -> NDArray[np.bool_]:
+def _octagon_factors(r: float) -> list[NDArray[np.int64]]:
+    """A horizontal regular octagon of circumradius ~r as a Minkowski sum of four digital
+    line segments (x, y and the two diagonals): dilating/eroding by the segments one after
+    the other costs O(r) per voxel instead of O(r²) for the disc itself."""
+    a = int(round(0.41 * r))
+    b = int(round(0.29 * r))
+    k = np.arange(-a, a + 1)
+    j = np.arange(-b, b + 1)
+    z = np.zeros_like
+    return [np.stack([k, z(k), z(k)], 1), np.stack([z(k), k, z(k)], 1),
+            np.stack([j, j, z(j)], 1), np.stack([j, -j, z(j)], 1)]
+
+
+def _sparse_closing(vol: NDArray[np.bool_],
+                    offs: NDArray[np.int64] | list[NDArray[np.int64]]) -> NDArray[np.bool_]:
     """Binary closing (dilation then erosion) with a symmetric structuring element given by
-    its offsets, computed on the occupied voxels only (cost ∝ occupied voxels × element
-    size, not grid size). The result contains ``vol`` and stays inside its grid."""
-    if not vol.any() or offs.shape[0] <= 1:
+    its offsets -- or by a list of offset sets whose Minkowski sum is the element --
+    computed on the occupied voxels only (cost ∝ occupied voxels × element size, not grid
+    size). The result contains ``vol`` and stays inside its grid."""
+    factors = offs if isinstance(offs, list) else [offs]
+    factors = [f for f in factors if f.shape[0] > 1]
+    if not vol.any() or not factors:
         return vol.copy()
-    ext = int(np.abs(offs).max())
+    ext = int(sum(np.abs(f).max() for f in factors))
     pad = 2 * ext + 1
     shp = np.array(vol.shape, dtype=np.int64) + 2 * pad
     st = np.array([shp[1] * shp[2], shp[2], 1], dtype=np.int64)
     keys = (np.argwhere(vol) + pad) @ st
-    okeys = offs @ st
+    okeys = [f @ st for f in factors]
+    for ok in okeys:  # dilation by each factor in turn
+        keys = np.unique((keys[:, None] + ok[None, :]).ravel())
     g = np.zeros(int(np.prod(shp)), dtype=bool)
-    for o in okeys:
-        g[keys + o] = True
-    dk = np.unique((keys[:, None] + okeys[None, :]).ravel())
-    keep = np.ones(dk.size, dtype=bool)
-    for o in okeys:
-        keep &= g[dk + o]
-    c = np.stack(np.unravel_index(dk[keep], tuple(shp)), axis=1) - pad
+    for ok in okeys:  # erosion by each factor in turn
+        g[keys] = True
+        keep = np.ones(keys.size, dtype=bool)
+        for o in ok:
+            keep &= g[keys + o]
+        g[keys] = False
+        keys = keys[keep]
+    c = np.stack(np.unravel_index(keys, tuple(shp)), axis=1) - pad
     inside = ((c >= 0) & (c < np.array(vol.shape))).all(axis=1)
     out = vol.copy()
     c = c[inside]
@@ -164,24 +184,33 @@ def _fill_slice_holes(vol: NDArray[np.bool_]) -> NDArray[np.bool_]:
 
 
 def _estimate_stem_radius(xyz: NDArray[np.float64], cell: float) -> float:
-    """Largest stem radius (m) from the lowest metre of the cloud: the half-extent of each
-    2-D cluster of points in the slice 0.2–1.0 m above the lowest point."""
+    """Largest stem radius (m) from the lowest metre of the cloud.
+
+    Points 0.2–1.0 m above the lowest point are clustered in 2-D (occupied cells of size
+    ``cell``, 8-connected); a stem is a compact cluster, so each cluster's radius is the
+    median distance of its points to its centroid (a ring gives its radius, a full disc
+    0.7 × its radius); the largest over clusters of at least 10 points is returned.
+    """
     z0 = xyz[:, 2].min()
     sl = xyz[(xyz[:, 2] > z0 + 0.2) & (xyz[:, 2] < z0 + 1.0), :2]
-    if sl.shape[0] < 5:
+    if sl.shape[0] < 10:
         return 2 * cell
     lo = sl.min(axis=0)
     ij = np.floor((sl - lo) / cell).astype(np.int64)
     img = np.zeros(ij.max(axis=0) + 1, dtype=bool)
     img[ij[:, 0], ij[:, 1]] = True
-    img = ndimage.binary_closing(np.pad(img, 2), iterations=1)[2:-2, 2:-2]
     lab, n = ndimage.label(img, structure=np.ones((3, 3)))
     if n == 0:
         return 2 * cell
-    sl_ = ndimage.find_objects(lab)
-    # a stem cluster is round; a branch crossing the slice is long in one direction only
-    ext = max(min(s[0].stop - s[0].start, s[1].stop - s[1].start) for s in sl_)
-    return 0.5 * ext * cell
+    pl = lab[ij[:, 0], ij[:, 1]]
+    cnt = np.bincount(pl, minlength=n + 1)
+    cx = np.bincount(pl, weights=sl[:, 0], minlength=n + 1) / np.maximum(cnt, 1)
+    cy = np.bincount(pl, weights=sl[:, 1], minlength=n + 1) / np.maximum(cnt, 1)
+    d = np.hypot(sl[:, 0] - cx[pl], sl[:, 1] - cy[pl])
+    best = 0.0
+    for k in np.flatnonzero(cnt >= 10):  # one entry per cluster (a handful)
+        best = max(best, float(np.median(d[pl == k])))
+    return best if best > 0 else 2 * cell
 
 
 def preprocess_volume(counts: NDArray[np.integer], *, min_points: int = 1, min_size: int = 10,
@@ -216,7 +245,8 @@ def preprocess_volume(counts: NDArray[np.integer], *, min_points: int = 1, min_s
             raise ParameterError(f"closing must be 'ball', 6, 18, 26 or None; got {closing!r}")
     stats["closed"] = int(vol.sum())
     if disc_radius:
-        vol = _sparse_closing(vol, _offsets("disc", float(disc_radius)))
+        dr = float(disc_radius)
+        vol = _sparse_closing(vol, _offsets("disc", dr) if dr <= 4 else _octagon_factors(dr))
     if fill_slices:
         vol = _fill_slice_holes(vol)
     stats["filled"] = int(vol.sum())
@@ -407,7 +437,7 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
                       bridge_gap: float | None = None,
                       prune_length: float | None = None, prune_rounds: int = 2,
                       smooth_iterations: int = 3, radius: bool = True,
-                      full_symmetry: bool = False, max_disc_radius: int = 12,
+                      full_symmetry: bool = False, max_disc_radius: float = 0.4,
                       progress: Callable[[str], None] | None = None) -> VoxelSkeleton:
     """Skeletonise a tree point cloud with the voxel method of Gorte & Pfeifer (2004).
 
@@ -420,7 +450,8 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
     closing, closing_radius : gap-filling closing (``"ball"``/6/18/26, radius in voxels).
     disc_radius : horizontal disc radius (voxels) for hollow stems; default: the stem radius
         estimated from the lowest metre of the cloud, plus one voxel, at most
-        ``max_disc_radius`` (0 disables).
+        ``max_disc_radius`` metres (0 disables). Radii above 4 voxels use a regular
+        octagon (four line segments) instead of the digital disc.
     fill_slices : also fill every enclosed hole in each horizontal slice (off by default:
         the disc closing fills hollow stems, and a slice-wise fill can close large loops of
         crown branches into bubbles).
@@ -455,7 +486,7 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
     note("preprocess")
     if disc_radius is None:
         disc_radius = math.ceil(_estimate_stem_radius(cloud.xyz, cell) / cell) + 1
-        disc_radius = min(disc_radius, max_disc_radius)
+        disc_radius = min(disc_radius, max(1, math.floor(max_disc_radius / cell)))
     vol, stats = preprocess_volume(counts, min_points=min_points, min_size=min_size,
                                    closing=closing, closing_radius=closing_radius,
                                    disc_radius=disc_radius, fill_slices=fill_slices)
