@@ -32,13 +32,60 @@ PathLike = str | os.PathLike[str]
 _COORD_DIMS = {"X", "Y", "Z", "x", "y", "z"}
 
 
+def check_header(path: PathLike) -> dict[str, int]:
+    """Validate the LAS public header block against the file size before laspy reads it.
+
+    A corrupted count (VLRs, EVLRs, points) would otherwise make a reader loop or allocate
+    for a very long time. Returns the raw fields read."""
+    import struct
+
+    p = Path(path)
+    size = p.stat().st_size
+    if size == 0:
+        raise FormatError(path, "file is empty; expected a LAS/LAZ header")
+    with open(p, "rb") as fh:
+        head = fh.read(375)
+    if len(head) < 227 or head[:4] != b"LASF":
+        raise FormatError(path, "not a LAS/LAZ file: expected the 'LASF' signature and a "
+                                "227-byte or longer header")
+    major, minor = head[24], head[25]
+    header_size, = struct.unpack_from("<H", head, 94)
+    offset_points, n_vlrs = struct.unpack_from("<II", head, 96)
+    fmt_id, record_len, legacy_count = struct.unpack_from("<BHI", head, 104)
+    if major != 1 or minor > 4:
+        raise FormatError(path, f"LAS version {major}.{minor}; expected 1.0 to 1.4")
+    if header_size < 227 or header_size > size or offset_points < header_size or \
+            offset_points > size:
+        raise FormatError(path, f"header size {header_size} / point data offset {offset_points} "
+                                f"do not fit the file of {size} bytes; truncated or corrupt")
+    if n_vlrs * 54 > offset_points - header_size:
+        raise FormatError(path, f"header announces {n_vlrs} VLRs but only "
+                                f"{offset_points - header_size} bytes precede the points; "
+                                "corrupt header")
+    count = legacy_count
+    if minor >= 4 and len(head) >= 255:
+        start_evlr, n_evlr = struct.unpack_from("<QI", head, 235)
+        count = struct.unpack_from("<Q", head, 247)[0] or legacy_count
+        if n_evlr and (start_evlr > size or n_evlr * 60 > size - start_evlr):
+            raise FormatError(path, f"header announces {n_evlr} extended VLRs that do not fit "
+                                    "the file; corrupt header")
+    compressed = bool(fmt_id & 0x80) or bool(fmt_id & 0x40)
+    if not compressed and count * record_len > size - offset_points:
+        raise FormatError(path, f"header announces {count} points of {record_len} bytes but "
+                                f"the file holds {size - offset_points} bytes of point data; "
+                                "truncated")
+    if compressed and count > 0 and size - offset_points < 8:
+        raise FormatError(path, "compressed point data is missing; truncated")
+    return {"point_count": int(count), "record_length": int(record_len),
+            "point_format": int(fmt_id & 0x3F)}
+
+
 def read_points(path: PathLike) -> PointCloud:
     """Read a LAS/LAZ file into a :class:`PointCloud` (all dimensions kept as attributes)."""
     import laspy
 
     p = Path(path)
-    if p.stat().st_size == 0:
-        raise FormatError(path, "file is empty; expected a LAS/LAZ header")
+    check_header(p)
     try:
         las = laspy.read(p)
         header = las.header
