@@ -90,6 +90,9 @@ def info(path: Annotated[Path, typer.Argument(help="Any file biomorph reads.")],
 def render(path: Annotated[Path, typer.Argument(help="Cloud, skeleton, motion or mesh file.")],
            output: Annotated[Path, typer.Option("-o", "--output", help="PNG to write.")] =
            Path("preview.png"),
+           up: Annotated[str | None, typer.Option(
+               "--up", help="Vertical axis: z (trees, leaves) or y (creatures, motion); "
+                            "default by file type.")] = None,
            ) -> None:
     """Render a PNG preview (three orthographic views + perspective).
 
@@ -97,7 +100,7 @@ def render(path: Annotated[Path, typer.Argument(help="Cloud, skeleton, motion or
     """
     from biomorph.render import render_file
 
-    out = render_file(path, output)
+    out = render_file(path, output, up=up)
     out_console.print(f"wrote {out}")
 
 
