@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import io
 import os
-import shutil
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -22,7 +21,7 @@ CHROMIUM = Path(os.environ.get("BIOMORPH_CHROMIUM", "/usr/bin/chromium"))
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
                  "--no-first-run", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync"]
-VIEWPORT = {"width": 1100, "height": 720}
+VIEWPORT = {"width": 960, "height": 640}
 
 
 def wait_for(cond: Callable[[], object], timeout: float = 10.0, what: str = "condition"
@@ -129,20 +128,21 @@ class Studio:
     # -------------------------------------------------------------- checks
     def canvas_png(self) -> bytes:
         """Screenshot of the 3-D view alone (the GUI panel excluded)."""
-        self.page.wait_for_timeout(400)  # let three.js draw the latest messages
+        self.page.wait_for_timeout(250)  # let three.js draw the latest messages
         box = self.page.locator("canvas").first.bounding_box()
         assert box is not None, "no WebGL canvas in the page"
         clip = {"x": box["x"] + 20, "y": box["y"] + 170,
                 "width": max(box["width"] * 0.7 - 40, 10), "height": box["height"] - 260}
         return self.page.screenshot(clip=clip)
 
-    def assert_scene_not_blank(self) -> None:
-        var, colours = png_stats(self.canvas_png())
+    def assert_scene_not_blank(self, png: bytes | None = None) -> None:
+        var, colours = png_stats(self.canvas_png() if png is None else png)
         assert var > 20.0 and colours > 8, (f"3-D view looks blank (variance {var:.1f}, "
                                             f"{colours} colours)")
 
-    def assert_scene_changed(self, before: bytes, min_pixels: int = 300) -> None:
-        """The 3-D view differs from the screenshot ``before`` in at least ``min_pixels``."""
+    def assert_scene_changed(self, before: bytes, min_pixels: int = 300) -> bytes:
+        """The 3-D view is not blank and differs from ``before`` in at least ``min_pixels``
+        pixels; returns the new screenshot."""
         from PIL import Image
 
         a = np.asarray(Image.open(io.BytesIO(before)).convert("L"), dtype=np.int16)
@@ -151,6 +151,8 @@ class Studio:
         assert a.shape == b.shape
         changed = int((np.abs(a - b) > 12).sum())
         assert changed >= min_pixels, f"3-D view barely changed ({changed} pixels)"
+        self.assert_scene_not_blank(after)
+        return after
 
     def close_notifications(self) -> None:
         for btn in self.page.locator(".mantine-Notification-closeButton").all():
@@ -159,22 +161,22 @@ class Studio:
             except Exception:  # noqa: BLE001 - already gone
                 pass
 
-    def screenshot(self, tab: str, tmp: Path) -> Path:
-        """Full-page screenshot; copied to $BIOMORPH_STUDIO_SCREENSHOTS if set."""
+    def screenshot(self, tab: str) -> Path | None:
+        """Full-page screenshot into $BIOMORPH_STUDIO_SCREENSHOTS (for the README) if set."""
+        keep = os.environ.get("BIOMORPH_STUDIO_SCREENSHOTS")
+        if not keep:
+            return None
         self.close_notifications()
         self.page.wait_for_timeout(600)
-        out = tmp / f"studio_{tab}.png"
+        Path(keep).mkdir(parents=True, exist_ok=True)
+        out = Path(keep) / f"studio_{tab}.png"
         self.page.screenshot(path=str(out))
         var, _ = png_stats(out.read_bytes())
         assert var > 20.0, f"screenshot of the {tab} tab is blank"
-        keep = os.environ.get("BIOMORPH_STUDIO_SCREENSHOTS")
-        if keep:
-            Path(keep).mkdir(parents=True, exist_ok=True)
-            shutil.copy(out, Path(keep) / out.name)
         return out
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def studio_app(tmp_path_factory):
     """A studio on a free loopback port over a fresh data folder (1 MB upload limit)."""
     from biomorph.studio import StudioApp

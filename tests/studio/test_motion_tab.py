@@ -27,7 +27,6 @@ def test_motion_tab(studio, tmp_path):
     assert tab.last_error is None, tab.last_error
     assert tab.source.n_frames == 3600
     studio.expect_text("3600 frames")
-    studio.assert_scene_changed(before)
 
     # scrub: the server-side frame follows the slider typed in the page
     v0 = tab.version
@@ -44,8 +43,7 @@ def test_motion_tab(studio, tmp_path):
         wait_for(lambda: tab.edited is not tab.source, what="an edited clip")
         stats = app.latency.summary()
         assert "motion/equalizer" in stats
-    studio.assert_scene_not_blank()
-    studio.screenshot("motion", tmp_path)
+    studio.screenshot("motion")
 
     # export BVH and GLB: valid files that read back
     from biomorph import io
