@@ -114,18 +114,21 @@ class Field:
         return int(self.plant.size)
 
 
-def _plant_leaves(spec: PlantSpec, plant_age: float, rng: np.random.Generator):
+def _plant_leaves(spec: PlantSpec, plant_age: float, plants: int, rng: np.random.Generator):
+    """Leaf parameters of ``plants`` plants at once: arrays ``(plants, leaves)``."""
     n = spec.leaves
     i = np.arange(n)
     emerge = i * spec.appearance
-    present = plant_age >= emerge
-    age = np.clip((plant_age - emerge) / spec.lifespan, 0.0, 1.0)
+    present = np.broadcast_to(plant_age >= emerge, (plants, n))
+    age = np.broadcast_to(np.clip((plant_age - emerge) / spec.lifespan, 0.0, 1.0), (plants, n))
     x = i / max(n - 1, 1)
     profile = 0.55 + 0.45 * np.sin(np.pi * (0.15 + 0.7 * x))
-    lscale = profile * np.clip(1 + spec.length_jitter * rng.standard_normal(n), 0.5, 1.5)
-    base_az = rng.uniform(0, 2 * np.pi)
-    az = base_az + np.pi * i + np.radians(spec.azimuth_jitter_deg) * rng.standard_normal(n)
-    incl = np.radians(spec.insertion_jitter_deg) * rng.standard_normal(n)
+    lscale = profile * np.clip(1 + spec.length_jitter * rng.standard_normal((plants, n)),
+                               0.5, 1.5)
+    base_az = rng.uniform(0, 2 * np.pi, size=(plants, 1))
+    az = base_az + np.pi * i + np.radians(spec.azimuth_jitter_deg) * rng.standard_normal(
+        (plants, n))
+    incl = np.radians(spec.insertion_jitter_deg) * rng.standard_normal((plants, n))
     return present, age, lscale, az, incl
 
 
@@ -159,22 +162,14 @@ def build_field(spec: FieldSpec, seed: int | np.random.Generator = 0, origin=(0.
     H = ps.stem_height or 2.5 * shape.length
     elong = np.clip(plant_age / 0.8, 0.1, 1.0)
     stem_h = np.full(spec.plants, H * elong)
-    cols = {k: [] for k in ("plant", "rank", "age", "ls", "az", "incl", "org")}
     n = ps.leaves
     rel_h = ((np.arange(n) + 1) / n) ** 1.3
-    for p in range(spec.plants):
-        present, a, ls, az, incl = _plant_leaves(ps, plant_age, rng)
-        k = np.flatnonzero(present)
-        cols["plant"].append(np.full(k.size, p))
-        cols["rank"].append(k + 1)
-        cols["age"].append(a[k])
-        cols["ls"].append(ls[k])
-        cols["az"].append(az[k])
-        cols["incl"].append(incl[k])
-        org = np.repeat(pos[p][None], k.size, axis=0)
-        org[:, 2] += stem_h[p] * rel_h[k]
-        cols["org"].append(org)
-    cat = {k: np.concatenate(v) if v else np.zeros(0) for k, v in cols.items()}
+    present, a, ls, az, incl = _plant_leaves(ps, plant_age, spec.plants, rng)
+    pp, kk = np.nonzero(present)                     # plant-major order, ranks ascending
+    org = pos[pp].copy()
+    org[:, 2] += stem_h[pp] * rel_h[kk]
+    cat = {"plant": pp, "rank": kk + 1, "age": a[pp, kk], "ls": ls[pp, kk], "az": az[pp, kk],
+           "incl": incl[pp, kk], "org": org}
     ground = spec.rows * spec.row_spacing * per_row * dx
     return Field(shape, pos, stem_h, ps.stem_radius, cat["plant"].astype(np.int64),
                  cat["rank"].astype(np.int64), cat["age"], cat["ls"], cat["incl"], cat["az"],
@@ -266,7 +261,7 @@ def field_mesh(fld: Field, triangles_per_leaf: int = 20, stems: bool = True,
     leaves = mesh_batch(batch_from_field(fld, sg, twist, undulation), n_u=2,
                         drop_degenerate=drop_degenerate) if fld.n_leaves else None
     parts = [m for m in (leaves, stem_mesh(fld) if stems else None) if m is not None]
-    return Mesh.merge(parts)
+    return parts[0] if len(parts) == 1 else Mesh.merge(parts)
 
 
 def leaf_area_index(fld: Field, mesh: Mesh) -> float:

@@ -129,8 +129,13 @@ def concat_batches(batches: Sequence[LeafBatch]) -> LeafBatch:
     return LeafBatch(*[np.concatenate([getattr(b, f) for b in batches]) for f in names])
 
 
-def leaf_grid(batch: LeafBatch, u: ArrayLike) -> Array:
-    """Surface points ``(N, K, n_u, 3)`` (metres, world frame) at cross positions ``u``."""
+def leaf_grid(batch: LeafBatch, u: ArrayLike, with_normals: bool = False):
+    """Surface points ``(N, K, n_u, 3)`` (metres, world frame) at cross positions ``u``.
+
+    With ``with_normals`` also returns unit normals of the same shape: the analytic blade
+    normal ``m = cosθ·n − sinθ·j`` when there is no undulation (exact for untwisted blades,
+    tilted by ≈ atan(u·w·dθ/ds) otherwise), finite differences of the surface otherwise.
+    """
     ua = np.asarray(u, float)
     from biomorph.leaf.shape import integrate_angles
 
@@ -139,23 +144,34 @@ def leaf_grid(batch: LeafBatch, u: ArrayLike) -> Array:
     phv = np.concatenate([ph[:, :1], 0.5 * (ph[:, 1:] + ph[:, :-1]), ph[:, -1:]], axis=1)
     c, sn = np.cos(phv), np.sin(phv)
     ct, st = np.cos(batch.theta), np.sin(batch.theta)
-    # cross-section direction d = cosθ j + sinθ n, surface normal m = cosθ n − sinθ j,
+    ca, sa = np.cos(batch.azimuth)[:, None], np.sin(batch.azimuth)[:, None]
+
+    def rot(vx, vy, vz):
+        """Rotate local (x, y, z) components (N,K) about +z by the azimuth → (N,K,3)."""
+        out = np.empty(vx.shape + (3,))
+        out[..., 0] = ca * vx - sa * vy
+        out[..., 1] = sa * vx + ca * vy
+        out[..., 2] = vz
+        return out
+
+    # cross-section direction d = cosθ j + sinθ n, blade normal m = cosθ n − sinθ j,
     # with in-plane normal n = (−sinφ, 0, cosφ) and lateral axis j = (0, 1, 0)
-    d = np.stack([-st * sn, ct, st * c], axis=-1)                       # (N,K,3)
-    m = np.stack([-ct * sn, -st, ct * c], axis=-1)
-    base = np.stack([xz[..., 0], np.zeros_like(xz[..., 0]), xz[..., 1]], axis=-1)
-    off = (batch.width[..., None] * ua)[..., None] * d[:, :, None, :]   # (N,K,U,3)
-    pts = base[:, :, None, :] + off
-    if np.any(batch.wave_amp):
+    d = rot(-st * sn, ct, st * c)
+    m = rot(-ct * sn, -st, ct * c)
+    base = rot(xz[..., 0], np.zeros_like(xz[..., 0]), xz[..., 1])
+    base += batch.origin[:, None, :]
+    pts = base[:, :, None, :] + (batch.width[..., None] * ua)[..., None] * d[:, :, None, :]
+    waves = bool(np.any(batch.wave_amp))
+    if waves:
         side = np.where(ua < 0, 0.5 * np.pi, 0.0)
         wave = batch.wave_amp[..., None] * (2 * ua) ** 2 * np.sin(batch.wave_arg[..., None]
                                                                   + side)
-        pts = pts + wave[..., None] * m[:, :, None, :]
-    ca, sa = np.cos(batch.azimuth), np.sin(batch.azimuth)
-    x = ca[:, None, None] * pts[..., 0] - sa[:, None, None] * pts[..., 1]
-    y = sa[:, None, None] * pts[..., 0] + ca[:, None, None] * pts[..., 1]
-    out = np.stack([x, y, pts[..., 2]], axis=-1)
-    return out + batch.origin[:, None, None, :]
+        pts += wave[..., None] * m[:, :, None, :]
+    if not with_normals:
+        return pts
+    if waves:
+        return pts, _grid_normals(pts)
+    return pts, np.broadcast_to(m[:, :, None, :], pts.shape)
 
 
 def _grid_faces(k: int, nu: int) -> NDArray[np.int64]:
@@ -181,7 +197,7 @@ def mesh_batch(batch: LeafBatch, n_u: int = 3, normals: bool = True,
     if n_u < 2:
         raise ParameterError(f"n_u={n_u}: a leaf needs at least 2 vertices across")
     u = np.linspace(-0.5, 0.5, n_u)
-    pts = leaf_grid(batch, u)                                            # (N,K,U,3)
+    pts, nrm = leaf_grid(batch, u, with_normals=True)                    # (N,K,U,3)
     n, k = batch.n, batch.k
     per = k * n_u
     tmpl = _grid_faces(k, n_u)                                           # (K-1,U-1,2,3)
@@ -190,11 +206,18 @@ def mesh_batch(batch: LeafBatch, n_u: int = 3, normals: bool = True,
     if not drop_degenerate:
         keep = np.ones_like(keep)
     keep = np.broadcast_to(keep[:, :, None, :], (n, k - 1, n_u - 1, 2))
-    faces = tmpl[None] + (np.arange(n, dtype=np.int64) * per)[:, None, None, None, None]
-    faces = faces[keep]
-    leaf_of_face = np.broadcast_to(np.arange(n)[:, None, None, None], keep.shape)[keep]
+    if n and (keep == keep[:1]).all():
+        # same zero-width pattern on every leaf (the usual case): filter the template once
+        one = tmpl[keep[0]]                                              # (f, 3)
+        faces = (one[None] + (np.arange(n, dtype=np.int64) * per)[:, None, None]
+                 ).reshape(-1, 3)
+        leaf_of_face = np.repeat(np.arange(n), one.shape[0])
+    else:
+        faces = tmpl[None] + (np.arange(n, dtype=np.int64) * per)[:, None, None, None, None]
+        faces = faces[keep]
+        leaf_of_face = np.broadcast_to(np.arange(n)[:, None, None, None], keep.shape)[keep]
     verts = pts.reshape(-1, 3)
-    nrm = _grid_normals(pts).reshape(-1, 3) if normals else None
+    nrm = nrm.reshape(-1, 3) if normals else None
     uv = np.empty((n, k, n_u, 2))
     uv[..., 0] = u + 0.5
     uv[..., 1] = batch.v[:, :, None]

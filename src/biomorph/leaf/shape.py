@@ -368,7 +368,7 @@ class LeafShape:
         s = np.linspace(0.0, 1.0, n)
         phi = np.radians(insertion_deg) - np.radians(bending_deg) * s ** 2
         rise = base_width + (1 - base_width) * np.sin(0.5 * np.pi * s / widest_at)
-        fall = 1 - ((s - widest_at) / (1 - widest_at)) ** tip_power
+        fall = 1 - (np.clip(s - widest_at, 0.0, None) / (1 - widest_at)) ** tip_power
         r = np.where(s <= widest_at, rise, np.clip(fall, 0.0, 1.0))
         return cls(s, phi, s, r, length, width, **kwargs)
 
