@@ -277,14 +277,14 @@ def _frame_at(xy: NDArray, s: NDArray, at: float) -> tuple[NDArray, NDArray, NDA
 
 
 def _attach(xy, s, rl, girth, cls, skull_h, legless, girdle: str, at: float, kind: str,
-            posture: str) -> tuple[NDArray, NDArray]:
+            posture: str, width: float = 1.0) -> tuple[NDArray, NDArray]:
     """Spine point (3,) and limb attachment point (3,) of the right limb of a pair."""
     g, t, n = _frame_at(xy, s, at)
     h, b, _ = ms.profile(np.array([at]), rl, girth, cls, skull_h, legless)
     drop = {"leg": 0.35, "arm": 0.3, "wing": 0.12, "fin": 0.3}[kind] * h[0]
     if girdle == "hip":
         drop *= 0.75
-    half = 0.45 * b[0] * (1.35 if posture == "sprawling" else 1.0)
+    half = 0.45 * b[0] * (1.35 if posture == "sprawling" else 1.0) * width
     a2 = g - drop * n
     return np.array([g[0], g[1], 0.0]), np.array([a2[0], a2[1], half])
 
@@ -307,8 +307,8 @@ def _flatten(points: NDArray, which: str, floor: float) -> NDArray:
 
 
 def step_limbs(spine: dict, girdles: tuple[gd.Girdle, ...], opts: Options,
-               rng: np.random.Generator, shifts: dict[str, float] | None = None
-               ) -> dict[str, Any]:
+               rng: np.random.Generator, shifts: dict[str, float] | None = None,
+               ground: float | None = None, previous: dict | None = None) -> dict[str, Any]:
     """Ground height, grounded legs by the seed's descent, free limbs by rule (frame px)."""
     pts = _to_creature(spine["points"])
     cls, posture, stance = spine["cls"], spine["posture"], spine["stance"]
@@ -328,15 +328,17 @@ def step_limbs(spine: dict, girdles: tuple[gd.Girdle, ...], opts: Options,
             at = float(np.clip(at, 0.0, s[-1]))
             places.append((g.name, k, spec, at))
     attach = [_attach(xy, s, rl, spine["girth"], cls, skull_h, legless, gname, at, spec.kind,
-                      posture) for gname, k, spec, at in places]
+                      posture, shifts.get("width", 1.0) if spec.kind == "leg" else 1.0)
+              for gname, k, spec, at in places]
     legs = [i for i, p in enumerate(places) if p[2].kind == "leg"]
     lengths = [np.array(p[2].lengths, float) for p in places]
     h_all, _, off_all = ms.profile(s, rl, spine["girth"], cls, skull_h, legless)
     body_bottom = xy[:, 1] - np.where(region == 1, 0.35, 0.2) * h_all
     if legs:
         reach = [lb.max_reach(lengths[i], stance, posture) for i in legs]
-        ground = max(attach[i][1][1] - opts.stand_fraction * r
-                     for i, r in zip(legs, reach, strict=True))
+        if ground is None:
+            ground = max(attach[i][1][1] - opts.stand_fraction * r
+                         for i, r in zip(legs, reach, strict=True))
         trunk = region == 1
         lowest_trunk = float(body_bottom[trunk].min()) if trunk.any() else ground
         if lowest_trunk < ground:
@@ -362,13 +364,22 @@ def step_limbs(spine: dict, girdles: tuple[gd.Girdle, ...], opts: Options,
         xy, s, region = sp.sample(pts)
     else:
         ground = None
+    if legs and any(attach[i][1][1] <= ground for i in legs):
+        raise ParameterError("a leg attachment lies below the ground")
     poses = []
     for i, (gname, _k, spec, _at) in enumerate(places):
         base = attach[i][1]
         if spec.kind == "leg":
             role = "hind" if gname == "hip" else "fore"
-            pose = lb.pose_leg(base, lengths[i], ground, role, stance, posture, rng,
-                               opts.descent)
+            pose = None
+            if previous is not None:  # balance repair: keep the pose, re-ground continuously
+                prev = previous["poses"][i]
+                pose = lb.reground(prev, base, previous["lengths"][i], ground, opts.descent)
+                if pose is not None:
+                    lengths[i] = previous["lengths"][i]
+            if pose is None:
+                pose = lb.pose_leg(base, lengths[i], ground, role, stance, posture, rng,
+                                   opts.descent)
             lengths[i] = pose.lengths
         else:
             pose = lb.pose_free(spec.kind, base, lengths[i], rng)
@@ -560,19 +571,7 @@ def _assemble(spine: dict, limbs: dict, skull: dict, opts: Options) -> dict[str,
                 M = np.array([1.0, 1.0, float(sgn)])
                 contacts.append(pose.contact * M)
                 contact_joint.append(n_now - 1)
-                tip, ank = pose.points[3] * M, pose.points[2] * M
-                dh = np.array([tip[0] - ank[0], tip[2] - ank[2]])
-                nd = np.linalg.norm(dh)
-                dh = dh / nd if nd > 1e-9 else np.array([1.0, 0.0])
-                perp = np.array([-dh[1], dh[0]])
-                wdt = max(1.5 * rb[2], 0.02 * L3.sum())
-                if pose.foot_flat:
-                    q0, q1 = np.array([ank[0], ank[2]]), np.array([tip[0], tip[2]])
-                else:
-                    c = np.array([tip[0], tip[2]])
-                    pad = max(0.12 * L3[2], wdt)
-                    q0, q1 = c - pad * dh, c + pad * dh
-                patches += [q0 + wdt * perp, q0 - wdt * perp, q1 + wdt * perp, q1 - wdt * perp]
+                patches += _pad(pose, L3, float(sgn))
     names = blocks["names"]
     side = np.concatenate(blocks["side"])
     idx_of = {nm: i for i, nm in enumerate(names)}
@@ -600,7 +599,8 @@ def _balance_px(asm: dict, opts: Options) -> bal.BalanceReport:
                         opts.min_margin_fraction)
 
 
-def _repair_shift(asm: dict, report: bal.BalanceReport, limbs: dict) -> dict[str, float] | None:
+def _repair_shift(asm: dict, report: bal.BalanceReport, limbs: dict,
+                  min_margin: float = 0.02) -> dict[str, float] | None:
     """Girdle shifts (arc length, px) that move the feet under the centre of mass."""
     if not report.applicable:
         return None
@@ -608,20 +608,46 @@ def _repair_shift(asm: dict, report: bal.BalanceReport, limbs: dict) -> dict[str
     patches = asm["patches"]
     x0, x1 = patches[:, 0].min(), patches[:, 0].max()
     span = max(x1 - x0, 1e-6)
-    target_margin = 0.06 * max(span, 0.15 * np.ptp(asm["pos"][:, 0]))
+    body = float(np.ptp(asm["pos"][:, 0]))
+    target_margin = min(0.45 * span, max(1.5 * min_margin * body, 0.08 * span))
     leg_girdles = sorted({p[0] for p in limbs["places"] if p[2].kind == "leg"})
     shifts = dict(limbs["shifts"])
     if com_x > x1 - target_margin:      # too far forward: move the front-most legs forward
         delta = com_x - (x1 - target_margin)
         g = "shoulder" if "shoulder" in leg_girdles and len(leg_girdles) > 1 else leg_girdles[0]
-        shifts[g] = shifts.get(g, 0.0) - delta   # arc length grows towards the tail
+        shifts[g] = shifts.get(g, 0.0) - 1.2 * delta   # arc length grows tailwards
     elif com_x < x0 + target_margin:    # too far back: move the hind-most legs back
         delta = (x0 + target_margin) - com_x
         g = "hip" if "hip" in leg_girdles else leg_girdles[-1]
-        shifts[g] = shifts.get(g, 0.0) + delta
+        shifts[g] = shifts.get(g, 0.0) + 1.2 * delta
+    elif report.margin < min_margin * body and shifts.get("width", 1.0) < 3.0:
+        shifts["width"] = shifts.get("width", 1.0) * 1.35  # lateral margin: widen the stance
     else:
         return None
     return shifts
+
+
+#: Toe pad of a digitigrade/unguligrade foot: forward and backward reach from the contact
+#: point as fractions of the distal segment (toes/hoof are not modelled as bones).
+TOE_PAD = (0.45, 0.2)
+
+
+def _pad(pose: lb.LimbPose, L3: NDArray, sgn: float) -> list[NDArray]:
+    """Four (x, z) corners of one foot's contact patch (creature px)."""
+    rb = ms.BONE_FRACTION * ms.LIMB_RADIUS["leg"] * L3
+    wdt = max(1.5 * rb[2], 0.02 * L3.sum())
+    tip, ank = pose.points[3], pose.points[2]
+    if pose.foot_flat:
+        dh = np.array([tip[0] - ank[0], sgn * (tip[2] - ank[2])])
+        nd = np.linalg.norm(dh)
+        dh = dh / nd if nd > 1e-9 else np.array([1.0, 0.0])
+        q0, q1 = np.array([ank[0], sgn * ank[2]]), np.array([tip[0], sgn * tip[2]])
+    else:
+        dh = np.array([1.0, 0.0])
+        c = np.array([tip[0], sgn * tip[2]])
+        q0, q1 = c - TOE_PAD[1] * L3[2] * dh, c + TOE_PAD[0] * L3[2] * dh
+    perp = np.array([-dh[1], dh[0]])
+    return [q0 + wdt * perp, q0 - wdt * perp, q1 + wdt * perp, q1 - wdt * perp]
 
 
 def _depth_first(asm: dict) -> dict:
@@ -656,6 +682,55 @@ def _depth_first(asm: dict) -> dict:
     return out
 
 
+_DEBUG = False
+
+
+def _below_ground(asm: dict) -> bool:
+    """True if a joint or bone end lies below the ground (beyond 0.2 % of the extent)."""
+    ends = asm["pos"] + asm["W"][:, :, 1] * asm["blen"][:, None]
+    low = min(asm["pos"][:, 1].min(), ends[:, 1].min())
+    ext = float(np.ptp(np.concatenate([asm["pos"], ends])[:, 1]))
+    return bool(low < asm["ground"] - 0.002 * ext)
+
+
+def _pitch_body(spine: dict, limbs: dict, asm: dict, report: bal.BalanceReport,
+                max_deg: float = 40.0) -> dict | None:
+    """Spine rotated rigidly (sagittal plane) about the leg attachment so that the centre of
+    mass moves over the middle of the feet; ``None`` if no rotation within ``max_deg`` helps.
+    Rigid rotation keeps the C1 joins; legs keep their attachment (the pivot)."""
+    legs = [i for i, p in enumerate(limbs["places"]) if p[2].kind == "leg"]
+    if not legs:
+        return None
+    pivot = limbs["attach"][legs[0]][1][:2]
+    kinds = np.array(asm["kind"])
+    is_leg = kinds == "leg"
+    vol = asm["vol"]
+    mb, ml = vol[~is_leg].sum(), vol[is_leg].sum()
+    if mb <= 0:
+        return None
+    xb = (vol[~is_leg, None] * asm["mass_c"][~is_leg, :2]).sum(axis=0) / mb
+    xl = (vol[is_leg] * asm["mass_c"][is_leg, 0]).sum() / max(ml, 1e-30)
+    pts_x = asm["patches"][:, 0]
+    target = 0.5 * (pts_x.min() + pts_x.max())
+    want = ((mb + ml) * target - ml * xl) / mb        # body COM x needed
+    r = xb - pivot
+    R = float(np.hypot(*r))
+    if R < 1e-9:
+        return None
+    c = np.clip((want - pivot[0]) / R, -1.0, 1.0)
+    phi = np.arctan2(r[1], r[0])
+    cands = [np.arccos(c) - phi, -np.arccos(c) - phi]
+    cands = [(a + np.pi) % (2 * np.pi) - np.pi for a in cands]
+    theta = min(cands, key=abs)
+    theta = float(np.clip(theta, -max_deg * DEG, max_deg * DEG))
+    if abs(theta) < 1e-4:
+        return None
+    ct, st = np.cos(theta), np.sin(theta)
+    pc_ = _to_creature(spine["points"]) - pivot
+    rot = np.stack([ct * pc_[:, 0] - st * pc_[:, 1], st * pc_[:, 0] + ct * pc_[:, 1]], axis=1)
+    return dict(spine, points=_to_creature(rot + pivot))
+
+
 def _limb_mass_and_patches(limbs: dict) -> tuple[float, NDArray, NDArray]:
     """Volume, volume-weighted centre sum and contact patches (x, z) of all limbs (both
     sides) straight from the poses — the cheap part of a balance re-check."""
@@ -667,21 +742,7 @@ def _limb_mass_and_patches(limbs: dict) -> tuple[float, NDArray, NDArray]:
         vol += 2 * v.sum()
         mom += 2 * (v[:, None] * mid * [1, 1, 0]).sum(axis=0)
         if pose.contact is not None:
-            rb = ms.BONE_FRACTION * ms.LIMB_RADIUS[spec.kind] * L3
-            for sgn in (1.0, -1.0):
-                tip, ank = pose.points[3], pose.points[2]
-                dh = np.array([tip[0] - ank[0], sgn * (tip[2] - ank[2])])
-                nd = np.linalg.norm(dh)
-                dh = dh / nd if nd > 1e-9 else np.array([1.0, 0.0])
-                perp = np.array([-dh[1], dh[0]])
-                wdt = max(1.5 * rb[2], 0.02 * L3.sum())
-                if pose.foot_flat:
-                    q0, q1 = np.array([ank[0], sgn * ank[2]]), np.array([tip[0], sgn * tip[2]])
-                else:
-                    c = np.array([tip[0], sgn * tip[2]])
-                    pad = max(0.12 * L3[2], wdt)
-                    q0, q1 = c - pad * dh, c + pad * dh
-                patches += [q0 + wdt * perp, q0 - wdt * perp, q1 + wdt * perp, q1 - wdt * perp]
+            patches += _pad(pose, L3, 1.0) + _pad(pose, L3, -1.0)
     return vol, mom, np.array(patches).reshape(-1, 2)
 
 
@@ -697,28 +758,57 @@ def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
     asm = _assemble(spine, limbs, skull, opts)
     report = _balance_px(asm, opts)
     repairs = 0
-    if report.applicable and not report.stable:
+    limbs0 = limbs
+    leg_girdles = {p[0] for p in limbs["places"] if p[2].kind == "leg"}
+    if report.applicable and not report.stable and len(leg_girdles) == 1:
+        # bipeds (legs on one girdle): lean the body about the leg attachment (posture)
+        for _ in range(6):
+            spine2 = _pitch_body(spine, limbs, asm, report)
+            if spine2 is None:
+                break
+            limbs2 = step_limbs(spine2, girdles, opts, _rng(opts.seed, "limbs", 100),
+                                ground=limbs["ground"], previous=limbs)
+            skull2 = step_skull(spine2, limbs2, opts, _rng(opts.seed, "skull", 100))
+            asm2 = _assemble(spine2, limbs2, skull2, opts)
+            rep2 = _balance_px(asm2, opts)
+            repairs += 1
+            if _DEBUG:
+                print("pitch", repairs, round(rep2.margin_fraction, 4))
+            if rep2.margin_fraction < report.margin_fraction - 0.05 or _below_ground(asm2):
+                break
+            spine, limbs, skull, asm, report = spine2, limbs2, skull2, asm2, rep2
+            if report.stable:
+                break
+    if report.applicable and not report.stable and len(leg_girdles) > 1:
         body = np.isin(np.array(asm["kind"]), ("spine", "skull", "girdle"))
         bvol = float(asm["vol"][body].sum())
         bmom = (asm["vol"][body, None] * asm["mass_c"][body]).sum(axis=0)
-        bl = float(np.ptp(asm["pos"][:, 0]))
+        ends = asm["pos"] + asm["W"][:, :, 1] * asm["blen"][:, None]
+        bl = float(np.ptp(np.concatenate([asm["pos"], ends])[:, 0]))
         work = dict(asm)
-        while repairs < 6:
-            shifts = _repair_shift(work, report, limbs)
+        while repairs < 10:
+            shifts = _repair_shift(work, report, limbs, opts.min_margin_fraction)
             if shifts is None:
                 break
-            limbs = step_limbs(spine, girdles, opts, _rng(opts.seed, "limbs", 100 + repairs),
-                               shifts)
+            try:
+                limbs = step_limbs(spine, girdles, opts, _rng(opts.seed, "limbs", 100),
+                                   shifts, ground=limbs0["ground"], previous=limbs0)
+            except ParameterError:
+                break
             lvol, lmom, patches = _limb_mass_and_patches(limbs)
             com = (bmom + lmom) / max(bvol + lvol, 1e-30)
             report = bal.evaluate(com, bvol + lvol, patches, bl, opts.min_margin_fraction)
             work = dict(work, patches=patches)
+            if _DEBUG:
+                print("repair", repairs, shifts, round(report.margin_fraction, 4), com[0],
+                      patches[:, 0].min(), patches[:, 0].max())
             repairs += 1
             if report.stable:
                 break
         asm = _assemble(spine, limbs, skull, opts)
         report = _balance_px(asm, opts)
     asm = _depth_first(asm)
+    below = _below_ground(asm)
     # size from weight: metres per px
     vol_px = float(asm["vol"].sum())
     scale = ms.size_scale(spine["weight"], vol_px, spine["cls"])
@@ -771,7 +861,7 @@ def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
                   girdles=[{"name": g.name, "pairs": [p.kind for p in g.pairs]}
                            for g in girdles],
                   descent_residual_px=[float(p.residual) for p in limbs["poses"]
-                                       if p.kind == "leg"])
+                                       if p.kind == "leg"], below_ground=below)
     return Creature(skeleton=skel, kind=tuple(asm["kind"]), region=tuple(asm["region"]),
                     side=asm["side"].astype(np.int64), mirror=asm["mirror"].astype(np.int64),
                     bone_length=asm["blen"] * scale, box_size=asm["box"] * scale, mass=mass,
@@ -879,8 +969,10 @@ class Generator:
             self.step()
         c = self.creature
         o = self.options
-        while (o.require_stable and c.balance is not None and c.balance.applicable
-               and not c.balance.stable and self._attempt < o.max_resamples):
+        while (o.require_stable and self._attempt < o.max_resamples
+               and (c.params.get("below_ground") or (c.balance is not None
+                                                     and c.balance.applicable
+                                                     and not c.balance.stable))):
             self._attempt += 1
             self._states.clear()
             while self.next_step is not None:

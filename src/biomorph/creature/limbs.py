@@ -222,8 +222,10 @@ def forward(base: NDArray, lengths: NDArray, angles: NDArray
 
 
 def _snap(base, lengths, ang, limits, ground, contact, n_active):
-    """Close the last gap exactly: bisect one flexion angle (knee first) so the contact point
-    lies on the ground without any bone end below it. Returns new angles or ``None``."""
+    """Close the remaining gap exactly: bisect one flexion angle (knee first, then hip, then
+    ankle) so the contact point lies on the ground with no bone end below it. Works from
+    above or below the ground. Returns new angles or ``None``."""
+    scale = max(float(np.sum(lengths)), 1e-9)
     for j in ([1, 0, 2] if n_active == 3 else [1, 0]):
         lo, hi = limits[j, 0]
         a0 = ang[j, 0]
@@ -232,27 +234,51 @@ def _snap(base, lengths, ang, limits, ground, contact, n_active):
             t = ang.copy()
             t[j, 0] = a
             _, p = forward(base, lengths, t)
-            return p[contact, 1] - ground, p
+            return p[contact, 1] - ground
 
-        f0, _ = h(a0)
-        # search the direction that lowers the contact point
+        f0 = h(a0)
+        if f0 == 0.0:
+            return ang
         for target in (lo, hi):
-            ft, p = h(target)
-            if ft <= 0 <= f0:
+            ft = h(target)
+            if (ft <= 0 <= f0) or (f0 <= 0 <= ft):
                 a, b = a0, target
-                for _ in range(40):
+                fa = f0
+                for _ in range(48):
                     m = 0.5 * (a + b)
-                    fm, _ = h(m)
-                    if fm > 0:
-                        a = m
+                    fm = h(m)
+                    if (fm > 0) == (fa > 0):
+                        a, fa = m, fm
                     else:
                         b = m
                 t = ang.copy()
-                t[j, 0] = a
+                t[j, 0] = a if fa >= 0 else b
                 _, p = forward(base, lengths, t)
-                if np.all(p[1:contact + 1, 1] >= ground - 1e-6 * max(lengths.sum(), 1e-9)):
+                if np.all(p[1:contact + 1, 1] >= ground - 1e-6 * scale):
                     return t
     return None
+
+
+def reground(pose: LimbPose, base: NDArray, lengths: NDArray, ground: float,
+             params: DescentParams = DescentParams()) -> LimbPose | None:
+    """Move a posed leg to a new attachment ``base`` keeping its joint angles, then close the
+    (small) vertical gap by bisection — a continuous re-grounding used by balance repair.
+    Returns ``None`` if the leg cannot reach."""
+    plant = pose.foot_flat
+    contact, n_active = (2, 2) if plant else (3, 3)
+    ang = _snap(np.asarray(base, float), np.asarray(lengths, float), pose.angles.copy(),
+                pose.limits, ground, contact, n_active)
+    if ang is None:
+        return None
+    if plant:
+        cum_z = ang[0, 0] + ang[1, 0]
+        ang[2] = [np.clip(np.pi / 2 - cum_z, *pose.limits[2, 0]), 0.0, 0.0]
+    rot, pts = forward(base, lengths, ang)
+    if np.any(pts[1:, 1] < ground - 1e-6 * float(np.sum(lengths))):
+        return None
+    c = pts[2 if plant else 3].copy()
+    return LimbPose("leg", pose.role, ang, pose.limits, rot, pts, c, plant,
+                    float(c[1] - ground), 0, np.asarray(lengths, float))
 
 
 @dataclass(frozen=True)
