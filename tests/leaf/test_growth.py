@@ -81,3 +81,19 @@ def test_timeline_bad_input() -> None:
     with pytest.raises(ParameterError, match="outside"):
         tl.state(2.0)
     assert visible_area(leaf, tl.state(1.0)) == pytest.approx(leaf.area(), rel=1e-4)
+
+
+def test_collections_by_leaf_class() -> None:
+    from biomorph.leaf.data import read_trajectories
+
+    path = shared_file("leaves", "adel", "echap_leaf_data",
+                       "median_leaf_trajectories_Tremie_Boigneville2012_2013_byleafclass.csv")
+    colls = read_trajectories(path)
+    assert sorted(colls) == [1, 2]
+    for c in colls.values():
+        assert c.ages.size == 25 and c.s.size == 51
+        pts = c.curve_at(0.37)
+        assert np.linalg.norm(np.diff(pts, axis=0), axis=1).sum() == pytest.approx(1.0)
+    leaf = LeafShape.from_preset("wheat").with_(collection=colls[2])
+    st = state_at_age(leaf, 0.9)
+    assert leaf.mesh(age=0.9).area() == pytest.approx(visible_area(leaf, st), rel=5e-3)
