@@ -143,3 +143,21 @@ def test_glb_outputs_pass_khronos_validator(tmp_path) -> None:
     assert run(["leaf", "canopy", "--plants", "6", "--rows", "2", "-o", str(files[3])]) == 0
     for f, rep in zip(files, validate_many(files), strict=True):
         assert rep["issues"]["numErrors"] == 0, (f, rep["issues"]["messages"][:5])
+
+
+def test_ids_in_every_export(tmp_path) -> None:
+    from biomorph.io.caribu import read_can
+    from biomorph.io.gltf import read_gltf_summary
+    from biomorph.io.ply import read_mesh
+
+    base = ["leaf", "canopy", "--plants", "4", "--rows", "2", "--seed", "1", "-o"]
+    for ext in (".ply", ".obj", ".can", ".glb"):
+        assert run([*base, str(tmp_path / f"f{ext}")]) == 0
+    ply = read_mesh(tmp_path / "f.ply")
+    can = read_can(tmp_path / "f.can")
+    assert set(ply.face_ids["plant"]) == set(can.face_ids["plant"]) == {0, 1, 2, 3}
+    assert np.array_equal(ply.face_ids["leaf"], can.face_ids["leaf"])
+    groups = [ln for ln in (tmp_path / "f.obj").read_text().splitlines() if ln.startswith("g ")]
+    assert "g plant_3__leaf_1" in groups
+    attrs = read_gltf_summary(tmp_path / "f.glb")["attributes"]
+    assert any("PLANT" in a for a in attrs) and any("LEAF" in a for a in attrs)
