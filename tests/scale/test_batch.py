@@ -108,16 +108,22 @@ def test_ctrl_c_while_running_cancels_and_shuts_down(monkeypatch):
 
     real = batch._run_distributed
 
+    fired: list[float] = []
+
+    def ctrl_c() -> None:
+        fired.append(time.perf_counter())
+        _thread.interrupt_main()
+
     def interrupted_soon(*args, **kwargs):  # Ctrl-C one second into the work
-        threading.Timer(1.0, _thread.interrupt_main).start()
+        threading.Timer(1.0, ctrl_c).start()
         return real(*args, **kwargs)
 
     monkeypatch.setattr(batch, "_run_distributed", interrupted_soon)
     before = set(multiprocessing.active_children())  # e.g. the module's shared cluster
-    t0 = time.perf_counter()
     with pytest.raises(KeyboardInterrupt):
-        run_batch(range(60), slow, workers=2, progress=False)  # 15 s if not interrupted
-    assert time.perf_counter() - t0 < 14
+        run_batch(range(60), slow, workers=2, progress=False)  # 15 s of work
+    # the remaining ~14 s of work were cancelled, not waited for
+    assert time.perf_counter() - fired[0] < 10
     assert _no_new_children(before)
 
 
