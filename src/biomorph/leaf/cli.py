@@ -147,6 +147,8 @@ def grow(output: Annotated[Path, typer.Option("-o", "--output", help="DIR or FIL
          age_end: Annotated[float, typer.Option(help="Age at the end.")] = 1.0,
          width_rate: Annotated[float, typer.Option(help="d(width factor)/d(age).")] = 0.0,
          bend_rate: Annotated[float, typer.Option(help="dθ/d(age) (degrees).")] = 0.0,
+         hidden: Annotated[float, typer.Option(
+             help="Length hidden in the sheath (m); the visible part is l − hidden.")] = 0.0,
          fmt: Annotated[str, typer.Option("--format", help="Frame format in a DIR.")] = "obj",
          plant: Annotated[bool, typer.Option("--plant", help="Grow a whole plant.")] = False,
          leaves: Annotated[int, typer.Option(help="Leaves of the --plant.")] = 8,
@@ -182,7 +184,10 @@ def grow(output: Annotated[Path, typer.Option("-o", "--output", help="DIR or FIL
     else:
         rates = GrowthRates(age_rate=(age_end - age_start) / duration, width_rate=width_rate,
                             bend_rate=float(np.radians(bend_rate)))
-        tl = LeafTimeline(shape, rates, duration, initial=state_at_age(shape, age_start))
+        if hidden < 0:
+            raise ParameterError(f"--hidden {hidden}: expected a length >= 0 m")
+        tl = LeafTimeline(shape, rates, duration, hidden=hidden,
+                          initial=state_at_age(shape, age_start, hidden=hidden))
         meshes = tl.frames(frames)
     areas = [m.area() for m in meshes]
     if is_glb:
