@@ -286,7 +286,8 @@ def run_batch(items: Sequence[T], func: Callable[[T], R], *, out_dir: str | os.P
         else:
             with _client(n_workers, scheduler) as client:
                 report.scheduler = scheduler or "local"
-                report.workers = len(client.scheduler_info().get("workers", {})) or n_workers
+                report.workers = (n_workers if scheduler is None else
+                                  len(client.scheduler_info().get("workers", {})))
                 _run_distributed(client, func, items, todo, record, advance)
 
     for i in todo:  # item order, not completion order
