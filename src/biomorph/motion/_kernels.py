@@ -8,7 +8,7 @@ the equalizer's per-joint pipeline); each loops over frames × joints once.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True, inline="always")
@@ -172,29 +172,33 @@ def _box_edge(src, dst, r):  # pragma: no cover - compiled
         acc += src[min(i + r + 1, f - 1)] - src[max(i - r, 0)]
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compiled
-    """The equalizer's rotation path for every joint of ``q (J, f, 4)`` (joint-major so
-    each joint's frames are contiguous in memory):
+    """The equalizer's rotation path for every joint of ``q (f, J, 4)`` (each joint's column
+    is copied into a contiguous buffer first):
 
     reference ``R`` = normalised double box filter (radius ``radius``) of the continuous
     quaternions; ``x = log(R⁻¹ q)``; x filtered with the gains (telescoped reconstruction);
     if the last gain is not 1, ``R' = M exp(g_K log(M⁻¹ R))`` about the mean ``M``;
     ``out = R' exp(x')`` made hemisphere-continuous."""
-    nj, f = q.shape[0], q.shape[1]
+    f, nj = q.shape[0], q.shape[1]
     levels = gains.size - 1
-    buf = np.empty(f)
-    tmp = np.empty(f)
-    ref = np.empty((f, 4))
-    xs = np.empty((3, f))
-    xo = np.empty((3, f))
-    cur = np.empty(f)
-    nxt = np.empty(f)
     glast = gains[levels]
-    for j in range(nj):
+    for j in prange(nj):  # joints are independent: one per thread
+        buf = np.empty(f)
+        tmp = np.empty(f)
+        ref = np.empty((f, 4))
+        xs = np.empty((3, f))
+        xo = np.empty((3, f))
+        cur = np.empty(f)
+        nxt = np.empty(f)
+        qj = np.empty((f, 4))
+        for i in range(f):
+            for c in range(4):
+                qj[i, c] = q[i, j, c]
         for c in range(4):
             for i in range(f):
-                buf[i] = q[j, i, c]
+                buf[i] = qj[i, c]
             _box_edge(buf, tmp, radius)
             _box_edge(tmp, buf, radius)
             for i in range(f):
@@ -207,7 +211,7 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
             n = np.sqrt(ref[i, 0] ** 2 + ref[i, 1] ** 2 + ref[i, 2] ** 2 + ref[i, 3] ** 2)
             if n < 0.3:  # degenerate average (full turn inside the window): use the signal
                 for c in range(4):
-                    ref[i, c] = q[j, i, c]
+                    ref[i, c] = qj[i, c]
             else:
                 for c in range(4):
                     ref[i, c] /= n
@@ -217,7 +221,7 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
             mw += ref[i, 3]
             # x = log(conj(R) q)
             a, b, cc, d = _qmul(-ref[i, 0], -ref[i, 1], -ref[i, 2], ref[i, 3],
-                                q[j, i, 0], q[j, i, 1], q[j, i, 2], q[j, i, 3])
+                                qj[i, 0], qj[i, 1], qj[i, 2], qj[i, 3])
             rx, ry, rz = _qlog(a, b, cc, d)
             xs[0, i] = rx
             xs[1, i] = ry
@@ -256,7 +260,7 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
                     nx, ny, nz = ux / ang, uy / ang, uz / ang
                     best = 1e300
                     bx, by, bz = ux, uy, uz
-                    for kk in range(-3, 4):
+                    for kk in range(-2, 3):
                         cx = ux + 2 * np.pi * kk * nx
                         cy = uy + 2 * np.pi * kk * ny
                         cz = uz + 2 * np.pi * kk * nz
@@ -275,13 +279,13 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
         for i in range(f):
             ex, ey, ez, ew = _qexp(xo[0, i], xo[1, i], xo[2, i])
             x, y, z, w = _qmul(ref[i, 0], ref[i, 1], ref[i, 2], ref[i, 3], ex, ey, ez, ew)
-            if i > 0 and (x * out[j, i - 1, 0] + y * out[j, i - 1, 1] + z * out[j, i - 1, 2]
-                          + w * out[j, i - 1, 3]) < 0:
+            if i > 0 and (x * out[i - 1, j, 0] + y * out[i - 1, j, 1] + z * out[i - 1, j, 2]
+                          + w * out[i - 1, j, 3]) < 0:
                 x, y, z, w = -x, -y, -z, -w
-            out[j, i, 0] = x
-            out[j, i, 1] = y
-            out[j, i, 2] = z
-            out[j, i, 3] = w
+            out[i, j, 0] = x
+            out[i, j, 1] = y
+            out[i, j, 2] = z
+            out[i, j, 3] = w
 
 
 @njit(cache=True)

@@ -187,11 +187,10 @@ def equalize(motion: Motion, gains: ArrayLike = DEFAULT_GAINS,
     pos = motion.root_position
     jt = motion.joint_translation
     if channels in ("all", "rotation"):
-        q = np.ascontiguousarray(np.swapaxes(rot[:, sel], 0, 1))  # (J, f, 4)
-        width = min(2 ** max(levels, 1) + 1, 2 * (q.shape[1] // 2) + 1)
-        q2 = np.empty_like(q)
-        equalize_rotations(q, g, mode, width // 2, q2)
-        q2 = np.ascontiguousarray(np.swapaxes(q2, 0, 1))
+        q = rot if sel.size == motion.n_joints else np.ascontiguousarray(rot[:, sel])
+        width = min(2 ** max(levels, 1) + 1, 2 * (q.shape[0] // 2) + 1)
+        q2 = np.empty(q.shape)
+        equalize_rotations(np.ascontiguousarray(q), g, mode, width // 2, q2)
         if sel.size == motion.n_joints:
             rot = q2
         else:
