@@ -422,8 +422,15 @@ def test_trimesh_loads_what_we_write(tmp_path):
     assert len(tm.faces) == m.n_faces
     assert {"_PLANT_ID", "_LEAF_ID"} <= set(tm.vertex_attributes)
     np.testing.assert_allclose(tm.area, m.area(), rtol=1e-5)
-    skel = trimesh.load(write_gltf(tmp_path / "s.glb", skeleton()))
+    sk = skeleton()
+    skel = trimesh.load(write_gltf(tmp_path / "s.glb", sk))
     info = read_gltf_summary(tmp_path / "s.glb")
+    # the joint hierarchy survives in trimesh's scene graph: names, parents, world matrices
+    world = sk.world_matrices()
+    for j, name in enumerate(sk.names):
+        np.testing.assert_allclose(skel.graph.get(name)[0], world[j], atol=1e-6)
+        parent = skel.graph.transforms.parents[name]
+        assert parent == (sk.names[sk.parent[j]] if sk.parent[j] >= 0 else "armature")
     assert sum(len(g.vertices) for g in skel.geometry.values()) == info["vertices"]
     assert sum(len(g.faces) for g in skel.geometry.values()) == info["triangles"]
 
