@@ -462,6 +462,14 @@ def test_morph_frames_animation(tmp_path):
         write_mesh_animation(tmp_path / "bad.glb", [base, leaf_mesh(0, n=5)], 0.1)
 
 
+def test_embedded_json_gltf(tmp_path):
+    path = write_gltf(tmp_path / "walk.gltf", motion(frames=5))
+    assert path.read_bytes()[:1] == b"{"
+    assert_valid_glb(path, max_warnings=0)
+    glb = read_gltf_summary(write_gltf(tmp_path / "walk.glb", motion(frames=5)))
+    assert read_gltf_summary(path) == glb
+
+
 def test_dispatch_from_biomorph_io(tmp_path):
     assert_valid_glb(bmio.write_mesh(tmp_path / "d.glb", leaf_mesh(0)))
     assert_valid_glb(bmio.write_gltf(tmp_path / "s.glb", skeleton()))

@@ -11,8 +11,8 @@ write_graph        .ply .mtg                       BranchGraph
 read_bvh           .bvh                            Motion
 write_bvh          .bvh                            Motion
 read_motion        .bvh .htr .asf (+ .amc)         Motion
-write_mesh         .obj .ply .glb                  (vertices, faces) / trimesh.Trimesh
-write_gltf         .glb                            JointSkeleton / Motion / mesh
+write_mesh         .obj .ply .glb .gltf            (vertices, faces) / trimesh.Trimesh
+write_gltf         .glb .gltf                      JointSkeleton / Motion / mesh
 =================  ==============================  =====================================
 
 Every reader raises :class:`biomorph.errors.FormatError` (file, line, expectation) on
@@ -34,7 +34,7 @@ PathLike = str | os.PathLike[str]
 POINT_FORMATS = {".las": "las", ".laz": "las", ".ply": "ply", ".xyz": "xyz", ".txt": "xyz",
                  ".csv": "xyz", ".asc": "xyz", ".pts": "xyz", ".npy": "npy"}
 GRAPH_FORMATS = {".ply": "ply", ".mtg": "mtg"}
-MESH_FORMATS = {".obj": "obj", ".ply": "ply", ".glb": "gltf"}
+MESH_FORMATS = {".obj": "obj", ".ply": "ply", ".glb": "gltf", ".gltf": "gltf"}
 MOTION_FORMATS = {".bvh": "bvh", ".htr": "htr", ".asf": "asf", ".amc": "asf"}
 
 

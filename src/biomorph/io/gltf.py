@@ -177,11 +177,26 @@ class _Builder:
         """The whole file as bytes."""
         return b"".join(self.glb_parts())
 
+    def gltf_text(self) -> str:
+        """Self-contained JSON glTF: the buffer embedded as a base64 data URI."""
+        import base64
+
+        blob = b"".join(self.chunks)
+        blob += b"\0" * (-len(blob) % 4)
+        if blob:
+            uri = "data:application/octet-stream;base64," + base64.b64encode(blob).decode()
+            self.doc.buffers = [g.Buffer(byteLength=len(blob), uri=uri)]
+        return self.doc.gltf_to_json(separators=(",", ":"), indent=None)
+
     def save(self, path: PathLike) -> Path:
-        """Write atomically (temporary file + rename), chunk by chunk without joining."""
+        """Write atomically (temporary file + rename): binary GLB, streamed chunk by chunk,
+        or, for a ``.gltf`` path, JSON with the buffer embedded."""
         with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-            for part in self.glb_parts():
-                fh.write(part)
+            if Path(path).suffix.lower() == ".gltf":
+                fh.write(self.gltf_text().encode("utf-8"))
+            else:
+                for part in self.glb_parts():
+                    fh.write(part)
         return Path(path)
 
 
@@ -694,7 +709,8 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
 
     Parameters
     ----------
-    path : output ``.glb`` file, written atomically.
+    path : output ``.glb`` file (or ``.gltf``: JSON with the buffer embedded as base64),
+        written atomically.
     obj : a :class:`~biomorph.core.skeleton.JointSkeleton`; a Motion-like object (``.skeleton``,
         ``.rotation`` ``(f, n, 4)``, ``.root_position`` ``(f, 3)`` metres, ``.frame_time`` s);
         a mesh or a list of meshes; or ``None`` when only ``meshes``/``frames`` are given.
