@@ -195,7 +195,7 @@ def batch_from_field(fld: Field, s: Array, twist: bool = True, undulation: bool 
                                                                     0, 1)
     l_cur = L * rel
     sigma = sg[None, :] * l_cur[:, None]                                   # (N,K) metres
-    shat = np.clip((sigma + (L - l_cur)[:, None]) / L[:, None], 0, 1)
+    shat = np.clip(1.0 - (l_cur[:, None] - sigma) / L[:, None], 0, 1)  # exact 1 at the tip
     smid = 0.5 * (sigma[:, 1:] + sigma[:, :-1]) / L[:, None]
     if shape.collection is not None:
         c = shape.collection

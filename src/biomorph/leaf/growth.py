@@ -174,7 +174,7 @@ def visible_area(shape: LeafShape, state: LeafState | None = None) -> float:
         return 0.0
     knots = shape.s_r * L - (L - state.length)            # width knots in current-leaf metres
     sigma = np.unique(np.concatenate([[lo, hi], knots[(knots > lo) & (knots < hi)]]))
-    shat = np.clip((sigma + L - state.length) / L, 0, 1)
+    shat = np.clip(1.0 - (state.length - sigma) / L, 0, 1)
     w = shape.width * state.width_factor * shape.r_at(shat)
     return float(np.trapezoid(w, sigma))
 

@@ -104,8 +104,8 @@ def _profile(shape, state, s: Array, twist: bool, undulation: bool):
     else:
         l_cur, h, wf, bend, age = state.length, state.visible, state.width_factor, \
             state.bend, state.age
-    sigma = (l_cur - h) + s * h                   # metres from the base of the current leaf
-    shat = np.clip((sigma + L - l_cur) / L, 0, 1)  # mature coordinate of that tissue (tip-fixed)
+    sigma = l_cur - (1.0 - s) * h                  # metres from the base of the current leaf
+    shat = np.clip(1.0 - (l_cur - sigma) / L, 0, 1)  # mature coordinate (tip-fixed, exact 1)
     smid = 0.5 * (sigma[1:] + sigma[:-1]) / L      # base-relative midrib coordinate
     phi = shape.phi_at(smid, age) - bend * smid
     seg = np.diff(s) * h
