@@ -153,3 +153,14 @@ def test_cli_dataset_json(capsys):
     assert run(["creature", "dataset", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert len(d["species"]) == 44 and d["seed_spectrum"]["first"] == 0.349
+
+
+def test_cli_batch_serial_resumable(tmp_path, capsys):
+    out = tmp_path / "b"
+    assert run(["creature", "batch", "--count", "3", "--chunk", "2", "--out", str(out),
+                "--workers", "0", "--format", "json", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["count"] == 3 and s["stable"] == 3
+    assert sorted(p.name for p in out.glob("*.json") if p.name.startswith("creature_")) == [
+        "creature_000000.json", "creature_000001.json", "creature_000002.json"]
+    assert run(["creature", "batch", "--count", "3", "--out", str(out), "--format", "fbx"]) == 2

@@ -339,6 +339,10 @@ def step_limbs(spine: dict, girdles: tuple[gd.Girdle, ...], opts: Options,
         if ground is None:
             ground = max(attach[i][1][1] - opts.stand_fraction * r
                          for i, r in zip(legs, reach, strict=True))
+            # every leg must reach down at least a quarter of its length (a low hip under a
+            # high shoulder): lower the ground; the legs that then fall short are stretched
+            ground = min([ground] + [attach[i][1][1] - 0.25 * r
+                                     for i, r in zip(legs, reach, strict=True)])
         trunk = region == 1
         lowest_trunk = float(body_bottom[trunk].min()) if trunk.any() else ground
         if lowest_trunk < ground:
@@ -365,7 +369,7 @@ def step_limbs(spine: dict, girdles: tuple[gd.Girdle, ...], opts: Options,
     else:
         ground = None
     if legs and any(attach[i][1][1] <= ground for i in legs):
-        raise ParameterError("a leg attachment lies below the ground")
+        raise ParameterError("a leg attachment lies below the ground")  # repair path only
     poses = []
     for i, (gname, _k, spec, _at) in enumerate(places):
         base = attach[i][1]

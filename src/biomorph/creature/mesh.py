@@ -46,6 +46,15 @@ def _lathe(sides: int = 6) -> tuple[NDArray, NDArray]:
 
 
 _BONE_V, _BONE_F = _lathe()
+_BOX_N = Mesh(_BOX_V, _BOX_F).compute_normals().normals
+_BONE_N = Mesh(_BONE_V, _BONE_F).compute_normals().normals
+
+
+def _scaled(v: NDArray, f: NDArray, n: NDArray, scale: NDArray) -> Mesh:
+    """Template scaled per axis, normals by the inverse-transpose (no per-mesh recompute)."""
+    nn = n / np.where(scale > 0, scale, 1.0)
+    nn /= np.maximum(np.linalg.norm(nn, axis=1, keepdims=True), 1e-12)
+    return Mesh(v * scale, f, normals=nn)
 
 
 def joint_meshes(creature: Creature, shape: str = "box") -> dict[int, Mesh]:
@@ -54,18 +63,17 @@ def joint_meshes(creature: Creature, shape: str = "box") -> dict[int, Mesh]:
         raise ParameterError(f"bone shape {shape!r} unknown; expected one of "
                              f"{', '.join(SHAPES)}")
     out: dict[int, Mesh] = {}
-    tv, tf_ = (_BOX_V, _BOX_F) if shape == "box" else (_BONE_V, _BONE_F)
+    tv, tf_, tn = (_BOX_V, _BOX_F, _BOX_N) if shape == "box" else (_BONE_V, _BONE_F, _BONE_N)
     for j in range(len(creature)):
         L = creature.bone_length[j]
         if L <= 1e-9:
             continue
         if creature.kind[j] == "skull":
             v, f = skulls.mesh(skulls.get(creature.params.get("skull", "mammal_long")), L)
+            out[j] = Mesh(v, f)
         else:
             size = creature.box_size[j]
-            v = tv * np.array([size[0], L, size[2]])
-            f = tf_
-        out[j] = Mesh(v, f)
+            out[j] = _scaled(tv, tf_, tn, np.array([size[0], L, size[2]]))
     return out
 
 

@@ -67,13 +67,32 @@ def join_angles(points: ArrayLike) -> NDArray[np.float64]:
     return out
 
 
+_CACHE: dict[bytes, tuple] = {}
+
+
 def sample(points: ArrayLike, per_curve: int = 24
            ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
     """Dense polyline along the whole spine, head end to tail tip.
 
     Returns ``(xy (m, 2), s (m,) cumulative arc length, region (m,) 0/1/2)``; degenerate
-    curves contribute no length.
+    curves contribute no length. Results are memoised (read-only arrays) because every
+    generation step samples the same spine.
     """
+    p = np.ascontiguousarray(points, dtype=float)
+    key = p.tobytes() + per_curve.to_bytes(2, "little")
+    hit = _CACHE.get(key)
+    if hit is not None:
+        return hit
+    out = _sample(p, per_curve)
+    for a in out:
+        a.setflags(write=False)
+    if len(_CACHE) > 256:
+        _CACHE.clear()
+    _CACHE[key] = out
+    return out
+
+
+def _sample(points: NDArray, per_curve: int) -> tuple:
     c = curves(points)
     t = np.linspace(0.0, 1.0, per_curve + 1)
     pts = bezier_eval(c, t)  # (3, per_curve+1, 2)
