@@ -104,3 +104,13 @@ def test_polygon_budget() -> None:
     assert red.kept_for_polygons(5).size == 6
     with pytest.raises(ParameterError, match="polygon budget"):
         red.kept_for_polygons(0)
+
+
+def test_both_ends_closed() -> None:
+    leaf = LeafShape.parametric(0.5, 0.05, base_width=0.0)
+    for budget in (2, 3, 6):
+        m = reduced_mesh(leaf, budget)
+        assert m.n_faces == budget
+        assert m.area() == pytest.approx(leaf.area(), rel=1e-9)
+    with pytest.raises(ParameterError, match="below the minimum"):
+        reduced_mesh(leaf, 1)

@@ -209,14 +209,16 @@ class Reduction:
 
     @property
     def min_triangles(self) -> int:
-        """Triangles of the coarsest mesh (base and tip only)."""
-        return int((self.w[0] > 0) + (self.w[-1] > 0))
+        """Triangles of the coarsest mesh: base and tip only (1 or 2 triangles), or base,
+        one middle point and tip when both ends have zero width (2 triangles)."""
+        ends = int((self.w[0] > 0) + (self.w[-1] > 0))
+        return ends if ends > 0 else 2
 
     def removed_for_budget(self, triangles: int) -> int:
         """Number of removals so the count is ``triangles`` or one less (then split once)."""
         if triangles < self.min_triangles:
             raise ParameterError(f"triangle budget {triangles} is below the minimum mesh of "
-                                 f"this leaf ({self.min_triangles} triangle(s): base to tip)")
+                                 f"this leaf ({self.min_triangles} triangle(s))")
         if triangles > self.full_triangles:
             raise ParameterError(f"triangle budget {triangles} exceeds the discretisation "
                                  f"({self.full_triangles}); use more points")
