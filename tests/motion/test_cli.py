@@ -39,6 +39,11 @@ def test_info_json_real_and_skate_pair(capsys):
     zr = _json(capsys)
     assert zr["up_guess"] == "z" and zr["euler_wraps_in_file"] == 16
     assert zr["foot_skate"]["up"] == "z"
+    assert not zr["first_frame_is_calibration_pose"]
+    cmu = shared_file("motion", "cmu_01_01.bvh")  # frame 0 is a T-pose
+    assert run(["motion", "info", str(cmu), "--json"]) == 0
+    cr = _json(capsys)
+    assert cr["first_frame_is_calibration_pose"] and cr["first_frame_jump_deg"] > 100
 
 
 def test_every_command_writes(tmp_path, walk_bvh, capsys):

@@ -35,7 +35,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from biomorph.core import transforms as tf
 from biomorph.core.skeleton import JointSkeleton
@@ -150,7 +150,7 @@ def _scan_floats(buf, start, out, n_per_line):  # pragma: no cover - compiled
     return k, 0, -1, bad_line, bad_count
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _euler_kernel(data, rot_cols, rot_axes, out):  # pragma: no cover - compiled
     """Pose quaternions from Euler columns (degrees) with hemisphere continuity.
 
@@ -158,8 +158,8 @@ def _euler_kernel(data, rot_cols, rot_axes, out):  # pragma: no cover - compiled
     ``rot_axes[j, m]`` its axis 0/1/2; the rotation is the product in listed order."""
     f, n = out.shape[0], out.shape[1]
     d2r = np.pi / 180.0
-    for t in range(f):
-        for j in range(n):
+    for j in prange(n):  # joints are independent (continuity runs along t per joint)
+        for t in range(f):
             x = 0.0
             y = 0.0
             z = 0.0

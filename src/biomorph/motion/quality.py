@@ -90,6 +90,14 @@ def quality_report(motion: Motion, up: str | None = None, top: int = 5) -> dict[
                               "max_acc_deg_s2": float(deg(acc[:, j].max())) if acc.size else 0.0})
     root = motion.root_position
     chans = motion.skeleton.channels
+    first_jump = 0.0
+    tpose = False
+    if motion.n_frames > 2:
+        a0 = tf.quat_angle(motion.rotation[1], motion.rotation[0])
+        first_jump = float(np.degrees(a0.max()))
+        typical = float(np.degrees(np.median(speed.max(axis=1)))) / motion.fps
+        # a calibration pose glued before the take: frame 0 jumps far more than a usual step
+        tpose = first_jump > 30.0 and first_jump > 10.0 * max(typical, 1e-9)
     return {
         "frames": motion.n_frames, "fps": motion.fps, "frame_time": motion.frame_time,
         "duration_s": motion.duration, "joints": motion.n_joints,
@@ -102,6 +110,8 @@ def quality_report(motion: Motion, up: str | None = None, top: int = 5) -> dict[
         "mean_angular_acc_deg_s2": float(deg(acc.mean())) if acc.size else 0.0,
         "fastest_joints": per_joint,
         "root_travel": float(np.linalg.norm(np.diff(root, axis=0), axis=-1).sum()),
+        "first_frame_jump_deg": first_jump,
+        "first_frame_is_calibration_pose": tpose,
         "foot_skate": foot_skate(motion, up),
     }
 
