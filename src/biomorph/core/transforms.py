@@ -42,7 +42,12 @@ def make_transform(rotation: ArrayLike | None = None,
     """
     r = None if rotation is None else np.asarray(rotation, dtype=float)
     t = None if translation is None else np.asarray(translation, dtype=float)
-    if r is not None and r.shape[-1] == 4 and r.ndim >= 1 and (r.ndim < 2 or r.shape[-2] != 4):
+    # matrices end in (3, 3); anything else ending in 4 is quaternions (n joints x 4 is
+    # quaternions even when n == 4)
+    if r is not None and r.shape[-2:] != (3, 3):
+        if r.shape[-1] != 4:
+            raise ParameterError(f"rotation of shape {r.shape}: expected (..., 3, 3) matrices "
+                                 "or (..., 4) quaternions")
         r = quat_to_matrix(r)
     lead: tuple[int, ...] = ()
     if r is not None:
