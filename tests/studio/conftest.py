@@ -151,6 +151,10 @@ class Studio:
         assert a.shape == b.shape
         changed = int((np.abs(a - b) > 12).sum())
         assert changed >= min_pixels, f"3-D view barely changed ({changed} pixels)"
+        rgb = np.asarray(Image.open(io.BytesIO(after)).convert("RGB"), dtype=np.int16)
+        coloured = int((rgb.max(axis=2) - rgb.min(axis=2) > 40).sum())
+        assert coloured >= min_pixels, (f"3-D view shows no coloured content, only "
+                                        f"{coloured} coloured pixels (grey grid alone?)")
         self.assert_scene_not_blank(after)
         return after
 

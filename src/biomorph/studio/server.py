@@ -173,14 +173,14 @@ class StudioApp:
     def _aim(self, centre: Any, size: float) -> None:
         import numpy as np
 
-        eye = centre + np.array([0.9, -1.3, 0.7]) * size
+        eye = centre + np.array([0.6, -0.9, 0.45]) * size
         self.server.initial_camera.look_at = tuple(centre)
         self.server.initial_camera.position = tuple(eye)
         for client in list(self.server.get_clients().values()):
             try:
-                with client.atomic():
-                    client.camera.look_at = centre
+                with client.atomic():  # position first: viser moves look_at with it
                     client.camera.position = eye
+                    client.camera.look_at = centre
             except Exception:  # noqa: BLE001, S112 - a client that just left
                 continue
 

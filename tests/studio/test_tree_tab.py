@@ -1,0 +1,75 @@
+"""Tree tab in a real browser: synthesise, run with progress, cancel, layers, metrics,
+exports PLY/GLB/CSV, bad upload."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.studio.conftest import wait_for
+
+pytestmark = pytest.mark.browser
+
+
+def test_tree_tab(studio, tmp_path):
+    app = studio.app
+    if "tree" not in app.tabs:
+        pytest.skip(f"tree tab unavailable: {app.unavailable.get('tree')}")
+    tab = app.tabs["tree"]
+    studio.open_tab("Tree")
+    studio.select(app._view, "Tree")
+    before = studio.canvas_png()
+
+    studio.click("Synthesise and scan")
+    wait_for(lambda: tab.cloud is not None or tab.last_error, timeout=60,
+             what="the synthetic scan")
+    assert tab.last_error is None, tab.last_error
+    assert tab.cloud.n_points == 8000
+    studio.expect_text("8,000 points")
+
+    # run: progress reaches 100 and the result is drawn
+    studio.click("Run")
+    wait_for(lambda: tab.result is not None or tab.last_error, timeout=90,
+             what="the skeleton")
+    assert tab.last_error is None, tab.last_error
+    wait_for(lambda: tab.progress.value == 100.0, what="the progress bar to finish")
+    assert len(tab.ticks) >= 3
+    studio.expect_text("NOB (tips)")
+    assert tab.result.metrics["nob"] > 3
+    studio.set_checkbox(tab.show_tubes, True)
+    wait_for(lambda: tab.show_tubes.value, what="the tube layer")
+    studio.assert_scene_changed(before)
+    studio.screenshot("tree")
+
+    # exports
+    from biomorph import io
+
+    for fmt in ("PLY", "GLB", "CSV"):
+        studio.click(fmt)
+    out = app.sandbox.root / "exports"
+    stem = tab.cloud_name + "_skeleton"
+    wait_for(lambda: all((out / f"{stem}.{e}").is_file() for e in ("ply", "glb", "csv")),
+             what="the three exports")
+    g = io.read_graph(out / f"{stem}.ply")
+    assert g.n_nodes == tab.result.graph.n_nodes
+    assert (out / f"{stem}.glb").read_bytes()[:4] == b"glTF"
+    rows = (out / f"{stem}.csv").read_text().splitlines()
+    assert len(rows) > 10 and "radius" in rows[0].lower()
+
+    # cancel: a second run stopped at its next step keeps the first result
+    first = tab.result
+    tab._cancel.clear()
+    studio.click("Run")
+    studio.click("Cancel")
+    wait_for(lambda: tab.job is not None and not tab.job.is_alive(), timeout=90,
+             what="the job to stop")
+    if tab.result is first:  # cancelled before it finished (the usual case)
+        studio.expect_text("Cancelled")
+
+    # a bad cloud upload: error in the page
+    bad = tmp_path / "bad.xyz"
+    bad.write_text("1 2 3\n4 five 6\n")
+    studio.upload(tab.picker.upload, bad)
+    wait_for(lambda: tab.last_error is not None, what="the bad-cloud error")
+    studio.expect_text("Error")
+    assert np.isfinite(tab.result.metrics["tbl"])
