@@ -1,0 +1,135 @@
+"""``biomorph tree …`` commands, including every bad input of the issue (exit 2, one line,
+nothing written)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from biomorph.cli import run
+from tests.tree.test_livny import make_cloud
+
+
+def _write_xyz(path, pts):
+    np.savetxt(path, pts, fmt="%.6f")
+    return path
+
+
+def _nothing_written(out):
+    return not out.exists() or not any(out.iterdir())
+
+
+@pytest.fixture(scope="module")
+def good_xyz(tmp_path_factory):
+    return _write_xyz(tmp_path_factory.mktemp("cli") / "tree.xyz", make_cloud(n=4000, seed=21))
+
+
+def _bad_inputs(tmp):
+    rng = np.random.default_rng(0)
+    cases = {}
+    (tmp / "empty.xyz").write_text("")
+    cases["empty"] = tmp / "empty.xyz"
+    cases["single"] = _write_xyz(tmp / "single.xyz", np.array([[1.0, 2.0, 3.0]]))
+    nan = make_cloud(n=500)
+    nan[17, 1] = np.nan
+    cases["nan"] = _write_xyz(tmp / "nan.xyz", nan)
+    inf = make_cloud(n=500)
+    inf[3, 2] = np.inf
+    cases["inf"] = _write_xyz(tmp / "inf.xyz", inf)
+    flat = rng.uniform(-1, 1, (500, 3))
+    flat[:, 2] = 0.5
+    cases["coplanar"] = _write_xyz(tmp / "coplanar.xyz", flat)
+    line = np.outer(np.linspace(0, 1, 500), [1.0, 2.0, 3.0])
+    cases["collinear"] = _write_xyz(tmp / "collinear.xyz", line)
+    ground = np.column_stack([rng.uniform(-5, 5, (20000, 2)), rng.normal(0, 0.01, 20000)])
+    cases["no_tree"] = _write_xyz(tmp / "ground_only.xyz", ground)
+    (tmp / "corrupt.laz").write_bytes(b"LASF" + bytes(rng.integers(0, 255, 600, dtype=np.uint8)))
+    cases["corrupt_laz"] = tmp / "corrupt.laz"
+    (tmp / "text.xyz").write_text("1 2 3\n4 five 6\n")
+    cases["non_numeric"] = tmp / "text.xyz"
+    return cases
+
+
+@pytest.mark.parametrize("case", ["empty", "single", "nan", "inf", "coplanar", "collinear",
+                                  "no_tree", "corrupt_laz", "non_numeric"])
+def test_bad_input_exits_2_with_one_line_and_writes_nothing(case, tmp_path, capsys):
+    path = _bad_inputs(tmp_path)[case]
+    out = tmp_path / f"out_{case}"
+    code = run(["tree", "skeletonize", str(path), "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert err.startswith("error:") and len(err.splitlines()) == 1, err
+    assert "Traceback" not in err
+    assert _nothing_written(out)
+
+
+def test_missing_file_and_bad_parameters(tmp_path, good_xyz, capsys):
+    assert run(["tree", "skeletonize", str(tmp_path / "nope.laz"),
+                "--out", str(tmp_path / "o")]) == 2
+    assert run(["tree", "skeletonize", str(good_xyz), "--method", "magic",
+                "--out", str(tmp_path / "o")]) == 2
+    assert run(["tree", "skeletonize", str(good_xyz), "--order-angle", "0",
+                "--out", str(tmp_path / "o")]) == 2
+    assert run(["tree", "skeletonize", str(good_xyz), "--filter", "Deviation",
+                "--out", str(tmp_path / "o")]) == 2
+    capsys.readouterr()
+    assert _nothing_written(tmp_path / "o")
+
+
+def test_skeletonize_json_and_outputs(good_xyz, tmp_path, capsys):
+    out = tmp_path / "out"
+    code = run(["tree", "skeletonize", str(good_xyz), "--out", str(out), "--json",
+                "--no-ground"])
+    assert code == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["method"] == "graph" and data["metrics"]["nob"] == 3
+    for name in ("skeleton.ply", "skeleton.mtg", "tube.glb", "tube.obj", "cylinders.csv",
+                 "summary.json", "preview.png"):
+        assert (out / name).is_file(), name
+
+
+def test_georeferenced_cloud_is_written_back_in_world_coordinates(tmp_path, capsys):
+    off = np.array([650000.0, 5800000.0, 120.0])
+    path = _write_xyz(tmp_path / "geo.xyz", make_cloud(n=4000, seed=22) + off)
+    out = tmp_path / "geo"
+    assert run(["tree", "skeletonize", str(path), "--out", str(out), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["offset"][0] == pytest.approx(off[0], abs=2)
+    from biomorph.io import read_graph
+
+    g = read_graph(out / "skeleton.ply")
+    assert np.allclose(g.position[g.roots[0], :2], off[:2], atol=0.05)
+
+
+def test_synth_then_evaluate(tmp_path, capsys):
+    syn = tmp_path / "syn"
+    assert run(["tree", "synth", "--preset", "aspen", "--points", "20000", "--out", str(syn),
+                "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["nob"] > 5 and (syn / "truth.ply").is_file() and (syn / "cloud.ply").is_file()
+    out = tmp_path / "sk"
+    assert run(["tree", "skeletonize", str(syn / "cloud.ply"), "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert run(["tree", "evaluate", str(out / "skeleton.ply"), "--truth", str(syn / "truth.ply"),
+                "--cloud", str(syn / "cloud.ply"), "--json"]) == 0
+    ev = json.loads(capsys.readouterr().out)
+    assert ev["comparison"]["f1"] > 0.6
+    assert ev["mse"] is not None and ev["nob"] > 0
+    assert run(["tree", "evaluate", str(tmp_path / "missing.ply")]) == 2
+
+
+def test_batch_reports_failures_and_resumes(tmp_path, good_xyz, capsys):
+    bad = tmp_path / "bad.xyz"
+    bad.write_text("1 2 3\n")
+    out = tmp_path / "batch"
+    code = run(["tree", "batch", str(good_xyz), str(bad), "--out", str(out), "--workers", "0",
+                "--json"])
+    assert code == 1
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["n_ok"] == 1 and rep["n_failed"] == 1
+    assert (out / "tree" / "summary.json").is_file()
+    code = run(["tree", "batch", str(good_xyz), "--out", str(out), "--workers", "0", "--json"])
+    rep = json.loads(capsys.readouterr().out)
+    assert code == 0 and rep["n_skipped"] == 1
