@@ -107,3 +107,30 @@ def test_voxel_bad_inputs():
         skeletonize_voxel(scatter, cell_size=0.05)
     with pytest.raises(ParameterError, match="closing"):
         skeletonize_voxel(PointCloud(rng.normal(size=(500, 3))), cell_size=0.2, closing=7)
+
+
+def test_octagon_disc_closes_wide_gapped_ring():
+    from biomorph.tree.voxel import _octagon_factors
+
+    x, y = np.mgrid[:40, :40]
+    d2 = (x - 20) ** 2 + (y - 20) ** 2
+    ring = (d2 <= 100) & (d2 >= 70) & ~((x > 25) & (np.abs(y - 20) <= 1))
+    v = np.zeros((40, 40, 3), bool)
+    v[:, :, 1] = ring
+    closed = _sparse_closing(v, _octagon_factors(11))
+    assert closed[20, 20, 1] and (closed[:, :, 1] >= ring).all()
+    assert not closed[:, :, 0].any()  # horizontal element: other slices untouched
+    assert closed[:, :, 1].sum() < 1.2 * (d2 <= 100).sum()  # filled, not inflated
+
+
+def test_stem_radius_estimate():
+    from biomorph.tree.voxel import _estimate_stem_radius
+
+    rng = np.random.default_rng(0)
+    n = 3000
+    a = rng.uniform(0, 1.6 * np.pi, n)  # an occluded stem: 290° visible
+    z = rng.uniform(0, 2, n)
+    stem = np.c_[0.23 * np.cos(a), 0.23 * np.sin(a), z] + rng.normal(0, 0.004, (n, 3))
+    twig = np.c_[np.linspace(0.5, 2, 200), np.linspace(0, 1, 200), np.full(200, 0.3)]
+    r = _estimate_stem_radius(np.r_[stem, twig], 0.03)
+    assert r == pytest.approx(0.23, abs=0.02)

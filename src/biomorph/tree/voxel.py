@@ -9,7 +9,7 @@ t2 (ii) **preprocessing** -- optional density threshold (``min_points`` per voxe
    26-connected components smaller than ``min_size`` voxels, binarisation, closing with a
    6/18/26-neighbourhood (``closing_radius`` iterations) or a ball of radius
    ``closing_radius`` voxels, then a closing with a *horizontal disc* of ``disc_radius``
-   voxels (default: the stem radius estimated from the lowest metre of the cloud) to fill
+   voxels (default: the stem radius fitted near the base of the cloud) to fill
    hollow stems, and optionally (``fill_slices``) a per-slice hole fill for closed rings.
 t3 (iii) **thinning** -- Palágyi & Kuba 1999, 8 directional subiterations
    (:mod:`biomorph.tree.thinning`).
@@ -184,15 +184,17 @@ def _fill_slice_holes(vol: NDArray[np.bool_]) -> NDArray[np.bool_]:
 
 
 def _estimate_stem_radius(xyz: NDArray[np.float64], cell: float) -> float:
-    """Largest stem radius (m) from the lowest metre of the cloud.
+    """Largest stem radius (m) near the base of the cloud.
 
-    Points 0.2–1.0 m above the lowest point are clustered in 2-D (occupied cells of size
-    ``cell``, 8-connected); a stem is a compact cluster, so each cluster's radius is the
-    median distance of its points to its centroid (a ring gives its radius, a full disc
-    0.7 × its radius); the largest over clusters of at least 10 points is returned.
+    Points 0.1–0.6 m above the lowest point are clustered in 2-D (occupied cells of size
+    ``cell``, 8-connected). A circle is fitted to each cluster of at least 10 points
+    (algebraic least squares); clusters that are not round (median residual above a
+    quarter of the radius or two cells, a radius above the cluster's extent, or points covering less
+    than 150° of the circle) are ignored -- twigs, leaning or curved branches, clutter.
+    Returns the largest accepted radius, or two cells.
     """
     z0 = xyz[:, 2].min()
-    sl = xyz[(xyz[:, 2] > z0 + 0.2) & (xyz[:, 2] < z0 + 1.0), :2]
+    sl = xyz[(xyz[:, 2] > z0 + 0.1) & (xyz[:, 2] < z0 + 0.6), :2]
     if sl.shape[0] < 10:
         return 2 * cell
     lo = sl.min(axis=0)
@@ -200,16 +202,25 @@ def _estimate_stem_radius(xyz: NDArray[np.float64], cell: float) -> float:
     img = np.zeros(ij.max(axis=0) + 1, dtype=bool)
     img[ij[:, 0], ij[:, 1]] = True
     lab, n = ndimage.label(img, structure=np.ones((3, 3)))
-    if n == 0:
-        return 2 * cell
     pl = lab[ij[:, 0], ij[:, 1]]
     cnt = np.bincount(pl, minlength=n + 1)
-    cx = np.bincount(pl, weights=sl[:, 0], minlength=n + 1) / np.maximum(cnt, 1)
-    cy = np.bincount(pl, weights=sl[:, 1], minlength=n + 1) / np.maximum(cnt, 1)
-    d = np.hypot(sl[:, 0] - cx[pl], sl[:, 1] - cy[pl])
     best = 0.0
-    for k in np.flatnonzero(cnt >= 10):  # one entry per cluster (a handful)
-        best = max(best, float(np.median(d[pl == k])))
+    for k in np.flatnonzero(cnt >= 10):  # one small fit per cluster (a handful)
+        q = sl[pl == k]
+        qc = q - q.mean(axis=0)
+        A = np.c_[qc, np.ones(qc.shape[0])]
+        sol, *_ = np.linalg.lstsq(A, (qc**2).sum(axis=1), rcond=None)
+        cx, cy = sol[0] / 2, sol[1] / 2
+        r2 = sol[2] + cx * cx + cy * cy
+        if r2 <= 0:
+            continue
+        r = float(np.sqrt(r2))
+        res = np.abs(np.hypot(qc[:, 0] - cx, qc[:, 1] - cy) - r)
+        ext = float(np.ptp(q, axis=0).max())
+        ang = np.sort(np.arctan2(qc[:, 1] - cy, qc[:, 0] - cx))
+        gap = float(np.max(np.diff(np.r_[ang, ang[0] + 2 * np.pi])))
+        if np.median(res) <= min(0.25 * r, 2 * cell) and r <= ext and gap <= np.radians(210):
+            best = max(best, r)
     return best if best > 0 else 2 * cell
 
 
@@ -449,7 +460,7 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
     min_size : 26-connected components with fewer voxels are dropped before closing.
     closing, closing_radius : gap-filling closing (``"ball"``/6/18/26, radius in voxels).
     disc_radius : horizontal disc radius (voxels) for hollow stems; default: the stem radius
-        estimated from the lowest metre of the cloud, plus one voxel, at most
+        fitted 0.1–0.6 m above the lowest point (circle fits), plus one voxel, at most
         ``max_disc_radius`` metres (0 disables). Radii above 4 voxels use a regular
         octagon (four line segments) instead of the digital disc.
     fill_slices : also fill every enclosed hole in each horizontal slice (off by default:
