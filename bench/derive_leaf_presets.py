@@ -20,6 +20,7 @@ def main() -> None:
     presets = derive_presets(root)
     target = Path(__file__).resolve().parents[1] / "src" / "biomorph" / "leaf" / "presets.json"
     write_text(target, json.dumps(presets, indent=1) + "\n")
+    target.chmod(0o644)  # atomic writes create 0600 temporaries
     for name, p in presets.items():
         print(f"{name}: L={p['length']} m, W={p['width']} m, source: {p['source']}")
     print(f"wrote {target}")

@@ -99,20 +99,31 @@ def _check_width_profile(s: ArrayLike, r: ArrayLike) -> tuple[Array, Array]:
 
 
 # --------------------------------------------------------------------------- angle form
-def angles_from_points(x: ArrayLike, y: ArrayLike) -> tuple[Array, Array, float]:
+def angles_from_points(x: ArrayLike, y: ArrayLike, rounding: float = 0.25
+                       ) -> tuple[Array, Array, float]:
     """Angle form of a digitised midrib.
 
-    Returns ``(s, phi, length)``: knots ``s`` in [0, 1] (0, the segment midpoints, 1) and
-    the unwrapped tangent angle ``phi`` (radians above +x) at the knots, piecewise linear
-    between them; ``length`` is the polyline length in the input units.
+    Returns ``(s, phi, length)``: knots ``s`` in [0, 1] and the unwrapped tangent angle
+    ``phi`` (radians above +x) at the knots, piecewise linear between them; ``length`` is the
+    polyline length in the input units. Each data segment keeps its direction; at every
+    digitised corner the angle turns linearly over a window of ``±rounding`` times the
+    shorter adjacent segment, centred on the corner, so the rounded curve stays on the
+    digitised points to second order (no drift along the leaf). ``rounding=0`` keeps the
+    polyline's sharp corners.
     """
     cum = midrib_arc_length(x, y)
     xa, ya = np.asarray(x, float).reshape(-1), np.asarray(y, float).reshape(-1)
     total = float(cum[-1])
     seg_phi = np.unwrap(np.arctan2(np.diff(ya), np.diff(xa)))
-    mid = 0.5 * (cum[1:] + cum[:-1]) / total
-    s = np.concatenate([[0.0], mid, [1.0]])
-    phi = np.concatenate([[seg_phi[0]], seg_phi, [seg_phi[-1]]])
+    seg_len = np.diff(cum) / total
+    si = cum / total
+    if seg_phi.size == 1:
+        return np.array([0.0, 1.0]), np.array([seg_phi[0], seg_phi[0]]), total
+    w = np.clip(rounding, 1e-6, 0.49) * np.minimum(seg_len[:-1], seg_len[1:])   # per corner
+    corner = si[1:-1]
+    s = np.concatenate([[0.0], np.ravel(np.column_stack([corner - w, corner + w])), [1.0]])
+    phi = np.concatenate([[seg_phi[0]], np.ravel(np.column_stack([seg_phi[:-1], seg_phi[1:]])),
+                          [seg_phi[-1]]])
     keep = np.concatenate([[True], np.diff(s) > 0])
     return s[keep], phi[keep], total
 
