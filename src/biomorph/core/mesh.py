@@ -140,9 +140,10 @@ class Mesh:
     def compute_normals(self) -> Mesh:
         """A copy with area-weighted unit vertex normals (isolated vertices get ``(0,0,0)``)."""
         c = self.face_normals_unnormalised()  # length 2·area: area weighting for free
-        acc = np.zeros((self.n_vertices, 3))
-        for k in range(3):
-            np.add.at(acc, self.faces[:, k], c)
+        n = self.n_vertices
+        idx = self.faces.reshape(-1)  # corner -> vertex; each face's cross product per corner
+        acc = np.stack([np.bincount(idx, weights=np.repeat(c[:, k], 3), minlength=n)
+                        for k in range(3)], axis=1) if idx.size else np.zeros((n, 3))
         norm = np.linalg.norm(acc, axis=1, keepdims=True)
         normals = np.divide(acc, norm, out=np.zeros_like(acc), where=norm > 0)
         return replace(self, normals=normals)
