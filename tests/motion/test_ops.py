@@ -92,6 +92,10 @@ def test_blend_scales_offsets_and_alignment():
     assert rs.max() < 3 * np.percentile(rs, 95)
     with pytest.raises(InputError):
         bm.blend([a, walk(100, 60)])
+    half = b.resample(60)  # another frame rate: resampled onto A's timeline
+    mixed = bm.blend([a, half], transition=30)
+    assert mixed.frame_time == a.frame_time
+    assert mixed.n_frames > a.n_frames
     with pytest.raises(ParameterError):
         bm.blend([a, b], align="peaks")  # needs a joint
 

@@ -154,7 +154,8 @@ def blend(clips: Sequence[Motion], offsets: ArrayLike | None = None,
 
     Parameters
     ----------
-    clips : two or more motions with the same joint names (the first one's skeleton is used).
+    clips : two or more motions with the same joint names (the first one's skeleton and frame
+        rate are used; clips at other rates are resampled with slerp first).
     offsets, scales : output frame of each clip's start; time stretch per clip.
     transition : frames of each cross-fade (default chaining overlap, and the default ease).
     curve : for two clips, the weight of B per output frame: keys ``{frame: weight}`` (monotone
@@ -170,6 +171,9 @@ def blend(clips: Sequence[Motion], offsets: ArrayLike | None = None,
             return clips[0]
     for c in clips[1:]:
         same_skeleton(clips[0].skeleton, c.skeleton, "clips to blend")
+    # one timeline: clips at another frame rate are resampled to the first clip's rate
+    clips = [c if abs(c.frame_time - clips[0].frame_time) <= 1e-9 * clips[0].frame_time
+             else c.resample(clips[0].fps) for c in clips]
     sc = np.ones(len(clips)) if scales is None else np.asarray(scales, dtype=float)
     if align is not None and offsets is None:
         off = [0.0]
