@@ -1,21 +1,296 @@
-"""Creature tab (waits for the creature pillar's API)."""
+"""Creature tab: the generator's parameters, its steps as buttons (next, undo, re-roll a
+part, change a limb type, neck/tail edits), the skeleton with centre of mass, support
+polygon and stability margin, and export GLB / BVH / OSIM — over :mod:`biomorph.creature`."""
 
 from __future__ import annotations
 
-import importlib
+from pathlib import Path
+from typing import Any
 
+import numpy as np
+
+from biomorph.errors import InputError
+from biomorph.studio import draw
 from biomorph.studio.base import StudioTab
+from biomorph.studio.widgets import ExportRow
+
+AUTO = "auto"
+LIMB_KINDS = ("leg", "arm", "wing", "fin")
 
 
 class CreatureTab(StudioTab):
-    """Placeholder until the creature pillar lands."""
+    """Procedural vertebrates, step by step."""
 
     key = "creature"
     label = "Creature"
+    y_up = True
+
+    def __init__(self, app: Any) -> None:
+        super().__init__(app)
+        self.generator: Any = None
+        self.creature: Any = None
 
     def requirement(self) -> str | None:
         try:
-            importlib.import_module("biomorph.creature")
+            from biomorph.creature import STEPS, Generator, Options, export  # noqa: F401
         except ImportError as exc:
             return f"the creature pillar cannot be imported ({exc})"
-        return "the creature tab is being built"
+        return None
+
+    # ------------------------------------------------------------------ GUI
+    def build(self) -> None:
+        from biomorph.creature import STEPS
+        from biomorph.creature.generator import CLASSES, LEG_COUNTS
+
+        gui = self.gui
+        with gui.add_folder("Parameters"):
+            self.seed = gui.add_number("Seed", initial_value=7, min=0, step=1)
+            self.cls = gui.add_dropdown("Class", options=(AUTO, *CLASSES), initial_value=AUTO)
+            self.legs = gui.add_dropdown("Legs", options=(AUTO, *map(str, LEG_COUNTS)),
+                                         initial_value="4")
+            self.wings = gui.add_dropdown("Wings", options=(AUTO, "yes", "no"),
+                                          initial_value="no")
+            self.arms = gui.add_checkbox("Arms", initial_value=False)
+            self.centaur = gui.add_checkbox("Centaur girdle", initial_value=False)
+            self.weight = gui.add_number("Weight kg (0 = sample)", initial_value=0.0, min=0.0,
+                                         step=1.0)
+            self.neck = gui.add_slider("Neck length (-0.1 = sample)", min=-0.1, max=1.5,
+                                       step=0.01, initial_value=-0.1,
+                                       hint="Neck chord in frame units (1 = the largest "
+                                            "extent); below 0 the neck is sampled.")
+            self.tail = gui.add_slider("Tail length (-0.1 = sample)", min=-0.1, max=1.5,
+                                       step=0.01, initial_value=-0.1)
+            self.k = gui.add_slider("PCA components", min=1, max=29, step=1, initial_value=29,
+                                    hint="Sample from the top k principal components.")
+            self.temperature = gui.add_slider("PCA temperature", min=0.0, max=2.0, step=0.05,
+                                              initial_value=1.0,
+                                              hint="Variance scale of the PCA sample (0 = "
+                                                   "the mean animal).")
+            params = (self.seed, self.cls, self.legs, self.wings, self.arms, self.centaur,
+                      self.weight, self.neck, self.tail, self.k, self.temperature)
+            for h in params:
+                h.on_update(self.live("parameters", self.generate))
+        self.steps = gui.add_button_group("Steps", ("Next step", "Undo", "All steps"))
+        self.steps.on_click(self._step_clicked)
+        with gui.add_folder("Edit a part"):
+            self.reroll_step = gui.add_dropdown("Part", options=STEPS, initial_value="limbs")
+            gui.add_button("Re-roll this part").on_click(self.action("re-roll", self.reroll))
+            self.limb_slot = gui.add_dropdown("Limb pair", options=("(generate first)",))
+            self.limb_kind = gui.add_dropdown("Limb type", options=LIMB_KINDS,
+                                              initial_value="arm")
+            self.limb_buttons = gui.add_button_group("", ("Change limb type", "Add limb pair"))
+            self.limb_buttons.on_click(self._limb_clicked)
+            self.neck_factor = gui.add_slider("Scale neck / tail by", min=0.25, max=3.0,
+                                              step=0.05, initial_value=1.5)
+            self.part_buttons = gui.add_button_group("", ("Scale neck", "Scale tail"))
+            self.part_buttons.on_click(self._part_clicked)
+        self.info = gui.add_markdown("")
+        self.exports = ExportRow(self, lambda: f"creature_{int(self.seed.value)}",
+                                 {"GLB": self._writer(".glb"), "BVH": self._writer(".bvh"),
+                                  "OSIM": self._writer(".osim")})
+        self.latency_md = gui.add_markdown("")
+        self.run("initial", self.generate, timed=False, show=False)
+
+    # ------------------------------------------------------------------ generator
+    def options(self) -> Any:
+        """:class:`biomorph.creature.Options` from the controls (validated by the pillar)."""
+        from biomorph.creature import Options
+
+        def opt(v: str) -> Any:
+            return None if v == AUTO else v
+
+        wings = {"yes": True, "no": False}.get(self.wings.value)
+        legs = opt(self.legs.value)
+        return Options(seed=int(self.seed.value), cls=opt(self.cls.value),
+                       legs=None if legs is None else int(legs), wings=wings,
+                       arms=bool(self.arms.value), centaur=bool(self.centaur.value),
+                       weight=float(self.weight.value) or None,
+                       neck_length=None if self.neck.value < 0 else float(self.neck.value),
+                       tail_length=None if self.tail.value < 0 else float(self.tail.value),
+                       k=None if int(self.k.value) >= 29 else int(self.k.value),
+                       temperature=float(self.temperature.value)).validate()
+
+    def generate(self) -> None:
+        """A new generator from the parameters, run to the end, drawn."""
+        from biomorph.creature import Generator
+
+        gen = Generator(self.options())
+        gen.run()
+        self.generator = gen
+        self.redraw()
+
+    def _gen(self) -> Any:
+        if self.generator is None:
+            raise InputError("no creature yet: set the parameters first")
+        return self.generator
+
+    def _step_clicked(self, event: Any) -> None:
+        which = event.target.value
+        if which == "Next step":
+            self.run("next step", self.next_step)
+        elif which == "Undo":
+            self.run("undo", self.undo)
+        else:
+            self.run("all steps", self.all_steps)
+
+    def next_step(self) -> None:
+        """Run one more step; after the last one, start again from the spine."""
+        gen = self._gen()
+        if gen.next_step is None:  # finished: begin a stepwise rebuild with these options
+            from biomorph.creature import Generator
+
+            gen = self.generator = Generator(gen.options)
+        gen.step()
+        self.redraw()
+
+    def undo(self) -> None:
+        self._gen().undo()
+        self.redraw()
+
+    def all_steps(self) -> None:
+        self._gen().run()
+        self.redraw()
+
+    def reroll(self) -> None:
+        self._gen().reroll(self.reroll_step.value)
+        self.redraw()
+
+    def _limb_clicked(self, event: Any) -> None:
+        if event.target.value == "Add limb pair":
+            self.run("add limb pair", self.add_limb_pair)
+        else:
+            self.run("change limb type", self.change_limb)
+
+    def _slot(self) -> tuple[str, int]:
+        text = self.limb_slot.value
+        if " " not in text:
+            raise InputError("no limb pair chosen: run the girdles step first")
+        girdle, pair = text.rsplit(" ", 1)
+        return girdle, int(pair) - 1
+
+    def change_limb(self) -> None:
+        """Give the chosen limb pair another type (rules re-run the later steps)."""
+        girdle, pair = self._slot()
+        self._gen().set_limb(girdle, pair, self.limb_kind.value)
+        self.redraw()
+
+    def add_limb_pair(self) -> None:
+        girdle, _ = self._slot()
+        self._gen().add_limb_pair(girdle, self.limb_kind.value)
+        self.redraw()
+
+    def _part_clicked(self, event: Any) -> None:
+        part = "neck" if event.target.value == "Scale neck" else "tail"
+        self.run(f"scale {part}", lambda: self.scale_part(part))
+
+    def scale_part(self, part: str) -> None:
+        gen = self._gen()
+        factor = float(self.neck_factor.value)
+        (gen.set_neck_length if part == "neck" else gen.set_tail_length)(factor)
+        self.redraw()
+
+    # ------------------------------------------------------------------ drawing
+    def redraw(self) -> None:
+        """Draw whatever the generator has: the finished creature or the spine so far."""
+        gen = self._gen()
+        self._update_slots()
+        for node in ("bones", "joints", "com", "com_line", "support", "spine"):
+            self.scene.remove_by_name(f"{self.root}/{node}")
+        done = gen.done
+        if "finish" in done:
+            self.creature = gen.creature
+            self._draw_creature(self.creature)
+        else:
+            self.creature = None
+            if "spine" in done:
+                self._draw_spine(gen.state("spine"))
+        nxt = gen.next_step
+        self.info.content = self._describe(done, nxt)
+        self.latency_md.content = "Edit → redraw (server side):\n\n" + \
+            self.app.latency.markdown("creature/")
+        self.redrawn()
+
+    def _update_slots(self) -> None:
+        gen = self.generator
+        slots: list[str] = []
+        if gen is not None and "girdles" in gen.done:
+            for g in gen.state("girdles"):
+                slots += [f"{g.name} {i + 1}" for i in range(len(g.pairs))]
+                if not g.pairs:
+                    slots.append(f"{g.name} 1")
+        options = tuple(slots) or ("(generate first)",)
+        if tuple(self.limb_slot.options) != options:
+            self.limb_slot.options = options
+
+    def _draw_creature(self, c: Any) -> None:
+        p = c.joint_positions.astype(np.float32)
+        ends = c.bone_ends.astype(np.float32)
+        seg = np.stack([p, ends], axis=1)
+        kinds = np.array([LIMB_KINDS.index(k) + 1 if k in LIMB_KINDS else 0 for k in c.kind])
+        colors = np.repeat(draw.palette(kinds + 4)[:, None, :], 2, axis=1)
+        size = max(c.length, c.height, 0.05)
+        self.scene.add_line_segments(f"{self.root}/bones", seg, colors,
+                                     thickness=max(size / 120, 0.002))
+        self.scene.add_point_cloud(f"{self.root}/joints", p, (40, 40, 40),
+                                   point_size=max(size / 80, 0.003), point_shape="circle")
+        com = np.asarray(c.center_of_mass, dtype=np.float32)
+        b = c.balance
+        ok = b is None or not b.applicable or b.stable
+        com_colour = (30, 160, 60) if ok else (220, 40, 40)
+        self.scene.add_icosphere(f"{self.root}/com", radius=max(size / 40, 0.005),
+                                 color=com_colour, position=tuple(com))
+        ground = np.array([com, [com[0], 0.0, com[2]]], dtype=np.float32)[None]
+        self.scene.add_line_segments(f"{self.root}/com_line", ground, com_colour,
+                                     thickness=max(size / 300, 0.001))
+        if b is not None and len(b.support) >= 2:
+            poly = np.array([[x, 0.001, z] for x, z in b.support])
+            self.scene.add_line_segments(f"{self.root}/support",
+                                         draw.polygon_loop(poly).astype(np.float32),
+                                         (240, 150, 20), thickness=max(size / 200, 0.002))
+        lo = np.minimum(p.min(axis=0), ends.min(axis=0))
+        hi = np.maximum(p.max(axis=0), ends.max(axis=0))
+        centre = (lo + hi) / 2  # Y-up creature frame -> Z-up view: (x, y, z) -> (x, -z, y)
+        self.app.focus(self.key, np.array([centre[0], -centre[2], centre[1]]),
+                       float(np.linalg.norm(hi - lo)))
+
+    def _draw_spine(self, spine: dict) -> None:
+        """The sampled spine's control polygon (frame px, shown at 1 px = 2 mm)."""
+        pts = np.asarray(spine.get("points", np.zeros((0, 2))), dtype=float).reshape(-1, 2)
+        if len(pts) < 2:
+            return
+        xyz = np.column_stack([500.0 - pts[:, 0], pts[:, 1], np.zeros(len(pts))]) * 0.002
+        seg = np.stack([xyz[:-1], xyz[1:]], axis=1).astype(np.float32)
+        self.scene.add_line_segments(f"{self.root}/spine", seg, (120, 60, 200), thickness=0.01)
+
+    def _describe(self, done: tuple[str, ...], nxt: str | None) -> str:
+        steps = " → ".join(f"**{s}**" if s in done else s for s in self._all_steps())
+        lines = [f"Steps: {steps}" + ("" if nxt is None else f" (next: {nxt})")]
+        c = self.creature
+        if c is not None:
+            b = c.balance
+            lines.append(f"{len(c)} joints, {c.total_mass:.3g} kg, height {c.height:.2f} m, "
+                         f"length {c.length:.2f} m, class {c.params.get('class', '?')}, "
+                         f"nearest species {c.params.get('nearest_species', '?')}")
+            if b is None or not b.applicable:
+                lines.append("Balance: not applicable (no legs on the ground)")
+            else:
+                lines.append(f"Balance: {'**stable**' if b.stable else '**tips over**'}, "
+                             f"margin {b.margin * 100:.1f} cm ({b.margin_fraction * 100:.1f} % "
+                             f"of the length), restoring torque {b.tipping_torque:.3g} N·m")
+        return "\n\n".join(lines)
+
+    @staticmethod
+    def _all_steps() -> tuple[str, ...]:
+        from biomorph.creature import STEPS
+
+        return tuple(STEPS)
+
+    # ------------------------------------------------------------------ export
+    def _writer(self, ext: str):
+        def write(path: Path) -> None:
+            from biomorph.creature import export
+
+            if self.creature is None:
+                raise InputError("the creature is not finished: run all steps before export")
+            export(self.creature, path.with_suffix(ext) if path.suffix != ext else path)
+        return write
