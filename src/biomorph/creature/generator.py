@@ -762,7 +762,6 @@ def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
     asm = _assemble(spine, limbs, skull, opts)
     report = _balance_px(asm, opts)
     repairs = 0
-    limbs0 = limbs
     leg_girdles = {p[0] for p in limbs["places"] if p[2].kind == "leg"}
     if report.applicable and not report.stable and len(leg_girdles) == 1:
         # bipeds (legs on one girdle): lean the body about the leg attachment (posture)
@@ -783,7 +782,8 @@ def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
             spine, limbs, skull, asm, report = spine2, limbs2, skull2, asm2, rep2
             if report.stable:
                 break
-    if report.applicable and not report.stable and len(leg_girdles) > 1:
+    limbs0 = limbs
+    if report.applicable and not report.stable:
         body = np.isin(np.array(asm["kind"]), ("spine", "skull", "girdle"))
         bvol = float(asm["vol"][body].sum())
         bmom = (asm["vol"][body, None] * asm["mass_c"][body]).sum(axis=0)

@@ -38,8 +38,9 @@ def profile(s: NDArray, region_len: NDArray, girth: float, cls: str, skull_h: fl
     u_tail = np.clip((s - neck - back) / max(tail, 1e-9), 0, 1)
     head_h = max(0.8 * skull_h, 0.2 * h_back)
     fishy = cls == "fish" or legless
-    tail0, tail1 = (0.8, 0.25) if fishy else (0.55, 0.06)
-    h = np.where(s < neck, head_h + (0.55 * h_back - head_h) * u_neck,
+    # continuous at the joins (the back ends at 0.75 h_back at both girdles)
+    tail0, tail1 = (0.75, 0.25) if fishy else (0.75, 0.06)
+    h = np.where(s < neck, head_h + (0.75 * h_back - head_h) * u_neck,
                  np.where(s <= neck + back, h_back * (0.75 + 0.25 * np.sin(np.pi * u_back)),
                           h_back * (tail0 + (tail1 - tail0) * u_tail)))
     b = h * (0.5 if cls == "fish" else 0.8)
