@@ -16,7 +16,7 @@ from pathlib import Path
 from biomorph.report import Section, Table
 
 PRESET = "birch"
-POINTS = 60_000
+POINTS = 40_000
 
 
 def run_demo(out_dir: str | Path) -> list[Section]:

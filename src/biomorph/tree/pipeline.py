@@ -224,6 +224,7 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
         params.update(voxel=dict(voxel or {}), node_spacing=spacing)
         if graph.tree_id is None:
             graph = graph.with_(tree_id=graph.trees)
+        graph = tclean.prune_small_trees(graph, 2 * spacing)
         if cleanup and graph.n_nodes:
             # the voxel skeleton has no allometric radii: give it one from the points so
             # the false-branch rule can run; cylinder collapse is Livny-specific, skip it

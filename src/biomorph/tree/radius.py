@@ -242,6 +242,7 @@ def fit_circles(graph: BranchGraph, xyz: NDArray[np.float64], prior: NDArray[np.
                 min_search: float = 0.0, trials: int = 64, tolerance: float = 0.15,
                 tolerance_abs: float = 0.003, tolerance_max: float = 0.01,
                 min_inliers: int = 8, min_coverage: float = 0.25,
+                spacing: float | None = None, min_density: float = 0.1,
                 seed: int = 0, kdtree: cKDTree | None = None) -> RadiusFit:
     """RANSAC + least-squares circle per node in its cross-section plane (steps 1–3).
 
@@ -249,7 +250,9 @@ def fit_circles(graph: BranchGraph, xyz: NDArray[np.float64], prior: NDArray[np.
     ``max(search_factor * prior, min_search)`` and half-height ``search_depth`` (default
     half the median edge length). ``tolerance``: inlier band as a fraction of the radius,
     clipped to [``tolerance_abs``, ``tolerance_max``] metres (a large circle through a few
-    points of neighbouring twigs must not pass as a stem).
+    points of neighbouring twigs must not pass as a stem). ``spacing`` (median point
+    spacing, m): with it, a fit also needs ``min_density`` of the points a fully sampled
+    arc of its coverage would hold.
     """
     n = graph.n_nodes
     if search_factor <= 1:
@@ -285,6 +288,11 @@ def fit_circles(graph: BranchGraph, xyz: NDArray[np.float64], prior: NDArray[np.
                 tolerance_abs, tolerance_max, trials, min_inliers, seed, cx, cy, r, ni, cov)
     centre = graph.position + cx[:, None] * t0 + cy[:, None] * t1
     ok = (r > 0) & (ni >= min_inliers) & (cov >= min_coverage) & (r < 0.98 * rs)
+    if spacing is not None and spacing > 0:
+        # a real stem section yields about (arc length x slab height) / spacing² points on
+        # its scanned arc; a large circle through a few points of nearby twigs does not
+        expected = cov * 2 * np.pi * np.maximum(r, 0) * 2 * search_depth / spacing ** 2
+        ok &= ni >= min_density * expected
     return RadiusFit(centre, r, ni, cov, ok, rs)
 
 
@@ -345,6 +353,9 @@ def fit_radii(graph: BranchGraph, xyz: NDArray[np.float64], *, recentre: bool = 
         return graph, RadiusFit(np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64),
                                 np.zeros(0), np.zeros(0, bool), np.zeros(0))
     kd = cKDTree(xyz)
+    from biomorph.tree.livny import estimate_spacing
+
+    spacing = estimate_spacing(xyz) if xyz.shape[0] >= 2 else None
     el = graph.edge_length
     med_edge = float(np.median(el[el > 0])) if (el > 0).any() else 0.05
     d, near = skeleton_distance(xyz, graph.parent, graph.position)
@@ -369,7 +380,7 @@ def fit_radii(graph: BranchGraph, xyz: NDArray[np.float64], *, recentre: bool = 
         fit = fit_circles(g, xyz, radius, search_factor=search_factor,
                           search_depth=search_depth, min_search=0.5 * med_edge, trials=trials,
                           tolerance=tolerance, min_inliers=min_inliers,
-                          min_coverage=min_coverage, seed=seed, kdtree=kd)
+                          min_coverage=min_coverage, spacing=spacing, seed=seed, kdtree=kd)
         ok = fit.ok.copy()
         delta = np.zeros(n)
         delta[ok] = np.log(fit.radius[ok] / allo[ok])
