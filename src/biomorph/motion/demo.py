@@ -112,7 +112,9 @@ def run_demo(out_dir: str | Path) -> list[Section]:
     fast = timed("speed curve 1→2.5→0.6", lambda: bm.change_speed(w, keys))
     s = speed_values(w, keys)
     img_speed = plots.plot_speed(s, time_warp(s)[1], out / "speed.png",
-                                 title="speed curve (keys 0:1, 240:2.5, 479:0.6)")
+                                 title="speed curve (keys 0:1, 240:2.5, 479:0.6)",
+                                 original=w.channel("LeftUpLeg", "Xrotation", True),
+                                 result=fast.channel("LeftUpLeg", "Xrotation", True))
     sections.append(Section(
         "Motion: speed",
         f"The speed curve is integrated into a time warp and the clip is resampled at the "

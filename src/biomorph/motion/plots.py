@@ -93,12 +93,20 @@ def plot_blend(weights: ArrayLike, channels: Sequence[ArrayLike], result: ArrayL
 
 
 def plot_speed(speed: ArrayLike, t_src: ArrayLike, path: str | os.PathLike[str],
-               title: str = "speed curve") -> Path:
+               title: str = "speed curve", original: ArrayLike | None = None,
+               result: ArrayLike | None = None) -> Path:
     """Speed curve over original frames and the resulting time warp (output frame → source
-    frame)."""
+    frame); with ``original``/``result`` channels a third panel shows the retimed signal."""
     plt = _plt()
     s = np.asarray(speed, float)
-    fig, (a0, a1) = plt.subplots(1, 2, figsize=(9, 3.2))
+    panels = 3 if original is not None and result is not None else 2
+    fig, axes = plt.subplots(1, panels, figsize=(4.5 * panels, 3.2))
+    a0, a1 = axes[0], axes[1]
+    if panels == 3:
+        axes[2].plot(np.asarray(original, float), color="0.6", lw=1.0, label="original")
+        axes[2].plot(np.asarray(result, float), color="C3", lw=1.2, label="retimed")
+        axes[2].set_xlabel("frame")
+        axes[2].legend(fontsize=7)
     a0.plot(s, color="C1")
     a0.axhline(1.0, color="0.7", lw=0.8)
     a0.set_xlabel("original frame")
