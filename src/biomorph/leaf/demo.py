@@ -57,21 +57,25 @@ def run_demo(out_dir: str | Path) -> list[Section]:
         images=[img]))
 
     # 3. LOD levels by the reduction algorithm
-    red = reduce_leaf(maize, 200)
+    lod_leaf = apply_ops(maize, [bend(0.2, 0.8, 1.6)])
+    red = reduce_leaf(lod_leaf, 200)
     budgets = [3, 9, 21, 51, 201]
-    lods = [reduced_mesh(maize, b, reduction=red, n_points=200) for b in budgets]
+    lods = [reduced_mesh(lod_leaf, b, reduction=red, n_points=200) for b in budgets]
     img = mesh_preview(lods, out / "leaf_lod.png", [f"{m.n_faces} triangles" for m in lods])
     rows = []
     for b, m in zip(budgets, lods, strict=True):
         k = red.kept(red.removed_for_budget(b))
         exy, er = red.error(k)
         rows.append([b, m.n_faces, k.size, f"{exy:.2e}", f"{er:.2e}",
-                     f"{m.area() / maize.area():.6f}"])
-    curve = reduction_curves(maize, out / "leaf_reduction_curve.png")
+                     f"{m.area() / lod_leaf.area():.6f}"])
+    curve = reduction_curves(lod_leaf, out / "leaf_reduction_curve.png")
     sections.append(Section(
         "Leaf: levels of detail (reduction with a correct heap)",
-        "Points removed in order of ε = √(ε_xy² + ε_r²) with a lazy-deletion heap; the "
-        "triangle count equals the budget and the area stays exact.",
+        "Maize leaf bent by 1.6 rad (plastic operator). Points removed in order of "
+        "ε = √(ε_xy² + ε_r²) with a lazy-deletion heap; the triangle count equals the budget. "
+        "Area column: mesh area over the flat analytic area L·∫r ds; the flat part is kept "
+        "exactly, the excess is what twist and undulation add, which coarse levels sample "
+        "less.",
         images=[img, out / "leaf_reduction_curve.png"],
         tables=[Table(["budget", "triangles", "points", "midrib err / L", "width err / L",
                        "area / analytic"], rows),
