@@ -82,13 +82,16 @@ def _decode(path: PathLike, data: bytes) -> str:
 def _first_lines(text: str, limit: int = 64) -> list[tuple[int, str]]:
     """First ``limit`` non-blank lines as (1-based line number, stripped text)."""
     out: list[tuple[int, str]] = []
-    for k, raw in enumerate(io.StringIO(text)):
-        s = raw.strip()
-        if s:
-            out.append((k + 1, s))
-            if len(out) >= limit:
-                break
-    return out
+    size = 1 << 16
+    while True:  # look at a growing prefix only: never copy a large file's text
+        prefix = text[:size]
+        lines = prefix.split("\n")
+        if size < len(text):
+            lines = lines[:-1]  # the last line of the prefix may be cut
+        out = [(k + 1, ln.strip()) for k, ln in enumerate(lines) if ln.strip()][:limit]
+        if len(out) >= limit or size >= len(text):
+            return out
+        size *= 4
 
 
 def _scan_for_error(path: PathLike, text: str, delimiter: str | None, skip: int,
