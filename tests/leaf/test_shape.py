@@ -117,3 +117,15 @@ def test_parametric_leaf() -> None:
     assert leaf.mesh(n_s=300).area() == pytest.approx(leaf.area(), rel=5e-3)
     with pytest.raises(BiomorphError, match="widest_at"):
         LeafShape.parametric(0.6, 0.05, widest_at=1.0)
+
+
+def test_twist_profile() -> None:
+    leaf = LeafShape.from_preset("maize", undulation=0.0)
+    prof = leaf.with_(twist_profile=(np.array([0.0, 0.5, 1.0]), np.array([0.0, 0.0, 1.2])))
+    assert prof.theta_at(0.25) == 0.0 and prof.theta_at(1.0) == pytest.approx(1.2)
+    a = leaf.with_(twist=0.0).surface([0.2, 0.3], [-0.5, 0.5])
+    b = prof.surface([0.2, 0.3], [-0.5, 0.5])
+    assert np.allclose(a, b)                     # untwisted where θ = 0
+    assert prof.mesh(n_s=300).area() == pytest.approx(prof.area(), rel=5e-3)
+    with pytest.raises(InputError, match="twist_profile"):
+        leaf.with_(twist_profile=(np.array([0.0, 0.0]), np.array([0.0, 1.0])))

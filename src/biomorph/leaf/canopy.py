@@ -206,7 +206,7 @@ def batch_from_field(fld: Field, s: Array, twist: bool = True, undulation: bool 
     phi = phi + fld.incline[:, None]
     seg = np.diff(sg)[None, :] * l_cur[:, None]
     width = shape.width * fld.length_scale[:, None] * np.interp(shat, shape.s_r, shape.r)
-    theta = shape.twist * shat if twist else np.zeros_like(shat)
+    theta = shape.theta_at(shat) if twist else np.zeros_like(shat)
     if undulation and shape.undulation > 0:
         amp = shape.undulation * (1 - shat)
         arg = 2 * np.pi * shat * L[:, None] / shape.wavelength + shape.phase

@@ -110,7 +110,7 @@ def _profile(shape, state, s: Array, twist: bool, undulation: bool):
     phi = shape.phi_at(smid, age) - bend * smid
     seg = np.diff(s) * h
     width = shape.width * wf * shape.r_at(shat)
-    theta = shape.twist * shat if twist else np.zeros_like(s)
+    theta = shape.theta_at(shat) if twist else np.zeros_like(s)
     if undulation and shape.undulation > 0:
         amp = shape.undulation * (1.0 - shat)
         arg = 2 * np.pi * shat * L / shape.wavelength + shape.phase

@@ -270,6 +270,7 @@ class LeafShape:
     length : leaf length ``L`` along the midrib (metres).
     width : maximal full width (metres).
     twist : twist angle at the tip (radians); θ(s) = twist · s about the midrib.
+    twist_profile : optional ``(s, θ)`` knots (radians) replacing the linear θ(s).
     undulation : margin undulation amplitude (metres, 0 = flat margins).
     wavelength : undulation wavelength along the midrib (metres).
     phase : undulation phase (radians).
@@ -289,6 +290,7 @@ class LeafShape:
     phase: float = 0.0
     collection: MidribCollection | None = None
     name: str = "leaf"
+    twist_profile: tuple[Array, Array] | None = None
     meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -316,6 +318,12 @@ class LeafShape:
             arr = arr.copy()
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
+        if self.twist_profile is not None:
+            ts, tv = (_as_1d("twist s", self.twist_profile[0]),
+                      _as_1d("twist theta", self.twist_profile[1]))
+            if ts.size != tv.size or ts.size < 2 or np.any(np.diff(ts) <= 0):
+                raise InputError("twist_profile needs >= 2 knots with strictly increasing s")
+            object.__setattr__(self, "twist_profile", (ts, tv))
         for name in ("twist", "undulation", "wavelength", "phase"):
             object.__setattr__(self, name, float(getattr(self, name)))
 
@@ -393,6 +401,13 @@ class LeafShape:
         if age is not None and self.collection is not None:
             return self.collection.phi_at(check_age(age), s)
         return np.interp(np.asarray(s, float), self.s, self.phi)
+
+    def theta_at(self, s: ArrayLike) -> Array:
+        """Twist angle θ(s) (radians) about the midrib at mature coordinate ``s``."""
+        sa = np.asarray(s, float)
+        if self.twist_profile is not None:
+            return np.interp(sa, *self.twist_profile)
+        return self.twist * sa
 
     def r_at(self, s: ArrayLike) -> Array:
         """Relative full width (max 1) at ``s``."""
