@@ -164,3 +164,13 @@ def test_cli_batch_serial_resumable(tmp_path, capsys):
     assert sorted(p.name for p in out.glob("*.json") if p.name.startswith("creature_")) == [
         "creature_000000.json", "creature_000001.json", "creature_000002.json"]
     assert run(["creature", "batch", "--count", "3", "--out", str(out), "--format", "fbx"]) == 2
+
+
+def test_rigify_names(creature, tmp_path):
+    from biomorph.creature.rigify import rigify_names
+    names = rigify_names(creature)
+    assert len(set(names)) == len(names)
+    assert {"spine", "head", "thigh.L", "thigh.R", "upper_arm.L", "foot.R"} <= set(names)
+    import biomorph.io as bio
+    mo = bio.read_bvh(export(creature, tmp_path / "r.bvh", rigify=True, walk=True))
+    assert set(mo.skeleton.names) == set(names)

@@ -50,6 +50,8 @@ def generate(
     bone_shape: Annotated[str, typer.Option(help="box or bone (glb/obj).")] = "box",
     walk: Annotated[bool, typer.Option("--walk", help="Add a procedural walk cycle "
                                        "(glb/bvh).")] = False,
+    rigify: Annotated[bool, typer.Option("--rigify", help="Rigify-style bone names "
+                                         "(spine.001, thigh.L …).")] = False,
     settle: Annotated[bool, typer.Option("--settle", help="Also let MuJoCo settle the creature "
                                          "for 2 s and report whether it tips.")] = False,
     allow_unstable: Annotated[bool, typer.Option("--allow-unstable",
@@ -77,7 +79,7 @@ def generate(
     if settle:
         from biomorph.io.mjcf import settle as _settle
         summary["mujoco_settle"] = _settle(creature)
-    path = export(creature, output, bone_shape=bone_shape, walk=walk)
+    path = export(creature, output, bone_shape=bone_shape, walk=walk, rigify=rigify)
     summary["output"] = str(path)
     if as_json:
         print_json(summary)

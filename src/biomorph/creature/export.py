@@ -32,27 +32,35 @@ def check_extension(path: str | os.PathLike[str]) -> str:
 
 
 def export(creature: Creature, path: str | os.PathLike[str], bone_shape: str = "box",
-           walk: bool = False) -> Path:
-    """Write ``creature`` to ``path`` (format by extension); atomic; returns the path."""
+           walk: bool = False, rigify: bool = False) -> Path:
+    """Write ``creature`` to ``path`` (format by extension); atomic; returns the path.
+
+    ``walk`` adds a procedural walk cycle (glb, bvh); ``rigify`` renames bones the way
+    Blender's Rigify expects (``spine.001``, ``thigh.L`` …)."""
     ext = check_extension(path)
+    original = creature
+    if rigify:
+        from biomorph.creature.rigify import with_rigify_names
+        creature = with_rigify_names(creature)
+
+    def walk_motion():
+        from biomorph.creature.walk import walk_cycle
+        return walk_cycle(original).with_(skeleton=creature.skeleton)
+
     if ext == ".json":
         return write_json(path, creature)
     if ext == ".glb":
         from biomorph.creature.mesh import joint_meshes
         from biomorph.io.gltf import write_gltf
 
-        motion = None
-        if walk:
-            from biomorph.creature.walk import walk_cycle
-            motion = walk_cycle(creature)
+        motion = walk_motion() if walk else None
         return write_gltf(path, creature.skeleton, motion=motion, bone_shape=None,
                           meshes=joint_meshes(creature, bone_shape), name="creature")
     if ext == ".bvh":
         from biomorph.io.bvh import write_bvh
 
         if walk:
-            from biomorph.creature.walk import walk_cycle
-            return write_bvh(path, walk_cycle(creature))
+            return write_bvh(path, walk_motion())
         return write_bvh(path, creature.skeleton)
     if ext == ".obj":
         from biomorph.creature.mesh import world_mesh
