@@ -569,8 +569,6 @@ def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int =
         chans = [tuple(c) for c in sk.channels]
     else:
         chans = [_DEFAULT_ROOT if sk.parent[j] < 0 else _DEFAULT_JOINT for j in range(n)]
-    if any(p < 0 for p in sk.parent[1:]) and mo.joint_translation is None:
-        pass  # extra roots: their OFFSET is used
     trans = mo.local_translations()
     f = mo.n_frames
     cols: list[np.ndarray] = []
@@ -618,8 +616,6 @@ def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int =
             lines.append(f"{ind}\t\tOFFSET " + " ".join(_fmt(v, precision)
                                                         for v in sk.end_site[j]))
             lines.append(f"{ind}\t}}")
-        elif kids[j] and np.all(np.isfinite(sk.end_site[j])):
-            pass  # BVH allows an End Site only on leaves
         lines.append(f"{ind}}}")
 
     import sys

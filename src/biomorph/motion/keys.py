@@ -68,7 +68,7 @@ def parse_keys(text: str, dim: int | None = None) -> list[tuple[float, Array]]:
     frames = [k[0] for k in keys]
     if len(set(frames)) != len(frames):
         raise ParameterError(f"keys {text!r} repeat a frame; expected distinct frames")
-    return [(f, v if v.size > 1 or dim != 1 else v) for f, v in keys]
+    return keys
 
 
 def key_arrays(keys: Keys) -> tuple[Array, Array]:
