@@ -116,3 +116,22 @@ def test_has_ground_and_prepare_removes_ground():
     p2 = prepare(nog, downsample=0.5)
     assert p2.ground is None and p2.steps["downsample"]["points_out"] == nog.n_points // 2
     assert list(p2.steps) == ["centre", "downsample", "outliers", "ground"]
+
+
+def test_prepare_georeferenced_filter_and_no_tree():
+    truth = generate_tree("aspen", seed=0)
+    scan = simulate_scan(truth, n_points=5000, seed=0)
+    geo = scan.with_(offset=np.array([512345.0, 5401234.0, 250.0]),
+                     attributes={**scan.attributes,
+                                 "Deviation": np.random.default_rng(0).integers(0, 60, 5000)})
+    p = prepare(geo, filter={"name": "Deviation", "max_value": 40}, outliers=False)
+    assert (p.cloud.attributes["Deviation"] <= 40).all()
+    np.testing.assert_allclose(p.cloud.world_xyz.min(axis=0)[:2],
+                               geo.world_xyz[~geo.attributes["is_ground"]].min(axis=0)[:2],
+                               atol=0.5)
+    assert abs(p.cloud.offset[0] - 512345.0) < 20  # the offset carries the georeference
+    rng = np.random.default_rng(1)
+    lawn = PointCloud(np.c_[rng.uniform(0, 10, (4000, 2)), 0.02 * rng.normal(size=4000)],
+                      source="lawn.las")
+    with pytest.raises(InputError, match="no tree above the ground"):
+        prepare(lawn)

@@ -278,8 +278,8 @@ def prepare(cloud: PointCloud, *, centre: bool = True,  # noqa: PLR0913
     validate_cloud(cloud)
     cur = cloud
 
-    def record(name: str, before: int, t0: float, **extra: Any) -> None:
-        steps[name] = {"points_in": before, "points_out": cur.n_points,
+    def record(step: str, before: int, t0: float, **extra: Any) -> None:
+        steps[step] = {"points_in": before, "points_out": cur.n_points,
                        "seconds": time.perf_counter() - t0, **extra}
 
     if centre:
@@ -292,7 +292,8 @@ def prepare(cloud: PointCloud, *, centre: bool = True,  # noqa: PLR0913
         n0 = cur.n_points
         if isinstance(filter, dict):
             cur = filter_attribute(cur, **filter)
-            record("filter", n0, t0, **filter)
+            record("filter", n0, t0, attribute=filter.get("name"),
+                   **{k: v for k, v in filter.items() if k != "name"})
         else:
             cur = filter_attribute(cur, *filter)
             record("filter", n0, t0, args=list(filter))
