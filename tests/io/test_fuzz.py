@@ -199,6 +199,19 @@ def mutate(data: bytes, rng: np.random.Generator) -> bytes:
     return bytes(b)
 
 
+def non_finite_fields(result: object) -> list[str]:
+    """Names of the numeric fields of a reader's result that hold NaN or inf."""
+    bad = []
+    for name in ("xyz", "position", "vertices", "rotation", "root_position", "offset",
+                 "radius", "joint_translation"):
+        val = getattr(result, name, None)
+        if val is None and name == "offset":
+            val = getattr(getattr(result, "skeleton", None), "offset", None)
+        if isinstance(val, np.ndarray) and val.dtype.kind == "f" and not np.isfinite(val).all():
+            bad.append(name)
+    return bad
+
+
 @pytest.mark.parametrize("case", [
     pytest.param(c, id=c[0], marks=[pytest.mark.xfail(reason=KNOWN_BUGS[c[0]], strict=False)]
                  if c[0] in KNOWN_BUGS else []) for c in CASES])
@@ -220,7 +233,7 @@ def test_reader_only_raises_biomorph_errors(tmp_path, case):
         mutated = mutate(data, rng)
         reader_input.write_bytes(mutated)
         try:
-            reader(reader_input)
+            result = reader(reader_input)
         except BiomorphError as exc:
             assert str(exc), "error message must not be empty"
         except Exception as exc:  # noqa: BLE001 - this is what the test is looking for
@@ -228,3 +241,10 @@ def test_reader_only_raises_biomorph_errors(tmp_path, case):
             keep.write_bytes(mutated)
             pytest.fail(f"{module}.{func} raised {type(exc).__name__}: {exc} on mutation {it} "
                         f"(saved at {keep})")
+        else:
+            bad = non_finite_fields(result)
+            if bad:
+                keep = tmp_path / f"nonfinite_{it}{ext}"
+                keep.write_bytes(mutated)
+                pytest.fail(f"{module}.{func} accepted a file giving NaN/inf in {bad} on "
+                            f"mutation {it} (saved at {keep}); expected a FormatError")
