@@ -128,10 +128,68 @@ def _grid_clusters(xy: NDArray[np.float64], cell: float, min_points: int) -> NDA
     return np.where(dense_index[inv] >= 0, lab[np.maximum(dense_index[inv], 0)], -1)
 
 
+def _density_clusters(xy: NDArray[np.float64], cell: float, min_tree_distance: float
+                      ) -> NDArray[np.int64]:
+    """Grid density clusters of XY points, small ones dropped (-1), close ones merged."""
+    lab = _grid_clusters(xy, cell, min_points=3)
+    if (lab >= 0).sum() == 0:
+        return np.zeros(xy.shape[0], dtype=np.int64)
+    good = lab >= 0
+    ids, cnt = np.unique(lab[good], return_counts=True)
+    keep = ids[cnt >= max(10, 0.05 * cnt.max())]
+    lab = np.where(np.isin(lab, keep), lab, -1)
+    ids = np.unique(lab[lab >= 0])
+    cen = np.array([xy[lab == i].mean(axis=0) for i in ids])
+    if ids.size > 1:
+        pairs = cKDTree(cen).query_pairs(min_tree_distance, output_type="ndarray")
+        adj = sparse.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
+                                shape=(ids.size, ids.size))
+        _, merged = connected_components(adj, directed=False)
+    else:
+        merged = np.zeros(ids.size, dtype=np.int64)
+    remap = np.full(lab.max() + 2, -1, dtype=np.int64)
+    remap[ids] = merged
+    return np.where(lab >= 0, remap[np.maximum(lab, 0)], -1)
+
+
+def _stem_roots(xyz: NDArray[np.float64], h: NDArray[np.float64], stem_slice: tuple,
+                cell: float, min_tree_distance: float, base_height: float,
+                max_base: float = 0.5):
+    """Trees of a plot with a known ground: stems are the density clusters of the slice
+    ``stem_slice`` (heights above ground, default breast height 0.8–1.6 m) that continue
+    down to the ground (points below them within ``max_base`` of the ground); the root
+    set of each is the lowest points of that column. Returns ``None`` if no stem is found.
+    """
+    lo, hi = stem_slice
+    sl = np.flatnonzero((h >= lo) & (h <= hi))
+    if sl.size < 10:
+        return None
+    lab = _density_clusters(xyz[sl, :2], cell, min_tree_distance)
+    below = np.flatnonzero(h < lo)
+    if below.size == 0:
+        return None
+    kd = cKDTree(xyz[below, :2])
+    roots, tree = [], []
+    for t in np.unique(lab[lab >= 0]):
+        pts = xyz[sl[lab == t], :2]
+        c = pts.mean(axis=0)
+        rho = min(float(np.max(np.linalg.norm(pts - c, axis=1))), 1.0)
+        col = below[kd.query_ball_point(c, rho + 0.1)]
+        if col.size < 5 or h[col].min() > max_base:
+            continue                               # a branch piece, not a stem
+        base = col[h[col] <= h[col].min() + base_height]
+        roots.append(base)
+        tree.append(np.full(base.size, len(roots) - 1, dtype=np.int64))
+    if not roots:
+        return None
+    return np.concatenate(roots).astype(np.int64), np.concatenate(tree)
+
+
 def find_roots(xyz: NDArray[np.float64], *, n_trees: int | None = None,
                height: NDArray[np.float64] | None = None, root_slice: float = 0.5,
                cell: float | None = None, min_tree_distance: float = 0.6,
                base_height: float = 0.05, seed: int = 0,
+               stem_slice: tuple[float, float] = (0.8, 1.6),
                ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Step i: find the trees and their root points from the ground-plane projection.
 
@@ -145,11 +203,21 @@ def find_roots(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     min_tree_distance : clusters whose centres are closer than this are one tree.
     base_height : points of a cluster within this height of its lowest point form the
         root set (all joined to the virtual root).
+    stem_slice : with ``height`` (a ground was removed) and no ``n_trees``, trees are found
+        as stems at breast height (:func:`_stem_roots`): density clusters of this height
+        band that continue down to the ground. This ignores low vegetation and ground
+        residue near the ground and branch pieces at breast height. Falls back to the
+        lowest slice when no stem is found.
 
     Returns
     -------
     ``(root_points, root_tree)``: indices of the root points and the tree (0..m-1) of each.
     """
+    if height is not None and n_trees is None:
+        found = _stem_roots(xyz, np.asarray(height, dtype=float), stem_slice,
+                            cell or 0.1, min_tree_distance, base_height)
+        if found is not None:
+            return found
     z = xyz[:, 2] - xyz[:, 2].min() if height is None else np.asarray(height, dtype=float)
     sl = np.flatnonzero(z <= z.min() + root_slice)
     if sl.size < 3:
@@ -166,28 +234,7 @@ def find_roots(xyz: NDArray[np.float64], *, n_trees: int | None = None,
         else:
             _, lab = kmeans2(xy, k, minit="++", seed=seed)
     else:
-        cell = cell or max(root_slice / 5.0, 1e-3)
-        lab = _grid_clusters(xy, cell, min_points=3)
-        if (lab >= 0).sum() == 0:
-            lab = np.zeros(sl.size, dtype=np.int64)
-        # keep clusters with a reasonable share of the slice
-        good = lab >= 0
-        ids, cnt = np.unique(lab[good], return_counts=True)
-        keep = ids[cnt >= max(10, 0.05 * cnt.max())]
-        lab = np.where(np.isin(lab, keep), lab, -1)
-        # merge clusters whose centres are closer than min_tree_distance (single linkage)
-        ids = np.unique(lab[lab >= 0])
-        cen = np.array([xy[lab == i].mean(axis=0) for i in ids])
-        if ids.size > 1:
-            pairs = cKDTree(cen).query_pairs(min_tree_distance, output_type="ndarray")
-            adj = sparse.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
-                                    shape=(ids.size, ids.size))
-            _, merged = connected_components(adj, directed=False)
-        else:
-            merged = np.zeros(ids.size, dtype=np.int64)
-        remap = np.full(lab.max() + 2, -1, dtype=np.int64)
-        remap[ids] = merged
-        lab = np.where(lab >= 0, remap[np.maximum(lab, 0)], -1)
+        lab = _density_clusters(xy, cell or max(root_slice / 5.0, 1e-3), min_tree_distance)
     roots, tree = [], []
     zs = z[sl]
     for t in range(int(lab.max()) + 1):
