@@ -129,3 +129,13 @@ def test_twist_profile() -> None:
     assert prof.mesh(n_s=300).area() == pytest.approx(prof.area(), rel=5e-3)
     with pytest.raises(InputError, match="twist_profile"):
         leaf.with_(twist_profile=(np.array([0.0, 0.0]), np.array([0.0, 1.0])))
+
+
+def test_sharp_fit_reproduces_the_polyline() -> None:
+    x = np.array([0.0, 5.0, 12.0, 20.0, 26.0])
+    y = np.array([0.0, 8.0, 13.0, 14.0, 10.0])
+    leaf = LeafShape.from_points(x, y, [0, 1], [1, 0], rounding=0.0)
+    s = midrib_arc_length(x, y) / midrib_arc_length(x, y)[-1]
+    pts = leaf.midrib(np.unique(np.concatenate([s, np.linspace(0, 1, 2001)])))
+    keep = np.isin(np.unique(np.concatenate([s, np.linspace(0, 1, 2001)])), s)
+    assert np.allclose(pts[keep][:, [0, 2]], np.stack([x, y], 1) * 0.01, atol=2e-4)

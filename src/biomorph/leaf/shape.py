@@ -350,16 +350,17 @@ class LeafShape:
     @classmethod
     def from_points(cls, x: ArrayLike, y: ArrayLike, s_width: ArrayLike, r: ArrayLike, *,
                     width: float | None = None, length: float | None = None,
-                    scale: float = 0.01, **kwargs: Any) -> LeafShape:
+                    scale: float = 0.01, rounding: float = 0.25, **kwargs: Any) -> LeafShape:
         """Fit a leaf to a digitised midrib ``(x_i, y_i)`` and a width profile ``(s, r)``.
 
         ``x, y`` are in data units (default cm, ``scale`` converts to metres); the arc
         length is normalised by the total length ``L`` (``length`` overrides it, metres).
         ``s_width`` is normalised to [0, 1] by its own range (maize widths are measured
         along the true leaf, longer than the projected midrib); ``r`` is the full width in
-        data units, or relative if ``width`` (metres) is given.
+        data units, or relative if ``width`` (metres) is given. ``rounding`` sets how much
+        the digitised corners are rounded (see :func:`angles_from_points`; 0 = sharp).
         """
-        s, phi, total = angles_from_points(x, y)
+        s, phi, total = angles_from_points(x, y, rounding)
         sw, rw = _check_width_profile(s_width, r)
         sw = (sw - sw[0]) / (sw[-1] - sw[0])
         w = float(rw.max() * scale) if width is None else float(width)
