@@ -72,23 +72,57 @@ def _qmul(ax, ay, az, aw, bx, by, bz, bw):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always")
 def _qlog(x, y, z, w):  # pragma: no cover - compiled
-    """Rotation vector (angle in [0, pi]) of a unit quaternion."""
+    """Rotation vector (angle in [0, pi]) of a unit quaternion.
+
+    Small rotations (|v| < 0.1 w, i.e. below ~11°, the usual case relative to a smooth
+    reference) use the series 2·atan(t)/t = 2(1 − t²/3 + t⁴/5 − …), t = |v|/w, to 17th order
+    (error < 1e-18) instead of atan2; larger ones call atan2."""
     if w < 0:
         x, y, z, w = -x, -y, -z, -w
-    s = np.sqrt(x * x + y * y + z * z)
-    if s < 1e-12:
-        return 2.0 * x, 2.0 * y, 2.0 * z
+    s2 = x * x + y * y + z * z
+    if s2 < 0.01 * w * w:
+        u = s2 / (w * w)
+        p = 1.0 / 17.0
+        p = 1.0 / 15.0 - u * p
+        p = 1.0 / 13.0 - u * p
+        p = 1.0 / 11.0 - u * p
+        p = 1.0 / 9.0 - u * p
+        p = 1.0 / 7.0 - u * p
+        p = 1.0 / 5.0 - u * p
+        p = 1.0 / 3.0 - u * p
+        p = 1.0 - u * p
+        k = 2.0 * p / w
+        return k * x, k * y, k * z
+    s = np.sqrt(s2)
     k = 2.0 * np.arctan2(s, w) / s
     return k * x, k * y, k * z
 
 
 @njit(cache=True, inline="always")
 def _qexp(rx, ry, rz):  # pragma: no cover - compiled
-    a = np.sqrt(rx * rx + ry * ry + rz * rz)
-    if a < 1e-12:
-        k = 0.5 - a * a / 48.0
-    else:
-        k = np.sin(0.5 * a) / a
+    """Unit quaternion of a rotation vector; half angles below 0.1 rad use the Taylor series
+    of cos(h) and sin(h)/h (error < 1e-20), larger ones sin/cos."""
+    a2 = rx * rx + ry * ry + rz * rz
+    u = 0.25 * a2  # (a/2)^2
+    if u < 0.01:
+        c = 1.0 - u / 182.0
+        c = 1.0 - u / 132.0 * c
+        c = 1.0 - u / 90.0 * c
+        c = 1.0 - u / 56.0 * c
+        c = 1.0 - u / 30.0 * c
+        c = 1.0 - u / 12.0 * c
+        c = 1.0 - u / 2.0 * c  # cos(h) to h^14
+        sh = 1.0 - u / 210.0
+        sh = 1.0 - u / 156.0 * sh
+        sh = 1.0 - u / 110.0 * sh
+        sh = 1.0 - u / 72.0 * sh
+        sh = 1.0 - u / 42.0 * sh
+        sh = 1.0 - u / 20.0 * sh
+        sh = 1.0 - u / 6.0 * sh  # sin(h)/h to h^14
+        k = 0.5 * sh
+        return k * rx, k * ry, k * rz, c
+    a = np.sqrt(a2)
+    k = np.sin(0.5 * a) / a
     return k * rx, k * ry, k * rz, np.cos(0.5 * a)
 
 
