@@ -170,7 +170,9 @@ def _stem_roots(xyz: NDArray[np.float64], h: NDArray[np.float64], stem_slice: tu
         return None
     kd = cKDTree(xyz[below, :2])
     roots, tree = [], []
-    for t in np.unique(lab[lab >= 0]):
+    ids, counts = np.unique(lab[lab >= 0], return_counts=True)
+    accepted: list[NDArray] = []
+    for t in ids[np.argsort(-counts, kind="stable")]:      # biggest stems first
         pts = xyz[sl[lab == t], :2]
         c = pts.mean(axis=0)
         rho = min(float(np.max(np.linalg.norm(pts - c, axis=1))), 1.0)
@@ -178,6 +180,10 @@ def _stem_roots(xyz: NDArray[np.float64], h: NDArray[np.float64], stem_slice: tu
         if col.size < 5 or h[col].min() > max_base:
             continue                               # a branch piece, not a stem
         base = col[h[col] <= h[col].min() + base_height]
+        bc = xyz[base, :2].mean(axis=0)
+        if any(np.linalg.norm(bc - a) < min_tree_distance for a in accepted):
+            continue                               # the same stem base as a bigger cluster
+        accepted.append(bc)
         roots.append(base)
         tree.append(np.full(base.size, len(roots) - 1, dtype=np.int64))
     if not roots:

@@ -1,0 +1,97 @@
+"""Real clouds from ``../shared/data/trees`` (skipped with a reason when absent).
+
+References: rTwig's SimpleForest QSM of the coffee-tree cloud and plantscan3d's MTG of the
+A3B4 branch (both models, not field truth). Thresholds are set below the agreement we
+measure (see docs/tree.md) so that a regression fails, not noise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from biomorph.io import read_graph, read_points
+from biomorph.tree.pipeline import skeletonize
+from biomorph.tree.reference import compare_to_reference, read_qsm_csv
+from tests.conftest import shared_file
+
+
+@pytest.fixture(scope="module")
+def rtwig():
+    cloud = read_points(shared_file("trees", "rtwig_cloud.txt"))
+    qsm = read_qsm_csv(shared_file("trees", "rtwig_QSM_simpleforest.csv"))
+    return cloud, qsm, skeletonize(cloud)
+
+
+def test_rtwig_qsm_reference_numbers():
+    qsm = read_qsm_csv(shared_file("trees", "rtwig_QSM_simpleforest.csv"))
+    assert qsm.n_nodes == 1149 + 1                    # cylinder ends + one base node
+    assert qsm.leaves.size == 69
+    assert qsm.total_length == pytest.approx(31.43, abs=0.01)
+    assert qsm.radius[qsm.roots[0]] == pytest.approx(0.0472, abs=1e-4)
+
+
+def test_rtwig_agrees_with_the_simpleforest_qsm(rtwig):
+    cloud, qsm, skel = rtwig
+    c = compare_to_reference(skel.world_graph(), qsm, tolerance=0.05)
+    assert c["f1"] >= 0.85
+    assert 0.85 <= c["length_ratio"] <= 1.15
+    assert c["base_radius"] == pytest.approx(c["base_radius_reference"], rel=0.15)
+    assert c["radius_profile_error"] < 0.25
+    assert c["tips_ratio"] >= 0.5
+    assert skel.metrics["n_trees"] == 1
+
+
+def test_plantscan3d_branch_agrees_with_its_mtg():
+    pts = read_points(shared_file("trees", "plantscan3d_A3B4.asc"))
+    mtg = read_graph(shared_file("trees", "plantscan3d_A3B4.mtg"))
+    ref = mtg.with_(position=mtg.position + pts.xyz.mean(axis=0))  # README alignment
+    d = np.linalg.norm(ref.position - pts.xyz[np.argmin(
+        np.linalg.norm(pts.xyz[None, :50] - ref.position[:50, None], axis=2), axis=1)][:1],
+        axis=1)
+    assert np.isfinite(d).all()
+    skel = skeletonize(pts)
+    c = compare_to_reference(skel.world_graph(), ref, tolerance=0.05)
+    assert c["f1"] >= 0.85
+    assert 0.85 <= c["length_ratio"] <= 1.4
+    assert skel.metrics["n_trees"] == 1
+
+
+@pytest.mark.parametrize("name, min_pieces", [("adtree_tree1.xyz", 9), ("adtree_tree7.xyz", 13)])
+def test_gappy_adtree_clouds_are_bridged(name, min_pieces):
+    cloud = read_points(shared_file("trees", name))
+    skel = skeletonize(cloud, outliers=False)
+    assert skel.info["components"] >= min_pieces      # README: 9 and 13 pieces at k = 10
+    assert skel.metrics["n_trees"] == 1
+    g = skel.graph
+    top = skel.cloud.xyz[:, 2].max()
+    assert g.position[:, 2].max() > 0.9 * top        # the skeleton reaches the crown top
+    assert skel.graph.leaves.size > 20
+
+
+def test_single_trees_in_las_and_laz():
+    for name, height in (("treels_spruce.laz", 17.0), ("archi_tree2.las", 6.2)):
+        cloud = read_points(shared_file("trees", name))
+        skel = skeletonize(cloud)
+        assert skel.metrics["n_trees"] == 1, name
+        g = skel.graph
+        assert np.ptp(g.position[:, 2]) == pytest.approx(height, rel=0.1), name
+        r0 = skel.metrics["trunk_radius"][0]
+        assert 0.02 < r0 < 0.4, name
+
+
+def test_pine_plot_ground_removal_and_tree_segmentation():
+    cloud = read_points(shared_file("trees", "treels_pine_plot.laz"))
+    skel = skeletonize(cloud)
+    assert skel.ground is not None and skel.ground.n_points > 5000
+    n = skel.metrics["n_trees"]
+    assert 15 <= n <= 32                              # ~20 pine stems in the 10 x 10 m plot
+    g = skel.world_graph()
+    roots = g.position[g.roots]
+    # stems stand apart: no two roots closer than 0.5 m
+    from scipy.spatial.distance import pdist
+
+    assert pdist(roots[:, :2]).min() > 0.5
+    # the skeletons are in the original (projected) coordinates of the LAZ file
+    assert np.allclose(np.median(roots[:, :2], axis=0),
+                       np.median(cloud.world_xyz[:, :2], axis=0), atol=3.0)
