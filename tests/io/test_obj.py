@@ -83,3 +83,32 @@ def test_bad_mesh_writes_nothing(tmp_path):
     with pytest.raises(InputError):
         obj.write_mesh(tmp_path / "bad.obj", (np.zeros((3, 3)), [[0, 1, 5]]))
     assert not (tmp_path / "bad.obj").exists()
+
+
+def faces_with_ids(m, keys):
+    return sorted(zip(map(tuple, m.faces.tolist()),
+                      *[m.face_ids[k].tolist() for k in keys], strict=True))
+
+
+def test_read_back_restores_face_ids_uv_normals(tmp_path):
+    m = two_leaves().compute_normals()
+    m = m.with_(uv=m.vertices[:, :2] * 0.5)
+    back = obj.read_mesh(obj.write_mesh(tmp_path / "r.obj", m))
+    assert np.array_equal(back.vertices, m.vertices)
+    assert faces_with_ids(back, ["plant", "leaf"]) == faces_with_ids(m, ["plant", "leaf"])
+    assert np.array_equal(back.uv, m.uv) and np.array_equal(back.normals, m.normals)
+    plain = obj.read_mesh(obj.write_mesh(tmp_path / "p.obj", (m.vertices, m.faces)))
+    assert plain.face_ids == {} and plain.uv is None
+
+
+def test_foreign_obj_groups_polygons_and_relative_indices(tmp_path):
+    p = tmp_path / "f.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\ng left\nf 1 2 3\ng right side\nf 1 3 4\n")
+    m = obj.read_mesh(p)
+    assert m.face_ids["group"].tolist() == [0, 1] and np.isclose(m.area(), 1.0)
+    quad = tmp_path / "q.obj"
+    quad.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
+    assert obj.read_mesh(quad).n_faces == 2  # general reader (trimesh) triangulates
+    rel = tmp_path / "r.obj"
+    rel.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nf -3 -2 -1\n")
+    assert np.isclose(obj.read_mesh(rel).area(), 0.5)
