@@ -145,3 +145,17 @@ def test_errors_exit_2_one_line_nothing_written(tmp_path, capsys, args, message)
     assert message in err and "Traceback" not in err
     assert len(err.splitlines()) == 1
     assert set(tmp_path.iterdir()) == before
+
+
+def test_info_large_las_uses_header_and_agrees_with_full_read(monkeypatch, files):
+    import biomorph.inspect as inspect
+
+    full = inspect.describe(files["laz"])
+    monkeypatch.setattr(inspect, "LARGE_LAS_POINTS", 100)
+    quick = inspect.describe(files["laz"])
+    assert quick["bbox_source"] == "header" and "bbox_source" not in full
+    assert quick["points"] == full["points"]
+    assert np.allclose(quick["bbox_min"], full["bbox_min"], atol=1e-4)
+    assert np.allclose(quick["bbox_max"], full["bbox_max"], atol=1e-4)
+    assert quick["attributes"] == full["attributes"]
+    assert quick["spacing_median"] == pytest.approx(full["spacing_median"], rel=1e-6)

@@ -235,12 +235,43 @@ def describe_gltf(path: PathLike) -> dict[str, Any]:
     return out
 
 
+#: LAS/LAZ files with more points are summarised from the header and the first points
+LARGE_LAS_POINTS = 5_000_000
+
+
+def describe_large_las(path: PathLike) -> dict[str, Any]:
+    """Summary of a huge LAS/LAZ from its header (count, bbox, layout) and its first 10^6
+    points (attributes, spacing), without reading the whole file."""
+    from biomorph.io.las import read_head
+
+    sample, summary = read_head(path, 1_000_000)
+    lo, hi = summary["bbox_min"], summary["bbox_max"]
+    return {
+        "points": summary["point_count"],
+        "bbox_min": _round(lo), "bbox_max": _round(hi), "extent": _round(hi - lo),
+        "bbox_source": "header",
+        "attributes": {k: str(v.dtype) for k, v in sample.attributes.items()},
+        "spacing_median": round(median_spacing(sample.xyz), 6),
+        "spacing_source": f"first {sample.n_points:,} points",
+        "las_version": summary["las_version"], "point_format": summary["point_format"],
+        "extra_dimensions": summary["extra_dimensions"],
+        "scales": summary["scales"].tolist(), "offsets": summary["offsets"].tolist(),
+    }
+
+
 def describe(path: PathLike) -> dict[str, Any]:
     """What ``path`` holds: kind, format, size in bytes and a kind-specific summary."""
-    if Path(path).suffix.lower() in (".glb", ".gltf"):
-        return describe_gltf(path)
-    kind, obj = load(path)
     p = Path(path)
+    ext = p.suffix.lower()
+    if ext in (".glb", ".gltf"):
+        return describe_gltf(path)
+    if ext in (".las", ".laz") and p.is_file():
+        from biomorph.io.las import check_header
+
+        if check_header(p)["point_count"] > LARGE_LAS_POINTS:
+            return {"path": os.fspath(path), "kind": "points", "format": ext.lstrip("."),
+                    "bytes": p.stat().st_size} | describe_large_las(p)
+    kind, obj = load(path)
     head: dict[str, Any] = {"path": os.fspath(path), "kind": kind,
                             "format": p.suffix.lower().lstrip("."), "bytes": p.stat().st_size}
     if kind == "points":
@@ -254,4 +285,5 @@ def describe(path: PathLike) -> dict[str, Any]:
 
 __all__ = ["describe", "file_kind", "load", "load_mesh", "load_motion", "describe_cloud",
            "describe_graph", "describe_motion", "describe_mesh", "describe_gltf",
+           "describe_large_las",
            "median_spacing"]

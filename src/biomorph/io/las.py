@@ -125,6 +125,42 @@ def read_points(path: PathLike) -> PointCloud:
     return PointCloud(xyz, attrs, meta=meta, source=os.fspath(path))
 
 
+def read_head(path: PathLike, max_points: int = 1_000_000) -> tuple[PointCloud, dict]:
+    """The first ``max_points`` points and the header summary (point count, header bbox,
+    layout) without reading the whole file — for ``biomorph info`` on very large scans."""
+    import laspy
+
+    p = Path(path)
+    check_header(p)
+    try:
+        with laspy.open(p) as reader:
+            header = reader.header
+            pts = reader.read_points(int(max_points))
+            xyz = np.stack([np.asarray(pts.x, np.float64), np.asarray(pts.y, np.float64),
+                            np.asarray(pts.z, np.float64)], axis=1)
+            attrs = {name: np.array(pts[name]) for name in pts.point_format.dimension_names
+                     if name not in _COORD_DIMS}
+            summary = {
+                "point_count": int(header.point_count),
+                "bbox_min": np.asarray(header.mins, dtype=np.float64).copy(),
+                "bbox_max": np.asarray(header.maxs, dtype=np.float64).copy(),
+                "las_version": str(header.version),
+                "point_format": int(header.point_format.id),
+                "scales": np.asarray(header.scales, dtype=np.float64).copy(),
+                "offsets": np.asarray(header.offsets, dtype=np.float64).copy(),
+                "extra_dimensions": list(header.point_format.extra_dimension_names),
+            }
+    except FormatError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - laspy/lazrs raise many types
+        raise FormatError(path, f"not a readable LAS/LAZ file ({_short(exc)})") from None
+    if xyz.shape[0] == 0:
+        raise FormatError(path, "holds no points; expected at least one")
+    if not np.isfinite(xyz).all():
+        raise FormatError(path, "a point has a NaN or inf coordinate; expected finite numbers")
+    return PointCloud(xyz, attrs, meta=summary, source=os.fspath(path)), summary
+
+
 def _short(exc: BaseException) -> str:
     msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
     return msg[:160]
@@ -227,4 +263,4 @@ def write_points(path: PathLike, cloud: PointCloud, scale: float | None = None,
     return Path(path)
 
 
-__all__ = ["read_points", "write_points"]
+__all__ = ["read_points", "write_points", "read_head", "check_header"]
