@@ -362,3 +362,43 @@ def blend_average(q, w, out):  # pragma: no cover - compiled
             out[k, j, 1] = y
             out[k, j, 2] = z
             out[k, j, 3] = ww
+
+
+@njit(cache=True)
+def fk_positions(rest, rot, trans, parent, pos_out, quat_out):  # pragma: no cover - compiled
+    """Forward kinematics with quaternions: world positions ``(f, n, 3)`` and orientations
+    ``(f, n, 4)`` from rest rotations ``(n, 4)``, pose rotations ``(f, n, 4)``, local
+    translations ``(f, n, 3)`` and ``parent`` (parents first)."""
+    f, n = rot.shape[0], rot.shape[1]
+    for t in range(f):
+        for j in range(n):
+            lx, ly, lz, lw = _qmul(rest[j, 0], rest[j, 1], rest[j, 2], rest[j, 3],
+                                   rot[t, j, 0], rot[t, j, 1], rot[t, j, 2], rot[t, j, 3])
+            p = parent[j]
+            if p < 0:
+                quat_out[t, j, 0] = lx
+                quat_out[t, j, 1] = ly
+                quat_out[t, j, 2] = lz
+                quat_out[t, j, 3] = lw
+                pos_out[t, j, 0] = trans[t, j, 0]
+                pos_out[t, j, 1] = trans[t, j, 1]
+                pos_out[t, j, 2] = trans[t, j, 2]
+                continue
+            px, py, pz, pw = quat_out[t, p, 0], quat_out[t, p, 1], quat_out[t, p, 2], \
+                quat_out[t, p, 3]
+            wx, wy, wz, ww = _qmul(px, py, pz, pw, lx, ly, lz, lw)
+            quat_out[t, j, 0] = wx
+            quat_out[t, j, 1] = wy
+            quat_out[t, j, 2] = wz
+            quat_out[t, j, 3] = ww
+            # rotate the local translation by the parent's world orientation
+            vx, vy, vz = trans[t, j, 0], trans[t, j, 1], trans[t, j, 2]
+            tx = 2.0 * (py * vz - pz * vy)
+            ty = 2.0 * (pz * vx - px * vz)
+            tz = 2.0 * (px * vy - py * vx)
+            rx = vx + pw * tx + (py * tz - pz * ty)
+            ry = vy + pw * ty + (pz * tx - px * tz)
+            rz = vz + pw * tz + (px * ty - py * tx)
+            pos_out[t, j, 0] = pos_out[t, p, 0] + rx
+            pos_out[t, j, 1] = pos_out[t, p, 1] + ry
+            pos_out[t, j, 2] = pos_out[t, p, 2] + rz

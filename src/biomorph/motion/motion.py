@@ -220,19 +220,28 @@ class Motion:
         q = tf.quat_multiply(self.skeleton.rest_rotation, self.rotation[sel])
         return self.skeleton.world_matrices(_transforms(q, self.local_translations(sel)))
 
+    def _fk(self, frames: ArrayLike | slice | None) -> tuple[Array, Array]:
+        from biomorph.motion._kernels import fk_positions
+
+        sel = slice(None) if frames is None else frames
+        rot = np.ascontiguousarray(self.rotation[sel])
+        lead = rot.shape[:-2]
+        rot = rot.reshape(-1, self.n_joints, 4)
+        trans = np.ascontiguousarray(self.local_translations(sel)).reshape(-1, self.n_joints, 3)
+        pos = np.empty(trans.shape)
+        quat = np.empty(rot.shape)
+        fk_positions(np.ascontiguousarray(self.skeleton.rest_rotation), rot, trans,
+                     np.ascontiguousarray(self.skeleton.parent), pos, quat)
+        return pos.reshape(lead + pos.shape[1:]), quat.reshape(lead + quat.shape[1:])
+
     def world_positions(self, frames: ArrayLike | slice | None = None) -> Array:
-        """World position of every joint ``float[f, n, 3]`` (file units / metres)."""
-        return self.world_matrices(frames)[..., :3, 3]
+        """World position of every joint ``float[f, n, 3]`` (file units / metres); one
+        compiled pass over frames and joints (parents first)."""
+        return self._fk(frames)[0]
 
     def world_rotations(self, frames: ArrayLike | slice | None = None) -> Array:
         """World orientation quaternions ``float[f, n, 4]`` of every joint."""
-        sel = slice(None) if frames is None else frames
-        q = tf.quat_multiply(self.skeleton.rest_rotation, self.rotation[sel])
-        out = np.array(q)
-        sk = self.skeleton
-        for level in sk.levels[1:]:
-            out[..., level, :] = tf.quat_multiply(out[..., sk.parent[level], :], q[..., level, :])
-        return out
+        return self._fk(frames)[1]
 
     # ------------------------------------------------------------------ Euler views
     def euler(self, joint: int | str, degrees: bool = False, order: str | None = None,
