@@ -134,3 +134,18 @@ def test_stem_radius_estimate():
     twig = np.c_[np.linspace(0.5, 2, 200), np.linspace(0, 1, 200), np.full(200, 0.3)]
     r = _estimate_stem_radius(np.r_[stem, twig], 0.03)
     assert r == pytest.approx(0.23, abs=0.02)
+
+
+def test_real_coffee_tree_against_qsm():
+    from biomorph.tree.cloud import prepare
+    from tests.conftest import shared_file
+
+    xyz = np.loadtxt(shared_file("trees", "rtwig_cloud.txt"), usecols=(0, 1, 2))
+    p = prepare(PointCloud(xyz, source="rtwig_cloud.txt"))
+    vs = skeletonize_voxel(p.cloud)
+    g = vs.graph
+    assert vs.grid["components"] == 1
+    # SimpleForest QSM of the same cloud: 69 tips, 31.43 m (a model, not truth)
+    assert 0.6 * 31.43 < g.total_length < 1.1 * 31.43
+    assert 20 <= g.leaves.size <= 100
+    assert g.position[g.roots[0], 2] < 0.2  # rooted at the stem base
