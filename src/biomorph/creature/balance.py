@@ -41,9 +41,10 @@ class BalanceReport:
 
 def convex_hull(points: NDArray) -> NDArray[np.float64]:
     """Counter-clockwise convex hull (Andrew's monotone chain) of 2-D points ``(n, 2)``."""
-    p = np.unique(np.asarray(points, float).round(12), axis=0)
-    if len(p) <= 2:
-        return p
+    pts = sorted(set(map(tuple, np.asarray(points, float).round(12).tolist())))
+    if len(pts) <= 2:
+        return np.array(pts, float).reshape(-1, 2)
+    p = pts
 
     def cross(o, a, b):
         return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])

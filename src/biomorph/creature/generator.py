@@ -544,7 +544,6 @@ def _assemble(spine: dict, limbs: dict, skull: dict, opts: Options) -> dict[str,
         # right side (4 joints: girdle, upper, lower, distal)
         Wr = np.concatenate([_frames_from_dirs(gvec[None]) if gl > 1e-9 else np.eye(3)[None],
                              pose.rotations @ _RZ_PI])
-        Wr[0] = _frame_from_dir(gvec) if gl > 1e-9 else np.eye(3)
         pr = np.concatenate([gpt[None], pose.points[:3]])
         bl = np.concatenate([[gl], L3])
         bx = np.concatenate([[[0.3 * gl, gl, 0.06 * gl]],
@@ -845,12 +844,14 @@ def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
     mass_c = (asm["mass_c"] - shift) * scale - shift_m
     contacts = (asm["contacts"] - shift) * scale - shift_m
     rep = report
-    patches = asm["patches"] * scale - np.array([x0, 0.0])[None] if len(asm["patches"]) else \
-        asm["patches"]
-    com = (mass[:, None] * mass_c).sum(axis=0) / max(mass.sum(), 1e-30)
-    bl = float(np.ptp(np.concatenate([pos, pos + np.einsum("nij,n->ni", W[:, :, 1:2],
-                                                           asm["blen"] * scale)])[:, 0]))
-    final = bal.evaluate(com, float(mass.sum()), patches, bl, opts.min_margin_fraction)
+    # the balance report in metres is the px report scaled (mass ∝ volume, lengths ∝ s)
+    com = (np.asarray(rep.com) - shift) * scale - shift_m
+    total = float(mass.sum())
+    final = replace(rep, margin=rep.margin * scale, sagittal_margin=rep.sagittal_margin * scale,
+                    tipping_torque=total * bal.G * rep.margin * scale,
+                    com=tuple(float(v) for v in com), mass=total,
+                    support=tuple((float(a * scale - x0), float(b * scale))
+                                  for a, b in rep.support))
     info = attempt_info or {}
     final = replace(final, repairs=repairs, resamples=int(info.get("resamples", 0)))
     if not rep.applicable:
