@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from biomorph.core.pointcloud import PointCloud
-from biomorph.errors import FormatError
+from biomorph.errors import FormatError, InputError
 from biomorph.io import xyz
 from tests.conftest import shared_file
 
@@ -174,3 +174,32 @@ def test_compiled_scanner_special_tokens(tmp_path):
     assert vals[3, 3] == 0.0
     mid = write(tmp_path, "1 2 3 # trailing comment\n4 5 6\n", "m.xyz")
     assert np.allclose(xyz.read_points(mid).xyz, [[1, 2, 3], [4, 5, 6]])
+
+
+@settings(max_examples=30, deadline=None)
+@given(arrays(np.float64, st.tuples(st.integers(1, 40), st.just(3)),
+              elements=st.floats(-1e9, 1e9, allow_nan=False, allow_subnormal=False)),
+       st.integers(0, 6), arrays(np.int64, 40, elements=st.integers(-2**40, 2**40)))
+def test_fixed_precision_writer_matches_printf(tmp_path_factory, pts, precision, ints):
+    c = PointCloud(pts, {"i": ints[: len(pts)]})
+    p = xyz.write_points(tmp_path_factory.mktemp("w") / "w.csv", c, precision=precision)
+    lines = p.read_text().splitlines()[1:]
+    for row, line in zip(pts.tolist(), lines, strict=True):
+        got = line.split(",")
+        for v, tok in zip(row, got[:3], strict=True):
+            ref = f"{v:.{precision}f}"
+            # rounding of the scaled value may differ from printf by one unit in the last place
+            assert tok == ref or abs(float(tok) - float(ref)) <= 1.01 * 10.0**-precision
+            assert abs(float(tok) - v) <= 0.5 * 10.0**-precision * (1 + 1e-6) + abs(v) * 1e-15
+    assert [int(line.split(",")[3]) for line in lines] == ints[: len(pts)].tolist()
+    back = xyz.read_points(p)
+    assert np.allclose(back.xyz, pts, atol=0.51 * 10.0**-precision, rtol=1e-15)
+
+
+def test_fixed_precision_falls_back_for_huge_or_nan_attributes(tmp_path):
+    c = PointCloud(np.array([[1e30, 0, 0], [0, 0, 0]]), {"a": np.array([np.nan, 1.5])})
+    p = xyz.write_points(tmp_path / "h.xyz", c, precision=2)
+    lines = p.read_text().splitlines()
+    assert lines[1].split()[0] == f"{1e30:.2f}" and lines[1].split()[3] == "nan"
+    with pytest.raises(InputError, match="precision"):
+        xyz.write_points(tmp_path / "bad.xyz", c, precision=40)

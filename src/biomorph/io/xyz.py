@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import FormatError, InputError
-from biomorph.io.atomic import write_text
+from biomorph.io.atomic import write_bytes
 
 PathLike = str | os.PathLike[str]
 
@@ -464,20 +464,118 @@ def write_points(path: PathLike, cloud: PointCloud, precision: int | None = None
                 names.append(f"{k}_{j}")
                 columns.append(arr[:, j])
     fmts, flat = _format_block(columns)
-    if precision is not None:
-        fmts = [f"%.{int(precision)}f" if f == "%r" else f for f in fmts]
     n = xyz.shape[0]
-    row_fmt = delim.join(fmts) + "\n"
-    stacked = np.empty((n, len(flat)), dtype=object)
-    for j, c in enumerate(flat):
-        stacked[:, j] = c.tolist()
-    body = (row_fmt * n) % tuple(stacked.ravel().tolist()) if n else ""
     lines = []
     if ext == ".pts":
         lines.append(f"{n}\n")
     if ext == ".csv" or len(names) > 3:
         lines.append(delim.join(names) + "\n")
-    return write_text(path, "".join(lines) + body)
+    head = "".join(lines).encode()
+    if precision is not None:
+        if not 0 <= int(precision) <= 12:
+            raise InputError(f"precision={precision}; expected 0 to 12 decimals")
+        fast = _format_fixed_block(flat, int(precision), delim)
+        if fast is not None:
+            return write_bytes(path, head + fast)
+        fmts = [f"%.{int(precision)}f" if f == "%r" else f for f in fmts]
+    row_fmt = delim.join(fmts) + "\n"
+    stacked = np.empty((n, len(flat)), dtype=object)
+    for j, c in enumerate(flat):
+        stacked[:, j] = c.tolist()
+    body = (row_fmt * n) % tuple(stacked.ravel().tolist()) if n else ""
+    return write_bytes(path, head + body.encode())
+
+
+@numba.njit(cache=True)
+def _fixed_kernel(floats, ints, kinds, precision, sep):  # pragma: no cover - compiled
+    """Rows of fixed-point text: column ``c`` is ``floats[idx]`` (kind 0) or ``ints[idx]``
+    (kind 1) with ``idx = kinds[c, 1]``. Returns (bytes, used) or used = -1 when a float is
+    non-finite or too large for the integer path (the caller then uses Python formatting)."""
+    ncol = kinds.shape[0]
+    n = floats.shape[1] if floats.shape[0] > 0 else ints.shape[1]
+    out = np.empty(n * ncol * (23 + precision) + 1, dtype=np.uint8)
+    scale = 10.0 ** precision
+    p10 = np.int64(1)
+    for _ in range(precision):
+        p10 *= 10
+    digits = np.empty(24, dtype=np.uint8)
+    pos = 0
+    for i in range(n):
+        for c in range(ncol):
+            if c > 0:
+                out[pos] = sep
+                pos += 1
+            if kinds[c, 0] == 1:
+                q = ints[kinds[c, 1], i]
+                neg = q < 0
+                frac_digits = 0
+                if neg:
+                    q = -q
+                ip = q
+                fp = np.int64(0)
+            else:
+                v = floats[kinds[c, 1], i]
+                if not np.isfinite(v) or abs(v) * scale >= 9.0e18:
+                    return out, -1
+                neg = v < 0
+                q = np.int64(np.round(abs(v) * scale))
+                if q == 0:
+                    neg = False
+                ip = q // p10
+                fp = q % p10
+                frac_digits = precision
+            if neg:
+                out[pos] = 45
+                pos += 1
+            nd = 0
+            if ip == 0:
+                digits[0] = 48
+                nd = 1
+            while ip > 0:
+                digits[nd] = 48 + ip % 10
+                ip //= 10
+                nd += 1
+            for k in range(nd - 1, -1, -1):
+                out[pos] = digits[k]
+                pos += 1
+            if frac_digits > 0:
+                out[pos] = 46
+                pos += 1
+                for k in range(frac_digits - 1, -1, -1):
+                    digits[k] = 48 + fp % 10
+                    fp //= 10
+                for k in range(frac_digits):
+                    out[pos] = digits[k]
+                    pos += 1
+        out[pos] = 10
+        pos += 1
+    return out, pos
+
+
+def _format_fixed_block(columns: list[NDArray], precision: int, delim: str) -> bytes | None:
+    """Compiled fixed-point formatting (``%.{precision}f`` rounding half to even on the
+    scaled value, so within half a unit of the last decimal); ``None`` when a value needs
+    Python formatting (non-finite attribute, magnitude ≥ 9e18 / 10^precision)."""
+    if not columns or len(columns[0]) == 0:
+        return b""
+    fl = [c for c in columns if c.dtype.kind == "f"]
+    it = [c for c in columns if c.dtype.kind != "f"]
+    n = len(columns[0])
+    floats = np.stack(fl).astype(np.float64) if fl else np.zeros((0, n))
+    ints = np.stack(it).astype(np.int64) if it else np.zeros((0, n), dtype=np.int64)
+    kinds = np.zeros((len(columns), 2), dtype=np.int64)
+    fi = ii = 0
+    for c, col in enumerate(columns):
+        if col.dtype.kind == "f":
+            kinds[c] = (0, fi)
+            fi += 1
+        else:
+            kinds[c] = (1, ii)
+            ii += 1
+    out, used = _fixed_kernel(floats, ints, kinds, precision, ord(delim))
+    if used < 0:
+        return None
+    return out[:used].tobytes()
 
 
 __all__ = ["read_points", "write_points", "read_table"]
