@@ -39,6 +39,9 @@ def test_mesh_formats(tmp_path, ext):
     from biomorph.inspect import load_mesh
 
     assert np.isclose(load_mesh(out).area(), 0.5)
+    assert np.isclose(bio.read_mesh(out).area(), 0.5)
+    with pytest.raises(UnsupportedFormatError, match="meshes"):
+        bio.read_mesh(tmp_path / "m.xyz")
 
 
 def test_unknown_extension_and_missing_files(tmp_path):

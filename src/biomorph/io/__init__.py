@@ -98,6 +98,19 @@ def read_motion(path: PathLike, **kwargs: Any):
     return mod.read_motion(path, **kwargs)
 
 
+def read_mesh(path: PathLike, **kwargs: Any):
+    """Read a mesh as :class:`biomorph.core.mesh.Mesh`: PLY with plyfile, OBJ with the own
+    reader (face-id groups restored), other formats (.glb .gltf .stl .off) through trimesh."""
+    ext = Path(path).suffix.lower()
+    if ext not in (".ply", ".obj", ".glb", ".gltf", ".stl", ".off"):
+        raise UnsupportedFormatError(f"{os.fspath(path)}: cannot read meshes with extension "
+                                     f"{ext or '(none)'!r}; expected one of .glb .gltf .obj "
+                                     ".off .ply .stl")
+    _check_readable(path)
+    name = "ply" if ext == ".ply" else "obj"
+    return importlib.import_module(f"biomorph.io.{name}").read_mesh(path, **kwargs)
+
+
 def write_mesh(path: PathLike, mesh, **kwargs: Any) -> Path:
     """Write a mesh given as ``(vertices, faces)``, a dict or a ``trimesh.Trimesh``."""
     return _module(MESH_FORMATS, path, "mesh").write_mesh(path, mesh, **kwargs)
@@ -109,4 +122,4 @@ def write_gltf(path: PathLike, obj, **kwargs: Any) -> Path:
 
 
 __all__ = ["read_points", "write_points", "read_graph", "write_graph", "read_bvh",
-           "write_bvh", "read_motion", "write_mesh", "write_gltf"]
+           "write_bvh", "read_motion", "read_mesh", "write_mesh", "write_gltf"]
