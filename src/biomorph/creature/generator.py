@@ -685,9 +685,6 @@ def _depth_first(asm: dict) -> dict:
     return out
 
 
-_DEBUG = False
-
-
 def _below_ground(asm: dict) -> bool:
     """True if a joint or bone end lies below the ground (beyond 0.2 % of the extent)."""
     ends = asm["pos"] + asm["W"][:, :, 1] * asm["blen"][:, None]
@@ -774,8 +771,6 @@ def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
             asm2 = _assemble(spine2, limbs2, skull2, opts)
             rep2 = _balance_px(asm2, opts)
             repairs += 1
-            if _DEBUG:
-                print("pitch", repairs, round(rep2.margin_fraction, 4))
             if rep2.margin_fraction < report.margin_fraction - 0.05 or _below_ground(asm2):
                 break
             spine, limbs, skull, asm, report = spine2, limbs2, skull2, asm2, rep2
@@ -802,9 +797,6 @@ def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
             com = (bmom + lmom) / max(bvol + lvol, 1e-30)
             report = bal.evaluate(com, bvol + lvol, patches, bl, opts.min_margin_fraction)
             work = dict(work, patches=patches)
-            if _DEBUG:
-                print("repair", repairs, shifts, round(report.margin_fraction, 4), com[0],
-                      patches[:, 0].min(), patches[:, 0].max())
             repairs += 1
             if report.stable:
                 break
@@ -891,7 +883,9 @@ class Generator:
     Example
     -------
     >>> g = Generator(Options(seed=3, legs=4))
-    >>> g.step(); g.step()          # spine, girdles
+    >>> g.step()
+    'spine'
+    >>> g.step()
     'girdles'
     >>> g.set_limb("hip", 0, "fin")   # doctest: +SKIP
     >>> c = g.run()                   # remaining steps -> Creature
