@@ -159,3 +159,20 @@ def test_info_large_las_uses_header_and_agrees_with_full_read(monkeypatch, files
     assert np.allclose(quick["bbox_max"], full["bbox_max"], atol=1e-4)
     assert quick["attributes"] == full["attributes"]
     assert quick["spacing_median"] == pytest.approx(full["spacing_median"], rel=1e-6)
+
+
+def test_render_up_axis_mapping_is_a_rotation():
+    from biomorph.errors import ParameterError
+    from biomorph.render import _VIEWS, _to_zup
+
+    e = np.eye(3)
+    m = _to_zup(e, "y")  # rows: images of x, y, z
+    assert np.allclose(m[1], [0, 0, 1])  # Y-up data: y becomes the vertical axis
+    assert np.isclose(np.linalg.det(m), 1.0)  # a rotation, no mirror image
+    assert np.allclose(_to_zup(e, "z"), e)
+    for rot in _VIEWS.values():
+        assert np.isclose(np.linalg.det(rot), 1.0) and np.allclose(rot @ rot.T, e)
+    assert np.allclose(_VIEWS["front"][1], [0, 0, 1]) and np.allclose(_VIEWS["side"][1],
+                                                                       [0, 0, 1])
+    with pytest.raises(ParameterError):
+        _to_zup(e, "x")
