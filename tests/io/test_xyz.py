@@ -138,6 +138,12 @@ def test_binary_garbage_names_line(tmp_path):
     with pytest.raises(FormatError, match="not text") as err:
         xyz.read_points(p)
     assert err.value.line == 3
+    q = write(tmp_path, b"1 2 3\n4 \xff 6\n", "q.xyz")
+    with pytest.raises(FormatError, match="column 2") as err:
+        xyz.read_points(q)
+    assert err.value.line == 2
+    latin = write(tmp_path, "x;y;z;Intensit\xe4t\n1;2;3;4\n".encode("latin-1"), "l.csv")
+    assert xyz.read_points(latin).attributes["Intensit\xe4t"].tolist() == [4]
 
 
 def test_writer_refuses_nan_and_leaves_no_file(tmp_path):

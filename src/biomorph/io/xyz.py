@@ -70,13 +70,17 @@ def _sniff_delimiter(line: str) -> str | None:
 
 
 def _decode(path: PathLike, data: bytes) -> str:
+    """UTF-8 text; Latin-1 when a header holds e.g. Windows-1252 umlauts (numbers are ASCII
+    either way); NUL bytes mean a binary file and are an error naming the line."""
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        raise FormatError(path, "holds a NUL byte: a binary file, not text; expected numbers "
+                                "separated by spaces, tabs, commas or semicolons",
+                          line=data.count(b"\n", 0, nul) + 1)
     try:
         return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise FormatError(path, f"byte 0x{data[exc.start]:02x} is not text (UTF-8); expected "
-                                "numbers separated by spaces, tabs, commas or semicolons",
-                          line=line) from None
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
 
 
 def _first_lines(text: str, limit: int = 64) -> list[tuple[int, str]]:
