@@ -78,12 +78,13 @@ __all__ = [
 
 # ----------------------------------------------------------------------------- helpers
 
-def estimate_spacing(xyz: NDArray[np.float64], sample: int = 20000, seed: int = 0) -> float:
+def estimate_spacing(xyz: NDArray[np.float64], sample: int = 20000, seed: int = 0,
+                     kdtree: cKDTree | None = None) -> float:
     """Median nearest-neighbour distance of the points (metres), on a random subsample."""
     n = xyz.shape[0]
     if n < 2:
         raise InputError(f"need at least 2 points to estimate a point spacing, got {n}")
-    tree = cKDTree(xyz)
+    tree = kdtree if kdtree is not None else cKDTree(xyz)
     idx = np.random.default_rng(seed).choice(n, size=min(n, sample), replace=False)
     d, _ = tree.query(xyz[idx], k=2)
     pos = d[:, 1][d[:, 1] > 0]
@@ -890,7 +891,7 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     t0 = time.perf_counter()
     t_start = t0
     kd = cKDTree(xyz)
-    spacing_pts = estimate_spacing(xyz)
+    spacing_pts = estimate_spacing(xyz, kdtree=kd)
     extent = float(np.ptp(xyz[:, 2]))
     if node_spacing is None:
         node_spacing = float(np.clip(3 * spacing_pts, 0.003 * extent, 0.02 * extent))
@@ -906,16 +907,21 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     t0 = tick("neighbour_graph", t0)
     p_graph, n_comp = bridge_components(xyz, p_graph, tree=kd)
     t0 = tick("bridging", t0)
-    _, ppar = shortest_path_forest(p_graph, roots)
-    order = treeops.topological_order(ppar)
-    proot = treeops.root_of(ppar, order)
     # geodesic distance (Euclidean edge lengths) for the contraction levels
     geo = p_graph.copy()
     geo.data = np.sqrt(geo.data)
     plen, _ = shortest_path_forest(geo, roots)
-    tree_of_root = np.full(n, -1, dtype=np.int64)
-    tree_of_root[roots] = root_tree
-    point_tree = tree_of_root[proot]
+    if np.unique(root_tree).size > 1:
+        # Livny's segmentation: the squared-weight shortest-path forest from the virtual
+        # root assigns every point to the tree whose root it reaches
+        _, ppar = shortest_path_forest(p_graph, roots)
+        order = treeops.topological_order(ppar)
+        proot = treeops.root_of(ppar, order)
+        tree_of_root = np.full(n, -1, dtype=np.int64)
+        tree_of_root[roots] = root_tree
+        point_tree = tree_of_root[proot]
+    else:  # one tree: every reachable point belongs to it
+        point_tree = np.where(np.isfinite(plen), 0, -1).astype(np.int64)
     t0 = tick("dijkstra", t0)
     con = contract(xyz, p_graph, plen, point_tree, node_spacing)
     t0 = tick("contraction", t0)

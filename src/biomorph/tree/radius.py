@@ -355,7 +355,7 @@ def fit_radii(graph: BranchGraph, xyz: NDArray[np.float64], *, recentre: bool = 
     kd = cKDTree(xyz)
     from biomorph.tree.livny import estimate_spacing
 
-    spacing = estimate_spacing(xyz) if xyz.shape[0] >= 2 else None
+    spacing = estimate_spacing(xyz, kdtree=kd) if xyz.shape[0] >= 2 else None
     el = graph.edge_length
     med_edge = float(np.median(el[el > 0])) if (el > 0).any() else 0.05
     d, near = skeleton_distance(xyz, graph.parent, graph.position)
