@@ -51,6 +51,9 @@ def read_ply(path: PathLike) -> Any:
     p = Path(path)
     if p.stat().st_size == 0:
         raise FormatError(path, "file is empty; expected a PLY header ('ply' ...)")
+    fast = _read_ascii_scalar(path)
+    if fast is not None:
+        return fast
     try:
         with open(p, "rb") as fh:
             ply = PlyData.read(fh)
@@ -69,6 +72,158 @@ def read_ply(path: PathLike) -> Any:
         raise FormatError(path, f"unreadable PLY ({type(exc).__name__}: {_short(exc)})") \
             from None
     return ply
+
+
+# --------------------------------------------------------------------------- ASCII fast path
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2",
+              "int16": "i2", "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4",
+              "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
+              "float64": "f8"}
+_TYPE_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int",
+               "u4": "uint", "f4": "float", "f8": "double"}
+
+
+class _Element:
+    """The part of plyfile's PlyElement interface the readers use."""
+
+    def __init__(self, name: str, data: np.ndarray) -> None:
+        self.name = name
+        self.data = data
+        self.count = len(data)
+
+    def __len__(self) -> int:
+        return self.count
+
+
+class _Ply:
+    def __init__(self, elements: list[_Element]) -> None:
+        self.elements = elements
+        self.text = True
+
+    def __getitem__(self, name: str) -> _Element:
+        for el in self.elements:
+            if el.name == name:
+                return el
+        raise KeyError(name)
+
+
+def _read_ascii_scalar(path: PathLike) -> _Ply | None:
+    """Compiled parse of ASCII PLY files whose elements hold only scalar properties (point
+    clouds, skeleton graphs). ``None`` for everything else (binary, list properties), which
+    plyfile then reads."""
+    from biomorph.io.xyz import _fast_table
+
+    with open(path, "rb") as fh:
+        head = fh.read(1 << 16)
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        return None
+    try:
+        header_lines = head[:end].decode("ascii").splitlines()
+    except UnicodeDecodeError:
+        return None
+    elements: list[tuple[str, int, list[tuple[str, str]]]] = []
+    fmt = None
+    for ln in header_lines[1:]:
+        tok = ln.split()
+        if not tok or tok[0] in ("comment", "obj_info"):
+            continue
+        if tok[0] == "format" and len(tok) >= 2:
+            fmt = tok[1]
+        elif tok[0] == "element" and len(tok) == 3 and tok[2].isdigit():
+            elements.append((tok[1], int(tok[2]), []))
+        elif tok[0] == "property" and len(tok) == 3 and tok[1] in _PLY_TYPES and elements:
+            elements[-1][2].append((tok[2], _PLY_TYPES[tok[1]]))
+        else:
+            return None  # list properties or anything unusual: plyfile
+    if fmt != "ascii" or not elements or any(not props for _, _, props in elements):
+        return None
+    data = Path(path).read_bytes()
+    body_start = data.find(b"\n", end) + 1
+    if body_start <= 0:
+        raise FormatError(path, "header ends without a newline; truncated PLY")
+    newlines = np.flatnonzero(np.frombuffer(data, dtype=np.uint8)[body_start:] == 10)
+    line_ends = np.concatenate([newlines + body_start, [len(data)]])
+    header_line_count = len(header_lines) + 1
+    available = len(newlines) + (0 if data.endswith(b"\n") else 1)  # body lines present
+    out: list[_Element] = []
+    row = 0
+    for name, count, props in elements:
+        if row + count > available:
+            raise FormatError(path, f"element '{name}' announces {count} rows but the file ends "
+                                    "first; truncated PLY")
+        a = body_start if row == 0 else int(line_ends[row - 1]) + 1
+        b = int(line_ends[row + count - 1]) + 1 if count else a
+        chunk = data[a:b]
+        if count and chunk.count(b"\n") + (0 if chunk.endswith(b"\n") else 1) != count:
+            return None  # blank lines or other oddities: let plyfile decide
+        values = _fast_table(chunk, 0, len(props), None) if count else \
+            np.zeros((0, len(props)))
+        if values is None or values.shape[0] != count:
+            # the line-level scan names the first bad row (1-based line in the file)
+            for k, line in enumerate(chunk.split(b"\n")[:count]):
+                toks = line.split()
+                if len(toks) != len(props):
+                    raise FormatError(path, f"element '{name}' row {k} has {len(toks)} values; "
+                                            f"expected {len(props)}",
+                                      line=header_line_count + row + k + 1)
+                for t in toks:
+                    try:
+                        float(t)
+                    except ValueError:
+                        raise FormatError(path, f"value {t[:30].decode('latin-1')!r} is not a "
+                                                "number", line=header_line_count + row + k + 1
+                                          ) from None
+            return None
+        rec = np.empty(count, dtype=[(pn, np.dtype(pt)) for pn, pt in props])
+        for j, (pn, pt) in enumerate(props):
+            col = values[:, j]
+            if pt[0] in "iu":
+                info = np.iinfo(np.dtype(pt))
+                bad = ~np.isfinite(col) | (col != np.round(col)) | (col < info.min) | \
+                    (col > info.max)
+                if bad.any():
+                    k = int(np.flatnonzero(bad)[0])
+                    raise FormatError(path, f"property {pn!r} ({_TYPE_NAMES[pt]}) holds {col[k]!r}"
+                                            "; expected an integer in range",
+                                      line=header_line_count + row + k + 1)
+            rec[pn] = col
+        out.append(_Element(name, rec))
+        row += count
+    return _Ply(out)
+
+
+def _write_ascii_scalar(path: PathLike, elements: list) -> Path | None:
+    """Own ASCII writer for elements of scalar properties (plyfile's is slow); ``None`` when
+    an element has list properties."""
+    from biomorph.io.atomic import write_text
+
+    header = ["ply", "format ascii 1.0", "comment written by biomorph"]
+    bodies = []
+    for el in elements:
+        data = el.data
+        names = data.dtype.names or ()
+        if any(data.dtype[n].shape != () or data.dtype[n].kind not in "iuf" for n in names):
+            return None
+        header.append(f"element {el.name} {len(data)}")
+        fmts = []
+        cols = []
+        for n in names:
+            dt = data.dtype[n]
+            key = f"{dt.kind}{dt.itemsize}"
+            if key not in _TYPE_NAMES:
+                return None
+            header.append(f"property {_TYPE_NAMES[key]} {n}")
+            fmts.append("%d" if dt.kind in "iu" else ("%.9g" if dt.itemsize == 4 else "%r"))
+            cols.append(data[n].astype(np.int64 if dt.kind in "iu" else np.float64))
+        m = len(data)
+        if m:
+            table = np.empty((m, len(cols)), dtype=object)
+            for j, c in enumerate(cols):
+                table[:, j] = c.tolist()
+            bodies.append(((" ".join(fmts) + "\n") * m) % tuple(table.ravel().tolist()))
+    header.append("end_header")
+    return write_text(path, "\n".join(header) + "\n" + "".join(bodies))
 
 
 def _element(path: PathLike, ply: Any, name: str, required: bool = True) -> Any:
@@ -272,6 +427,10 @@ def read_mesh(path: PathLike) -> Mesh:
 def _write(path: PathLike, elements: list, text: bool) -> Path:
     from plyfile import PlyData
 
+    if text:
+        done = _write_ascii_scalar(path, elements)
+        if done is not None:
+            return done
     data = PlyData(elements, text=text)
     with atomic_path(path) as tmp:
         data.write(str(tmp))
