@@ -111,7 +111,7 @@ def _read_ascii_scalar(path: PathLike) -> _Ply | None:
     """Compiled parse of ASCII PLY files whose elements hold only scalar properties (point
     clouds, skeleton graphs). ``None`` for everything else (binary, list properties), which
     plyfile then reads."""
-    from biomorph.io.xyz import _fast_table
+    from biomorph.io.xyz import _fast_table_status
 
     with open(path, "rb") as fh:
         head = fh.read(1 << 16)
@@ -157,8 +157,13 @@ def _read_ascii_scalar(path: PathLike) -> _Ply | None:
         chunk = data[a:b]
         if count and chunk.count(b"\n") + (0 if chunk.endswith(b"\n") else 1) != count:
             return None  # blank lines or other oddities: let plyfile decide
-        values = _fast_table(chunk, 0, len(props), None) if count else \
-            np.zeros((0, len(props)))
+        values, status = _fast_table_status(chunk, 0, len(props), None) if count else \
+            (np.zeros((0, len(props))), 0)
+        if status == 2:  # long (17-digit) tokens everywhere: numpy's exact conversion
+            try:
+                values = np.array(chunk.split()).astype(np.float64).reshape(count, len(props))
+            except ValueError:
+                values = None
         if values is None or values.shape[0] != count:
             # the line-level scan names the first bad row (1-based line in the file)
             for k, line in enumerate(chunk.split(b"\n")[:count]):

@@ -377,18 +377,25 @@ def _fast_table(data: bytes, start: int, ncols: int, delimiter: str | None
     """Compiled parse of the data lines; ``None`` when the text needs the general parser
     (malformed lines are then reported by the line-by-line scan, exotic numbers parsed by
     numpy)."""
+    return _fast_table_status(data, start, ncols, delimiter)[0]
+
+
+def _fast_table_status(data: bytes, start: int, ncols: int, delimiter: str | None
+                       ) -> tuple[NDArray[np.float64] | None, int]:
+    """``(values or None, status)``: status 0 parsed, 1 malformed (a line with another
+    column count or a bad token), 2 too many long tokens for the exact fast path."""
     buf = np.frombuffer(data, dtype=np.uint8)
     max_rows = data.count(b"\n", start) + 1
     slow = np.empty((_MAX_SLOW_TOKENS, 3), dtype=np.int64)
     delim = 0 if delimiter is None else ord(delimiter)
     out, rows, status, n_slow = _scan_table(buf, start, ncols, delim, max_rows, slow)
     if status != 0:
-        return None
+        return None, int(status)
     values = out[: rows * ncols]
     if n_slow:
         toks = [data[a:b] for a, b in slow[:n_slow, :2].tolist()]
         values[slow[:n_slow, 2]] = np.array(toks).astype(np.float64)
-    return values.reshape(rows, ncols)
+    return values.reshape(rows, ncols), 0
 
 
 def _pick_xyz(names: list[str] | None, ncols: int) -> list[int]:
