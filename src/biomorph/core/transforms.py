@@ -14,6 +14,8 @@ Every function accepts arrays with arbitrary leading shape ``(..., 4)`` / ``(...
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
@@ -308,7 +310,11 @@ def quat_to_euler(q: ArrayLike, order: str, degrees: bool = False) -> Array:
     o = _check_order(order)
     q = np.asarray(q, dtype=float)
     lead = q.shape[:-1]
-    eul = Rotation.from_quat(q.reshape(-1, 4)).as_euler(o, degrees=degrees)
+    with warnings.catch_warnings():
+        # at gimbal lock scipy picks one of the equivalent angle sets and warns; that
+        # choice is fine for us (the rotation is exact) and the warning is noise to users
+        warnings.filterwarnings("ignore", message="Gimbal lock detected")
+        eul = Rotation.from_quat(q.reshape(-1, 4)).as_euler(o, degrees=degrees)
     return eul.reshape(lead + (3,))
 
 
