@@ -24,7 +24,7 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
 VIEWPORT = {"width": 960, "height": 640}
 
 
-def wait_for(cond: Callable[[], object], timeout: float = 10.0, what: str = "condition"
+def wait_for(cond: Callable[[], object], timeout: float = 20.0, what: str = "condition"
              ) -> object:
     """Poll ``cond`` until truthy; fail the test naming ``what`` after ``timeout`` seconds."""
     end = time.monotonic() + timeout
@@ -73,6 +73,15 @@ class Studio:
     # -------------------------------------------------------------- driving the page
     def open_tab(self, label: str) -> None:
         self.page.get_by_role("tab", name=label, exact=True).click()
+
+    def open_folder(self, label: str) -> None:
+        """Expand a collapsed GUI folder by clicking its title."""
+        for el in self.page.get_by_text(label, exact=True).all():
+            if el.is_visible():
+                el.click()
+                self.page.wait_for_timeout(200)
+                return
+        pytest.fail(f"no visible folder titled {label!r}")
 
     def click(self, label: str) -> None:
         self.page.get_by_role("button", name=label, exact=True).click()

@@ -37,12 +37,46 @@ def test_motion_tab(studio, tmp_path):
     # equalizer: a band gain changes the edited signal
     if tab.gains:
         v0 = tab.version
-        studio.set_slider(tab.gains[0], 0.0)
+        studio.set_slider(tab.gains[0], 0)
         wait_for(lambda: tab.gains[0].value == 0.0 and tab.version > v0,
                  what="the equalizer edit")
         wait_for(lambda: tab.edited is not tab.source, what="an edited clip")
         stats = app.latency.summary()
         assert "motion/equalizer" in stats
+    # speed, cycle and blend stages
+    if tab.speed is not None:
+        n0 = tab.edited.n_frames
+        studio.open_folder("Speed")
+        studio.set_slider(tab.speed, 2.0)
+        wait_for(lambda: abs(tab.edited.n_frames - n0 / 2) < 3, what="the speed change")
+        studio.set_slider(tab.speed, 1.0)
+        wait_for(lambda: tab.edited.n_frames == n0, what="speed back to 1")
+    if tab.cycle_on is not None:
+        studio.open_folder("Cycle")
+        studio.set_slider(tab.cycle_repeats, 3)
+        studio.set_checkbox(tab.cycle_on, True)
+        wait_for(lambda: len(tab.seams) == 2, what="the cycle seams")
+        studio.expect_text("Seams")
+        studio.set_checkbox(tab.cycle_on, False)
+        wait_for(lambda: not tab.seams, what="cycle off")
+    if tab.blend_on is not None:
+        write_walk_bvh(app.sandbox.root / "walk_b.bvh", seconds=5, fps=60, seed=3)
+        tab.picker_b.refresh()
+        studio.open_folder("Blend")
+        studio.select(tab.picker_b.dropdown, "walk_b.bvh")
+        studio.page.get_by_role("button", name="Open", exact=True).nth(1).click()
+        wait_for(lambda: tab.clip_b is not None, what="clip B")
+        ref = tab.edited
+        studio.set_checkbox(tab.blend_on, True)
+        import numpy as np
+
+        def blended() -> bool:
+            return not np.allclose(tab.edited.rotation[150], ref.rotation[150])
+
+        wait_for(lambda: blended() or tab.last_error, what="the blend")
+        assert tab.last_error is None, tab.last_error
+        studio.set_checkbox(tab.blend_on, False)
+        wait_for(lambda: not blended(), what="blend off")
     studio.screenshot("motion")
 
     # export BVH and GLB: valid files that read back

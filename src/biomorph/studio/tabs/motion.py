@@ -61,6 +61,8 @@ class MotionTab(StudioTab):
 
     def __init__(self, app: Any) -> None:
         super().__init__(app)
+        self.seams: list[int] = []
+        self._plot_cache: tuple[Any, Any] = (None, None)
         self.source: Any = None      # clip A as loaded
         self.clip_b: Any = None      # clip B for blending
         self.edited: Any = None      # result of the pipeline
@@ -110,7 +112,7 @@ class MotionTab(StudioTab):
                 gui.add_button("Reset bands").on_click(self.action("reset bands",
                                                                    self._reset_gains))
         with gui.add_folder("Speed", expand_by_default=False):
-            if _api("timewarp") is None and _api("retime") is None:
+            if _api("change_speed") is None:
                 gui.add_markdown("_waiting for the speed-curve API_")
                 self.speed = self.speed_keys = None
             else:
@@ -122,7 +124,7 @@ class MotionTab(StudioTab):
                 self.speed.on_update(self.live("speed", self.recompute))
                 self.speed_keys.on_update(self.action("speed keys", self.recompute))
         with gui.add_folder("Cycle", expand_by_default=False):
-            if _api("make_cycle") is None and _api("cycle") is None:
+            if _api("make_cycle") is None:
                 gui.add_markdown("_waiting for the cycle API_")
                 self.cycle_on = None
             else:
@@ -136,6 +138,7 @@ class MotionTab(StudioTab):
                 for h in (self.cycle_on, self.cycle_range, self.cycle_transition,
                           self.cycle_repeats):
                     h.on_update(self.live("cycle", self.recompute))
+                self.cycle_info = gui.add_markdown("")
         with gui.add_folder("Blend", expand_by_default=False):
             if _api("blend") is None:
                 gui.add_markdown("_waiting for `biomorph.motion.blend`_")
@@ -223,27 +226,37 @@ class MotionTab(StudioTab):
     def pipeline(self) -> Any:
         """Run the enabled edit stages on clip A; return the edited motion."""
         mo = self._need_clip()
-        if self.blend_on is not None and self.blend_on.value and self.clip_b is not None:
-            curve = parse_keys(self.blend_keys.value, "blend curve")
-            mo = _api("blend")(mo, self.clip_b, offset=self.blend_offset.value,
-                               scale=self.blend_scale.value, length=self.blend_length.value,
-                               curve=curve)
+        self.seams = []
+        if self.blend_on is not None and self.blend_on.value:
+            if self.clip_b is None:
+                raise InputError("blending needs clip B: open one under Blend")
+            ft = mo.frame_time
+            off = float(self.blend_offset.value) / ft
+            trans = float(self.blend_length.value) / ft
+            t, w = parse_keys(self.blend_keys.value, "blend curve")
+            curve = {float(off + ti * trans): float(wi) for ti, wi in zip(t, w, strict=True)}
+            mo = _api("blend")([mo, self.clip_b], offsets=[0.0, off],
+                               scales=[1.0, float(self.blend_scale.value)], transition=trans,
+                               curve=curve if len(curve) > 1 else None)
         if self.gains:
             gains = [g.value for g in self.gains]
             if any(abs(g - 1.0) > 1e-9 for g in gains):
                 mo = _api("equalize")(mo, gains)
         if self.speed is not None:
-            fn = _api("timewarp") or _api("retime")
+            fn = _api("change_speed")
             if self.speed_keys.value.strip():
                 times, speeds = parse_keys(self.speed_keys.value, "speed")
-                mo = fn(mo, (times, speeds))
+                mo = fn(mo, {float(ti / mo.frame_time): float(v)
+                             for ti, v in zip(times, speeds, strict=True)})
             elif abs(self.speed.value - 1.0) > 1e-9:
-                mo = fn(mo, self.speed.value)
+                mo = fn(mo, float(self.speed.value))
         if self.cycle_on is not None and self.cycle_on.value:
             lo, hi = (int(v) for v in self.cycle_range.value)
-            fn = _api("make_cycle") or _api("cycle")
-            mo = fn(mo, start=lo, stop=hi + 1, transition=int(self.cycle_transition.value),
-                    repeats=int(self.cycle_repeats.value))
+            trans = int(self.cycle_transition.value)
+            repeats = int(self.cycle_repeats.value)
+            mo = _api("make_cycle")(mo, lo, min(hi + 1, mo.n_frames), trans, cycles=repeats)
+            period = mo.n_frames // repeats
+            self.seams = [k * period for k in range(1, repeats)]
         return mo
 
     def recompute(self) -> None:
@@ -254,6 +267,7 @@ class MotionTab(StudioTab):
             self.frame.max = max(n - 1, 1)
         self.frame_index = min(self.frame_index, n - 1)
         self.draw_frame(self.frame_index)
+        self.draw_seam()
         self.update_plot()
         self.latency_md.content = "Edit → redraw (server side):\n\n" + \
             self.app.latency.markdown("motion/")
@@ -265,15 +279,16 @@ class MotionTab(StudioTab):
 
     def auto_align(self) -> None:
         """Place clip B so the last peak of A's plotted channel meets B's first peak."""
-        from biomorph.motion.align import peak_offset
+        from biomorph.motion.blend import auto_offset
 
         a = self._need_clip()
         if self.clip_b is None:
             raise InputError("no clip B loaded: open one under Blend first")
-        fa, fb = peak_offset(a, self.clip_b, self.plot_joint.value, self.plot_channel.value)
-        self.blend_offset.value = max(0.0, fa * a.frame_time - fb * self.clip_b.frame_time
-                                      * self.blend_scale.value)
-        self.set_status(f"Aligned: A frame {fa} meets B frame {fb}.")
+        off = auto_offset(a, self.clip_b, "peaks", self.plot_joint.value,
+                          self.plot_channel.value, b_scale=float(self.blend_scale.value))
+        self.blend_offset.value = float(np.clip(off * a.frame_time, 0.0, self.blend_offset.max))
+        self.set_status(f"Aligned: clip B starts at output frame {off:.0f}.")
+        self.recompute()
 
     # ------------------------------------------------------------------ drawing
     def draw_frame(self, f: int) -> None:
@@ -300,6 +315,24 @@ class MotionTab(StudioTab):
             self._joints.points = p
         self.redrawn()
 
+    def draw_seam(self) -> None:
+        """With a cycle: the pose at the first seam, in orange, and the seam frames listed."""
+        self.scene.remove_by_name(f"{self.root}/seam")
+        if not self.seams or self.edited is None:
+            if self.cycle_on is not None:
+                self.cycle_info.content = ""
+            return
+        mo, f = self.edited, self.seams[0]
+        p = mo.world_positions(slice(f, f + 1))[0] * self.unit
+        if self.follow.value:
+            p = p - p[0] * np.array([1.0, 0.0, 1.0])
+        parent = mo.skeleton.parent
+        child = np.flatnonzero(parent >= 0)
+        seg = np.stack([p[parent[child]], p[child]], axis=1).astype(np.float32)
+        self.scene.add_line_segments(f"{self.root}/seam", seg, (240, 150, 20), thickness=0.015)
+        self.cycle_info.content = (f"Seams (orange pose = first) at frames "
+                                   f"{', '.join(map(str, self.seams))} of {mo.n_frames}")
+
     def _frame_changed(self, event: Any) -> None:
         if event.client is None:  # moved by the player
             return
@@ -310,7 +343,10 @@ class MotionTab(StudioTab):
         if self.source is None or self.edited is None:
             return
         joint, chan = self.plot_joint.value, self.plot_channel.value
-        a = self.source.channel(joint, chan, degrees=True)
+        key = (id(self.source), joint, chan)
+        if self._plot_cache[0] != key:  # the original curve only changes with the clip
+            self._plot_cache = (key, self.source.channel(joint, chan, degrees=True))
+        a = self._plot_cache[1]
         b = self.edited.channel(joint, chan, degrees=True)
         n = max(len(a), len(b))
         t = np.arange(n) * self.edited.frame_time
@@ -321,9 +357,9 @@ class MotionTab(StudioTab):
         step = max(1, n // PLOT_POINTS)
         self.plot.data = (t[::step], ya[::step], yb[::step])
         self.plot.title = f"{joint} {chan} (deg / units)"
-        bands = _api("equalizer_bands") or _api("bands")
-        if bands is not None:
-            levels = np.asarray(bands(b))
+        bands = _api("bands")
+        if bands is not None and len(b) >= 32:
+            levels = np.asarray(bands(b, levels=4))
             self.bands_plot.data = (t[:len(b)][::step],) + tuple(
                 lv[::step] for lv in levels)
             self.bands_plot.series = ({"label": "s"},) + tuple(
