@@ -157,6 +157,7 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> dic
     table = m["table"]
     fixed: dict[int, float] = {}
     scores: dict[int, float] = {}
+    class_pick: dict[str, Any] = {}
     if opts.legs is not None:
         fixed[pc.DIM["legs"]] = min(opts.legs, 4) / 4.0 / pc.SMALL
     if opts.wings is not None:
@@ -172,11 +173,20 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> dic
     if opts.cls is not None:
         members = m["cls_scores"][opts.cls]
         if len(members):
+            # condition on a point between the class centre and a random member, and on that
+            # member's wings / legs unless the user fixed them
             centre = members.mean(axis=0)
-            pick = members[rng.integers(len(members))]
-            target = centre + 0.5 * (pick - centre)
+            j = int(rng.integers(len(members)))
+            target = centre + 0.6 * (members[j] - centre)
             ncomp = 3 if opts.k is None else min(3, opts.k)
             scores = {i: float(target[i]) for i in range(ncomp)}
+            row = [i for i, c in enumerate(table.cls) if c == opts.cls][j]
+            if opts.wings is None:
+                fixed[pc.DIM["wings"]] = float(table.wings[row]) / pc.SMALL
+                class_pick["wings"] = bool(table.wings[row])
+            if opts.legs is None:
+                fixed[pc.DIM["legs"]] = float(table.legs[row]) / 4.0 / pc.SMALL
+                class_pick["legs"] = int(table.legs[row])
     if fixed or scores:
         x = model.sample_conditional(rng, fixed, scores, opts.k, opts.temperature, opts.jitter)
     else:
@@ -198,12 +208,12 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> dic
     # discrete values read as probabilities where they fall between the data's values
     wings_v = float(raw["wings"][0])
     legs_v = float(raw["legs"][0])
-    if opts.wings is not None:
-        wings = bool(opts.wings)
+    if opts.wings is not None or "wings" in class_pick:
+        wings = bool(opts.wings if opts.wings is not None else class_pick["wings"])
     else:
         wings = bool(rng.random() < np.clip(wings_v, 0.0, 1.0)) and cls != "fish"
-    if opts.legs is not None:
-        legs = int(opts.legs)
+    if opts.legs is not None or "legs" in class_pick:
+        legs = int(opts.legs if opts.legs is not None else class_pick["legs"])
     else:
         lv = float(np.clip(legs_v, 0.0, 4.0))
         legs = (2 if rng.random() < lv / 2 else 0) if lv <= 2 else (
