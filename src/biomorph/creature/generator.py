@@ -695,6 +695,11 @@ def _depth_first(asm: dict) -> dict:
     return out
 
 
+#: Lean iterations for bipeds (the rotation is solved analytically; re-posed free limbs and
+#: a raised tail make a second pass worthwhile).
+PITCH_ITERATIONS = 3
+
+
 def _below_ground(asm: dict) -> bool:
     """True if a joint or bone end lies below the ground (beyond 0.2 % of the extent)."""
     ends = asm["pos"] + asm["W"][:, :, 1] * asm["blen"][:, None]
@@ -771,7 +776,7 @@ def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
     leg_girdles = {p[0] for p in limbs["places"] if p[2].kind == "leg"}
     if report.applicable and not report.stable and len(leg_girdles) == 1:
         # bipeds (legs on one girdle): lean the body about the leg attachment (posture)
-        for _ in range(6):
+        for _ in range(PITCH_ITERATIONS):
             spine2 = _pitch_body(spine, limbs, asm, report)
             if spine2 is None:
                 break
