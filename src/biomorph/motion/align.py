@@ -98,8 +98,9 @@ def to_y_up(motion: Motion, up: str = "z") -> Motion:
 
 
 def _forward_axis(motion: Motion, up: int) -> int:
+    step = max(1, motion.n_frames // 64)  # a sample of frames is enough to pick the axis
     w = tf.quat_to_matrix(tf.quat_multiply(motion.skeleton.rest_rotation[0],
-                                           motion.rotation[:, 0]))
+                                           motion.rotation[::step, 0]))
     vertical = np.abs(w[:, up, :]).mean(axis=0)  # |up component| of each local axis
     vertical[up] += 1e-9  # prefer non-up axes on ties
     return int(np.argmin(vertical))
@@ -120,12 +121,23 @@ def heading(motion: Motion, up: str = "y", axis: int | None = None) -> Array:
     return np.unwrap(np.arctan2(d[:, h2], d[:, h1]))
 
 
+def heading_at(motion: Motion, frame: int, up: str = "y", axis: int | None = None) -> float:
+    """Yaw (rad, in (-pi, pi]) of the root at one frame — :func:`heading` without
+    evaluating the whole clip (the forward axis is still chosen from the whole clip)."""
+    ui = _up_index(up)
+    a = _forward_axis(motion, ui) if axis is None else axis
+    w = tf.quat_to_matrix(tf.quat_multiply(motion.skeleton.rest_rotation[0],
+                                           motion.rotation[frame, 0]))
+    h1, h2 = [(ui + 1) % 3, (ui + 2) % 3]
+    return float(np.arctan2(w[h2, a], w[h1, a]))
+
+
 def align_root_to(b: Motion, a_position: ArrayLike, a_heading: float, frame_b: int,
                   up: str = "y", axis: int | None = None) -> Motion:
     """Rotate ``b`` about the vertical so its heading at ``frame_b`` equals ``a_heading`` and
     move it horizontally so its root at ``frame_b`` sits at ``a_position`` (height kept)."""
     ui = _up_index(up)
-    hb = heading(b, up, axis)[frame_b]
+    hb = heading_at(b, frame_b, up, axis)
     pb = b.root_position[frame_b]
     rotated = reorient(b, float(a_heading - hb), pivot=np.where(np.arange(3) == ui, 0.0, pb),
                        up=up)
@@ -223,5 +235,5 @@ def dtw_path(cost: ArrayLike) -> tuple[NDArray[np.int64], float]:
     return _dtw(c)
 
 
-__all__ = ["transform_root", "reorient", "to_y_up", "heading", "align_root_to",
+__all__ = ["transform_root", "reorient", "to_y_up", "heading", "heading_at", "align_root_to",
            "local_maxima", "peak_offset", "pose_features", "pose_distance", "dtw_path"]

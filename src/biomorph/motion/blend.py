@@ -36,7 +36,7 @@ from biomorph.motion._kernels import blend_average, blend_slerp
 from biomorph.motion.align import (
     align_root_to,
     dtw_path,
-    heading,
+    heading_at,
     peak_offset,
     pose_distance,
     pose_features,
@@ -196,7 +196,7 @@ def blend(clips: Sequence[Motion], offsets: ArrayLike | None = None,
             up_prev = float(np.clip(up_prev, 0, prev.n_frames - 1))
             fb = int(np.clip(round((t0 - p.offsets[i]) / p.scales[i]), 0, c.n_frames - 1))
             fa = int(round(up_prev))
-            c = align_root_to(c, prev.root_position[fa], float(heading(prev, up)[fa]), fb, up)
+            c = align_root_to(c, prev.root_position[fa], heading_at(prev, fa, up), fb, up)
         aligned.append(c)
         u = np.clip((t - p.offsets[i]) / p.scales[i], 0.0, c.n_frames - 1)
         r, pos, jt = sample_arrays(c, u)

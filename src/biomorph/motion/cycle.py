@@ -25,7 +25,13 @@ from numpy.typing import NDArray
 
 from biomorph.core import transforms as tf
 from biomorph.errors import ParameterError
-from biomorph.motion.align import _up_index, heading, pose_features, transform_root
+from biomorph.motion.align import (
+    _forward_axis,
+    _up_index,
+    heading_at,
+    pose_features,
+    transform_root,
+)
 from biomorph.motion.keys import smoothstep
 from biomorph.motion.motion import Motion, check_range, concatenate
 
@@ -36,10 +42,11 @@ def _offset_transform(seg: Motion, p: int, up: str) -> tuple[Array, Array, Array
     """Quaternion ``R`` about the vertical, pivot and translation of ``D``: x -> R(x - a) + b
     with a, b the horizontal root positions at frames 0 and ``p``."""
     ui = _up_index(up)
-    h = heading(seg, up)
+    fwd = _forward_axis(seg, ui)
+    dh = heading_at(seg, p, up, fwd) - heading_at(seg, 0, up, fwd)
     axis = np.zeros(3)
     axis[ui] = 1.0
-    q = tf.quat_from_axis_angle(axis, float(h[p] - h[0]))
+    q = tf.quat_from_axis_angle(axis, float(dh))
     a = np.array(seg.root_position[0])
     b = np.array(seg.root_position[p])
     a[ui] = 0.0
