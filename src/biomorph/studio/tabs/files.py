@@ -100,8 +100,22 @@ class FilesTab(StudioTab):
         self.loaded, self.loaded_kind, self.loaded_path = obj, kind, path
         self._clear()
         getattr(self, f"_draw_{kind}")(obj)
+        self._focus_content()
         self.set_status(f"Opened `{name}` ({kind}).")
         self.redrawn()
+
+    def _focus_content(self) -> None:
+        """Aim the cameras at what was drawn."""
+        pts = []
+        for name in ("points", "edges", "joints", "mesh"):
+            handle = self.scene._handle_from_node_name.get(f"{self.root}/{name}")
+            for attr in ("points", "vertices"):
+                arr = getattr(handle, attr, None) if handle is not None else None
+                if arr is not None:
+                    pts.append(np.asarray(arr, dtype=float).reshape(-1, 3))
+        if pts:
+            centre, size = draw.fit_camera(np.concatenate(pts))
+            self.app.focus(self.key, centre, size, force=True)
 
     @staticmethod
     def _read_mesh(path: Path):

@@ -208,6 +208,8 @@ class MotionTab(StudioTab):
         self.info.content = (f"**{path.name}**: {motion.n_joints} joints, {motion.n_frames} "
                              f"frames at {motion.fps:.1f} fps ({motion.duration:.1f} s)")
         self.recompute()
+        tall = height * self.unit  # Y-up clip, shown Z-up with the root over the origin
+        self.app.focus(self.key, np.array([0.0, 0.0, tall / 2]), 1.6 * tall, force=True)
         self.set_status(f"Opened `{self.app.sandbox.relative(path)}`.")
 
     def load_b(self, path: Path) -> None:
