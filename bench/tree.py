@@ -45,10 +45,13 @@ def one_timing(n: int) -> dict:
     truth, cloud = _cloud(n, occlusion=n <= 200_000)
     skeletonize(cloud.select(np.arange(min(2000, n))), ground=None)   # numba warm-up
     t0 = time.perf_counter()
+    r0 = resource.getrusage(resource.RUSAGE_SELF)
     skel = skeletonize(cloud, ground=None)
     total = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_SELF)
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
     t = skel.timings
-    return {"points": cloud.n_points, "total": total,
+    return {"points": cloud.n_points, "total": total, "cpu": cpu,
             **{k: t.get(k, 0.0) for k in ("prepare", "t1", "t2", "t3", "t4", "radius_fit",
                                            "order", "metrics", "neighbour_graph", "bridging",
                                            "dijkstra", "contraction", "optimisation",
@@ -66,12 +69,13 @@ def speed(full: bool) -> None:
         rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
     print("\n### Graph method, full pipeline (prepare, Livny i–viii, RANSAC radii, orders, "
           "metrics)\n")
-    print("| points | total s | prepare | t1 roots | t2 graph+Dijkstra+contraction | "
+    print("| points | total s | CPU s | prepare | t1 roots | t2 graph+Dijkstra+contraction | "
           "t3 optimisation | t4 cleanup | radius fit | metrics | peak MB | nodes | thesis |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         thesis = THESIS_GRAPH["14k"] if r["points"] <= 20_000 else "—"
-        print(f"| {r['points']:,} | {r['total']:.2f} | {r['prepare']:.2f} | {r['t1']:.2f} | "
+        print(f"| {r['points']:,} | {r['total']:.2f} | {r['cpu']:.1f} | {r['prepare']:.2f} | "
+              f"{r['t1']:.2f} | "
               f"{r['t2']:.2f} | {r['t3']:.2f} | {r['t4']:.2f} | {r['radius_fit']:.2f} | "
               f"{r['metrics']:.2f} | {r['peak_mb']:.0f} | {r['nodes']:,} | {thesis} |")
     print("\nSub-phases (s): " + "; ".join(
