@@ -20,7 +20,7 @@ POINTS = 40_000
 
 
 def run_demo(out_dir: str | Path) -> list[Section]:
-    """Write pictures and outputs into ``out_dir/tree`` and return the report sections."""
+    """Write pictures and outputs into ``out_dir`` and return the report sections."""
     from biomorph.io.atomic import atomic_path
     from biomorph.render import render_graph
     from biomorph.tree.export import export_skeleton
@@ -28,7 +28,7 @@ def run_demo(out_dir: str | Path) -> list[Section]:
     from biomorph.tree.pipeline import skeletonize
     from biomorph.tree.synthetic import generate_tree, simulate_scan
 
-    out = Path(out_dir) / "tree"
+    out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     truth = generate_tree(PRESET, seed=3)
