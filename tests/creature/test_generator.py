@@ -119,3 +119,12 @@ def test_nearby_parameters_give_similar_creatures():
     a = generate(7, legs=4, wings=False, weight=100.0, require_stable=False)
     b = generate(7, legs=4, wings=False, weight=101.0, require_stable=False)
     assert abs(a.height - b.height) / a.height < 0.05
+
+
+def test_requested_limbs_win_over_sampled_wings():
+    for sd in range(4):
+        c = generate(sd, legs=4, arms=True)
+        assert c.kind.count("arm") == 6 and c.kind.count("leg") == 12
+        check_quality(c)
+    c = generate(0, legs=6, cls="bird")
+    assert c.kind.count("leg") == 18 and not c.params["wings"]

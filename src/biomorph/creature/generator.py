@@ -267,12 +267,18 @@ def step_girdles(spine: dict, opts: Options, rng: np.random.Generator) -> tuple[
     back = max(rl[1], 0.05 * s[-1])
     fore, hind = L[:3].copy(), L[3:].copy()
     legs = spine["legs"]
+    wings = spine["wings"]
+    # sampled (not requested) wings yield when the shoulder girdle is already full
+    shoulder = (1 if legs >= 4 else 0) + (1 if legs == 6 else 0) + \
+        (1 if opts.arms and not opts.centaur else 0)
+    if wings and opts.wings is None and shoulder >= gd.MAX_PAIRS:
+        wings = False
     # a limb that must carry the body gets at least a minimal length per segment
     if legs >= 2:
         hind = np.maximum(hind, 0.08 * back)
-    if legs >= 4 or spine["wings"] or opts.arms or opts.centaur:
+    if legs >= 4 or wings or opts.arms or opts.centaur:
         fore = np.maximum(fore, 0.08 * back)
-    return gd.plan(spine["cls"], legs, spine["wings"], opts.arms, opts.centaur, fore, hind, rl)
+    return gd.plan(spine["cls"], legs, wings, opts.arms, opts.centaur, fore, hind, rl)
 
 
 # --------------------------------------------------------------------------- step: limbs
@@ -865,7 +871,7 @@ def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
         final = replace(final, reason="no legs with ground contact: swims or rests on its body")
     pts_m = (limbs["points"] - np.array([0.0, asm["ground"]])) * scale - np.array([x0, 0.0])
     params = dict(seed=opts.seed, options=_options_dict(opts), **{"class": spine["cls"]},
-                  legs=spine["legs"], wings=spine["wings"], weight_kg=spine["weight"],
+                  legs=spine["legs"], wings="wing" in asm["kind"], weight_kg=spine["weight"],
                   stance=spine["stance"], posture=spine["posture"], skull=skull["shape"],
                   vertebrae=spine["counts"].tolist(), nearest_species=spine["neighbours"],
                   metres_per_px=scale, wings_value=spine["wings_value"],
