@@ -92,3 +92,20 @@ def test_bad_pca_parameters():
         p.sample(np.random.default_rng(0), k=40)
     with pytest.raises(ParameterError, match="weight"):
         pc.weight_to_feature(-3)
+
+
+def test_conditional_matches_textbook_gaussian_conditioning():
+    p = pc.fit_dataset(reparam=True)
+    cov = p.components @ np.diag(p.eigenvalues) @ p.components.T
+    A = [pc.DIM["legs"], pc.DIM["weight"], 0, 1]
+    a = p.mean[A] + np.array([0.003, -0.002, 0.05, -0.03])
+    m, S = p.conditional(dict(zip(A, a, strict=True)))
+    x_mean = p.mean + p.components @ m
+    B = [i for i in range(pc.N_DIMS) if i not in A]
+    gain = cov[np.ix_(B, A)] @ np.linalg.inv(cov[np.ix_(A, A)])
+    expect = p.mean[B] + gain @ (a - p.mean[A])
+    assert np.allclose(x_mean[B], expect, atol=1e-6)
+    assert np.allclose(x_mean[A], a, atol=1e-6)
+    cond_cov = p.components @ S @ p.components.T
+    expect_cov = cov[np.ix_(B, B)] - gain @ cov[np.ix_(A, B)]
+    assert np.allclose(cond_cov[np.ix_(B, B)], expect_cov, atol=1e-8)
