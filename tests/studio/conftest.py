@@ -21,7 +21,7 @@ CHROMIUM = Path(os.environ.get("BIOMORPH_CHROMIUM", "/usr/bin/chromium"))
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
                  "--no-first-run", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync"]
-VIEWPORT = {"width": 960, "height": 640}
+VIEWPORT = {"width": 880, "height": 600}
 
 
 def wait_for(cond: Callable[[], object], timeout: float = 20.0, what: str = "condition"
