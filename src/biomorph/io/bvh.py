@@ -571,7 +571,9 @@ def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int =
         chans = [_DEFAULT_ROOT if sk.parent[j] < 0 else _DEFAULT_JOINT for j in range(n)]
     trans = mo.local_translations()
     f = mo.n_frames
-    cols: list[np.ndarray] = []
+    # per joint, then concatenated in the depth-first order the HIERARCHY is written in
+    # (index order differs from it for skeletons not stored depth-first)
+    joint_cols: list[list[np.ndarray]] = [[] for _ in range(n)]
     orders = mo.rotation_orders
     has_rest = not np.allclose(sk.rest_rotation, tf.quat_identity((n,)), atol=0.0)
     for j in range(n):
@@ -589,9 +591,12 @@ def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int =
         for c in chans[j]:
             a = "XYZ".index(c[0])
             if c.endswith("rotation"):
-                cols.append(euler[:, orders[j].index(c[0])])
+                joint_cols[j].append(euler[:, orders[j].index(c[0])])
             else:
-                cols.append(trans[:, j, a])
+                joint_cols[j].append(trans[:, j, a])
+    from biomorph.motion.motion import dfs_preorder
+
+    cols = [c for j in dfs_preorder(sk.parent) for c in joint_cols[j]]
     data = np.column_stack(cols) if cols else np.zeros((f, 0))
     if data.size and not np.isfinite(data).all():
         bad = int(np.argwhere(~np.isfinite(data))[0][0])
