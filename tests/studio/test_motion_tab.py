@@ -34,6 +34,13 @@ def test_motion_tab(studio, tmp_path):
     wait_for(lambda: tab.frame_index == 1034 and tab.version > v0, what="scrubbing")
     studio.assert_scene_changed(before)
 
+    # play / pause: the player thread advances the frame, pause stops it
+    studio.click("Play")
+    f0 = tab.frame_index
+    wait_for(lambda: tab.frame_index != f0, what="playback to advance")
+    studio.click("Pause")
+    wait_for(lambda: not tab._playing.is_set(), what="pause")
+
     # equalizer: a band gain changes the edited signal
     if tab.gains:
         v0 = tab.version
