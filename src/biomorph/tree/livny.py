@@ -277,11 +277,15 @@ def neighbour_graph(xyz: NDArray[np.float64], *, k: int = 10, radius: float | No
         r, c = pairs[:, 0], pairs[:, 1]
     else:
         kk = min(k + 1, n)
-        _, nb = tree.query(xyz, k=kk, workers=workers)
-        r = np.repeat(np.arange(n), kk - 1)
-        c = nb[:, 1:].reshape(-1)
-        ok = c < n
-        r, c = r[ok], c[ok]
+        d, nb = tree.query(xyz, k=kk, workers=workers)
+        nb = nb[:, 1:]
+        ok = nb < n
+        # rows come sorted from the query: build the CSR arrays directly (no COO sort)
+        indptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(ok.sum(axis=1), out=indptr[1:])
+        w = np.maximum(d[:, 1:][ok] ** 2, 1e-18)
+        return sparse.csr_matrix((w, nb[ok].astype(np.int32 if n < 2**31 else np.int64),
+                                  indptr), shape=(n, n))
     w = np.sum((xyz[r] - xyz[c]) ** 2, axis=1)
     w = np.maximum(w, 1e-18)
     return sparse.csr_matrix((w, (r, c)), shape=(n, n))
