@@ -55,3 +55,67 @@ def test_missing_partner_and_bad_values(tmp_path):
     cut.write_text(asf.read_text().split(":hierarchy")[0][:-200])
     with pytest.raises(FormatError):
         read_asf_amc(cut, amc=amc)
+
+
+def _line_no(text: str, needle: str) -> int:
+    return next(i for i, s in enumerate(text.splitlines(), start=1) if needle in s)
+
+
+@pytest.mark.parametrize("old,new,needle", [
+    # axis letters and angle counts disagree (was a bare ValueError from zip(strict=True))
+    ("axis 0 0 20  XYZ", "axis 0 0 20  XY", "axis order 'XY' for 3 angle(s)"),
+    ("axis 0 0 20  XYZ", "axis 0 20", "axis has 2 value(s); expected 3"),
+    ("axis 0 0 20  XYZ", "axis 0 0 20  XXZ", "distinct letters"),
+    ("axis 0 0 20  XYZ", "axis 0 0 20  XQZ", "expected 3 distinct letters"),
+    ("direction 0.34202 -0.939693 0  ", "direction 0.34202", "direction has 1 value(s)"),
+    ("length 7.33161  ", "length", "length has 0 value(s)"),
+    ("length 7.33161  ", "length 1e999", "non-finite"),
+    ("name lfemur", "name", "bone name without a value"),
+    ("name lfemur", "name lhipjoint", "defined twice"),
+    ("dof rx ry rz", "dof rx rx rz", "repeats a rotation"),
+    ("order TX TY TZ RX RY RZ", "order TX TY TZ RX RQ RZ", "root order"),
+    ("axis XYZ", "axis XY", "root axis order 'XY'"),
+    ("axis XYZ", "axis", "root axis without a value"),
+    ("orientation 0 0 0", "orientation 0 0", "root orientation has 2 value(s)"),
+    ("angle deg", "angle", "units angle without a value"),
+    ("angle deg", "angle grad", "expected 'deg' or 'rad'"),
+    ("length 0.45", "length 0", "expected a positive"),
+])
+def test_malformed_asf_names_file_and_line(tmp_path, old, new, needle):
+    asf = shared_file("motion", "cmu_11.asf").read_text().replace("\r\n", "\n")
+    amc = shared_file("motion", "cmu_11_01.amc")
+    assert old in asf
+    bad = asf.replace(old, new, 1)
+    p = tmp_path / "bad.asf"
+    p.write_text(bad)
+    with pytest.raises(FormatError) as info:
+        read_asf_amc(p, amc=amc)
+    assert needle in str(info.value) and "bad.asf" in str(info.value)
+    assert info.value.line == _line_no(asf, old.strip()), str(info.value)
+
+
+def test_rot_checks_angle_count():
+    from biomorph.io.asf import _rot
+
+    with pytest.raises(FormatError, match=r"x.asf:7: axis line holds 2 angle\(s\) for the 3"):
+        _rot([0.0, 1.0], "XYZ", True, "x.asf", 7)
+
+
+def test_malformed_amc_names_file_and_line(tmp_path):
+    asf = shared_file("motion", "cmu_11.asf")
+    text = shared_file("motion", "cmu_11_01.amc").read_text().replace("\r\n", "\n")
+    lines = text.splitlines()
+    k = next(i for i, s in enumerate(lines) if s.startswith("lfemur "))
+    bad = tmp_path / "dup.amc"
+    bad.write_text("\n".join(lines[:k + 1] + [lines[k]] + lines[k + 1:]) + "\n")
+    with pytest.raises(FormatError, match="listed twice") as info:
+        read_asf_amc(bad, asf=asf)
+    assert info.value.line == k + 2
+    bad.write_text("\n".join(lines[:k] + lines[k + 1:]) + "\n")
+    with pytest.raises(FormatError, match="lacks bone 'lfemur'") as info:
+        read_asf_amc(bad, asf=asf)
+    assert info.value.line is not None
+    bad.write_text(text.replace(lines[k], "lfemur 1e999 0 0", 1))
+    with pytest.raises(FormatError, match="non-finite") as info:
+        read_asf_amc(bad, asf=asf)
+    assert info.value.line == k + 1

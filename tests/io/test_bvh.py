@@ -166,3 +166,28 @@ def test_malformed_files_name_the_line(tmp_path, mutate, line, needle):
 def test_empty_and_non_bvh(tmp_path):
     assert "empty" in str(_broken(tmp_path, ""))
     assert "HIERARCHY" in str(_broken(tmp_path, "hello world\nMOTION\n"))
+
+
+@pytest.mark.parametrize("mutate,line,needle", [
+    # the file ends inside an End Site block (was an IndexError on the End Site marker)
+    (lambda s: s.split("OFFSET 0 1E0 0")[0], None, "file ends inside joint 'tip'"),
+    (lambda s: s.replace("      }\n    }\n  }\n}\nMOTION", "MOTION"), 16,
+     "MOTION inside joint 'tip'"),
+    # overflowing and non-finite numbers (were accepted as inf / nan)
+    (lambda s: s.replace("-30 -2", "-30 1e999"), 24, "overflows"),
+    (lambda s: s.replace("-30 -2", "-30 -2e400"), 24, "overflows"),
+    (lambda s: s.replace("OFFSET 0 2 0", "OFFSET 0 nan 0"), 11, "finite"),
+    (lambda s: s.replace("OFFSET 0 2 0", "OFFSET 0 1e999 0"), 11, "finite"),
+])
+def test_damaged_files_raise_format_errors(tmp_path, mutate, line, needle):
+    err = _broken(tmp_path, mutate(GOOD))
+    assert needle in str(err), str(err)
+    if line is not None:
+        assert err.line == line, str(err)
+    assert "bad.bvh" in str(err)
+
+
+def test_large_exponent_that_stays_finite_reads(tmp_path):
+    p = tmp_path / "ok.bvh"
+    p.write_text(GOOD.replace("-30 -2", "-30 -2e-300"))
+    assert read_bvh(p).root_position[1, 2] == pytest.approx(-2e-300, rel=1e-15, abs=0)

@@ -151,10 +151,7 @@ CASES = [
 
 #: readers with a known non-BiomorphError on fuzzed input, reported to their owners; kept
 #: visible as xfail (non-strict, so the case turns into XPASS once fixed).
-KNOWN_BUGS = {
-    "asf": "io/asf.py _rot: zip(strict=True) raises ValueError when an ASF 'axis' line holds "
-           "a different number of angles than axis letters",
-}
+KNOWN_BUGS: dict[str, str] = {}
 
 
 def mutate(data: bytes, rng: np.random.Generator) -> bytes:

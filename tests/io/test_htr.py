@@ -97,3 +97,20 @@ def test_bad_htr(tmp_path, mutate, needle):
     with pytest.raises(FormatError) as info:
         read_htr(p)
     assert needle in str(info.value) and "bad.htr" in str(info.value)
+
+
+@pytest.mark.parametrize("mutate,needle", [
+    (lambda s: s.replace("1\t0\t0\t0\t30", "1\t0\t0\t0\t1e999"), "non-finite"),
+    (lambda s: s.replace("1\t0\t0\t0\t30", "1\t0\t0\t0\tnan"), "non-finite"),
+    (lambda s: s.replace("arm\t0\t50\t0", "arm\t0\tinf\t0"), "non-finite"),
+    (lambda s: s.replace("ScaleFactor 1.0", "ScaleFactor nan"), "ScaleFactor"),
+    (lambda s: s.replace("DataFrameRate 30", "DataFrameRate nan"), "DataFrameRate"),
+    # a damaged NumFrames is reported, not allocated
+    (lambda s: s.replace("NumFrames 2", "NumFrames 2000000000000"), "NumFrames says"),
+])
+def test_damaged_htr_values(tmp_path, mutate, needle):
+    p = tmp_path / "bad.htr"
+    p.write_bytes(mutate(SMALL).encode())
+    with pytest.raises(FormatError) as info:
+        read_htr(p)
+    assert needle in str(info.value) and "bad.htr" in str(info.value)

@@ -47,10 +47,37 @@ def _lines(path: Path) -> list[tuple[int, str]]:
 
 def _floats(path: Path, ln: int, toks: list[str], what: str) -> list[float]:
     try:
-        return [float(t) for t in toks]
+        vals = [float(t) for t in toks]
     except ValueError:
         raise FormatError(path, f"{what}: non-numeric value in {' '.join(toks)!r}",
                           line=ln) from None
+    if not all(np.isfinite(v) for v in vals):
+        raise FormatError(path, f"{what}: non-finite value in {' '.join(toks)!r}; expected "
+                                "finite numbers", line=ln)
+    return vals
+
+
+def _numbers(path: Path, ln: int, toks: list[str], n: int, what: str) -> list[float]:
+    """Exactly ``n`` numbers after the keyword ``toks[0]`` (more tokens are left to callers)."""
+    if len(toks) < n + 1:
+        raise FormatError(path, f"{what} has {len(toks) - 1} value(s); expected {n}", line=ln)
+    return _floats(path, ln, toks[1:n + 1], what)
+
+
+def _word(path: Path, ln: int, toks: list[str], what: str) -> str:
+    if len(toks) < 2:
+        raise FormatError(path, f"{what} without a value; expected '{toks[0]} <value>'",
+                          line=ln)
+    return toks[1]
+
+
+def _axis_order(path: Path, ln: int, order: str, n: int, what: str) -> str:
+    """Axis letters of an ``axis`` line: ``n`` distinct letters out of X, Y, Z."""
+    o = order.upper()
+    if len(o) != n or any(c not in "XYZ" for c in o) or len(set(o)) != len(o):
+        raise FormatError(path, f"{what} axis order {order!r} for {n} angle(s); expected "
+                                f"{n} distinct letters of X, Y, Z (e.g. 'XYZ')", line=ln)
+    return o
 
 
 def read_asf(path: str | os.PathLike[str]) -> dict:
@@ -75,16 +102,27 @@ def read_asf(path: str | os.PathLike[str]) -> dict:
         key = toks[0].lower()
         if section == "units":
             if key in ("length", "mass"):
-                units[key] = _floats(p, ln, toks[1:2], key)[0]
+                units[key] = _numbers(p, ln, toks, 1, key)[0]
+                if units[key] <= 0:
+                    raise FormatError(p, f"units {key} {units[key]}; expected a positive "
+                                         "number", line=ln)
             elif key == "angle":
-                units["angle"] = toks[1].lower()
+                units["angle"] = _word(p, ln, toks, "units angle").lower()
+                if not units["angle"].startswith(("deg", "rad")):
+                    raise FormatError(p, f"units angle {toks[1]!r}; expected 'deg' or 'rad'",
+                                      line=ln)
         elif section == "root":
             if key == "order":
-                root["order"] = [t.upper() for t in toks[1:]]
+                order = [t.upper() for t in toks[1:]]
+                legal = ("TX", "TY", "TZ", "RX", "RY", "RZ")
+                if any(t not in legal for t in order) or len(set(order)) != len(order):
+                    raise FormatError(p, f"root order {' '.join(toks[1:])!r}; expected "
+                                         "distinct channels of TX TY TZ RX RY RZ", line=ln)
+                root["order"] = order
             elif key == "axis":
-                root["axis"] = toks[1].upper()
+                root["axis"] = _axis_order(p, ln, _word(p, ln, toks, "root axis"), 3, "root")
             elif key in ("position", "orientation"):
-                root[key] = _floats(p, ln, toks[1:4], key)
+                root[key] = _numbers(p, ln, toks, 3, f"root {key}")
         elif section == "bonedata":
             if key == "begin":
                 cur = {"dof": [], "axis": [0.0, 0.0, 0.0], "axis_order": "XYZ",
@@ -100,16 +138,25 @@ def read_asf(path: str | os.PathLike[str]) -> dict:
                     continue
                 raise FormatError(p, f"{toks[0]!r} outside a bone's begin/end", line=ln)
             elif key == "name":
-                cur["name"] = toks[1]
+                cur["name"] = _word(p, ln, toks, "bone name")
+                if cur["name"] in bones or cur["name"] == "root":
+                    raise FormatError(p, f"bone {cur['name']!r} defined twice; expected "
+                                         "unique bone names", line=ln)
             elif key == "direction":
-                cur["direction"] = _floats(p, ln, toks[1:4], "direction")
+                cur["direction"] = _numbers(p, ln, toks, 3, "direction")
             elif key == "length":
-                cur["length"] = _floats(p, ln, toks[1:2], "length")[0]
+                cur["length"] = _numbers(p, ln, toks, 1, "length")[0]
             elif key == "axis":
-                cur["axis"] = _floats(p, ln, toks[1:4], "axis")
-                cur["axis_order"] = toks[4].upper() if len(toks) > 4 else "XYZ"
+                cur["axis"] = _numbers(p, ln, toks, 3, "axis")
+                cur["axis_order"] = _axis_order(p, ln, toks[4] if len(toks) > 4 else "XYZ", 3,
+                                                "bone")
             elif key == "dof":
-                cur["dof"] = [t.lower() for t in toks[1:]]
+                dof = [t.lower() for t in toks[1:]]
+                rots = [d for d in dof if d in _AXES]
+                if len(set(rots)) != len(rots):
+                    raise FormatError(p, f"dof {' '.join(toks[1:])!r} repeats a rotation; "
+                                         "expected each of rx ry rz at most once", line=ln)
+                cur["dof"] = dof
         elif section == "hierarchy":
             if key in ("begin", "end"):
                 continue
@@ -122,8 +169,13 @@ def read_asf(path: str | os.PathLike[str]) -> dict:
             "hierarchy": hierarchy, "path": p}
 
 
-def _rot(angles: list[float], axes: str, degrees: bool) -> np.ndarray:
+def _rot(angles: list[float], axes: str, degrees: bool, path: Path | None = None,
+         line: int | None = None) -> np.ndarray:
     """Rotation applying ``axes[0]`` first (fixed axes): BVH order = reversed string."""
+    if len(angles) != len(axes):
+        raise FormatError(path, f"axis line holds {len(angles)} angle(s) for the {len(axes)} "
+                                f"axis letter(s) {axes!r}; expected one angle per letter",
+                          line=line)
     if not axes:
         return tf.quat_identity()
     vals = list(angles)[::-1]
@@ -157,20 +209,22 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0):
     while i < len(names):
         for c in kids.get(names[i], []):
             if c in names:
-                raise FormatError(asf["path"], f"bone {c!r} has two parents")
+                lns = [ln for par, ch, ln in asf["hierarchy"] if c in ch]
+                raise FormatError(asf["path"], f"bone {c!r} has two parents; expected a tree",
+                                  line=lns[-1] if lns else None)
             names.append(c)
             parent.append(i)
         i += 1
     n = len(names)
     root = asf["root"]
-    c_world = [_rot(root["orientation"], root["axis"], deg)]
+    c_world = [_rot(root["orientation"], root["axis"], deg, asf["path"])]
     offset = np.zeros((n, 3))
     end = np.full((n, 3), np.nan)
     dofs: list[list[str]] = [[t for t in root["order"] if t.startswith("R")]]
     vec = [np.zeros(3)]
     for j in range(1, n):
         b = asf["bones"][names[j]]
-        c_world.append(_rot(b["axis"], b["axis_order"], deg))
+        c_world.append(_rot(b["axis"], b["axis_order"], deg, asf["path"], b["line"]))
         dofs.append([d for d in b["dof"] if d in _AXES])
         vec.append(np.asarray(b["direction"], float) * b["length"] * scale)
     c_world = np.array(c_world)
@@ -186,6 +240,7 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0):
     # --- AMC values
     lines = _lines(p)
     frames: list[dict[str, tuple[int, list[float]]]] = []
+    frame_line: list[int] = []
     width = {names[j]: len(asf["bones"][names[j]]["dof"]) for j in range(1, n)}
     width["root"] = len(root["order"])
     for ln, line in lines:
@@ -194,6 +249,7 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0):
         toks = line.split()
         if len(toks) == 1 and toks[0].isdigit():
             frames.append({})
+            frame_line.append(ln)
             continue
         if not frames:
             raise FormatError(p, f"data {toks[0]!r} before the first frame number", line=ln)
@@ -204,6 +260,9 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0):
         if len(vals) != width[name]:
             raise FormatError(p, f"bone {name} has {len(vals)} values; the ASF declares "
                                  f"{width[name]} dof", line=ln)
+        if name in frames[-1]:
+            raise FormatError(p, f"bone {name} listed twice in frame {len(frames)}; expected "
+                                 "one line per bone and frame", line=ln)
         frames[-1][name] = (ln, vals)
     if not frames:
         raise FormatError(p, "no frames; expected frame numbers followed by bone values")
@@ -219,7 +278,7 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0):
         except KeyError:
             bad = next(k for k, fr in enumerate(frames) if name not in fr)
             raise FormatError(p, f"frame {bad + 1} lacks bone {name!r}; expected every frame to "
-                                 "list every bone with dof") from None
+                                 "list every bone with dof", line=frame_line[bad]) from None
         if j == 0:
             order = root["order"]
             for a, ax in enumerate("XYZ"):

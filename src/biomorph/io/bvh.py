@@ -29,6 +29,7 @@ written atomically.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import warnings
@@ -56,6 +57,7 @@ def _scan_floats(buf, start, out, n_per_line):  # pragma: no cover - compiled
 
     Returns ``(count, status, err_pos, bad_line_pos, bad_line_count)``: status 0 ok,
     1 more values than ``out`` holds, 2 a malformed token starting at ``err_pos``.
+    3 a value overflowing to infinity starting at ``err_pos``.
     ``bad_line_pos`` is the byte offset of the first line whose value count differs from
     ``n_per_line`` (-1 if none)."""
     n = out.size
@@ -141,6 +143,8 @@ def _scan_floats(buf, start, out, n_per_line):  # pragma: no cover - compiled
                 v = v / 10.0 ** (-exp10)
             else:
                 v = v / 1e22 / 10.0 ** (-exp10 - 22)
+        if v > 1.7976931348623157e308:  # overflow (e.g. 1e999): not a finite number
+            return k, 3, tok, bad_line, bad_count
         out[k] = -v if neg else v
         k += 1
         line_count += 1
@@ -283,9 +287,18 @@ class _Tokens:
     def number(self, what: str) -> float:
         tok, ln = self.next(what)
         try:
-            return float(tok)
+            v = float(tok)
         except ValueError:
             raise FormatError(self.path, f"{what}: {tok!r} is not a number", line=ln) from None
+        if not math.isfinite(v):
+            raise FormatError(self.path, f"{what}: {tok!r}; expected a finite number", line=ln)
+        return v
+
+
+def _owner(stack: list[int]) -> int:
+    """Joint index of the innermost open block (an End Site block is encoded as ``-2 - j``)."""
+    top = stack[-1]
+    return top if top >= 0 else -2 - top
 
 
 def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
@@ -304,8 +317,8 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
         tok = toks.peek()
         if tok is None:
             if stack:
-                raise FormatError(path, f"file ends inside joint {names[stack[-1]]!r}; expected "
-                                        "'}' and a MOTION section", line=toks.last_line)
+                raise FormatError(path, f"file ends inside joint {names[_owner(stack)]!r}; "
+                                        "expected '}' and a MOTION section", line=toks.last_line)
             raise FormatError(path, "no MOTION section; expected 'MOTION' after the hierarchy",
                               line=toks.last_line)
         word, ln = toks.next("a keyword")
@@ -380,7 +393,7 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
                 raise FormatError(path, f"joint {names[top]!r} has no OFFSET", line=ln)
         elif key == "MOTION":
             if stack:
-                raise FormatError(path, f"MOTION inside joint {names[stack[-1]]!r}; a '}}' is "
+                raise FormatError(path, f"MOTION inside joint {names[_owner(stack)]!r}; a '}}' is "
                                         "missing", line=ln)
             break
         else:
@@ -454,6 +467,11 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None):
     out = np.empty(n_frames * n_ch, dtype=np.float64)
     count, status, err, bad_line, bad_count = _scan_floats(buf, data_start, out, max(n_ch, 1))
     first_data_line = _line_of(raw, data_start)
+    if status == 3:
+        tok = raw[err:err + 40].split()[0].decode(errors="replace")
+        raise FormatError(path, f"MOTION value {tok!r} overflows (frame {count // max(n_ch, 1)}, "
+                                f"channel {count % max(n_ch, 1)}); expected a finite number",
+                          line=_line_of(raw, err))
     if status == 2:
         tok = raw[err:err + 40].split()[0].decode(errors="replace")
         raise FormatError(path, f"MOTION value {tok!r} is not a number (frame "

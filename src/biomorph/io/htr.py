@@ -29,6 +29,7 @@ Conventions used here (stated, since files differ):
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -97,7 +98,7 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False):
     n_seg = num("NumSegments", int)
     n_frames = num("NumFrames", int)
     rate = num("DataFrameRate", float)
-    if rate <= 0 or n_frames < 1:
+    if not math.isfinite(rate) or rate <= 0 or n_frames < 1:
         raise FormatError(path, f"DataFrameRate {rate} / NumFrames {n_frames}; expected "
                                 "positive values")
     order = header.get("eulerrotationorder", "ZYX").upper()
@@ -107,6 +108,9 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False):
     bvh_order = order[::-1] if reverse_order else order
     unit_name = header.get("calibrationunits", "mm").lower()
     scale = UNITS.get(unit_name, 1.0) * num("ScaleFactor", float, 1.0)
+    if not math.isfinite(scale) or scale <= 0:
+        raise FormatError(path, f"ScaleFactor {header.get('scalefactor')!r}; expected a positive "
+                                "finite number")
     degrees = header.get("rotationunits", "degrees").lower().startswith("deg")
     # hierarchy
     parent_name: dict[str, str] = {}
@@ -156,11 +160,20 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False):
         except ValueError:
             raise FormatError(path, f"[BasePosition] {toks[0]}: non-numeric value", line=ln
                               ) from None
+        if not all(math.isfinite(v) for v in vals):
+            raise FormatError(path, f"[BasePosition] {toks[0]}: non-finite value; expected "
+                                    "finite numbers", line=ln)
         base[idx[toks[0]], :len(vals)] = vals
     missing = [names[i] for i in range(len(names)) if np.isnan(base[i, 0])]
     if missing:
         raise FormatError(path, f"[BasePosition] lacks segment {missing[0]!r}")
-    # frames
+    # frames (counts checked before allocating: a damaged NumFrames must not allocate)
+    for s in names:
+        rows = secs.get(s)
+        if rows is not None and len(rows) != n_frames:
+            ln = rows[-1][0] if rows else None
+            raise FormatError(path, f"segment [{s}] has {len(rows)} frames; NumFrames says "
+                                    f"{n_frames} (truncated file?)", line=ln)
     n = len(names)
     tr = np.zeros((n_frames, n, 3))
     rot = np.zeros((n_frames, n, 3))
@@ -187,6 +200,10 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False):
                         raise FormatError(path, f"[{s}] value {tok!r} is not a number",
                                           line=ln) from None
             raise FormatError(path, f"[{s}] rows have different field counts") from None
+        if not np.isfinite(block).all():
+            r = int(np.argwhere(~np.isfinite(block))[0][0])
+            raise FormatError(path, f"[{s}] non-finite value; expected finite numbers",
+                              line=rows[r][0])
         if block.shape[1] < 6:
             raise FormatError(path, f"[{s}] rows have {block.shape[1] + 1} fields; expected 8",
                               line=rows[0][0])
