@@ -111,3 +111,18 @@ def test_bad_input_and_parameters():
         skeletonize(pts, method="magic")
     with pytest.raises(ParameterError):
         skeletonize(pts, radius="guess")
+
+
+def test_sparse_filter_removes_leaf_clutter_not_wood():
+    from biomorph.tree.pipeline import remove_sparse
+
+    truth = generate_tree("maple", seed=0)
+    cloud = simulate_scan(truth, n_points=30000, seed=0, noise=0.004, ground=False,
+                          leaves=0.05)
+    leaf = cloud.attributes["is_leaf"].astype(bool)
+    kept = remove_sparse(cloud.with_(attributes={"leaf": leaf}), 4.0)
+    k_leaf = kept.attributes["leaf"]
+    assert k_leaf.sum() < 0.35 * leaf.sum()                  # most clutter gone
+    assert (~k_leaf).sum() > 0.9 * (~leaf).sum()              # wood kept
+    with pytest.raises(ParameterError):
+        remove_sparse(cloud, 0.5)

@@ -55,7 +55,7 @@ def _skeleton_kwargs(method: str, n_trees: int | None, node_spacing: float | Non
                      max_iter: int, cell_size: float | None, ground: bool, outliers: bool,
                      downsample: float | None, filter_spec: str | None, radius: str,
                      recentre: bool, order_angle: float, order_share: float, seed: int,
-                     ) -> dict[str, Any]:
+                     clutter: float | None = None) -> dict[str, Any]:
     if order_angle <= 0 or order_angle > 180:
         raise ParameterError(f"--order-angle must lie in (0, 180] degrees, got {order_angle}")
     if downsample is not None and not 0 < downsample <= 1:
@@ -65,7 +65,7 @@ def _skeleton_kwargs(method: str, n_trees: int | None, node_spacing: float | Non
                               outliers=outliers, downsample=downsample,
                               filter=_parse_filter(filter_spec), radius=radius,
                               recentre=recentre, order_angle=float(np.radians(order_angle)),
-                              order_share=order_share, seed=seed)
+                              order_share=order_share, seed=seed, sparse_filter=clutter)
     if cell_size is not None:
         kw["voxel"] = {"cell_size": cell_size}
     return kw
@@ -95,6 +95,9 @@ def skeletonize(
     order_share: Annotated[float, typer.Option(help="Branch-order weight share.")] = 0.5,
     world: Annotated[bool, typer.Option(help="Write original (e.g. georeferenced) "
                                              "coordinates.")] = True,
+    clutter: Annotated[float | None, typer.Option(help="Drop sparse points (leaf clutter): "
+                                                       "mean 16-NN distance > CLUTTER x "
+                                                       "median, e.g. 4.")] = None,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
 ) -> None:
     """Skeletonise a tree cloud and write skeleton.ply/.mtg, tube.glb/.obj, cylinders.csv,
@@ -107,7 +110,7 @@ def skeletonize(
 
     kw = _skeleton_kwargs(method, n_trees, node_spacing, k, max_iter, cell_size, ground,
                           outliers, downsample, filter_spec, radius, recentre, order_angle,
-                          order_share, seed)
+                          order_share, seed, clutter)
     skel = run(cloud, **kw)
     files = export_skeleton(skel, out, world=world, title=f"{cloud.name} ({method})")
     summary = skel.summary()

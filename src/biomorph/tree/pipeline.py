@@ -24,7 +24,7 @@ from biomorph.core.graph import BranchGraph
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 
-__all__ = ["TreeSkeleton", "skeletonize", "METHODS", "load_cloud"]
+__all__ = ["TreeSkeleton", "skeletonize", "METHODS", "load_cloud", "remove_sparse"]
 
 METHODS = ("graph", "voxel")
 
@@ -99,6 +99,22 @@ def load_cloud(cloud: PointCloud | str | os.PathLike | NDArray) -> PointCloud:
     return PointCloud(arr)
 
 
+def remove_sparse(cloud: PointCloud, ratio: float, k: int = 16) -> PointCloud:
+    """Points whose mean distance to their ``k`` nearest neighbours is at most ``ratio``
+    times the median of that distance (a density filter for clutter; metres-free)."""
+    from scipy.spatial import cKDTree
+
+    if ratio <= 1:
+        raise ParameterError(f"sparse_filter must be > 1 (a multiple of the median "
+                             f"neighbour distance), got {ratio}")
+    n = cloud.n_points
+    if n <= k:
+        return cloud
+    d, _ = cKDTree(cloud.xyz).query(cloud.xyz, k=k + 1, workers=-1)
+    md = d[:, 1:].mean(axis=1)
+    return cloud.select(md <= ratio * np.median(md))
+
+
 def _height_above_ground(xyz: NDArray, ground: PointCloud | None) -> NDArray | None:
     if ground is None or ground.n_points == 0:
         return None
@@ -124,6 +140,7 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
                 overlap: float = 0.5, min_branch_length: float | None = None,
                 # voxel method
                 voxel: dict | None = None,
+                sparse_filter: float | None = None,
                 # extensions
                 radius: str = "fit", recentre: bool = True, search_factor: float = 1.5,
                 order_share: float = 0.5, order_angle: float = np.radians(45.0),
@@ -141,6 +158,10 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
     cleanup, radius_ratio, length_factor, overlap, min_branch_length :
         :func:`biomorph.tree.cleanup.cleanup` (``min_branch_length`` defaults to 1.5 node
         spacings: side tips shorter than that are scan noise).
+    sparse_filter : drop points whose mean distance to their 16 nearest neighbours exceeds
+        this multiple of the median (leaf clutter, stray returns); ``None`` (default) keeps
+        them. 4.0 roughly halves the spurious twigs of an 8 mm-noise scan with 5 % leaf
+        clutter but also thins real sparse tips (docs/tree.md).
     voxel : keyword arguments of ``skeletonize_voxel`` (e.g. ``{"cell_size": 0.05}``).
     radius : ``"fit"`` (RANSAC circles, :mod:`~biomorph.tree.radius`) or ``"allometric"``.
     recentre : move nodes to the fitted circle centres.
@@ -173,6 +194,8 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
     prep = tcloud.prepare(raw, centre=centre, filter=filter, downsample=downsample,
                           outliers=outliers, ground=ground, seed=seed)
     pc = prep.cloud
+    if sparse_filter is not None:
+        pc = remove_sparse(pc, sparse_filter)
     if pc.n_points < 10:
         raise InputError(f"{raw.source or 'point cloud'}: only {pc.n_points} points remain "
                          "above the ground; expected a tree")
@@ -181,7 +204,7 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
     xyz = pc.xyz
     info: dict[str, Any] = {"points_in": raw.n_points, "points": pc.n_points,
                             "prepare": prep.steps}
-    params: dict[str, Any] = {"method": method, "seed": seed}
+    params: dict[str, Any] = {"method": method, "seed": seed, "sparse_filter": sparse_filter}
     if method == "graph":
         height = _height_above_ground(xyz, prep.ground)
         res = livny.skeletonize_graph(
