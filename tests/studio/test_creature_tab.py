@@ -12,8 +12,7 @@ pytestmark = pytest.mark.browser
 
 def test_creature_tab(studio, tmp_path):
     app = studio.app
-    if "creature" not in app.tabs:
-        pytest.skip(f"creature tab unavailable: {app.unavailable.get('creature')}")
+    assert "creature" in app.tabs, f"tab failed to build: {app.unavailable.get('creature')}"
     tab = app.tabs["creature"]
     studio.open_tab("Creature")
     wait_for(lambda: tab.creature is not None, what="the first creature")

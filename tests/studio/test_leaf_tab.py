@@ -11,8 +11,7 @@ pytestmark = pytest.mark.browser
 
 def test_leaf_tab(studio, tmp_path):
     app = studio.app
-    if "leaf" not in app.tabs:
-        pytest.skip(f"leaf tab unavailable: {app.unavailable.get('leaf')}")
+    assert "leaf" in app.tabs, f"leaf tab failed to build: {app.unavailable.get('leaf')}"
     tab = app.tabs["leaf"]
     studio.open_tab("Leaf")
     studio.select(app._view, "Leaf")

@@ -12,8 +12,7 @@ pytestmark = pytest.mark.browser
 
 def test_motion_tab(studio, tmp_path):
     app = studio.app
-    if "motion" not in app.tabs:
-        pytest.skip(f"motion tab unavailable: {app.unavailable.get('motion')}")
+    assert "motion" in app.tabs, f"motion tab failed to build: {app.unavailable.get('motion')}"
     tab = app.tabs["motion"]
     write_walk_bvh(app.sandbox.root / "walk.bvh", seconds=20, fps=60)
     studio.open_tab("Motion")

@@ -13,8 +13,7 @@ pytestmark = pytest.mark.browser
 
 def test_tree_tab(studio, tmp_path):
     app = studio.app
-    if "tree" not in app.tabs:
-        pytest.skip(f"tree tab unavailable: {app.unavailable.get('tree')}")
+    assert "tree" in app.tabs, f"tree tab failed to build: {app.unavailable.get('tree')}"
     tab = app.tabs["tree"]
     studio.open_tab("Tree")
     studio.select(app._view, "Tree")
