@@ -237,7 +237,7 @@ def export_skeleton(skel: Any, out_dir: PathLike, *, formats: tuple[str, ...] | 
     if {"glb", "obj", "mesh_ply"} & set(formats):
         mesh = tube_mesh(g, sides=sides)
     if "glb" in formats:
-        written["glb"] = write_mesh(out / "tube.glb", mesh)
+        written["glb"] = write_mesh(out / "tube.glb", mesh, y_up=False)  # Z-up data
     if "obj" in formats or "mesh_ply" in formats:
         from biomorph.core.mesh import Mesh
 

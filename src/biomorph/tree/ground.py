@@ -112,7 +112,10 @@ def ground_surface_grid(xyz: NDArray[np.float64], cell: float = 0.5, window: flo
     zgrid = zmin.reshape(shape)
     w = max(3, int(round(window / cell)) | 1)
     env = ndimage.minimum_filter(zgrid, size=w, mode="nearest")
-    ok_cell = np.isfinite(zgrid) & (zgrid - env <= max_step + slope * window / 2)
+    # empty cells are +inf in both grids; compare only occupied cells (inf - inf is NaN)
+    occupied = np.isfinite(zgrid)
+    ok_cell = np.zeros_like(occupied)
+    ok_cell[occupied] = zgrid[occupied] - env[occupied] <= max_step + slope * window / 2
     cand = first[ok_cell.reshape(-1)[flat[first]]]
     pts = xyz[cand]
     # robust plane: trimmed least squares on z = a x + b y + c
