@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from biomorph.errors import InputError, ParameterError
-from biomorph.motion._kernels import blend_average, blend_slerp
+from biomorph.motion._kernels import blend_average, blend_slerp, ro
 from biomorph.motion.align import (
     align_root_to,
     dtw_path,
@@ -208,7 +208,7 @@ def blend(clips: Sequence[Motion], offsets: ArrayLike | None = None,
         b = w[:, 1]
         qa, qb = rots
         rot = np.empty_like(qa)
-        blend_slerp(qa, qb, np.ascontiguousarray(b), rot)
+        blend_slerp(ro(qa), ro(qb), ro(b), rot)
     else:
         rot = np.empty_like(rots[0])
         blend_average(np.stack(rots), np.ascontiguousarray(w), rot)

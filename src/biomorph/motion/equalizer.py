@@ -44,7 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from biomorph.errors import ParameterError
-from biomorph.motion._kernels import equalize_rotations, equalize_rows, lowpass_into
+from biomorph.motion._kernels import equalize_rotations, equalize_rows, lowpass_into, ro
 from biomorph.motion.motion import Motion, frozen
 
 Array = NDArray[np.float64]
@@ -190,7 +190,7 @@ def equalize(motion: Motion, gains: ArrayLike = DEFAULT_GAINS,
         q = rot if sel.size == motion.n_joints else np.ascontiguousarray(rot[:, sel])
         width = min(2 ** max(levels, 1) + 1, 2 * (q.shape[0] // 2) + 1)
         q2 = np.empty(q.shape)
-        equalize_rotations(np.ascontiguousarray(q), g, mode, width // 2, q2)
+        equalize_rotations(ro(q), ro(g), mode, width // 2, q2)
         if sel.size == motion.n_joints:
             rot = q2
         else:

@@ -221,7 +221,7 @@ class Motion:
         return self.skeleton.world_matrices(_transforms(q, self.local_translations(sel)))
 
     def _fk(self, frames: ArrayLike | slice | None) -> tuple[Array, Array]:
-        from biomorph.motion._kernels import fk_positions
+        from biomorph.motion._kernels import fk_positions, ro, ro_int
 
         sel = slice(None) if frames is None else frames
         rot = np.ascontiguousarray(self.rotation[sel])
@@ -230,8 +230,8 @@ class Motion:
         trans = np.ascontiguousarray(self.local_translations(sel)).reshape(-1, self.n_joints, 3)
         pos = np.empty(trans.shape)
         quat = np.empty(rot.shape)
-        fk_positions(np.ascontiguousarray(self.skeleton.rest_rotation), rot, trans,
-                     np.ascontiguousarray(self.skeleton.parent), pos, quat)
+        fk_positions(ro(self.skeleton.rest_rotation), ro(rot), ro(trans),
+                     ro_int(self.skeleton.parent), pos, quat)
         return pos.reshape(lead + pos.shape[1:]), quat.reshape(lead + quat.shape[1:])
 
     def world_positions(self, frames: ArrayLike | slice | None = None) -> Array:
@@ -307,10 +307,10 @@ def sample_arrays(motion: Motion, t: Array) -> tuple[Array, Array, Array | None]
     i1 = np.minimum(i0 + 1, n - 1)
     frac = t - i0
     exact = frac == 0.0
-    from biomorph.motion._kernels import sample_slerp
+    from biomorph.motion._kernels import ro, ro_int, sample_slerp
 
     rot = np.empty((t.size,) + motion.rotation.shape[1:])
-    sample_slerp(motion.rotation, i0, np.ascontiguousarray(frac), rot)
+    sample_slerp(ro(motion.rotation), ro_int(i0), ro(frac), rot)
     f = frac[:, None]
     pos = motion.root_position[i0] * (1.0 - f) + motion.root_position[i1] * f
     pos[exact] = motion.root_position[i0[exact]]
