@@ -423,3 +423,64 @@ def fk_positions(rest, rot, trans, parent, pos_out, quat_out):  # pragma: no cov
             pos_out[t, j, 0] = pos_out[t, p, 0] + rx
             pos_out[t, j, 1] = pos_out[t, p, 1] + ry
             pos_out[t, j, 2] = pos_out[t, p, 2] + rz
+
+
+@njit(cache=True)
+def blend_average_sampled(rot, start, length, i0, frac, w, out):  # pragma: no cover - compiled
+    """:func:`blend_average` fused with the slerp sampling of each clip.
+
+    ``rot (F, n, 4)`` holds the clips' rotations one after another (clip ``i`` at rows
+    ``start[i] .. start[i] + length[i] - 1``); clip ``i`` is sampled at output frame ``k`` by
+    slerp between its frames ``i0[i, k]`` and ``i0[i, k] + 1`` with ``frac[i, k]``, and only
+    where it has weight (``w (f, N)``), so no ``(N, f, n, 4)`` stack of sampled clips is built.
+    Equals ``blend_average(stack(sample_slerp(clip_i)))``: the samples here are not made
+    hemisphere-continuous, which flips signs only, and the average is invariant to the sign
+    of every non-heaviest clip and flips with the heaviest one, which the output's continuity
+    step undoes (frame 0 is unflipped in both)."""
+    nc, f, nj = w.shape[1], w.shape[0], rot.shape[1]
+    for k in range(f):
+        h = 0
+        for i in range(1, nc):
+            if w[k, i] > w[k, h]:
+                h = i
+        ah = start[h] + i0[h, k]
+        bh = start[h] + min(i0[h, k] + 1, length[h] - 1)
+        th = frac[h, k]
+        for j in range(nj):
+            rx, ry, rz, rw = _slerp(rot[ah, j, 0], rot[ah, j, 1], rot[ah, j, 2], rot[ah, j, 3],
+                                    rot[bh, j, 0], rot[bh, j, 1], rot[bh, j, 2], rot[bh, j, 3],
+                                    th)
+            if w[k, h] == 1.0:
+                x, y, z, ww = rx, ry, rz, rw
+            else:
+                x = 0.0
+                y = 0.0
+                z = 0.0
+                ww = 0.0
+                for i in range(nc):
+                    wi = w[k, i]
+                    if wi == 0.0:
+                        continue
+                    if i == h:
+                        qx, qy, qz, qw = rx, ry, rz, rw
+                    else:
+                        a = start[i] + i0[i, k]
+                        b = start[i] + min(i0[i, k] + 1, length[i] - 1)
+                        qx, qy, qz, qw = _slerp(rot[a, j, 0], rot[a, j, 1], rot[a, j, 2],
+                                                rot[a, j, 3], rot[b, j, 0], rot[b, j, 1],
+                                                rot[b, j, 2], rot[b, j, 3], frac[i, k])
+                    d = qx * rx + qy * ry + qz * rz + qw * rw
+                    s = wi if d >= 0 else -wi
+                    x += s * qx
+                    y += s * qy
+                    z += s * qz
+                    ww += s * qw
+                nrm = np.sqrt(x * x + y * y + z * z + ww * ww)
+                x, y, z, ww = x / nrm, y / nrm, z / nrm, ww / nrm
+            if k > 0 and (x * out[k - 1, j, 0] + y * out[k - 1, j, 1] + z * out[k - 1, j, 2]
+                          + ww * out[k - 1, j, 3]) < 0:
+                x, y, z, ww = -x, -y, -z, -ww
+            out[k, j, 0] = x
+            out[k, j, 1] = y
+            out[k, j, 2] = z
+            out[k, j, 3] = ww

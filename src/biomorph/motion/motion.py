@@ -301,16 +301,24 @@ def check_range(motion: Motion, start: int, stop: int, what: str = "frame range"
 
 def sample_arrays(motion: Motion, t: Array) -> tuple[Array, Array, Array | None]:
     """Rotations (slerp), root positions and joint translations (linear) at frames ``t``."""
+    from biomorph.motion._kernels import ro, ro_int, sample_slerp
+
+    i0, frac, pos, jt = sample_linear(motion, t)
+    rot = np.empty((t.size,) + motion.rotation.shape[1:])
+    sample_slerp(ro(motion.rotation), ro_int(i0), ro(frac), rot)
+    return frozen(rot), pos, jt
+
+
+def sample_linear(motion: Motion, t: Array) -> tuple[Array, Array, Array, Array | None]:
+    """The sampling of :func:`sample_arrays` without the rotations: ``(i0, frac, root
+    positions, joint translations)`` at frames ``t`` (rotations: slerp ``i0 → i0 + 1`` by
+    ``frac``, done by the caller's kernel)."""
     n = motion.n_frames
     i0 = np.floor(t).astype(np.int64)
     i0 = np.clip(i0, 0, n - 1)
     i1 = np.minimum(i0 + 1, n - 1)
     frac = t - i0
     exact = frac == 0.0
-    from biomorph.motion._kernels import ro, ro_int, sample_slerp
-
-    rot = np.empty((t.size,) + motion.rotation.shape[1:])
-    sample_slerp(ro(motion.rotation), ro_int(i0), ro(frac), rot)
     f = frac[:, None]
     pos = motion.root_position[i0] * (1.0 - f) + motion.root_position[i1] * f
     pos[exact] = motion.root_position[i0[exact]]
@@ -320,7 +328,7 @@ def sample_arrays(motion: Motion, t: Array) -> tuple[Array, Array, Array | None]
         b = motion.joint_translation[i1]
         jt = a * (1.0 - f[:, :, None]) + b * f[:, :, None]
         jt[exact] = a[exact]
-    return frozen(rot), frozen(pos), frozen(jt)
+    return i0, frac, frozen(pos), frozen(jt)
 
 
 def same_skeleton(a: JointSkeleton, b: JointSkeleton, what: str = "motions") -> None:
