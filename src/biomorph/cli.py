@@ -8,7 +8,6 @@ on stderr and exit code 2; Ctrl-C exits with 130 and leaves no partial output.
 
 from __future__ import annotations
 
-import importlib
 import json
 import sys
 from pathlib import Path
@@ -19,13 +18,12 @@ from rich.console import Console
 
 from biomorph import __version__
 from biomorph.errors import BiomorphError
+from biomorph.pillars import PILLARS, optional_module
 
 try:  # typer >= 0.20 vendors click; older releases use click itself
     from typer._click.exceptions import ClickException as _ClickException
 except ImportError:  # pragma: no cover
     from click.exceptions import ClickException as _ClickException
-
-PILLARS = ("creature", "tree", "motion", "leaf")
 
 err_console = Console(stderr=True, soft_wrap=True, highlight=False)
 out_console = Console(soft_wrap=True, highlight=False)
@@ -121,19 +119,11 @@ def demo(out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Pa
 
 def _add_pillar_apps() -> None:
     for pillar in PILLARS:
-        try:
-            mod = importlib.import_module(f"biomorph.{pillar}.cli")
-        except ModuleNotFoundError as exc:
-            if exc.name not in (f"biomorph.{pillar}", f"biomorph.{pillar}.cli"):
-                raise
-            continue
-        app.add_typer(mod.app, name=pillar)
-    try:
-        studio = importlib.import_module("biomorph.studio.cli")
-    except ModuleNotFoundError as exc:
-        if exc.name not in ("biomorph.studio", "biomorph.studio.cli"):
-            raise
-    else:
+        mod = optional_module(pillar, "cli")
+        if mod is not None:
+            app.add_typer(mod.app, name=pillar)
+    studio = optional_module("studio", "cli")
+    if studio is not None:
         studio.register(app)
 
 

@@ -2,18 +2,21 @@
 
 from __future__ import annotations
 
-import importlib
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from biomorph.errors import ParameterError
+from biomorph.pillars import PILLARS, optional_module
 from biomorph.report import Section, Table, write_report
-
-PILLARS = ("creature", "tree", "motion", "leaf")
 
 
 def run_demo(out_dir: str | Path, only: Sequence[str] | None = None) -> Path:
     """Run each available pillar's ``run_demo(out_dir)``; write ``out_dir/report.html``."""
+    unknown = sorted(set(only or ()) - set(PILLARS))
+    if unknown:
+        raise ParameterError(f"unknown pillar {', '.join(unknown)}; expected some of "
+                             f"{', '.join(PILLARS)}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     sections: list[Section] = []
@@ -24,11 +27,8 @@ def run_demo(out_dir: str | Path, only: Sequence[str] | None = None) -> Path:
     for pillar in PILLARS:
         if only and pillar not in only:
             continue
-        try:
-            mod = importlib.import_module(f"biomorph.{pillar}.demo")
-        except ModuleNotFoundError as exc:
-            if exc.name not in (f"biomorph.{pillar}", f"biomorph.{pillar}.demo"):
-                raise
+        mod = optional_module(pillar, "demo")
+        if mod is None:
             continue
         t0 = time.perf_counter()
         sections.extend(mod.run_demo(out / pillar))
