@@ -191,3 +191,54 @@ def test_large_exponent_that_stays_finite_reads(tmp_path):
     p = tmp_path / "ok.bvh"
     p.write_text(GOOD.replace("-30 -2", "-30 -2e-300"))
     assert read_bvh(p).root_position[1, 2] == pytest.approx(-2e-300, rel=1e-15, abs=0)
+
+
+def test_long_take_euler_blocks_equal_sequential_reference(tmp_path):
+    """The Euler→quaternion kernel works on blocks of 4,096 frames in parallel and chains
+    the blocks' signs afterwards; on a 9,000-frame take whose joints spin (hemisphere flips
+    everywhere, also across block boundaries) it equals the sequential reference
+    (euler_to_quat per frame + quat_continuous) to 1e-12."""
+    from biomorph.io.bvh import _EULER_CHUNK
+
+    f = 2 * _EULER_CHUNK + 808
+    t = np.arange(f)
+    rng = np.random.default_rng(5)
+    root = np.column_stack([np.sin(t / 50), np.cos(t / 70), 0.01 * t,
+                            (7.3 * t) % 360 - 180, 40 * np.sin(t / 30), (3.1 * t) % 360 - 180])
+    mid = np.column_stack([(11.7 * t) % 360 - 180, 80 * np.sin(t / 9), rng.normal(0, 20, f)])
+    data = np.column_stack([root, mid])
+    text = ("HIERARCHY\nROOT r\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition "
+            "Zrotation Xrotation Yrotation\n JOINT m\n {\n  OFFSET 0 1 0\n  CHANNELS 3 "
+            "Yrotation Zrotation Xrotation\n  End Site\n  {\n   OFFSET 0 1 0\n  }\n }\n}\n"
+            f"MOTION\nFrames: {f}\nFrame Time: 0.01\n")
+    p = tmp_path / "long.bvh"
+    p.write_text(text + "\n".join(" ".join(f"{v:.9f}" for v in row) for row in data) + "\n")
+    mo = read_bvh(p)
+    vals = np.loadtxt(p, skiprows=text.count("\n"))
+    ref = np.stack([tf.euler_to_quat(vals[:, 3:6], "ZXY", degrees=True),
+                    tf.euler_to_quat(vals[:, 6:9], "YZX", degrees=True)], axis=1)
+    ref = tf.quat_continuous(ref, axis=0)
+    ref *= np.sign(np.sum(ref[:1] * mo.rotation[:1], axis=-1))[..., None]
+    assert np.abs(mo.rotation - ref).max() < 1e-12
+    assert np.array_equal(mo.root_position, vals[:, :3])
+
+
+def test_scanner_values_equal_python_float(tmp_path):
+    """The compiled MOTION scanner (power-of-ten table) reads what Python's float() reads,
+    to 1e-15 relative, over mixed decimal/exponent spellings."""
+    rng = np.random.default_rng(11)
+    mags = 10.0 ** rng.integers(-25, 25, 600) * rng.uniform(-10, 10, 600)
+    toks = []
+    for k, v in enumerate(mags):
+        fmt = ("{:.17g}", "{:.6f}", "{:.3e}", "{:.12E}", "{:+.9g}")[k % 5]
+        toks.append(fmt.format(v))
+    rows = [toks[i:i + 6] for i in range(0, 600, 6)]
+    text = ("HIERARCHY\nROOT r\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition "
+            "Zrotation Xrotation Yrotation\n End Site\n {\n  OFFSET 0 1 0\n }\n}\n"
+            f"MOTION\nFrames: {len(rows)}\nFrame Time: 0.01\n"
+            + "\n".join(" ".join(r) for r in rows) + "\n")
+    p = tmp_path / "nums.bvh"
+    p.write_text(text)
+    mo = read_bvh(p)
+    expect = np.array([[float(x) for x in r[:3]] for r in rows])
+    assert np.allclose(mo.root_position, expect, rtol=1e-15, atol=0)

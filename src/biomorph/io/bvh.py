@@ -61,6 +61,11 @@ def _scan_floats(buf, start, out, n_per_line):  # pragma: no cover - compiled
     ``bad_line_pos`` is the byte offset of the first line whose value count differs from
     ``n_per_line`` (-1 if none)."""
     n = out.size
+    pow10 = np.empty(23)
+    p = 1.0
+    for e in range(23):
+        pow10[e] = p  # 1e0 .. 1e22, each exact (products of exact values below 2**53 * 2**e)
+        p *= 10.0
     k = 0
     i = start
     size = buf.size
@@ -136,11 +141,13 @@ def _scan_floats(buf, start, out, n_per_line):  # pragma: no cover - compiled
             if not (c2 == 32 or c2 == 9 or c2 == 10 or c2 == 13 or c2 == 11 or c2 == 12):
                 return k, 2, tok, bad_line, bad_count
         v = float(mant)
+        # powers of ten up to 1e22 are exact doubles: a table lookup gives the same value as
+        # 10.0 ** k without a pow() call per number (most of the scan's time before)
         if exp10 > 0:
-            v = v * 10.0 ** exp10
+            v = v * (pow10[exp10] if exp10 <= 22 else 10.0 ** exp10)
         elif exp10 < 0:
             if exp10 >= -22:
-                v = v / 10.0 ** (-exp10)
+                v = v / pow10[-exp10]
             else:
                 v = v / 1e22 / 10.0 ** (-exp10 - 22)
         if v > 1.7976931348623157e308:  # overflow (e.g. 1e999): not a finite number
@@ -154,49 +161,88 @@ def _scan_floats(buf, start, out, n_per_line):  # pragma: no cover - compiled
     return k, 0, -1, bad_line, bad_count
 
 
+@njit(cache=True, inline="always")
+def _euler_quat(data, t, j, rot_cols, rot_axes, d2r):  # pragma: no cover - compiled
+    """Quaternion of joint j's Euler channels (degrees) at frame t: product in listed order."""
+    x = 0.0
+    y = 0.0
+    z = 0.0
+    w = 1.0
+    for m in range(3):
+        col = rot_cols[j, m]
+        if col < 0:
+            continue
+        h = 0.5 * data[t, col] * d2r
+        s = np.sin(h)
+        c = np.cos(h)
+        ax = rot_axes[j, m]
+        # (x,y,z,w) * (axis*s, c)
+        if ax == 0:
+            bx, by, bz = s, 0.0, 0.0
+        elif ax == 1:
+            bx, by, bz = 0.0, s, 0.0
+        else:
+            bx, by, bz = 0.0, 0.0, s
+        nx = w * bx + x * c + y * bz - z * by
+        ny = w * by - x * bz + y * c + z * bx
+        nz = w * bz + x * by - y * bx + z * c
+        nw = w * c - x * bx - y * by - z * bz
+        x, y, z, w = nx, ny, nz, nw
+    return x, y, z, w
+
+
+_EULER_CHUNK = 4096
+
+
 @njit(cache=True, parallel=True)
 def _euler_kernel(data, rot_cols, rot_axes, out):  # pragma: no cover - compiled
     """Pose quaternions from Euler columns (degrees) with hemisphere continuity.
 
     ``rot_cols[j, m]`` is the data column of joint j's m-th rotation channel (-1 none),
-    ``rot_axes[j, m]`` its axis 0/1/2; the rotation is the product in listed order."""
+    ``rot_axes[j, m]`` its axis 0/1/2; the rotation is the product in listed order.
+
+    Parallel over blocks of frames (each thread streams its rows of ``data`` and ``out``
+    once, all joints per row), continuity first within each block; then one sign per block
+    and joint chains the blocks. Negation is exact, so the result equals the sequential
+    frame-by-frame continuity bit for bit."""
     f, n = out.shape[0], out.shape[1]
     d2r = np.pi / 180.0
-    for j in prange(n):  # joints are independent (continuity runs along t per joint)
-        for t in range(f):
-            x = 0.0
-            y = 0.0
-            z = 0.0
-            w = 1.0
-            for m in range(3):
-                col = rot_cols[j, m]
-                if col < 0:
-                    continue
-                h = 0.5 * data[t, col] * d2r
-                s = np.sin(h)
-                c = np.cos(h)
-                ax = rot_axes[j, m]
-                # (x,y,z,w) * (axis*s, c)
-                if ax == 0:
-                    bx, by, bz = s, 0.0, 0.0
-                elif ax == 1:
-                    bx, by, bz = 0.0, s, 0.0
-                else:
-                    bx, by, bz = 0.0, 0.0, s
-                nx = w * bx + x * c + y * bz - z * by
-                ny = w * by - x * bz + y * c + z * bx
-                nz = w * bz + x * by - y * bx + z * c
-                nw = w * c - x * bx - y * by - z * bz
-                x, y, z, w = nx, ny, nz, nw
-            if t > 0:
-                dot = (x * out[t - 1, j, 0] + y * out[t - 1, j, 1] + z * out[t - 1, j, 2]
-                       + w * out[t - 1, j, 3])
-                if dot < 0:
-                    x, y, z, w = -x, -y, -z, -w
-            out[t, j, 0] = x
-            out[t, j, 1] = y
-            out[t, j, 2] = z
-            out[t, j, 3] = w
+    ch = _EULER_CHUNK
+    nb = (f + ch - 1) // ch
+    for b in prange(nb):
+        t0 = b * ch
+        t1 = min(t0 + ch, f)
+        for t in range(t0, t1):
+            for j in range(n):
+                x, y, z, w = _euler_quat(data, t, j, rot_cols, rot_axes, d2r)
+                if t > t0:
+                    dot = (x * out[t - 1, j, 0] + y * out[t - 1, j, 1]
+                           + z * out[t - 1, j, 2] + w * out[t - 1, j, 3])
+                    if dot < 0:
+                        x, y, z, w = -x, -y, -z, -w
+                out[t, j, 0] = x
+                out[t, j, 1] = y
+                out[t, j, 2] = z
+                out[t, j, 3] = w
+    if nb == 1:
+        return
+    sign = np.ones((nb, n))
+    for b in range(1, nb):
+        t0 = b * ch
+        for j in range(n):
+            dot = sign[b - 1, j] * (out[t0 - 1, j, 0] * out[t0, j, 0]
+                                    + out[t0 - 1, j, 1] * out[t0, j, 1]
+                                    + out[t0 - 1, j, 2] * out[t0, j, 2]
+                                    + out[t0 - 1, j, 3] * out[t0, j, 3])
+            sign[b, j] = -1.0 if dot < 0 else 1.0
+    for b in prange(1, nb):
+        t0 = b * ch
+        t1 = min(t0 + ch, f)
+        for j in range(n):
+            if sign[b, j] < 0:
+                for t in range(t0, t1):
+                    for c in range(4):
+                        out[t, j, c] = -out[t, j, c]
 
 
 @njit(cache=True)
