@@ -44,6 +44,7 @@ otherwise. Files are written atomically. Example::
 
 from __future__ import annotations
 
+import json
 import os
 import struct
 from collections.abc import Mapping, Sequence
@@ -66,23 +67,25 @@ PathLike = str | os.PathLike[str]
 ARRAY_BUFFER = 34962
 ELEMENT_ARRAY_BUFFER = 34963
 
-_COMPONENT = {np.dtype("float32"): g.FLOAT, np.dtype("uint32"): g.UNSIGNED_INT,
-              np.dtype("uint16"): g.UNSIGNED_SHORT, np.dtype("uint8"): g.UNSIGNED_BYTE,
-              np.dtype("int16"): g.SHORT, np.dtype("int8"): g.BYTE}
-_TYPE = {1: g.SCALAR, 2: g.VEC2, 3: g.VEC3, 4: g.VEC4, 16: g.MAT4}
+_FLOAT, _UINT, _USHORT, _UBYTE, _SHORT, _BYTE = 5126, 5125, 5123, 5121, 5122, 5120
+_COMPONENT = {np.dtype("float32"): _FLOAT, np.dtype("uint32"): _UINT,
+              np.dtype("uint16"): _USHORT, np.dtype("uint8"): _UBYTE,
+              np.dtype("int16"): _SHORT, np.dtype("int8"): _BYTE}
+_TYPE = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
+_TRIANGLES = 4
 
 #: rotation taking Z-up data into glTF's Y-up frame: (x, y, z) -> (x, z, -y)
 _Z_TO_Y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 _Z_TO_Y_QUAT = np.array([-np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)])
 
-_BONE_MATERIAL = g.Material(
-    name="bone", doubleSided=False,
-    pbrMetallicRoughness=g.PbrMetallicRoughness(baseColorFactor=[0.89, 0.85, 0.78, 1.0],
-                                                metallicFactor=0.0, roughnessFactor=0.7))
-_MESH_MATERIAL = g.Material(
-    name="surface", doubleSided=True,
-    pbrMetallicRoughness=g.PbrMetallicRoughness(baseColorFactor=[1.0, 1.0, 1.0, 1.0],
-                                                metallicFactor=0.0, roughnessFactor=0.8))
+# the document is a plain dict of lists of dicts (the glTF JSON itself), serialised with
+# json.dumps: pygltflib's dataclass-to-JSON conversion cost more than everything else
+_BONE_MATERIAL = {"name": "bone", "doubleSided": False,
+                  "pbrMetallicRoughness": {"baseColorFactor": [0.89, 0.85, 0.78, 1.0],
+                                           "metallicFactor": 0.0, "roughnessFactor": 0.7}}
+_MESH_MATERIAL = {"name": "surface", "doubleSided": True,
+                  "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                                           "metallicFactor": 0.0, "roughnessFactor": 0.8}}
 
 
 # =========================================================================== buffer builder
@@ -90,9 +93,13 @@ class _Builder:
     """Collects binary chunks (4-byte aligned) and the glTF document that points into them."""
 
     def __init__(self, name: str | None) -> None:
-        self.doc = g.GLTF2(asset=g.Asset(version="2.0", generator="biomorph"))
-        self.doc.scene = 0
-        self.doc.scenes = [g.Scene(name=name, nodes=[])]
+        scene: dict[str, Any] = {"nodes": []}
+        if name is not None:
+            scene["name"] = name
+        self.doc: dict[str, Any] = {
+            "asset": {"version": "2.0", "generator": "biomorph"}, "scene": 0,
+            "scenes": [scene], "nodes": [], "meshes": [], "skins": [], "animations": [],
+            "materials": [], "accessors": [], "bufferViews": []}
         self.chunks: list[bytes] = []
         self.size = 0
         self._materials: dict[str, int] = {}
@@ -104,12 +111,16 @@ class _Builder:
         if pad:
             self.chunks.append(b"\0" * pad)
             self.size += pad
-        self.doc.bufferViews.append(g.BufferView(buffer=0, byteOffset=self.size,
-                                                 byteLength=len(data), target=target,
-                                                 byteStride=stride))
+        bv: dict[str, Any] = {"buffer": 0, "byteOffset": self.size, "byteLength": len(data)}
+        if stride is not None:
+            bv["byteStride"] = stride
+        if target is not None:
+            bv["target"] = target
+        views = self.doc["bufferViews"]
+        views.append(bv)
         self.chunks.append(data)
         self.size += len(data)
-        return len(self.doc.bufferViews) - 1
+        return len(views) - 1
 
     def accessor(self, arr: NDArray, *, target: int | None = None, bounds: bool = False,
                  normalized: bool = False, matrix: bool = False, view: int | None = None,
@@ -121,8 +132,8 @@ class _Builder:
             a = np.ascontiguousarray(np.swapaxes(a, -1, -2)).reshape(len(a), 16)
         comp = _COMPONENT[a.dtype]
         width = 1 if a.ndim == 1 else a.shape[1]
-        data = np.ascontiguousarray(a.astype(a.dtype.newbyteorder("<"), copy=False))
         if view is None:
+            data = np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<"))
             elem = data.dtype.itemsize * width
             if target == ARRAY_BUFFER and elem % 4:
                 # vertex attribute elements must start on 4-byte boundaries: pad each one
@@ -132,39 +143,51 @@ class _Builder:
                 view = self.view(padded.tobytes(), target, stride=stride)
             else:
                 view = self.view(data.tobytes(), target)
-        acc = g.Accessor(bufferView=view, byteOffset=offset or None, componentType=comp,
-                         count=int(a.shape[0]), type=g.MAT4 if matrix else _TYPE[width],
-                         normalized=True if normalized else None)
+        acc: dict[str, Any] = {"bufferView": view, "componentType": comp,
+                               "count": int(a.shape[0]), "type": "MAT4" if matrix
+                               else _TYPE[width]}
+        if offset:
+            acc["byteOffset"] = offset
+        if normalized:
+            acc["normalized"] = True
         if bounds:
             flat = a.reshape(len(a), -1)
-            lo, hi = flat.min(axis=0), flat.max(axis=0)
-            cast = float if a.dtype.kind == "f" else int
-            acc.min = [cast(x) for x in lo]
-            acc.max = [cast(x) for x in hi]
-        self.doc.accessors.append(acc)
-        return len(self.doc.accessors) - 1
+            acc["min"] = flat.min(axis=0).tolist()
+            acc["max"] = flat.max(axis=0).tolist()
+        accessors = self.doc["accessors"]
+        accessors.append(acc)
+        return len(accessors) - 1
 
-    def material(self, mat: g.Material) -> int:
-        if mat.name not in self._materials:
-            self.doc.materials.append(g.Material(**{k: v for k, v in vars(mat).items()}))
-            self._materials[mat.name] = len(self.doc.materials) - 1
-        return self._materials[mat.name]
+    def material(self, mat: dict[str, Any]) -> int:
+        if mat["name"] not in self._materials:
+            self.doc["materials"].append(mat)
+            self._materials[mat["name"]] = len(self.doc["materials"]) - 1
+        return self._materials[mat["name"]]
 
-    def node(self, node: g.Node, root: bool = False) -> int:
-        self.doc.nodes.append(node)
-        idx = len(self.doc.nodes) - 1
+    def node(self, node: dict[str, Any], root: bool = False) -> int:
+        nodes = self.doc["nodes"]
+        nodes.append(node)
+        idx = len(nodes) - 1
         if root:
-            self.doc.scenes[0].nodes.append(idx)
+            self.doc["scenes"][0]["nodes"].append(idx)
         return idx
+
+    def json_text(self, buffer: dict[str, Any] | None) -> str:
+        """The document as compact JSON; empty top-level lists (and an empty scene node
+        list) are left out, as the schema asks (``minItems: 1``)."""
+        doc = {k: v for k, v in self.doc.items() if not (isinstance(v, list) and not v)}
+        scene = doc["scenes"][0]
+        if not scene["nodes"]:
+            doc["scenes"] = [{k: v for k, v in scene.items() if k != "nodes"}]
+        if buffer is not None:
+            doc["buffers"] = [buffer]
+        return json.dumps(doc, separators=(",", ":"), allow_nan=False)
 
     def glb_parts(self) -> list[bytes]:
         """GLB pieces: 12-byte header, JSON chunk (space padded), BIN chunk (zero padded)."""
         pad = -self.size % 4
         size = self.size + pad
-        if size:
-            self.doc.buffers = [g.Buffer(byteLength=size)]
-        text = self.doc.gltf_to_json(separators=(",", ":"), indent=None)
-        js = text.encode("utf-8")
+        js = self.json_text({"byteLength": size} if size else None).encode("utf-8")
         js += b" " * (-len(js) % 4)
         total = 12 + 8 + len(js) + (8 + size if size else 0)
         parts = [struct.pack("<4sII", b"glTF", 2, total), struct.pack("<I4s", len(js), b"JSON"),
@@ -183,10 +206,11 @@ class _Builder:
 
         blob = b"".join(self.chunks)
         blob += b"\0" * (-len(blob) % 4)
+        buffer = None
         if blob:
             uri = "data:application/octet-stream;base64," + base64.b64encode(blob).decode()
-            self.doc.buffers = [g.Buffer(byteLength=len(blob), uri=uri)]
-        return self.doc.gltf_to_json(separators=(",", ":"), indent=None)
+            buffer = {"byteLength": len(blob), "uri": uri}
+        return self.json_text(buffer)
 
     def save(self, path: PathLike) -> Path:
         """Write atomically (temporary file + rename): binary GLB, streamed chunk by chunk,
@@ -213,11 +237,28 @@ def _unit_rows(v: NDArray, fallback: NDArray | None = None) -> NDArray:
 
 def _float32(name: str, arr: ArrayLike) -> NDArray[np.float32]:
     a = np.asarray(arr, dtype=np.float64)
-    if not np.isfinite(a).all():
-        raise InputError(f"{name} holds NaN or inf; expected finite values")
-    if np.abs(a).max(initial=0.0) > 3.0e38:
-        raise InputError(f"{name} exceeds the float32 range; expected |value| < 3e38")
+    if a.size:  # min and max propagate NaN and show inf: two passes, no temporaries
+        lo, hi = float(a.min()), float(a.max())
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise InputError(f"{name} holds NaN or inf; expected finite values")
+        if max(-lo, hi) > 3.0e38:
+            raise InputError(f"{name} exceeds the float32 range; expected |value| < 3e38")
     return a.astype(np.float32)
+
+
+def _y_up(v: ArrayLike, y_up: bool, scale: float = 1.0) -> NDArray[np.float64]:
+    """``(n, 3)`` rows times ``scale``, turned from Z-up to Y-up unless ``y_up``:
+    ``(x, y, z) -> (x, z, -y)`` by moving columns (exact, no matrix product)."""
+    a = np.asarray(v, dtype=np.float64)
+    if scale != 1.0:
+        a = a * scale
+    if y_up:
+        return a
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 0]
+    out[:, 1] = a[:, 2]
+    np.negative(a[:, 1], out=out[:, 2])
+    return out
 
 
 def _id_attribute_name(key: str) -> str:
@@ -237,14 +278,22 @@ def _id_array(name: str, ids: NDArray[np.int64]) -> NDArray:
     return ids.astype(np.float32)
 
 
-def _node_transform(name: str, translation: NDArray | None, rotation: NDArray | None
-                    ) -> g.Node:
-    node = g.Node(name=name)
-    if translation is not None and np.any(translation != 0):
-        node.translation = [float(x) for x in translation]
-    if rotation is not None and not (np.allclose(rotation[:3], 0) and rotation[3] > 0):
-        node.rotation = [float(x) for x in rotation]
-    return node
+def _joint_nodes(names: Sequence[str], translation: NDArray, rotation: NDArray
+                 ) -> list[dict[str, Any]]:
+    """One node per joint with its local TRS; zero translations and identity rotations
+    (``|xyz| <= 1e-8``, ``w > 0``) are left out."""
+    has_t = np.any(translation != 0, axis=1).tolist()
+    has_r = (~(np.all(np.abs(rotation[:, :3]) <= 1e-8, axis=1) & (rotation[:, 3] > 0))).tolist()
+    t_list, r_list = translation.tolist(), rotation.tolist()
+    nodes = []
+    for i, nm in enumerate(names):
+        node: dict[str, Any] = {"name": nm}
+        if has_t[i]:
+            node["translation"] = t_list[i]
+        if has_r[i]:
+            node["rotation"] = r_list[i]
+        nodes.append(node)
+    return nodes
 
 
 # =========================================================================== meshes
@@ -263,14 +312,11 @@ def _per_vertex_ids(mesh: Mesh) -> tuple[Mesh, dict[str, NDArray[np.int64]],
     corner_v = mesh.faces.reshape(-1)
     corner_ids = np.repeat(ids, 3, axis=0)  # (3m, k)
     n = mesh.n_vertices
-    lo = np.full((n, len(keys)), np.iinfo(np.int64).max)
-    hi = np.full((n, len(keys)), np.iinfo(np.int64).min)
-    np.minimum.at(lo, corner_v, corner_ids)
-    np.maximum.at(hi, corner_v, corner_ids)
-    used = np.zeros(n, bool)
-    used[corner_v] = True
-    if np.all(lo[used] == hi[used]):
-        per_vertex = np.where(used[:, None], lo, 0)
+    # every vertex takes the ids of one of its corners (scatter, no ufunc.at); the ids are
+    # uniform per vertex exactly when every corner then reads back its own ids
+    per_vertex = np.zeros((n, len(keys)), dtype=ids.dtype)
+    per_vertex[corner_v] = corner_ids
+    if np.array_equal(per_vertex[corner_v], corner_ids):
         return mesh, {k: per_vertex[:, i] for i, k in enumerate(keys)}, None
     # split: one output vertex per distinct (vertex, ids) corner
     rows = np.concatenate([corner_v[:, None], corner_ids], axis=1)
@@ -310,12 +356,28 @@ def _merge(meshes: list[Mesh]) -> Mesh:
     """One mesh from many, with a ``mesh`` face id = position in the list (if > 1)."""
     if len(meshes) == 1:
         return meshes[0]
-    merged = Mesh.merge(meshes)
-    if "mesh" in merged.face_ids:
-        return merged
+    # as Mesh.merge (optional vertex arrays kept only when every part has them, face ids
+    # missing from a part filled with -1), with one offset pass instead of one per part
+    n_vert = np.fromiter((m.n_vertices for m in meshes), dtype=np.int64, count=len(meshes))
     counts = np.fromiter((m.n_faces for m in meshes), dtype=np.int64, count=len(meshes))
-    return merged.with_(face_ids={**merged.face_ids,
-                                  "mesh": np.repeat(np.arange(len(meshes)), counts)})
+    offsets = np.repeat(np.cumsum(n_vert) - n_vert, counts)
+    faces = np.concatenate([m.faces for m in meshes]) + offsets[:, None]
+    extra: dict[str, NDArray | None] = {}
+    for attr in ("normals", "uv", "vertex_colors"):
+        vals = [getattr(m, attr) for m in meshes]
+        extra[attr] = np.concatenate(vals) if all(v is not None for v in vals) else None
+    keys: list[str] = []
+    for m in meshes:
+        keys.extend(k for k in m.face_ids if k not in keys)
+    face_ids = {}
+    for k in keys:
+        face_ids[k] = np.concatenate([
+            m.face_ids[k] if k in m.face_ids else np.full(m.n_faces, -1, np.int64)
+            for m in meshes])
+    if "mesh" not in face_ids:
+        face_ids["mesh"] = np.repeat(np.arange(len(meshes)), counts)
+    return Mesh(np.concatenate([m.vertices for m in meshes]), faces, face_ids=face_ids,
+                **extra)
 
 
 def _indices(builder: _Builder, faces: NDArray, n_vertices: int) -> int:
@@ -325,18 +387,17 @@ def _indices(builder: _Builder, faces: NDArray, n_vertices: int) -> int:
 
 
 def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool
-                    ) -> tuple[g.Primitive, NDArray[np.int64] | None]:
+                    ) -> tuple[dict[str, Any], NDArray[np.int64] | None]:
     """A triangle primitive for ``mesh``; also the vertex mapping if ids split vertices."""
     if mesh.n_faces == 0 or mesh.n_vertices == 0:
         raise InputError(f"mesh has {mesh.n_vertices} vertices and {mesh.n_faces} faces; "
                          "expected at least one triangle")
     mesh, vertex_ids, src = _per_vertex_ids(mesh)
-    rot = np.eye(3) if y_up else _Z_TO_Y
-    pos = _float32("mesh vertices", (mesh.vertices * builder.scale) @ rot.T)
+    pos = _float32("mesh vertices", _y_up(mesh.vertices, y_up, builder.scale))
     attrs: dict[str, int] = {"POSITION": builder.accessor(pos, target=ARRAY_BUFFER,
                                                           bounds=True)}
     if mesh.normals is not None:
-        nrm = _unit_rows(np.asarray(mesh.normals, float) @ rot.T).astype(np.float32)
+        nrm = _unit_rows(_y_up(mesh.normals, y_up)).astype(np.float32)
         attrs["NORMAL"] = builder.accessor(nrm, target=ARRAY_BUFFER)
     if mesh.uv is not None:
         uv = np.array(mesh.uv, dtype=np.float64)
@@ -348,10 +409,8 @@ def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool
     for key, ids in vertex_ids.items():
         attrs[_id_attribute_name(key)] = builder.accessor(_id_array(key, ids),
                                                           target=ARRAY_BUFFER)
-    # pygltflib's Attributes takes custom names (``_PLANT_ID``) as keyword arguments
-    prim = g.Primitive(attributes=g.Attributes(**attrs),
-                       indices=_indices(builder, mesh.faces, mesh.n_vertices),
-                       material=builder.material(_MESH_MATERIAL), mode=g.TRIANGLES)
+    prim = {"attributes": attrs, "indices": _indices(builder, mesh.faces, mesh.n_vertices),
+            "material": builder.material(_MESH_MATERIAL), "mode": _TRIANGLES}
     return prim, src
 
 
@@ -364,8 +423,8 @@ def _add_mesh_nodes(builder: _Builder, meshes: list[Mesh], *, merge: bool, y_up:
         if len(groups) > 1:
             label = f"{label}_{i}"
         prim, _ = _mesh_primitive(builder, mesh, y_up)
-        builder.doc.meshes.append(g.Mesh(name=label, primitives=[prim]))
-        nodes.append(builder.node(g.Node(name=label, mesh=len(builder.doc.meshes) - 1),
+        builder.doc["meshes"].append({"name": label, "primitives": [prim]})
+        nodes.append(builder.node({"name": label, "mesh": len(builder.doc["meshes"]) - 1},
                                   root=True))
     return nodes
 
@@ -465,8 +524,7 @@ def _bone_solids(skeleton: JointSkeleton, world: NDArray, shape: str,
 def _joint_meshes(skeleton: JointSkeleton, world: NDArray, meshes: Mapping[Any, Any],
                   scale: float = 1.0) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """Per-joint meshes given in the joint's local frame, moved to bind space."""
-    pos, nrm, jnt, fcs = [], [], [], []
-    base = 0
+    owner, parts = [], []
     for key, obj in meshes.items():
         j = skeleton.index(key) if isinstance(key, str) else int(key)
         if not 0 <= j < len(skeleton):
@@ -474,15 +532,21 @@ def _joint_meshes(skeleton: JointSkeleton, world: NDArray, meshes: Mapping[Any, 
         m = Mesh.from_any(obj)
         if m.normals is None:
             m = m.compute_normals()
-        rot, trans = world[j, :3, :3], world[j, :3, 3]
-        pos.append((m.vertices * scale) @ rot.T + trans)
-        nrm.append(_unit_rows(m.normals @ rot.T))
-        jnt.append(np.full(m.n_vertices, j))
-        fcs.append(m.faces + base)
-        base += m.n_vertices
-    if not pos:
+        owner.append(j)
+        parts.append(m)
+    if not parts:
         return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros((0, 3), int)
-    return np.concatenate(pos), np.concatenate(nrm), np.concatenate(jnt), np.concatenate(fcs)
+    # one batched transform for all meshes: vertex k moves with joint jnt[k]
+    n_vert = np.fromiter((m.n_vertices for m in parts), np.int64, len(parts))
+    n_face = np.fromiter((m.n_faces for m in parts), np.int64, len(parts))
+    jnt = np.repeat(np.asarray(owner, dtype=np.int64), n_vert)
+    base = np.repeat(np.cumsum(n_vert) - n_vert, n_face)
+    faces = np.concatenate([m.faces for m in parts]) + base[:, None]
+    verts = np.concatenate([m.vertices for m in parts]) * scale
+    nrm = np.concatenate([np.asarray(m.normals, dtype=float) for m in parts])
+    rot, trans = world[jnt, :3, :3], world[jnt, :3, 3]
+    pos = np.einsum("kij,kj->ki", rot, verts) + trans
+    return pos, _unit_rows(np.einsum("kij,kj->ki", rot, nrm)), jnt, faces
 
 
 # =========================================================================== skeleton
@@ -510,27 +574,27 @@ def _add_skeleton(builder: _Builder, skeleton: JointSkeleton, *, bone_shape: str
     trans, rot = _converted_rest(skeleton, y_up)
     world = skeleton.world_matrices(tf.make_transform(tf.quat_to_matrix(rot), trans))
 
-    first = len(builder.doc.nodes)
-    nodes = [_node_transform(nm, trans[i], rot[i]) for i, nm in enumerate(skeleton.names)]
+    first = len(builder.doc["nodes"])
+    nodes = _joint_nodes(skeleton.names, trans, rot)
     order = np.argsort(skeleton.parent, kind="stable")
     sorted_parent = skeleton.parent[order]
     starts = np.searchsorted(sorted_parent, np.arange(n))
     ends = np.searchsorted(sorted_parent, np.arange(n), side="right")
     for i in range(n):
         if ends[i] > starts[i]:
-            nodes[i].children = [int(c) + first for c in order[starts[i]:ends[i]]]
+            nodes[i]["children"] = (order[starts[i]:ends[i]] + first).tolist()
     for node in nodes:
         builder.node(node)
     roots = np.flatnonzero(skeleton.parent < 0)
-    armature = builder.node(g.Node(name=name or "armature",
-                                   children=[int(r) + first for r in roots]), root=True)
+    armature = builder.node({"name": name or "armature",
+                             "children": (roots + first).tolist()}, root=True)
     joints = list(range(first, first + n))
 
     ibm = tf.invert_rigid(world).astype(np.float32)
     ibm[:, 3, :] = np.array([0, 0, 0, 1], np.float32)  # exact last row
-    skin = g.Skin(name=f"{name or 'armature'}_skin", joints=joints, skeleton=armature,
-                  inverseBindMatrices=builder.accessor(ibm, matrix=True))
-    builder.doc.skins.append(skin)
+    skin = {"name": f"{name or 'armature'}_skin", "joints": joints, "skeleton": armature,
+            "inverseBindMatrices": builder.accessor(ibm, matrix=True)}
+    builder.doc["skins"].append(skin)
 
     parts = []
     if bone_shape is not None:
@@ -552,18 +616,18 @@ def _add_skeleton(builder: _Builder, skeleton: JointSkeleton, *, bone_shape: str
         joints0[:, 0] = jnt
         weights0 = np.zeros((len(pos), 4), np.float32)
         weights0[:, 0] = 1.0
-        attrs = g.Attributes(
-            POSITION=builder.accessor(_float32("bone vertices", pos), target=ARRAY_BUFFER,
-                                      bounds=True),
-            NORMAL=builder.accessor(nrm.astype(np.float32), target=ARRAY_BUFFER),
-            JOINTS_0=builder.accessor(joints0, target=ARRAY_BUFFER),
-            WEIGHTS_0=builder.accessor(weights0, target=ARRAY_BUFFER))
-        prim = g.Primitive(attributes=attrs, indices=_indices(builder, faces, len(pos)),
-                           material=builder.material(_BONE_MATERIAL), mode=g.TRIANGLES)
+        attrs = {
+            "POSITION": builder.accessor(_float32("bone vertices", pos), target=ARRAY_BUFFER,
+                                         bounds=True),
+            "NORMAL": builder.accessor(nrm.astype(np.float32), target=ARRAY_BUFFER),
+            "JOINTS_0": builder.accessor(joints0, target=ARRAY_BUFFER),
+            "WEIGHTS_0": builder.accessor(weights0, target=ARRAY_BUFFER)}
+        prim = {"attributes": attrs, "indices": _indices(builder, faces, len(pos)),
+                "material": builder.material(_BONE_MATERIAL), "mode": _TRIANGLES}
         label = f"{name or 'armature'}_bones"
-        builder.doc.meshes.append(g.Mesh(name=label, primitives=[prim]))
-        builder.node(g.Node(name=label, mesh=len(builder.doc.meshes) - 1,
-                            skin=len(builder.doc.skins) - 1), root=True)
+        builder.doc["meshes"].append({"name": label, "primitives": [prim]})
+        builder.node({"name": label, "mesh": len(builder.doc["meshes"]) - 1,
+                      "skin": len(builder.doc["skins"]) - 1}, root=True)
     return joints
 
 
@@ -611,13 +675,16 @@ def _add_motion(builder: _Builder, motion: Any, skeleton: JointSkeleton, joints:
     # all rotation outputs in one buffer view, joint-major, one accessor per joint
     block = np.ascontiguousarray(np.swapaxes(q, 0, 1))  # (n, f, 4)
     view = builder.view(block.tobytes())
-    samplers, channels = [], []
-    for j in range(n):
-        acc = builder.accessor(block[j], view=view, offset=j * f * 16)
-        samplers.append(g.AnimationSampler(input=t_acc, output=acc, interpolation="LINEAR"))
-        channels.append(g.AnimationChannel(
-            sampler=len(samplers) - 1,
-            target=g.AnimationChannelTarget(node=joints[j], path="rotation")))
+    accessors = builder.doc["accessors"]
+    first = len(accessors)
+    accessors.extend({"bufferView": view, "componentType": _FLOAT, "count": f, "type": "VEC4"}
+                     for _ in range(n))
+    for j in range(1, n):
+        accessors[first + j]["byteOffset"] = j * f * 16
+    samplers: list[dict[str, Any]] = [
+        {"input": t_acc, "output": first + j, "interpolation": "LINEAR"} for j in range(n)]
+    channels: list[dict[str, Any]] = [
+        {"sampler": j, "target": {"node": joints[j], "path": "rotation"}} for j in range(n)]
     tr_acc = builder.accessor(_float32("motion root_position", root_pos))
     moved: list[tuple[int, int]] = [(int(r), tr_acc) for r in roots]
     jt = getattr(motion, "joint_translation", None)
@@ -632,12 +699,11 @@ def _add_motion(builder: _Builder, motion: Any, skeleton: JointSkeleton, joints:
             moved.append((int(j), builder.accessor(
                 _float32("motion joint_translation", jt[:, j]))))
     for j, acc in moved:
-        samplers.append(g.AnimationSampler(input=t_acc, output=acc, interpolation="LINEAR"))
-        channels.append(g.AnimationChannel(
-            sampler=len(samplers) - 1,
-            target=g.AnimationChannelTarget(node=joints[j], path="translation")))
-    builder.doc.animations.append(g.Animation(name=name or "motion", samplers=samplers,
-                                              channels=channels))
+        samplers.append({"input": t_acc, "output": acc, "interpolation": "LINEAR"})
+        channels.append({"sampler": len(samplers) - 1,
+                         "target": {"node": joints[j], "path": "translation"}})
+    builder.doc["animations"].append({"name": name or "motion", "samplers": samplers,
+                                      "channels": channels})
 
 
 def _add_frames(builder: _Builder, frames: Sequence[Any], frame_time: float, y_up: bool,
@@ -654,36 +720,33 @@ def _add_frames(builder: _Builder, frames: Sequence[Any], frame_time: float, y_u
                              f"{m.n_faces} faces) from frame 0 ({base.n_vertices}, "
                              f"{base.n_faces}); morph frames need identical faces")
     times = _key_times(len(meshes), frame_time)
-    rot = np.eye(3) if y_up else _Z_TO_Y
     prim, src = _mesh_primitive(builder, base, y_up)  # ids of frame 0 label all frames
     pick = slice(None) if src is None else src
-    base_pos = (base.vertices[pick] * builder.scale) @ rot.T
+    base_pos = _y_up(base.vertices[pick], y_up, builder.scale)
     with_normals = all(m.normals is not None for m in meshes)
     if with_normals:
-        base_nrm = _unit_rows(np.asarray(base.normals, float)[pick] @ rot.T)
+        base_nrm = _unit_rows(_y_up(np.asarray(base.normals, float)[pick], y_up))
     targets = []
     for m in meshes[1:]:
         delta = _float32("frame vertices",
-                         (m.vertices[pick] * builder.scale) @ rot.T - base_pos)
+                         _y_up(m.vertices[pick], y_up, builder.scale) - base_pos)
         target = {"POSITION": builder.accessor(delta, target=ARRAY_BUFFER, bounds=True)}
         if with_normals:  # normal displacements, so shading follows the shape
-            dn = _unit_rows(np.asarray(m.normals, float)[pick] @ rot.T) - base_nrm
+            dn = _unit_rows(_y_up(np.asarray(m.normals, float)[pick], y_up)) - base_nrm
             target["NORMAL"] = builder.accessor(dn.astype(np.float32), target=ARRAY_BUFFER)
         targets.append(target)
-    prim.targets = targets
+    prim["targets"] = targets
     k = len(targets)
     label = name or "frames"
-    builder.doc.meshes.append(g.Mesh(name=label, primitives=[prim], weights=[0.0] * k))
-    node = builder.node(g.Node(name=label, mesh=len(builder.doc.meshes) - 1), root=True)
+    builder.doc["meshes"].append({"name": label, "primitives": [prim], "weights": [0.0] * k})
+    node = builder.node({"name": label, "mesh": len(builder.doc["meshes"]) - 1}, root=True)
     weights = np.zeros((len(meshes), k), np.float32)
     weights[np.arange(1, len(meshes)), np.arange(k)] = 1.0
-    sampler = g.AnimationSampler(input=builder.accessor(times, bounds=True),
-                                 output=builder.accessor(weights.reshape(-1)),
-                                 interpolation="LINEAR")
-    builder.doc.animations.append(g.Animation(
-        name=f"{label}_growth", samplers=[sampler],
-        channels=[g.AnimationChannel(sampler=0, target=g.AnimationChannelTarget(
-            node=node, path="weights"))]))
+    sampler = {"input": builder.accessor(times, bounds=True),
+               "output": builder.accessor(weights.reshape(-1)), "interpolation": "LINEAR"}
+    builder.doc["animations"].append({
+        "name": f"{label}_growth", "samplers": [sampler],
+        "channels": [{"sampler": 0, "target": {"node": node, "path": "weights"}}]})
 
 
 def _scaled(skeleton: JointSkeleton, motion: Any, k: float) -> tuple[JointSkeleton, Any]:

@@ -1,0 +1,179 @@
+"""GLB writer throughput: creature skeletons, many small meshes, a 100,000-leaf canopy.
+
+Usage: .venv/bin/python bench/gltf.py [--repeat 7] [--baseline OLD_gltf.py]
+
+Cases (each written to a temporary ``.glb`` with ``biomorph.io.gltf.write_gltf``):
+
+* ``creature``: ``biomorph.creature.generate(seed=0)`` exported as ``biomorph creature
+  export`` does (joint meshes in joint frames, skinned, ``bone_shape=None``) — the per-file
+  cost of ``biomorph creature batch --format glb``;
+* ``creature + anim``: the same with a 60-frame animation (random unit pose quaternions);
+* ``skeleton 80 boxes``: a synthetic 80-joint ``JointSkeleton`` with the default box bones;
+* ``1,000 meshes``: a list of 1,000 small meshes (12 vertices, 10 triangles, a face id),
+  merged into one primitive;
+* ``100k leaves``: a maize field of ~100,000 leaves (``biomorph.leaf.canopy.field_mesh``,
+  19 triangles per leaf, normals, uv, ``plant``/``leaf`` face ids), Z-up.
+
+Times are medians of ``--repeat`` runs, CPU (``time.process_time``) and wall; peak memory is
+the tracemalloc peak of one extra traced run. With ``--baseline PATH`` (a copy of an older
+``io/gltf.py``, e.g. ``git show REV:src/biomorph/io/gltf.py > /tmp/old.py``) both versions
+run on the same inputs and the table shows before → after.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import tempfile
+import time
+import tracemalloc
+from collections.abc import Callable
+from types import ModuleType, SimpleNamespace
+
+import numpy as np
+
+
+def measure(fn: Callable[[], object], repeat: int) -> tuple[float, float, float]:
+    """(median CPU s, median wall s, peak MB of one traced call)."""
+    cpu, wall = [], []
+    fn()  # warm-up (imports, caches)
+    for _ in range(repeat):
+        c0, w0 = time.process_time(), time.perf_counter()
+        fn()
+        cpu.append(time.process_time() - c0)
+        wall.append(time.perf_counter() - w0)
+    tracemalloc.start()
+    fn()
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return float(np.median(cpu)), float(np.median(wall)), peak / 1e6
+
+
+def load_module(path: str) -> ModuleType:
+    spec = importlib.util.spec_from_file_location("gltf_baseline", path)
+    mod = importlib.util.module_from_spec(spec)
+    assert spec.loader is not None
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def synthetic_skeleton(n: int = 80, seed: int = 0):
+    from biomorph.core import transforms as tf
+    from biomorph.core.skeleton import JointSkeleton
+
+    rng = np.random.default_rng(seed)
+    parent = np.array([-1] + [int(rng.integers(0, i)) for i in range(1, n)])
+    offset = rng.normal(0, 0.1, (n, 3))
+    offset[0] = [0, 1, 0]
+    rest = tf.quat_normalize(rng.normal(size=(n, 4)))
+    end = np.full((n, 3), np.nan)
+    leaves = np.setdiff1d(np.arange(n), parent)
+    end[leaves[::2]] = [0, 0.05, 0]
+    return JointSkeleton([f"j{i}" for i in range(n)], parent, offset, rest_rotation=rest,
+                         end_site=end)
+
+
+def random_motion(skeleton, frames: int = 60, seed: int = 1) -> SimpleNamespace:
+    rng = np.random.default_rng(seed)
+    rot = rng.normal(size=(frames, len(skeleton), 4))
+    rot /= np.linalg.norm(rot, axis=-1, keepdims=True)
+    root = np.c_[np.linspace(0, 2, frames), np.ones(frames), np.zeros(frames)]
+    return SimpleNamespace(skeleton=skeleton, rotation=rot, root_position=root,
+                           frame_time=1 / 30)
+
+
+def small_meshes(count: int = 1000, seed: int = 2) -> list:
+    from biomorph.core.mesh import Mesh
+
+    rng = np.random.default_rng(seed)
+    cols = 6
+    s = np.linspace(0, 1, cols)
+    grid = np.stack([np.r_[s, s], np.r_[np.zeros(cols), np.ones(cols) * 0.2],
+                     np.zeros(2 * cols)], axis=1)
+    a = np.arange(cols - 1)
+    faces = np.concatenate([np.stack([a, a + 1, a + cols], 1),
+                            np.stack([a + 1, a + cols + 1, a + cols], 1)])
+    out = []
+    for i in range(count):
+        v = grid * rng.uniform(0.05, 0.2) + rng.uniform(-1, 1, 3)
+        out.append(Mesh(v, faces, face_ids={"plant": np.full(len(faces), i // 10)}))
+    return out
+
+
+def leaf_field(leaves: int = 100_000):
+    from biomorph.leaf.canopy import FieldSpec, build_field, field_mesh
+
+    fld = build_field(FieldSpec(plants=max(leaves // 6, 1), rows=100), seed=0)
+    return field_mesh(fld, triangles_per_leaf=19, stems=False)
+
+
+def cases() -> list[tuple[str, Callable[[ModuleType, str], object]]]:
+    import biomorph.creature as creature_mod
+    from biomorph.creature.mesh import joint_meshes
+
+    cr = creature_mod.generate(seed=0)
+    jm = joint_meshes(cr, "box")
+    motion = random_motion(cr.skeleton)
+    sk80 = synthetic_skeleton()
+    meshes = small_meshes()
+    field = leaf_field()
+    return [
+        (f"creature ({len(cr.skeleton)} joints, joint meshes)",
+         lambda m, p: m.write_gltf(p, cr.skeleton, bone_shape=None, meshes=jm,
+                                   name="creature")),
+        ("creature + 60-frame animation",
+         lambda m, p: m.write_gltf(p, cr.skeleton, motion=motion, bone_shape=None, meshes=jm,
+                                   name="creature")),
+        ("skeleton 80 joints, box bones", lambda m, p: m.write_gltf(p, sk80)),
+        ("1,000 small meshes merged", lambda m, p: m.write_gltf(p, meshes)),
+        (f"{field.n_faces // 19:,} leaves ({field.n_faces / 1e6:.2f} M tris, 1 mesh)",
+         lambda m, p: m.write_gltf(p, field, y_up=False)),
+    ]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--baseline", help="path of an older io/gltf.py to compare against")
+    args = ap.parse_args()
+    import biomorph.io.gltf as current
+
+    versions = [("after", current)]
+    if args.baseline:
+        versions.insert(0, ("before", load_module(args.baseline)))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "out.glb")
+        for label, fn in cases():
+            res = {}
+            for vname, mod in versions:
+                big = "leaves" in label
+                res[vname] = measure(lambda fn=fn, mod=mod: fn(mod, path),
+                                     max(1, args.repeat // 3) if big else args.repeat)
+                res[vname] += (os.path.getsize(path) / 1e6,)
+            rows.append((label, res))
+    print(f"load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} CPUs, "
+          f"repeat {args.repeat}\n")
+    if args.baseline:
+        print("| case | CPU before | CPU after | speed-up | wall before | wall after | "
+              "peak MB before | peak MB after | file MB |")
+        print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+        for label, r in rows:
+            b, a = r["before"], r["after"]
+            print(f"| {label} | {fmt(b[0])} | {fmt(a[0])} | {b[0] / max(a[0], 1e-9):.1f}× | "
+                  f"{fmt(b[1])} | {fmt(a[1])} | {b[2]:.1f} | {a[2]:.1f} | {a[3]:.2f} |")
+    else:
+        print("| case | CPU | wall | peak MB | file MB |")
+        print("|---|---:|---:|---:|---:|")
+        for label, r in rows:
+            a = r["after"]
+            print(f"| {label} | {fmt(a[0])} | {fmt(a[1])} | {a[2]:.1f} | {a[3]:.2f} |")
+
+
+def fmt(seconds: float) -> str:
+    return f"{seconds * 1e3:.1f} ms" if seconds < 1 else f"{seconds:.2f} s"
+
+
+if __name__ == "__main__":
+    main()
