@@ -4,8 +4,10 @@
 
 Usage: .venv/bin/python bench/motion.py [--quick]     (--quick skips the 1-hour take)
 
-Prints a markdown table. Times are the median of several runs (wall clock, after one
-warm-up call that loads the compiled kernels); the machine's load average is printed too,
+Prints a markdown table. Every figure is the median of several runs after one warm-up call
+that loads the compiled kernels (operators 7 runs, minute BVH 3, the 100k-frame and 1-hour
+reads 3), as wall clock (``time.perf_counter``) and CPU time of the process, all threads
+(``time.process_time``); the machine's load average before and after is printed too,
 because on a shared machine wall-clock times scale with it.
 """
 
@@ -22,7 +24,7 @@ import numpy as np
 CPU: list[float] = []
 
 
-def median_ms(fn, repeat: int = 5) -> float:
+def median_ms(fn, repeat: int = 7) -> float:
     """Median wall-clock ms of ``repeat`` calls after a warm-up; the median CPU ms of the
     same calls is appended to ``CPU`` (process time: less sensitive to a loaded machine)."""
     fn()
@@ -59,6 +61,7 @@ def main() -> None:
     from biomorph.motion.synthetic import walk
 
     quick = "--quick" in sys.argv
+    load0 = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     rows: list[tuple[str, str, str, str, str]] = []
     m = walk(7200, 120, n_joints=60, noise_deg=0.5)
     a, b = m[:4000], m[3400:]
@@ -92,31 +95,26 @@ def main() -> None:
         rows.append(("BVH read", "7,200 f × 60 j", f"{ms:.0f} ms", f"{CPU[-1]:.0f} ms", "—"))
         big = Path(tmp) / "100k.bvh"
         n100 = tiled_bvh(p, big, 14)  # 100,800 frames
-        c0, t0 = time.process_time(), time.perf_counter()
-        mo = read_bvh(big)
+        ms = median_ms(lambda: read_bvh(big), 3)
         rows.append(("BVH read", f"{n100:,} f × 60 j ({big.stat().st_size / 1e6:.0f} MB)",
-                     f"{time.perf_counter() - t0:.2f} s", f"{time.process_time() - c0:.2f} s",
-                     "< 2 s"))
-        del mo
+                     f"{ms / 1000:.2f} s", f"{CPU[-1] / 1000:.2f} s", "< 2 s"))
         big.unlink()
         if not quick:
             hour = Path(tmp) / "hour.bvh"
             nh = tiled_bvh(p, hour, 60)  # 432,000 frames = 1 h at 120 fps
-            c0, t0 = time.process_time(), time.perf_counter()
+            size = hour.stat().st_size
+            ms = median_ms(lambda: read_bvh(hour), 3)
+            rows.append(("BVH read (1-hour take)", f"{nh:,} f × 60 j ({size / 1e6:.0f} MB)",
+                         f"{ms / 1000:.2f} s", f"{CPU[-1] / 1000:.2f} s", "≤ 5 s"))
             mo = read_bvh(hour)
-            rows.append(("BVH read (1-hour take)",
-                         f"{nh:,} f × 60 j ({hour.stat().st_size / 1e6:.0f} MB)",
-                         f"{time.perf_counter() - t0:.2f} s",
-                         f"{time.process_time() - c0:.2f} s", "≤ 5 s"))
             hour.unlink()
-            c0, t0 = time.process_time(), time.perf_counter()
-            bm.equalize(mo, [0, 0.5, 1, 1.3, 1])
-            rows.append(("equalize (1-hour take)", f"{nh:,} f × 60 j",
-                         f"{time.perf_counter() - t0:.2f} s",
-                         f"{time.process_time() - c0:.2f} s", "≤ 10 s"))
+            ms = median_ms(lambda: bm.equalize(mo, [0, 0.5, 1, 1.3, 1]), 3)
+            rows.append(("equalize (1-hour take)", f"{nh:,} f × 60 j", f"{ms / 1000:.2f} s",
+                         f"{CPU[-1] / 1000:.2f} s", "≤ 10 s"))
             del mo
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"Motion benchmark (load average {load:.1f} on {os.cpu_count()} cores)\n")
+    print(f"Motion benchmark (load average {load0:.1f} before, {load:.1f} after, on "
+          f"{os.cpu_count()} cores; median of repeats, wall and process CPU time)\n")
     print("| operation | data | wall | CPU | target |")
     print("|---|---|---|---|---|")
     for r in rows:
