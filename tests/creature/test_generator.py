@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from biomorph.creature import quality as qa
 from biomorph.creature import spine as sp
 from biomorph.creature.generator import Generator, Options, generate
 from biomorph.errors import ParameterError
@@ -46,6 +47,8 @@ def check_quality(c) -> None:
     b = c.balance
     assert (not b.applicable) or b.stable
     assert np.isclose(c.total_mass, c.params["weight_kg"], rtol=1e-6)
+    # standing legs: hip above knee above ankle above the ground contact
+    assert qa.monotone_leg_heights(c), qa.leg_height_steps(c)
 
 
 def test_quality_over_seeds(creatures):
@@ -53,6 +56,27 @@ def test_quality_over_seeds(creatures):
         check_quality(c)
     legs = {c.params["legs"] for c in creatures}
     assert len(legs) >= 3  # variety of body plans
+
+
+def test_standing_legs_are_monotone_over_100_seeds():
+    """Every grounded leg of 100 seeded creatures: no distal joint higher than its proximal
+    one (within 0.5 % of body height), and every bone leans to its anatomical side."""
+    grounded = 0
+    for seed in range(100):
+        c = generate(seed)
+        steps = qa.leg_height_steps(c)
+        grounded += len(steps)
+        for d in steps:
+            assert np.all(d >= -0.005 * c.height), (seed, d / c.height)
+        assert qa.check(c)["monotone_leg_heights"]
+    assert grounded > 150
+
+
+def test_plausibility_can_be_switched_off():
+    """The seed's plain descent (no anatomical preferences) is still available."""
+    from biomorph.creature.limbs import DescentParams
+    c = generate(0, descent=DescentParams(plausible=False, restarts=1))
+    assert set(qa.check(c)) == set(qa.CHECKS)
 
 
 def test_same_seed_same_creature():

@@ -57,6 +57,38 @@ def test_descent_reaches_ground_without_going_below():
         assert np.all(pose.angles >= lo - 1e-12) and np.all(pose.angles <= hi + 1e-12)
 
 
+def test_descent_poses_plausible_standing_legs():
+    """Hip above knee above ankle above contact, bones lean to their anatomical side (hind
+    femur forward, shank back, metatarsus forward; fore humerus back), knee and hock flex in
+    their own direction only, and the relaxation never adds flexion."""
+    rng = np.random.default_rng(11)
+    params = lb.DescentParams()
+    for _ in range(60):
+        L = rng.uniform(50, 300, 3)
+        base = np.array([0.0, 0.0, 20.0])
+        role = str(rng.choice(["hind", "fore"]))
+        stance = str(rng.choice(["digitigrade", "unguligrade", "plantigrade"]))
+        ground = -0.8 * lb.max_reach(L, stance, "erect")
+        pose = lb.pose_leg(base, L, ground, role, stance, "erect", rng, params)
+        n = 2 if pose.foot_flat else 3
+        y = pose.points[:n + 1, 1]
+        assert np.all(np.diff(y) <= 1e-6 * L.sum()), (role, stance, y)
+        assert lb.implausibility(pose.points, pose.lengths, n, role, params) <= 0.002 * L.sum()
+        dx = np.diff(pose.points[:, 0])
+        assert lb.LEAN_SIDE[role][0] * dx[0] >= -np.sin(15 * lb.DEG) * L[0] - 1e-9
+        box = lb.STAND_LIMITS_DEG[role] * lb.DEG
+        assert np.all(pose.angles[:n, 0] >= box[:n, 0, 0] - 1e-9)
+        assert np.all(pose.angles[:n, 0] <= box[:n, 0, 1] + 1e-9)
+        if role == "hind":
+            assert pose.angles[1, 0] <= 0 and (n == 2 or pose.angles[2, 0] >= 0)
+        relaxed = lb.pose_leg(base, L, ground, role, stance, "erect",
+                              np.random.default_rng(5), lb.DescentParams(relax=(0.5, 0.25)))
+        plain = lb.pose_leg(base, L, ground, role, stance, "erect",
+                            np.random.default_rng(5), params)
+        assert (lb.flexion_from_neutral(relaxed.angles, role, n)
+                <= lb.flexion_from_neutral(plain.angles, role, n) + 1e-9)
+
+
 def test_descent_constants_are_parameters():
     p = lb.DescentParams()
     assert (p.step_deg, p.shrink, p.stall) == (30.0, 0.8, 0.1)

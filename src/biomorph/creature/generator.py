@@ -370,7 +370,7 @@ def step_limbs(spine: dict, girdles: tuple[gd.Girdle, ...], opts: Options,
             # a leg far too long for its height would start (fully bent) below the ground:
             # shorten it until its start pose clears the ground (rule propagation)
             role = "hind" if places[i][0] == "hip" else "fore"
-            start = lb.start_pose(role, posture)
+            start = lb.start_pose(role, posture, opts.descent.plausible)
             for _ in range(30):
                 _, p0 = lb.forward(attach[i][1], lengths[i], start)
                 if p0[1:, 1].min() >= ground:

@@ -17,6 +17,14 @@ the child's negative local y with world y), clamp at vertical ("gerade noch erla
 reject a rotation that puts any bone end below the ground, then multiply the step by 4/5 —
 and halve it when the contact point moved less than ``stall`` (0.1 frame px) — down to a
 minimum step. All constants are :class:`DescentParams` fields with the seed's values.
+
+Beyond the seed, standing legs get anatomical preferences (``DescentParams.plausible``): the
+descent searches a standing box per segment type (:data:`STAND_LIMITS_DEG`; knee, hock and
+elbow flex in their anatomical direction only) starting at its most bent corner, rejects
+rotations that make the chain less plausible (:func:`implausibility`: a bone pointing up or
+too flat, or leaning against its anatomical side, :data:`LEAN_SIDE`), runs ``restarts``
+times and keeps the plausible grounded solution with the least flexion from the neutral
+standing pose (:data:`NEUTRAL_DEG`).
 """
 
 from __future__ import annotations
@@ -48,6 +56,14 @@ class DescentParams:
     p_flex: float = 0.9             # probability a flexion DOF is changed in an iteration
     p_abduct: float = 0.05          # abduction kept rare so legs are not splayed (seed)
     p_twist: float = 0.0            # twist does not move the contact point
+    # anatomical preferences of standing legs (new beyond the seed)
+    plausible: bool = True          # reject moves that raise a distal joint / turn a bone
+    direction_slack_deg: float = 15.0  # how far a bone may lean against its anatomical side
+    max_tilt_deg: tuple[float, float, float] = (85.0, 70.0, 70.0)  # bones' tilt from vertical
+    restarts: int = 2               # descents from the same start, different random streams;
+    #                                 the plausible one closest to the neutral pose is kept
+    relax: tuple[float, ...] = ()   # optionally blend towards neutral by these fractions,
+    #                                 re-grounding by bisection, while flexion decreases
 
 
 #: Anatomical limits (degrees) per limb role and joint: rows joint 0..2, columns z, x, y.
@@ -76,6 +92,43 @@ WING_INTERVALS_DEG = np.array([[[-25, 15], [-105, -75], [-10, 10]],
                                [[-10, 35], [-10, 10], [-10, 10]]], dtype=float)
 
 SPRAWL_DEG = {"erect": 0.0, "crouched": -8.0, "sprawling": -25.0}
+
+#: Search box of the descent for standing legs (degrees; a sub-range of :data:`LIMITS_DEG`,
+#: which stay the stored anatomical limits): the hip/shoulder folds at most to a level bone,
+#: the knee/elbow and the ankle flex in their anatomical direction only, and the fore wrist
+#: of a standing leg is extended (the hand folded back under the forearm is a resting pose).
+#: The descent starts at the most bent of these limits.
+STAND_LIMITS_DEG = {
+    "hind": np.array([[[-30, 85], [-60, 25], [-20, 20]],
+                      [[-150, 0], [-10, 10], [-15, 15]],
+                      [[0, 150], [-15, 15], [-15, 15]]], dtype=float),
+    "fore": np.array([[[-85, 30], [-60, 25], [-20, 20]],
+                      [[0, 150], [-10, 10], [-15, 15]],
+                      [[-30, 100], [-15, 15], [-15, 15]]], dtype=float),
+}
+
+#: Side (world +x forward = +1, backward = -1) each bone of a standing leg leans to, from
+#: proximal to distal end: hind legs zig-zag femur forward, shank back, metatarsus forward
+#: (mammal knee and hock, and the bird/dinosaur digitigrade pattern); fore legs humerus
+#: back, forearm and hand forward (elbow flexes the other way). A bone may lean against its
+#: side by ``DescentParams.direction_slack_deg`` and must point down, tilted from vertical by
+#: at most ``DescentParams.max_tilt_deg``.
+LEAN_SIDE = {"hind": np.array([1.0, -1.0, 1.0]), "fore": np.array([-1.0, 1.0, 1.0])}
+
+#: Neutral standing pose (degrees, flexion z per joint; bones' sagittal directions from
+#: vertical: hind femur 30° forward, shank 30° back, metatarsus 15° forward; fore humerus 30°
+#: back, forearm vertical, hand 15° forward): the descent's solutions are ranked by their
+#: total flexion away from it, measured on the bones' directions (cumulative angles) so that
+#: a crouch spreads over all joints instead of folding one.
+NEUTRAL_DEG = {"hind": np.array([30.0, -60.0, 45.0]), "fore": np.array([-30.0, 30.0, 15.0])}
+
+
+def flexion_from_neutral(angles: NDArray, role: str, n_active: int = 3) -> float:
+    """Total |difference| (rad) of the bones' sagittal directions (cumulative flexion angles
+    of the first ``n_active`` joints) from the neutral standing pose of ``role``."""
+    a = np.cumsum(np.asarray(angles, float)[:n_active, 0])
+    n = np.cumsum(NEUTRAL_DEG[role][:n_active] * DEG)
+    return float(np.abs(a - n).sum())
 
 
 # --------------------------------------------------------------------------- kinematics
@@ -123,12 +176,32 @@ def _fk(base: np.ndarray, lengths: np.ndarray, ang: np.ndarray, rot_out: np.ndar
 
 
 @numba.njit(cache=True)
+def _implausible(pts, lengths, contact, side, slack, drop):  # pragma: no cover - compiled
+    """How far the chain up to ``contact`` is from a plausible standing leg: the summed
+    shortfall of each bone's drop below ``drop[q]`` (cosine of its largest tilt) × its length
+    — a distal joint never higher than its proximal one — plus each bone's lean against its
+    anatomical ``side`` beyond ``slack`` (sine) × its length. 0 = plausible."""
+    v = 0.0
+    for q in range(contact):
+        dy = pts[q + 1, 1] - pts[q, 1] + drop[q] * lengths[q]
+        if dy > 0.0:
+            v += dy
+        lean = -side[q] * (pts[q + 1, 0] - pts[q, 0]) - slack * lengths[q]
+        if lean > 0.0:
+            v += lean
+    return v
+
+
+@numba.njit(cache=True)
 def _descend_kernel(base, lengths, ang0, lo, hi, prob, n_active, contact, ground, step0,
-                    shrink, stall, min_step, tol, max_iter, rand):  # pragma: no cover
+                    shrink, stall, min_step, tol, max_iter, rand, plausible, side,
+                    slack, drop):  # pragma: no cover
     ang = ang0.copy()
     rot = np.zeros((3, 3, 3))
     pts = np.zeros((4, 3))
     _fk(base, lengths, ang, rot, pts)
+    eps = 1e-9 * (lengths[0] + lengths[1] + lengths[2])
+    viol = _implausible(pts, lengths, contact, side, slack, drop) if plausible else 0.0
     dist = pts[contact, 1] - ground
     step = step0
     it = 0
@@ -177,6 +250,12 @@ def _descend_kernel(base, lengths, ang0, lo, hi, prob, n_active, contact, ground
                 for q in range(1, contact + 1):
                     if pts[q, 1] < ground - 1e-9:
                         below = True
+                if not below and plausible:
+                    v = _implausible(pts, lengths, contact, side, slack, drop)
+                    if v > viol + eps:
+                        below = True  # never less plausible than before
+                    else:
+                        viol = v
                 if below:
                     ang[j, k] = old
                     _fk(base, lengths, ang, rot, pts)
@@ -190,16 +269,32 @@ def _descend_kernel(base, lengths, ang0, lo, hi, prob, n_active, contact, ground
     return ang, dist, it
 
 
+def implausibility(points: NDArray, lengths: NDArray, contact: int, role: str,
+                   params: DescentParams = DescentParams()) -> float:
+    """Rise of distal joints plus lean against the anatomical side (see :data:`LEAN_SIDE`)
+    of a posed chain ``points (4, 3)``, in length units; 0 for a plausible standing leg."""
+    return float(_implausible(np.asarray(points, float), np.asarray(lengths, float),
+                              int(contact), LEAN_SIDE[role],
+                              np.sin(params.direction_slack_deg * DEG), _drop(params)))
+
+
+def _drop(params: DescentParams) -> NDArray[np.float64]:
+    return np.cos(np.asarray(params.max_tilt_deg, float) * DEG)
+
+
 def descend(base: NDArray, lengths: NDArray, start: NDArray, limits: NDArray, prob: NDArray,
             ground: float, contact: int, rng: np.random.Generator,
-            params: DescentParams = DescentParams(), n_active: int = 3
-            ) -> tuple[NDArray[np.float64], float, int]:
+            params: DescentParams = DescentParams(), n_active: int = 3,
+            role: str = "hind") -> tuple[NDArray[np.float64], float, int]:
     """Run the seed's ground-contact descent for one 3-bone chain.
 
     ``base (3,)`` attachment point, ``lengths (3,)``, ``start (3,3)`` angles (rad), ``limits
     (3,3,2)`` rad, ``prob (3,3)`` per-DOF probabilities, ``ground`` height, ``contact`` the
     chain point that should touch (2 = end of the second bone, 3 = tip), ``n_active`` joints
-    that may move. Units of lengths/ground/params must agree (frame px by default).
+    that may move. Units of lengths/ground/params must agree (frame px by default). With
+    ``params.plausible`` a rotation is also rejected when it makes the chain less plausible
+    (:func:`implausibility` for ``role`` grows): no joint rises above its proximal one, no
+    bone turns against its anatomical side, once reached.
     Returns ``(angles (3,3), remaining distance, iterations)``.
     """
     rand = rng.random((params.max_iter, 3, 3))
@@ -208,7 +303,8 @@ def descend(base: NDArray, lengths: NDArray, start: NDArray, limits: NDArray, pr
         np.ascontiguousarray(limits[..., 0]), np.ascontiguousarray(limits[..., 1]),
         np.asarray(prob, float), int(n_active), int(contact), float(ground),
         params.step_deg * DEG, params.shrink, params.stall, params.min_step_deg * DEG,
-        params.tolerance, int(params.max_iter), rand)
+        params.tolerance, int(params.max_iter), rand, bool(params.plausible), LEAN_SIDE[role],
+        float(np.sin(params.direction_slack_deg * DEG)), _drop(params))
     return ang, float(dist), int(it)
 
 
@@ -221,10 +317,11 @@ def forward(base: NDArray, lengths: NDArray, angles: NDArray
     return rot, pts
 
 
-def _snap(base, lengths, ang, limits, ground, contact, n_active):
+def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None):
     """Close the remaining gap exactly: bisect one flexion angle (knee first, then hip, then
-    ankle) so the contact point lies on the ground with no bone end below it. Works from
-    above or below the ground. Returns new angles or ``None``."""
+    ankle) so the contact point lies on the ground with no bone end below it (and, given
+    ``accept(points)``, the result accepted). Works from above or below the ground. Returns
+    new angles or ``None``."""
     scale = max(float(np.sum(lengths)), 1e-9)
     for j in ([1, 0, 2] if n_active == 3 else [1, 0]):
         lo, hi = limits[j, 0]
@@ -254,7 +351,8 @@ def _snap(base, lengths, ang, limits, ground, contact, n_active):
                 t = ang.copy()
                 t[j, 0] = a if fa >= 0 else b
                 _, p = forward(base, lengths, t)
-                if np.all(p[1:contact + 1, 1] >= ground - 1e-6 * scale):
+                if (np.all(p[1:contact + 1, 1] >= ground - 1e-6 * scale)
+                        and (accept is None or accept(p))):
                     return t
     return None
 
@@ -266,8 +364,10 @@ def reground(pose: LimbPose, base: NDArray, lengths: NDArray, ground: float,
     Returns ``None`` if the leg cannot reach."""
     plant = pose.foot_flat
     contact, n_active = (2, 2) if plant else (3, 3)
+    box = STAND_LIMITS_DEG[pose.role] * DEG if params.plausible else pose.limits
     ang = _snap(np.asarray(base, float), np.asarray(lengths, float), pose.angles.copy(),
-                pose.limits, ground, contact, n_active)
+                box, ground, contact, n_active,
+                _plausible_test(lengths, contact, pose.role, params))
     if ang is None:
         return None
     if plant:
@@ -279,6 +379,34 @@ def reground(pose: LimbPose, base: NDArray, lengths: NDArray, ground: float,
     c = pts[2 if plant else 3].copy()
     return LimbPose("leg", pose.role, ang, pose.limits, rot, pts, c, plant,
                     float(c[1] - ground), 0, np.asarray(lengths, float))
+
+
+def _relax(base, lengths, ang, box, ground, contact, n_active, role, accept, fractions):
+    """Spread the flexion: blend the flexion angles towards the neutral standing pose by each
+    fraction in turn and close the gap again by bisection (:func:`_snap`); keep a blend when
+    it is grounded, plausible and flexes less in total (the preferred solution)."""
+    neutral = NEUTRAL_DEG[role][:n_active] * DEG
+
+    def flex(a):
+        return flexion_from_neutral(a, role, n_active)
+
+    cur, cost = ang, flex(ang)
+    for lam in fractions:
+        t = cur.copy()
+        t[:n_active, 0] = np.clip(cur[:n_active, 0] + lam * (neutral - cur[:n_active, 0]),
+                                  box[:n_active, 0, 0], box[:n_active, 0, 1])
+        t = _snap(base, lengths, t, box, ground, contact, n_active, accept)
+        if t is not None and flex(t) < cost:
+            cur, cost = t, flex(t)
+    return cur
+
+
+def _plausible_test(lengths, contact, role, params):
+    """``accept(points)`` for :func:`_snap`: the chain is a plausible standing leg."""
+    if not params.plausible:
+        return None
+    tol = 0.002 * float(np.sum(lengths))
+    return lambda p: implausibility(p, lengths, contact, role, params) <= tol
 
 
 @dataclass(frozen=True)
@@ -308,20 +436,43 @@ def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: 
     pointing forward (the ankle angle is then set, not searched).
     """
     limits = LIMITS_DEG[role] * DEG
+    box = STAND_LIMITS_DEG[role] * DEG if params.plausible else limits
     # most bent flexion: hind thigh forward (max), shank back (min), foot forward (max)
-    start = start_pose(role, posture)
+    start = start_pose(role, posture, params.plausible)
     prob = np.array([[params.p_flex, params.p_abduct, params.p_twist]] * 3)
     plant = stance == "plantigrade"
     contact = 2 if plant else 3
     n_active = 2 if plant else 3
     g = ground + (foot_clearance if plant else 0.0)
-    ang, dist, it = descend(base, lengths, start, limits, prob, g, contact, rng, params,
-                            n_active)
-    if dist > params.tolerance:
-        snapped = _snap(np.asarray(base, float), np.asarray(lengths, float), ang, limits, g,
-                        contact, n_active)
-        if snapped is not None:
-            ang = snapped
+    lengths = np.asarray(lengths, float)
+    for _ in range(30):  # a leg whose folded start pierces the ground is shortened (as the
+        _, p0 = forward(base, lengths, start)  # generator does): it cannot stand plausibly
+        if p0[1:, 1].min() >= g:
+            break
+        lengths = lengths * 0.9
+    accept = _plausible_test(lengths, contact, role, params)
+    vtol = 0.002 * float(np.sum(lengths))
+    best, best_key = None, None
+    for _ in range(max(1, params.restarts)):
+        ang, dist, it = descend(base, lengths, start, box, prob, g, contact, rng, params,
+                                n_active, role)
+        if dist > params.tolerance:
+            snapped = _snap(np.asarray(base, float), np.asarray(lengths, float), ang, box,
+                            g, contact, n_active, accept)
+            if snapped is not None:
+                ang = snapped
+        _, p = forward(base, lengths, ang)
+        gap = max(float(p[contact, 1] - g), 0.0)
+        bad = (implausibility(p, lengths, contact, role, params) > vtol
+               if params.plausible else False)
+        # plausible first, then on the ground, then least flexion away from neutral
+        key = (bad, gap > params.tolerance, flexion_from_neutral(ang, role, n_active))
+        if best_key is None or key < best_key:
+            best, best_key = (ang, it), key
+    ang, it = best
+    if params.plausible and not best_key[0] and not best_key[1]:
+        ang = _relax(np.asarray(base, float), np.asarray(lengths, float), ang, box, g,
+                     contact, n_active, role, accept, params.relax)
     rot, pts = forward(base, lengths, ang)
     resid0 = pts[contact, 1] - g
     if resid0 > params.tolerance and base[1] - pts[contact, 1] > 1e-9:
@@ -385,9 +536,10 @@ def lift_clear(pose: LimbPose, base: NDArray, lengths: NDArray, ground: float,
     return LimbPose(pose.kind, pose.role, ang, lim, rot, pts, None, False, 0.0, 0)
 
 
-def start_pose(role: str, posture: str) -> NDArray[np.float64]:
-    """The descent's start: every flexion DOF at its most bent limit, posture abduction."""
-    limits = LIMITS_DEG[role] * DEG
+def start_pose(role: str, posture: str, standing: bool = True) -> NDArray[np.float64]:
+    """The descent's start: every flexion DOF at its most bent limit (of the standing box
+    :data:`STAND_LIMITS_DEG` unless ``standing=False``), posture abduction."""
+    limits = (STAND_LIMITS_DEG if standing else LIMITS_DEG)[role] * DEG
     start = np.zeros((3, 3))
     start[:, 0] = ([limits[0, 0, 1], limits[1, 0, 0], limits[2, 0, 1]] if role == "hind"
                    else [limits[0, 0, 0], limits[1, 0, 1], limits[2, 0, 0]])

@@ -3,13 +3,38 @@
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from biomorph.creature import spine as sp
 from biomorph.creature.creature import Creature
 
 CHECKS = ("ground_contact", "above_ground", "within_limits", "symmetric", "spine_c1",
-          "stable")
+          "stable", "monotone_leg_heights")
+
+
+def leg_height_steps(c: Creature) -> list[NDArray[np.float64]]:
+    """Per grounded leg the height drops ``y[k] - y[k+1]`` along attachment → knee/elbow →
+    ankle/wrist → ground contact (metres; all ≥ 0 for a plausible standing leg). A plantigrade
+    leg, whose contact is the ankle itself, has two drops."""
+    parents = c.skeleton.parent
+    p = c.joint_positions
+    out = []
+    for cp, j in zip(c.contacts, c.contact_joint, strict=True):
+        chain = [int(j)]
+        while len(chain) < 3 and parents[chain[-1]] >= 0 and c.kind[parents[chain[-1]]] == "leg":
+            chain.append(int(parents[chain[-1]]))
+        ys = [p[k, 1] for k in chain[::-1]]
+        if np.linalg.norm(p[j] - cp) > 1e-9 * max(c.height, 1e-12):
+            ys.append(cp[1])
+        out.append(-np.diff(np.array(ys)))
+    return out
+
+
+def monotone_leg_heights(c: Creature, tol: float = 0.005) -> bool:
+    """True if on every grounded leg no distal joint lies higher than its proximal one (hip
+    above knee above ankle above the contact), within ``tol`` × body height."""
+    h = max(c.height, 1e-12)
+    return all(bool(np.all(d >= -tol * h)) for d in leg_height_steps(c))
 
 
 def check(c: Creature, contact_tol: float = 0.01, c1_deg: float = 1.0) -> dict[str, bool]:
@@ -20,7 +45,7 @@ def check(c: Creature, contact_tol: float = 0.01, c1_deg: float = 1.0) -> dict[s
     rounding at a grounded tip); within_limits: rest pose inside every stored range and limb
     angles inside their anatomical limits; symmetric: mirrored joints bit-identical;
     spine_c1: tangent angle ≤ ``c1_deg`` at both joins; stable: statically stable (or no
-    legs on the ground).
+    legs on the ground); monotone_leg_heights: see :func:`monotone_leg_heights`.
     """
     h = max(c.height, 1e-12)
     out = {}
@@ -41,6 +66,7 @@ def check(c: Creature, contact_tol: float = 0.01, c1_deg: float = 1.0) -> dict[s
     out["spine_c1"] = bool(np.all(np.nan_to_num(ang) <= c1_deg))
     b = c.balance
     out["stable"] = bool(b is None or not b.applicable or b.stable)
+    out["monotone_leg_heights"] = monotone_leg_heights(c)
     return out
 
 
