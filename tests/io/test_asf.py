@@ -80,6 +80,8 @@ def _line_no(text: str, needle: str) -> int:
     ("angle deg", "angle", "units angle without a value"),
     ("angle deg", "angle grad", "expected 'deg' or 'rad'"),
     ("length 0.45", "length 0", "expected a positive"),
+    ("lfemur ltibia", "lfemurr ltibia", "unknown parent bone 'lfemurr'"),
+    ("lfemur ltibia", "lfemur ltibiaa", "unknown bone 'ltibiaa'"),
 ])
 def test_malformed_asf_names_file_and_line(tmp_path, old, new, needle):
     asf = shared_file("motion", "cmu_11.asf").read_text().replace("\r\n", "\n")

@@ -199,6 +199,9 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0):
     # joints in parent-first order (breadth first here; depth-first pre-order at the end)
     kids: dict[str, list[str]] = {}
     for par, ch, ln in asf["hierarchy"]:
+        if par != "root" and par not in asf["bones"]:
+            raise FormatError(asf["path"], f"hierarchy names unknown parent bone {par!r}; "
+                                           "expected 'root' or a bone of :bonedata", line=ln)
         for c in ch:
             if c not in asf["bones"]:
                 raise FormatError(asf["path"], f"hierarchy names unknown bone {c!r}", line=ln)
