@@ -32,11 +32,16 @@ def leaves(draw):
 def test_random_leaf_invariants(leaf: LeafShape) -> None:
     pts = leaf.midrib(57)
     assert np.linalg.norm(np.diff(pts, axis=0), axis=1).sum() == pytest.approx(leaf.length)
-    fine = leaf.mesh(n_s=500, n_u=3)
-    # thin leaves (width << length): a twisted blade differs from L·∫r by < 0.5 %
-    if leaf.width < 0.2 * leaf.length:
-        assert fine.area() == pytest.approx(leaf.area(), rel=5e-3)
     flat = leaf.with_(twist=0.0)
+    # untwisted, the width direction is normal to the bending plane: area is L·∫r exactly,
+    # however sharply the midrib bends
+    assert flat.mesh(n_s=500, n_u=3).area() == pytest.approx(flat.area(), rel=5e-3)
+    # twisted, the blade stays close to L·∫r only while it is thin against the length and
+    # against the bending radius (a twisted blade around a kink folds: a ruled surface
+    # identity, not a model error)
+    curvature = np.max(np.abs(np.diff(leaf.phi) / np.diff(leaf.s))) / leaf.length  # 1/m
+    if leaf.width < 0.2 * leaf.length and curvature * leaf.width / 2 < 0.1:
+        assert leaf.mesh(n_s=500, n_u=3).area() == pytest.approx(leaf.area(), rel=5e-3)
     for budget in (3, 8, 21):
         m = reduced_mesh(flat, budget)
         assert m.n_faces == budget
