@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -13,8 +14,40 @@ app = typer.Typer(name="creature", no_args_is_help=True, add_completion=False,
                   help="Procedural vertebrate skeletons (PCA over 44 species, seed 000).")
 
 
+def parse_pc(items: list[str] | None, k: int | None = None) -> dict[int, float] | None:
+    """``["1=1.5", "2=-0.8"]`` (1-based component numbers, scores in standard deviations)
+    → ``{0: 1.5, 1: -0.8}`` for :attr:`Options.scores`; bad items raise ``ParameterError``."""
+    from biomorph.creature import pca as pc
+    from biomorph.creature.generator import MAX_SCORE
+
+    if not items:
+        return None
+    n = pc.N_DIMS if k is None else int(k)
+    out: dict[int, float] = {}
+    for item in items:
+        num, sep, val = str(item).partition("=")
+        try:
+            i = int(num.strip())
+        except ValueError:
+            i = None
+        if not sep or i is None:
+            raise ParameterError(f"--pc {item!r}: expected N=SCORE with a component number N "
+                                 f"in 1..{n}, e.g. --pc 1=1.5")
+        if not 1 <= i <= n:
+            raise ParameterError(f"--pc {item!r}: component number {i} outside 1..{n}")
+        try:
+            v = float(val)
+        except ValueError:
+            v = float("nan")
+        if not (math.isfinite(v) and abs(v) <= MAX_SCORE):
+            raise ParameterError(f"--pc {item!r}: score {val.strip()!r} is not a finite number "
+                                 f"in -{MAX_SCORE:g}..{MAX_SCORE:g} standard deviations")
+        out[i - 1] = v
+    return out
+
+
 def _options(seed, legs, wings, arms, centaur, weight, neck_length, tail_length, cls, k,
-             temperature, allow_unstable, dataset):
+             temperature, allow_unstable, dataset, pcs=None):
     from biomorph.creature.generator import Options
 
     if cls is not None:
@@ -22,7 +55,8 @@ def _options(seed, legs, wings, arms, centaur, weight, neck_length, tail_length,
     return Options(seed=seed, legs=legs, wings=wings, arms=arms, centaur=centaur, weight=weight,
                    neck_length=neck_length, tail_length=tail_length, cls=cls, k=k,
                    temperature=temperature, require_stable=not allow_unstable,
-                   dataset=None if dataset is None else str(dataset)).validate()
+                   dataset=None if dataset is None else str(dataset),
+                   scores=parse_pc(pcs, k)).validate()
 
 
 @app.command()
@@ -47,6 +81,9 @@ def generate(
     k: Annotated[int | None, typer.Option(help="Sample from the top k PCA components.")
                  ] = None,
     temperature: Annotated[float, typer.Option(help="Variance scale of sampling.")] = 1.0,
+    pc: Annotated[list[str] | None, typer.Option(
+        "--pc", help="Fix a PCA component score: N=SCORE, N counted from 1 (PC1 = largest "
+        "variance), SCORE in standard deviations, -4..4; repeatable.")] = None,
     bone_shape: Annotated[str, typer.Option(help="box or bone (glb/obj).")] = "box",
     walk: Annotated[bool, typer.Option("--walk", help="Add a procedural walk cycle "
                                        "(glb/bvh).")] = False,
@@ -63,6 +100,7 @@ def generate(
     """Generate one creature and write it.
 
     Example: biomorph creature generate --seed 7 --legs 4 --no-wings -o horse.glb
+    (``--pc 1=1.5 --pc 2=-0.8`` fixes the first two PCA component scores.)
     """
     from biomorph.cli import out_console, print_json
     from biomorph.creature.export import check_extension, export
@@ -73,7 +111,7 @@ def generate(
     if bone_shape not in SHAPES:
         raise ParameterError(f"--bone-shape {bone_shape!r}; expected one of {', '.join(SHAPES)}")
     opts = _options(seed, legs, wings, arms, centaur, weight, neck_length, tail_length, cls, k,
-                    temperature, allow_unstable, dataset)
+                    temperature, allow_unstable, dataset, pc)
     creature = Generator(opts).run()
     summary = creature.summary()
     if settle:

@@ -45,6 +45,10 @@ SPINE_RANGE = {"neck": (20, 15, 30), "back": (5, 5, 8), "tail": (15, 12, 20),
                "head": (25, 20, 40), "girdle": (5, 5, 10)}
 
 
+#: Largest |score| (standard deviations) accepted in :attr:`Options.scores`.
+MAX_SCORE = 4.0
+
+
 @dataclass(frozen=True)
 class Options:
     """What the user asks for. ``None`` means "sample it".
@@ -54,6 +58,9 @@ class Options:
     1000-px frame, i.e. the largest extent of the skeleton). cls : animal class.
     k : PCA components to sample from (None = all 29). temperature : variance scale.
     jitter : scale of the jitter interval on conditioned values.
+    scores : fixed PCA component scores ``{component index (0-based): score}`` in standard
+    deviations of that component (units of ``sqrt(eigenvalue)``, independent of the
+    temperature), |score| <= 4; the other components are sampled as without them.
     stand_fraction : the shortest leg stands at this fraction of its straightened reach.
     require_stable : repair or resample until statically stable.
     """
@@ -76,9 +83,30 @@ class Options:
     min_margin_fraction: float = 0.02
     max_resamples: int = 25
     dataset: str | None = None
+    scores: dict[int, float] | None = None
+
+    def __post_init__(self) -> None:
+        # own copy: later changes to the caller's dict do not leak into the options
+        if self.scores is not None:
+            object.__setattr__(self, "scores", dict(self.scores))
 
     def validate(self) -> Options:
         """Raise :class:`ParameterError` for impossible requests; return self."""
+        if self.scores is not None:
+            n = pc.N_DIMS if self.k is None else int(self.k)
+            for idx, val in self.scores.items():
+                if isinstance(idx, bool) or not isinstance(idx, (int, np.integer)) \
+                        or not 0 <= idx < n:
+                    raise ParameterError(f"PCA component {idx!r}: expected an index 0..{n - 1} "
+                                         f"(the model's {n} sampled components)")
+                try:
+                    v = float(val)
+                except (TypeError, ValueError):
+                    v = float("nan")
+                if not (np.isfinite(v) and abs(v) <= MAX_SCORE):
+                    raise ParameterError(f"PCA component {idx} score {val!r}: expected a finite "
+                                         f"score in -{MAX_SCORE:g}..{MAX_SCORE:g} standard "
+                                         "deviations")
         if self.legs is not None and self.legs not in LEG_COUNTS:
             raise ParameterError(f"legs={self.legs}: legs come in pairs with ground contact; "
                                  "expected 0, 2, 4 or 6")
@@ -187,10 +215,18 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> dic
             if opts.legs is None:
                 fixed[pc.DIM["legs"]] = float(table.legs[row]) / 4.0 / pc.SMALL
                 class_pick["legs"] = int(table.legs[row])
+    user = {int(i): float(v) * float(np.sqrt(model.eigenvalues[int(i)]))
+            for i, v in (opts.scores or {}).items()}
     if fixed or scores:
+        scores.update(user)  # the user's component scores win over the class target
         x = model.sample_conditional(rng, fixed, scores, opts.k, opts.temperature, opts.jitter)
     else:
         x = model.sample(rng, 1, opts.k, opts.temperature)[0]
+        if user:  # same draw as without scores; only the fixed components are replaced
+            z = model.project(x[None], opts.k)[0]
+            for i, v in user.items():
+                z[i] = v
+            x = model.reconstruct(z)
     raw = pc.decode(x, reparam=True)
     pts = raw["points"][0]
     lengths = np.clip(raw["lengths"][0], 0.0, None)
@@ -893,6 +929,8 @@ def _options_dict(opts: Options) -> dict[str, Any]:
     d = {k: getattr(opts, k) for k in ("legs", "wings", "arms", "centaur", "weight",
                                        "neck_length", "tail_length", "cls", "k", "temperature",
                                        "jitter", "stand_fraction", "require_stable")}
+    if opts.scores is not None:
+        d["scores"] = {str(i): float(v) for i, v in sorted(opts.scores.items())}
     d["descent"] = dict(vars(opts.descent))
     return d
 
