@@ -1,5 +1,6 @@
-"""Creature tab in a real browser: parameters, steps (next/undo/re-roll/limb type), centre
-of mass and support polygon, exports GLB/BVH/OSIM, errors shown in the page."""
+"""Creature tab in a real browser: parameters (incl. a PCA score slider), steps
+(next/undo/re-roll/limb type), centre of mass and support polygon, exports GLB/BVH/OSIM,
+errors shown in the page."""
 
 from __future__ import annotations
 
@@ -27,6 +28,21 @@ def test_creature_tab(studio, tmp_path):
     assert tab.generator.options.seed == 11 and tab.generator.options.legs == 4
     assert "creature/parameters" in app.latency.summary()
     studio.expect_text("Balance:")
+
+    # a PCA component slider fixes that score and regenerates (issue 7)
+    seeded = tab.creature
+    v1 = tab.version
+    studio.set_slider(tab.pcs[0], 2.5)
+    wait_for(lambda: tab.version > v1 and tab.creature is not seeded, what="the PC1 creature")
+    assert tab.generator.options.scores == {0: 2.5} and tab.generator.options.seed == 11
+    import numpy as np
+
+    from biomorph.creature.generator import _model
+
+    pca = _model(None)["pca"]
+    z = pca.project(np.asarray(tab.creature.params["features"])[None])[0]
+    assert abs(z[0] / np.sqrt(pca.eigenvalues[0]) - 2.5) < 1e-6
+    assert not np.allclose(tab.creature.params["features"], seeded.params["features"])
 
     # steps: a stepwise rebuild, undo, all steps
     studio.click("Next step")

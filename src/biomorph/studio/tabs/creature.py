@@ -15,6 +15,8 @@ from biomorph.studio.base import StudioTab
 from biomorph.studio.widgets import ExportRow
 
 AUTO = "auto"
+#: PCA components with a score slider (PC1 … PC6); 0 on a slider = sampled.
+N_PC_SLIDERS = 6
 LIMB_KINDS = ("leg", "arm", "wing", "fin")
 
 
@@ -66,8 +68,14 @@ class CreatureTab(StudioTab):
                                               initial_value=1.0,
                                               hint="Variance scale of the PCA sample (0 = "
                                                    "the mean animal).")
+            self.pcs = tuple(
+                gui.add_slider(f"PC{i + 1} score (0 = sampled)", min=-3.0, max=3.0, step=0.1,
+                               initial_value=0.0,
+                               hint=f"Fix principal component {i + 1} at this many standard "
+                                    "deviations; 0 leaves it sampled.")
+                for i in range(N_PC_SLIDERS))
             params = (self.seed, self.cls, self.legs, self.wings, self.arms, self.centaur,
-                      self.weight, self.neck, self.tail, self.k, self.temperature)
+                      self.weight, self.neck, self.tail, self.k, self.temperature, *self.pcs)
             for h in params:
                 h.on_update(self.live("parameters", self.generate))
         self.steps = gui.add_button_group("Steps", ("Next step", "Undo", "All steps"))
@@ -101,6 +109,7 @@ class CreatureTab(StudioTab):
 
         wings = {"yes": True, "no": False}.get(self.wings.value)
         legs = opt(self.legs.value)
+        scores = {i: float(h.value) for i, h in enumerate(self.pcs) if float(h.value) != 0.0}
         return Options(seed=int(self.seed.value), cls=opt(self.cls.value),
                        legs=None if legs is None else int(legs), wings=wings,
                        arms=bool(self.arms.value), centaur=bool(self.centaur.value),
@@ -108,7 +117,8 @@ class CreatureTab(StudioTab):
                        neck_length=None if self.neck.value < 0 else float(self.neck.value),
                        tail_length=None if self.tail.value < 0 else float(self.tail.value),
                        k=None if int(self.k.value) >= 29 else int(self.k.value),
-                       temperature=float(self.temperature.value)).validate()
+                       temperature=float(self.temperature.value),
+                       scores=scores or None).validate()
 
     def generate(self) -> None:
         """A new generator from the parameters, run to the end, drawn."""
