@@ -182,6 +182,19 @@ def _slerp(ax, ay, az, aw, bx, by, bz, bw, t):  # pragma: no cover - compiled
     return x / n, y / n, z / n, w / n
 
 
+@njit(cache=True, inline="always")
+def _store_continuous(out, k, j, x, y, z, w):  # pragma: no cover - compiled
+    """``out[k, j] = ±(x, y, z, w)``, the sign that keeps joint ``j`` in the hemisphere of
+    frame ``k - 1`` (continuity along k)."""
+    if k > 0 and (x * out[k - 1, j, 0] + y * out[k - 1, j, 1] + z * out[k - 1, j, 2]
+                  + w * out[k - 1, j, 3]) < 0:
+        x, y, z, w = -x, -y, -z, -w
+    out[k, j, 0] = x
+    out[k, j, 1] = y
+    out[k, j, 2] = z
+    out[k, j, 3] = w
+
+
 @njit(cache=True)
 def sample_slerp(rot, i0, frac, out):  # pragma: no cover - compiled
     """``out[k, j] = slerp(rot[i0[k], j], rot[i0[k]+1, j], frac[k])`` (exact at frac 0/1),
@@ -194,13 +207,7 @@ def sample_slerp(rot, i0, frac, out):  # pragma: no cover - compiled
         for j in range(rot.shape[1]):
             x, y, z, w = _slerp(rot[a, j, 0], rot[a, j, 1], rot[a, j, 2], rot[a, j, 3],
                                 rot[b, j, 0], rot[b, j, 1], rot[b, j, 2], rot[b, j, 3], t)
-            if k > 0 and (x * out[k - 1, j, 0] + y * out[k - 1, j, 1] + z * out[k - 1, j, 2]
-                          + w * out[k - 1, j, 3]) < 0:
-                x, y, z, w = -x, -y, -z, -w
-            out[k, j, 0] = x
-            out[k, j, 1] = y
-            out[k, j, 2] = z
-            out[k, j, 3] = w
+            _store_continuous(out, k, j, x, y, z, w)
 
 
 @njit(cache=True)
@@ -211,13 +218,7 @@ def blend_slerp(qa, qb, wb, out):  # pragma: no cover - compiled
         for j in range(qa.shape[1]):
             x, y, z, w = _slerp(qa[k, j, 0], qa[k, j, 1], qa[k, j, 2], qa[k, j, 3],
                                 qb[k, j, 0], qb[k, j, 1], qb[k, j, 2], qb[k, j, 3], t)
-            if k > 0 and (x * out[k - 1, j, 0] + y * out[k - 1, j, 1] + z * out[k - 1, j, 2]
-                          + w * out[k - 1, j, 3]) < 0:
-                x, y, z, w = -x, -y, -z, -w
-            out[k, j, 0] = x
-            out[k, j, 1] = y
-            out[k, j, 2] = z
-            out[k, j, 3] = w
+            _store_continuous(out, k, j, x, y, z, w)
 
 
 @njit(cache=True)
@@ -398,13 +399,7 @@ def blend_average(q, w, out):  # pragma: no cover - compiled
                     ww += s * q[i, k, j, 3]
                 nrm = np.sqrt(x * x + y * y + z * z + ww * ww)
                 x, y, z, ww = x / nrm, y / nrm, z / nrm, ww / nrm
-            if k > 0 and (x * out[k - 1, j, 0] + y * out[k - 1, j, 1] + z * out[k - 1, j, 2]
-                          + ww * out[k - 1, j, 3]) < 0:
-                x, y, z, ww = -x, -y, -z, -ww
-            out[k, j, 0] = x
-            out[k, j, 1] = y
-            out[k, j, 2] = z
-            out[k, j, 3] = ww
+            _store_continuous(out, k, j, x, y, z, ww)
 
 
 @njit(cache=True)
@@ -499,10 +494,4 @@ def blend_average_sampled(rot, start, length, i0, frac, w, out):  # pragma: no c
                     ww += s * qw
                 nrm = np.sqrt(x * x + y * y + z * z + ww * ww)
                 x, y, z, ww = x / nrm, y / nrm, z / nrm, ww / nrm
-            if k > 0 and (x * out[k - 1, j, 0] + y * out[k - 1, j, 1] + z * out[k - 1, j, 2]
-                          + ww * out[k - 1, j, 3]) < 0:
-                x, y, z, ww = -x, -y, -z, -ww
-            out[k, j, 0] = x
-            out[k, j, 1] = y
-            out[k, j, 2] = z
-            out[k, j, 3] = ww
+            _store_continuous(out, k, j, x, y, z, ww)
