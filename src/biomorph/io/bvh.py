@@ -42,6 +42,7 @@ from numba import njit, prange
 from biomorph.core import transforms as tf
 from biomorph.core.skeleton import JointSkeleton
 from biomorph.errors import FormatError, InputError, ParameterError
+from biomorph.io._fixed import emit_fixed
 from biomorph.io.atomic import atomic_path
 
 _CHANNELS = {c.lower(): c for c in ("Xposition", "Yposition", "Zposition",
@@ -274,32 +275,9 @@ def _format_fixed(values, precision, out):  # pragma: no cover - compiled
             a = abs(v)
             if not a < 1e12:
                 return -1
-            x = np.int64(np.floor(a * scale + 0.5))
-            if v < 0 and x != 0:
-                out[pos] = 45
-                pos += 1
+            x = np.int64(np.floor(a * scale + 0.5))  # half-up on the scaled value
             ip = x // p10
-            fp = x - ip * p10
-            nd = 0
-            if ip == 0:
-                digits[0] = 48
-                nd = 1
-            while ip > 0:
-                digits[nd] = 48 + ip % 10
-                ip //= 10
-                nd += 1
-            for q in range(nd - 1, -1, -1):
-                out[pos] = digits[q]
-                pos += 1
-            if precision > 0:
-                out[pos] = 46
-                pos += 1
-                for q in range(precision - 1, -1, -1):
-                    d = fp
-                    for _ in range(q):
-                        d //= 10
-                    out[pos] = 48 + d % 10
-                    pos += 1
+            pos = emit_fixed(out, pos, v < 0 and x != 0, ip, x - ip * p10, precision, digits)
             out[pos] = 32 if j < c - 1 else 10
             pos += 1
     return pos

@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import FormatError, InputError
+from biomorph.io._fixed import emit_fixed
 from biomorph.io.atomic import write_bytes
 
 PathLike = str | os.PathLike[str]
@@ -535,29 +536,7 @@ def _fixed_kernel(floats, ints, kinds, precision, sep):  # pragma: no cover - co
                 ip = q // p10
                 fp = q % p10
                 frac_digits = precision
-            if neg:
-                out[pos] = 45
-                pos += 1
-            nd = 0
-            if ip == 0:
-                digits[0] = 48
-                nd = 1
-            while ip > 0:
-                digits[nd] = 48 + ip % 10
-                ip //= 10
-                nd += 1
-            for k in range(nd - 1, -1, -1):
-                out[pos] = digits[k]
-                pos += 1
-            if frac_digits > 0:
-                out[pos] = 46
-                pos += 1
-                for k in range(frac_digits - 1, -1, -1):
-                    digits[k] = 48 + fp % 10
-                    fp //= 10
-                for k in range(frac_digits):
-                    out[pos] = digits[k]
-                    pos += 1
+            pos = emit_fixed(out, pos, neg, ip, fp, frac_digits, digits)
         out[pos] = 10
         pos += 1
     return out, pos
