@@ -14,7 +14,7 @@ from biomorph.motion.align import dtw_path, local_maxima, peak_offset
 from biomorph.motion.blend import plan
 from biomorph.motion.equalizer import KERNEL, bands, equalize_signal
 from biomorph.motion.keys import parse_keys
-from biomorph.motion.synthetic import walk
+from biomorph.motion.synthetic import spin, walk
 from tests.conftest import shared_file
 
 
@@ -218,6 +218,46 @@ def test_equalizer_kernel_matches_numpy_reference():
     got = bm.equalize(m, gains, channels="rotation").rotation
     err = np.minimum(np.abs(got - expect).max(axis=-1), np.abs(got + expect).max(axis=-1))
     assert err.max() < 1e-12
+
+
+def _unwrap_rotvec(u: np.ndarray) -> np.ndarray:
+    """Per joint, replace u[t] by u[t] + 2πk·û[t] (k in -2..2) nearest u[t-1] (NumPy)."""
+    out = u.copy()
+    for t in range(1, len(u)):
+        ang = np.linalg.norm(u[t], axis=-1, keepdims=True)
+        axis = u[t] / np.where(ang > 1e-9, ang, 1.0)
+        cand = u[t][None] + 2 * np.pi * np.arange(-2, 3)[:, None, None] * axis[None]
+        best = np.argmin(((cand - out[t - 1][None]) ** 2).sum(-1), axis=0)
+        out[t] = np.where(ang > 1e-9, cand[best, np.arange(u.shape[1])], u[t])
+    return out
+
+
+@pytest.mark.parametrize("glast", [0.8, 1.6])
+def test_equalizer_kernel_scales_the_reference_like_numpy(glast):
+    """With a last gain g ≠ 1 the compiled path also scales the reference about its mean
+    M: R' = M·exp(g·unwrap(log(M⁻¹R))). Checked against NumPy on a walk plus a joint that
+    spins 1.5 turns (its log map about M passes 180°, so the unwrap matters)."""
+    from biomorph.motion.equalizer import smooth_reference
+
+    m = walk(300, 60, n_joints=8, noise_deg=2.0)
+    spinning = spin(300, 60, turns=1.5)
+    q = np.array(m.rotation)
+    q[:, 3] = spinning.rotation[:, 0]
+    m = m.with_(rotation=q)
+    gains = [0.2, 0.7, 1.3, 1.1, glast]
+    ref = smooth_reference(q, len(gains) - 1)
+    x = tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(ref), q))
+    x2 = equalize_signal(x.reshape(len(q), -1), gains).reshape(x.shape)
+    mean = ref.sum(axis=0)
+    mean /= np.linalg.norm(mean, axis=-1, keepdims=True)
+    u = tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(mean)[None], ref))
+    u = _unwrap_rotvec(u)
+    assert np.abs(u[:, 3]).max() > np.pi  # the spinning joint really needs the unwrap
+    ref2 = tf.quat_multiply(mean[None], tf.quat_from_rotvec(glast * u))
+    expect = tf.quat_multiply(ref2, tf.quat_from_rotvec(x2))
+    got = bm.equalize(m, gains, channels="rotation").rotation
+    err = np.minimum(np.abs(got - expect).max(axis=-1), np.abs(got + expect).max(axis=-1))
+    assert err.max() < 1e-10
 
 
 @pytest.mark.parametrize("scales", [(1.0, 1.0, 1.0), (1.3, 0.7, 2.1)])

@@ -131,11 +131,12 @@ def _qlog(x, y, z, w):  # pragma: no cover - compiled
 
 @njit(cache=True, inline="always")
 def _qexp(rx, ry, rz):  # pragma: no cover - compiled
-    """Unit quaternion of a rotation vector; half angles below 0.1 rad use the Taylor series
-    of cos(h) and sin(h)/h (error < 1e-20), larger ones sin/cos."""
+    """Unit quaternion of a rotation vector; half angles below 0.5 rad (rotations below 57°)
+    use the Taylor series of cos(h) and sin(h)/h to h^14 (truncation < h^16/16! < 1e-18,
+    below double rounding), larger ones sin/cos."""
     a2 = rx * rx + ry * ry + rz * rz
     u = 0.25 * a2  # (a/2)^2
-    if u < 0.01:
+    if u < 0.25:
         c = 1.0 - u / 182.0
         c = 1.0 - u / 132.0 * c
         c = 1.0 - u / 90.0 * c
@@ -262,8 +263,8 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
 
     reference ``R`` = normalised double box filter (radius ``radius``) of the continuous
     quaternions; ``x = log(R⁻¹ q)``; x filtered with the gains (telescoped reconstruction);
-    if the last gain is not 1, ``R' = M exp(g_K log(M⁻¹ R))`` about the mean ``M``;
-    ``out = R' exp(x')`` made hemisphere-continuous."""
+    if the last gain is not 1, ``R' = M exp(g_K log(M⁻¹ R))`` about the mean ``M``, computed
+    in the output loop; ``out = R' exp(x')`` made hemisphere-continuous."""
     f, nj = q.shape[0], q.shape[1]
     levels = gains.size - 1
     glast = gains[levels]
@@ -316,7 +317,8 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
                         xo[c, i] += dg * nxt[i]
                 cur, nxt = nxt, cur
                 step *= 2
-        if glast != 1.0:
+        scale_ref = glast != 1.0
+        if scale_ref:
             mn = np.sqrt(mx * mx + my * my + mz * mz + mw * mw)
             if mn > 1e-12:
                 mx /= mn
@@ -325,38 +327,38 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
                 mw /= mn
             else:
                 mx, my, mz, mw = 0.0, 0.0, 0.0, 1.0
-            px, py, pz = 0.0, 0.0, 0.0
-            for i in range(f):
-                a, b, cc, d = _qmul(-mx, -my, -mz, mw, ref[i, 0], ref[i, 1], ref[i, 2],
-                                    ref[i, 3])
-                ux, uy, uz = _qlog(a, b, cc, d)
-                # unwrap the log map over time: u + 2πk·û is the same rotation; take the
-                # representative nearest the previous frame (a joint may turn past 180°)
-                ang = np.sqrt(ux * ux + uy * uy + uz * uz)
-                if i > 0 and ang > 1e-9:
-                    nx, ny, nz = ux / ang, uy / ang, uz / ang
-                    best = 1e300
-                    bx, by, bz = ux, uy, uz
-                    for kk in range(-2, 3):
-                        cx = ux + 2 * np.pi * kk * nx
-                        cy = uy + 2 * np.pi * kk * ny
-                        cz = uz + 2 * np.pi * kk * nz
-                        dd = (cx - px) ** 2 + (cy - py) ** 2 + (cz - pz) ** 2
-                        if dd < best:
-                            best = dd
-                            bx, by, bz = cx, cy, cz
-                    ux, uy, uz = bx, by, bz
-                px, py, pz = ux, uy, uz
-                ex, ey, ez, ew = _qexp(glast * ux, glast * uy, glast * uz)
-                a, b, cc, d = _qmul(mx, my, mz, mw, ex, ey, ez, ew)
-                ref[i, 0] = a
-                ref[i, 1] = b
-                ref[i, 2] = cc
-                ref[i, 3] = d
+        px, py, pz = 0.0, 0.0, 0.0  # previous unwrapped log(M⁻¹R)
         ox, oy, oz, ow = 0.0, 0.0, 0.0, 0.0  # previous output (continuity, in registers)
         for i in range(f):
+            rx_, ry_, rz_, rw_ = ref[i, 0], ref[i, 1], ref[i, 2], ref[i, 3]
+            if scale_ref:
+                # R' = M exp(g_K u), u = log(M⁻¹R) unwrapped over time
+                a, b, cc, d = _qmul(-mx, -my, -mz, mw, rx_, ry_, rz_, rw_)
+                ux, uy, uz = _qlog(a, b, cc, d)
+                # u + 2πk·û is the same rotation; keep the representative nearest the
+                # previous frame (a joint may turn past 180°). When |u − p| ≤ π, u itself is
+                # the nearest (every other candidate is 2π from u), so the search is skipped
+                dd0 = (ux - px) ** 2 + (uy - py) ** 2 + (uz - pz) ** 2
+                if i > 0 and dd0 > np.pi * np.pi:
+                    ang = np.sqrt(ux * ux + uy * uy + uz * uz)
+                    if ang > 1e-9:
+                        nx, ny, nz = ux / ang, uy / ang, uz / ang
+                        best = dd0
+                        bx, by, bz = ux, uy, uz
+                        for kk in (-2, -1, 1, 2):
+                            cx = ux + 2 * np.pi * kk * nx
+                            cy = uy + 2 * np.pi * kk * ny
+                            cz = uz + 2 * np.pi * kk * nz
+                            dd = (cx - px) ** 2 + (cy - py) ** 2 + (cz - pz) ** 2
+                            if dd < best:
+                                best = dd
+                                bx, by, bz = cx, cy, cz
+                        ux, uy, uz = bx, by, bz
+                px, py, pz = ux, uy, uz
+                ex, ey, ez, ew = _qexp(glast * ux, glast * uy, glast * uz)
+                rx_, ry_, rz_, rw_ = _qmul(mx, my, mz, mw, ex, ey, ez, ew)
             ex, ey, ez, ew = _qexp(xo[0, i], xo[1, i], xo[2, i])
-            x, y, z, w = _qmul(ref[i, 0], ref[i, 1], ref[i, 2], ref[i, 3], ex, ey, ez, ew)
+            x, y, z, w = _qmul(rx_, ry_, rz_, rw_, ex, ey, ez, ew)
             if i > 0 and (x * ox + y * oy + z * oz + w * ow) < 0:
                 x, y, z, w = -x, -y, -z, -w
             ox, oy, oz, ow = x, y, z, w
