@@ -74,6 +74,12 @@ def test_missing_file_and_bad_parameters(tmp_path, good_xyz, capsys):
                 "--out", str(tmp_path / "o")]) == 2
     assert run(["tree", "skeletonize", str(good_xyz), "--filter", "Deviation",
                 "--out", str(tmp_path / "o")]) == 2
+    assert run(["tree", "skeletonize", str(good_xyz), "--foliage", "0.5",
+                "--out", str(tmp_path / "o")]) == 2
+    assert "--foliage must be 0 (off) or a factor > 1" in capsys.readouterr().err
+    assert run(["tree", "skeletonize", str(good_xyz), "--edge-weights", "heavy",
+                "--out", str(tmp_path / "o")]) == 2
+    assert "edge_weights 'heavy'" in capsys.readouterr().err
     capsys.readouterr()
     assert _nothing_written(tmp_path / "o")
 
@@ -85,6 +91,14 @@ def test_skeletonize_json_and_outputs(good_xyz, tmp_path, capsys):
     assert code == 0
     data = json.loads(capsys.readouterr().out)
     assert data["method"] == "graph" and data["metrics"]["nob"] == 3
+    assert data["params"]["foliage"] == 3.0 and data["params"]["edge_weights"] == "livny"
+    # foliage separation off, the paper's alternative weights: still the same Y
+    out2 = tmp_path / "out2"
+    assert run(["tree", "skeletonize", str(good_xyz), "--out", str(out2), "--json",
+                "--no-ground", "--foliage", "0", "--edge-weights", "branch"]) == 0
+    data2 = json.loads(capsys.readouterr().out)
+    assert data2["params"]["foliage"] is None and data2["params"]["edge_weights"] == "branch"
+    assert data2["metrics"]["nob"] == 3
     for name in ("skeleton.ply", "skeleton.mtg", "tube.glb", "tube.obj", "cylinders.csv",
                  "summary.json", "preview.png"):
         assert (out / name).is_file(), name

@@ -261,3 +261,49 @@ def test_densify_and_extend_tips():
     pts = np.column_stack([np.zeros(50), np.zeros(50), np.linspace(0, 1.2, 50)])
     e = livny.extend_tips(g, pts, reach=0.5)
     assert e.position[1, 2] == pytest.approx(1.2, abs=0.05)
+
+
+def _fork(n_trunk=30, n_twig=6):
+    """A vertical trunk chain (0.1 m steps) with a horizontal twig leaving node 10."""
+    trunk = np.column_stack([np.zeros(n_trunk), np.zeros(n_trunk), 0.1 * np.arange(n_trunk)])
+    twig = trunk[10] + np.column_stack([0.05 * np.arange(1, n_twig + 1), np.zeros(n_twig),
+                                        np.zeros(n_twig)])
+    pos = np.vstack([trunk, twig])
+    parent = np.concatenate([[-1], np.arange(n_trunk - 1), [10],
+                             n_trunk + np.arange(n_twig - 1)])
+    return parent, pos
+
+
+def test_branch_edge_weights_keep_a_twig_on_its_points():
+    """The seed's pair weight (c_p + c_v)/2 pulls a twig's first edge to the trunk's
+    orientation, so the refined twig swings away from its points (6.5 cm here); the
+    ``branch`` weights (each edge weighted by the length it carries) move it far less."""
+    parent, pos = _fork()
+    c = livny.importance_weights(parent, pos)
+    twig = np.arange(30, 36)
+    moved = {}
+    for scheme in ("livny", "branch"):
+        o = livny.orientation_field(parent, pos, c, edge_weights=scheme)
+        x = livny.refine_positions(parent, pos, c, o, edge_weights=scheme)
+        moved[scheme] = np.linalg.norm(x[twig] - pos[twig], axis=1).max()
+    assert moved["branch"] < 0.03                    # 5 cm twig steps
+    assert moved["livny"] > 2 * moved["branch"]
+
+
+def test_branch_weights_solve_their_own_objective_exactly():
+    parent, pos = random_tree(150, seed=4)
+    c = livny.importance_weights(parent, pos)
+    w = c + livny._edge_length(parent, pos)          # c̃: the length each edge carries
+    ch = parent >= 0
+    for diag, off, rhs in (livny.orientation_system(parent, pos, c, "branch"),):
+        a = livny.tree_matrix(parent, diag, off)
+        ref = np.column_stack([spsolve(a.tocsc(), rhs[:, j]) for j in range(3)])
+        assert np.allclose(livny.solve_tree_system(parent, diag, off, rhs), ref, rtol=1e-8,
+                           atol=1e-10)
+    # the ΣE weight of every edge is c̃ of its child
+    diag, _, rhs = livny.orientation_system(parent, pos, c, "branch")
+    e = pos[ch] - pos[parent[ch]]
+    e /= np.linalg.norm(e, axis=1)[:, None]
+    assert np.allclose(rhs[ch], (w[ch] ** 2)[:, None] * e)
+    with pytest.raises(ParameterError, match="edge_weights"):
+        livny.orientation_system(parent, pos, c, "heavy")
