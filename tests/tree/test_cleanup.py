@@ -112,3 +112,30 @@ def test_prune_small_trees():
     g = BranchGraph(pos, np.array([-1, 0, -1, 2]))
     out = cl.prune_small_trees(g, 0.5)
     assert out.n_nodes == 2
+
+
+def test_smooth_chains_removes_zigzag_and_keeps_ends():
+    from biomorph.tree.cleanup import smooth_chains
+
+    n = 41
+    z = np.linspace(0, 2, n)
+    straight = np.column_stack([np.zeros(n), np.zeros(n), z])
+    parent = np.arange(-1, n - 1)
+    g = BranchGraph(straight, parent)
+    # a straight, evenly spaced chain is a fixed point
+    assert np.allclose(smooth_chains(g, 3).position, straight, atol=1e-15)
+    # an alternating ±5 mm zig-zag on 5 cm steps: two sweeps remove it and its extra length
+    zig = straight + np.column_stack([0.005 * (-1.0) ** np.arange(n), np.zeros(n),
+                                      np.zeros(n)])
+    zig[0, 0] = zig[-1, 0] = 0.0
+    gz = BranchGraph(zig, parent)
+    sm = smooth_chains(gz, 2)
+    assert gz.total_length > 2.009                      # the zig-zag is 0.5 % longer
+    assert sm.total_length == pytest.approx(2.0, abs=1e-3)
+    assert np.allclose(sm.position[[0, -1]], zig[[0, -1]])  # root and tip stay
+    # forks stay too
+    fork_parent = np.array([-1, 0, 1, 1])
+    fork = np.array([[0, 0, 0], [0, 0, 1.0], [1, 0, 2], [-1, 0, 2]])
+    assert np.array_equal(smooth_chains(BranchGraph(fork, fork_parent), 2).position, fork)
+    with pytest.raises(ParameterError):
+        smooth_chains(g, -1)

@@ -35,7 +35,10 @@ def test_rtwig_agrees_with_the_simpleforest_qsm(rtwig):
     cloud, qsm, skel = rtwig
     c = compare_to_reference(skel.world_graph(), qsm, tolerance=0.05)
     assert c["f1"] >= 0.85
-    assert 0.85 <= c["length_ratio"] <= 1.15
+    # SimpleForest models short twigs our cleanup drops (tips ~40 vs 69): the skeleton has
+    # 80-90 % of the QSM's length once the re-centred nodes' zig-zag is smoothed out
+    # (without smoothing the zig-zag added ~18 % and the ratio was ~1.0 by compensation)
+    assert 0.80 <= c["length_ratio"] <= 1.15
     assert c["base_radius"] == pytest.approx(c["base_radius_reference"], rel=0.15)
     assert c["radius_profile_error"] < 0.25
     assert c["tips_ratio"] >= 0.5

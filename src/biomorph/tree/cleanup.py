@@ -27,7 +27,7 @@ from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 
 __all__ = ["remove_false_branches", "collapse_overlaps", "cleanup", "cleanup_skeleton",
-           "axis_inside_fraction",
+           "axis_inside_fraction", "smooth_chains",
            "prune_small_trees"]
 
 
@@ -239,6 +239,37 @@ def cleanup(graph: BranchGraph, *, radius_ratio: float = 0.5, length_factor: flo
         if g.n_nodes == n0:
             break
     return g.with_(weight=g.subtree_length())
+
+
+def smooth_chains(graph: BranchGraph, iterations: int = 2) -> BranchGraph:
+    """Smooth the skeleton along its branches: every node with a parent and exactly one
+    child moves to ``(p + 2 v + c) / 4``, ``iterations`` times (Jacobi sweeps); roots,
+    forks and tips stay where they are.
+
+    Why: vertices are centroids of point pieces (or fitted circle centres after
+    re-centring), each off the branch axis by a few millimetres of noise. Such a zig-zag
+    adds length quadratically in the lateral noise over the node spacing: on the synthetic
+    presets it inflated TBL by up to 11 % (conifer); two sweeps remove it (98–105 %) and
+    raise skeleton F1. A straight, evenly spaced chain is a fixed point (tested), and a
+    sweep moves a node of a circular arc inwards by ``(1 − cos θ) / 2`` of the radius
+    (θ the angle per edge), well below the node spacing.
+    """
+    if iterations < 0:
+        raise ParameterError(f"smoothing iterations must be >= 0, got {iterations}")
+    if iterations == 0 or graph.n_nodes < 3:
+        return graph
+    par = graph.parent
+    inner = np.flatnonzero((par >= 0) & (graph.n_children == 1))
+    if inner.size == 0:
+        return graph
+    child = np.full(graph.n_nodes, -1, dtype=np.int64)
+    ch = np.flatnonzero(par >= 0)
+    child[par[ch]] = ch                   # the only child, for one-child nodes
+    pos = graph.position.copy()
+    pi, ci = par[inner], child[inner]
+    for _ in range(iterations):
+        pos[inner] = 0.25 * pos[pi] + 0.5 * pos[inner] + 0.25 * pos[ci]
+    return graph.with_(position=pos)
 
 
 #: alias exported by :mod:`biomorph.tree` (``cleanup`` is also the module's name there)

@@ -29,9 +29,9 @@ __all__ = ["TreeSkeleton", "skeletonize", "METHODS", "load_cloud", "remove_spars
 METHODS = ("graph", "voxel")
 #: default shortest side tip kept by the graph method's cleanup, in node spacings: shorter
 #: tips are range-noise spurs or foliage remnants. Measured on the synthetic presets (clean
-#: and noisy leafy scans, with foliage separation): NOB 87–105 % of the truth at 2.5,
-#: 89–112 % at 2, 84–102 % at 3 (bench/tree.py)
-TIP_LENGTH = 2.5
+#: and noisy leafy scans, foliage separation, chain smoothing): NOB 92–116 % of the truth
+#: at 3; 1.5 gave up to 159 % (bench/tree.py, docs/tree.md)
+TIP_LENGTH = 3.0
 
 
 @dataclass
@@ -149,6 +149,7 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
                 foliage: float | None = 3.0, foliage_passes: int = 2,
                 # extensions
                 radius: str = "fit", recentre: bool = True, search_factor: float = 1.5,
+                smooth: int = 2,
                 order_share: float = 0.5, order_angle: float = np.radians(45.0),
                 progress: Any = None) -> TreeSkeleton:
     """Skeletonise a tree (or a plot of trees) with the graph or the voxel method.
@@ -163,7 +164,7 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
     n_trees … allometry_exponent, edge_weights : :func:`biomorph.tree.livny.skeletonize_graph`.
     cleanup, radius_ratio, length_factor, overlap, min_branch_length :
         :func:`biomorph.tree.cleanup.cleanup` (``min_branch_length`` defaults to
-        ``TIP_LENGTH`` = 2.5 node spacings for the graph method, 1.5 voxels for the voxel
+        ``TIP_LENGTH`` = 3 node spacings for the graph method, 1.5 voxels for the voxel
         method: side tips shorter than that are scan noise or foliage).
     foliage, foliage_passes : leaf/wood separation before skeletonising
         (:func:`biomorph.tree.foliage.separate_foliage`): points whose neighbourhood is
@@ -175,6 +176,7 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
     voxel : keyword arguments of ``skeletonize_voxel`` (e.g. ``{"cell_size": 0.05}``).
     radius : ``"fit"`` (RANSAC circles, :mod:`~biomorph.tree.radius`) or ``"allometric"``.
     recentre : move nodes to the fitted circle centres.
+    smooth : sweeps of :func:`biomorph.tree.cleanup.smooth_chains` after the radii (0 = off).
     order_share, order_angle : branch-order rule (:mod:`~biomorph.tree.order`).
     progress : optional ``advance(n=1, description=None)`` callback (see
         :func:`biomorph.progress.task`).
@@ -297,7 +299,8 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
         graph = graph.with_(radius=livny.allometric_radii(
             graph.parent, graph.position, graph.subtree_length(), float(np.mean(d)),
             tree=graph.trees, exponent=allometry_exponent, order=graph.order))
-    params.update(radius=radius, recentre=recentre, search_factor=search_factor)
+    graph = tclean.smooth_chains(graph, smooth)
+    params.update(radius=radius, recentre=recentre, search_factor=search_factor, smooth=smooth)
     timings["radius_fit"] = time.perf_counter() - t0
     tick("radii")
 
