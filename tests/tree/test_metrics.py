@@ -75,3 +75,33 @@ def test_compare_identity_and_shifted():
     assert compare_to_truth(fat, t)["radius_error"] == pytest.approx(0.2)
     with pytest.raises(InputError):
         compare_to_truth(BranchGraph(np.zeros((0, 3)), []), t)
+
+
+def test_observed_truth_measures_leave_out_unscanned_branches():
+    """A scan that saw the stem and one branch only: 3.41 of 4.83 m of truth is observed;
+    a skeleton of exactly that part has TBL ratio 0.71 but observed TBL ratio 1 and
+    observed recall 1. Leaf and ground points do not count as observations."""
+    t = _fork()
+    rng = np.random.default_rng(0)
+    s = rng.uniform(0, 1, 600)
+    r = 0.2 - 0.1 * s                                      # the stem's true radius
+    stem = np.column_stack([r * np.cos(9 * s), r * np.sin(9 * s), 2 * s])
+    s2 = rng.uniform(0, 1, 300)
+    branch = np.array([0, 0, 2.0]) + s2[:, None] * np.array([1.0, 0, 1]) + [0, 0.05, 0]
+    leaves = np.array([-1, 0, 3.0]) + rng.normal(0, 0.01, (50, 3))  # on the other tip
+    xyz = np.vstack([stem, branch, leaves])
+    is_leaf = np.r_[np.zeros(900, bool), np.ones(50, bool)]
+    cloud = PointCloud(xyz, attributes={"is_leaf": is_leaf})
+    seen_part = t.subgraph(np.array([True, True, True, True, False]))
+    m = compare_to_truth(seen_part, t, tolerance=0.05, cloud=cloud)
+    frac = (2 + np.sqrt(2)) / (2 + 2 * np.sqrt(2))
+    # (the unseen branch's first few cm lie next to the seen points at the fork)
+    assert m["observed_fraction"] == pytest.approx(frac, abs=0.04)
+    assert m["tbl_ratio"] == pytest.approx(frac, abs=1e-9)
+    assert m["tbl_ratio_observed"] == pytest.approx(1.0, abs=0.06)
+    assert m["recall_observed"] == pytest.approx(1.0, abs=0.04)
+    assert "observed_fraction" not in compare_to_truth(seen_part, t, tolerance=0.05)
+    # the leaf points alone observe nothing of the wood
+    with pytest.raises(InputError, match="no wood points"):
+        compare_to_truth(seen_part, t, cloud=PointCloud(leaves,
+                                                        attributes={"is_leaf": is_leaf[900:]}))

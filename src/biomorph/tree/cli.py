@@ -186,7 +186,9 @@ def synth(
 def evaluate(
     skeleton: Annotated[Path, typer.Argument(help="Skeleton .ply or .mtg.")],
     truth: Annotated[Path | None, typer.Option(help="Ground-truth skeleton .ply/.mtg.")] = None,
-    cloud: Annotated[Path | None, typer.Option(help="Point cloud for the MSE.")] = None,
+    cloud: Annotated[Path | None, typer.Option(help="Point cloud for the MSE (and, with "
+                                                    "--truth, the observed-truth "
+                                                    "measures).")] = None,
     tolerance: Annotated[float | None, typer.Option(help="Match tolerance, m.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
@@ -204,7 +206,7 @@ def evaluate(
     res: dict[str, Any] = {"skeleton": str(skeleton), **skeleton_metrics(g, pc)}
     if truth is not None:
         res["truth"] = str(truth)
-        res["comparison"] = compare_to_truth(g, read_graph(truth), tolerance)
+        res["comparison"] = compare_to_truth(g, read_graph(truth), tolerance, cloud=pc)
     res = _jsonable(res)
     if as_json:
         from biomorph.cli import print_json

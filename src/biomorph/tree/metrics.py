@@ -183,7 +183,9 @@ def volume(graph: BranchGraph) -> float:
 
 
 def compare_to_truth(graph: BranchGraph, truth: BranchGraph, tolerance: float | None = None,
-                     *, step: float | None = None, thick: float = 0.03) -> dict:
+                     *, step: float | None = None, thick: float = 0.03,
+                     cloud: PointCloud | NDArray | None = None,
+                     observed_margin: float = 0.03) -> dict:
     """Compare a skeleton with a ground-truth skeleton in the same frame.
 
     Both are resampled every ``step`` metres (default ``tolerance / 4``). **Precision** is
@@ -196,6 +198,14 @@ def compare_to_truth(graph: BranchGraph, truth: BranchGraph, tolerance: float | 
     ``|r - r_true| / r_true`` over truth samples on branches thicker than ``thick`` m whose
     nearest skeleton sample is within tolerance), ``dbh`` / ``dbh_truth`` / ``dbh_error``
     (relative), ``volume`` / ``volume_truth`` / ``volume_error`` (relative).
+
+    With the scanned ``cloud`` (same frame; points labelled ``is_leaf``/``is_ground`` by
+    :func:`~biomorph.tree.synthetic.simulate_scan` are left out), the part of the truth the scan
+    saw at all is measured: a truth sample is *observed* when a point lies within its true
+    radius + ``observed_margin`` (3 cm) of it. Adds ``observed_fraction`` (length share),
+    ``tbl_ratio_observed`` (skeleton length / observed truth length) and ``recall_observed``
+    (recall over observed samples) — these separate the method's error from twigs that
+    occlusion or sparse sampling left without a single point.
     """
     if graph.n_nodes == 0:
         raise InputError("skeleton is empty; cannot compare with the truth")
@@ -229,6 +239,27 @@ def compare_to_truth(graph: BranchGraph, truth: BranchGraph, tolerance: float | 
         if m.any():
             out["radius_error"] = float(np.median(np.abs(rs[m] - rt[m]) / rt[m]))
             out["radius_samples"] = int(m.sum())
+    if cloud is not None:
+        if isinstance(cloud, PointCloud):
+            wood = np.ones(cloud.n_points, dtype=bool)
+            for name in ("is_leaf", "is_ground"):  # labels of simulated scans
+                if name in cloud.attributes:
+                    wood &= ~np.asarray(cloud.attributes[name]).astype(bool)
+            xyz = cloud.xyz[wood]
+        else:
+            xyz = np.asarray(cloud, dtype=float)
+        if xyz.ndim != 2 or xyz.shape[0] == 0:
+            raise InputError("cloud for the observed-truth measures has no wood points")
+        rt_all = (_interp_radius(truth, ect, tt) if truth.radius is not None
+                  else np.zeros(pt.shape[0]))
+        d_c, _ = cKDTree(xyz).query(pt, workers=-1)
+        seen = d_c <= rt_all + observed_margin
+        frac = float(seen.mean())
+        out.update(observed_fraction=frac,
+                   tbl_ratio_observed=graph.total_length / (truth.total_length * frac)
+                   if frac > 0 else float("nan"),
+                   recall_observed=float((d_t[seen] <= tolerance).mean()) if seen.any()
+                   else float("nan"))
     d_g, d_true = dbh(graph), dbh(truth)
     v_g, v_true = volume(graph), volume(truth)
     out.update(dbh=d_g, dbh_truth=d_true,
