@@ -74,3 +74,10 @@ def test_cap_down_limits_growth_toward_the_tips():
     g = _chain((0, 0, 0), (0, 0, 1), 5)
     r = rd.cap_down(g, np.array([0.1, 0.05, 0.5, 0.04, 0.2]), slack=1.0)
     assert np.allclose(r, [0.1, 0.05, 0.05, 0.04, 0.04])
+
+
+def test_cap_down_lets_a_stem_recover_from_one_low_node():
+    g = _chain((0, 0, 0), (0, 0, 1), 8)
+    r = rd.cap_down(g, np.array([0.2, 0.2, 0.1, 0.2, 0.2, 0.2, 0.2, 0.2]), slack=1.1)
+    assert np.allclose(r[:4], [0.2, 0.2, 0.1, 0.11])
+    assert np.allclose(r[-1], 0.1 * 1.1 ** 5) and np.all(np.diff(r[2:]) > 0)
