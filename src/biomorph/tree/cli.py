@@ -55,13 +55,13 @@ def _skeleton_kwargs(method: str, n_trees: int | None, node_spacing: float | Non
                      max_iter: int, cell_size: float | None, ground: bool, outliers: bool,
                      downsample: float | None, filter_spec: str | None, radius: str,
                      recentre: bool, order_angle: float, order_share: float, seed: int,
-                     clutter: float | None = None, foliage: float = 3.0,
+                     clutter: float | None = None, foliage: float | None = None,
                      edge_weights: str = "livny") -> dict[str, Any]:
     if order_angle <= 0 or order_angle > 180:
         raise ParameterError(f"--order-angle must lie in (0, 180] degrees, got {order_angle}")
     if downsample is not None and not 0 < downsample <= 1:
         raise ParameterError(f"--downsample must be a ratio in (0, 1], got {downsample}")
-    if foliage != 0 and not foliage > 1:
+    if foliage is not None and foliage != 0 and not foliage > 1:
         raise ParameterError(f"--foliage must be 0 (off) or a factor > 1, got {foliage}")
     kw: dict[str, Any] = dict(method=method, n_trees=n_trees, node_spacing=node_spacing, k=k,
                               max_iter=max_iter, ground="auto" if ground else None,
@@ -69,7 +69,8 @@ def _skeleton_kwargs(method: str, n_trees: int | None, node_spacing: float | Non
                               filter=_parse_filter(filter_spec), radius=radius,
                               recentre=recentre, order_angle=float(np.radians(order_angle)),
                               order_share=order_share, seed=seed, sparse_filter=clutter,
-                              foliage=foliage or None, edge_weights=edge_weights)
+                              foliage="auto" if foliage is None else (foliage or None),
+                              edge_weights=edge_weights)
     if cell_size is not None:
         kw["voxel"] = {"cell_size": cell_size}
     return kw
@@ -102,9 +103,11 @@ def skeletonize(
     clutter: Annotated[float | None, typer.Option(help="Drop sparse points (leaf clutter): "
                                                        "mean 16-NN distance > CLUTTER x "
                                                        "median, e.g. 4.")] = None,
-    foliage: Annotated[float, typer.Option(help="Leaf/wood separation: drop points whose "
-                                                "neighbourhood is thicker than FOLIAGE x "
-                                                "the median; 0 = off.")] = 3.0,
+    foliage: Annotated[float | None, typer.Option(help="Leaf/wood separation: drop points "
+                                                       "whose neighbourhood is thicker than "
+                                                       "FOLIAGE x the median; 0 = off "
+                                                       "[default: 3 (graph), off (voxel)].")
+                       ] = None,
     edge_weights: Annotated[str, typer.Option(help="Weights of Livny steps iv-v: livny (the "
                                                    "paper's) or branch.")] = "livny",
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
