@@ -256,29 +256,97 @@ def _box_edge4(src, dst, r):  # pragma: no cover - compiled
         a3 += src[hi, 3] - src[lo, 3]
 
 
+MEAN_LOG_COS = 0.7071067811865476  #: cos(45°): the mean-log path needs angles ≤ 90° about M
+
+
+@njit(cache=True, inline="always")
+def _filter_rows3(xs, xo, gains, mode, cur, nxt):  # pragma: no cover - compiled
+    """The telescoped filter bank on the three rows of ``xs (3, f)`` into ``xo``."""
+    f = xs.shape[1]
+    levels = gains.size - 1
+    for c in range(3):
+        for i in range(f):
+            cur[i] = xs[c, i]
+            xo[c, i] = gains[0] * cur[i]
+        step = 1
+        for k in range(levels):
+            lowpass_into(cur, nxt, step, mode)
+            dg = gains[k + 1] - gains[k]
+            if dg != 0.0:
+                for i in range(f):
+                    xo[c, i] += dg * nxt[i]
+            cur, nxt = nxt, cur
+            step *= 2
+
+
 @njit(cache=True, parallel=True)
 def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compiled
     """The equalizer's rotation path for every joint of ``q (f, J, 4)`` (each joint's column
-    is copied into a contiguous buffer first):
+    is copied into a contiguous buffer first). Per joint, one of two parametrisations:
 
-    reference ``R`` = normalised double box filter (radius ``radius``) of the continuous
-    quaternions; ``x = log(R⁻¹ q)``; x filtered with the gains (telescoped reconstruction);
-    if the last gain is not 1, ``R' = M exp(g_K log(M⁻¹ R))`` about the mean ``M``, computed
-    in the output loop; ``out = R' exp(x')`` made hemisphere-continuous."""
+    * **mean-log** — when every frame is within 90° of the joint's mean orientation ``M``
+      (normalised mean of the continuous quaternions): ``x = log(M⁻¹ q)``, all bands of x
+      (the last gain on the remaining low-pass) filtered, ``out = M exp(x')``.
+    * **reference** — otherwise (a joint turning far, e.g. the root's heading): reference
+      ``R`` = normalised double box filter (radius ``radius``) of the continuous
+      quaternions; ``x = log(R⁻¹ q)`` filtered; if the last gain is not 1,
+      ``R' = M exp(g_K log(M⁻¹ R))`` (log unwrapped over time); ``out = R' exp(x')``.
+
+    Output hemisphere-continuous."""
     f, nj = q.shape[0], q.shape[1]
     levels = gains.size - 1
     glast = gains[levels]
     for j in prange(nj):  # joints are independent: one per thread
-        tmp4 = np.empty((f, 4))
-        ref = np.empty((f, 4))
         xs = np.empty((3, f))
         xo = np.empty((3, f))
         cur = np.empty(f)
         nxt = np.empty(f)
         qj = np.empty((f, 4))
+        mx = 0.0
+        my = 0.0
+        mz = 0.0
+        mw = 0.0
         for i in range(f):
             for c in range(4):
                 qj[i, c] = q[i, j, c]
+            mx += qj[i, 0]
+            my += qj[i, 1]
+            mz += qj[i, 2]
+            mw += qj[i, 3]
+        mn = np.sqrt(mx * mx + my * my + mz * mz + mw * mw)
+        mean_log = mn > 0.5 * f
+        if mean_log:
+            mx /= mn
+            my /= mn
+            mz /= mn
+            mw /= mn
+            for i in range(f):
+                d = abs(mx * qj[i, 0] + my * qj[i, 1] + mz * qj[i, 2] + mw * qj[i, 3])
+                if d < MEAN_LOG_COS:
+                    mean_log = False
+                    break
+        if mean_log:
+            for i in range(f):
+                a, b, cc, d = _qmul(-mx, -my, -mz, mw, qj[i, 0], qj[i, 1], qj[i, 2], qj[i, 3])
+                rx, ry, rz = _qlog(a, b, cc, d)
+                xs[0, i] = rx
+                xs[1, i] = ry
+                xs[2, i] = rz
+            _filter_rows3(xs, xo, gains, mode, cur, nxt)
+            ox, oy, oz, ow = 0.0, 0.0, 0.0, 0.0
+            for i in range(f):
+                ex, ey, ez, ew = _qexp(xo[0, i], xo[1, i], xo[2, i])
+                x, y, z, w = _qmul(mx, my, mz, mw, ex, ey, ez, ew)
+                if i > 0 and (x * ox + y * oy + z * oz + w * ow) < 0:
+                    x, y, z, w = -x, -y, -z, -w
+                ox, oy, oz, ow = x, y, z, w
+                out[i, j, 0] = x
+                out[i, j, 1] = y
+                out[i, j, 2] = z
+                out[i, j, 3] = w
+            continue
+        tmp4 = np.empty((f, 4))
+        ref = np.empty((f, 4))
         _box_edge4(qj, tmp4, radius)
         _box_edge4(tmp4, ref, radius)
         mx = 0.0
@@ -304,19 +372,7 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
             xs[0, i] = rx
             xs[1, i] = ry
             xs[2, i] = rz
-        for c in range(3):
-            for i in range(f):
-                cur[i] = xs[c, i]
-                xo[c, i] = gains[0] * cur[i]
-            step = 1
-            for k in range(levels):
-                lowpass_into(cur, nxt, step, mode)
-                dg = gains[k + 1] - gains[k]
-                if dg != 0.0:
-                    for i in range(f):
-                        xo[c, i] += dg * nxt[i]
-                cur, nxt = nxt, cur
-                step *= 2
+        _filter_rows3(xs, xo, gains, mode, cur, nxt)
         scale_ref = glast != 1.0
         if scale_ref:
             mn = np.sqrt(mx * mx + my * my + mz * mz + mw * mw)
