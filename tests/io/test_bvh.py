@@ -260,3 +260,50 @@ def test_huge_page_buffers_give_the_same_motion(monkeypatch):
     assert np.array_equal(huge.rotation, plain.rotation)
     assert np.array_equal(huge.root_position, plain.root_position)
     assert bvh._empty((3, 2)).shape == (3, 2)
+
+
+@pytest.fixture
+def parallel_scan(monkeypatch):
+    """Every MOTION section goes through the parallel chunked scan (normally >= 8 MB)."""
+    import biomorph.io.bvh as bvh_module
+
+    monkeypatch.setattr(bvh_module, "_PARALLEL_MIN_BYTES", 1)
+
+
+def test_parallel_scan_equals_the_sequential_one(tmp_path, parallel_scan):
+    import biomorph.io.bvh as bvh_module
+    from biomorph.motion.synthetic import walk
+
+    p = tmp_path / "walk.bvh"
+    write_bvh(p, walk(400, 60, n_joints=20, noise_deg=1.0))
+    raw = p.read_bytes()
+    buf = np.frombuffer(raw, dtype=np.uint8)
+    start = raw.index(b"\n", raw.index(b"Frame Time")) + 1
+    n_ch = len(raw[start:raw.index(b"\n", start)].split())
+    a = np.empty(400 * n_ch)
+    b = np.empty(400 * n_ch)
+    assert bvh_module._scan_floats_parallel(buf, start, a, n_ch)[:2] == (a.size, 0)
+    assert bvh_module._scan_floats(buf, start, b, n_ch)[:2] == (b.size, 0)
+    assert np.array_equal(a, b)
+    # the chunked kernel itself succeeds on a clean split (no silent fallback)
+    mid = raw.index(b"\n", (start + len(raw)) // 2) + 1
+    c = np.empty(400 * n_ch)
+    cuts = np.array([start, mid, len(raw)], dtype=np.int64)
+    assert bvh_module._scan_floats_chunks(buf, cuts, c, n_ch)
+    assert np.array_equal(c, b)
+    mo = read_bvh(p)
+    assert mo.n_frames == 400
+
+
+@pytest.mark.parametrize("mutate,line,needle", [
+    (lambda s: s.rsplit("\n", 2)[0] + "\n", None, "truncated"),
+    (lambda s: s.replace("0.1 40 50 60", "0.1 40 50"), 23, "expected 14"),
+    (lambda s: s.replace("-30 -2", "-30 abc"), 24, "'abc' is not a number"),
+    (lambda s: s.replace("Frames:\t3", "Frames: 2"), 25, "more data"),
+])
+def test_parallel_scan_keeps_the_exact_diagnostics(tmp_path, parallel_scan, mutate, line,
+                                                   needle):
+    err = _broken(tmp_path, mutate(GOOD))
+    assert needle in str(err)
+    if line is not None:
+        assert err.line == line, str(err)

@@ -163,6 +163,68 @@ def _scan_floats(buf, start, out, n_per_line):  # pragma: no cover - compiled
     return k, 0, -1, bad_line, bad_count
 
 
+@njit(cache=True)
+def _count_tokens(buf, lo, hi):  # pragma: no cover - compiled
+    """Whitespace-separated words in ``buf[lo:hi]`` (the values a well-formed chunk holds)."""
+    n = 0
+    prev_space = True
+    for i in range(lo, hi):
+        c = buf[i]
+        space = c == 32 or c == 10 or c == 9 or c == 13 or c == 11 or c == 12
+        if prev_space and not space:
+            n += 1
+        prev_space = space
+    return n
+
+
+_PARALLEL_MIN_BYTES = 8 << 20  #: below this the sequential scan is as fast
+
+
+@njit(cache=True, parallel=True)
+def _scan_floats_chunks(buf, bounds, out, n_per_line):  # pragma: no cover - compiled
+    """:func:`_scan_floats` over chunks ``bounds[i]..bounds[i+1]`` (each starting at a line
+    start) in parallel: count the words of every chunk, prefix-sum them into output offsets,
+    parse every chunk into its slice. Returns ``ok``: False when any chunk is not clean
+    (a malformed value, a short line, or a total other than ``out.size``) — the caller then
+    runs the sequential scan for its exact diagnostics."""
+    nc = bounds.size - 1
+    counts = np.zeros(nc, dtype=np.int64)
+    for i in prange(nc):
+        counts[i] = _count_tokens(buf, bounds[i], bounds[i + 1])
+    if counts.sum() != out.size:
+        return False
+    offs = np.zeros(nc + 1, dtype=np.int64)
+    for i in range(nc):
+        offs[i + 1] = offs[i] + counts[i]
+    good = np.ones(nc, dtype=np.bool_)
+    for i in prange(nc):
+        k, status, _e, bad_line, _b = _scan_floats(buf[:bounds[i + 1]], bounds[i],
+                                                   out[offs[i]:offs[i + 1]], n_per_line)
+        good[i] = status == 0 and bad_line < 0 and k == counts[i]
+    return good.all()
+
+
+def _scan_floats_parallel(buf: np.ndarray, start: int, out: np.ndarray, n_per_line: int):
+    """:func:`_scan_floats` with the same result; big MOTION sections are parsed by all
+    cores (one hour of 60-joint capture is ~750 MB of text)."""
+    size = buf.size
+    if size - start >= _PARALLEL_MIN_BYTES:
+        from numba import get_num_threads
+
+        nc = 4 * get_num_threads()
+        cuts = [start]
+        for i in range(1, nc):
+            pos = start + (size - start) * i // nc
+            nl = int(np.argmax(buf[pos:pos + (1 << 20)] == 10)) if pos < size else 0
+            if pos < size and buf[pos + nl] == 10 and pos + nl + 1 > cuts[-1]:
+                cuts.append(pos + nl + 1)
+        cuts.append(size)
+        if len(cuts) > 2 and _scan_floats_chunks(buf, np.asarray(cuts, dtype=np.int64), out,
+                                                 n_per_line):
+            return out.size, 0, -1, -1, 0
+    return _scan_floats(buf, start, out, n_per_line)
+
+
 @njit(cache=True, inline="always")
 def _euler_quat(data, t, j, rot_cols, rot_axes, d2r):  # pragma: no cover - compiled
     """Quaternion of joint j's Euler channels (degrees) at frame t: product in listed order."""
@@ -508,7 +570,8 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None):
     data_start = m2.end()
     buf = np.frombuffer(raw, dtype=np.uint8)
     out = _empty((n_frames * n_ch,))
-    count, status, err, bad_line, bad_count = _scan_floats(buf, data_start, out, max(n_ch, 1))
+    count, status, err, bad_line, bad_count = _scan_floats_parallel(buf, data_start, out,
+                                                                    max(n_ch, 1))
     first_data_line = _line_of(raw, data_start)
     if status == 3:
         tok = raw[err:err + 40].split()[0].decode(errors="replace")
