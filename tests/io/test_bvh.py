@@ -307,3 +307,45 @@ def test_parallel_scan_keeps_the_exact_diagnostics(tmp_path, parallel_scan, muta
     assert needle in str(err)
     if line is not None:
         assert err.line == line, str(err)
+
+
+@pytest.mark.parametrize("name", ["ad_fair1_zombie_walk.bvh", "ad_rokoko_jesse_dance.bvh",
+                                  "cmu_01_01.bvh"])
+def test_streamed_read_equals_the_whole_read(monkeypatch, name):
+    """Big MOTION sections are read in blocks through one buffer: rotations (with
+    hemisphere continuity across blocks), root positions, joint translations and the
+    Euler wrap count equal the one-piece read exactly (blocks of 7 frames here)."""
+    import biomorph.io.bvh as bvh_module
+
+    path = shared_file("motion", name)
+    whole = read_bvh(path)
+    monkeypatch.setattr(bvh_module, "_STREAM_MIN_BYTES", 1)
+    monkeypatch.setattr(bvh_module, "_STREAM_FRAMES", 7)
+    calls = []
+    real = bvh_module._stream_motion
+    monkeypatch.setattr(bvh_module, "_stream_motion",
+                        lambda *a: calls.append(1) or real(*a))
+    part = read_bvh(path)
+    assert calls and np.array_equal(part.rotation, whole.rotation)
+    assert np.array_equal(part.root_position, whole.root_position)
+    if whole.joint_translation is not None:
+        assert np.array_equal(part.joint_translation, whole.joint_translation)
+    assert part.meta["euler_wraps_in_file"] == whole.meta["euler_wraps_in_file"]
+
+
+@pytest.mark.parametrize("mutate,line,needle", [
+    (lambda s: s.rsplit("\n", 2)[0] + "\n", None, "truncated"),
+    (lambda s: s.replace("0.1 40 50 60", "0.1 40 50"), 23, "expected 14"),
+    (lambda s: s.replace("-30 -2", "-30 abc"), 24, "'abc' is not a number"),
+    (lambda s: s.replace("Frames:\t3", "Frames: 2"), 25, "more data"),
+])
+def test_streamed_read_keeps_the_exact_diagnostics(tmp_path, monkeypatch, mutate, line,
+                                                   needle):
+    import biomorph.io.bvh as bvh_module
+
+    monkeypatch.setattr(bvh_module, "_STREAM_MIN_BYTES", 1)
+    monkeypatch.setattr(bvh_module, "_STREAM_FRAMES", 1)
+    err = _broken(tmp_path, mutate(GOOD))
+    assert needle in str(err)
+    if line is not None:
+        assert err.line == line, str(err)

@@ -515,6 +515,128 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
 _NUM = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
 
 
+def _parse_motion(path, raw, buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols,
+                  offset):
+    """The MOTION section in one piece (exact diagnostics): values, then rotations, root
+    positions, joint translations and the Euler wrap count."""
+    n = rot_cols.shape[0]
+    out = _empty((n_frames * n_ch,))
+    count, status, err, bad_line, bad_count = _scan_floats_parallel(buf, data_start, out,
+                                                                    max(n_ch, 1))
+    first_data_line = _line_of(raw, data_start)
+    if status == 3:
+        tok = raw[err:err + 40].split()[0].decode(errors="replace")
+        raise FormatError(path, f"MOTION value {tok!r} overflows (frame {count // max(n_ch, 1)}, "
+                                f"channel {count % max(n_ch, 1)}); expected a finite number",
+                          line=_line_of(raw, err))
+    if status == 2:
+        tok = raw[err:err + 40].split()[0].decode(errors="replace")
+        raise FormatError(path, f"MOTION value {tok!r} is not a number (frame "
+                                f"{count // max(n_ch, 1)}, channel {count % max(n_ch, 1)})",
+                          line=_line_of(raw, err))
+    if (status == 0 and count < n_frames * n_ch and bad_line >= 0
+            and _line_of(raw, bad_line) == (last_line := _line_of(raw, len(raw.rstrip())))):
+        raise FormatError(path, f"file ends inside frame {count // n_ch} (its line holds "
+                                f"{bad_count} of {n_ch} values); 'Frames: {n_frames}' announces "
+                                f"{n_frames} frames (truncated file?)", line=last_line)
+    if bad_line >= 0 and n_ch > 0:
+        ln = _line_of(raw, bad_line)
+        raise FormatError(path, f"frame line holds {bad_count} values; expected {n_ch} "
+                                "(the CHANNELS of the hierarchy)", line=ln)
+    if status == 1:
+        ln = _line_of(raw, err)
+        raise FormatError(path, f"more data than 'Frames: {n_frames}' announces (frame line "
+                                f"{ln - first_data_line + 1}); expected {n_frames} frames",
+                          line=ln)
+    if count < n_frames * n_ch:
+        raise FormatError(path, f"file ends after {count // n_ch} complete frames; 'Frames: "
+                                f"{n_frames}' announces {n_frames} (truncated file?)",
+                          line=_line_of(raw, len(raw)))
+    data = out.reshape(n_frames, n_ch)
+    rotation = _empty((n_frames, n, 4))
+    _euler_kernel(data, rot_cols, rot_axes, rotation)
+    translation = None
+    root_pos = np.empty((n_frames, 3))
+    for a in range(3):
+        root_pos[:, a] = data[:, pos_cols[0, a]] if pos_cols[0, a] >= 0 else offset[0, a]
+    inner = [j for j in range(1, n) if (pos_cols[j] >= 0).any()]
+    if inner:
+        translation = np.broadcast_to(offset, (n_frames, n, 3)).copy()
+        translation[:, 0] = root_pos
+        for j in inner:
+            for a in range(3):
+                if pos_cols[j, a] >= 0:
+                    translation[:, j, a] = data[:, pos_cols[j, a]]
+    rc = rot_cols[rot_cols >= 0]
+    wraps = int(_count_wraps(data, rc)) if rc.size and n_frames > 1 else 0
+    return rotation, root_pos, translation, wraps
+
+
+_STREAM_MIN_BYTES = 64 << 20  #: MOTION sections with more values than this are streamed
+_STREAM_FRAMES = 16384         #: frames per streamed block
+
+
+@njit(cache=True)
+def _chain_block(rotation, t0):  # pragma: no cover - compiled
+    """Negate joints of the block starting at frame ``t0`` whose first quaternion is in the
+    other hemisphere than frame ``t0 - 1`` (continuity across blocks; negation is exact)."""
+    f, n = rotation.shape[0], rotation.shape[1]
+    for j in range(n):
+        dot = 0.0
+        for c in range(4):
+            dot += rotation[t0 - 1, j, c] * rotation[t0, j, c]
+        if dot < 0:
+            for t in range(t0, f):
+                for c in range(4):
+                    rotation[t, j, c] = -rotation[t, j, c]
+
+
+def _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols, offset):
+    """The MOTION section of a big file in blocks of ``_STREAM_FRAMES`` frames through one
+    reused value buffer, so the ``frames × channels`` table of values is never held whole
+    (on a 1-hour 60-joint take that table is 630 MB, and first-touching fresh memory is a
+    large part of the read time). Equal to :func:`_parse_motion` bit for bit; returns
+    ``None`` at the first irregularity (a malformed value, a short line, too many or too
+    few values), and the caller re-reads with :func:`_parse_motion` for its diagnostics."""
+    n = rot_cols.shape[0]
+    rotation = _empty((n_frames, n, 4))
+    root_pos = np.empty((n_frames, 3))
+    inner = [j for j in range(1, n) if (pos_cols[j] >= 0).any()]
+    translation = np.broadcast_to(offset, (n_frames, n, 3)).copy() if inner else None
+    rc = rot_cols[rot_cols >= 0]
+    block = np.empty((min(_STREAM_FRAMES, n_frames), n_ch))
+    wraps = 0
+    prev = None
+    pos = data_start
+    t0 = 0
+    while t0 < n_frames:
+        t1 = min(t0 + _STREAM_FRAMES, n_frames)
+        vals = block[:t1 - t0]
+        flat = vals.reshape(-1)
+        k, status, nxt, bad_line, _ = _scan_floats(buf, pos, flat, n_ch)
+        if k != flat.size or bad_line >= 0 or status != (0 if t1 == n_frames else 1):
+            return None
+        _euler_kernel(vals, rot_cols, rot_axes, rotation[t0:t1])
+        if t0 > 0:
+            _chain_block(rotation, t0)
+        for a in range(3):
+            root_pos[t0:t1, a] = vals[:, pos_cols[0, a]] if pos_cols[0, a] >= 0 else offset[0, a]
+        for j in inner:
+            for a in range(3):
+                if pos_cols[j, a] >= 0:
+                    translation[t0:t1, j, a] = vals[:, pos_cols[j, a]]
+        if rc.size:
+            wraps += int(_count_wraps(vals, rc))
+            if prev is not None:
+                wraps += int(np.count_nonzero(np.abs(vals[0, rc] - prev[rc]) > 180.0))
+            prev = vals[-1].copy()
+        pos = nxt
+        t0 = t1
+    if translation is not None:
+        translation[:, 0] = root_pos
+    return rotation, root_pos, translation, wraps
+
+
 def read_bvh(path: str | os.PathLike[str], up: str | None = None):
     """Read a BVH file into a :class:`biomorph.motion.Motion` (see the module docstring).
 
@@ -566,43 +688,8 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None):
     if n_frames < 1:
         raise FormatError(path, f"Frames: {n_frames}; expected at least one frame",
                           line=_line_of(raw, m1.start(1)))
-    n_ch = sum(len(c) for c in channels)
-    data_start = m2.end()
-    buf = np.frombuffer(raw, dtype=np.uint8)
-    out = _empty((n_frames * n_ch,))
-    count, status, err, bad_line, bad_count = _scan_floats_parallel(buf, data_start, out,
-                                                                    max(n_ch, 1))
-    first_data_line = _line_of(raw, data_start)
-    if status == 3:
-        tok = raw[err:err + 40].split()[0].decode(errors="replace")
-        raise FormatError(path, f"MOTION value {tok!r} overflows (frame {count // max(n_ch, 1)}, "
-                                f"channel {count % max(n_ch, 1)}); expected a finite number",
-                          line=_line_of(raw, err))
-    if status == 2:
-        tok = raw[err:err + 40].split()[0].decode(errors="replace")
-        raise FormatError(path, f"MOTION value {tok!r} is not a number (frame "
-                                f"{count // max(n_ch, 1)}, channel {count % max(n_ch, 1)})",
-                          line=_line_of(raw, err))
-    if (status == 0 and count < n_frames * n_ch and bad_line >= 0
-            and _line_of(raw, bad_line) == (last_line := _line_of(raw, len(raw.rstrip())))):
-        raise FormatError(path, f"file ends inside frame {count // n_ch} (its line holds "
-                                f"{bad_count} of {n_ch} values); 'Frames: {n_frames}' announces "
-                                f"{n_frames} frames (truncated file?)", line=last_line)
-    if bad_line >= 0 and n_ch > 0:
-        ln = _line_of(raw, bad_line)
-        raise FormatError(path, f"frame line holds {bad_count} values; expected {n_ch} "
-                                "(the CHANNELS of the hierarchy)", line=ln)
-    if status == 1:
-        ln = _line_of(raw, err)
-        raise FormatError(path, f"more data than 'Frames: {n_frames}' announces (frame line "
-                                f"{ln - first_data_line + 1}); expected {n_frames} frames",
-                          line=ln)
-    if count < n_frames * n_ch:
-        raise FormatError(path, f"file ends after {count // n_ch} complete frames; 'Frames: "
-                                f"{n_frames}' announces {n_frames} (truncated file?)",
-                          line=_line_of(raw, len(raw)))
-    data = out.reshape(n_frames, n_ch)
     n = len(names)
+    n_ch = sum(len(c) for c in channels)
     rot_cols = np.full((n, 3), -1, dtype=np.int64)
     rot_axes = np.zeros((n, 3), dtype=np.int64)
     pos_cols = np.full((n, 3), -1, dtype=np.int64)
@@ -618,22 +705,17 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None):
             else:
                 pos_cols[j, axis] = col
             col += 1
-    rotation = _empty((n_frames, n, 4))
-    _euler_kernel(data, rot_cols, rot_axes, rotation)
-    translation = None
-    root_pos = np.empty((n_frames, 3))
-    for a in range(3):
-        root_pos[:, a] = data[:, pos_cols[0, a]] if pos_cols[0, a] >= 0 else offset[0, a]
-    inner = [j for j in range(1, n) if (pos_cols[j] >= 0).any()]
-    if inner:
-        translation = np.broadcast_to(offset, (n_frames, n, 3)).copy()
-        translation[:, 0] = root_pos
-        for j in inner:
-            for a in range(3):
-                if pos_cols[j, a] >= 0:
-                    translation[:, j, a] = data[:, pos_cols[j, a]]
-    rc = rot_cols[rot_cols >= 0]
-    wraps = int(_count_wraps(data, rc)) if rc.size and n_frames > 1 else 0
+    data_start = m2.end()
+    buf = np.frombuffer(raw, dtype=np.uint8)
+    streamed = None
+    if n_frames * n_ch * 8 >= _STREAM_MIN_BYTES:
+        streamed = _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes,
+                                  pos_cols, offset)
+    if streamed is not None:
+        rotation, root_pos, translation, wraps = streamed
+    else:
+        rotation, root_pos, translation, wraps = _parse_motion(
+            path, raw, buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols, offset)
     try:
         skel = JointSkeleton(names, parent, offset, channels=channels, end_site=end)
     except InputError as exc:
