@@ -61,3 +61,19 @@ def test_bad_parameters_are_refused():
         neighbourhood_thickness(xyz, k=2)
     # tiny clouds are kept whole
     assert separate_foliage(xyz[:20]).wood.all()
+
+
+def test_detection_keeps_leafless_scans_whole_and_splits_leafy_ones():
+    truth = generate_tree("maple", seed=0)
+    bare = simulate_scan(truth, n_points=30000, seed=0, ground=False, noise=0.002,
+                         occlusion=False, scanners=4)
+    split = separate_foliage(bare.xyz, detect=True)
+    assert not split.detected and split.wood.all() and split.threshold == ()
+    assert split.foliage_share < 0.003
+    # the same scan without detection loses its most curved twig points
+    assert not separate_foliage(bare.xyz).wood.all()
+    leafy = simulate_scan(truth, n_points=30000, seed=0, ground=False, noise=0.008,
+                          occlusion=True, scanners=2, leaves=0.05)
+    split = separate_foliage(leafy.xyz, detect=True)
+    assert split.detected and split.foliage_share > 0.01
+    assert (~split.wood[leafy.attributes["is_leaf"]]).mean() > 0.75

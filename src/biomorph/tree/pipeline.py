@@ -169,9 +169,10 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
     foliage, foliage_passes : leaf/wood separation before skeletonising
         (:func:`biomorph.tree.foliage.separate_foliage`): points whose neighbourhood is
         thicker than ``foliage`` × the median are dropped; ``None`` keeps every point;
-        ``"auto"`` (default) is 3.0 for the graph method and off for the voxel method
-        (without the graph's bridging, the holes it leaves split voxel skeletons:
-        aspen NOB 113 → 133 %).
+        ``"auto"`` (default): for the graph method 3.0 when foliage is detected (more than
+        0.3 % of the points thicker than 6 × the median), else nothing is removed; off for
+        the voxel method (without the graph's bridging, the holes it leaves split voxel
+        skeletons: aspen NOB 113 → 133 %). A number always splits.
     sparse_filter : drop points whose mean distance to their 16 nearest neighbours exceeds
         this multiple of the median (leaf clutter, stray returns); ``None`` (default) keeps
         them. 4.0 roughly halves the spurious twigs of an 8 mm-noise scan with 5 % leaf
@@ -210,16 +211,19 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
                           outliers=outliers, ground=ground, seed=seed)
     pc = prep.cloud
     foliage_info: dict[str, Any] = {}
+    detect = False
     if isinstance(foliage, str):
         if foliage != "auto":
             raise ParameterError(f"foliage {foliage!r}; expected 'auto', None or a factor > 1")
-        foliage = 3.0 if method == "graph" else None
+        foliage, detect = (3.0, True) if method == "graph" else (None, False)
     if foliage is not None and pc.n_points >= 100:
         from biomorph.tree.foliage import separate_foliage
 
-        split = separate_foliage(pc.xyz, factor=foliage, passes=foliage_passes)
+        split = separate_foliage(pc.xyz, factor=foliage, passes=foliage_passes, detect=detect)
         foliage_info = {"foliage_removed": int((~split.wood).sum()),
-                        "foliage_threshold": [float(x) for x in split.threshold]}
+                        "foliage_threshold": [float(x) for x in split.threshold],
+                        "foliage_detected": split.detected,
+                        "foliage_share": split.foliage_share}
         pc = pc.select(split.wood)
     if sparse_filter is not None:
         pc = remove_sparse(pc, sparse_filter)
