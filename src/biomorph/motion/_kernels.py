@@ -71,16 +71,15 @@ def lowpass_into(cur, nxt, step, mode):  # pragma: no cover - compiled
                   + 0.0625 * (cur[_idx(i - 2 * step, f, mode)] + cur[_idx(i + 2 * step, f, mode)]))
 
 
-@njit(cache=True)
-def equalize_rows(xt, gains, mode, out):  # pragma: no cover - compiled
-    """Equalize every row of ``xt (c, f)`` into ``out``: g0·G0 + Σ (g_k − g_{k−1}) G_k."""
-    c, f = xt.shape
+@njit(cache=True, inline="always")
+def _filter_rows(xs, out, gains, mode, cur, nxt):  # pragma: no cover - compiled
+    """The telescoped filter bank on every row of ``xs (c, f)`` into ``out``:
+    ``g0·G0 + Σ (g_k − g_{k−1}) G_k``; ``cur``/``nxt`` are ``(f,)`` work buffers."""
+    f = xs.shape[1]
     levels = gains.size - 1
-    cur = np.empty(f)
-    nxt = np.empty(f)
-    for ch in range(c):
+    for ch in range(xs.shape[0]):
         for i in range(f):
-            cur[i] = xt[ch, i]
+            cur[i] = xs[ch, i]
             out[ch, i] = gains[0] * cur[i]
         step = 1
         for k in range(levels):
@@ -91,6 +90,13 @@ def equalize_rows(xt, gains, mode, out):  # pragma: no cover - compiled
                     out[ch, i] += dg * nxt[i]
             cur, nxt = nxt, cur
             step *= 2
+
+
+@njit(cache=True)
+def equalize_rows(xt, gains, mode, out):  # pragma: no cover - compiled
+    """Equalize every row of ``xt (c, f)`` into ``out``: g0·G0 + Σ (g_k − g_{k−1}) G_k."""
+    f = xt.shape[1]
+    _filter_rows(xt, out, gains, mode, np.empty(f), np.empty(f))
 
 
 @njit(cache=True, inline="always")
@@ -259,26 +265,6 @@ def _box_edge4(src, dst, r):  # pragma: no cover - compiled
 MEAN_LOG_COS = 0.7071067811865476  #: cos(45°): the mean-log path needs angles ≤ 90° about M
 
 
-@njit(cache=True, inline="always")
-def _filter_rows3(xs, xo, gains, mode, cur, nxt):  # pragma: no cover - compiled
-    """The telescoped filter bank on the three rows of ``xs (3, f)`` into ``xo``."""
-    f = xs.shape[1]
-    levels = gains.size - 1
-    for c in range(3):
-        for i in range(f):
-            cur[i] = xs[c, i]
-            xo[c, i] = gains[0] * cur[i]
-        step = 1
-        for k in range(levels):
-            lowpass_into(cur, nxt, step, mode)
-            dg = gains[k + 1] - gains[k]
-            if dg != 0.0:
-                for i in range(f):
-                    xo[c, i] += dg * nxt[i]
-            cur, nxt = nxt, cur
-            step *= 2
-
-
 @njit(cache=True, parallel=True)
 def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compiled
     """The equalizer's rotation path for every joint of ``q (f, J, 4)`` (each joint's column
@@ -332,7 +318,7 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
                 xs[0, i] = rx
                 xs[1, i] = ry
                 xs[2, i] = rz
-            _filter_rows3(xs, xo, gains, mode, cur, nxt)
+            _filter_rows(xs, xo, gains, mode, cur, nxt)
             ox, oy, oz, ow = 0.0, 0.0, 0.0, 0.0
             for i in range(f):
                 ex, ey, ez, ew = _qexp(xo[0, i], xo[1, i], xo[2, i])
@@ -372,7 +358,7 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
             xs[0, i] = rx
             xs[1, i] = ry
             xs[2, i] = rz
-        _filter_rows3(xs, xo, gains, mode, cur, nxt)
+        _filter_rows(xs, xo, gains, mode, cur, nxt)
         scale_ref = glast != 1.0
         if scale_ref:
             mn = np.sqrt(mx * mx + my * my + mz * mz + mw * mw)
