@@ -295,12 +295,16 @@ def test_parallel_scan_equals_the_sequential_one(tmp_path, parallel_scan):
     assert mo.n_frames == 400
 
 
-@pytest.mark.parametrize("mutate,line,needle", [
+# damage that the parallel and the streamed MOTION readers must report like the one-piece one
+MOTION_DAMAGE = [
     (lambda s: s.rsplit("\n", 2)[0] + "\n", None, "truncated"),
     (lambda s: s.replace("0.1 40 50 60", "0.1 40 50"), 23, "expected 14"),
     (lambda s: s.replace("-30 -2", "-30 abc"), 24, "'abc' is not a number"),
     (lambda s: s.replace("Frames:\t3", "Frames: 2"), 25, "more data"),
-])
+]
+
+
+@pytest.mark.parametrize("mutate,line,needle", MOTION_DAMAGE)
 def test_parallel_scan_keeps_the_exact_diagnostics(tmp_path, parallel_scan, mutate, line,
                                                    needle):
     err = _broken(tmp_path, mutate(GOOD))
@@ -333,12 +337,7 @@ def test_streamed_read_equals_the_whole_read(monkeypatch, name):
     assert part.meta["euler_wraps_in_file"] == whole.meta["euler_wraps_in_file"]
 
 
-@pytest.mark.parametrize("mutate,line,needle", [
-    (lambda s: s.rsplit("\n", 2)[0] + "\n", None, "truncated"),
-    (lambda s: s.replace("0.1 40 50 60", "0.1 40 50"), 23, "expected 14"),
-    (lambda s: s.replace("-30 -2", "-30 abc"), 24, "'abc' is not a number"),
-    (lambda s: s.replace("Frames:\t3", "Frames: 2"), 25, "more data"),
-])
+@pytest.mark.parametrize("mutate,line,needle", MOTION_DAMAGE)
 def test_streamed_read_keeps_the_exact_diagnostics(tmp_path, monkeypatch, mutate, line,
                                                    needle):
     import biomorph.io.bvh as bvh_module
