@@ -29,8 +29,8 @@ __all__ = ["TreeSkeleton", "skeletonize", "METHODS", "load_cloud", "remove_spars
 METHODS = ("graph", "voxel")
 #: default shortest side tip kept by the graph method's cleanup, in node spacings: shorter
 #: tips are range-noise spurs or foliage remnants. Measured on the synthetic presets (clean
-#: and noisy leafy scans, foliage separation, chain smoothing): NOB 92–116 % of the truth
-#: at 3; 1.5 gave up to 159 % (bench/tree.py, docs/tree.md)
+#: and noisy leafy scans at 60,000 points, foliage separation, chain smoothing): NOB 93–109 %
+#: of the truth at 3 (median of two seeds); 1.5 gave up to 159 % (bench/tree.py, docs/tree.md)
 TIP_LENGTH = 3.0
 
 
