@@ -139,3 +139,48 @@ def test_smooth_chains_removes_zigzag_and_keeps_ends():
     assert np.array_equal(smooth_chains(BranchGraph(fork, fork_parent), 2).position, fork)
     with pytest.raises(ParameterError):
         smooth_chains(g, -1)
+
+
+def test_min_radius_merges_a_parallel_noise_spur_beside_a_thin_twig():
+    # twig 0 -> 1 -> 2 along z (radius 4 mm); spur from 1 running 1.2 cm beside it
+    pos = np.array([[0, 0, 0], [0, 0, 0.2], [0, 0, 0.4], [0.012, 0, 0.3], [0.012, 0, 0.38]])
+    g = BranchGraph(pos, np.array([-1, 0, 1, 1, 3]), radius=np.full(5, 0.004))
+    assert cl.collapse_overlaps(g).leaves.size == 2            # thesis rule: two tips
+    out = cl.collapse_overlaps(g, min_radius=0.01)
+    assert out.leaves.size == 1
+    # a real side branch leaving at 60 degrees is kept with the floor
+    pos2 = pos.copy()
+    pos2[3:] = [[0.09, 0, 0.25], [0.17, 0, 0.3]]
+    assert cl.collapse_overlaps(g.with_(position=pos2), min_radius=0.01).leaves.size == 2
+    with pytest.raises(ParameterError, match="minimum cylinder radius"):
+        cl.collapse_overlaps(g, min_radius=-0.01)
+
+
+def _fork_graph():
+    # stem 0-1-2-3 (z), side chain A 4-5 from node 1 (x), side chain B 6-7 from node 2 (y)
+    pos = np.array([[0, 0, 0], [0, 0, 0.1], [0, 0, 0.2], [0, 0, 0.3],
+                    [0.1, 0, 0.1], [0.2, 0, 0.1], [0, 0.1, 0.2], [0, 0.2, 0.2]], float)
+    par = np.array([-1, 0, 1, 2, 1, 4, 2, 6])
+    return BranchGraph(pos, par)
+
+
+def test_tip_chains_labels_unbranched_runs_to_their_top():
+    lab = cl.tip_chains(_fork_graph())
+    assert lab.tolist() == [-1, -1, -1, 3, 4, 4, 6, 6]
+    single = BranchGraph(np.eye(3), np.array([-1, 0, 1]))
+    assert cl.tip_chains(single).tolist() == [0, 0, 0]
+
+
+def test_prune_unsupported_tips_removes_the_chain_without_points():
+    g = _fork_graph()
+    rng = np.random.default_rng(1)
+    dense = [g.position[i] + rng.normal(0, 0.005, (20, 3)) for i in (0, 1, 2, 3, 4, 5)]
+    sparse = [g.position[7] + rng.normal(0, 0.005, (2, 3))]     # chain B: 2 points, 2 nodes
+    xyz = np.vstack(dense + sparse)
+    out = cl.prune_unsupported_tips(g, xyz, 0.3)
+    assert out.n_nodes == 6 and out.leaves.size == 2
+    assert not np.any(np.all(np.isclose(out.position, [0, 0.2, 0.2]), axis=1))
+    # chains longer than max_length are never judged
+    assert cl.prune_unsupported_tips(g, xyz, 0.3, max_length=0.05).n_nodes == 8
+    with pytest.raises(ParameterError, match="tip support ratio"):
+        cl.prune_unsupported_tips(g, xyz, 1.5)

@@ -80,6 +80,9 @@ def test_missing_file_and_bad_parameters(tmp_path, good_xyz, capsys):
     assert run(["tree", "skeletonize", str(good_xyz), "--edge-weights", "heavy",
                 "--out", str(tmp_path / "o")]) == 2
     assert "edge_weights 'heavy'" in capsys.readouterr().err
+    assert run(["tree", "skeletonize", str(good_xyz), "--tip-support", "1.5",
+                "--out", str(tmp_path / "o")]) == 2
+    assert "--tip-support must lie in (0, 1)" in capsys.readouterr().err
     capsys.readouterr()
     assert _nothing_written(tmp_path / "o")
 
@@ -95,9 +98,12 @@ def test_skeletonize_json_and_outputs(good_xyz, tmp_path, capsys):
     # foliage separation off, the paper's alternative weights: still the same Y
     out2 = tmp_path / "out2"
     assert run(["tree", "skeletonize", str(good_xyz), "--out", str(out2), "--json",
-                "--no-ground", "--foliage", "0", "--edge-weights", "branch"]) == 0
+                "--no-ground", "--foliage", "0", "--edge-weights", "branch",
+                "--tip-support", "0.3"]) == 0
     data2 = json.loads(capsys.readouterr().out)
     assert data2["params"]["foliage"] is None and data2["params"]["edge_weights"] == "branch"
+    assert data2["params"]["tip_support"] == 0.3
+    assert data["params"]["min_cylinder_radius"] == 0.01 and "tip_support" not in data["params"]
     assert data2["metrics"]["nob"] == 3
     for name in ("skeleton.ply", "skeleton.mtg", "tube.glb", "tube.obj", "cylinders.csv",
                  "summary.json", "preview.png"):

@@ -28,7 +28,7 @@ from biomorph.errors import ParameterError
 
 __all__ = ["remove_false_branches", "collapse_overlaps", "cleanup", "cleanup_skeleton",
            "axis_inside_fraction", "smooth_chains",
-           "prune_small_trees"]
+           "prune_small_trees", "tip_chains", "prune_unsupported_tips"]
 
 
 def _carried(graph: BranchGraph) -> NDArray[np.float64]:
@@ -106,7 +106,8 @@ def _unit(v: NDArray) -> tuple[NDArray, NDArray]:
     return v / np.maximum(n, 1e-300)[:, None], n
 
 
-def _candidates(graph: BranchGraph, overlap: float, max_edge: float | None):
+def _candidates(graph: BranchGraph, overlap: float, max_edge: float | None,
+                min_radius: float = 0.0):
     """``(keep, drop, dist)`` merge candidates of both rules for the current graph."""
     par = graph.parent
     pos = graph.position
@@ -130,7 +131,7 @@ def _candidates(graph: BranchGraph, overlap: float, max_edge: float | None):
         u, v, w = pair_fork[m], v[m], w[m]
         dv, lv = _unit(pos[v] - pos[u])
         dw, lw = _unit(pos[w] - pos[u])
-        rv = 0.5 * (r[u] + r[v])
+        rv = np.maximum(0.5 * (r[u] + r[v]), min_radius)
         frac = axis_inside_fraction(pos[u], dv, lv, rv, pos[u], dw, lw)
         hit = (frac > overlap) & (lw > 0)
         # w merges with the nearer of u and v
@@ -151,7 +152,7 @@ def _candidates(graph: BranchGraph, overlap: float, max_edge: float | None):
         v, u, w = v[ok], u[ok], w[ok]
         d1, l1 = _unit(pos[v] - pos[u])
         d2, l2 = _unit(pos[w] - pos[v])
-        rad = 0.5 * (r[u] + r[v])
+        rad = np.maximum(0.5 * (r[u] + r[v]), min_radius)
         frac = axis_inside_fraction(pos[u], d1, 2 * l1, rad, pos[v], d2, l2)
         hit = (frac > overlap) & (l1 > 0) & (l2 > 0)
         if max_edge is not None:
@@ -167,10 +168,14 @@ def _candidates(graph: BranchGraph, overlap: float, max_edge: float | None):
 
 
 def collapse_overlaps(graph: BranchGraph, *, overlap: float = 0.5,
-                      max_edge: float | None = None, max_rounds: int = 200) -> BranchGraph:
+                      max_edge: float | None = None, max_rounds: int = 200,
+                      min_radius: float = 0.0) -> BranchGraph:
     """Apply both cylinder-overlap rules until stable (see module doc).
 
     ``max_edge`` (metres) caps the length of edges rule 2 may create (``None``: no cap).
+    ``min_radius`` (metres) floors the cylinder radius of both rules: a skeleton built from
+    noisy points runs spurs a range-noise width beside thin twigs, outside their allometric
+    cylinders (see ``MIN_CYLINDER_RADIUS`` in :mod:`biomorph.tree.pipeline`).
     Each round merges a conflict-free set of candidates, shortest first; weights ``c`` are
     recomputed from the new geometry between rounds.
     """
@@ -178,8 +183,10 @@ def collapse_overlaps(graph: BranchGraph, *, overlap: float = 0.5,
         raise ParameterError("collapse_overlaps needs radii (run allometric_radii first)")
     if not 0 < overlap < 1:
         raise ParameterError(f"overlap must lie in (0, 1), got {overlap}")
+    if not (min_radius >= 0 and np.isfinite(min_radius)):
+        raise ParameterError(f"minimum cylinder radius must be >= 0 metres, got {min_radius}")
     for _ in range(max_rounds):
-        keep, drop, dist = _candidates(graph, overlap, max_edge)
+        keep, drop, dist = _candidates(graph, overlap, max_edge, min_radius)
         if keep.size == 0:
             break
         n = graph.n_nodes
@@ -227,15 +234,16 @@ def prune_small_trees(graph: BranchGraph, min_length: float) -> BranchGraph:
 
 def cleanup(graph: BranchGraph, *, radius_ratio: float = 0.5, length_factor: float = 3.0,
             min_length: float = 0.0, overlap: float = 0.5, max_edge: float | None = None,
-            ) -> BranchGraph:
+            min_radius: float = 0.0) -> BranchGraph:
     """Step viii: collapse overlapping cylinders, then remove false branches (the order the
     thesis found better), then collapse again until nothing changes."""
-    g = collapse_overlaps(graph, overlap=overlap, max_edge=max_edge)
+    g = collapse_overlaps(graph, overlap=overlap, max_edge=max_edge,
+                          min_radius=min_radius)
     for _ in range(10):
         n0 = g.n_nodes
         g = remove_false_branches(g, radius_ratio=radius_ratio, length_factor=length_factor,
                                   min_length=min_length)
-        g = collapse_overlaps(g, overlap=overlap, max_edge=max_edge)
+        g = collapse_overlaps(g, overlap=overlap, max_edge=max_edge, min_radius=min_radius)
         if g.n_nodes == n0:
             break
     return g.with_(weight=g.subtree_length())
@@ -274,3 +282,57 @@ def smooth_chains(graph: BranchGraph, iterations: int = 2) -> BranchGraph:
 
 #: alias exported by :mod:`biomorph.tree` (``cleanup`` is also the module's name there)
 cleanup_skeleton = cleanup
+
+
+def tip_chains(graph: BranchGraph) -> NDArray[np.int64]:
+    """Label of the tip chain each node belongs to (the chain's top node), ``-1`` elsewhere.
+
+    A tip chain is the unbranched run of nodes from a tip up to (not including) the nearest
+    fork; a tree without forks is one chain whose top is its root."""
+    n = graph.n_nodes
+    leaf = np.zeros(n)
+    leaf[graph.leaves] = 1.0
+    lc = graph.subtree_sum(leaf)
+    par = graph.parent
+    top = (lc == 1) & ((par < 0) | (lc[np.maximum(par, 0)] > 1))
+    val = np.where(top, np.arange(n) + 1.0, 0.0)
+    lab = treeops.accumulate_down(par, val, graph.order)
+    return np.where(lc == 1, lab - 1, -1).astype(np.int64)
+
+
+def prune_unsupported_tips(graph: BranchGraph, xyz: NDArray[np.float64], ratio: float = 0.3,
+                           max_length: float = np.inf) -> BranchGraph:
+    """Remove side tip chains (:func:`tip_chains`) shorter than ``max_length`` metres that
+    hold fewer points per node than ``ratio`` × the median over all side tip chains (every
+    point of ``xyz`` counts for its nearest node).
+
+    Why: on dense leafy scans (240,000 points, 5 % leaf clutter) a twig tip surrounded by
+    leaves grows extra tip chains through the clutter; each rests on a point or two per node
+    where the twigs of the same scan have several (measured on the leafy maple's final
+    skeleton: median 0.8 against 2.9 points per node). Where twigs themselves are sparsely
+    sampled (60,000 points) real twig tips look the same and are lost, hence off by default
+    in ``skeletonize``.
+    """
+    if not 0 < ratio < 1:
+        raise ParameterError(f"tip support ratio must lie in (0, 1) (a share of the median "
+                             f"points per node of the tip chains), got {ratio}")
+    if graph.n_nodes < 3:
+        return graph
+    from scipy.spatial import cKDTree
+
+    lab = tip_chains(graph)
+    _, owner = cKDTree(graph.position).query(xyz, workers=-1)
+    per_node = np.bincount(owner, minlength=graph.n_nodes).astype(float)
+    side = (lab >= 0) & (graph.parent[np.maximum(lab, 0)] >= 0)
+    if not side.any():
+        return graph
+    tops, inv = np.unique(lab[side], return_inverse=True)
+    pts = np.bincount(inv, weights=per_node[side])
+    nodes = np.bincount(inv).astype(float)
+    dens = pts / nodes
+    clen = np.bincount(inv, weights=graph.edge_length[side])
+    bad = tops[(dens < ratio * np.median(dens)) & (clen < max_length)]
+    if bad.size == 0:
+        return graph
+    g = graph.subgraph(~np.isin(lab, bad))
+    return g.with_(weight=g.subtree_length())

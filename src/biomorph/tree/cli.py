@@ -56,13 +56,17 @@ def _skeleton_kwargs(method: str, n_trees: int | None, node_spacing: float | Non
                      downsample: float | None, filter_spec: str | None, radius: str,
                      recentre: bool, order_angle: float, order_share: float, seed: int,
                      clutter: float | None = None, foliage: float | None = None,
-                     edge_weights: str = "livny") -> dict[str, Any]:
+                     edge_weights: str = "livny", tip_support: float | None = None,
+                     ) -> dict[str, Any]:
     if order_angle <= 0 or order_angle > 180:
         raise ParameterError(f"--order-angle must lie in (0, 180] degrees, got {order_angle}")
     if downsample is not None and not 0 < downsample <= 1:
         raise ParameterError(f"--downsample must be a ratio in (0, 1], got {downsample}")
     if foliage is not None and foliage != 0 and not foliage > 1:
         raise ParameterError(f"--foliage must be 0 (off) or a factor > 1, got {foliage}")
+    if tip_support is not None and not 0 < tip_support < 1:
+        raise ParameterError(f"--tip-support must lie in (0, 1) (a share of the median points "
+                             f"per node of the tip chains), got {tip_support}")
     kw: dict[str, Any] = dict(method=method, n_trees=n_trees, node_spacing=node_spacing, k=k,
                               max_iter=max_iter, ground="auto" if ground else None,
                               outliers=outliers, downsample=downsample,
@@ -70,7 +74,7 @@ def _skeleton_kwargs(method: str, n_trees: int | None, node_spacing: float | Non
                               recentre=recentre, order_angle=float(np.radians(order_angle)),
                               order_share=order_share, seed=seed, sparse_filter=clutter,
                               foliage="auto" if foliage is None else (foliage or None),
-                              edge_weights=edge_weights)
+                              edge_weights=edge_weights, tip_support=tip_support)
     if cell_size is not None:
         kw["voxel"] = {"cell_size": cell_size}
     return kw
@@ -110,6 +114,11 @@ def skeletonize(
                        ] = None,
     edge_weights: Annotated[str, typer.Option(help="Weights of Livny steps iv-v: livny (the "
                                                    "paper's) or branch.")] = "livny",
+    tip_support: Annotated[float | None, typer.Option(help="Prune short tip chains with fewer "
+                                                           "points per node than TIP_SUPPORT x "
+                                                           "the median tip chain, e.g. 0.3 "
+                                                           "for dense leafy scans (graph).")
+                           ] = None,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
 ) -> None:
     """Skeletonise a tree cloud and write skeleton.ply/.mtg, tube.glb/.obj, cylinders.csv,
@@ -122,7 +131,8 @@ def skeletonize(
 
     kw = _skeleton_kwargs(method, n_trees, node_spacing, k, max_iter, cell_size, ground,
                           outliers, downsample, filter_spec, radius, recentre, order_angle,
-                          order_share, seed, clutter, foliage, edge_weights)
+                          order_share, seed, clutter, foliage, edge_weights,
+                          tip_support)
     skel = run(cloud, **kw)
     files = export_skeleton(skel, out, world=world, title=f"{cloud.name} ({method})")
     summary = skel.summary()

@@ -32,6 +32,17 @@ METHODS = ("graph", "voxel")
 #: and noisy leafy scans at 60,000 points, foliage separation, chain smoothing): NOB 93–109 %
 #: of the truth at 3 (median of two seeds); 1.5 gave up to 159 % (bench/tree.py, docs/tree.md)
 TIP_LENGTH = 3.0
+#: default floor (m) of the cylinder radius in the overlap-collapse rules: two branches
+#: whose axes run within 1 cm of each other are one branch seen through range noise. At
+#: 240,000 points with 8 mm noise and leaf clutter, the Dijkstra tree of each noisy twig
+#: sprouts side spurs lying 1–2 cm off its axis, outside its ~4 mm allometric cylinder:
+#: the floor takes the leafy maple's NOB from 188 to 131 % and the conifer's from 127 to
+#: 113 %; at 60,000 points it changes NOB by −4 to +0 % (−14 % on the noisy conifer, which
+#: had 116 %) and F1 by < 0.01 (docs/tree.md "Denser scans").
+MIN_CYLINDER_RADIUS = 0.01
+#: ``tip_support`` only judges tip chains shorter than this many node spacings: long chains
+#: are real branches however sparsely the scan sampled them
+TIP_SUPPORT_LENGTH = 8.0
 
 
 @dataclass
@@ -143,6 +154,8 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
                 # cleanup
                 cleanup: bool = True, radius_ratio: float = 0.5, length_factor: float = 3.0,
                 overlap: float = 0.5, min_branch_length: float | None = None,
+                min_cylinder_radius: float = MIN_CYLINDER_RADIUS,
+                tip_support: float | None = None,
                 # voxel method
                 voxel: dict | None = None,
                 sparse_filter: float | None = None,
@@ -166,6 +179,14 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
         :func:`biomorph.tree.cleanup.cleanup` (``min_branch_length`` defaults to
         ``TIP_LENGTH`` = 3 node spacings for the graph method, 1.5 voxels for the voxel
         method: side tips shorter than that are scan noise or foliage).
+    min_cylinder_radius : floor (m) of the cylinder radius in both overlap-collapse rules
+        (``MIN_CYLINDER_RADIUS``, 1 cm: branches closer than that are range noise; 0 = the
+        allometric radius alone, as in the thesis).
+    tip_support : prune side tip chains shorter than ``TIP_SUPPORT_LENGTH`` node spacings
+        holding fewer points per node than this share of the median tip chain (points go to
+        their nearest node; :func:`biomorph.tree.cleanup.prune_unsupported_tips`). ``None``
+        (default) keeps them. 0.3 fixes dense leafy scans (240,000 points: NOB 94–109 %)
+        but removes real sparsely sampled twigs at 60,000 points (NOB down to 81 %).
     foliage, foliage_passes : leaf/wood separation before skeletonising
         (:func:`biomorph.tree.foliage.separate_foliage`): points whose neighbourhood is
         thicker than ``foliage`` × the median are dropped; ``None`` keeps every point;
@@ -257,10 +278,15 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
             mbl = TIP_LENGTH * spacing if min_branch_length is None else min_branch_length
             graph = tclean.cleanup(graph, radius_ratio=radius_ratio,
                                    length_factor=length_factor, min_length=mbl,
-                                   overlap=overlap)
+                                   overlap=overlap, min_radius=min_cylinder_radius)
             graph = tclean.prune_small_trees(graph, 2 * spacing)
             params.update(cleanup=True, radius_ratio=radius_ratio, length_factor=length_factor,
-                          overlap=overlap, min_branch_length=mbl)
+                          overlap=overlap, min_branch_length=mbl,
+                          min_cylinder_radius=min_cylinder_radius)
+        if tip_support is not None:
+            graph = tclean.prune_unsupported_tips(graph, xyz, tip_support,
+                                                 TIP_SUPPORT_LENGTH * spacing)
+            params.update(tip_support=tip_support)
         graph = livny.extend_tips(graph, xyz, 2.0 * spacing)
         graph = livny.densify(graph, spacing)
         timings["t4"] = time.perf_counter() - t0
