@@ -87,7 +87,7 @@ def speed(full: bool) -> None:
           f"{THESIS_GRAPH['livny']}.")
 
 
-def accuracy(seeds: int, points: int) -> None:
+def accuracy(seeds: int, points: int, tip_support: float | None = None) -> None:
     from biomorph.tree.metrics import compare_to_truth
     from biomorph.tree.pipeline import skeletonize
     from biomorph.tree.synthetic import PRESETS, generate_tree, simulate_scan
@@ -95,7 +95,8 @@ def accuracy(seeds: int, points: int) -> None:
     conditions = {"clean": dict(noise=0.002, occlusion=False, scanners=4),
                   "noisy+occluded": dict(noise=0.008, occlusion=True, scanners=2, leaves=0.05)}
     print(f"\n### Accuracy on synthetic trees ({points:,} points, seeds 0..{seeds - 1}, "
-          "median over seeds)\n")
+          "median over seeds"
+          + (f", graph tip_support={tip_support}" if tip_support else "") + ")\n")
     print("| preset | condition | method | NOB % | TBL % | TBL % of observed | observed | F1 | "
           "radius err | DBH err | seconds |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
@@ -109,7 +110,9 @@ def accuracy(seeds: int, points: int) -> None:
                 for method in ("graph", "voxel"):
                     t0 = time.perf_counter()
                     try:
-                        skel = skeletonize(cloud, method=method)
+                        skel = skeletonize(cloud, method=method,
+                                           tip_support=tip_support if method == "graph"
+                                           else None)
                     except Exception as exc:  # noqa: BLE001 - report and carry on
                         print(f"<!-- {preset} {cname} {method} seed {seed}: {exc} -->")
                         continue
@@ -190,6 +193,8 @@ def main() -> None:
     ap.add_argument("--only", choices=("speed", "accuracy", "real"))
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--points", type=int, default=60_000, help="points per synthetic scan")
+    ap.add_argument("--tip-support", type=float, default=None,
+                    help="graph method: prune weakly supported tip chains (e.g. 0.3)")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.one:
@@ -199,7 +204,7 @@ def main() -> None:
     if a.only in (None, "speed"):
         speed(a.full)
     if a.only in (None, "accuracy"):
-        accuracy(a.seeds, a.points)
+        accuracy(a.seeds, a.points, a.tip_support)
     if a.only in (None, "real"):
         real()
 

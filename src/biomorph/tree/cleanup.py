@@ -152,7 +152,7 @@ def _candidates(graph: BranchGraph, overlap: float, max_edge: float | None,
         v, u, w = v[ok], u[ok], w[ok]
         d1, l1 = _unit(pos[v] - pos[u])
         d2, l2 = _unit(pos[w] - pos[v])
-        rad = np.maximum(0.5 * (r[u] + r[v]), min_radius)
+        rad = 0.5 * (r[u] + r[v])
         frac = axis_inside_fraction(pos[u], d1, 2 * l1, rad, pos[v], d2, l2)
         hit = (frac > overlap) & (l1 > 0) & (l2 > 0)
         if max_edge is not None:
@@ -173,9 +173,11 @@ def collapse_overlaps(graph: BranchGraph, *, overlap: float = 0.5,
     """Apply both cylinder-overlap rules until stable (see module doc).
 
     ``max_edge`` (metres) caps the length of edges rule 2 may create (``None``: no cap).
-    ``min_radius`` (metres) floors the cylinder radius of both rules: a skeleton built from
-    noisy points runs spurs a range-noise width beside thin twigs, outside their allometric
-    cylinders (see ``MIN_CYLINDER_RADIUS`` in :mod:`biomorph.tree.pipeline`).
+    ``min_radius`` (metres) floors the cylinder radius of rule 1 (forks): a skeleton built
+    from noisy points runs spurs a range-noise width beside thin twigs, outside their
+    allometric cylinders (see ``MIN_CYLINDER_RADIUS`` in :mod:`biomorph.tree.pipeline`).
+    Rule 2 keeps the allometric radius: with the floor there, stem chains of small trees
+    collapsed further and the DBH moved by +9–18 % on two real clouds.
     Each round merges a conflict-free set of candidates, shortest first; weights ``c`` are
     recomputed from the new geometry between rounds.
     """

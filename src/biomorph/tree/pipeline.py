@@ -32,13 +32,13 @@ METHODS = ("graph", "voxel")
 #: and noisy leafy scans at 60,000 points, foliage separation, chain smoothing): NOB 93–109 %
 #: of the truth at 3 (median of two seeds); 1.5 gave up to 159 % (bench/tree.py, docs/tree.md)
 TIP_LENGTH = 3.0
-#: default floor (m) of the cylinder radius in the overlap-collapse rules: two branches
+#: default floor (m) of the cylinder radius in the fork rule of the overlap collapse: two branches
 #: whose axes run within 1 cm of each other are one branch seen through range noise. At
 #: 240,000 points with 8 mm noise and leaf clutter, the Dijkstra tree of each noisy twig
 #: sprouts side spurs lying 1–2 cm off its axis, outside its ~4 mm allometric cylinder:
-#: the floor takes the leafy maple's NOB from 188 to 131 % and the conifer's from 127 to
-#: 113 %; at 60,000 points it changes NOB by −4 to +0 % (−14 % on the noisy conifer, which
-#: had 116 %) and F1 by < 0.01 (docs/tree.md "Denser scans").
+#: the floor takes the leafy maple's NOB from 188 to 130 % and the conifer's from 127 to
+#: 114 %; at 60,000 points it changes NOB by −6 to +0 % (−10 % on the noisy conifer, which
+#: had 109 %) and F1 by < 0.01 (docs/tree.md "Denser scans").
 MIN_CYLINDER_RADIUS = 0.01
 #: ``tip_support`` only judges tip chains shorter than this many node spacings: long chains
 #: are real branches however sparsely the scan sampled them
@@ -179,9 +179,9 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
         :func:`biomorph.tree.cleanup.cleanup` (``min_branch_length`` defaults to
         ``TIP_LENGTH`` = 3 node spacings for the graph method, 1.5 voxels for the voxel
         method: side tips shorter than that are scan noise or foliage).
-    min_cylinder_radius : floor (m) of the cylinder radius in both overlap-collapse rules
-        (``MIN_CYLINDER_RADIUS``, 1 cm: branches closer than that are range noise; 0 = the
-        allometric radius alone, as in the thesis).
+    min_cylinder_radius : floor (m) of the cylinder radius in the fork rule of the overlap
+        collapse (``MIN_CYLINDER_RADIUS``, 1 cm: branches closer than that are range noise;
+        0 = the allometric radius alone, as in the thesis).
     tip_support : prune side tip chains shorter than ``TIP_SUPPORT_LENGTH`` node spacings
         holding fewer points per node than this share of the median tip chain (points go to
         their nearest node; :func:`biomorph.tree.cleanup.prune_unsupported_tips`). ``None``
