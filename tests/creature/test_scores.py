@@ -62,7 +62,10 @@ def test_two_pc1_scores_differ_along_pc1():
     assert (len(lo) != len(hi) or not np.allclose(lo.joint_positions, hi.joint_positions))
 
 
-# creature before issue 7 (commit 35bdde5): joints, total mass, sum of joint positions
+# creature before issue 7 (commit 35bdde5): joints, total mass, sum of joint positions.
+# Compared to 1e-9: the last digits follow the numpy/BLAS build (a fresh install on
+# 2026-12-01 moved the masses by 7e-12 relative); any real change of the generator moves
+# them by far more. With and without scores=None are compared bit for bit below.
 OLD = {0: (65, 3556.944733708012, 93.64512260633762),
        5: (81, 291.4771989996077, -16.073428193876346),
        11: (70, 76.4498661303456, 48.2879640024899)}
@@ -74,8 +77,8 @@ def test_no_scores_is_unchanged(seed):
     b = generate(seed, scores=None)
     n, mass, jsum = OLD[seed]
     assert len(a) == n
-    assert a.total_mass == pytest.approx(mass, rel=1e-12)
-    assert float(np.asarray(a.joint_positions).sum()) == pytest.approx(jsum, rel=1e-12, abs=1e-12)
+    assert a.total_mass == pytest.approx(mass, rel=1e-9)
+    assert float(np.asarray(a.joint_positions).sum()) == pytest.approx(jsum, rel=1e-9, abs=1e-9)
     assert np.asarray(a.joint_positions).tobytes() == np.asarray(b.joint_positions).tobytes()
     assert a.params == b.params
     assert "scores" not in a.params["options"]
