@@ -185,8 +185,8 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
     tip_support : prune side tip chains shorter than ``TIP_SUPPORT_LENGTH`` node spacings
         holding fewer points per node than this share of the median tip chain (points go to
         their nearest node; :func:`biomorph.tree.cleanup.prune_unsupported_tips`). ``None``
-        (default) keeps them. 0.3 fixes dense leafy scans (240,000 points: NOB 94–109 %)
-        but removes real sparsely sampled twigs at 60,000 points (NOB down to 81 %).
+        (default) keeps them. 0.3 fixes dense leafy scans (240,000 points: NOB 94–111 %)
+        but removes real sparsely sampled twigs at 60,000 points (NOB down to 83 %).
     foliage, foliage_passes : leaf/wood separation before skeletonising
         (:func:`biomorph.tree.foliage.separate_foliage`): points whose neighbourhood is
         thicker than ``foliage`` × the median are dropped; ``None`` keeps every point;
