@@ -8,15 +8,14 @@ on stderr and exit code 2; Ctrl-C exits with 130 and leaves no partial output.
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 
 from biomorph import __version__
+from biomorph._cli import err_console, out_console, print_json
 from biomorph.errors import BiomorphError
 from biomorph.pillars import PILLARS, optional_module
 
@@ -25,8 +24,6 @@ try:  # typer >= 0.20 vendors click; older releases use click itself
 except ImportError:  # pragma: no cover
     from click.exceptions import ClickException as _ClickException
 
-err_console = Console(stderr=True, soft_wrap=True, highlight=False)
-out_console = Console(soft_wrap=True, highlight=False)
 
 app = typer.Typer(name="biomorph", no_args_is_help=True, add_completion=False,
                   pretty_exceptions_enable=False,
@@ -44,22 +41,6 @@ def _root(version: Annotated[bool, typer.Option("--version", callback=_version,
                                                 is_eager=True, help="Print the version.")] = False
           ) -> None:
     """biomorph: generate creatures, skeletonise trees, edit motion, grow leaves."""
-
-
-def print_json(data: object) -> None:
-    """Print ``data`` as JSON on stdout (numpy scalars and paths converted)."""
-    import numpy as np
-
-    def default(o: object) -> object:
-        if isinstance(o, np.generic):
-            return o.item()
-        if isinstance(o, np.ndarray):
-            return o.tolist()
-        if isinstance(o, Path):
-            return str(o)
-        raise TypeError(f"not JSON serialisable: {type(o).__name__}")
-
-    sys.stdout.write(json.dumps(data, indent=2, default=default) + "\n")
 
 
 @app.command()

@@ -102,7 +102,7 @@ def generate(
     Example: biomorph creature generate --seed 7 --legs 4 --no-wings -o horse.glb
     (``--pc 1=1.5 --pc 2=-0.8`` fixes the first two PCA component scores.)
     """
-    from biomorph.cli import out_console, print_json
+    from biomorph._cli import out_console, print_json
     from biomorph.creature.export import check_extension, export
     from biomorph.creature.generator import Generator
     from biomorph.creature.mesh import SHAPES
@@ -160,7 +160,7 @@ def batch(
 
     Example: biomorph creature batch --count 10000 --out creatures --workers 2
     """
-    from biomorph.cli import out_console, print_json
+    from biomorph._cli import out_console, print_json
     from biomorph.creature.export import check_extension
     from biomorph.scale.batch import run_batch
 
@@ -200,7 +200,7 @@ def dataset(
 
     Example: biomorph creature dataset --plot pca.png
     """
-    from biomorph.cli import out_console, print_json
+    from biomorph._cli import out_console, print_json
     from biomorph.creature.dataset import load_species
     from biomorph.creature.pca import SEED_SPECTRUM, fit_dataset, spectrum_summary
 
@@ -248,7 +248,7 @@ def annotate(
 
     Example: biomorph creature annotate okapi.svg --class mammal --weight 250 --dataset my.csv
     """
-    from biomorph.cli import out_console, print_json
+    from biomorph._cli import out_console, print_json
     from biomorph.creature.dataset import append_species
     from biomorph.io.svg_annotations import species_row
 

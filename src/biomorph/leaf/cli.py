@@ -118,7 +118,7 @@ def mesh(output: Annotated[Path, typer.Option("-o", "--output", help="leaf.obj|.
 
     Example: biomorph leaf mesh --preset wheat --age 0.7 --triangles 50 -o leaf.obj
     """
-    from biomorph.cli import out_console, print_json
+    from biomorph._cli import out_console, print_json
     from biomorph.leaf.shape import check_age
 
     _check_ext(output, MESH_EXT)
@@ -160,7 +160,7 @@ def grow(output: Annotated[Path, typer.Option("-o", "--output", help="DIR or FIL
     """
     import numpy as np
 
-    from biomorph.cli import out_console, print_json
+    from biomorph._cli import out_console, print_json
     from biomorph.leaf.growth import GrowthRates, LeafTimeline, state_at_age
     from biomorph.leaf.shape import LeafShape, check_age
 
@@ -226,7 +226,7 @@ def canopy(output: Annotated[Path, typer.Option("-o", "--output",
 
     Example: biomorph leaf canopy --plants 200 --rows 10 --spacing 0.15 --seed 1 -o field.glb
     """
-    from biomorph.cli import out_console, print_json
+    from biomorph._cli import out_console, print_json
     from biomorph.leaf.canopy import (
         FieldSpec,
         PlantSpec,
@@ -265,7 +265,7 @@ def reduce_curve(output: Annotated[Path, typer.Option("-o", "--output", help="cu
 
     Example: biomorph leaf reduce-curve --preset wheat -o curve.png
     """
-    from biomorph.cli import out_console, print_json
+    from biomorph._cli import out_console, print_json
     from biomorph.leaf.plots import reduction_curves
 
     _check_ext(output, (".png",))

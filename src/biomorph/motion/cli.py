@@ -74,7 +74,7 @@ def _summary(mo, out: Path | None, t0: float, **extra: Any) -> dict[str, Any]:
 
 
 def _emit(summary: dict[str, Any], as_json: bool) -> None:
-    from biomorph.cli import out_console, print_json
+    from biomorph._cli import out_console, print_json
 
     if as_json:
         print_json(summary)
@@ -105,7 +105,7 @@ def info(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC file.")]
         return
     from rich.table import Table
 
-    from biomorph.cli import out_console
+    from biomorph._cli import out_console
 
     t = Table(title=str(path), show_header=False)
     for k, v in rep.items():

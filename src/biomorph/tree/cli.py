@@ -25,7 +25,7 @@ Method = Annotated[str, typer.Option("--method", "-m", help="graph (Livny) or vo
 def _print_table(title: str, rows: list[tuple[str, Any]]) -> None:
     from rich.table import Table
 
-    from biomorph.cli import out_console
+    from biomorph._cli import out_console
 
     table = Table(title=title, show_header=False)
     for k, v in rows:
@@ -138,7 +138,7 @@ def skeletonize(
     summary = skel.summary()
     summary["files"] = {k_: str(v) for k_, v in files.items()}
     if as_json:
-        from biomorph.cli import print_json
+        from biomorph._cli import print_json
 
         print_json(summary)
         return
@@ -188,7 +188,7 @@ def synth(
                "base_radius": float(truth.radius[truth.roots[0]]),
                "files": {k_: str(v) for k_, v in files.items()}}
     if as_json:
-        from biomorph.cli import print_json
+        from biomorph._cli import print_json
 
         print_json(summary)
         return
@@ -222,7 +222,7 @@ def evaluate(
         res["comparison"] = compare_to_truth(g, read_graph(truth), tolerance, cloud=pc)
     res = _jsonable(res)
     if as_json:
-        from biomorph.cli import print_json
+        from biomorph._cli import print_json
 
         print_json(res)
         return
@@ -280,13 +280,13 @@ def batch(
                        done=lambda it: (Path(it[1]) / "summary.json").exists(),
                        workers=workers, scheduler=scheduler, description="trees")
     if as_json:
-        from biomorph.cli import print_json
+        from biomorph._cli import print_json
 
         data = report.to_dict()
         data["results"] = report.results
         print_json(data)
     else:
-        from biomorph.cli import err_console, out_console
+        from biomorph._cli import err_console, out_console
 
         out_console.print(report.summary())
         for key, msg in report.failed:
