@@ -1,0 +1,37 @@
+"""``biomorph --help`` and ``biomorph <pillar> --help`` load no numeric stack (fast start).
+
+The CLI modules import only typer, rich and ``biomorph._cli`` at import time; each command
+imports its pillar inside the function. Timings are in ``bench/cli.py``; this test checks the
+cause (which modules load), which does not depend on the machine's load.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+HEAVY = ("numpy", "scipy", "numba", "matplotlib", "trimesh", "dask", "distributed", "viser",
+         "laspy", "pygltflib", "mujoco")
+
+PROBE = """
+import sys
+from biomorph.cli import run
+try:
+    run({argv!r})
+except SystemExit:
+    pass
+heavy = sorted({{m.split('.')[0] for m in sys.modules}} & set({heavy!r}))
+print(','.join(heavy))
+"""
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["creature", "--help"], ["tree", "--help"],
+                                  ["motion", "--help"], ["leaf", "--help"],
+                                  ["studio", "--help"]])
+def test_help_loads_no_numeric_stack(argv):
+    out = subprocess.run([sys.executable, "-c", PROBE.format(argv=argv, heavy=HEAVY)],
+                         capture_output=True, text=True, timeout=120, check=True)
+    heavy = out.stdout.strip().splitlines()[-1] if out.stdout.strip() else ""
+    assert heavy == "", f"biomorph {' '.join(argv)} imported {heavy}"
