@@ -9,7 +9,7 @@ import pytest
 
 from biomorph import __version__
 from biomorph.cli import run
-from biomorph.core.demo import sample_surface, synthetic_tree
+from biomorph.foundation_demo import sample_surface, synthetic_tree
 from biomorph.core.mesh import Mesh
 from biomorph.io import write_graph, write_mesh, write_points
 from tests.conftest import shared_file

@@ -39,7 +39,7 @@ def layer_of(module: str) -> int:
     if top in PILLARS:
         # a pillar's command group and demo are front ends that live with their pillar
         return 4 if len(parts) > 2 and parts[2] in ("cli", "demo") else 3
-    if top in ("cli", "demo", "studio", "scale", "__main__"):
+    if top in ("cli", "demo", "foundation_demo", "studio", "scale", "__main__"):
         return 4
     raise AssertionError(f"module {module} has no layer: add it to tests/test_layers.py")
 

@@ -21,7 +21,7 @@ def run_demo(out_dir: str | Path, only: Sequence[str] | None = None) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     sections: list[Section] = []
     timings: list[tuple[str, str]] = []
-    from biomorph.core.demo import run_demo as core_demo
+    from biomorph.foundation_demo import run_demo as core_demo
 
     sections.extend(core_demo(out / "core"))
     for pillar in PILLARS:

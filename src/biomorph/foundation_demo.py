@@ -1,4 +1,4 @@
-"""The "Foundation" section of ``biomorph demo``: formats table and one rendered example.
+"""The "Foundation" section of ``biomorph demo`` (a front end: it uses io, render and report).
 
 The example is a small seeded synthetic tree (a :class:`BranchGraph` with radii and branch
 orders) and a point cloud sampled on its branch surfaces. Both are written in every
