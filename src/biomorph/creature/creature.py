@@ -42,6 +42,15 @@ class Creature:
     contacts : world positions of the ground contacts (k, 3); contact_joint their joints.
     params : everything needed to regenerate (seed, options, sampled values).
     balance : the :class:`BalanceReport`.
+    part : per joint the bone it stands for, from the vocabulary
+        :data:`biomorph.creature.anatomy.PARTS` — ``skull mandible cervical thoracic lumbar
+        sacral caudal scapula pelvis humerus radius metacarpal carpometacarpus femur tibia
+        metatarsal fin_base fin_ray phalanx hoof claw nail`` (see that module for what each
+        covers). Consumers (bone models, muscles, rigs) fall back to the box for a label they
+        do not know, so new labels may be added.
+    digit : per joint the digit number (1 = innermost, anatomy's I..V) of a ``phalanx`` /
+        ``hoof`` / ``claw`` / ``nail`` joint, 0 elsewhere. The side letter (``L``/``R``/``C``)
+        is :meth:`side_label`; the left/right partner is ``mirror``.
     """
 
     skeleton: JointSkeleton
@@ -61,6 +70,8 @@ class Creature:
     spine_points: NDArray[np.float64]      # (10, 2) control points in the sagittal plane (m)
     params: dict[str, Any] = field(default_factory=dict)
     balance: BalanceReport | None = None
+    part: tuple[str, ...] = ()
+    digit: NDArray[np.int64] | None = None
 
     # ------------------------------------------------------------------ derived
     @property
@@ -84,6 +95,10 @@ class Creature:
         """World position of each bone's far end (m)."""
         y = self.world[:, :3, 1]
         return self.joint_positions + y * self.bone_length[:, None]
+
+    def side_label(self, j: int) -> str:
+        """``R`` (+z), ``L`` (−z) or ``C`` (midline) for joint ``j``."""
+        return "R" if self.side[j] > 0 else "L" if self.side[j] < 0 else "C"
 
     @property
     def total_mass(self) -> float:
@@ -126,6 +141,8 @@ class Creature:
             bones.append({
                 "name": name, "parent": sk.names[sk.parent[i]] if sk.parent[i] >= 0 else None,
                 "kind": self.kind[i], "region": self.region[i], "side": int(self.side[i]),
+                "part": self.part[i] if self.part else None,
+                "digit": int(self.digit[i]) if self.digit is not None else 0,
                 "offset": sk.offset[i].tolist(), "rest_rotation": sk.rest_rotation[i].tolist(),
                 "limits_rad": sk.limits[i].tolist(), "length": float(self.bone_length[i]),
                 "box": self.box_size[i].tolist(), "mass": float(self.mass[i]),

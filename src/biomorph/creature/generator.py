@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from biomorph.core import transforms as tf
 from biomorph.core.skeleton import JointSkeleton
+from biomorph.creature import anatomy as an
 from biomorph.creature import balance as bal
 from biomorph.creature import girdles as gd
 from biomorph.creature import limbs as lb
@@ -527,6 +528,7 @@ def _assemble(spine: dict, limbs: dict, skull: dict, opts: Options) -> dict[str,
         sel = vreg == r
         within[sel] = np.arange(1, sel.sum() + 1)
     vnames = [f"{rname[vreg[i]]}_{within[i]:02d}" for i in order]
+    vparts = an.vertebra_parts(vreg, cls)
     # body slices (volume, centre, owning vertebra)
     h, b, off = ms.profile(s, rl, spine["girth"], cls, skull_h, legless)
     vol = ms.slice_volumes(s, h, b)
@@ -554,6 +556,7 @@ def _assemble(spine: dict, limbs: dict, skull: dict, opts: Options) -> dict[str,
     Lv = np.linalg.norm(d3, axis=1)
     blocks = {
         "names": vnames, "parent": [par_v], "kind": ["spine"] * m,
+        "part": [vparts[i] for i in vi], "digit": [np.zeros(m, np.int64)],
         "region": [rname[r] for r in vreg[vi]], "side": [np.zeros(m, np.int64)],
         "W": [_frames_from_dirs(d3)], "pos": [np.concatenate([a, np.zeros((m, 1))], axis=1)],
         "blen": [Lv], "box": [np.stack([0.35 * vh[vi], Lv, 0.3 * vb[vi]], axis=1)],
@@ -562,10 +565,13 @@ def _assemble(spine: dict, limbs: dict, skull: dict, opts: Options) -> dict[str,
         "lim": [np.stack([_RANGES[rname[r]] for r in vreg[vi]])],
         "anat_a": [np.zeros((m, 3))], "anat_l": [np.zeros((m, 3, 2))]}
 
-    def put(names, parent, kind, region, side, W, pos, blen, box, volv, mc, msz, lim, aa, al):
+    def put(names, parent, kind, region, side, W, pos, blen, box, volv, mc, msz, lim, aa, al,
+            part):
         blocks["names"] += names
         blocks["kind"] += kind
         blocks["region"] += region
+        blocks["part"] += list(part)
+        blocks["digit"].append(np.zeros(len(names), np.int64))
         for key, val in (("parent", parent), ("side", side), ("W", W), ("pos", pos),
                          ("blen", blen), ("box", box), ("vol", volv), ("mass_c", mc),
                          ("mass_sz", msz), ("lim", lim), ("anat_a", aa), ("anat_l", al)):
@@ -580,7 +586,7 @@ def _assemble(spine: dict, limbs: dict, skull: dict, opts: Options) -> dict[str,
     put(["skull"], [slot[0]], ["skull"], ["head"], [0], _frames_from_dirs(d[None]), [org],
         [skull["length"]], [sbox], [ms.ellipsoid_volume(sbox)],
         [org + d * skull["length"] / 2], [sbox], [_RANGES["head"]], np.zeros((1, 3)),
-        np.zeros((1, 3, 2)))
+        np.zeros((1, 3, 2)), ["skull"])
     n_now = m + 1
     contacts, contact_joint, patches = [], [], []
     seg_names = ("girdle", "upper", "lower", "distal")
@@ -620,7 +626,8 @@ def _assemble(spine: dict, limbs: dict, skull: dict, opts: Options) -> dict[str,
                 als = al.copy()
                 als[:, 1:] = -al[:, 1:, ::-1]
             put([f"{tag}_{sn}_{sd}" for sn in seg_names], par, kinds, [gname] * 4,
-                [sgn] * 4, Ws, ps, bl, bx, vv, mcs, msz, lim, aas, als)
+                [sgn] * 4, Ws, ps, bl, bx, vv, mcs, msz, lim, aas, als,
+                an.limb_parts(spec.kind, gname))
             n_now += 4
             if pose.contact is not None:
                 M = np.array([1.0, 1.0, float(sgn)])
@@ -636,7 +643,8 @@ def _assemble(spine: dict, limbs: dict, skull: dict, opts: Options) -> dict[str,
                                                    "mass_c", "mass_sz", "lim", "anat_a",
                                                    "anat_l")}
     return dict(names=names, parent=cat["parent"], kind=blocks["kind"],
-                region=blocks["region"], side=side, W=cat["W"], pos=cat["pos"],
+                region=blocks["region"], part=blocks["part"],
+                digit=np.concatenate(blocks["digit"]), side=side, W=cat["W"], pos=cat["pos"],
                 blen=cat["blen"], box=cat["box"], vol=cat["vol"], mass_c=cat["mass_c"],
                 mass_sz=cat["mass_sz"], lim=cat["lim"], anat_a=cat["anat_a"],
                 anat_l=cat["anat_l"], mirror=mirror, n=len(names),
@@ -725,9 +733,9 @@ def _depth_first(asm: dict) -> dict:
     inv[perm] = np.arange(n)
     out = dict(asm)
     for k in ("W", "pos", "blen", "box", "vol", "mass_c", "mass_sz", "lim", "anat_a", "anat_l",
-              "side"):
+              "side", "digit"):
         out[k] = asm[k][perm]
-    for k in ("names", "kind", "region"):
+    for k in ("names", "kind", "region", "part"):
         out[k] = [asm[k][i] for i in perm]
     p = par[perm]
     out["parent"] = np.where(p >= 0, inv[np.maximum(p, 0)], -1)
@@ -922,7 +930,8 @@ def finish(spine: dict, girdles, limbs: dict, skull: dict, opts: Options,
                     mass_center=mass_c, mass_size=asm["mass_sz"] * scale,
                     anatomical_angles=asm["anat_a"], anatomical_limits=asm["anat_l"],
                     contacts=contacts.reshape(-1, 3), contact_joint=asm["contact_joint"],
-                    spine_points=pts_m, params=params, balance=final)
+                    spine_points=pts_m, params=params, balance=final,
+                    part=tuple(asm["part"]), digit=asm["digit"].astype(np.int64))
 
 
 def _options_dict(opts: Options) -> dict[str, Any]:
