@@ -1,0 +1,98 @@
+"""Joint nodes, armature node, skin with inverse bind matrices and the skinned bone mesh."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from biomorph.core import transforms as tf
+from biomorph.core.skeleton import JointSkeleton
+from biomorph.errors import InputError, ParameterError
+from biomorph.io.gltf.arrays import _Z_TO_Y, _Z_TO_Y_QUAT, _float32, _joint_nodes
+from biomorph.io.gltf.builder import _BONE_MATERIAL, _TRIANGLES, ARRAY_BUFFER, _Builder
+from biomorph.io.gltf.meshes import _indices
+from biomorph.io.gltf.sticks import _SHAPES, _bone_solids, _joint_meshes
+
+
+def _converted_rest(skeleton: JointSkeleton, y_up: bool) -> tuple[NDArray, NDArray]:
+    """Local rest translation and (unit) rotation per joint, roots turned to Y-up."""
+    trans = np.array(skeleton.offset, dtype=float)
+    rot = tf.quat_normalize(np.asarray(skeleton.rest_rotation, dtype=float))
+    if not y_up:
+        roots = skeleton.parent < 0
+        trans[roots] = trans[roots] @ _Z_TO_Y.T
+        rot[roots] = tf.quat_multiply(_Z_TO_Y_QUAT, rot[roots])
+    return trans, rot
+
+
+def _add_skeleton(builder: _Builder, skeleton: JointSkeleton, *, bone_shape: str | None,
+                  bone_width: Any, joint_meshes: Mapping[Any, Any] | None, y_up: bool,
+                  name: str | None) -> list[int]:
+    """Joint nodes, armature node, skin and skinned bone mesh; returns joint node indices."""
+    n = len(skeleton)
+    if n > 65535:
+        raise InputError(f"skeleton has {n} joints; glTF JOINTS_0 holds at most 65535")
+    check = np.concatenate([skeleton.offset.ravel(), skeleton.rest_rotation.ravel()])
+    if not np.isfinite(check).all():
+        raise InputError("skeleton offsets or rest rotations hold NaN or inf")
+    trans, rot = _converted_rest(skeleton, y_up)
+    world = skeleton.world_matrices(tf.make_transform(tf.quat_to_matrix(rot), trans))
+
+    first = len(builder.doc["nodes"])
+    nodes = _joint_nodes(skeleton.names, trans, rot)
+    order = np.argsort(skeleton.parent, kind="stable")
+    sorted_parent = skeleton.parent[order]
+    starts = np.searchsorted(sorted_parent, np.arange(n))
+    ends = np.searchsorted(sorted_parent, np.arange(n), side="right")
+    for i in range(n):
+        if ends[i] > starts[i]:
+            nodes[i]["children"] = (order[starts[i]:ends[i]] + first).tolist()
+    for node in nodes:
+        builder.node(node)
+    roots = np.flatnonzero(skeleton.parent < 0)
+    armature = builder.node({"name": name or "armature",
+                             "children": (roots + first).tolist()}, root=True)
+    joints = list(range(first, first + n))
+
+    ibm = tf.invert_rigid(world).astype(np.float32)
+    ibm[:, 3, :] = np.array([0, 0, 0, 1], np.float32)  # exact last row
+    skin = {"name": f"{name or 'armature'}_skin", "joints": joints, "skeleton": armature,
+            "inverseBindMatrices": builder.accessor(ibm, matrix=True)}
+    builder.doc["skins"].append(skin)
+
+    parts = []
+    if bone_shape is not None:
+        if bone_shape not in _SHAPES:
+            raise ParameterError(f"bone_shape must be one of {', '.join(_SHAPES)} or None; "
+                                 f"got {bone_shape!r}")
+        parts.append(_bone_solids(skeleton, world, bone_shape, bone_width))
+    if joint_meshes:
+        parts.append(_joint_meshes(skeleton, world, joint_meshes, builder.scale))
+    parts = [p for p in parts if len(p[0])]
+    if parts:
+        base = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+        pos = np.concatenate([p[0] for p in parts])
+        nrm = np.concatenate([p[1] for p in parts])
+        jnt = np.concatenate([p[2] for p in parts])
+        faces = np.concatenate([p[3] + b for p, b in zip(parts, base, strict=True)])
+        jdtype = np.uint8 if n <= 256 else np.uint16
+        joints0 = np.zeros((len(pos), 4), jdtype)
+        joints0[:, 0] = jnt
+        weights0 = np.zeros((len(pos), 4), np.float32)
+        weights0[:, 0] = 1.0
+        attrs = {
+            "POSITION": builder.accessor(_float32("bone vertices", pos), target=ARRAY_BUFFER,
+                                         bounds=True),
+            "NORMAL": builder.accessor(nrm.astype(np.float32), target=ARRAY_BUFFER),
+            "JOINTS_0": builder.accessor(joints0, target=ARRAY_BUFFER),
+            "WEIGHTS_0": builder.accessor(weights0, target=ARRAY_BUFFER)}
+        prim = {"attributes": attrs, "indices": _indices(builder, faces, len(pos)),
+                "material": builder.material(_BONE_MATERIAL), "mode": _TRIANGLES}
+        label = f"{name or 'armature'}_bones"
+        builder.doc["meshes"].append({"name": label, "primitives": [prim]})
+        builder.node({"name": label, "mesh": len(builder.doc["meshes"]) - 1,
+                      "skin": len(builder.doc["skins"]) - 1}, root=True)
+    return joints
