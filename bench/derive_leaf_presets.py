@@ -10,11 +10,11 @@ import sys
 from pathlib import Path
 
 from biomorph.io.atomic import write_text
-from biomorph.leaf.data import SHARED_LEAVES, derive_presets
+from biomorph.leaf.data import derive_presets, shared_leaves
 
 
 def main() -> None:
-    root = Path(sys.argv[1]) if len(sys.argv) > 1 else SHARED_LEAVES
+    root = Path(sys.argv[1]) if len(sys.argv) > 1 else shared_leaves()
     if not root.is_dir():
         sys.exit(f"leaf data folder {root} is absent")
     presets = derive_presets(root)

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicHermiteSpline, CubicSpline, PchipInterpolator
 
-from biomorph.errors import ParameterError
+from biomorph.errors import InputError, ParameterError
 
 Array = NDArray[np.float64]
 
@@ -259,6 +259,100 @@ class CatmullRomSpline(_Spline):
         super().__init__(xa, CubicHermiteSpline(xa, ya, dydx, axis=0), extrapolate)
 
 
+# --------------------------------------------------------------------------- angle form
+# Plane curves stored as a tangent angle phi(s) over normalised arc length (leaf midribs):
+# every discretisation keeps its length exactly, and editing phi conserves length.
+def _finite_1d(name: str, values: ArrayLike) -> Array:
+    try:
+        arr = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be numbers; got {values!r}") from exc
+    if not np.isfinite(arr).all():
+        i = int(np.flatnonzero(~np.isfinite(arr))[0])
+        raise InputError(f"{name}[{i}] is {arr[i]}; expected finite numbers")
+    return arr
+
+
+def midrib_arc_length(x: ArrayLike, y: ArrayLike) -> Array:
+    """Cumulative arc length ``s_i = Σ √(Δx² + Δy²)`` of digitised plane-curve points.
+
+    Raises :class:`~biomorph.errors.InputError` for fewer than 2 points, non-finite values
+    or duplicate consecutive points (zero-length segments, i.e. non-increasing arc length).
+    """
+    xa, ya = _finite_1d("midrib x", x), _finite_1d("midrib y", y)
+    if xa.size != ya.size:
+        raise InputError(f"midrib has {xa.size} x values but {ya.size} y values")
+    if xa.size < 2:
+        raise InputError(f"midrib has {xa.size} point(s); expected at least 2 (base and tip)")
+    seg = np.hypot(np.diff(xa), np.diff(ya))
+    if np.any(seg <= 0):
+        i = int(np.flatnonzero(seg <= 0)[0])
+        raise InputError(f"midrib points {i} and {i + 1} are duplicates ({xa[i]:g}, {ya[i]:g});"
+                         " expected strictly increasing arc length")
+    return np.concatenate([[0.0], np.cumsum(seg)])
+
+
+def angles_from_points(x: ArrayLike, y: ArrayLike, rounding: float = 0.25
+                       ) -> tuple[Array, Array, float]:
+    """Angle form of a digitised plane curve.
+
+    Returns ``(s, phi, length)``: knots ``s`` in [0, 1] and the unwrapped tangent angle
+    ``phi`` (radians above +x) at the knots, piecewise linear between them; ``length`` is the
+    polyline length in the input units. Each data segment keeps its direction; at every
+    digitised corner the angle turns linearly over a window of ``±rounding`` times the
+    shorter adjacent segment, centred on the corner, so the rounded curve stays on the
+    digitised points to second order (no drift along the curve). ``rounding=0`` keeps the
+    polyline's sharp corners.
+    """
+    cum = midrib_arc_length(x, y)
+    xa, ya = np.asarray(x, float).reshape(-1), np.asarray(y, float).reshape(-1)
+    total = float(cum[-1])
+    seg_phi = np.unwrap(np.arctan2(np.diff(ya), np.diff(xa)))
+    seg_len = np.diff(cum) / total
+    si = cum / total
+    if seg_phi.size == 1:
+        return np.array([0.0, 1.0]), np.array([seg_phi[0], seg_phi[0]]), total
+    w = np.clip(rounding, 1e-6, 0.49) * np.minimum(seg_len[:-1], seg_len[1:])   # per corner
+    corner = si[1:-1]
+    s = np.concatenate([[0.0], np.ravel(np.column_stack([corner - w, corner + w])), [1.0]])
+    phi = np.concatenate([[seg_phi[0]], np.ravel(np.column_stack([seg_phi[:-1], seg_phi[1:]])),
+                          [seg_phi[-1]]])
+    keep = np.concatenate([[True], np.diff(s) > 0])
+    return s[keep], phi[keep], total
+
+
+def integrate_angles(phi_seg: Array, seg_len: Array) -> Array:
+    """Plane-curve points from segment angles (midpoint rule), vectorised over leading axes.
+
+    ``phi_seg (..., k-1)`` radians, ``seg_len (..., k-1)`` lengths → ``(..., k, 2)`` points
+    (horizontal, vertical) starting at the origin; every segment has exactly its length.
+    """
+    dx = seg_len * np.cos(phi_seg)
+    dz = seg_len * np.sin(phi_seg)
+    shape = phi_seg.shape[:-1] + (1,)
+    x = np.concatenate([np.zeros(shape), np.cumsum(dx, axis=-1)], axis=-1)
+    z = np.concatenate([np.zeros(shape), np.cumsum(dz, axis=-1)], axis=-1)
+    return np.stack([x, z], axis=-1)
+
+
+def solve_arc_length(points: ArrayLike, target: float, s: ArrayLike) -> Array:
+    """Re-parametrise a polyline by arc length and scale it so its length equals ``target``.
+
+    Points are returned at arc-length fractions ``s`` (in [0, 1]) of the scaled curve,
+    shifted so the first one is the origin.
+    """
+    p = np.asarray(points, dtype=float)
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    if cum[-1] <= 0:
+        raise InputError("curve has zero length; cannot solve the arc-length constraint")
+    keep = np.concatenate([[True], seg > 0])
+    q = np.asarray(s, float) * cum[-1]
+    out = np.stack([np.interp(q, cum[keep], p[keep, k]) for k in range(p.shape[1])], axis=-1)
+    return (out - out[0]) * (target / cum[-1])
+
+
 __all__ = ["bezier_eval", "bezier_derivative", "bezier_split", "bezier_arc_length",
            "bezier_arclength_params", "polyline_arc_length", "resample_polyline",
-           "NaturalCubicSpline", "MonotoneSpline", "CatmullRomSpline"]
+           "NaturalCubicSpline", "MonotoneSpline", "CatmullRomSpline",
+           "angles_from_points", "integrate_angles", "midrib_arc_length", "solve_arc_length"]

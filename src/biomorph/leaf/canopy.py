@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from biomorph.core.mesh import Mesh
 from biomorph.errors import ParameterError
-from biomorph.leaf.growth import EXTENSION_END, MIN_RELATIVE_LENGTH
+from biomorph.leaf.age import EXTENSION_END, MIN_RELATIVE_LENGTH
 from biomorph.leaf.mesh import LeafBatch, mesh_batch
 from biomorph.leaf.shape import LeafShape, check_age
 

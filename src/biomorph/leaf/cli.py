@@ -28,50 +28,11 @@ def _check_ext(path: Path, allowed: tuple[str, ...]) -> None:
                              f"supported; expected one of {' '.join(allowed)}")
 
 
-def write_leaf_mesh(path: Path, mesh) -> Path:
-    """Write a Z-up leaf/canopy mesh by extension (.obj .ply .glb .can)."""
-    from biomorph import io
-
-    ext = path.suffix.lower()
-    if ext == ".can":
-        from biomorph.io.caribu import write_can
-
-        return write_can(path, mesh)
-    if ext == ".glb":
-        return io.write_mesh(path, mesh, y_up=False)
-    return io.write_mesh(path, mesh)
-
-
-def read_points_csv(path: Path, columns: tuple[str, str]):
-    """Two named columns of a CSV file (header line required) as float arrays."""
-    import csv
-
-    import numpy as np
-
-    from biomorph.errors import FormatError
-
-    if not path.is_file():
-        raise FormatError(path, "file does not exist")
-    with path.open(newline="") as fh:
-        reader = csv.DictReader(fh)
-        names = reader.fieldnames or []
-        if any(c not in names for c in columns):
-            raise FormatError(path, f"expected columns {' and '.join(columns)}; found "
-                                    f"{', '.join(names) or 'none'}", line=1)
-        vals = []
-        for i, row in enumerate(reader, start=2):
-            try:
-                vals.append([float(row[c]) for c in columns])
-            except (TypeError, ValueError):
-                raise FormatError(path, f"non-numeric value in {dict(row)}", line=i) from None
-    arr = np.array(vals, float).reshape(-1, 2)
-    return arr[:, 0], arr[:, 1]
-
-
 def _shape(preset: str, length: float | None, width: float | None, twist: float | None,
            undulation: float | None, midrib: Path | None = None, widths: Path | None = None):
     import numpy as np
 
+    from biomorph.leaf.files import read_points_csv
     from biomorph.leaf.shape import LeafShape
 
     base = LeafShape.from_preset(preset)
@@ -119,6 +80,7 @@ def mesh(output: Annotated[Path, typer.Option("-o", "--output", help="leaf.obj|.
     Example: biomorph leaf mesh --preset wheat --age 0.7 --triangles 50 -o leaf.obj
     """
     from biomorph._cli import out_console, print_json
+    from biomorph.leaf.files import write_leaf_mesh
     from biomorph.leaf.shape import check_age
 
     _check_ext(output, MESH_EXT)
@@ -161,6 +123,7 @@ def grow(output: Annotated[Path, typer.Option("-o", "--output", help="DIR or FIL
     import numpy as np
 
     from biomorph._cli import out_console, print_json
+    from biomorph.leaf.files import write_leaf_mesh
     from biomorph.leaf.growth import GrowthRates, LeafTimeline, state_at_age
     from biomorph.leaf.shape import LeafShape, check_age
 
@@ -234,6 +197,7 @@ def canopy(output: Annotated[Path, typer.Option("-o", "--output",
         field_mesh,
         leaf_area_index,
     )
+    from biomorph.leaf.files import write_leaf_mesh
     from biomorph.leaf.shape import check_age
 
     _check_ext(output, MESH_EXT)

@@ -22,10 +22,45 @@ from biomorph.leaf.shape import LeafShape, MidribCollection
 Array = NDArray[np.float64]
 PathLike = str | os.PathLike[str]
 
-#: Default location of the shared data (overridden by ``BIOMORPH_SHARED_DATA``).
-SHARED_LEAVES = Path(os.environ.get("BIOMORPH_SHARED_DATA",
-                                    Path(__file__).resolve().parents[4] / "shared" / "data")
-                     ) / "leaves"
+#: Environment variable naming the shared data folder (the one holding ``leaves/``).
+DATA_ENV = "BIOMORPH_SHARED_DATA"
+
+
+def shared_leaves(required: bool = True) -> Path | None:
+    """The shared leaf-data folder, resolved only when asked (never at import).
+
+    Search order: ``$BIOMORPH_SHARED_DATA/leaves`` if that variable is set; otherwise
+    ``shared/data/leaves`` in the current directory and each of its parents, then in each
+    parent of this source file (a source checkout beside ``../shared``).
+    Raises :class:`FormatError` naming the places searched when ``required`` and absent,
+    else returns ``None``.
+    """
+    tried: list[Path] = []
+    env = os.environ.get(DATA_ENV)
+    if env:
+        tried.append(Path(env) / "leaves")
+    else:
+        cwd = Path.cwd().resolve()
+        here = Path(__file__).resolve().parent
+        for d in (cwd, *cwd.parents, *here.parents):
+            cand = d / "shared" / "data" / "leaves"
+            if cand not in tried:
+                tried.append(cand)
+    for cand in tried:
+        if cand.is_dir():
+            return cand
+    if not required:
+        return None
+    more = " ..." if len(tried) > 3 else ""
+    raise FormatError(tried[0], f"leaf data folder not found; set {DATA_ENV} to the folder "
+                                f"that holds leaves/ (searched {', '.join(map(str, tried[:3]))}"
+                                f"{more})")
+
+
+def __getattr__(name: str):
+    if name == "SHARED_LEAVES":   # backwards-compatible, resolved lazily
+        return shared_leaves()
+    raise AttributeError(f"module 'biomorph.leaf.data' has no attribute {name!r}")
 
 
 def _rows(path: PathLike, columns: tuple[str, ...]) -> list[tuple[int, list[float]]]:
@@ -87,11 +122,11 @@ def drop_duplicate_points(x: Array, y: Array) -> tuple[Array, Array]:
     return x[keep], y[keep]
 
 
-def wheat_leaves(root: PathLike = SHARED_LEAVES, width_ratio: float = 0.07
+def wheat_leaves(root: PathLike | None = None, width_ratio: float = 0.07
                  ) -> list[LeafShape]:
     """The 450 digitised wheat leaves of ``adel/So99.csv`` with their class width profiles
     (``adel/SRSo.csv``), in metres; maximal width = ``width_ratio · L``."""
-    root = Path(root)
+    root = Path(root) if root is not None else shared_leaves()
     xy = read_xy(root / "adel" / "So99.csv")
     sr = read_sr(root / "adel" / "SRSo.csv")
     leaves = []
@@ -103,10 +138,10 @@ def wheat_leaves(root: PathLike = SHARED_LEAVES, width_ratio: float = 0.07
     return leaves
 
 
-def maize_leaves(root: PathLike = SHARED_LEAVES, db: str = "leaves_db") -> list[LeafShape]:
+def maize_leaves(root: PathLike | None = None, db: str = "leaves_db") -> list[LeafShape]:
     """Maize leaves of ``derived/maize_<db>_{xy,sr}.csv`` in metres (x,y and s,r
     normalised separately; ``L`` = measured length of the width profile)."""
-    root = Path(root) / "derived"
+    root = (Path(root) if root is not None else shared_leaves()) / "derived"
     xy = read_xy(root / f"maize_{db}_xy.csv")
     sr = read_sr(root / f"maize_{db}_sr.csv", key="rank,lindex")
     leaves = []
@@ -121,7 +156,7 @@ def maize_leaves(root: PathLike = SHARED_LEAVES, db: str = "leaves_db") -> list[
     return leaves
 
 
-__all__ = ["SHARED_LEAVES", "maize_leaves", "read_sr", "read_trajectories", "read_xy",
+__all__ = ["DATA_ENV", "maize_leaves", "shared_leaves", "read_sr", "read_trajectories", "read_xy",
            "wheat_leaves"]
 
 
@@ -136,7 +171,7 @@ def _r6(a) -> list[float]:
     return [float(f"{v:.6g}") for v in np.asarray(a, float).reshape(-1)]
 
 
-def derive_presets(root: PathLike = SHARED_LEAVES) -> dict:
+def derive_presets(root: PathLike | None = None) -> dict:
     """Derive the ``maize``, ``wheat`` and ``grass`` presets from the shared data.
 
     * wheat — median tangent-angle profile φ(s) of the 450 So99 midribs, mean of the six
@@ -149,7 +184,7 @@ def derive_presets(root: PathLike = SHARED_LEAVES) -> dict:
       (width/length = 0.025 of the wheat leaves' own ratio scaled) and a half twist.
       Twist and undulation are not in the data: they are set by hand and marked so.
     """
-    root = Path(root)
+    root = Path(root) if root is not None else shared_leaves()
     out: dict = {}
     wheat = wheat_leaves(root)
     s, phi, _ = _median_profile(wheat)

@@ -21,7 +21,7 @@ def run_demo(out_dir: str | Path) -> list[Section]:
         leaf_area_index,
         plant_growth_frames,
     )
-    from biomorph.leaf.cli import write_leaf_mesh
+    from biomorph.leaf.files import write_leaf_mesh
     from biomorph.leaf.plastic import apply_ops, bend, scale_width
     from biomorph.leaf.plots import mesh_preview, reduction_curves
     from biomorph.leaf.reduction import reduce_leaf, reduced_mesh

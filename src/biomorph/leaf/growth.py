@@ -5,7 +5,7 @@ State of a leaf at a time: normalised physiological age ``a ∈ [0, 1]``, curren
 a width factor (integral of ``dr/d(age)``) and an extra bending angle (integral of
 ``dθ/d(age)``).
 
-Geometry of a growing leaf (see :func:`biomorph.leaf.mesh._profile`):
+Geometry of a growing leaf (see :func:`biomorph.leaf.mesh.leaf_profile`):
 
 * midrib — the collection ``N(age, s)`` interpolated **by age** at run time (angle form,
   so unit length is kept); the current leaf is the part of that curve whose arc length is
@@ -29,41 +29,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.errors import ParameterError
-from biomorph.leaf.shape import LeafShape, check_age
+from biomorph.leaf.age import (
+    EXTENSION_END,
+    MIN_RELATIVE_LENGTH,
+    LeafState,
+    ShapeLike,
+    relative_length,
+    state_at_age,
+    visible_area,
+)
+from biomorph.leaf.mesh import LeafBatch, mesh_batch
 
 Rate = float | Callable[[float], float]
-
-#: Normalised age at which the blade reaches its final length (default extension phase).
-EXTENSION_END = 0.5
-#: Smallest relative length of a leaf (age 0): a just-visible tip.
-MIN_RELATIVE_LENGTH = 0.02
-
-
-@dataclass(frozen=True)
-class LeafState:
-    """State of a growing leaf. Lengths in metres, angles in radians."""
-
-    age: float
-    length: float
-    visible: float
-    width_factor: float = 1.0
-    bend: float = 0.0
-
-
-def relative_length(age: float, extension_end: float = EXTENSION_END) -> float:
-    """``l / L`` of a leaf of normalised ``age``: linear extension until ``extension_end``."""
-    a = check_age(age)
-    frac = 1.0 if extension_end <= 0 else min(1.0, a / extension_end)
-    return MIN_RELATIVE_LENGTH + (1.0 - MIN_RELATIVE_LENGTH) * frac
-
-
-def state_at_age(shape: LeafShape, age: float, extension_end: float = EXTENSION_END,
-                 hidden: float = 0.0, width_factor: float = 1.0, bend: float = 0.0
-                 ) -> LeafState:
-    """Default state of ``shape`` at ``age`` (length from :func:`relative_length`)."""
-    l_cur = shape.length * relative_length(age, extension_end)
-    return LeafState(check_age(age), l_cur, max(l_cur - hidden, 0.0), width_factor, bend)
-
 
 def _rate(value: Rate, x: float) -> float:
     return float(value(x)) if callable(value) else float(value)
@@ -96,7 +73,7 @@ class LeafTimeline:
     >>> m = tl.mesh(5.0)        # mesh at t = 5 s
     """
 
-    def __init__(self, shape: LeafShape, rates: GrowthRates | None = None,
+    def __init__(self, shape: ShapeLike, rates: GrowthRates | None = None,
                  duration: float = 1.0, dt: float | None = None,
                  initial: LeafState | None = None, hidden: float = 0.0,
                  extension_end: float = EXTENSION_END) -> None:
@@ -144,8 +121,6 @@ class LeafTimeline:
     def mesh(self, t: float, n_s: int = 40, n_u: int = 3, drop_degenerate: bool = True,
              **kwargs):
         """Mesh of the visible leaf at time ``t`` (a :class:`~biomorph.core.mesh.Mesh`)."""
-        from biomorph.leaf.mesh import LeafBatch, mesh_batch
-
         batch = LeafBatch.from_shapes([self.shape], states=[self.state(t)],
                                       s=np.linspace(0, 1, n_s), **kwargs)
         return mesh_batch(batch, n_u, drop_degenerate=drop_degenerate)
@@ -163,26 +138,11 @@ class LeafTimeline:
         return visible_area(self.shape, self.state(t))
 
 
-def visible_area(shape: LeafShape, state: LeafState | None = None) -> float:
-    """Exact flat area (m²) of the visible part: the width is piecewise linear in the arc
-    length, so the trapezoid rule over the width knots is exact."""
-    L = shape.length
-    if state is None:
-        return shape.area()
-    lo, hi = state.length - state.visible, state.length
-    if hi <= lo:
-        return 0.0
-    knots = shape.s_r * L - (L - state.length)            # width knots in current-leaf metres
-    sigma = np.unique(np.concatenate([[lo, hi], knots[(knots > lo) & (knots < hi)]]))
-    shat = np.clip(1.0 - (state.length - sigma) / L, 0, 1)
-    w = shape.width * state.width_factor * shape.r_at(shat)
-    return float(np.trapezoid(w, sigma))
-
-
 def with_state(state: LeafState, **changes) -> LeafState:
     """A copy of ``state`` with fields replaced."""
     return replace(state, **changes)
 
 
-__all__ = ["EXTENSION_END", "GrowthRates", "LeafState", "LeafTimeline", "relative_length",
+__all__ = ["EXTENSION_END", "MIN_RELATIVE_LENGTH", "GrowthRates", "LeafState", "LeafTimeline",
+           "relative_length",
            "state_at_age", "visible_area", "with_state"]

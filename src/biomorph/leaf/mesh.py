@@ -19,8 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from biomorph.core.curves import integrate_angles
 from biomorph.core.mesh import Mesh
 from biomorph.errors import ParameterError
+from biomorph.leaf.age import state_at_age
 
 Array = NDArray[np.float64]
 
@@ -70,8 +72,6 @@ class LeafBatch:
         ``s`` are sample positions in [0, 1] along the visible leaf: ``(K,)`` shared,
         ``(N, K)`` per leaf, or ``None`` for 31 equal steps.
         """
-        from biomorph.leaf.growth import state_at_age
-
         n = len(shapes)
         if states is None:
             ages_l = [None] * n if ages is None else list(ages)
@@ -79,7 +79,7 @@ class LeafBatch:
                       for sh, a in zip(shapes, ages_l, strict=True)]
         sg = np.linspace(0, 1, 31) if s is None else np.asarray(s, float)
         sg = np.broadcast_to(sg, (n, sg.shape[-1]))
-        rows = [_profile(sh, st, sg[i], twist, undulation)
+        rows = [leaf_profile(sh, st, sg[i], twist, undulation)
                 for i, (sh, st) in enumerate(zip(shapes, states, strict=True))]
         cols = [np.array([r[c] for r in rows]) for c in range(7)]
         return cls(*cols, *_placement(n, origin, azimuth, plant, leaf))
@@ -96,8 +96,12 @@ def _placement(n: int, origin, azimuth, plant, leaf):
     return o, np.array(a), np.array(p), np.array(lf)
 
 
-def _profile(shape, state, s: Array, twist: bool, undulation: bool):
-    """Profiles of one leaf (or growing leaf ``state``) at visible fractions ``s``."""
+def leaf_profile(shape, state, s: Array, twist: bool = True, undulation: bool = True):
+    """Profiles of one leaf (or growing leaf ``state``) at visible fractions ``s``.
+
+    Returns ``(phi, seg, width, theta, wave_amp, wave_arg, v)`` as in :class:`LeafBatch`
+    (one row): segment angles and lengths of the visible midrib, full width, twist and
+    undulation at the samples, and the texture coordinate ``v = s``."""
     L = shape.length
     if state is None:
         l_cur, h, wf, bend, age = L, L, 1.0, 0.0, None
@@ -137,8 +141,6 @@ def leaf_grid(batch: LeafBatch, u: ArrayLike, with_normals: bool = False):
     tilted by ≈ atan(u·w·dθ/ds) otherwise), finite differences of the surface otherwise.
     """
     ua = np.asarray(u, float)
-    from biomorph.leaf.shape import integrate_angles
-
     xz = integrate_angles(batch.phi, batch.seg)                        # (N,K,2)
     ph = batch.phi
     phv = np.concatenate([ph[:, :1], 0.5 * (ph[:, 1:] + ph[:, :-1]), ph[:, -1:]], axis=1)
@@ -289,21 +291,5 @@ def split_boundary_edge(mesh: Mesh, face: int | None = None, edge: int | None = 
     return Mesh(verts, new_faces, face_ids=ids, **extra)
 
 
-def mesh_leaf(shape, age: float | None = None, triangles: int | None = None, n_s: int = 60,
-              n_u: int = 3, twist: bool = True, undulation: bool = True,
-              plant: int = 0, leaf: int = 0) -> Mesh:
-    """Mesh of one leaf: a regular grid, or an exact triangle budget via reduction."""
-    if triangles is not None:
-        from biomorph.leaf.reduction import reduced_mesh
-
-        return reduced_mesh(shape, triangles, age=age, twist=twist, undulation=undulation,
-                            plant=plant, leaf=leaf)
-    if n_s < 2:
-        raise ParameterError(f"n_s={n_s}: a leaf needs at least 2 samples along the midrib")
-    batch = LeafBatch.from_shapes([shape], ages=[age], s=np.linspace(0, 1, n_s),
-                                  twist=twist, undulation=undulation, plant=[plant], leaf=[leaf])
-    return mesh_batch(batch, n_u)
-
-
-__all__ = ["LeafBatch", "concat_batches", "leaf_areas", "leaf_grid", "mesh_batch", "mesh_leaf",
+__all__ = ["LeafBatch", "concat_batches", "leaf_areas", "leaf_grid", "leaf_profile", "mesh_batch",
            "split_boundary_edge"]

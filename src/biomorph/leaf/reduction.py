@@ -35,8 +35,11 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from biomorph.core.curves import integrate_angles
 from biomorph.core.mesh import Mesh
 from biomorph.errors import ParameterError
+from biomorph.leaf.age import state_at_age, visible_area
+from biomorph.leaf.mesh import LeafBatch, leaf_profile, mesh_batch, split_boundary_edge
 
 Array = NDArray[np.float64]
 
@@ -279,14 +282,11 @@ def _dist(px: Array, py: Array, a: NDArray[np.int64], b: NDArray[np.int64]) -> A
 
 def _fine_profile(shape, n_points: int, age: float | None, twist: bool, undulation: bool,
                   state=None):
-    from biomorph.leaf.growth import state_at_age
-    from biomorph.leaf.mesh import _profile
-
     if n_points < 2:
         raise ParameterError(f"n_points={n_points}: need at least 2 points")
     st = state if state is not None else (None if age is None else state_at_age(shape, age))
     s = np.linspace(0.0, 1.0, n_points)
-    return s, _profile(shape, st, s, twist, undulation)
+    return s, leaf_profile(shape, st, s, twist, undulation)
 
 
 def reduce_profile(s: Array, x: Array, z: Array, w: Array) -> Reduction:
@@ -306,8 +306,6 @@ def reduce_leaf(shape, n_points: int = 200, age: float | None = None, state=None
 
 
 def _reduce_prof(s: Array, prof) -> Reduction:
-    from biomorph.leaf.shape import integrate_angles
-
     phi, seg, width = prof[0], prof[1], prof[2]
     L = max(float(seg.sum()), 1e-12)
     xz = integrate_angles(phi, seg) / L
@@ -318,8 +316,6 @@ def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int 
                  twist: bool = True, undulation: bool = True, plant: int = 0, leaf: int = 0,
                  state=None, reduction: Reduction | None = None) -> Mesh:
     """Mesh of ``shape`` with exactly ``triangles`` triangles (see module docstring)."""
-    from biomorph.leaf.mesh import LeafBatch, mesh_batch, split_boundary_edge
-
     triangles = int(triangles)
     if triangles < 1:
         raise ParameterError(f"triangle budget {triangles} is below the minimum mesh "
@@ -328,8 +324,6 @@ def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int 
     s, prof = _fine_profile(shape, n_pts, age, twist, undulation, state)
     red = reduction or _reduce_prof(s, prof)
     kept = red.kept(red.removed_for_budget(triangles))
-    from biomorph.leaf.growth import state_at_age, visible_area
-
     st = state if state is not None else (None if age is None else state_at_age(shape, age))
     batch = coarse_batch(s, prof, kept, plant, leaf, exact_area=visible_area(shape, st))
     mesh = mesh_batch(LeafBatch(*batch), n_u=2)
@@ -351,8 +345,6 @@ def coarse_batch(s: Array, prof, kept: NDArray[np.int64], plant: int = 0, leaf: 
 
     Widths are scaled by one factor so the flat strip area equals ``exact_area`` (default:
     the trapezoid area of the fine discretisation)."""
-    from biomorph.leaf.shape import integrate_angles
-
     phi, seg, width, theta, amp, arg, v = prof
     xz = integrate_angles(phi, seg)
     d = np.diff(xz[kept], axis=0)
@@ -369,5 +361,19 @@ def coarse_batch(s: Array, prof, kept: NDArray[np.int64], plant: int = 0, leaf: 
             np.array([plant], np.int64), np.array([leaf], np.int64))
 
 
-__all__ = ["Reduction", "coarse_batch", "reduce_leaf", "reduce_profile", "reduced_mesh",
-           "reduction_order", "reduction_order_py"]
+def mesh_leaf(shape, age: float | None = None, triangles: int | None = None, n_s: int = 60,
+              n_u: int = 3, twist: bool = True, undulation: bool = True,
+              plant: int = 0, leaf: int = 0) -> Mesh:
+    """Mesh of one leaf: a regular ``n_s × n_u`` grid, or an exact triangle budget."""
+    if triangles is not None:
+        return reduced_mesh(shape, triangles, age=age, twist=twist, undulation=undulation,
+                            plant=plant, leaf=leaf)
+    if n_s < 2:
+        raise ParameterError(f"n_s={n_s}: a leaf needs at least 2 samples along the midrib")
+    batch = LeafBatch.from_shapes([shape], ages=[age], s=np.linspace(0, 1, n_s),
+                                  twist=twist, undulation=undulation, plant=[plant], leaf=[leaf])
+    return mesh_batch(batch, n_u)
+
+
+__all__ = ["Reduction", "coarse_batch", "mesh_leaf", "reduce_leaf", "reduce_profile",
+           "reduced_mesh", "reduction_order"]

@@ -33,7 +33,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from biomorph.core.curves import (
+    angles_from_points,
+    integrate_angles,
+    midrib_arc_length,
+    solve_arc_length,
+)
 from biomorph.errors import InputError, ParameterError
+from biomorph.leaf.age import check_age
 
 Array = NDArray[np.float64]
 
@@ -52,34 +59,6 @@ def _as_1d(name: str, values: ArrayLike) -> Array:
     return arr
 
 
-def check_age(age: float) -> float:
-    """Return ``age`` as float if it lies in [0, 1] (normalised physiological age)."""
-    a = float(age)
-    if not np.isfinite(a) or a < 0.0 or a > 1.0:
-        raise ParameterError(f"age {age!r} is outside [0, 1]; the leaf age is normalised "
-                             "(0 = just initiated, 1 = mature and senescent)")
-    return a
-
-
-def midrib_arc_length(x: ArrayLike, y: ArrayLike) -> Array:
-    """Cumulative arc length ``s_i = Σ √(Δx² + Δy²)`` of digitised midrib points.
-
-    Raises :class:`InputError` for fewer than 2 points, non-finite values or duplicate
-    consecutive points (zero-length segments, i.e. non-increasing arc length).
-    """
-    xa, ya = _as_1d("midrib x", x), _as_1d("midrib y", y)
-    if xa.size != ya.size:
-        raise InputError(f"midrib has {xa.size} x values but {ya.size} y values")
-    if xa.size < 2:
-        raise InputError(f"midrib has {xa.size} point(s); expected at least 2 (base and tip)")
-    seg = np.hypot(np.diff(xa), np.diff(ya))
-    if np.any(seg <= 0):
-        i = int(np.flatnonzero(seg <= 0)[0])
-        raise InputError(f"midrib points {i} and {i + 1} are duplicates ({xa[i]:g}, {ya[i]:g});"
-                         " expected strictly increasing arc length")
-    return np.concatenate([[0.0], np.cumsum(seg)])
-
-
 def _check_width_profile(s: ArrayLike, r: ArrayLike) -> tuple[Array, Array]:
     sa, ra = _as_1d("width s", s), _as_1d("width r", r)
     if sa.size != ra.size:
@@ -96,50 +75,6 @@ def _check_width_profile(s: ArrayLike, r: ArrayLike) -> tuple[Array, Array]:
     if ra.max() <= 0:
         raise InputError("width profile is zero everywhere; expected a positive maximum")
     return sa, ra
-
-
-# --------------------------------------------------------------------------- angle form
-def angles_from_points(x: ArrayLike, y: ArrayLike, rounding: float = 0.25
-                       ) -> tuple[Array, Array, float]:
-    """Angle form of a digitised midrib.
-
-    Returns ``(s, phi, length)``: knots ``s`` in [0, 1] and the unwrapped tangent angle
-    ``phi`` (radians above +x) at the knots, piecewise linear between them; ``length`` is the
-    polyline length in the input units. Each data segment keeps its direction; at every
-    digitised corner the angle turns linearly over a window of ``±rounding`` times the
-    shorter adjacent segment, centred on the corner, so the rounded curve stays on the
-    digitised points to second order (no drift along the leaf). ``rounding=0`` keeps the
-    polyline's sharp corners.
-    """
-    cum = midrib_arc_length(x, y)
-    xa, ya = np.asarray(x, float).reshape(-1), np.asarray(y, float).reshape(-1)
-    total = float(cum[-1])
-    seg_phi = np.unwrap(np.arctan2(np.diff(ya), np.diff(xa)))
-    seg_len = np.diff(cum) / total
-    si = cum / total
-    if seg_phi.size == 1:
-        return np.array([0.0, 1.0]), np.array([seg_phi[0], seg_phi[0]]), total
-    w = np.clip(rounding, 1e-6, 0.49) * np.minimum(seg_len[:-1], seg_len[1:])   # per corner
-    corner = si[1:-1]
-    s = np.concatenate([[0.0], np.ravel(np.column_stack([corner - w, corner + w])), [1.0]])
-    phi = np.concatenate([[seg_phi[0]], np.ravel(np.column_stack([seg_phi[:-1], seg_phi[1:]])),
-                          [seg_phi[-1]]])
-    keep = np.concatenate([[True], np.diff(s) > 0])
-    return s[keep], phi[keep], total
-
-
-def integrate_angles(phi_seg: Array, seg_len: Array) -> Array:
-    """Midrib points from segment angles (midpoint rule), vectorised over leading axes.
-
-    ``phi_seg (..., k-1)`` radians, ``seg_len (..., k-1)`` metres → ``(..., k, 2)`` points
-    (horizontal, vertical) starting at the origin; every segment has exactly its length.
-    """
-    dx = seg_len * np.cos(phi_seg)
-    dz = seg_len * np.sin(phi_seg)
-    shape = phi_seg.shape[:-1] + (1,)
-    x = np.concatenate([np.zeros(shape), np.cumsum(dx, axis=-1)], axis=-1)
-    z = np.concatenate([np.zeros(shape), np.cumsum(dz, axis=-1)], axis=-1)
-    return np.stack([x, z], axis=-1)
 
 
 # --------------------------------------------------------------------------- collection
@@ -238,23 +173,6 @@ class MidribCollection:
             w = float(np.clip((t - self.ages[j]) / (self.ages[j + 1] - self.ages[j]), 0, 1))
             xy = (1 - w) * pts[j] + w * pts[j + 1]
         return solve_arc_length(xy, 1.0, s)
-
-
-def solve_arc_length(points: ArrayLike, target: float, s: ArrayLike) -> Array:
-    """Re-parametrise a polyline by arc length and scale it so its length equals ``target``.
-
-    This solves the model's constraint ``∫_0^h |N'(t)| dt = l/L`` for the parameter ``h``:
-    points are returned at arc-length fractions ``s`` (in [0, 1]) of the scaled curve.
-    """
-    p = np.asarray(points, dtype=float)
-    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
-    if cum[-1] <= 0:
-        raise InputError("curve has zero length; cannot solve the arc-length constraint")
-    keep = np.concatenate([[True], seg > 0])
-    q = np.asarray(s, float) * cum[-1]
-    out = np.stack([np.interp(q, cum[keep], p[keep, k]) for k in range(p.shape[1])], axis=-1)
-    return (out - out[0]) * (target / cum[-1])
 
 
 # --------------------------------------------------------------------------- leaf shape
@@ -453,7 +371,7 @@ class LeafShape:
         :mod:`biomorph.leaf.reduction`); otherwise a regular ``n_s × n_u`` grid.
         ``age`` in [0, 1] meshes the growing leaf at that age (see :mod:`biomorph.leaf.growth`).
         """
-        from biomorph.leaf.mesh import mesh_leaf
+        from biomorph.leaf.reduction import mesh_leaf
 
         return mesh_leaf(self, age=age, triangles=triangles, n_s=n_s, n_u=n_u, twist=twist,
                          undulation=undulation)
