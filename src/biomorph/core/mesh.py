@@ -242,7 +242,7 @@ def _from_trimesh(obj: Any) -> Mesh:
         normals = np.asarray(obj.vertex_normals)
     uv = None
     colors = None
-    vis = obj.visual
+    vis: Any = obj.visual  # ColorVisuals or TextureVisuals: checked by kind below
     if getattr(vis, "kind", None) == "texture" and getattr(vis, "uv", None) is not None:
         if len(vis.uv) == n:
             uv = np.asarray(vis.uv)

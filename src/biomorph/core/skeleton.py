@@ -41,10 +41,10 @@ class JointSkeleton:
     names: tuple[str, ...]
     parent: NDArray[np.int64]
     offset: NDArray[np.float64]
-    rest_rotation: NDArray[np.float64] = field(default=None)  # type: ignore[assignment]
-    limits: NDArray[np.float64] = field(default=None)  # type: ignore[assignment]
+    rest_rotation: NDArray[np.float64] = field(default=None)  # type: ignore[arg-type]
+    limits: NDArray[np.float64] = field(default=None)  # type: ignore[arg-type]
     channels: tuple[tuple[str, ...], ...] | None = None
-    end_site: NDArray[np.float64] = field(default=None)  # type: ignore[assignment]
+    end_site: NDArray[np.float64] = field(default=None)  # type: ignore[arg-type]
 
     def __post_init__(self) -> None:
         n = len(self.names)
