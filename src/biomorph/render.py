@@ -302,7 +302,7 @@ def render_motion(motion: Any, out_png: PathLike, n_poses: int = 5, up: str | No
     if up is None:
         up = "y"
         try:
-            from biomorph.motion.motion import guess_up_axis
+            from biomorph.core.motion import guess_up_axis
 
             up = guess_up_axis(motion)
         except (ImportError, AttributeError, InputError):

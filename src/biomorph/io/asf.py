@@ -189,7 +189,7 @@ def _rot(angles: list[float], axes: str, degrees: bool, path: Path | None = None
 
 def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0):
     """Read AMC frames against a parsed ASF (:func:`read_asf`) into a Motion."""
-    from biomorph.motion.motion import Motion, dfs_preorder, guess_up_axis, reorder_joints
+    from biomorph.core.motion import Motion, dfs_preorder, guess_up_axis, reorder_joints
 
     p = Path(path)
     if not (np.isfinite(fps) and fps > 0):

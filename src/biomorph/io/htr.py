@@ -72,7 +72,7 @@ def _sections(path: str | os.PathLike[str]) -> dict[str, list[tuple[int, list[st
 
 def read_htr(path: str | os.PathLike[str], reverse_order: bool = False):
     """Read an HTR file into a :class:`biomorph.motion.Motion` (see module docstring)."""
-    from biomorph.motion.motion import Motion, dfs_preorder, guess_up_axis, reorder_joints
+    from biomorph.core.motion import Motion, dfs_preorder, guess_up_axis, reorder_joints
 
     secs = _sections(path)
     for need in ("Header", "SegmentNames&Hierarchy", "BasePosition"):

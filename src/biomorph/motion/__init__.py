@@ -13,18 +13,41 @@ Pure functions over an immutable :class:`Motion` (each returns a new Motion):
 ``make_cycle``/``best_loop``  seamless loops with offset (cycle.py)
 ``quality_report``          angular rates, Euler wraps, foot skate (quality.py)
 ==========================  ==========================================================
+
+Names load lazily (PEP 562 ``__getattr__``) so ``biomorph motion --help`` and the CLI module
+import no numeric stack; ``Motion`` and its helpers live in :mod:`biomorph.core.motion`.
 """
 
-from biomorph.motion.align import reorient, to_y_up, transform_root
-from biomorph.motion.blend import blend
-from biomorph.motion.cycle import best_loop, make_cycle
-from biomorph.motion.displacement import Layer, apply_layers, displace, remove_layer
-from biomorph.motion.equalizer import bands, equalize, n_bands
-from biomorph.motion.motion import Motion, concatenate, guess_up_axis, preview_positions
-from biomorph.motion.quality import quality_report
-from biomorph.motion.timewarp import change_speed
+import importlib
+from typing import Any
 
-__all__ = ["Motion", "concatenate", "guess_up_axis", "preview_positions", "equalize", "bands",
-           "n_bands", "displace", "Layer", "apply_layers", "remove_layer", "reorient",
-           "to_y_up", "transform_root", "blend", "change_speed", "make_cycle", "best_loop",
-           "quality_report"]
+_WHERE = {
+    "Motion": "biomorph.core.motion", "concatenate": "biomorph.core.motion",
+    "guess_up_axis": "biomorph.core.motion", "preview_positions": "biomorph.core.motion",
+    "dfs_preorder": "biomorph.core.motion", "reorder_joints": "biomorph.core.motion",
+    "to_y_up": "biomorph.core.motion", "transform_root": "biomorph.core.motion",
+    "reorient": "biomorph.motion.align",
+    "blend": "biomorph.motion.blend",
+    "best_loop": "biomorph.motion.cycle", "make_cycle": "biomorph.motion.cycle",
+    "Layer": "biomorph.motion.displacement", "apply_layers": "biomorph.motion.displacement",
+    "displace": "biomorph.motion.displacement", "remove_layer": "biomorph.motion.displacement",
+    "bands": "biomorph.motion.equalizer", "equalize": "biomorph.motion.equalizer",
+    "n_bands": "biomorph.motion.equalizer",
+    "quality_report": "biomorph.motion.quality",
+    "change_speed": "biomorph.motion.timewarp",
+}
+
+__all__ = list(_WHERE)
+
+
+def __getattr__(name: str) -> Any:
+    mod = _WHERE.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'biomorph.motion' has no attribute {name!r}")
+    value = getattr(importlib.import_module(mod), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

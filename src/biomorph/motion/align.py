@@ -5,7 +5,8 @@
   local rotation stays untouched.
 * :func:`reorient` (the seed's Edit → re-orient / re-position): rotate about the vertical
   axis by an angle and move, so the character walks another way.
-* :func:`to_y_up` converts Z-up data (e.g. the fair1 captures) to Y-up.
+* :func:`to_y_up` converts Z-up data (e.g. the fair1 captures) to Y-up (defined in
+  :mod:`biomorph.core.motion` with :func:`transform_root`, re-exported here).
 * :func:`heading` yaw of the root per frame; :func:`align_root_to` puts one clip's root onto
   another's at a frame (position and heading, height kept).
 * :func:`local_maxima`, :func:`peak_offset` (the seed's auto-adjust: last local maximum of a
@@ -20,8 +21,8 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from biomorph.core import transforms as tf
+from biomorph.core.motion import Motion, to_y_up, transform_root
 from biomorph.errors import InputError, ParameterError
-from biomorph.motion.motion import Motion, frozen
 
 Array = NDArray[np.float64]
 _UP = {"x": 0, "y": 1, "z": 2}
@@ -32,31 +33,6 @@ def _up_index(up: str) -> int:
         return _UP[up.lower()]
     except (KeyError, AttributeError):
         raise ParameterError(f"up axis {up!r}; expected 'x', 'y' or 'z'") from None
-
-
-def transform_root(motion: Motion, rotation: ArrayLike, translation: ArrayLike = (0, 0, 0),
-                   pivot: ArrayLike = (0, 0, 0)) -> Motion:
-    """Apply the world transform ``p -> R (p - pivot) + pivot + translation`` to the motion.
-
-    ``rotation`` is one quaternion ``(4,)`` or one per frame ``(f, 4)``; the root's
-    orientation becomes ``R · orientation`` (pose rotation ``rest⁻¹ · R · rest · pose``)."""
-    q = np.asarray(rotation, dtype=float)
-    if q.shape not in ((4,), (motion.n_frames, 4)):
-        raise ParameterError(f"root rotation has shape {q.shape}; expected (4,) or "
-                             f"({motion.n_frames}, 4)")
-    q = tf.quat_normalize(q)
-    pivot = np.asarray(pivot, dtype=float)
-    pos = tf.quat_rotate(q, motion.root_position - pivot) + pivot + np.asarray(translation, float)
-    rest = motion.skeleton.rest_rotation[0]
-    rot = np.array(motion.rotation)
-    root = tf.quat_multiply(tf.quat_conjugate(rest),
-                            tf.quat_multiply(q, tf.quat_multiply(rest, rot[:, 0])))
-    rot[:, 0] = tf.quat_continuous(root, axis=0)
-    jt = None
-    if motion.joint_translation is not None:
-        jt = np.array(motion.joint_translation)
-        jt[:, 0] = pos
-    return motion.with_(rotation=frozen(rot), root_position=frozen(pos), joint_translation=jt)
 
 
 def reorient(motion: Motion, angle: float, translate: ArrayLike = (0.0, 0.0, 0.0),
@@ -75,26 +51,6 @@ def reorient(motion: Motion, angle: float, translate: ArrayLike = (0.0, 0.0, 0.0
     axis = np.zeros(3)
     axis[ui] = 1.0
     return transform_root(motion, tf.quat_from_axis_angle(axis, float(angle)), translate, pivot)
-
-
-def to_y_up(motion: Motion, up: str = "z") -> Motion:
-    """Convert a motion whose vertical axis is ``up`` to Y-up (``"y"`` returns it unchanged).
-
-    Z-up → Y-up is a rotation of -90° about X: ``(x, y, z) -> (x, z, -y)``."""
-    u = up.lower()
-    if u == "y":
-        return motion
-    if u == "z":
-        q = tf.quat_from_axis_angle("x", -np.pi / 2)
-    elif u == "x":
-        q = tf.quat_from_axis_angle("z", np.pi / 2)
-    else:
-        raise ParameterError(f"up axis {up!r}; expected 'x', 'y' or 'z'")
-    out = transform_root(motion, q)
-    meta = dict(out.meta)
-    meta["up_converted_from"] = u
-    meta["up_guess"] = "y"
-    return out.with_(meta=meta)
 
 
 def _forward_axis(motion: Motion, up: int) -> int:

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from biomorph.core.motion import Motion, frozen, same_skeleton, sample_arrays, sample_linear
 from biomorph.errors import InputError, ParameterError
 from biomorph.motion._kernels import blend_average, blend_average_sampled, blend_slerp, ro, ro_int
 from biomorph.motion.align import (
@@ -42,7 +43,6 @@ from biomorph.motion.align import (
     pose_features,
 )
 from biomorph.motion.keys import Curve, Keys, curve_from_keys, smoothstep
-from biomorph.motion.motion import Motion, frozen, same_skeleton, sample_arrays, sample_linear
 
 Array = NDArray[np.float64]
 

@@ -14,7 +14,6 @@ import time
 from pathlib import Path
 from typing import Annotated, Any
 
-import numpy as np
 import typer
 
 from biomorph.errors import ParameterError, UnsupportedFormatError
@@ -82,7 +81,7 @@ def _emit(summary: dict[str, Any], as_json: bool) -> None:
         out_console.print(", ".join(f"{k}={v}" for k, v in summary.items()))
 
 
-def _deg_keys(text: str, dim: int) -> list[tuple[float, np.ndarray]]:
+def _deg_keys(text: str, dim: int) -> list[tuple[float, Any]]:
     from biomorph.motion.keys import parse_keys
 
     return parse_keys(text, dim=dim)
@@ -158,6 +157,8 @@ def edit(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
 
     Example: biomorph motion edit walk.bvh -o reach.bvh --joint RightArm --key "120:0/0/30"
     """
+    import numpy as np
+
     from biomorph.motion.displacement import displace
 
     _check_out(output)
@@ -181,6 +182,8 @@ def reorient(path: Annotated[Path, typer.Argument(help="Input motion.")], output
 
     Example: biomorph motion reorient walk.bvh -o west.bvh --angle 90 --move 0,0,2
     """
+    import numpy as np
+
     from biomorph.motion.align import reorient as ro
 
     _check_out(output)
@@ -332,6 +335,8 @@ def plot(path: Annotated[Path, typer.Argument(help="Input motion.")],
 
     Example: biomorph motion plot walk.bvh -o bands.png --joint LeftUpLeg --gains 0,0,1,1,1
     """
+    import numpy as np
+
     from biomorph.motion.plots import plot_bands, plot_poses
 
     if output.suffix.lower() != ".png":

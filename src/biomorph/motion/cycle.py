@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core import transforms as tf
+from biomorph.core.motion import Motion, check_range, concatenate
 from biomorph.errors import ParameterError
 from biomorph.motion.align import (
     _forward_axis,
@@ -33,7 +34,6 @@ from biomorph.motion.align import (
     transform_root,
 )
 from biomorph.motion.keys import smoothstep
-from biomorph.motion.motion import Motion, check_range, concatenate
 
 Array = NDArray[np.float64]
 

@@ -26,10 +26,10 @@ from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
 from biomorph.core import transforms as tf
+from biomorph.core.motion import Motion, frozen
 from biomorph.errors import ParameterError
 from biomorph.motion.align import reorient, transform_root
 from biomorph.motion.keys import Keys, key_arrays
-from biomorph.motion.motion import Motion, frozen
 
 Array = NDArray[np.float64]
 KINDS = ("rotation", "position")

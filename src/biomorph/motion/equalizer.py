@@ -54,9 +54,9 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from biomorph.core.motion import Motion, frozen
 from biomorph.errors import ParameterError
 from biomorph.motion._kernels import equalize_rotations, equalize_rows, lowpass_into, ro
-from biomorph.motion.motion import Motion, frozen
 
 Array = NDArray[np.float64]
 KERNEL = np.array([1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16])

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from biomorph.core.motion import Motion
 from biomorph.io.atomic import atomic_path
-from biomorph.motion.motion import Motion
 
 
 def _plt():

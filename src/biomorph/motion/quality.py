@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 
 from biomorph.core import transforms as tf
+from biomorph.core.motion import Motion, guess_up_axis
 from biomorph.motion.align import _up_index
-from biomorph.motion.motion import Motion, guess_up_axis
 
 
 def angular_rates(motion: Motion) -> tuple[np.ndarray, np.ndarray]:

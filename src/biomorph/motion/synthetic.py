@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from biomorph.core import transforms as tf
+from biomorph.core.motion import Motion, dfs_preorder, reorder_joints
 from biomorph.core.skeleton import JointSkeleton
-from biomorph.motion.motion import Motion, dfs_preorder, reorder_joints
 
 # name, parent, offset (m)
 _BODY = [

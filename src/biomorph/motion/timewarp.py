@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from biomorph.core.motion import Motion
 from biomorph.errors import ParameterError
 from biomorph.motion.keys import Curve, Keys, curve_from_keys
-from biomorph.motion.motion import Motion
 
 Array = NDArray[np.float64]
 
