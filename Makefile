@@ -9,7 +9,7 @@ TOOLS := .tools
 GLTF_VALIDATOR := $(TOOLS)/node_modules/gltf-validator/package.json
 OUT ?= demo-out
 
-.PHONY: demo test bench lint studio tools clean
+.PHONY: demo test check bench lint studio tools clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -30,16 +30,19 @@ demo: $(STAMP)
 	$(VENV)/bin/biomorph demo --out $(OUT)
 	@echo "open $(OUT)/report.html"
 
-test: tools
+check: $(STAMP)
 	$(VENV)/bin/ruff check $(wildcard src tests bench)
+	$(VENV)/bin/ruff format --check $(wildcard src tests bench)
+	$(VENV)/bin/mypy
+
+test: tools check
 	$(VENV)/bin/pytest -n 2 --durations=15
 
 bench: $(STAMP)
 	@for f in bench/*.py; do echo "== $$f"; $(PY) $$f || exit 1; done
 
-lint: $(STAMP)
-	$(VENV)/bin/ruff check $(wildcard src tests bench)
-	$(VENV)/bin/ruff format --check $(wildcard src tests bench) || true
+# ruff (lint + format, both fail the target) and mypy on core/ and io/ (config in pyproject.toml).
+lint: check
 
 studio: $(STAMP)
 	$(VENV)/bin/biomorph studio
