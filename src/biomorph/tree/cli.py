@@ -7,19 +7,24 @@ on stderr without leaving partial output.
 
 from __future__ import annotations
 
+import functools
+import inspect
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
-import numpy as np
 import typer
 
+from biomorph._cli import bounded
 from biomorph.errors import ParameterError
+from biomorph.tree.options import SkeletonizeOptions, cli_default, cli_fields, cli_type
 
 app = typer.Typer(name="tree", no_args_is_help=True, add_completion=False,
                   pretty_exceptions_enable=False,
                   help="Tree skeletons from LiDAR point clouds (graph and voxel methods).")
 
 Method = Annotated[str, typer.Option("--method", "-m", help="graph (Livny) or voxel (Gorte).")]
+Seed = Annotated[int, typer.Option(help="Random seed.")]
 
 
 def _print_table(title: str, rows: list[tuple[str, Any]]) -> None:
@@ -35,105 +40,69 @@ def _print_table(title: str, rows: list[tuple[str, Any]]) -> None:
     out_console.print(table)
 
 
-def _parse_filter(spec: str | None) -> dict | None:
-    if spec is None:
-        return None
-    parts = spec.split(":")
-    if len(parts) not in (2, 3):
-        raise ParameterError(f"--filter {spec!r}: expected NAME:MAX or NAME:MIN:MAX")
-    try:
-        if len(parts) == 2:
-            return {"name": parts[0], "max_value": float(parts[1])}
-        lo = float(parts[1]) if parts[1] else None
-        hi = float(parts[2]) if parts[2] else None
-        return {"name": parts[0], "min_value": lo, "max_value": hi}
-    except ValueError:
-        raise ParameterError(f"--filter {spec!r}: bounds must be numbers") from None
+def _option_parameters() -> list[inspect.Parameter]:
+    """One typer option per field of :mod:`biomorph.tree.options` that has a ``cli`` entry
+    (generated: the API, ``skeletonize`` and ``batch`` share one list)."""
+    params = []
+    for stage, f, spec in cli_fields():
+        typ = cli_type(f, spec)
+        check = None
+        if spec.lo is not None or spec.hi is not None:
+            check = bounded(spec.lo, spec.hi, lo_open=spec.lo_open, hi_open=spec.hi_open)
+        decls = [spec.flag] if typ is not bool else [f"{spec.flag}/--no-{spec.flag[2:]}"]
+        opt = typer.Option(*decls, help=spec.help, callback=check,
+                           rich_help_panel=f"{stage.capitalize()} options")
+        params.append(inspect.Parameter(f"{stage}__{f.name}", inspect.Parameter.KEYWORD_ONLY,
+                                        default=cli_default(f, spec),
+                                        annotation=Annotated[typ, opt]))
+    return params
 
 
-def _skeleton_kwargs(method: str, n_trees: int | None, node_spacing: float | None, k: int,
-                     max_iter: int, cell_size: float | None, ground: bool, outliers: bool,
-                     downsample: float | None, filter_spec: str | None, radius: str,
-                     recentre: bool, order_angle: float, order_share: float, seed: int,
-                     clutter: float | None = None, foliage: float | None = None,
-                     edge_weights: str = "livny", tip_support: float | None = None,
-                     ) -> dict[str, Any]:
-    if order_angle <= 0 or order_angle > 180:
-        raise ParameterError(f"--order-angle must lie in (0, 180] degrees, got {order_angle}")
-    if downsample is not None and not 0 < downsample <= 1:
-        raise ParameterError(f"--downsample must be a ratio in (0, 1], got {downsample}")
-    if foliage is not None and foliage != 0 and not foliage > 1:
-        raise ParameterError(f"--foliage must be 0 (off) or a factor > 1, got {foliage}")
-    if tip_support is not None and not 0 < tip_support < 1:
-        raise ParameterError(f"--tip-support must lie in (0, 1) (a share of the median points "
-                             f"per node of the tip chains), got {tip_support}")
-    kw: dict[str, Any] = dict(method=method, n_trees=n_trees, node_spacing=node_spacing, k=k,
-                              max_iter=max_iter, ground="auto" if ground else None,
-                              outliers=outliers, downsample=downsample,
-                              filter=_parse_filter(filter_spec), radius=radius,
-                              recentre=recentre, order_angle=float(np.radians(order_angle)),
-                              order_share=order_share, seed=seed, sparse_filter=clutter,
-                              foliage="auto" if foliage is None else (foliage or None),
-                              edge_weights=edge_weights, tip_support=tip_support)
-    if cell_size is not None:
-        kw["voxel"] = {"cell_size": cell_size}
-    return kw
+def with_skeleton_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Give a command every pipeline option; it receives them as ``options``
+    (a :class:`~biomorph.tree.options.SkeletonizeOptions`, built from its ``method`` and
+    ``seed`` parameters and the generated options)."""
+    sig = inspect.signature(func, eval_str=True)
+    extra = _option_parameters()
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        values = {k.replace("__", ".", 1): kwargs.pop(k) for k in list(kwargs) if "__" in k}
+        kwargs["options"] = SkeletonizeOptions.from_cli(values, method=kwargs["method"],
+                                                        seed=kwargs["seed"])
+        return func(*args, **kwargs)
+
+    own = [p for p in sig.parameters.values() if p.name != "options"]
+    wrapper.__signature__ = sig.replace(parameters=own + extra)  # type: ignore[attr-defined]
+    wrapper.__annotations__ = {**func.__annotations__,
+                               **{p.name: p.annotation for p in extra}}
+    wrapper.__annotations__.pop("options", None)
+    return wrapper
 
 
 @app.command()
+@with_skeleton_options
 def skeletonize(
     cloud: Annotated[Path, typer.Argument(help="Point cloud: .las .laz .ply .xyz .txt .csv .npy")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")] = Path("tree-out"),
     method: Method = "graph",
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
-    n_trees: Annotated[int | None, typer.Option(help="Number of trees (default: found "
-                                                     "automatically).")] = None,
-    node_spacing: Annotated[float | None, typer.Option(help="Skeleton node spacing, m "
-                                                            "(default from the data).")] = None,
-    k: Annotated[int, typer.Option(help="Neighbours per point (graph method).")] = 10,
-    max_iter: Annotated[int, typer.Option(help="Re-weighting iterations cap.")] = 5,
-    cell_size: Annotated[float | None, typer.Option(help="Voxel size, m (voxel method).")] = None,
-    ground: Annotated[bool, typer.Option(help="Remove the ground when detected.")] = True,
-    outliers: Annotated[bool, typer.Option(help="Statistical outlier removal.")] = True,
-    downsample: Annotated[float | None, typer.Option(help="Random downsampling ratio.")] = None,
-    filter_spec: Annotated[str | None, typer.Option("--filter", help="Keep points with "
-                                                    "attribute NAME <= MAX (NAME:MAX).")] = None,
-    radius: Annotated[str, typer.Option(help="fit (RANSAC circles) or allometric.")] = "fit",
-    recentre: Annotated[bool, typer.Option(help="Move nodes to fitted stem centres.")] = True,
-    order_angle: Annotated[float, typer.Option(help="Branch-order angle, degrees.")] = 45.0,
-    order_share: Annotated[float, typer.Option(help="Branch-order weight share.")] = 0.5,
     world: Annotated[bool, typer.Option(help="Write original (e.g. georeferenced) "
                                              "coordinates.")] = True,
-    clutter: Annotated[float | None, typer.Option(help="Drop sparse points (leaf clutter): "
-                                                       "mean 16-NN distance > CLUTTER x "
-                                                       "median, e.g. 4.")] = None,
-    foliage: Annotated[float | None, typer.Option(help="Leaf/wood separation: drop points "
-                                                       "whose neighbourhood is thicker than "
-                                                       "FOLIAGE x the median; 0 = off "
-                                                       "[default: 3 (graph), off (voxel)].")
-                       ] = None,
-    edge_weights: Annotated[str, typer.Option(help="Weights of Livny steps iv-v: livny (the "
-                                                   "paper's) or branch.")] = "livny",
-    tip_support: Annotated[float | None, typer.Option(help="Prune short tip chains with fewer "
-                                                           "points per node than TIP_SUPPORT x "
-                                                           "the median tip chain, e.g. 0.3 "
-                                                           "for dense leafy scans (graph).")
-                           ] = None,
-    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    seed: Seed = 0,
+    options: SkeletonizeOptions | None = None,
 ) -> None:
     """Skeletonise a tree cloud and write skeleton.ply/.mtg, tube.glb/.obj, cylinders.csv,
     summary.json and preview.png into OUT.
+
+    Every option of the pipeline stages is listed below (biomorph.tree.options).
 
     Example: biomorph tree skeletonize scan.laz --method graph --out out/ --json
     """
     from biomorph.tree.export import export_skeleton
     from biomorph.tree.pipeline import skeletonize as run
 
-    kw = _skeleton_kwargs(method, n_trees, node_spacing, k, max_iter, cell_size, ground,
-                          outliers, downsample, filter_spec, radius, recentre, order_angle,
-                          order_share, seed, clutter, foliage, edge_weights,
-                          tip_support)
-    skel = run(cloud, **kw)
+    skel = run(cloud, options=options)
     files = export_skeleton(skel, out, world=world, title=f"{cloud.name} ({method})")
     summary = skel.summary()
     summary["files"] = {k_: str(v) for k_, v in files.items()}
@@ -231,13 +200,13 @@ def evaluate(
     _print_table(f"{skeleton.name}", rows)
 
 
-def batch_item(item: tuple[str, str, dict[str, Any], bool]) -> dict[str, Any]:
+def batch_item(item: tuple[str, str, SkeletonizeOptions, bool]) -> dict[str, Any]:
     """Skeletonise one cloud into ``out/<stem>/`` (module level: picklable for dask)."""
     from biomorph.tree.export import export_skeleton
     from biomorph.tree.pipeline import skeletonize as run
 
-    path, out, kw, world = item
-    skel = run(path, **kw)
+    path, out, options, world = item
+    skel = run(path, options=options)
     export_skeleton(skel, out, world=world, title=Path(path).name)
     m = skel.metrics
     return {"nob": m.get("nob"), "tbl": m.get("tbl"), "trees": m.get("n_trees"),
@@ -245,6 +214,7 @@ def batch_item(item: tuple[str, str, dict[str, Any], bool]) -> dict[str, Any]:
 
 
 @app.command()
+@with_skeleton_options
 def batch(
     inputs: Annotated[list[Path], typer.Argument(help="Point cloud files.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Output folder (one sub-folder "
@@ -253,13 +223,14 @@ def batch(
     workers: Annotated[int | None, typer.Option(help="Worker processes (0 = serial).")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Address of a running dask "
                                                        "scheduler.")] = None,
-    ground: Annotated[bool, typer.Option(help="Remove the ground when detected.")] = True,
-    node_spacing: Annotated[float | None, typer.Option(help="Node spacing, m.")] = None,
     world: Annotated[bool, typer.Option(help="Write original coordinates.")] = True,
     as_json: Annotated[bool, typer.Option("--json", help="Print the batch report as JSON.")
                        ] = False,
+    seed: Seed = 0,
+    options: SkeletonizeOptions | None = None,
 ) -> None:
-    """Skeletonise many clouds in parallel on dask.distributed (LocalCluster by default).
+    """Skeletonise many clouds in parallel on dask.distributed (LocalCluster by default),
+    with every option of ``skeletonize``.
 
     Failed inputs are reported without stopping the others; inputs whose summary.json
     exists are skipped, so a re-run resumes. Exit code 1 if any input failed.
@@ -273,9 +244,7 @@ def batch(
     stems = [p.stem for p in inputs]
     if len(set(stems)) != len(stems):
         raise ParameterError("input file names must be unique (outputs go to OUT/<name>/)")
-    kw = {"method": method, "ground": "auto" if ground else None,
-          "node_spacing": node_spacing}
-    items = [(str(p), str(out / p.stem), kw, world) for p in inputs]
+    items = [(str(p), str(out / p.stem), options, world) for p in inputs]
     report = run_batch(items, batch_item, out_dir=out, key=lambda it: Path(it[0]).stem,
                        done=lambda it: (Path(it[1]) / "summary.json").exists(),
                        workers=workers, scheduler=scheduler, description="trees")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,26 +24,21 @@ from numpy.typing import NDArray
 from biomorph.core.graph import BranchGraph
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
+from biomorph.tree.options import (
+    METHODS,
+    MIN_CYLINDER_RADIUS,
+    TIP_LENGTH,
+    TIP_SUPPORT_LENGTH,
+    SkeletonizeOptions,
+)
 
-__all__ = ["TreeSkeleton", "skeletonize", "METHODS", "load_cloud", "remove_sparse"]
+__all__ = ["TreeSkeleton", "skeletonize", "METHODS", "PHASES", "load_cloud", "remove_sparse",
+           "SkeletonizeOptions", "TIP_LENGTH", "MIN_CYLINDER_RADIUS", "TIP_SUPPORT_LENGTH",
+           "prepare_phase", "graph_phase", "voxel_phase", "radius_phase", "order_phase",
+           "metrics_phase"]
 
-METHODS = ("graph", "voxel")
-#: default shortest side tip kept by the graph method's cleanup, in node spacings: shorter
-#: tips are range-noise spurs or foliage remnants. Measured on the synthetic presets (clean
-#: and noisy leafy scans at 60,000 points, foliage separation, chain smoothing): NOB 93–109 %
-#: of the truth at 3 (median of two seeds); 1.5 gave up to 159 % (bench/tree.py, docs/tree.md)
-TIP_LENGTH = 3.0
-#: default floor (m) of the cylinder radius in the fork rule of the overlap collapse: two branches
-#: whose axes run within 1 cm of each other are one branch seen through range noise. At
-#: 240,000 points with 8 mm noise and leaf clutter, the Dijkstra tree of each noisy twig
-#: sprouts side spurs lying 1–2 cm off its axis, outside its ~4 mm allometric cylinder:
-#: the floor takes the leafy maple's NOB from 188 to 130 % and the conifer's from 127 to
-#: 114 %; at 60,000 points it changes NOB by −6 to +0 % (−10 % on the noisy conifer, which
-#: had 109 %) and F1 by < 0.01 (docs/tree.md "Denser scans").
-MIN_CYLINDER_RADIUS = 0.01
-#: ``tip_support`` only judges tip chains shorter than this many node spacings: long chains
-#: are real branches however sparsely the scan sampled them
-TIP_SUPPORT_LENGTH = 8.0
+#: the tree pipeline's phases, in order; ``progress(1, phase)`` is called as each ends
+PHASES = ("prepare", "skeleton", "radii", "order", "metrics")
 
 
 @dataclass
@@ -141,224 +137,287 @@ def _height_above_ground(xyz: NDArray, ground: PointCloud | None) -> NDArray | N
     return xyz[:, 2] - gz
 
 
-def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "graph", *,
-                # preparation (tree.cloud.prepare)
-                centre: bool = True, filter: dict | tuple | None = None,  # noqa: A002
-                downsample: dict | float | None = None, outliers: bool | dict = True,
-                ground: str | None = "auto", seed: int = 0,
-                # graph method
-                n_trees: int | None = None, k: int = 10, search_radius: float | None = None,
-                node_spacing: float | None = None, max_iter: int = 5, reweight: float = 0.5,
-                root_slice: float = 0.5, min_tree_distance: float = 0.6,
-                allometry_exponent: float = 2.5, edge_weights: str = "livny",
-                # cleanup
-                cleanup: bool = True, radius_ratio: float = 0.5, length_factor: float = 3.0,
-                overlap: float = 0.5, min_branch_length: float | None = None,
-                min_cylinder_radius: float = MIN_CYLINDER_RADIUS,
-                tip_support: float | None = None,
-                # voxel method
-                voxel: dict | None = None,
-                sparse_filter: float | None = None,
-                foliage: float | str | None = "auto", foliage_passes: int = 2,
-                # extensions
-                radius: str = "fit", recentre: bool = True, search_factor: float = 1.5,
-                smooth: int = 2,
-                order_share: float = 0.5, order_angle: float = np.radians(45.0),
-                progress: Any = None) -> TreeSkeleton:
+Progress = Callable[..., Any] | None
+
+
+@dataclass
+class _Run:
+    """State handed from phase to phase of one :func:`skeletonize` run."""
+
+    opts: SkeletonizeOptions
+    progress: Progress
+    raw: PointCloud
+    timings: dict[str, float] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+    params: dict[str, Any] = field(default_factory=dict)
+    cloud: PointCloud | None = None
+    ground: PointCloud | None = None
+    graph: BranchGraph | None = None
+    segment: NDArray[np.int64] | None = None
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def source(self) -> str:
+        return self.raw.source or "point cloud"
+
+    def tick(self, description: str) -> None:
+        if self.progress is not None:
+            self.progress(1, description)
+
+
+def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str | None = None, *,
+                options: SkeletonizeOptions | None = None, progress: Progress = None,
+                **kwargs: Any) -> TreeSkeleton:
     """Skeletonise a tree (or a plot of trees) with the graph or the voxel method.
 
-    Parameters (metres, radians)
-    ----------------------------
+    Parameters
+    ----------
     cloud : PointCloud, path or ``(n, 3)`` array.
     method : ``"graph"`` (Livny et al. 2010, :mod:`~biomorph.tree.livny`) or ``"voxel"``
-        (Gorte & Pfeifer 2004, :mod:`~biomorph.tree.voxel`).
-    centre, filter, downsample, outliers, ground, seed : :func:`biomorph.tree.cloud.prepare`
-        (ground removal runs when a ground surface is detected, ``ground="auto"``).
-    n_trees … allometry_exponent, edge_weights : :func:`biomorph.tree.livny.skeletonize_graph`.
-    cleanup, radius_ratio, length_factor, overlap, min_branch_length :
-        :func:`biomorph.tree.cleanup.cleanup` (``min_branch_length`` defaults to
-        ``TIP_LENGTH`` = 3 node spacings for the graph method, 1.5 voxels for the voxel
-        method: side tips shorter than that are scan noise or foliage).
-    min_cylinder_radius : floor (m) of the cylinder radius in the fork rule of the overlap
-        collapse (``MIN_CYLINDER_RADIUS``, 1 cm: branches closer than that are range noise;
-        0 = the allometric radius alone, as in the thesis).
-    tip_support : prune side tip chains shorter than ``TIP_SUPPORT_LENGTH`` node spacings
-        holding fewer points per node than this share of the median tip chain (points go to
-        their nearest node; :func:`biomorph.tree.cleanup.prune_unsupported_tips`). ``None``
-        (default) keeps them. 0.3 fixes dense leafy scans (240,000 points: NOB 94–111 %)
-        but removes real sparsely sampled twigs at 60,000 points (NOB down to 83 %).
-    foliage, foliage_passes : leaf/wood separation before skeletonising
-        (:func:`biomorph.tree.foliage.separate_foliage`): points whose neighbourhood is
-        thicker than ``foliage`` × the median are dropped; ``None`` keeps every point;
-        ``"auto"`` (default): for the graph method 3.0 when foliage is detected (more than
-        0.3 % of the points thicker than 6 × the median), else nothing is removed; off for
-        the voxel method (without the graph's bridging, the holes it leaves split voxel
-        skeletons: aspen NOB 113 → 133 %). A number always splits.
-    sparse_filter : drop points whose mean distance to their 16 nearest neighbours exceeds
-        this multiple of the median (leaf clutter, stray returns); ``None`` (default) keeps
-        them. 4.0 roughly halves the spurious twigs of an 8 mm-noise scan with 5 % leaf
-        clutter but also thins real sparse tips (docs/tree.md).
-    voxel : keyword arguments of ``skeletonize_voxel`` (e.g. ``{"cell_size": 0.05}``).
-    radius : ``"fit"`` (RANSAC circles, :mod:`~biomorph.tree.radius`) or ``"allometric"``.
-    recentre : move nodes to the fitted circle centres.
-    smooth : sweeps of :func:`biomorph.tree.cleanup.smooth_chains` after the radii (0 = off).
-    order_share, order_angle : branch-order rule (:mod:`~biomorph.tree.order`).
+        (Gorte & Pfeifer 2004, :mod:`~biomorph.tree.voxel`); overrides ``options.method``.
+    options : :class:`~biomorph.tree.options.SkeletonizeOptions`, one typed options object
+        per stage (prepare, graph, voxel, cleanup, radius, order; see
+        :mod:`biomorph.tree.options` for every field, its unit and where its default comes
+        from). Default: all defaults.
     progress : optional ``advance(n=1, description=None)`` callback (see
-        :func:`biomorph.progress.task`).
+        :func:`biomorph.progress.task`), called once per finished phase (:data:`PHASES`)
+        and per sub-phase of the skeleton method; raising from it stops the run.
+    **kwargs : the flat keywords of the pre-options API (``k=12``, ``order_angle=…``,
+        ``voxel={"cell_size": 0.05}``, …), applied on top of ``options``
+        (:meth:`SkeletonizeOptions.from_kwargs`); kept for compatibility.
+
+    The phases: :func:`prepare_phase` (centring, filter, downsampling, outliers, ground,
+    foliage, clutter), :func:`graph_phase` or :func:`voxel_phase` (skeleton + cleanup),
+    :func:`radius_phase`, :func:`order_phase`, :func:`metrics_phase`.
     """
-    import importlib
-
-    tcloud = importlib.import_module("biomorph.tree.cloud")
-    tclean = importlib.import_module("biomorph.tree.cleanup")
-    livny = importlib.import_module("biomorph.tree.livny")
-    order = importlib.import_module("biomorph.tree.order")
-    tradius = importlib.import_module("biomorph.tree.radius")
-    from biomorph.tree.metrics import dbh_per_tree, skeleton_metrics
-
-    if method not in METHODS:
-        raise ParameterError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
-    if radius not in ("fit", "allometric"):
-        raise ParameterError(f"radius must be 'fit' or 'allometric', got {radius!r}")
-    timings: dict[str, float] = {}
+    opts = options or SkeletonizeOptions()
+    if method is not None or kwargs:
+        opts = SkeletonizeOptions.from_kwargs(method or opts.method, kwargs.pop("seed", opts.seed),
+                                              base=opts, **kwargs)
     t_all = time.perf_counter()
+    run = _Run(opts, progress, load_cloud(cloud))
+    prepare_phase(run)
+    (graph_phase if opts.method == "graph" else voxel_phase)(run)
+    radius_phase(run)
+    order_phase(run)
+    metrics_phase(run)
+    run.timings["total"] = time.perf_counter() - t_all
+    assert run.cloud is not None and run.graph is not None
+    return TreeSkeleton(graph=run.graph, method=opts.method, timings=run.timings,
+                        params=run.params, metrics=run.metrics,
+                        offset=np.asarray(run.cloud.offset, dtype=float).copy(),
+                        cloud=run.cloud, ground=run.ground, segment=run.segment,
+                        info=run.info)
 
-    def tick(description: str) -> None:
-        if progress is not None:
-            progress(1, description)
 
-    raw = load_cloud(cloud)
+def prepare_phase(run: _Run) -> None:
+    """Centre, filter, downsample, de-noise, remove ground, foliage and clutter."""
+    from biomorph.tree.cloud import prepare
+
+    po = run.opts.prepare
     t0 = time.perf_counter()
-    prep = tcloud.prepare(raw, centre=centre, filter=filter, downsample=downsample,
-                          outliers=outliers, ground=ground, seed=seed)
+    prep = prepare(run.raw, centre=po.centre,
+                   filter=None if po.filter is None else po.filter.as_kwargs(),
+                   downsample=po.downsample_arg(), outliers=po.outliers_arg(),
+                   ground=po.ground, seed=run.opts.seed)
     pc = prep.cloud
-    foliage_info: dict[str, Any] = {}
+    foliage, foliage_info = _foliage(run, pc)
+    if foliage_info:
+        pc = pc.select(foliage_info.pop("_wood"))
+    if po.sparse_filter is not None:
+        pc = remove_sparse(pc, po.sparse_filter)
+    if pc.n_points < 10:
+        raise InputError(f"{run.source}: only {pc.n_points} points remain above the ground; "
+                         "expected a tree")
+    run.cloud, run.ground = pc, prep.ground
+    run.timings["prepare"] = time.perf_counter() - t0
+    run.info.update({"points_in": run.raw.n_points, "points": pc.n_points,
+                     "prepare": prep.steps, **foliage_info})
+    run.params.update({"method": run.opts.method, "seed": run.opts.seed,
+                       "sparse_filter": po.sparse_filter, "foliage": foliage,
+                       "foliage_passes": po.foliage_passes})
+    run.tick("prepared")
+
+
+def _foliage(run: _Run, pc: PointCloud) -> tuple[float | None, dict[str, Any]]:
+    """Resolved foliage factor and the separation's record (``_wood`` = mask to keep)."""
+    foliage = run.opts.prepare.foliage
     detect = False
     if isinstance(foliage, str):
-        if foliage != "auto":
-            raise ParameterError(f"foliage {foliage!r}; expected 'auto', None or a factor > 1")
-        foliage, detect = (3.0, True) if method == "graph" else (None, False)
-    if foliage is not None and pc.n_points >= 100:
-        from biomorph.tree.foliage import separate_foliage
+        foliage, detect = (3.0, True) if run.opts.method == "graph" else (None, False)
+    if foliage is None or pc.n_points < 100:
+        return foliage, {}
+    from biomorph.tree.foliage import separate_foliage
 
-        split = separate_foliage(pc.xyz, factor=foliage, passes=foliage_passes, detect=detect)
-        foliage_info = {"foliage_removed": int((~split.wood).sum()),
-                        "foliage_threshold": [float(x) for x in split.threshold],
-                        "foliage_detected": split.detected,
-                        "foliage_share": split.foliage_share}
-        pc = pc.select(split.wood)
-    if sparse_filter is not None:
-        pc = remove_sparse(pc, sparse_filter)
-    if pc.n_points < 10:
-        raise InputError(f"{raw.source or 'point cloud'}: only {pc.n_points} points remain "
-                         "above the ground; expected a tree")
-    timings["prepare"] = time.perf_counter() - t0
-    tick("prepared")
-    xyz = pc.xyz
-    info: dict[str, Any] = {"points_in": raw.n_points, "points": pc.n_points,
-                            "prepare": prep.steps, **foliage_info}
-    params: dict[str, Any] = {"method": method, "seed": seed, "sparse_filter": sparse_filter,
-                              "foliage": foliage, "foliage_passes": foliage_passes}
-    if method == "graph":
-        height = _height_above_ground(xyz, prep.ground)
-        res = livny.skeletonize_graph(
-            xyz, n_trees=n_trees, k=k, search_radius=search_radius, node_spacing=node_spacing,
-            max_iter=max_iter, reweight=reweight, height=height, root_slice=root_slice,
-            min_tree_distance=min_tree_distance, allometry_exponent=allometry_exponent,
-            edge_weights=edge_weights, seed=seed, progress=progress)
-        graph = res.graph
-        spacing = float(res.info["node_spacing"])
-        timings.update({k_: v for k_, v in res.timings.items()})
-        info.update(res.info)
-        params.update(n_trees=n_trees, k=k, search_radius=search_radius,
-                      node_spacing=spacing, max_iter=max_iter, reweight=reweight,
-                      root_slice=root_slice, min_tree_distance=min_tree_distance,
-                      allometry_exponent=allometry_exponent, edge_weights=edge_weights)
-        t0 = time.perf_counter()
-        if cleanup:
-            mbl = TIP_LENGTH * spacing if min_branch_length is None else min_branch_length
-            graph = tclean.cleanup(graph, radius_ratio=radius_ratio,
-                                   length_factor=length_factor, min_length=mbl,
-                                   overlap=overlap, min_radius=min_cylinder_radius)
-            graph = tclean.prune_small_trees(graph, 2 * spacing)
-            params.update(cleanup=True, radius_ratio=radius_ratio, length_factor=length_factor,
-                          overlap=overlap, min_branch_length=mbl,
-                          min_cylinder_radius=min_cylinder_radius)
-        if tip_support is not None:
-            graph = tclean.prune_unsupported_tips(graph, xyz, tip_support,
-                                                 TIP_SUPPORT_LENGTH * spacing)
-            params.update(tip_support=tip_support)
-        graph = livny.extend_tips(graph, xyz, 2.0 * spacing)
-        graph = livny.densify(graph, spacing)
-        timings["t4"] = time.perf_counter() - t0
-        timings["cleanup"] = timings["t4"]
-    else:
-        try:
-            from biomorph.tree.voxel import skeletonize_voxel
-        except ImportError as exc:  # pragma: no cover - during parallel development
-            raise ParameterError("the voxel method is not available in this build") from exc
-        vres = skeletonize_voxel(pc, **(voxel or {}))
-        graph = vres.graph
-        timings.update({k_: float(v) for k_, v in vres.timings.items()
-                        if isinstance(v, (int, float))})
-        el = graph.edge_length
-        spacing = float(np.median(el[el > 0])) if (el > 0).any() else 0.05
-        params.update(voxel=dict(voxel or {}), node_spacing=spacing)
-        if graph.tree_id is None:
-            graph = graph.with_(tree_id=graph.trees)
-        graph = tclean.prune_small_trees(graph, 2 * spacing)
-        if cleanup and graph.n_nodes:
-            # the voxel skeleton has no allometric radii: give it one from the points so
-            # the false-branch rule can run; cylinder collapse is Livny-specific, skip it
-            t0 = time.perf_counter()
-            d, _ = livny.skeleton_distance(xyz, graph.parent, graph.position)
-            r = livny.allometric_radii(graph.parent, graph.position, graph.subtree_length(),
-                                       float(np.mean(d)), tree=graph.trees,
-                                       exponent=allometry_exponent, order=graph.order)
-            mbl = 1.5 * spacing if min_branch_length is None else min_branch_length
-            graph = tclean.remove_false_branches(graph.with_(radius=r),
-                                                 radius_ratio=radius_ratio,
-                                                 length_factor=length_factor, min_length=mbl)
-            timings["cleanup"] = time.perf_counter() - t0
-    if graph.n_nodes == 0:
-        raise InputError(f"{raw.source or 'point cloud'}: no skeleton could be built "
-                         "(no tree found above the ground)")
-    tick("skeleton")
+    split = separate_foliage(pc.xyz, factor=foliage, passes=run.opts.prepare.foliage_passes,
+                             detect=detect)
+    return foliage, {"foliage_removed": int((~split.wood).sum()),
+                     "foliage_threshold": [float(x) for x in split.threshold],
+                     "foliage_detected": split.detected,
+                     "foliage_share": split.foliage_share, "_wood": split.wood}
 
-    # ---- radii
+
+def graph_phase(run: _Run) -> None:
+    """Livny's graph skeleton, then cleanup, tip support, tip extension and densifying."""
+    from biomorph.tree import livny
+
+    go = run.opts.graph
+    assert run.cloud is not None
+    xyz = run.cloud.xyz
+    height = _height_above_ground(xyz, run.ground)
+    res = livny.skeletonize_graph(
+        xyz, n_trees=go.n_trees, k=go.k, search_radius=go.search_radius,
+        node_spacing=go.node_spacing, max_iter=go.max_iter, reweight=go.reweight,
+        height=height, root_slice=go.root_slice, min_tree_distance=go.min_tree_distance,
+        allometry_exponent=go.allometry_exponent, edge_weights=go.edge_weights,
+        seed=run.opts.seed, progress=run.progress)
+    spacing = float(res.info["node_spacing"])
+    run.timings.update(dict(res.timings.items()))
+    run.info.update(res.info)
+    run.params.update(n_trees=go.n_trees, k=go.k, search_radius=go.search_radius,
+                      node_spacing=spacing, max_iter=go.max_iter, reweight=go.reweight,
+                      root_slice=go.root_slice, min_tree_distance=go.min_tree_distance,
+                      allometry_exponent=go.allometry_exponent, edge_weights=go.edge_weights)
     t0 = time.perf_counter()
-    if radius == "fit":
-        graph, fit = tradius.fit_radii(graph, xyz, recentre=recentre,
-                                       search_factor=search_factor,
-                                       allometry_exponent=allometry_exponent, seed=seed)
-        info["radius_fit_ok"] = float(fit.ok.mean()) if fit.ok.size else 0.0
+    graph = _graph_cleanup(run, res.graph, spacing)
+    graph = livny.extend_tips(graph, xyz, 2.0 * spacing)
+    run.graph = livny.densify(graph, spacing)
+    run.timings["t4"] = time.perf_counter() - t0
+    run.timings["cleanup"] = run.timings["t4"]
+    _check_skeleton(run)
+
+
+def _graph_cleanup(run: _Run, graph: BranchGraph, spacing: float) -> BranchGraph:
+    from biomorph.tree import cleanup as tclean
+
+    co = run.opts.cleanup
+    if co.enabled:
+        mbl = TIP_LENGTH * spacing if co.min_branch_length is None else co.min_branch_length
+        graph = tclean.cleanup(graph, radius_ratio=co.radius_ratio,
+                               length_factor=co.length_factor, min_length=mbl,
+                               overlap=co.overlap, min_radius=co.min_cylinder_radius)
+        graph = tclean.prune_small_trees(graph, 2 * spacing)
+        run.params.update(cleanup=True, radius_ratio=co.radius_ratio,
+                          length_factor=co.length_factor, overlap=co.overlap,
+                          min_branch_length=mbl, min_cylinder_radius=co.min_cylinder_radius)
+    if co.tip_support is not None:
+        assert run.cloud is not None
+        graph = tclean.prune_unsupported_tips(graph, run.cloud.xyz, co.tip_support,
+                                             TIP_SUPPORT_LENGTH * spacing)
+        run.params.update(tip_support=co.tip_support)
+    return graph
+
+
+def voxel_phase(run: _Run) -> None:
+    """Gorte & Pfeifer's voxel skeleton, then the false-branch rule of the cleanup."""
+    from biomorph.tree import livny
+    from biomorph.tree.cleanup import prune_small_trees, remove_false_branches
+    from biomorph.tree.voxel import skeletonize_voxel
+
+    assert run.cloud is not None
+    vkw = run.opts.voxel.as_kwargs()
+    progress = run.progress
+    vres = skeletonize_voxel(run.cloud, **vkw,
+                             progress=None if progress is None else lambda s: progress(1, s))
+    graph = vres.graph
+    run.timings.update({k: float(v) for k, v in vres.timings.items()
+                        if isinstance(v, (int, float))})
+    el = graph.edge_length
+    spacing = float(np.median(el[el > 0])) if (el > 0).any() else 0.05
+    run.params.update(voxel=vkw, node_spacing=spacing)
+    if graph.tree_id is None:
+        graph = graph.with_(tree_id=graph.trees)
+    graph = prune_small_trees(graph, 2 * spacing)
+    co = run.opts.cleanup
+    if co.enabled and graph.n_nodes:
+        # the voxel skeleton has no allometric radii: give it one from the points so the
+        # false-branch rule can run; cylinder collapse is Livny-specific, skip it
+        t0 = time.perf_counter()
+        xyz = run.cloud.xyz
+        d, _ = livny.skeleton_distance(xyz, graph.parent, graph.position)
+        r = livny.allometric_radii(graph.parent, graph.position, graph.subtree_length(),
+                                   float(np.mean(d)), tree=graph.trees,
+                                   exponent=run.opts.graph.allometry_exponent,
+                                   order=graph.order)
+        mbl = 1.5 * spacing if co.min_branch_length is None else co.min_branch_length
+        graph = remove_false_branches(graph.with_(radius=r), radius_ratio=co.radius_ratio,
+                                      length_factor=co.length_factor, min_length=mbl)
+        run.timings["cleanup"] = time.perf_counter() - t0
+    run.graph = graph
+    _check_skeleton(run)
+
+
+def _check_skeleton(run: _Run) -> None:
+    if run.graph is None or run.graph.n_nodes == 0:
+        raise InputError(f"{run.source}: no skeleton could be built (no tree found above "
+                         "the ground)")
+    run.tick("skeleton")
+
+
+def radius_phase(run: _Run) -> None:
+    """Radii from circle fits (or the allometric model), then chain smoothing."""
+    from biomorph.tree import livny
+    from biomorph.tree.cleanup import smooth_chains
+    from biomorph.tree.radius import fit_radii
+
+    ro = run.opts.radius
+    graph, xyz = run.graph, run.cloud.xyz  # type: ignore[union-attr]
+    assert graph is not None
+    t0 = time.perf_counter()
+    exponent = run.opts.graph.allometry_exponent
+    if ro.method == "fit":
+        graph, fit = fit_radii(graph, xyz, recentre=ro.recentre,
+                               search_factor=ro.search_factor, allometry_exponent=exponent,
+                               seed=run.opts.seed)
+        run.info["radius_fit_ok"] = float(fit.ok.mean()) if fit.ok.size else 0.0
     elif graph.radius is None:
         d, _ = livny.skeleton_distance(xyz, graph.parent, graph.position)
         graph = graph.with_(radius=livny.allometric_radii(
             graph.parent, graph.position, graph.subtree_length(), float(np.mean(d)),
-            tree=graph.trees, exponent=allometry_exponent, order=graph.order))
-    graph = tclean.smooth_chains(graph, smooth)
-    params.update(radius=radius, recentre=recentre, search_factor=search_factor, smooth=smooth)
-    timings["radius_fit"] = time.perf_counter() - t0
-    tick("radii")
+            tree=graph.trees, exponent=exponent, order=graph.order))
+    run.graph = smooth_chains(graph, ro.smooth)
+    run.params.update(radius=ro.method, recentre=ro.recentre, search_factor=ro.search_factor,
+                      smooth=ro.smooth)
+    run.timings["radius_fit"] = time.perf_counter() - t0
+    run.tick("radii")
 
-    # ---- branch order and segments
+
+def order_phase(run: _Run) -> None:
+    """Trunk and branch order (``depth``), segments, subtree weights and tree labels."""
+    from biomorph.tree import order
+
+    oo = run.opts.order
+    graph = run.graph
+    assert graph is not None
     t0 = time.perf_counter()
-    graph = order.with_order(graph, order_share, order_angle)
-    seg = order.segments(graph, order_share, order_angle)
+    graph = order.with_order(graph, oo.share, oo.angle)
+    run.segment = order.segments(graph, oo.share, oo.angle)
     if graph.weight is None:
         graph = graph.with_(weight=graph.subtree_length())
     if graph.tree_id is None:
         graph = graph.with_(tree_id=graph.trees)
-    params.update(order_share=order_share, order_angle_deg=float(np.degrees(order_angle)))
-    timings["order"] = time.perf_counter() - t0
-    tick("order")
+    run.graph = graph
+    run.params.update(order_share=oo.share, order_angle_deg=float(np.degrees(oo.angle)))
+    run.timings["order"] = time.perf_counter() - t0
+    run.tick("order")
 
-    # ---- metrics
+
+#: the MSE is measured on at most this many points (a seeded sample): the mean converges
+#: long before that
+MSE_POINTS = 200_000
+
+
+def metrics_phase(run: _Run) -> None:
+    """NOB, TBL, MSE, DBH, trunk radius, max order, segment count."""
+    from biomorph.tree.metrics import dbh_per_tree, skeleton_metrics
+
+    graph, pc = run.graph, run.cloud
+    assert graph is not None and pc is not None
     t0 = time.perf_counter()
-    # MSE on at most 200,000 points (seeded sample): the mean converges long before that
     mse_cloud = pc
-    if pc.n_points > 200_000:
-        pick = np.random.default_rng(seed).choice(pc.n_points, 200_000, replace=False)
+    if pc.n_points > MSE_POINTS:
+        pick = np.random.default_rng(run.opts.seed).choice(pc.n_points, MSE_POINTS,
+                                                           replace=False)
         mse_cloud = pc.select(np.sort(pick))
     metrics = skeleton_metrics(graph, mse_cloud)
     metrics["mse_points"] = mse_cloud.n_points
@@ -367,12 +426,10 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str = "
         metrics["dbh"] = [None if not np.isfinite(v) else float(v) for v in np.atleast_1d(dbhs)]
     except Exception:  # noqa: BLE001 - a tree shorter than 1.3 m has no DBH
         metrics["dbh"] = None
-    roots = graph.roots
-    metrics["trunk_radius"] = [float(graph.radius[r]) for r in roots]
+    metrics["trunk_radius"] = [float(graph.radius[r]) for r in graph.roots]
     metrics["max_order"] = int(graph.depth.max()) if graph.n_nodes else 0
-    metrics["n_segments"] = int(seg.max() + 1) if seg.size else 0
-    timings["metrics"] = time.perf_counter() - t0
-    timings["total"] = time.perf_counter() - t_all
-    return TreeSkeleton(graph=graph, method=method, timings=timings, params=params,
-                        metrics=metrics, offset=np.asarray(pc.offset, dtype=float).copy(),
-                        cloud=pc, ground=prep.ground, segment=seg, info=info)
+    seg = run.segment
+    metrics["n_segments"] = int(seg.max() + 1) if seg is not None and seg.size else 0
+    run.metrics = metrics
+    run.timings["metrics"] = time.perf_counter() - t0
+    run.tick("metrics")

@@ -1,0 +1,416 @@
+"""Typed options of the tree pipeline: one dataclass per stage, one umbrella.
+
+:func:`biomorph.tree.skeletonize` runs six stages; each reads exactly one of these:
+
+=================  ======================  ==================================================
+stage              options                 runs
+=================  ======================  ==================================================
+prepare            :class:`PrepareOptions`  centring, attribute filter, downsampling, outliers,
+                                            ground, foliage and clutter removal
+graph              :class:`GraphOptions`    Livny et al. (2010), :mod:`~biomorph.tree.livny`
+voxel              :class:`VoxelOptions`    Gorte & Pfeifer (2004), :mod:`~biomorph.tree.voxel`
+cleanup            :class:`CleanupOptions`  false branches, overlap collapse, tip support
+radius             :class:`RadiusOptions`   circle fits, taper model, smoothing
+order              :class:`OrderOptions`    trunk and branch order (:mod:`~biomorph.tree.order`)
+=================  ======================  ==================================================
+
+:class:`SkeletonizeOptions` holds one of each plus ``method`` and ``seed``. The same object
+is built by the Python API (``SkeletonizeOptions(graph=GraphOptions(k=12))`` or
+:meth:`SkeletonizeOptions.from_kwargs` for the old flat keywords), by the CLI (every field
+with a ``cli`` entry in its metadata becomes an option of ``biomorph tree skeletonize`` *and*
+``biomorph tree batch``, see :func:`cli_fields` / :meth:`SkeletonizeOptions.from_cli`), by the
+batch workers (the dataclass pickles) and by the studio.
+
+Pure dataclasses and the standard library only: the CLI imports this module at start-up,
+so it must not load numpy. Angles are radians here, degrees on the command line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from biomorph.errors import ParameterError
+
+__all__ = ["AttributeFilter", "CleanupOptions", "CliField", "GraphOptions", "OrderOptions",
+           "PrepareOptions", "RadiusOptions", "SkeletonizeOptions", "VoxelOptions",
+           "STAGES", "METHODS", "cli_default", "cli_fields", "cli_type", "TIP_LENGTH",
+           "MIN_CYLINDER_RADIUS", "TIP_SUPPORT_LENGTH"]
+
+METHODS = ("graph", "voxel")
+#: default shortest side tip kept by the graph method's cleanup, in node spacings: shorter
+#: tips are range-noise spurs or foliage remnants. Measured on the synthetic presets (clean
+#: and noisy leafy scans at 60,000 points, foliage separation, chain smoothing): NOB 93–109 %
+#: of the truth at 3 (median of two seeds); 1.5 gave up to 159 % (bench/tree.py, docs/tree.md)
+TIP_LENGTH = 3.0
+#: default floor (m) of the cylinder radius in the fork rule of the overlap collapse: two
+#: branches whose axes run within 1 cm of each other are one branch seen through range noise
+#: (240,000 points, 8 mm noise, leaf clutter: leafy maple NOB 188 → 130 %; docs/tree.md
+#: "Denser scans").
+MIN_CYLINDER_RADIUS = 0.01
+#: ``tip_support`` only judges tip chains shorter than this many node spacings: long chains
+#: are real branches however sparsely the scan sampled them
+TIP_SUPPORT_LENGTH = 8.0
+
+
+@dataclass(frozen=True)
+class CliField:
+    """How one option field appears on the command line.
+
+    ``flag``: the option name; ``help``; ``lo``/``hi`` (``lo_open``/``hi_open``) the accepted
+    range checked at parse time; ``kind`` a conversion between the CLI value and the field:
+    ``"degrees"`` (CLI degrees → radians), ``"ground"`` (bool → ``"auto"``/None),
+    ``"foliage"`` (None → ``"auto"``, 0 → off), ``"filter"`` (``NAME:MAX`` or
+    ``NAME:MIN:MAX`` → :class:`AttributeFilter`), ``"enabled"`` (plain bool).
+    ``short``: an optional one-letter alias.
+    """
+
+    flag: str
+    help: str
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    kind: str | None = None
+    short: str | None = None
+
+
+def _opt(default: Any, flag: str, help: str, **cli: Any) -> Any:  # noqa: A002
+    return field(default=default, metadata={"cli": CliField(flag, help, **cli)})
+
+
+@dataclass(frozen=True)
+class AttributeFilter:
+    """Keep points whose attribute ``name`` lies in ``[min_value, max_value]`` (either bound
+    may be None), e.g. the LAS ``Deviation`` attribute."""
+
+    name: str
+    max_value: float | None = None
+    min_value: float | None = None
+
+    @classmethod
+    def parse(cls, spec: str) -> AttributeFilter:
+        """``NAME:MAX`` or ``NAME:MIN:MAX`` (an empty bound is open)."""
+        parts = spec.split(":")
+        if len(parts) not in (2, 3) or not parts[0]:
+            raise ParameterError(f"--filter {spec!r}: expected NAME:MAX or NAME:MIN:MAX")
+        try:
+            if len(parts) == 2:
+                return cls(parts[0], max_value=float(parts[1]))
+            return cls(parts[0], min_value=float(parts[1]) if parts[1] else None,
+                       max_value=float(parts[2]) if parts[2] else None)
+        except ValueError:
+            raise ParameterError(f"--filter {spec!r}: bounds must be numbers") from None
+
+    def as_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :func:`biomorph.tree.cloud.filter_attribute`."""
+        out: dict[str, Any] = {"name": self.name}
+        if self.min_value is not None:
+            out["min_value"] = self.min_value
+        if self.max_value is not None or self.min_value is None:
+            out["max_value"] = self.max_value
+        return out
+
+
+@dataclass(frozen=True)
+class PrepareOptions:
+    """Cloud preparation (:func:`biomorph.tree.cloud.prepare`, foliage, clutter)."""
+
+    centre: bool = True
+    filter: AttributeFilter | None = _opt(  # noqa: A003
+        None, "--filter", "Keep points with attribute NAME <= MAX (NAME:MAX or NAME:MIN:MAX).",
+        kind="filter")
+    downsample: float | None = _opt(None, "--downsample", "Random downsampling ratio.",
+                                    lo=0, hi=1, lo_open=True)
+    downsample_voxel: float | None = _opt(
+        None, "--downsample-voxel", "Keep one random point per cube of this edge, m.",
+        lo=0, lo_open=True)
+    outliers: bool = _opt(True, "--outliers", "Statistical outlier removal.", kind="enabled")
+    outlier_k: int = 16
+    outlier_std: float = 2.0
+    ground: str | None = _opt("auto", "--ground", "Remove the ground when detected.",
+                              kind="ground")
+    foliage: float | str | None = _opt(
+        "auto", "--foliage", "Leaf/wood separation: drop points whose neighbourhood is "
+        "thicker than FOLIAGE x the median; 0 = off (default: 3 when foliage is detected "
+        "(graph), off (voxel)).", kind="foliage")
+    foliage_passes: int = 2
+    sparse_filter: float | None = _opt(
+        None, "--clutter", "Drop sparse points (leaf clutter): mean 16-NN distance > "
+        "CLUTTER x median, e.g. 4.", lo=1, lo_open=True)
+
+    def downsample_arg(self) -> dict[str, Any] | float | None:
+        """The ``downsample`` argument of :func:`~biomorph.tree.cloud.prepare`."""
+        if self.downsample_voxel is not None:
+            kw: dict[str, Any] = {"method": "voxel", "voxel_size": self.downsample_voxel}
+            if self.downsample is not None:
+                kw["ratio"] = self.downsample
+            return kw
+        return self.downsample
+
+    def outliers_arg(self) -> bool | dict[str, Any]:
+        """The ``outliers`` argument of :func:`~biomorph.tree.cloud.prepare`."""
+        if not self.outliers:
+            return False
+        if (self.outlier_k, self.outlier_std) == (16, 2.0):
+            return True
+        return {"k": self.outlier_k, "std_ratio": self.outlier_std}
+
+
+@dataclass(frozen=True)
+class GraphOptions:
+    """Graph method (:func:`biomorph.tree.livny.skeletonize_graph`); None = from the data."""
+
+    n_trees: int | None = _opt(None, "--n-trees", "Number of trees (default: found "
+                               "automatically).", lo=1)
+    k: int = _opt(10, "--k", "Neighbours per point (graph method).", lo=2)
+    search_radius: float | None = _opt(None, "--search-radius", "Neighbour search radius, m "
+                                       "(default from the data).", lo=0, lo_open=True)
+    node_spacing: float | None = _opt(None, "--node-spacing", "Skeleton node spacing, m "
+                                      "(default from the data).", lo=0, lo_open=True)
+    max_iter: int = _opt(5, "--max-iter", "Re-weighting iterations cap.", lo=0)
+    reweight: float = 0.5
+    root_slice: float = _opt(0.5, "--root-slice", "Height of the slice searched for stem "
+                             "bases, m.", lo=0, lo_open=True)
+    min_tree_distance: float = _opt(0.6, "--min-tree-distance", "Stem bases closer than "
+                                    "this are one tree, m.", lo=0)
+    allometry_exponent: float = 2.5
+    edge_weights: str = _opt("livny", "--edge-weights", "Weights of Livny steps iv-v: "
+                             "livny (the paper's) or branch.")
+
+
+@dataclass(frozen=True)
+class VoxelOptions:
+    """Voxel method (:func:`biomorph.tree.voxel.skeletonize_voxel`); None = its default."""
+
+    cell_size: float | None = _opt(None, "--cell-size", "Voxel size, m (voxel method).",
+                                   lo=0, lo_open=True)
+    min_points: int | None = None
+    closing_radius: float | None = None
+    keep_largest: int | None = None
+    bridge_gap: float | None = None
+    prune_length: float | None = None
+    smooth_iterations: int | None = None
+
+    def as_kwargs(self) -> dict[str, Any]:
+        """The keyword arguments that differ from ``skeletonize_voxel``'s defaults."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                if getattr(self, f.name) is not None}
+
+
+@dataclass(frozen=True)
+class CleanupOptions:
+    """Skeleton cleanup (:func:`biomorph.tree.cleanup.cleanup`)."""
+
+    enabled: bool = _opt(True, "--cleanup", "False-branch removal and overlap collapse.",
+                         kind="enabled")
+    radius_ratio: float = 0.5
+    length_factor: float = 3.0
+    overlap: float = 0.5
+    min_branch_length: float | None = _opt(
+        None, "--min-branch-length", "Shortest side tip kept, m (default 3 node spacings "
+        "for the graph method, 1.5 voxels for the voxel method).", lo=0)
+    min_cylinder_radius: float = MIN_CYLINDER_RADIUS
+    tip_support: float | None = _opt(
+        None, "--tip-support", "Prune short tip chains with fewer points per node than "
+        "TIP_SUPPORT x the median tip chain, e.g. 0.3 for dense leafy scans (graph).",
+        lo=0, hi=1, lo_open=True, hi_open=True)
+
+
+@dataclass(frozen=True)
+class RadiusOptions:
+    """Branch radii (:mod:`biomorph.tree.radius`)."""
+
+    method: str = _opt("fit", "--radius", "fit (circle fits + taper model) or allometric.")
+    recentre: bool = _opt(True, "--recentre", "Move nodes to fitted stem centres.",
+                          kind="enabled")
+    search_factor: float = 1.5
+    smooth: int = 2
+
+
+@dataclass(frozen=True)
+class OrderOptions:
+    """Trunk and branch order (:mod:`biomorph.tree.order`); ``angle`` in radians."""
+
+    share: float = _opt(0.5, "--order-share", "Branch-order weight share.", lo=0, hi=1,
+                        hi_open=True)
+    angle: float = _opt(math.radians(45.0), "--order-angle", "Branch-order angle, degrees.",
+                        lo=0, hi=180, lo_open=True, kind="degrees")
+
+
+STAGES = {"prepare": PrepareOptions, "graph": GraphOptions, "voxel": VoxelOptions,
+          "cleanup": CleanupOptions, "radius": RadiusOptions, "order": OrderOptions}
+
+#: the flat keyword arguments of the pre-options ``skeletonize`` → (stage, field)
+_LEGACY = {"centre": ("prepare", "centre"), "filter": ("prepare", "filter"),
+           "downsample": ("prepare", "downsample"), "outliers": ("prepare", "outliers"),
+           "ground": ("prepare", "ground"), "foliage": ("prepare", "foliage"),
+           "foliage_passes": ("prepare", "foliage_passes"),
+           "sparse_filter": ("prepare", "sparse_filter"),
+           **{f: ("graph", f) for f in ("n_trees", "k", "search_radius", "node_spacing",
+                                        "max_iter", "reweight", "root_slice",
+                                        "min_tree_distance", "allometry_exponent",
+                                        "edge_weights")},
+           "cleanup": ("cleanup", "enabled"),
+           **{f: ("cleanup", f) for f in ("radius_ratio", "length_factor", "overlap",
+                                          "min_branch_length", "min_cylinder_radius",
+                                          "tip_support")},
+           "radius": ("radius", "method"), "recentre": ("radius", "recentre"),
+           "search_factor": ("radius", "search_factor"), "smooth": ("radius", "smooth"),
+           "order_share": ("order", "share"), "order_angle": ("order", "angle")}
+
+
+@dataclass(frozen=True)
+class SkeletonizeOptions:
+    """Everything :func:`biomorph.tree.skeletonize` reads: method, seed and one options
+    object per stage. Frozen: derive variants with :meth:`replace`."""
+
+    method: str = "graph"
+    seed: int = 0
+    prepare: PrepareOptions = field(default_factory=PrepareOptions)
+    graph: GraphOptions = field(default_factory=GraphOptions)
+    voxel: VoxelOptions = field(default_factory=VoxelOptions)
+    cleanup: CleanupOptions = field(default_factory=CleanupOptions)
+    radius: RadiusOptions = field(default_factory=RadiusOptions)
+    order: OrderOptions = field(default_factory=OrderOptions)
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """Raise :class:`ParameterError` on a value no stage accepts."""
+        if self.method not in METHODS:
+            raise ParameterError(f"unknown method {self.method!r}; expected one of "
+                                 f"{', '.join(METHODS)}")
+        if self.radius.method not in ("fit", "allometric"):
+            raise ParameterError(f"radius must be 'fit' or 'allometric', got "
+                                 f"{self.radius.method!r}")
+        fol = self.prepare.foliage
+        if isinstance(fol, str) and fol != "auto":
+            raise ParameterError(f"foliage {fol!r}; expected 'auto', None or a factor > 1")
+        for name, value, cls in (("prepare", self.prepare, PrepareOptions),
+                                 ("graph", self.graph, GraphOptions),
+                                 ("voxel", self.voxel, VoxelOptions),
+                                 ("cleanup", self.cleanup, CleanupOptions),
+                                 ("radius", self.radius, RadiusOptions),
+                                 ("order", self.order, OrderOptions)):
+            if not isinstance(value, cls):
+                raise ParameterError(f"options.{name} must be a {cls.__name__}, got "
+                                     f"{type(value).__name__}")
+
+    def replace(self, **changes: Any) -> SkeletonizeOptions:
+        """A copy with top-level fields (``method``, ``seed``, a stage) replaced."""
+        return dataclasses.replace(self, **changes)
+
+    @classmethod
+    def from_kwargs(cls, method: str = "graph", seed: int = 0,
+                    base: SkeletonizeOptions | None = None, **kwargs: Any
+                    ) -> SkeletonizeOptions:
+        """Options from the flat keywords of the pre-options ``skeletonize`` (``k=12``,
+        ``order_angle=…``, ``voxel={"cell_size": 0.05}``, ``filter={...}``, …)."""
+        base = base or cls()
+        stages: dict[str, dict[str, Any]] = {s: {} for s in STAGES}
+        for key, value in kwargs.items():
+            if key == "voxel":
+                stages["voxel"].update(dict(value or {}))
+                continue
+            if key not in _LEGACY:
+                raise ParameterError(f"skeletonize got an unknown option {key!r}; expected "
+                                     f"one of {', '.join(sorted([*_LEGACY, 'voxel']))}")
+            stage, name = _LEGACY[key]
+            stages[stage][name] = _legacy_value(key, value)
+        changes: dict[str, Any] = {}
+        for stage, vals in stages.items():
+            if vals:
+                try:
+                    changes[stage] = dataclasses.replace(getattr(base, stage), **vals)
+                except TypeError as exc:
+                    raise ParameterError(f"{stage} options: {exc}") from None
+        return dataclasses.replace(base, method=method, seed=seed, **changes)
+
+    @classmethod
+    def from_cli(cls, values: dict[str, Any], method: str = "graph", seed: int = 0
+                 ) -> SkeletonizeOptions:
+        """Options from the values of the generated CLI options (keys as in
+        :func:`cli_fields`: ``"<stage>.<field>"``), converting degrees, ``--no-ground``,
+        ``--foliage 0`` and ``--filter NAME:MAX``."""
+        stages: dict[str, dict[str, Any]] = {s: {} for s in STAGES}
+        for stage, f, spec in cli_fields():
+            key = f"{stage}.{f.name}"
+            if key in values:
+                stages[stage][f.name] = _from_cli(spec, values[key])
+        base = cls()
+        return dataclasses.replace(base, method=method, seed=seed, **{
+            s: dataclasses.replace(getattr(base, s), **v) for s, v in stages.items() if v})
+
+    def to_dict(self) -> dict[str, Any]:
+        """Nested plain dict (JSON-ready; angles in radians)."""
+        return dataclasses.asdict(self)
+
+
+def _legacy_value(key: str, value: Any) -> Any:
+    if key == "filter" and value is not None and not isinstance(value, AttributeFilter):
+        if isinstance(value, dict):
+            return AttributeFilter(**value)
+        return AttributeFilter(*value)
+    if key == "downsample" and isinstance(value, dict):
+        raise ParameterError("downsample: give a ratio (PrepareOptions.downsample) and/or "
+                             "PrepareOptions.downsample_voxel, not a dict")
+    if key == "outliers" and isinstance(value, dict):
+        raise ParameterError("outliers: give PrepareOptions(outlier_k=..., outlier_std=...), "
+                             "not a dict")
+    return value
+
+
+def _from_cli(spec: CliField, value: Any) -> Any:
+    if spec.kind == "degrees":
+        return math.radians(value)
+    if spec.kind == "ground":
+        return "auto" if value else None
+    if spec.kind == "foliage":
+        if value is None:
+            return "auto"
+        if value != 0 and not value > 1:
+            raise ParameterError(f"--foliage must be 0 (off) or a factor > 1, got {value}")
+        return value or None
+    if spec.kind == "filter":
+        return None if value is None else AttributeFilter.parse(value)
+    return value
+
+
+_CLI_TYPES: dict[str, Any] = {"int": int, "int | None": int | None, "float": float,
+                              "float | None": float | None, "str": str, "bool": bool,
+                              "str | None": str | None}
+_KIND_TYPES: dict[str, Any] = {"degrees": float, "ground": bool, "enabled": bool,
+                               "foliage": float | None, "filter": str | None}
+
+
+def cli_type(f: dataclasses.Field, spec: CliField) -> Any:
+    """The Python type of the option on the command line."""
+    if spec.kind is not None:
+        return _KIND_TYPES[spec.kind]
+    return _CLI_TYPES[str(f.type)]
+
+
+def cli_default(f: dataclasses.Field, spec: CliField) -> Any:
+    """The option's default on the command line (degrees, flags, ...)."""
+    if spec.kind == "degrees":
+        return round(math.degrees(f.default), 9)
+    if spec.kind == "ground":
+        return f.default is not None
+    if spec.kind in ("foliage", "filter"):
+        return None
+    return f.default
+
+
+def cli_fields() -> list[tuple[str, dataclasses.Field, CliField]]:
+    """``(stage, field, CliField)`` of every option shown on the command line."""
+    out = []
+    for stage, cls in STAGES.items():
+        for f in dataclasses.fields(cls):
+            spec = f.metadata.get("cli")
+            if spec is not None:
+                out.append((stage, f, spec))
+    return out
