@@ -14,6 +14,7 @@ from scipy.sparse.linalg import spsolve
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import InputError, ParameterError
 from biomorph.tree import livny
+from biomorph.tree.allometry import edge_length
 
 #: (start, end, radius) of a Y-shaped tree: trunk, two crown branches, one lateral branch
 Y_TREE = [((0, 0, 0), (0, 0, 2), 0.10), ((0, 0, 2), (0.8, 0, 3), 0.05),
@@ -293,7 +294,7 @@ def test_branch_edge_weights_keep_a_twig_on_its_points():
 def test_branch_weights_solve_their_own_objective_exactly():
     parent, pos = random_tree(150, seed=4)
     c = livny.importance_weights(parent, pos)
-    w = c + livny._edge_length(parent, pos)          # c̃: the length each edge carries
+    w = c + edge_length(parent, pos)          # c̃: the length each edge carries
     ch = parent >= 0
     for diag, off, rhs in (livny.orientation_system(parent, pos, c, "branch"),):
         a = livny.tree_matrix(parent, diag, off)

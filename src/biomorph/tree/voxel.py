@@ -25,8 +25,9 @@ Post-processing against the thesis's known weaknesses (each can be switched off)
   (default 4 cells) are removed, repeated ``prune_rounds`` times; they come from surface
   bumps and noise and inflated the thesis's NOB to 115–140 %.
 * **staircases** -- node positions on unbranched chains are smoothed by
-  ``smooth_iterations`` rounds of Laplacian averaging with forks, tips and roots fixed; a
-  voxel chain's zig-zag inflates the total length by up to ~8 %.
+  ``smooth_iterations`` rounds of Laplacian averaging with forks, tips and roots fixed
+  (:func:`biomorph.tree.cleanup.smooth_chains`, shared with the graph method); a voxel
+  chain's zig-zag inflates the total length by up to ~8 %.
 * **radius** -- each node gets the distance from its voxel to the nearest surface voxel
   of the preprocessed volume (the inscribed-ball radius), a cheap first estimate.
 * **short tips** -- thinning ends a branch at the centre of its last maximal ball; tips are
@@ -54,6 +55,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from biomorph.core.graph import BranchGraph
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
+from biomorph.tree.cleanup import smooth_chains
 from biomorph.tree.thinning import thin_palagyi_kuba
 
 __all__ = ["skeletonize_voxel", "VoxelSkeleton", "voxelize", "preprocess_volume",
@@ -443,21 +445,6 @@ def _extend_tips(g: BranchGraph, cell: float) -> BranchGraph:
     return g.with_(position=pos)
 
 
-def _smooth_chains(g: BranchGraph, iterations: int) -> BranchGraph:
-    """Laplacian smoothing of nodes with exactly one parent and one child."""
-    if iterations <= 0 or g.n_nodes < 3:
-        return g
-    pos = g.position.copy()
-    nch = g.n_children
-    indptr, indices = g.children_csr
-    mid = np.flatnonzero((nch == 1) & (g.parent >= 0))
-    child = indices[indptr[mid]]
-    par = g.parent[mid]
-    for _ in range(iterations):
-        pos[mid] = 0.25 * pos[par] + 0.5 * pos[mid] + 0.25 * pos[child]
-    return g.with_(position=pos)
-
-
 def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # noqa: PLR0913
                       min_points: int = 1, min_size: int = 3,
                       closing: str | int | None = "ball", closing_radius: float = 1,
@@ -551,7 +538,7 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
     plen = 4 * cell if prune_length is None else float(prune_length)
     if plen > 0 and prune_rounds > 0:
         g = _prune_spurs(g, plen, prune_rounds)
-    g = _smooth_chains(g, smooth_iterations)
+    g = smooth_chains(g, smooth_iterations)
     if extend_tips and g.radius is not None:
         g = _extend_tips(g, cell)
     t4 = time.perf_counter()

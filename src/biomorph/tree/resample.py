@@ -1,0 +1,95 @@
+"""Skeleton resampling after cleanup: :func:`densify` (no edge longer than ~the node
+spacing) and :func:`extend_tips` (tips moved to the end of their points). Split out of
+:mod:`biomorph.tree.livny` (issue 12).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from biomorph.core.graph import BranchGraph
+
+__all__ = ["densify", "extend_tips"]
+
+
+def densify(graph: BranchGraph, spacing: float) -> BranchGraph:
+    """Insert nodes on edges longer than ``1.5 * spacing`` so no edge exceeds ~``spacing``.
+
+    Radii and weights are interpolated linearly; depth and tree id copied from the child.
+    """
+    el = graph.edge_length
+    ch = np.flatnonzero((graph.parent >= 0) & (el > 1.5 * spacing))
+    if ch.size == 0 or spacing <= 0:
+        return graph
+    k = np.ceil(el[ch] / spacing).astype(np.int64) - 1      # nodes inserted per edge
+    n = graph.n_nodes
+    total = int(k.sum())
+    eid = np.repeat(np.arange(ch.size), k)
+    j = np.arange(total) - np.repeat(np.cumsum(k) - k, k) + 1  # 1..k
+    t = j / (k[eid] + 1)
+    p = graph.parent[ch][eid]
+    c = ch[eid]
+    pos = graph.position[p] + t[:, None] * (graph.position[c] - graph.position[p])
+    new_idx = n + np.arange(total)
+    new_parent = np.where(j == 1, p, new_idx - 1)
+    parent = graph.parent.copy()
+    last = n + np.cumsum(k) - 1
+    parent[ch] = last
+
+    def lerp(a):
+        if a is None:
+            return None
+        return np.concatenate([a, a[p] + t * (a[c] - a[p])])
+
+    def copy(a):
+        return None if a is None else np.concatenate([a, a[c]])
+
+    return BranchGraph(np.vstack([graph.position, pos]), np.concatenate([parent, new_parent]),
+                       radius=lerp(graph.radius), weight=lerp(graph.weight),
+                       depth=copy(graph.depth), tree_id=copy(graph.tree_id))
+
+
+def extend_tips(graph: BranchGraph, xyz: NDArray[np.float64], reach: float,
+                kdtree: cKDTree | None = None, quantile: float = 0.9) -> BranchGraph:
+    """Move every tip forward along its last edge to the end of its points.
+
+    Contracted vertices sit at the centroid of their level piece, so every tip ends about
+    half a node spacing (or more, after cleanup) short of the branch's last points. For each
+    tip, points within ``reach`` (m) that lie ahead of it (positive projection on the last
+    edge, lateral offset < ``reach / 2``) give the new tip at the ``quantile`` of their
+    projections. Returns a new graph; tips without points ahead stay.
+    """
+    tips = graph.leaves[graph.parent[graph.leaves] >= 0]
+    if tips.size == 0 or reach <= 0:
+        return graph
+    kd = kdtree or cKDTree(xyz)
+    pos = graph.position
+    d = pos[tips] - pos[graph.parent[tips]]
+    ln = np.linalg.norm(d, axis=1)
+    ok = ln > 0
+    tips, d = tips[ok], d[ok] / ln[ok, None]
+    lists = kd.query_ball_point(pos[tips], reach, return_sorted=False)
+    cnt = np.fromiter((len(x) for x in lists), dtype=np.int64, count=tips.size)
+    idx = np.fromiter((i for x in lists for i in x), dtype=np.int64, count=int(cnt.sum()))
+    owner = np.repeat(np.arange(tips.size), cnt)
+    rel = xyz[idx] - pos[tips][owner]
+    t = np.einsum("ij,ij->i", rel, d[owner])
+    lat = np.linalg.norm(rel - t[:, None] * d[owner], axis=1)
+    keep = (t > 0) & (lat < 0.5 * reach)
+    owner, t = owner[keep], t[keep]
+    if owner.size == 0:
+        return graph
+    o = np.lexsort((t, owner))
+    owner, t = owner[o], t[o]
+    counts = np.bincount(owner, minlength=tips.size)
+    starts = np.concatenate([[0], np.cumsum(counts)])[:-1]
+    has = counts > 0
+    q = starts[has] + np.floor(quantile * (counts[has] - 1)).astype(np.int64)
+    step = np.zeros(tips.size)
+    step[has] = t[q]
+    newpos = pos.copy()
+    newpos[tips] += step[:, None] * d
+    return graph.with_(position=newpos)
+

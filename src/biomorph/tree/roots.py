@@ -1,0 +1,214 @@
+"""Step i of the graph method (Livny et al. 2010): trees and their root points.
+
+The lowest slice of points (``root_slice`` above the ground, or above the lowest point) is
+projected to XY and clustered by density on a 2-D grid (DBSCAN-like, the number of trees
+found automatically) or by k-means when ``n_trees`` is given; the base points of each
+cluster are that tree's root set. With a known ground, stems are found at breast height
+first (:func:`_stem_roots`). Split out of :mod:`biomorph.tree.livny` (issue 12).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import sparse
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from biomorph.errors import ParameterError
+
+__all__ = ["find_roots"]
+
+
+def _grid_clusters(xy: NDArray[np.float64], cell: float, min_points: int) -> NDArray[np.int64]:
+    """Density clustering on a 2-D grid: cells holding ``>= min_points`` points are dense;
+    8-connected dense cells form clusters (DBSCAN with a square neighbourhood). Returns a
+    label per point, -1 for points in sparse cells."""
+    ij = np.floor((xy - xy.min(axis=0)) / cell).astype(np.int64)
+    keys, inv, counts = np.unique(ij, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.reshape(-1)
+    dense = counts >= min_points
+    dk = keys[dense]
+    if dk.shape[0] == 0:
+        return np.full(xy.shape[0], -1, dtype=np.int64)
+    dense_index = np.full(keys.shape[0], -1, dtype=np.int64)
+    dense_index[dense] = np.arange(dk.shape[0])
+    # adjacency among dense cells through a hash of cell coordinates
+    w = int(dk[:, 1].max()) + 3
+    code = (dk[:, 0] + 1) * w + (dk[:, 1] + 1)
+    order = np.argsort(code)
+    scode = code[order]
+    rows, cols = [], []
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di == 0 and dj == 0:
+                continue
+            q = code + di * w + dj
+            pos = np.searchsorted(scode, q)
+            pos = np.minimum(pos, scode.size - 1)
+            hit = scode[pos] == q
+            rows.append(np.flatnonzero(hit))
+            cols.append(order[pos[hit]])
+    r = np.concatenate(rows)
+    c = np.concatenate(cols)
+    adj = sparse.csr_matrix((np.ones(r.size), (r, c)), shape=(dk.shape[0],) * 2)
+    _, lab = connected_components(adj, directed=False)
+    return np.where(dense_index[inv] >= 0, lab[np.maximum(dense_index[inv], 0)], -1)
+
+
+def _density_clusters(xy: NDArray[np.float64], cell: float, min_tree_distance: float
+                      ) -> NDArray[np.int64]:
+    """Grid density clusters of XY points, small ones dropped (-1), close ones merged."""
+    lab = _grid_clusters(xy, cell, min_points=3)
+    if (lab >= 0).sum() == 0:
+        return np.zeros(xy.shape[0], dtype=np.int64)
+    good = lab >= 0
+    ids, cnt = np.unique(lab[good], return_counts=True)
+    keep = ids[cnt >= max(10, 0.05 * cnt.max())]
+    lab = np.where(np.isin(lab, keep), lab, -1)
+    ids = np.unique(lab[lab >= 0])
+    cen = np.array([xy[lab == i].mean(axis=0) for i in ids])
+    if ids.size > 1:
+        pairs = cKDTree(cen).query_pairs(min_tree_distance, output_type="ndarray")
+        adj = sparse.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
+                                shape=(ids.size, ids.size))
+        _, merged = connected_components(adj, directed=False)
+    else:
+        merged = np.zeros(ids.size, dtype=np.int64)
+    remap = np.full(lab.max() + 2, -1, dtype=np.int64)
+    remap[ids] = merged
+    return np.where(lab >= 0, remap[np.maximum(lab, 0)], -1)
+
+
+def _stem_roots(xyz: NDArray[np.float64], h: NDArray[np.float64], stem_slice: tuple,
+                cell: float, min_tree_distance: float, base_height: float,
+                max_base: float = 0.5):
+    """Trees of a plot with a known ground: stems are the density clusters of the slice
+    ``stem_slice`` (heights above ground, default breast height 0.8–1.6 m) that continue
+    down to the ground (points below them within ``max_base`` of the ground); the root
+    set of each is the lowest points of that column. Returns ``None`` if no stem is found.
+    """
+    lo, hi = stem_slice
+    sl = np.flatnonzero((h >= lo) & (h <= hi))
+    if sl.size < 10:
+        return None
+    lab = _density_clusters(xyz[sl, :2], cell, min_tree_distance)
+    below = np.flatnonzero(h < lo)
+    if below.size == 0:
+        return None
+    kd = cKDTree(xyz[below, :2])
+    roots, tree = [], []
+    ids, counts = np.unique(lab[lab >= 0], return_counts=True)
+    accepted: list[NDArray] = []
+    for t in ids[np.argsort(-counts, kind="stable")]:      # biggest stems first
+        pts = xyz[sl[lab == t], :2]
+        c = pts.mean(axis=0)
+        rho = min(float(np.max(np.linalg.norm(pts - c, axis=1))), 1.0)
+        col = below[kd.query_ball_point(c, rho + 0.1)]
+        if rho >= 0.9:
+            # a wide cluster: branches at breast height around the stem (a spruce whose
+            # crown reaches the ground). Its mean and its lowest point can be off the
+            # stem; the stem is its densest column. (Only here: on a clean stem the root
+            # set must be the whole ring, or DBH and the base radius go wrong.)
+            cnt = cKDTree(pts).query_ball_point(pts, cell, return_length=True)
+            near = below[kd.query_ball_point(pts[int(np.argmax(cnt))], 0.3)]
+            if near.size >= 5:
+                col = _densest_column(xyz, near, cell)
+        if col.size < 5 or h[col].min() > max_base:
+            continue                               # a branch piece, not a stem
+        base = col[h[col] <= h[col].min() + base_height]
+        bc = xyz[base, :2].mean(axis=0)
+        if any(np.linalg.norm(bc - a) < min_tree_distance for a in accepted):
+            continue                               # the same stem base as a bigger cluster
+        accepted.append(bc)
+        roots.append(base)
+        tree.append(np.full(base.size, len(roots) - 1, dtype=np.int64))
+    if not roots:
+        return None
+    return np.concatenate(roots).astype(np.int64), np.concatenate(tree)
+
+
+def _densest_column(xyz: NDArray[np.float64], members: NDArray[np.int64],
+                    cell: float) -> NDArray[np.int64]:
+    """The members of a root-slice cluster within ``1.5 cell`` (horizontally) of its
+    densest point (most members within ``cell``).
+
+    The stem is the densest vertical column of the lowest slice; the lowest point of the
+    whole cluster can be a drooping branch tip (a spruce whose crown reaches the ground),
+    and a root set there makes every path to the crown start at that tip. Counts within a
+    radius rather than grid cells, so a shift of the cloud by less than a grid cell
+    (re-centring round-off) cannot move the choice."""
+    if members.size < 10:
+        return members
+    xy = xyz[members, :2]
+    kd = cKDTree(xy)
+    cnt = kd.query_ball_point(xy, cell, return_length=True)
+    centre = xy[int(np.argmax(cnt))]
+    return members[np.linalg.norm(xy - centre, axis=1) <= 1.5 * cell]
+
+
+def find_roots(xyz: NDArray[np.float64], *, n_trees: int | None = None,
+               height: NDArray[np.float64] | None = None, root_slice: float = 0.5,
+               cell: float | None = None, min_tree_distance: float = 0.6,
+               base_height: float = 0.05, seed: int = 0,
+               stem_slice: tuple[float, float] = (0.8, 1.6),
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Step i: find the trees and their root points from the ground-plane projection.
+
+    Parameters
+    ----------
+    xyz : points (metres, Z up).
+    n_trees : number of trees; ``None`` finds it by density clustering.
+    height : per-point height above the ground (metres); ``None`` uses ``z - min(z)``.
+    root_slice : thickness of the lowest slice used for clustering (metres).
+    cell : grid cell of the density clustering (metres), default ``root_slice / 5``.
+    min_tree_distance : clusters whose centres are closer than this are one tree.
+    base_height : points of a cluster within this height of its lowest point form the
+        root set (all joined to the virtual root).
+    stem_slice : with ``height`` (a ground was removed) and no ``n_trees``, trees are found
+        as stems at breast height (:func:`_stem_roots`): density clusters of this height
+        band that continue down to the ground. This ignores low vegetation and ground
+        residue near the ground and branch pieces at breast height. Falls back to the
+        lowest slice when no stem is found.
+
+    Returns
+    -------
+    ``(root_points, root_tree)``: indices of the root points and the tree (0..m-1) of each.
+    """
+    if height is not None and n_trees is None:
+        found = _stem_roots(xyz, np.asarray(height, dtype=float), stem_slice,
+                            cell or 0.1, min_tree_distance, base_height)
+        if found is not None:
+            return found
+    z = xyz[:, 2] - xyz[:, 2].min() if height is None else np.asarray(height, dtype=float)
+    sl = np.flatnonzero(z <= z.min() + root_slice)
+    if sl.size < 3:
+        sl = np.argsort(z)[: max(3, min(z.size, 50))]
+    xy = xyz[sl, :2]
+    if n_trees is not None:
+        if n_trees < 1:
+            raise ParameterError(f"n_trees must be >= 1, got {n_trees}")
+        from scipy.cluster.vq import kmeans2
+
+        k = min(n_trees, sl.size)
+        if k == 1:
+            lab = np.zeros(sl.size, dtype=np.int64)
+        else:
+            _, lab = kmeans2(xy, k, minit="++", seed=seed)
+    else:
+        lab = _density_clusters(xy, cell or max(root_slice / 5.0, 1e-3), min_tree_distance)
+    roots, tree = [], []
+    zs = z[sl]
+    for t in range(int(lab.max()) + 1):
+        members = sl[lab == t]
+        if members.size == 0:
+            continue
+        zm = z[members]
+        base = members[zm <= zm.min() + base_height]
+        roots.append(base)
+        tree.append(np.full(base.size, len(roots) - 1, dtype=np.int64))
+    if not roots:
+        base = sl[zs <= zs.min() + base_height]
+        roots, tree = [base], [np.zeros(base.size, dtype=np.int64)]
+    return np.concatenate(roots).astype(np.int64), np.concatenate(tree)
+
