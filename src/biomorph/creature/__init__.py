@@ -17,12 +17,25 @@ True
 
 from __future__ import annotations
 
-from biomorph.creature.creature import Creature
-from biomorph.creature.dataset import SpeciesTable, load_species
-from biomorph.creature.export import export
-from biomorph.creature.generator import STEPS, Generator, Options, generate
-from biomorph.creature.limbs import DescentParams
-from biomorph.creature.pca import PCA, fit_dataset
+import importlib
+from typing import Any
 
-__all__ = ["Creature", "Generator", "Options", "generate", "export", "DescentParams", "PCA",
-           "fit_dataset", "load_species", "SpeciesTable", "STEPS"]
+# lazy: ``biomorph creature --help`` loads none of the numeric stack (tests/test_fast_start.py)
+_LAZY = {
+    "Creature": "creature", "SpeciesTable": "dataset", "load_species": "dataset",
+    "export": "export", "STEPS": "options", "Options": "options", "Generator": "generator",
+    "generate": "generator", "DescentParams": "limbs", "PCA": "pca", "fit_dataset": "pca",
+    "species_model": "model", "PARTS": "anatomy",
+}
+
+
+def __getattr__(name: str) -> Any:
+    mod = _LAZY.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'biomorph.creature' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"biomorph.creature.{mod}"), name)
+    globals()[name] = value
+    return value
+
+
+__all__ = sorted(_LAZY)

@@ -1,4 +1,8 @@
-"""Pictures: the dataset on PC1/PC2 (the seed's figures 4.5/4.6) and creatures side by side."""
+"""Pictures: the dataset on PC1/PC2 (the seed's figures 4.5/4.6) and creatures side by side.
+
+Drawn through matplotlib's object API (:class:`matplotlib.figure.Figure`), so no global
+backend is chosen for the process and no pyplot state is left behind.
+"""
 
 from __future__ import annotations
 
@@ -16,11 +20,18 @@ KIND_COLOURS = {"spine": "#555555", "skull": "#222222", "girdle": "#999999", "le
                 "arm": "#1f77b4", "wing": "#d62728", "fin": "#17becf"}
 
 
-def _figure(*args, **kwargs):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt, plt.subplots(*args, **kwargs)
+def _figure(nrows: int, ncols: int, figsize: tuple[float, float], **kwargs):
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, **kwargs)
+
+
+def _save(fig, path: str | os.PathLike[str]) -> Path:
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    return Path(path)
 
 
 def pca_plot(path: str | os.PathLike[str], table=None) -> Path:
@@ -29,9 +40,9 @@ def pca_plot(path: str | os.PathLike[str], table=None) -> Path:
     from biomorph.creature.pca import fit_dataset
 
     t = load_species() if table is None else table
-    p = fit_dataset(t, reparam=False)
+    p = fit_dataset(t, reparam=True)   # the PCA the generator samples from
     z = p.scores[:, :2]
-    plt, (fig, axes) = _figure(1, 3, figsize=(15, 4.6))
+    fig, axes = _figure(1, 3, figsize=(15, 4.6))
     cls = np.array(t.cls)
     for c, col in CLASS_COLOURS.items():
         sel = cls == c
@@ -52,11 +63,7 @@ def pca_plot(path: str | os.PathLike[str], table=None) -> Path:
         ax.grid(alpha=0.3)
     for i in range(len(t)):
         axes[0].annotate(t.name[i], z[i], fontsize=5, alpha=0.7)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(fig, path)
 
 
 def draw_creature(ax, creature, title: str = "") -> None:
@@ -86,13 +93,9 @@ def side_by_side(path: str | os.PathLike[str], creatures: Sequence, titles: Sequ
     n = len(creatures)
     cols = min(n, 3)
     rows = int(np.ceil(n / cols))
-    plt, (fig, axes) = _figure(rows, cols, figsize=(5 * cols, 3.6 * rows), squeeze=False)
+    fig, axes = _figure(rows, cols, figsize=(5 * cols, 3.6 * rows), squeeze=False)
     for ax, c, t in zip(axes.ravel(), creatures, titles, strict=False):
         draw_creature(ax, c, t)
     for ax in axes.ravel()[n:]:
         ax.axis("off")
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(fig, path)

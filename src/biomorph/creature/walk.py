@@ -19,7 +19,7 @@ from biomorph.errors import ParameterError
 def walk_cycle(creature: Creature, frames: int = 32, cycles: int = 2, fps: float = 30.0,
                amplitude_deg: float = 18.0):
     """A :class:`~biomorph.motion.motion.Motion` of ``cycles`` walk cycles."""
-    from biomorph.motion.motion import Motion
+    from biomorph.core.motion import Motion
 
     if frames < 4 or cycles < 1 or fps <= 0:
         raise ParameterError(f"walk needs frames >= 4, cycles >= 1, fps > 0; got {frames}, "

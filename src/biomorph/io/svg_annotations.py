@@ -10,6 +10,9 @@ origin is the top-left corner with y down; coordinates are flipped to the seed's
 ``y' = H − y`` with ``H`` the frame height (viewBox height, else ``height``, else 1000).
 ``translate(...)`` transforms on the path or its groups are applied; other transforms are
 rejected (the seed: layers must not be moved).
+
+The dataset row built from these annotations (species columns, class checks) lives with the
+creature pillar: :func:`biomorph.creature.dataset.annotations.species_row`.
 """
 
 from __future__ import annotations
@@ -175,25 +178,3 @@ def read_annotations(path: PathLike) -> dict[str, object]:
     return {"points": points, "lengths": lengths, "height": height,
             "found": sorted(found)}
 
-
-def species_row(path: PathLike, name: str, cls: str, weight: float, wings: bool,
-                legs: int) -> dict[str, object]:
-    """A dataset row (see :mod:`biomorph.creature.dataset`) from an annotated SVG."""
-    from biomorph.creature.dataset import CLASSES, LIMB_COLUMNS, POINT_COLUMNS
-    from biomorph.errors import ParameterError
-
-    if cls not in CLASSES:
-        raise ParameterError(f"class {cls!r} unknown; expected one of {', '.join(CLASSES)}")
-    if not (np.isfinite(weight) and weight > 0):
-        raise ParameterError(f"weight {weight} kg must be > 0")
-    if legs not in (0, 2, 4):
-        raise ParameterError(f"legs {legs}: annotated species have 0, 2 or 4 legs on the ground")
-    ann = read_annotations(path)
-    row: dict[str, object] = {"name": name, "german": "", "class": cls,
-                              "weight_kg": float(weight), "wings": int(bool(wings)),
-                              "legs": int(legs)}
-    for k, col in enumerate(POINT_COLUMNS):
-        row[col] = round(float(ann["points"].reshape(-1)[k]), 3)
-    for k, col in enumerate(LIMB_COLUMNS):
-        row[col] = round(float(ann["lengths"][k]), 3)
-    return row

@@ -1,0 +1,359 @@
+"""Assembly: the steps' states → joint arrays (creature px) → a :class:`Creature` (metres).
+
+Vertebrae and skull are built as whole arrays, limbs per pair (right side, then the exact
+mirror image for the left). The joint arrays travel as one dict of parallel arrays (names,
+parent, world rotation ``W``, position, bone length, box, volume, mass centre, limits …),
+reordered depth-first before the conversion to local rest transforms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from biomorph.core import transforms as tf
+from biomorph.core.skeleton import JointSkeleton
+from biomorph.creature import anatomy as an
+from biomorph.creature import balance as bal
+from biomorph.creature import limbs as lb
+from biomorph.creature import mass as ms
+from biomorph.creature import skulls as sk
+from biomorph.creature import spine as sp
+from biomorph.creature import vertebrae as vt
+from biomorph.creature.creature import Creature
+from biomorph.creature.options import Options
+from biomorph.creature.states import LimbsState, SkullState, SpineState
+
+_M = np.diag([1.0, 1.0, -1.0])
+
+#: Relative joint ranges (degrees, about local x, y, z) for spine/skull/girdle bones.
+SPINE_RANGE = {"neck": (20, 15, 30), "back": (5, 5, 8), "tail": (15, 12, 20),
+               "head": (25, 20, 40), "girdle": (5, 5, 10)}
+
+
+def _frames_from_dirs(d: NDArray) -> NDArray:
+    """World rotations ``(m, 3, 3)`` with +Y along each sagittal direction and Z = +z."""
+    d = np.asarray(d, float)
+    n = np.linalg.norm(d, axis=1, keepdims=True)
+    y = np.where(n > 1e-12, d / np.where(n > 1e-12, n, 1.0), [[-1.0, 0.0, 0.0]])
+    z = np.zeros_like(y)
+    z[:, 2] = 1.0
+    z = z - (y[:, 2:3]) * y
+    z = z / np.linalg.norm(z, axis=1, keepdims=True)
+    x = np.stack([y[:, 1] * z[:, 2] - y[:, 2] * z[:, 1], y[:, 2] * z[:, 0] - y[:, 0] * z[:, 2],
+                  y[:, 0] * z[:, 1] - y[:, 1] * z[:, 0]], axis=1)
+    return np.stack([x, y, z], axis=2)
+
+
+
+
+_RZ_PI = np.diag([-1.0, -1.0, 1.0])
+_RANGES = {k: np.stack([-np.radians(v), np.radians(v)], axis=1) for k, v in SPINE_RANGE.items()}
+
+
+def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[str, Any]:
+    """Joint arrays in creature px (world rotations, positions, masses, contacts).
+
+    Vertebrae and skull are built as whole arrays; limbs per pair (right side, then the
+    exact mirror image for the left)."""
+    cls = spine.cls
+    legless = spine.legs == 0
+    pts = limbs.points
+    xy, s, region = sp.sample(pts)
+    rl = sp.region_lengths(s, region)
+    shape = sk.get(skull.shape)
+    skull_h = shape.height * skull.length
+    edges, vreg = vt.boundaries(rl, spine.counts)
+    P = sp.point_at(xy, s, edges)
+    m = len(vreg)
+    back_idx = np.flatnonzero(vreg == 1)
+    root = int(back_idx[min(int(round(0.65 * (len(back_idx) - 1))), len(back_idx) - 1)])
+    order = np.concatenate([[root], np.arange(root - 1, -1, -1), np.arange(root + 1, m)])
+    slot = np.empty(m, np.int64)
+    slot[order] = np.arange(m)           # joint index of vertebra i
+    rname = ("neck", "back", "tail")
+    within = np.zeros(m, np.int64)
+    for r in range(3):
+        sel = vreg == r
+        within[sel] = np.arange(1, sel.sum() + 1)
+    vnames = [f"{rname[vreg[i]]}_{within[i]:02d}" for i in order]
+    vparts = an.vertebra_parts(vreg, cls)
+    # body slices (volume, centre, owning vertebra)
+    h, b, off = ms.profile(s, rl, spine.girth, cls, skull_h, legless)
+    vol = ms.slice_volumes(s, h, b)
+    smid = 0.5 * (s[1:] + s[:-1])
+    t = np.diff(xy, axis=0)
+    t = t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
+    nrm = np.stack([t[:, 1], -t[:, 0]], axis=1)
+    nrm = np.where(nrm[:, 1:2] < 0, -nrm, nrm)
+    cen2 = 0.5 * (xy[1:] + xy[:-1]) - nrm * 0.5 * (off[1:] + off[:-1])[:, None]
+    owner = np.clip(np.searchsorted(edges, smid, side="right") - 1, 0, m - 1)
+    vmass = np.bincount(owner, weights=vol, minlength=m)
+    vcen = np.stack([np.bincount(owner, weights=vol * cen2[:, k], minlength=m)
+                     for k in range(2)], axis=1) / np.maximum(vmass, 1e-30)[:, None]
+    emid = 0.5 * (edges[1:] + edges[:-1])
+    vh = np.interp(emid, s, h)
+    vb = np.interp(emid, s, b)
+    # vertebra i: joint at the end nearer the root, bone towards the other end
+    ant = order < root
+    vi = order
+    a = np.where(ant[:, None], P[vi + 1], P[vi])
+    e = np.where(ant[:, None], P[vi], P[vi + 1])
+    par_v = np.where(vi == root, -1, np.where(ant, slot[np.minimum(vi + 1, m - 1)],
+                                              slot[np.maximum(vi - 1, 0)]))
+    d3 = np.concatenate([e - a, np.zeros((m, 1))], axis=1)
+    Lv = np.linalg.norm(d3, axis=1)
+    blocks = {
+        "names": vnames, "parent": [par_v], "kind": ["spine"] * m,
+        "part": [vparts[i] for i in vi], "digit": [np.zeros(m, np.int64)],
+        "region": [rname[r] for r in vreg[vi]], "side": [np.zeros(m, np.int64)],
+        "W": [_frames_from_dirs(d3)], "pos": [np.concatenate([a, np.zeros((m, 1))], axis=1)],
+        "blen": [Lv], "box": [np.stack([0.35 * vh[vi], Lv, 0.3 * vb[vi]], axis=1)],
+        "vol": [vmass[vi]], "mass_c": [np.concatenate([vcen[vi], np.zeros((m, 1))], axis=1)],
+        "mass_sz": [np.stack([vh[vi], np.maximum(Lv, 1e-9), vb[vi]], axis=1)],
+        "lim": [np.stack([_RANGES[rname[r]] for r in vreg[vi]])],
+        "anat_a": [np.zeros((m, 3))], "anat_l": [np.zeros((m, 3, 2))]}
+
+    def put(names, parent, kind, region, side, W, pos, blen, box, volv, mc, msz, lim, aa, al,
+            part):
+        blocks["names"] += names
+        blocks["kind"] += kind
+        blocks["region"] += region
+        blocks["part"] += list(part)
+        blocks["digit"].append(np.zeros(len(names), np.int64))
+        for key, val in (("parent", parent), ("side", side), ("W", W), ("pos", pos),
+                         ("blen", blen), ("box", box), ("vol", volv), ("mass_c", mc),
+                         ("mass_sz", msz), ("lim", lim), ("anat_a", aa), ("anat_l", al)):
+            blocks[key].append(np.asarray(val, float) if key not in ("parent", "side")
+                               else np.asarray(val, np.int64))
+
+    # skull
+    ang = skull.angle
+    d = np.array([np.cos(ang), np.sin(ang), 0.0])
+    org = np.array([skull.origin[0], skull.origin[1], 0.0])
+    sbox = sk.box_size(shape, skull.length)
+    put(["skull"], [slot[0]], ["skull"], ["head"], [0], _frames_from_dirs(d[None]), [org],
+        [skull.length], [sbox], [ms.ellipsoid_volume(sbox)],
+        [org + d * skull.length / 2], [sbox], [_RANGES["head"]], np.zeros((1, 3)),
+        np.zeros((1, 3, 2)), ["skull"])
+    n_now = m + 1
+    contacts, contact_joint, patches = [], [], []
+    seg_names = ("girdle", "upper", "lower", "distal")
+    for (gname, k, spec, at), (gpt, apt), pose, L3 in zip(
+            limbs.places, limbs.attach, limbs.poses, limbs.lengths, strict=True):
+        vidx = int(np.clip(np.searchsorted(edges, at, side="right") - 1, 0, m - 1))
+        tag = f"{gname}{k + 1}"
+        gvec = apt - gpt
+        gl = float(np.linalg.norm(gvec))
+        radius = ms.LIMB_RADIUS[spec.kind] * L3
+        rb = ms.BONE_FRACTION * radius
+        vols = ms.limb_volume(L3, spec.kind)
+        # right side (4 joints: girdle, upper, lower, distal)
+        Wr = np.concatenate([_frames_from_dirs(gvec[None]) if gl > 1e-9 else np.eye(3)[None],
+                             pose.rotations @ _RZ_PI])
+        pr = np.concatenate([gpt[None], pose.points[:3]])
+        bl = np.concatenate([[gl], L3])
+        bx = np.concatenate([[[0.3 * gl, gl, 0.06 * gl]],
+                             np.stack([2 * rb, L3, 2 * rb], axis=1)])
+        vv = np.concatenate([[0.0], vols])
+        mc = np.concatenate([[0.5 * (gpt + apt)], 0.5 * (pose.points[:3] + pose.points[1:])])
+        msz = np.concatenate([[[0.3 * gl, max(gl, 1e-9), 0.06 * gl]],
+                              np.stack([2 * radius, np.maximum(L3, 1e-9), 2 * radius], axis=1)])
+        lim = np.stack([_RANGES["girdle"]] * 4)
+        aa = np.concatenate([np.zeros((1, 3)), pose.angles])
+        al = np.concatenate([np.zeros((1, 3, 2)), pose.limits])
+        kinds = ["girdle"] + [spec.kind] * 3
+        for sd, sgn in (("r", 1), ("l", -1)):
+            base = n_now
+            par = [slot[vidx], base, base + 1, base + 2]
+            if sgn > 0:
+                Ws, ps, mcs, aas, als = Wr, pr, mc, aa, al
+            else:
+                Ws = _M @ Wr @ _M
+                ps, mcs = pr * [1, 1, -1], mc * [1, 1, -1]
+                aas = aa * [1, -1, -1]
+                als = al.copy()
+                als[:, 1:] = -al[:, 1:, ::-1]
+            put([f"{tag}_{sn}_{sd}" for sn in seg_names], par, kinds, [gname] * 4,
+                [sgn] * 4, Ws, ps, bl, bx, vv, mcs, msz, lim, aas, als,
+                an.limb_parts(spec.kind, gname))
+            n_now += 4
+            if pose.contact is not None:
+                M = np.array([1.0, 1.0, float(sgn)])
+                contacts.append(pose.contact * M)
+                contact_joint.append(n_now - 1)
+                patches += pad(pose, L3, float(sgn))
+    names = blocks["names"]
+    side = np.concatenate(blocks["side"])
+    idx_of = {nm: i for i, nm in enumerate(names)}
+    mirror = np.array([idx_of[nm[:-1] + ("l" if nm.endswith("r") else "r")] if side[i] != 0
+                       else i for i, nm in enumerate(names)], dtype=np.int64)
+    cat = {k: np.concatenate(blocks[k]) for k in ("parent", "W", "pos", "blen", "box", "vol",
+                                                   "mass_c", "mass_sz", "lim", "anat_a",
+                                                   "anat_l")}
+    return dict(names=names, parent=cat["parent"], kind=blocks["kind"],
+                region=blocks["region"], part=blocks["part"],
+                digit=np.concatenate(blocks["digit"]), side=side, W=cat["W"], pos=cat["pos"],
+                blen=cat["blen"], box=cat["box"], vol=cat["vol"], mass_c=cat["mass_c"],
+                mass_sz=cat["mass_sz"], lim=cat["lim"], anat_a=cat["anat_a"],
+                anat_l=cat["anat_l"], mirror=mirror, n=len(names),
+                contacts=np.array(contacts).reshape(-1, 3),
+                contact_joint=np.array(contact_joint, dtype=np.int64),
+                patches=np.array(patches).reshape(-1, 2), density=ms.density(cls),
+                ground=limbs.ground)
+
+
+def balance_px(asm: dict, opts: Options) -> bal.BalanceReport:
+    vol = asm["vol"]
+    com = (vol[:, None] * asm["mass_c"]).sum(axis=0) / max(vol.sum(), 1e-30)
+    p = np.concatenate([asm["pos"], asm["pos"] + asm["W"][:, :, 1] * asm["blen"][:, None]])
+    return bal.evaluate(com, float(vol.sum()), asm["patches"], float(np.ptp(p[:, 0])),
+                        opts.min_margin_fraction)
+
+
+#: Toe pad of a digitigrade/unguligrade foot: forward and backward reach from the contact
+#: point as fractions of the distal segment (toes/hoof are not modelled as bones).
+TOE_PAD = (0.45, 0.2)
+
+
+def pad(pose: lb.LimbPose, L3: NDArray, sgn: float) -> list[NDArray]:
+    """Four (x, z) corners of one foot's contact patch (creature px)."""
+    rb = ms.BONE_FRACTION * ms.LIMB_RADIUS["leg"] * L3
+    wdt = max(1.5 * rb[2], 0.02 * L3.sum())
+    tip, ank = pose.points[3], pose.points[2]
+    if pose.foot_flat:
+        dh = np.array([tip[0] - ank[0], sgn * (tip[2] - ank[2])])
+        nd = np.linalg.norm(dh)
+        dh = dh / nd if nd > 1e-9 else np.array([1.0, 0.0])
+        q0, q1 = np.array([ank[0], sgn * ank[2]]), np.array([tip[0], sgn * tip[2]])
+    else:
+        dh = np.array([1.0, 0.0])
+        c = np.array([tip[0], sgn * tip[2]])
+        q0, q1 = c - TOE_PAD[1] * L3[2] * dh, c + TOE_PAD[0] * L3[2] * dh
+    perp = np.array([-dh[1], dh[0]])
+    return [q0 + wdt * perp, q0 - wdt * perp, q1 + wdt * perp, q1 - wdt * perp]
+
+
+def depth_first(asm: dict) -> dict:
+    """Reorder joints depth-first (children after their parent, subtrees contiguous) — the
+    order BVH files and most DCC tools use — remapping parent, mirror and contact indices."""
+    par = asm["parent"]
+    n = asm["n"]
+    kids: list[list[int]] = [[] for _ in range(n)]
+    for j in range(n):
+        if par[j] >= 0:
+            kids[par[j]].append(j)
+    order: list[int] = []
+    stack = [j for j in range(n) if par[j] < 0][::-1]
+    while stack:
+        j = stack.pop()
+        order.append(j)
+        stack.extend(kids[j][::-1])
+    perm = np.array(order)
+    inv = np.empty(n, np.int64)
+    inv[perm] = np.arange(n)
+    out = dict(asm)
+    for k in ("W", "pos", "blen", "box", "vol", "mass_c", "mass_sz", "lim", "anat_a", "anat_l",
+              "side", "digit"):
+        out[k] = asm[k][perm]
+    for k in ("names", "kind", "region", "part"):
+        out[k] = [asm[k][i] for i in perm]
+    p = par[perm]
+    out["parent"] = np.where(p >= 0, inv[np.maximum(p, 0)], -1)
+    out["mirror"] = inv[asm["mirror"][perm]]
+    out["contact_joint"] = inv[asm["contact_joint"]] if len(asm["contact_joint"]) else \
+        asm["contact_joint"]
+    return out
+
+
+def below_ground(asm: dict) -> bool:
+    """True if a joint or bone end lies below the ground (beyond 0.2 % of the extent)."""
+    ends = asm["pos"] + asm["W"][:, :, 1] * asm["blen"][:, None]
+    low = min(asm["pos"][:, 1].min(), ends[:, 1].min())
+    ext = float(np.ptp(np.concatenate([asm["pos"], ends])[:, 1]))
+    return bool(low < asm["ground"] - 0.002 * ext)
+
+
+def to_creature(asm: dict, spine: SpineState, girdles, limbs: LimbsState, skull: SkullState,
+                report: bal.BalanceReport, repairs: int, opts: Options,
+                attempt_info: dict | None = None) -> Creature:
+    """Joint arrays (creature px) → a :class:`Creature` in metres, sized from the weight,
+    with the ground at ``y = 0`` and the first joint at ``x = 0``."""
+    asm = depth_first(asm)
+    below = below_ground(asm)
+    # size from weight: metres per px
+    vol_px = float(asm["vol"].sum())
+    scale = ms.size_scale(spine.weight, vol_px, spine.cls)
+    shift = np.array([0.0, asm["ground"], 0.0])
+    pos = (asm["pos"] - shift) * scale
+    W = asm["W"]
+    par = asm["parent"]
+    x0 = pos[0, 0]
+    pos[:, 0] -= x0
+    shift_m = np.array([x0, 0.0, 0.0])
+    # local rest transforms from world frames
+    pw = np.where(par[:, None, None] >= 0, W[np.maximum(par, 0)], np.eye(3)[None])
+    pp = np.where(par[:, None] >= 0, pos[np.maximum(par, 0)], 0.0)
+    local_r = np.einsum("nji,njk->nik", pw, W)
+    offset = np.einsum("nji,nj->ni", pw, pos - pp)
+    quat = tf.matrix_to_quat(local_r)
+    # stored limits: anatomical range minus the rest angle, in the joint's local axes
+    lim = asm["lim"].copy()
+    limb = np.isin(np.array(asm["kind"]), ("leg", "arm", "wing", "fin"))
+    rel = asm["anat_l"] - asm["anat_a"][:, :, None]   # (n, 3[z,x,y], 2)
+    # limb frame -> joint frame flips x and y (rotation by pi about z)
+    lz, lx, ly = rel[:, 0], -rel[:, 1, ::-1], -rel[:, 2, ::-1]
+    lim[limb] = np.stack([lx, ly, lz], axis=1)[limb]
+    end_site = np.full((asm["n"], 3), np.nan)
+    leaf = np.setdiff1d(np.arange(asm["n"]), par[par >= 0])
+    end_site[leaf] = np.array([[0.0, 1.0, 0.0]]) * (asm["blen"][leaf, None] * scale)
+    skel = JointSkeleton(asm["names"], par, offset, quat, lim, end_site=end_site)
+    dens = asm["density"]
+    mass = asm["vol"] * dens * scale ** 3
+    mass_c = (asm["mass_c"] - shift) * scale - shift_m
+    contacts = (asm["contacts"] - shift) * scale - shift_m
+    rep = report
+    # the balance report in metres is the px report scaled (mass ∝ volume, lengths ∝ s)
+    com = (np.asarray(rep.com) - shift) * scale - shift_m
+    total = float(mass.sum())
+    final = replace(rep, margin=rep.margin * scale, sagittal_margin=rep.sagittal_margin * scale,
+                    tipping_torque=total * bal.G * rep.margin * scale,
+                    com=tuple(float(v) for v in com), mass=total,
+                    support=tuple((float(a * scale - x0), float(b * scale))
+                                  for a, b in rep.support))
+    info = attempt_info or {}
+    final = replace(final, repairs=repairs, resamples=int(info.get("resamples", 0)))
+    if not rep.applicable:
+        final = replace(final, reason="no legs with ground contact: swims or rests on its body")
+    pts_m = (limbs.points - np.array([0.0, asm["ground"]])) * scale - np.array([x0, 0.0])
+    params = dict(seed=opts.seed, options=_options_dict(opts), **{"class": spine.cls},
+                  legs=spine.legs, wings="wing" in asm["kind"], weight_kg=spine.weight,
+                  stance=spine.stance, posture=spine.posture, skull=skull.shape,
+                  vertebrae=spine.counts.tolist(), nearest_species=spine.neighbours,
+                  metres_per_px=scale, wings_value=spine.wings_value,
+                  legs_value=spine.legs_value, features=spine.features.tolist(),
+                  girdles=[{"name": g.name, "pairs": [p.kind for p in g.pairs]}
+                           for g in girdles],
+                  descent_residual_px=[float(p.residual) for p in limbs.poses
+                                       if p.kind == "leg"], below_ground=below)
+    return Creature(skeleton=skel, kind=tuple(asm["kind"]), region=tuple(asm["region"]),
+                    side=asm["side"].astype(np.int64), mirror=asm["mirror"].astype(np.int64),
+                    bone_length=asm["blen"] * scale, box_size=asm["box"] * scale, mass=mass,
+                    mass_center=mass_c, mass_size=asm["mass_sz"] * scale,
+                    anatomical_angles=asm["anat_a"], anatomical_limits=asm["anat_l"],
+                    contacts=contacts.reshape(-1, 3), contact_joint=asm["contact_joint"],
+                    spine_points=pts_m, params=params, balance=final,
+                    part=tuple(asm["part"]), digit=asm["digit"].astype(np.int64))
+
+
+def _options_dict(opts: Options) -> dict[str, Any]:
+    d = {k: getattr(opts, k) for k in ("legs", "wings", "arms", "centaur", "weight",
+                                       "neck_length", "tail_length", "cls", "k", "temperature",
+                                       "jitter", "stand_fraction", "require_stable")}
+    if opts.scores is not None:
+        d["scores"] = {str(i): float(v) for i, v in sorted(opts.scores.items())}
+    d["descent"] = dict(vars(opts.descent))
+    return d

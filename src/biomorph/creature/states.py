@@ -1,0 +1,69 @@
+"""Typed states of the generator's steps (spine → girdles → limbs → skull → finish).
+
+Each step returns one frozen dataclass (the girdles step a tuple of
+:class:`~biomorph.creature.girdles.Girdle`); later steps read earlier states and never
+mutate them, so :class:`~biomorph.creature.generator.Generator` can keep them for undo.
+All lengths are in the seed's frame units (px of the 1000-px annotation frame).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from biomorph.creature.options import STEPS
+
+
+@dataclass(frozen=True, eq=False)
+class SpineState:
+    """The sampled body plan: spine Bézier control points (frame px, head on the left),
+    limb lengths, weight, discrete choices and what is inherited from the nearest species."""
+
+    points: NDArray[np.float64]        # (10, 2) control points, frame px
+    lengths: NDArray[np.float64]       # (6,) upper arm, lower arm, hand, thigh, shank, foot
+    weight: float                      # kg
+    wings: bool
+    legs: int
+    cls: str
+    stance: str                        # plantigrade | digitigrade | unguligrade
+    posture: str                       # erect | crouched | sprawling
+    skull: str                         # skull library entry
+    skull_length: float                # px
+    girth: float
+    counts: NDArray[np.int64]          # vertebrae per region (neck, back, tail)
+    neighbours: list[str]
+    features: NDArray[np.float64]      # the sampled 29-dim feature vector
+    wings_value: float                 # decoded (continuous) wings and legs values
+    legs_value: float
+    nearest: str
+
+
+@dataclass(frozen=True, eq=False)
+class LimbsState:
+    """Grounded legs and posed free limbs (creature px: x forward, y up, z right)."""
+
+    points: NDArray[np.float64]        # (10, 2) spine control points, creature px
+    ground: float                      # ground height (px)
+    places: list[tuple[str, int, Any, float]]   # (girdle, pair index, LimbSpec, arc length)
+    attach: list[tuple[NDArray, NDArray]]       # (spine point, limb attachment) per pair
+    lengths: list[NDArray[np.float64]]          # (3,) segment lengths per pair
+    poses: list[Any]                            # limbs.LimbPose per pair (right side)
+    shifts: dict[str, float]                    # balance-repair girdle shifts
+
+
+@dataclass(frozen=True, eq=False)
+class SkullState:
+    """The chosen skull: library shape, length (px), pitch (rad) and origin (creature px)."""
+
+    shape: str
+    length: float
+    angle: float
+    origin: NDArray[np.float64]
+
+
+def step_rng(seed: int, step: str, roll: int) -> np.random.Generator:
+    """The random stream of one step (seed, step index, re-roll count)."""
+    return np.random.default_rng([int(seed) & 0xFFFFFFFF, STEPS.index(step), int(roll)])

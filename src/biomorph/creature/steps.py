@@ -1,0 +1,337 @@
+"""The generator's first four steps: spine, girdles, limbs and skull (seed §3.4, §5).
+
+Each step is a pure function of the options, the earlier steps' states and its own random
+stream; the states are the typed dataclasses of :mod:`biomorph.creature.states`. Units: the
+seed's frame px (1000-px annotation frame); ``step_limbs`` and ``step_skull`` work in creature
+coordinates (x forward, y up, z right).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from biomorph.core.curves import bezier_eval
+from biomorph.creature import girdles as gd
+from biomorph.creature import limbs as lb
+from biomorph.creature import mass as ms
+from biomorph.creature import pca as pc
+from biomorph.creature import skulls as sk
+from biomorph.creature import spine as sp
+from biomorph.creature import vertebrae as vt
+from biomorph.creature.model import species_model
+from biomorph.creature.options import Options
+from biomorph.creature.states import LimbsState, SkullState, SpineState
+from biomorph.errors import ParameterError
+
+DEG = np.pi / 180.0
+
+
+def to_creature_px(points_px: NDArray) -> NDArray:
+    """Frame px (head on the left, y up) → creature px coordinates (x forward, y up)."""
+    p = np.array(points_px, float)
+    p[..., 0] = 500.0 - p[..., 0]
+    return p
+
+
+# --------------------------------------------------------------------------- step: spine
+def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> SpineState:
+    """Sample the PCA (conditioned on the options), read the discrete values as
+    probabilities, inherit class/stance/skull/counts from the nearest species, C1-fix."""
+    m = species_model(opts.dataset)
+    model: pc.PCA = m.pca
+    table = m.table
+    fixed: dict[int, float] = {}
+    scores: dict[int, float] = {}
+    class_pick: dict[str, Any] = {}
+    if opts.legs is not None:
+        fixed[pc.DIM["legs"]] = min(opts.legs, 4) / 4.0 / pc.SMALL
+    if opts.wings is not None:
+        fixed[pc.DIM["wings"]] = (1.0 if opts.wings else 0.0) / pc.SMALL
+    if opts.weight is not None:
+        fixed[pc.DIM["weight"]] = pc.weight_to_feature(opts.weight)
+    if opts.neck_length is not None:
+        d = m.neck_dir * opts.neck_length
+        fixed[pc.NECK_OFFSET[0]], fixed[pc.NECK_OFFSET[1]] = float(d[0]), float(d[1])
+    if opts.tail_length is not None:
+        d = m.tail_dir * opts.tail_length
+        fixed[pc.TAIL_OFFSET[0]], fixed[pc.TAIL_OFFSET[1]] = float(d[0]), float(d[1])
+    if opts.cls is not None:
+        members = m.cls_scores[opts.cls]
+        if len(members):
+            # condition on a point between the class centre and a random member, and on that
+            # member's wings / legs unless the user fixed them
+            centre = members.mean(axis=0)
+            j = int(rng.integers(len(members)))
+            target = centre + 0.6 * (members[j] - centre)
+            ncomp = 3 if opts.k is None else min(3, opts.k)
+            scores = {i: float(target[i]) for i in range(ncomp)}
+            row = [i for i, c in enumerate(table.cls) if c == opts.cls][j]
+            if opts.wings is None:
+                fixed[pc.DIM["wings"]] = float(table.wings[row]) / pc.SMALL
+                class_pick["wings"] = bool(table.wings[row])
+            if opts.legs is None:
+                fixed[pc.DIM["legs"]] = float(table.legs[row]) / 4.0 / pc.SMALL
+                class_pick["legs"] = int(table.legs[row])
+    user = {int(i): float(v) * float(np.sqrt(model.eigenvalues[int(i)]))
+            for i, v in (opts.scores or {}).items()}
+    if fixed or scores:
+        scores.update(user)  # the user's component scores win over the class target
+        x = model.sample_conditional(rng, fixed, scores, opts.k, opts.temperature, opts.jitter)
+    else:
+        x = model.sample(rng, 1, opts.k, opts.temperature)[0]
+        if user:  # same draw as without scores; only the fixed components are replaced
+            z = model.project(x[None], opts.k)[0]
+            for i, v in user.items():
+                z[i] = v
+            x = model.reconstruct(z)
+    raw = pc.decode(x, reparam=True)
+    pts = raw["points"][0]
+    lengths = np.clip(raw["lengths"][0], 0.0, None)
+    weight = float(opts.weight if opts.weight is not None else raw["weight"][0])
+    weight = max(weight, 0.005)
+    feat = np.asarray(x, float)
+    idx, w = model.nearest(model.mean + (x - model.mean), n_neighbours=3)
+    if opts.cls is not None:
+        cls = opts.cls
+    else:
+        votes: dict[str, float] = {}
+        for i, wi in zip(idx, w, strict=True):
+            votes[table.cls[i]] = votes.get(table.cls[i], 0.0) + wi
+        cls = max(votes, key=votes.get)
+    # discrete values read as probabilities where they fall between the data's values
+    wings_v = float(raw["wings"][0])
+    legs_v = float(raw["legs"][0])
+    if opts.wings is not None or "wings" in class_pick:
+        wings = bool(opts.wings if opts.wings is not None else class_pick["wings"])
+    else:
+        wings = bool(rng.random() < np.clip(wings_v, 0.0, 1.0)) and cls != "fish"
+    if opts.legs is not None or "legs" in class_pick:
+        legs = int(opts.legs if opts.legs is not None else class_pick["legs"])
+    else:
+        lv = float(np.clip(legs_v, 0.0, 4.0))
+        legs = (2 if rng.random() < lv / 2 else 0) if lv <= 2 else (
+            4 if rng.random() < (lv - 2) / 2 else 2)
+        if cls == "fish":
+            legs = 0
+    if cls == "fish":  # fish: the shoulder girdle sits right behind the head (no neck)
+        pts[0:3] = pts[3]
+    pts = sp.c1_fix(pts)
+    xy, s, region = sp.sample(pts)
+    rl = sp.region_lengths(s, region)
+    if opts.centaur and rl[0] < gd.CENTAUR_MIN_NECK * rl[1]:
+        # rule propagation: a centaur girdle needs a long neck -> lengthen it
+        pts = _scale_neck(pts, 1.05 * gd.CENTAUR_MIN_NECK * rl[1] / max(rl[0], 1e-6))
+        pts = sp.c1_fix(pts)
+        xy, s, region = sp.sample(pts)
+        rl = sp.region_lengths(s, region)
+    # inherited attributes (nearest species, inverse-distance weights)
+    near = [table.name[i] for i in idx]
+    pick = idx[int(np.argmax(w))]
+    same = [i for i in idx if table.cls[i] == cls] or list(idx)
+    ws = np.array([w[list(idx).index(i)] for i in same])
+    ws = ws / ws.sum()
+    stance = table.stance[same[0]] if cls != "bird" else "digitigrade"
+    posture = table.posture[same[0]]
+    skull_name = table.skull[same[0]] if table.cls[same[0]] == cls else sk.CLASS_SKULL[cls]
+    back_chord = float(np.linalg.norm(pts[6] - pts[3]))
+    ratio = float(ws @ (table.skull_length[same] / np.maximum(
+        np.linalg.norm(table.points[same, 6] - table.points[same, 3], axis=1), 1.0)))
+    girth = float(ws @ table.girth[same])
+    counts = vt.region_counts(cls, table.counts[same], ws, rl, m.region_len[same])
+    return SpineState(points=pts, lengths=lengths, weight=weight, wings=wings, legs=legs,
+                      cls=cls, stance=stance, posture=posture, skull=skull_name,
+                      skull_length=max(ratio * max(back_chord, 0.05 * s[-1]), 0.03 * s[-1]),
+                      girth=girth, counts=counts, neighbours=near, features=feat,
+                      wings_value=wings_v, legs_value=legs_v, nearest=table.name[pick])
+
+
+def _scale_neck(points: NDArray, factor: float) -> NDArray:
+    p = np.array(points, float)
+    p[0:3] = p[3] + (p[0:3] - p[3]) * factor
+    return p
+
+
+# --------------------------------------------------------------------------- step: girdles
+def step_girdles(spine: SpineState, opts: Options, rng: np.random.Generator
+                 ) -> tuple[gd.Girdle, ...]:
+    """Girdles and limb pairs from the discrete choices (rules in :mod:`girdles`)."""
+    xy, s, region = sp.sample(spine.points)
+    rl = sp.region_lengths(s, region)
+    L = np.asarray(spine.lengths, float)
+    back = max(rl[1], 0.05 * s[-1])
+    fore, hind = L[:3].copy(), L[3:].copy()
+    legs = spine.legs
+    wings = spine.wings
+    # sampled (not requested) wings yield when the shoulder girdle is already full
+    shoulder = (1 if legs >= 4 else 0) + (1 if legs == 6 else 0) + \
+        (1 if opts.arms and not opts.centaur else 0)
+    if wings and opts.wings is None and shoulder >= gd.MAX_PAIRS:
+        wings = False
+    # a limb that must carry the body gets at least a minimal length per segment
+    if legs >= 2:
+        hind = np.maximum(hind, 0.08 * back)
+    if legs >= 4 or wings or opts.arms or opts.centaur:
+        fore = np.maximum(fore, 0.08 * back)
+    return gd.plan(spine.cls, legs, wings, opts.arms, opts.centaur, fore, hind, rl)
+
+
+# --------------------------------------------------------------------------- step: limbs
+def _frame_at(xy: NDArray, s: NDArray, at: float) -> tuple[NDArray, NDArray, NDArray]:
+    """Point, tail-ward tangent and dorsal normal of the spine (creature px) at arc ``at``."""
+    g = sp.point_at(xy, s, at)
+    t = sp.tangent_at(xy, s, at)
+    n = np.array([t[1], -t[0]])
+    if n[1] < 0:
+        n = -n
+    return g, t, n
+
+
+def _attach(xy, s, rl, girth, cls, skull_h, legless, girdle: str, at: float, kind: str,
+            posture: str, width: float = 1.0) -> tuple[NDArray, NDArray]:
+    """Spine point (3,) and limb attachment point (3,) of the right limb of a pair."""
+    g, t, n = _frame_at(xy, s, at)
+    h, b, _ = ms.profile(np.array([at]), rl, girth, cls, skull_h, legless)
+    drop = {"leg": 0.35, "arm": 0.3, "wing": 0.12, "fin": 0.3}[kind] * h[0]
+    if girdle == "hip":
+        drop *= 0.75
+    half = 0.45 * b[0] * (1.35 if posture == "sprawling" else 1.0) * width
+    a2 = g - drop * n
+    return np.array([g[0], g[1], 0.0]), np.array([a2[0], a2[1], half])
+
+
+def _flatten(points: NDArray, which: str, floor: float) -> NDArray:
+    """Raise a drooping tail (or neck) above ``floor`` keeping the join's tangent (C1)."""
+    base, inner, outer = (6, 7, (8, 9)) if which == "tail" else (3, 2, (1, 0))
+    p = np.array(points, float)
+    for alpha in (0.7, 0.45, 0.25, 0.1, 0.0):
+        q = p.copy()
+        for k in outer:
+            q[k, 1] = p[base, 1] + alpha * (p[k, 1] - p[base, 1])
+        q[inner] = p[base] + max(alpha, 0.25) * (p[inner] - p[base])
+        seg = q[6:10] if which == "tail" else q[0:4]
+        if bezier_eval(seg, np.linspace(0, 1, 17))[:, 1].min() >= floor:
+            return q
+        p_last = q
+    return p_last
+
+
+def step_limbs(spine: SpineState, girdles: tuple[gd.Girdle, ...], opts: Options,
+               rng: np.random.Generator, shifts: dict[str, float] | None = None,
+               ground: float | None = None, previous: LimbsState | None = None) -> LimbsState:
+    """Ground height, grounded legs by the seed's descent, free limbs by rule (frame px)."""
+    pts = to_creature_px(spine.points)
+    cls, posture, stance = spine.cls, spine.posture, spine.stance
+    legless = spine.legs == 0
+    xy, s, region = sp.sample(pts)
+    rl = sp.region_lengths(s, region)
+    skull_h = sk.get(spine.skull).height * spine.skull_length
+    shifts = shifts or {}
+    # placements: (girdle name, pair index, spec, arc position)
+    places = []
+    for g in girdles:
+        for k, spec in enumerate(g.pairs):
+            at = g.at + shifts.get(g.name, 0.0)
+            if k == 1:  # second pair a little apart, towards the body centre
+                step = 0.18 * max(rl[1], 1e-6)
+                at = at + step if g.name in ("shoulder", "centaur") else at - step
+            at = float(np.clip(at, 0.0, s[-1]))
+            places.append((g.name, k, spec, at))
+    attach = [_attach(xy, s, rl, spine.girth, cls, skull_h, legless, gname, at, spec.kind,
+                      posture, shifts.get("width", 1.0) if spec.kind == "leg" else 1.0)
+              for gname, k, spec, at in places]
+    legs = [i for i, p in enumerate(places) if p[2].kind == "leg"]
+    lengths = [np.array(p[2].lengths, float) for p in places]
+    h_all, _, off_all = ms.profile(s, rl, spine.girth, cls, skull_h, legless)
+    body_bottom = xy[:, 1] - np.where(region == 1, 0.35, 0.2) * h_all
+    if legs:
+        reach = [lb.max_reach(lengths[i], stance, posture) for i in legs]
+        if ground is None:
+            ground = max(attach[i][1][1] - opts.stand_fraction * r
+                         for i, r in zip(legs, reach, strict=True))
+            # every leg must reach down at least a quarter of its length (a low hip under a
+            # high shoulder): lower the ground; the legs that then fall short are stretched
+            ground = min([ground] + [attach[i][1][1] - 0.25 * r
+                                     for i, r in zip(legs, reach, strict=True)])
+        trunk = region == 1
+        lowest_trunk = float(body_bottom[trunk].min()) if trunk.any() else ground
+        if lowest_trunk < ground:
+            ground = lowest_trunk  # legs too short for this body: lower the ground ...
+        for i, r in zip(legs, reach, strict=True):  # ... and stretch legs that cannot reach
+            need = (attach[i][1][1] - ground) / opts.stand_fraction
+            if need > r:
+                lengths[i] = lengths[i] * (need / r)
+            # a leg far too long for its height would start (fully bent) below the ground:
+            # shorten it until its start pose clears the ground (rule propagation)
+            role = "hind" if places[i][0] == "hip" else "fore"
+            start = lb.start_pose(role, posture, opts.descent.plausible)
+            for _ in range(30):
+                _, p0 = lb.forward(attach[i][1], lengths[i], start)
+                if p0[1:, 1].min() >= ground:
+                    break
+                lengths[i] = lengths[i] * 0.9
+        # neck and tail must stay above the ground (bones), keeping C1 at the joins
+        clear = ground + 0.02 * max(s[-1], 1.0)
+        for which, reg in (("tail", 2), ("neck", 0)):
+            if (region == reg).any() and xy[region == reg, 1].min() < clear:
+                pts = _flatten(pts, which, clear)
+        xy, s, region = sp.sample(pts)
+    else:
+        ground = None
+    if legs and any(attach[i][1][1] <= ground for i in legs):
+        raise ParameterError("a leg attachment lies below the ground")  # repair path only
+    poses = []
+    for i, (gname, _k, spec, _at) in enumerate(places):
+        base = attach[i][1]
+        if spec.kind == "leg":
+            role = "hind" if gname == "hip" else "fore"
+            pose = None
+            if previous is not None:  # balance repair: keep the pose, re-ground continuously
+                prev = previous.poses[i]
+                pose = lb.reground(prev, base, previous.lengths[i], ground, opts.descent)
+                if pose is not None:
+                    lengths[i] = previous.lengths[i]
+            if pose is None:
+                pose = lb.pose_leg(base, lengths[i], ground, role, stance, posture, rng,
+                                   opts.descent)
+            lengths[i] = pose.lengths
+        else:
+            pose = lb.pose_free(spec.kind, base, lengths[i], rng)
+        poses.append(pose)
+    if ground is None:
+        lows = [xy[:, 1].min() - 0.5 * float(h_all.min())]
+        lows += [p.points[:, 1].min() for p in poses]
+        ground = float(min(lows))
+    else:
+        clear = ground + 0.01 * max(s[-1], 1.0)
+        poses = [lb.lift_clear(p, attach[i][1], lengths[i], ground, clear)
+                 if p.kind != "leg" else p for i, p in enumerate(poses)]
+    return LimbsState(points=pts, ground=float(ground), places=places, attach=attach,
+                      lengths=lengths, poses=poses, shifts=dict(shifts))
+
+
+# --------------------------------------------------------------------------- step: skull
+def step_skull(spine: SpineState, limbs: LimbsState, opts: Options,
+               rng: np.random.Generator) -> SkullState:
+    """Pick the skull from the library, size and orient it, keep it above the ground."""
+    shape = sk.get(spine.skull)
+    length = float(spine.skull_length)
+    pts = limbs.points
+    xy, s, _ = sp.sample(pts)
+    head = np.array([xy[0, 0], xy[0, 1]])
+    fwd = -sp.tangent_at(xy, s, 0.0)
+    if shape.follow_spine or np.linalg.norm(pts[0] - pts[3]) < 1e-6:
+        ang = float(np.arctan2(fwd[1], fwd[0]))
+    else:
+        ang = -(shape.pitch_deg + rng.uniform(-6.0, 6.0)) * DEG
+    floor = limbs.ground + 0.01 * max(s[-1], 1.0)
+    for _ in range(12):
+        d = np.array([np.cos(ang), np.sin(ang)])
+        tip = head + length * d
+        low = min(tip[1], head[1]) - 0.5 * shape.height * length * abs(np.cos(ang))
+        if low >= floor or ang > 60 * DEG:
+            break
+        ang += 10 * DEG
+    return SkullState(shape=shape.name, length=length, angle=float(ang), origin=head)
