@@ -21,7 +21,9 @@ from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 
 __all__ = ["skeleton_metrics", "compare_to_truth", "dbh", "dbh_per_tree", "volume",
-           "resample_graph", "point_to_skeleton_distance"]
+           "resample_graph", "point_to_skeleton_distance", "DIAMETER_CLASSES", "class_labels",
+           "edge_volumes", "volume_by_class", "volume_by_order", "tree_attributes",
+           "cylinder_fit", "qsm_report"]
 
 
 def resample_graph(graph: BranchGraph, step: float) -> tuple[NDArray, NDArray, NDArray]:
@@ -172,14 +174,12 @@ def dbh(graph: BranchGraph, height: float = 1.3) -> float:
 
 
 def volume(graph: BranchGraph) -> float:
-    """Total wood volume (m³): sum of the frusta ``π L (r₁² + r₁r₂ + r₂²) / 3`` over edges."""
+    """Total wood volume (m³): frusta ``π L (r₁² + r₁r₂ + r₂²) / 3`` along branches,
+    cylinders of the branch's radius where a branch leaves its parent
+    (:func:`edge_volumes`)."""
     if graph.radius is None:
         return float("nan")
-    child = np.flatnonzero(graph.parent >= 0)
-    r1 = graph.radius[graph.parent[child]]
-    r2 = graph.radius[child]
-    length = graph.edge_length[child]
-    return float(np.sum(np.pi * length * (r1 * r1 + r1 * r2 + r2 * r2) / 3))
+    return float(edge_volumes(graph)[3].sum())
 
 
 def compare_to_truth(graph: BranchGraph, truth: BranchGraph, tolerance: float | None = None,
@@ -268,4 +268,175 @@ def compare_to_truth(graph: BranchGraph, truth: BranchGraph, tolerance: float | 
                volume=v_g, volume_truth=v_true,
                volume_error=(v_g - v_true) / v_true if np.isfinite(v_true) and v_true else
                float("nan"))
+    return out
+
+
+# ---------------------------------------------------------------- QSM measures (issue 13)
+
+#: foresters' diameter classes (m): < 2.5 cm, 2.5–7 cm, 7–20 cm, > 20 cm
+DIAMETER_CLASSES = (0.025, 0.07, 0.20)
+
+
+def class_labels(bounds: tuple[float, ...] = DIAMETER_CLASSES) -> list[str]:
+    """``["<2.5cm", "2.5-7cm", "7-20cm", ">20cm"]`` for the default bounds."""
+    cm = [f"{100 * b:g}" for b in bounds]
+    return ([f"<{cm[0]}cm"] + [f"{a}-{b}cm" for a, b in zip(cm[:-1], cm[1:], strict=True)]
+            + [f">{cm[-1]}cm"])
+
+
+def edge_volumes(graph: BranchGraph) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Per edge (child node ``c``): ``(c, length m, mean diameter m, volume m³)``.
+
+    An edge inside a branch is a frustum between its end radii; the first edge of a branch
+    leaving its parent (order rises; without orders: any child at a fork) is a cylinder of
+    the branch's own radius — its start node carries the parent's radius, and a frustum
+    from there would give every twig a cone of stem wood (TreeQSM's cylinders also carry
+    one radius each).
+    """
+    child = np.flatnonzero(graph.parent >= 0)
+    if graph.radius is None:
+        raise InputError("the skeleton has no radii; expected a radius per node")
+    par = graph.parent[child]
+    r2 = graph.radius[child]
+    if graph.depth is not None:
+        start = graph.depth[child] > graph.depth[par]
+    else:
+        start = graph.n_children[par] > 1
+    r1 = np.where(start, r2, graph.radius[par])
+    length = graph.edge_length[child]
+    vol = np.pi * length * (r1 * r1 + r1 * r2 + r2 * r2) / 3
+    return child, length, r1 + r2, vol
+
+
+def volume_by_class(graph: BranchGraph, bounds: tuple[float, ...] = DIAMETER_CLASSES
+                    ) -> dict[str, dict[str, float]]:
+    """Wood volume (m³) and length (m) per diameter class (an edge's class is its mean
+    diameter): ``{"<2.5cm": {"volume", "length"}, ...}``."""
+    _, length, diam, vol = edge_volumes(graph)
+    cls = np.searchsorted(np.asarray(bounds), diam, side="right")
+    k = len(bounds) + 1
+    v = np.bincount(cls, weights=vol, minlength=k)
+    ln = np.bincount(cls, weights=length, minlength=k)
+    return {lab: {"volume": float(v[i]), "length": float(ln[i])}
+            for i, lab in enumerate(class_labels(bounds))}
+
+
+def volume_by_order(graph: BranchGraph) -> dict[int, dict[str, float]]:
+    """Wood volume (m³), length (m) and branch count per branch order (``depth``; an edge
+    has its child's order): ``{0: {"volume", "length", "branches"}, 1: ...}``."""
+    if graph.depth is None:
+        raise InputError("the skeleton has no branch order; run tree.order.with_order")
+    child, length, _, vol = edge_volumes(graph)
+    order = np.asarray(graph.depth)[child]
+    par = graph.parent
+    starts = order > np.asarray(graph.depth)[par[child]]   # a branch leaves its parent
+    out: dict[int, dict[str, float]] = {}
+    for o in np.unique(order):
+        m = order == o
+        n_br = int((starts & m).sum()) if o > 0 else int(np.unique(graph.trees[child[m]]).size)
+        out[int(o)] = {"volume": float(vol[m].sum()), "length": float(length[m].sum()),
+                       "branches": n_br}
+    return out
+
+
+def tree_attributes(graph: BranchGraph, height: float = 1.3) -> list[dict[str, float]]:
+    """TreeQSM ``treedata``-style attributes per tree: total / trunk / branch volume (m³)
+    and length (m), number of order-1 branches, height (m, top minus base), DBH (m),
+    crown base height (m, lowest order-1 branch start above the base), crown length (m)
+    and crown diameter (m, mean of the x/y extents of the non-trunk nodes)."""
+    if graph.depth is None or graph.radius is None:
+        raise InputError("tree attributes need radii and branch orders")
+    dbhs = dbh_per_tree(graph, height)
+    labels = graph.trees
+    depth = np.asarray(graph.depth)
+    child, length, _, vol = edge_volumes(graph)
+    par = graph.parent
+    pos = graph.position
+    out = []
+    for k, t in enumerate(np.unique(labels)):
+        nodes = np.flatnonzero(labels == t)
+        e = labels[child] == t
+        trunk = e & (depth[child] == 0)
+        z0 = float(pos[nodes, 2].min())
+        first = e & (depth[child] == 1) & (depth[par[child]] == 0)
+        crown = nodes[depth[nodes] > 0]
+        cbh = float(pos[par[child[first]], 2].min() - z0) if first.any() else float("nan")
+        ext = pos[crown, :2].max(axis=0) - pos[crown, :2].min(axis=0) if crown.size else [0, 0]
+        top = float(pos[nodes, 2].max() - z0)
+        out.append({"tree": int(t), "total_volume": float(vol[e].sum()),
+                    "trunk_volume": float(vol[trunk].sum()),
+                    "branch_volume": float(vol[e & ~trunk].sum()),
+                    "total_length": float(length[e].sum()),
+                    "trunk_length": float(length[trunk].sum()),
+                    "branch_length": float(length[e & ~trunk].sum()),
+                    "branches_order1": int(first.sum()), "height": top,
+                    "dbh": float(dbhs[k]), "crown_base_height": cbh,
+                    "crown_length": top - cbh if np.isfinite(cbh) else float("nan"),
+                    "crown_diameter": float(np.mean(ext)),
+                    "max_order": int(depth[nodes].max())})
+    return out
+
+
+def _surface_candidates(graph: BranchGraph, xyz: NDArray, k: int = 8
+                        ) -> tuple[NDArray, NDArray]:
+    """Per point and candidate edge (``k`` nearest skeleton samples): signed distance to
+    the cylinder (frustum) surface, m (> 0 outside), and the local radius, m."""
+    el = graph.edge_length[graph.parent >= 0]
+    step = max(float(np.median(el)) / 2 if el.size else 1.0, 1e-4)
+    pts, ec, _ = resample_graph(graph, step)
+    kk = min(k, pts.shape[0])
+    _, idx = cKDTree(pts).query(xyz, k=kk, workers=-1)
+    node = ec[np.asarray(idx).reshape(xyz.shape[0], kk)]
+    par = graph.parent[node]
+    b = graph.position[node]
+    a = np.where((par >= 0)[..., None], graph.position[np.maximum(par, 0)], b)
+    ab = b - a
+    denom = np.einsum("...i,...i->...", ab, ab)
+    ap = xyz[:, None, :] - a
+    t = np.where(denom > 0, np.einsum("...i,...i->...", ap, ab) / np.where(denom > 0, denom, 1),
+                 0.0).clip(0, 1)
+    d = np.linalg.norm(ap - ab * t[..., None], axis=-1)
+    r = graph.radius
+    rp = np.where(par >= 0, r[np.maximum(par, 0)], r[node])
+    rad = rp + (r[node] - rp) * t
+    return d - rad, rad
+
+
+def cylinder_fit(graph: BranchGraph, cloud: PointCloud | NDArray, *, far: float = 0.10,
+                 bounds: tuple[float, ...] = DIAMETER_CLASSES, k: int = 8) -> dict:
+    """Reference-free fit of a cylinder model to its cloud, as a forest scientist checks it.
+
+    ``far_share``: share of points farther than ``far`` (10 cm) from every cylinder surface
+    (TreeQSM's models leave about 11 % on real scans). Each point belongs to the cylinder
+    whose surface is nearest; ``residual`` per diameter class is the median of ``(distance
+    to the axis − radius) / radius`` over the points within one radius of that surface
+    (negative = cylinders too thick, positive = too thin); ``points`` the count behind it.
+    """
+    if graph.radius is None:
+        raise InputError("the skeleton has no radii; expected a cylinder model")
+    xyz = cloud.xyz if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=float)
+    if xyz.shape[0] == 0 or graph.n_nodes == 0:
+        raise InputError("cylinder_fit needs points and a non-empty skeleton")
+    s, rad = _surface_candidates(graph, xyz, k)
+    best = np.argmin(np.abs(s), axis=1)
+    rows = np.arange(xyz.shape[0])
+    sb, rb = s[rows, best], rad[rows, best]
+    near = np.abs(sb) <= rb
+    cls = np.searchsorted(np.asarray(bounds), 2 * rb, side="right")
+    res = {}
+    for i, lab in enumerate(class_labels(bounds)):
+        m = near & (cls == i)
+        res[lab] = {"residual": float(np.median(sb[m] / rb[m])) if m.any() else float("nan"),
+                    "points": int(m.sum())}
+    return {"far_share": float((np.abs(sb) > far).mean()), "far": far, "classes": res}
+
+
+def qsm_report(graph: BranchGraph, cloud: PointCloud | NDArray | None = None) -> dict:
+    """All QSM measures in one dict: ``classes`` (:func:`volume_by_class`), ``orders``
+    (:func:`volume_by_order`), ``trees`` (:func:`tree_attributes`) and, with a cloud,
+    ``fit`` (:func:`cylinder_fit`)."""
+    out = {"classes": volume_by_class(graph), "orders": volume_by_order(graph),
+           "trees": tree_attributes(graph)}
+    if cloud is not None:
+        out["fit"] = cylinder_fit(graph, cloud)
     return out
