@@ -87,8 +87,10 @@ def generate(
     bone_shape: Annotated[str, typer.Option(help="box or bone (glb/obj).")] = "box",
     walk: Annotated[bool, typer.Option("--walk", help="Add a procedural walk cycle "
                                        "(glb/bvh).")] = False,
-    rigify: Annotated[bool, typer.Option("--rigify", help="Rigify-style bone names "
-                                         "(spine.001, thigh.L …).")] = False,
+    rigify: Annotated[bool, typer.Option("--rigify", help="glb: a Rigify metarig (connected "
+                                         "chains, heel/toe, rig types; finish it in Blender "
+                                         "with `biomorph creature rigify-setup`); other "
+                                         "formats: Rigify-style names only.")] = False,
     settle: Annotated[bool, typer.Option("--settle", help="Also let MuJoCo settle the creature "
                                          "for 2 s and report whether it tips.")] = False,
     allow_unstable: Annotated[bool, typer.Option("--allow-unstable",
@@ -260,3 +262,26 @@ def annotate(
         print_json({"row": row, "dataset": str(path)})
     else:
         out_console.print(f"appended {row['name']} to {path}")
+
+
+@app.command("rigify-setup")
+def rigify_setup(
+    output: Annotated[Path | None, typer.Option("-o", "--output", help="Write the script "
+                                                "here (.py) instead of printing it.")
+                      ] = None,
+) -> None:
+    """Print (or write) the Blender script that turns a ``--rigify`` GLB into a Rigify metarig.
+
+    Example: biomorph creature rigify-setup -o setup.py && blender -b --python setup.py --
+    horse.glb --generate --save horse_rig.blend
+    """
+    from biomorph._cli import check_suffix, out_console
+    from biomorph.creature.rigify_setup import script
+
+    if output is None:
+        print(script(), end="")
+        return
+    from biomorph.io.atomic import write_text
+
+    check_suffix(output, (".py",), "--output")
+    out_console.print(f"wrote {write_text(output, script())}")

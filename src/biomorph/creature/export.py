@@ -15,6 +15,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
+
 from biomorph.creature.creature import Creature, write_json
 from biomorph.errors import UnsupportedFormatError
 
@@ -31,13 +33,31 @@ def check_extension(path: str | os.PathLike[str]) -> str:
     return ext
 
 
+#: creature frame (faces +x, right on +z, Y up) -> glTF's convention (+Z forward, the
+#: creature's left on +X, Y up): Blender then shows it facing -Y with left/right on X
+TO_GLTF = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+
+#: Blender's glTF importer ignores children closer than 4 mm when it picks a bone's
+#: direction and length (io_scene_gltf2 ``MIN_BONE_LENGTH = 0.004``): shorter bones came in
+#: 90 deg off and as long as their parent. Child offsets below this floor are lengthened.
+BONE_FLOOR_M = 0.0045
+
+
 def export(creature: Creature, path: str | os.PathLike[str], bone_shape: str = "box",
-           walk: bool = False, rigify: bool = False) -> Path:
+           walk: bool = False, rigify: bool = False, lod: int = 1) -> Path:
     """Write ``creature`` to ``path`` (format by extension); atomic; returns the path.
 
-    ``walk`` adds a procedural walk cycle (glb, bvh); ``rigify`` renames bones the way
-    Blender's Rigify expects (``spine.001``, ``thigh.L`` …)."""
+    ``walk`` adds a procedural walk cycle (glb, bvh). ``rigify``: for ``.glb`` a real
+    Rigify metarig (:func:`biomorph.creature.rigify.build_metarig`, rig types and exact
+    bone heads/tails as node extras); for the other formats Rigify-style names only.
+    ``.glb`` files use glTF's axes (+Z forward, left on +X)."""
     ext = check_extension(path)
+    if rigify and not any(k == "spine" for k in creature.kind):
+        from biomorph.errors import ParameterError
+        raise ParameterError("--rigify needs a creature with a spine")
+    if ext == ".glb":
+        return write_glb(creature, path, bone_shape=bone_shape, walk=walk, rigify=rigify,
+                         lod=lod)
     original = creature
     if rigify:
         from biomorph.creature.rigify import with_rigify_names
@@ -49,13 +69,6 @@ def export(creature: Creature, path: str | os.PathLike[str], bone_shape: str = "
 
     if ext == ".json":
         return write_json(path, creature)
-    if ext == ".glb":
-        from biomorph.creature.mesh import joint_meshes
-        from biomorph.io.gltf import write_gltf
-
-        motion = walk_motion() if walk else None
-        return write_gltf(path, creature.skeleton, motion=motion, bone_shape=None,
-                          meshes=joint_meshes(creature, bone_shape), name="creature")
     if ext == ".bvh":
         from biomorph.io.bvh import write_bvh
 
@@ -66,9 +79,100 @@ def export(creature: Creature, path: str | os.PathLike[str], bone_shape: str = "
         from biomorph.creature.mesh import world_mesh
         from biomorph.io.obj import write_mesh
 
-        return write_mesh(path, world_mesh(creature, bone_shape), object_name="creature")
+        return write_mesh(path, world_mesh(creature, bone_shape, lod=lod),
+                          object_name="creature")
     if ext == ".osim":
         from biomorph.io.osim import write_osim
         return write_osim(path, creature)
     from biomorph.io.mjcf import write_mjcf
     return write_mjcf(path, creature)
+
+
+def _to_gltf_axes(skeleton, motion):
+    """Skeleton (and motion) with every root turned by :data:`TO_GLTF`."""
+    from biomorph.core import transforms as tf
+
+    q = tf.matrix_to_quat(TO_GLTF)
+    roots = skeleton.parent < 0
+    off, rest = np.array(skeleton.offset), np.array(skeleton.rest_rotation)
+    off[roots] = off[roots] @ TO_GLTF.T
+    rest[roots] = tf.quat_multiply(q, rest[roots])
+    sk = skeleton.with_(offset=off, rest_rotation=rest)
+    if motion is None:
+        return sk, None
+    return sk, motion.with_(skeleton=sk, root_position=np.asarray(motion.root_position)
+                            @ TO_GLTF.T)
+
+
+def floor_bone_lengths(skeleton, floor: float = BONE_FLOOR_M):
+    """``skeleton`` with non-zero child offsets shorter than ``floor`` stretched to it (the
+    subtree moves along the offset); returns ``(skeleton, number changed)``."""
+    off = np.array(skeleton.offset)
+    d = np.linalg.norm(off, axis=1)
+    short = (skeleton.parent >= 0) & (d > 1e-12) & (d < floor)
+    off[short] *= (floor / d[short])[:, None]
+    return skeleton.with_(offset=off), int(short.sum())
+
+
+def write_glb(creature: Creature, path: str | os.PathLike[str], *, bone_shape: str = "box",
+              walk: bool = False, rigify: bool = False, lod: int = 1) -> Path:
+    """Skinned GLB of ``creature`` in glTF's axes: bone models rigidly skinned to their
+    joints, optionally a walk cycle and/or a Rigify metarig (see :func:`export`)."""
+    from biomorph.creature.mesh import joint_meshes
+    from biomorph.io.gltf import write_gltf
+
+    meshes = joint_meshes(creature, bone_shape, lod=lod)
+    motion = None
+    if walk:
+        from biomorph.creature.walk import walk_cycle
+        motion = walk_cycle(creature)
+    extras: list | None = None
+    if rigify:
+        from biomorph.creature.rigify import build_metarig, joint_extras, retarget
+
+        rig = build_metarig(creature)
+        meshes = _meshes_on_rig(creature, rig, meshes)
+        skeleton = rig.skeleton
+        motion = None if motion is None else retarget(motion, rig)
+        extras = joint_extras(rig, TO_GLTF)
+    else:
+        skeleton = creature.skeleton
+        if motion is None:
+            skeleton, _ = floor_bone_lengths(skeleton)
+    skeleton, motion = _to_gltf_axes(skeleton, motion)
+    arm_extras = {"biomorph_metarig": 1} if rigify else None
+    return write_gltf(path, skeleton, motion=motion, bone_shape=None, meshes=meshes,
+                      name="creature", joint_extras=extras, extras=arm_extras)
+
+
+def _meshes_on_rig(creature: Creature, rig, meshes: dict) -> dict:
+    """Bone models moved from their creature joint's frame into a rig bone riding on it."""
+    from biomorph.core.mesh import Mesh
+
+    first: dict[int, int] = {}
+    for b, o in enumerate(rig.owner.tolist()):
+        first.setdefault(o, b)
+    par = creature.skeleton.parent
+    out = {}
+    for j, m in meshes.items():
+        o = j
+        while o not in first and par[o] >= 0:
+            o = int(par[o])
+        b = first.get(o, 0)
+        # rig frame = owner frame @ carry (b rides on o); j's frame relative to o's
+        rel = np.linalg.inv(creature.world[o]) @ creature.world[j]
+        m_to_b = np.linalg.inv(rig.carry[b]) @ rel
+        v = m.vertices @ m_to_b[:3, :3].T + m_to_b[:3, 3]
+        n = None if m.normals is None else m.normals @ m_to_b[:3, :3].T
+        out[b] = _merged(out.get(b), Mesh(v, m.faces, normals=n))
+    return out
+
+
+def _merged(a, b):
+    if a is None:
+        return b
+    from biomorph.core.mesh import Mesh
+    n = None if a.normals is None or b.normals is None else np.concatenate([a.normals,
+                                                                            b.normals])
+    return Mesh(np.concatenate([a.vertices, b.vertices]),
+                np.concatenate([a.faces, b.faces + a.n_vertices]), normals=n)

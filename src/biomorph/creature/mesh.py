@@ -57,7 +57,7 @@ def _scaled(v: NDArray, f: NDArray, n: NDArray, scale: NDArray) -> Mesh:
     return Mesh(v * scale, f, normals=nn)
 
 
-def joint_meshes(creature: Creature, shape: str = "box") -> dict[int, Mesh]:
+def joint_meshes(creature: Creature, shape: str = "box", lod: int = 1) -> dict[int, Mesh]:
     """One mesh per joint with a bone, in that joint's local frame (metres)."""
     if shape not in SHAPES:
         raise ParameterError(f"bone shape {shape!r} unknown; expected one of "
@@ -77,7 +77,7 @@ def joint_meshes(creature: Creature, shape: str = "box") -> dict[int, Mesh]:
     return out
 
 
-def world_mesh(creature: Creature, shape: str = "box") -> Mesh:
+def world_mesh(creature: Creature, shape: str = "box", lod: int = 1) -> Mesh:
     """All bone meshes merged in world space, faces labelled ``face_ids["bone"]``."""
     world = creature.world
     verts, faces, ids = [], [], []

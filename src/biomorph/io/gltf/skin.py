@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -30,8 +30,13 @@ def _converted_rest(skeleton: JointSkeleton, y_up: bool) -> tuple[NDArray, NDArr
 
 def _add_skeleton(builder: _Builder, skeleton: JointSkeleton, *, bone_shape: str | None,
                   bone_width: Any, joint_meshes: Mapping[Any, Any] | None, y_up: bool,
-                  name: str | None) -> list[int]:
-    """Joint nodes, armature node, skin and skinned bone mesh; returns joint node indices."""
+                  name: str | None, joint_extras: Sequence[Mapping[str, Any] | None] | None = None,
+                  extras: Mapping[str, Any] | None = None) -> list[int]:
+    """Joint nodes, armature node, skin and skinned bone mesh; returns joint node indices.
+
+    ``joint_extras`` (one JSON-ready mapping or ``None`` per joint) and ``extras`` (armature
+    node) become glTF ``extras``, which Blender's importer turns into custom properties of
+    the bones / object."""
     n = len(skeleton)
     if n > 65535:
         raise InputError(f"skeleton has {n} joints; glTF JOINTS_0 holds at most 65535")
@@ -50,11 +55,21 @@ def _add_skeleton(builder: _Builder, skeleton: JointSkeleton, *, bone_shape: str
     for i in range(n):
         if ends[i] > starts[i]:
             nodes[i]["children"] = (order[starts[i]:ends[i]] + first).tolist()
+    if joint_extras is not None:
+        if len(joint_extras) != n:
+            raise ParameterError(f"joint_extras holds {len(joint_extras)} entries; expected "
+                                 f"{n} (one per joint)")
+        for node, ex in zip(nodes, joint_extras, strict=True):
+            if ex:
+                node["extras"] = dict(ex)
     for node in nodes:
         builder.node(node)
     roots = np.flatnonzero(skeleton.parent < 0)
-    armature = builder.node({"name": name or "armature",
-                             "children": (roots + first).tolist()}, root=True)
+    arm_node: dict[str, Any] = {"name": name or "armature",
+                                "children": (roots + first).tolist()}
+    if extras:
+        arm_node["extras"] = dict(extras)
+    armature = builder.node(arm_node, root=True)
     joints = list(range(first, first + n))
 
     ibm = tf.invert_rigid(world).astype(np.float32)

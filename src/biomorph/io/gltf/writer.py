@@ -21,7 +21,8 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
                bone_shape: str | None = "box", bone_width: float | ArrayLike | None = None,
                meshes: Any = None, y_up: bool = True, name: str | None = None, merge: bool = True,
                frames: Sequence[Any] | None = None, frame_time: float = 1 / 30,
-               scale: float = 1.0) -> Path:
+               scale: float = 1.0, joint_extras: Sequence[Mapping[str, Any] | None] | None = None,
+               extras: Mapping[str, Any] | None = None) -> Path:
     """Write a skeleton, an animated skeleton, meshes or mesh frames as binary glTF (.glb).
 
     Parameters
@@ -47,6 +48,9 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
     frame_time : seconds between ``frames``.
     scale : multiplies every length on the way out (e.g. ``0.01`` for a BVH in centimetres);
         ``bone_width`` is given in the input's units and scaled too.
+    joint_extras : one JSON-ready mapping (or ``None``) per joint, written as that joint
+        node's ``extras`` (Blender's importer makes them bone custom properties).
+    extras : JSON-ready mapping written as the armature node's ``extras``.
 
     Returns the written path.
     """
@@ -82,7 +86,8 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
         joint_meshes = meshes if isinstance(meshes, Mapping) and not (
             "vertices" in meshes and "faces" in meshes) else None
         joints = _add_skeleton(builder, skeleton, bone_shape=bone_shape, bone_width=bone_width,
-                               joint_meshes=joint_meshes, y_up=y_up, name=name)
+                               joint_meshes=joint_meshes, y_up=y_up, name=name,
+                               joint_extras=joint_extras, extras=extras)
         if motion is not None:
             _add_motion(builder, motion, skeleton, joints, y_up, name)
         if meshes is not None and joint_meshes is None:
