@@ -71,8 +71,15 @@ class Studio:
         self.page = page
 
     # -------------------------------------------------------------- driving the page
+    @property
+    def session(self):
+        """The page's own session (the one that connected last)."""
+        return self.app.latest_session()
+
     def open_tab(self, label: str) -> None:
-        self.page.get_by_role("tab", name=label, exact=True).click()
+        """Click the tab's button in the tab bar (it also switches the 3-D view)."""
+        self.page.get_by_role("button", name=label, exact=True).first.click()
+        self.page.wait_for_timeout(150)
 
     def open_folder(self, label: str) -> None:
         """Expand a collapsed GUI folder by clicking its title."""
@@ -203,14 +210,27 @@ def studio_app(tmp_path_factory):
         app.stop()
 
 
-@pytest.fixture
-def studio(studio_app, browser) -> Iterator[Studio]:
-    """A fresh page connected to the module's studio."""
+def open_page(app, browser, url: str | None = None):
+    """A new browser context and page on the studio, waiting until the page's session is
+    built; returns ``(context, page, session)``."""
+    before = set(app.sessions.values())
     ctx = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
     page = ctx.new_page()
-    page.goto(studio_app.url)
-    page.get_by_role("tab", name="Files").wait_for(timeout=20000)
-    wait_for(lambda: len(studio_app.server.get_clients()) > 0, what="the page to connect")
+    page.goto(url or app.url)
+    page.get_by_role("button", name="Files", exact=True).first.wait_for(timeout=30000)
+
+    def built():
+        fresh = [s for s in app.sessions.values() if s not in before or s.shared]
+        return next((s for s in fresh if s.ready.is_set() and (s.client or s.shared)), None)
+
+    session = wait_for(built, timeout=30, what="the page's session")
+    return ctx, page, session
+
+
+@pytest.fixture
+def studio(studio_app, browser) -> Iterator[Studio]:
+    """A fresh page connected to the module's studio (its own session)."""
+    ctx, page, _ = open_page(studio_app, browser)
     try:
         yield Studio(studio_app, page)
     finally:

@@ -13,7 +13,7 @@ def app(tmp_path_factory):
     (root / "secret.txt").write_text("not for the page")
     data = root / "data"
     data.mkdir()
-    a = StudioApp(data, port=0, tabs=["files"])
+    a = StudioApp(data, port=0, tabs=["files"], shared=True)
     a.start()
     yield a
     a.stop()

@@ -17,7 +17,6 @@ def test_creature_tab(studio, tmp_path):
     tab = app.tabs["creature"]
     studio.open_tab("Creature")
     wait_for(lambda: tab.creature is not None, what="the first creature")
-    studio.select(app._view, "Creature")
     before = studio.canvas_png()
 
     # a parameter edit regenerates (timed server-side)

@@ -14,7 +14,6 @@ def test_leaf_tab(studio, tmp_path):
     assert "leaf" in app.tabs, f"leaf tab failed to build: {app.unavailable.get('leaf')}"
     tab = app.tabs["leaf"]
     studio.open_tab("Leaf")
-    studio.select(app._view, "Leaf")
     wait_for(lambda: tab.mesh is not None, what="the first leaf")
     before = studio.canvas_png()
 

@@ -16,7 +16,6 @@ def test_tree_tab(studio, tmp_path):
     assert "tree" in app.tabs, f"tree tab failed to build: {app.unavailable.get('tree')}"
     tab = app.tabs["tree"]
     studio.open_tab("Tree")
-    studio.select(app._view, "Tree")
     before = studio.canvas_png()
 
     studio.click("Synthesise and scan")

@@ -6,7 +6,12 @@ A tab builds its GUI inside its viser tab, draws into its own scene frame
 * serialises actions of one tab (a lock), shows the tab's 3-D scene,
 * times the action (edit -> scene messages queued) into the app's :class:`LatencyLog`,
 * turns any exception into a message in the page (the tab's status line and a
-  notification) so the page stays usable.
+  notification) so the page stays usable, and clears that message after the next action
+  that succeeds,
+* takes one of the page's heavy-job slots for long actions (``heavy=True``).
+
+Every string a tab shows that comes from a user or a file goes through :func:`plain`
+(the status line is markdown, and viser's markdown renders raw HTML).
 
 Live sliders use :meth:`StudioTab.live`, which coalesces a burst of slider events into
 "compute the latest value" so dragging never queues stale work.
@@ -19,14 +24,11 @@ import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from biomorph.errors import BiomorphError
-
-if TYPE_CHECKING:  # pragma: no cover
-    from biomorph.studio.server import StudioApp
 
 
 @dataclass
@@ -59,6 +61,28 @@ class LatencyLog:
         return "\n".join(lines)
 
 
+#: Characters with a meaning in markdown or HTML, escaped by :func:`plain`.
+_SPECIAL = set("\\`*_{}[]()#+-.!|~>")
+_HTML = {"<": "&lt;", ">": "&gt;", "&": "&amp;", '"': "&quot;", "'": "&#39;"}
+
+
+def plain(text: object) -> str:
+    """``text`` made inert for a markdown element: HTML characters become entities and
+    markdown characters are backslash-escaped, so a file name, an error message or a
+    typed key list shows as the characters it holds and never as markup or script."""
+    out = []
+    for ch in str(text):
+        if ch in _HTML:
+            out.append(_HTML[ch])
+        elif ch in _SPECIAL:
+            out.append("\\" + ch)
+        elif ch in "\r\n\t" or ch.isprintable():
+            out.append(" " if ch in "\r\n\t" else ch)
+        else:
+            out.append("\ufffd")
+    return "".join(out)
+
+
 def error_text(exc: BaseException) -> str:
     """One line for the page: the message of a user error, type and message otherwise."""
     if isinstance(exc, BiomorphError):
@@ -71,22 +95,32 @@ def error_text(exc: BaseException) -> str:
 class StudioTab:
     """Base class of a studio tab.
 
-    Subclasses set :attr:`key` and :attr:`label`, implement :meth:`build` (called inside
-    the viser tab context) and may implement :meth:`requirement` (a reason string when
-    the pillar's API is not importable yet) and :meth:`close`.
+    Subclasses set :attr:`key`, :attr:`label` and :attr:`getting_started`, implement
+    :meth:`build` (called inside the tab's GUI container, again after a page reload),
+    :meth:`restore` (redraw the content from the tab's state after a rebuild) and may
+    implement :meth:`requirement` (a reason string when the pillar's API is not
+    importable) and :meth:`close`. ``app`` is the tab's
+    :class:`~biomorph.studio.session.Session` (one page's studio).
     """
 
     key: str = "tab"
     label: str = "Tab"
+    #: One line telling a first-time user what to do first in this tab.
+    getting_started: str = ""
     #: Y-up content (skeletons, motion, leaves) is turned so +Y points up in viser's Z-up view.
     y_up: bool = False
+    #: Parameter changes Ctrl-Z can undo.
+    UNDO_DEPTH = 50
 
-    def __init__(self, app: StudioApp) -> None:
+    def __init__(self, app: Any) -> None:
         self.app = app
         self.lock = threading.RLock()
         self.version = 0  # incremented on every redraw (tests wait on it)
         self.last_error: str | None = None
-        self.status = None  # viser markdown handle, set by the app
+        self.status = None  # viser markdown handle, set by the session
+        self.status_text = "Ready."
+        self.history: list[tuple[Any, Any]] = []
+        self._status_changed = False
         self._pending: dict[str, Callable[[], None]] = {}
         self._pending_lock = threading.Lock()
         self._running: set[str] = set()
@@ -97,7 +131,10 @@ class StudioTab:
         return None
 
     def build(self) -> None:
-        """Add the tab's GUI elements (inside the viser tab context) and initial scene."""
+        """Add the tab's GUI elements (inside the tab's container) and initial scene."""
+
+    def restore(self) -> None:
+        """Redraw the 3-D content from the tab's state (after the page was reloaded)."""
 
     def close(self) -> None:
         """Stop background work (players, jobs)."""
@@ -105,11 +142,11 @@ class StudioTab:
     # ------------------------------------------------------------------ helpers
     @property
     def scene(self):
-        return self.app.server.scene
+        return self.app.scene
 
     @property
     def gui(self):
-        return self.app.server.gui
+        return self.app.gui
 
     @property
     def root(self) -> str:
@@ -117,7 +154,10 @@ class StudioTab:
         return f"/{self.key}"
 
     def set_status(self, text: str) -> None:
-        """Show ``text`` (markdown) on the tab's status line."""
+        """Show ``text`` (markdown: user/file strings must be passed through
+        :func:`plain`) on the tab's status line."""
+        self.status_text = text
+        self._status_changed = True
         if self.status is not None:
             self.status.content = text
 
@@ -127,24 +167,50 @@ class StudioTab:
         self.last_error = msg
         if not isinstance(exc, BiomorphError | OSError):
             traceback.print_exception(exc)
-        self.set_status(f"**Error** ({action}): {msg}")
+        self.set_status(f"**Error** ({plain(action)}): {plain(msg)}")
         self.app.notify(f"{self.label}: {action} failed", msg, color="red")
 
+    def remember(self, handle: Any, old: Any) -> None:
+        """Record a parameter change (``handle`` had ``old``) for :meth:`undo_parameter`."""
+        self.history.append((handle, old))
+        del self.history[:-self.UNDO_DEPTH]
+
+    def undo_parameter(self) -> None:
+        """Put the last changed parameter back (its callbacks redraw)."""
+        from biomorph.errors import InputError
+
+        if not self.history:
+            raise InputError("nothing to undo in this tab")
+        handle, old = self.history.pop()
+        handle.value = old
+        self.set_status(f"Undone: {plain(getattr(handle, 'label', 'value'))} is back to "
+                        f"{plain(old)}.")
+
     def run(self, action: str, fn: Callable[[], Any], *, timed: bool = True,
-            show: bool = True) -> Any:
-        """Run ``fn`` as the user action ``action``: lock, time, show errors in the page."""
+            show: bool = True, heavy: bool = False) -> Any:
+        """Run ``fn`` as the user action ``action``: lock, time, show errors in the page;
+        ``heavy`` actions take one of the page's job slots (refused when all are busy)."""
         with self.lock:
             if show:
                 self.app.show_scene(self.key)
+            self._status_changed = False
             t0 = time.perf_counter()
+            release = None
             try:
+                if heavy:
+                    release = self.app.job_slot()
                 result = fn()
             except Exception as exc:  # noqa: BLE001 - every failure goes to the page
                 self.fail(exc, action)
                 return None
+            finally:
+                if release is not None:
+                    release()
             dt = time.perf_counter() - t0
             if timed:
                 self.app.latency.record(f"{self.key}/{action}", dt)
+            if self.last_error is not None and not self._status_changed:
+                self.set_status("Ready.")
             self.last_error = None
             return result
 

@@ -17,6 +17,13 @@ def studio(
                                        "saved to (nothing outside it is reachable).")] = Path("."),
     max_upload_mb: Annotated[float, typer.Option("--max-upload-mb",
                                                  help="Largest accepted upload.")] = 64.0,
+    token: Annotated[str | None, typer.Option(
+        "--token", help="Require this secret (at least 8 characters) on every request; the "
+                        "printed URL carries it. Use it behind a tunnel or on a shared "
+                        "machine.")] = None,
+    shared: Annotated[bool, typer.Option(
+        "--shared", help="One session for every page (all pages see and move the same "
+                         "controls) instead of one per page.")] = False,
 ) -> None:
     """Open the four pillars in the browser: creature, motion, tree, leaf (plus files).
 
@@ -29,7 +36,8 @@ def studio(
         raise ParameterError(f"--port {port} is outside 0..65535")
     if max_upload_mb <= 0:
         raise ParameterError(f"--max-upload-mb must be positive, got {max_upload_mb}")
-    app = StudioApp(data, host=host, port=port, max_upload_bytes=int(max_upload_mb * 1e6))
+    app = StudioApp(data, host=host, port=port, max_upload_bytes=int(max_upload_mb * 1e6),
+                    token=token, shared=shared)
     try:
         url = app.start()
     except OSError as exc:

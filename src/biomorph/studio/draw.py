@@ -53,42 +53,57 @@ def graph_segments(position: NDArray[np.float64], parent: NDArray[np.integer]
     return np.stack([pos[par[child]], pos[child]], axis=1), child
 
 
-def tubes(position: NDArray[np.float64], parent: NDArray[np.integer],
-          radius: NDArray[np.float64], sides: int = 8
-          ) -> tuple[NDArray[np.float32], NDArray[np.int32], NDArray[np.int64]]:
-    """Open cylinders along every edge, each with the radius of its two end nodes.
+def hex_colour(rgb: NDArray[np.integer]) -> str:
+    """``#rrggbb`` of one RGB colour (viser's markdown shows it as a colour chip)."""
+    r, g, b = (int(c) for c in np.asarray(rgb).reshape(3))
+    return f"#{r:02x}{g:02x}{b:02x}"
 
-    Returns ``(vertices, faces, edge_of_face)``; the last maps each face to the child node
-    of its edge (for colouring by order).
-    """
-    seg, child = graph_segments(position, parent)
-    if len(child) == 0:
-        return (np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32),
-                np.zeros(0, np.int64))
-    r = np.maximum(np.asarray(radius, dtype=float), 0.0)
-    r0, r1 = r[np.asarray(parent)[child]], r[child]
-    a, b = seg[:, 0], seg[:, 1]
-    axis = b - a
-    length = np.linalg.norm(axis, axis=1, keepdims=True)
-    d = axis / np.maximum(length, 1e-12)
-    helper = np.where(np.abs(d[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-    u = np.cross(d, helper)
-    u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
-    v = np.cross(d, u)
-    ang = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
-    ring = np.cos(ang)[None, :, None] * u[:, None, :] + np.sin(ang)[None, :, None] * v[:, None, :]
-    bottom = a[:, None, :] + r0[:, None, None] * ring
-    top = b[:, None, :] + r1[:, None, None] * ring
-    m = len(child)
-    verts = np.concatenate([bottom, top], axis=1).reshape(-1, 3)
-    k = np.arange(sides)
-    k1 = (k + 1) % sides
-    base = (np.arange(m) * 2 * sides)[:, None]
-    f1 = np.stack([base + k, base + k1, base + sides + k1], axis=-1)
-    f2 = np.stack([base + k, base + sides + k1, base + sides + k], axis=-1)
-    faces = np.concatenate([f1, f2], axis=1).reshape(-1, 3)
-    edge_of_face = np.repeat(child, 2 * sides)
-    return verts.astype(np.float32), faces.astype(np.int32), edge_of_face
+
+def order_legend(orders: NDArray[np.integer], limit: int = 9) -> str:
+    """Markdown legend of the branch-order colours used for ``orders``."""
+    present = np.unique(np.asarray(orders, dtype=np.int64))[:limit]
+    if present.size == 0:
+        return ""
+    return "Branch order: " + ", ".join(f"{int(o)} `{hex_colour(palette(np.array([o]))[0])}`"
+                                        for o in present)
+
+
+#: Radius colour ramp (thin -> thick): light yellow-green to dark brown.
+RADIUS_RAMP = np.array([[200, 220, 90], [230, 160, 50], [170, 80, 40], [90, 40, 30]], float)
+
+
+def ramp(t: NDArray[np.float64]) -> NDArray[np.uint8]:
+    """Colours of :data:`RADIUS_RAMP` at ``t`` in [0, 1] (piecewise linear)."""
+    t = np.clip(np.asarray(t, dtype=float), 0.0, 1.0) * (len(RADIUS_RAMP) - 1)
+    i = np.minimum(t.astype(np.int64), len(RADIUS_RAMP) - 2)
+    f = (t - i)[..., None]
+    return (RADIUS_RAMP[i] * (1 - f) + RADIUS_RAMP[i + 1] * f).astype(np.uint8)
+
+
+def radius_scale(radius: NDArray[np.float64]) -> tuple[float, float]:
+    """Range (m) the radius colours span: logarithmic between the 2nd and 98th
+    percentile of the radii shown (twigs and trunk differ by two decades)."""
+    r = np.asarray(radius, dtype=float)
+    r = r[np.isfinite(r) & (r > 0)]
+    if r.size == 0:
+        return 0.001, 0.01
+    lo, hi = (float(v) for v in np.percentile(r, [2, 98]))
+    return lo, max(hi, lo * 1.01)
+
+
+def radius_colors(radius: NDArray[np.float64], lo: float, hi: float) -> NDArray[np.uint8]:
+    """Colours of radii on a log scale from ``lo`` (thin) to ``hi`` (thick)."""
+    r = np.maximum(np.asarray(radius, dtype=float), 1e-9)
+    t = (np.log(r) - np.log(lo)) / max(np.log(hi) - np.log(lo), 1e-9)
+    return ramp(t)
+
+
+def radius_legend(lo: float, hi: float, steps: int = 4) -> str:
+    """Markdown legend of :func:`radius_colors` between ``lo`` and ``hi`` (in cm)."""
+    values = np.geomspace(lo, hi, steps)
+    chips = ", ".join(f"{v * 100:.2g} cm `{hex_colour(radius_colors(np.array([v]), lo, hi)[0])}`"
+                      for v in values)
+    return f"Tube radius (log scale): {chips}"
 
 
 def polygon_loop(points: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -100,7 +115,8 @@ def polygon_loop(points: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def fit_camera(points: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
-    """Centre and size of a set of points (for scaling markers and joint sizes)."""
+    """Centre and size (bounding-box diagonal) of a set of points: where the camera looks
+    and how far it stands, and the scale of markers and joint sizes."""
     pts = np.asarray(points, dtype=float).reshape(-1, 3)
     if len(pts) == 0:
         return np.zeros(3), 1.0

@@ -43,7 +43,7 @@ class FilePicker:
         if event.target.value == "Refresh":
             self.tab.run("refresh", self.refresh, timed=False, show=False)
         else:
-            self.tab.run("open", self.open_selected, timed=False)
+            self.tab.run("open", self.open_selected, timed=False, heavy=True)
 
     def open_selected(self) -> Any:
         name = self.dropdown.value
@@ -59,15 +59,21 @@ class FilePicker:
 
 
 class ExportRow:
-    """One button per export format; each writes ``exports/<stem>.<ext>`` via ``writers``."""
+    """One button per export format; each writes ``exports/<stem>.<ext>`` via ``writers``,
+    with a list saying what each file holds (``contents``, format -> one line)."""
 
     def __init__(self, tab: StudioTab, stem: Callable[[], str],
-                 writers: dict[str, Callable[[Path], Any]], label: str = "Export") -> None:
+                 writers: dict[str, Callable[[Path], Any]], label: str = "Export",
+                 contents: dict[str, str] | None = None) -> None:
         self.tab = tab
         self.stem = stem
         self.writers = writers
         self.buttons = tab.gui.add_button_group(label, tuple(writers))
         self.buttons.on_click(self._clicked)
+        if contents:
+            lines = "\n".join(f"* **{fmt}**: {text}" for fmt, text in contents.items())
+            tab.gui.add_markdown("Written to `exports/` in the data folder and offered as a "
+                                 f"download:\n\n{lines}")
         self.last_path: Path | None = None
 
     def _clicked(self, event: Any) -> None:

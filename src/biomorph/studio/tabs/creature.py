@@ -11,13 +11,21 @@ import numpy as np
 
 from biomorph.errors import InputError
 from biomorph.studio import draw
-from biomorph.studio.base import StudioTab
+from biomorph.studio.base import StudioTab, plain
 from biomorph.studio.widgets import ExportRow
 
 AUTO = "auto"
 #: PCA components with a score slider (PC1 … PC6); 0 on a slider = sampled.
 N_PC_SLIDERS = 6
 LIMB_KINDS = ("leg", "arm", "wing", "fin")
+#: Bone colour of each kind (palette index = position in LIMB_KINDS + 1, body 0, + 4).
+KIND_COLOURS = {kind: draw.hex_colour(draw.palette(np.array([i + 4]))[0])
+                for i, kind in enumerate(("body", *LIMB_KINDS))}
+STABLE, UNSTABLE, SUPPORT = (30, 160, 60), (220, 40, 40), (240, 150, 20)
+LEGEND = ("Bones by kind: " + ", ".join(f"{k} `{c}`" for k, c in KIND_COLOURS.items())
+          + f"; centre of mass `{draw.hex_colour(STABLE)}` stable / "
+          f"`{draw.hex_colour(UNSTABLE)}` tips over; support polygon "
+          f"`{draw.hex_colour(SUPPORT)}` (sizes in metres).")
 
 
 class CreatureTab(StudioTab):
@@ -25,6 +33,8 @@ class CreatureTab(StudioTab):
 
     key = "creature"
     label = "Creature"
+    getting_started = ("Getting started: change the seed or any parameter and the animal is "
+                       "generated again; Next step rebuilds it step by step.")
     y_up = True
 
     def __init__(self, app: Any) -> None:
@@ -46,7 +56,7 @@ class CreatureTab(StudioTab):
 
         gui = self.gui
         with gui.add_folder("Parameters"):
-            self.seed = gui.add_number("Seed", initial_value=7, min=0, step=1)
+            self.seed = gui.add_number("Seed", initial_value=7, min=0, max=2**31 - 1, step=1)
             self.cls = gui.add_dropdown("Class", options=(AUTO, *CLASSES), initial_value=AUTO)
             self.legs = gui.add_dropdown("Legs", options=(AUTO, *map(str, LEG_COUNTS)),
                                          initial_value="4")
@@ -55,7 +65,8 @@ class CreatureTab(StudioTab):
             self.arms = gui.add_checkbox("Arms", initial_value=False)
             self.centaur = gui.add_checkbox("Centaur girdle", initial_value=False)
             self.weight = gui.add_number("Weight kg (0 = sample)", initial_value=0.0, min=0.0,
-                                         step=1.0)
+                                         max=200000.0, step=1.0,
+                                         hint="Body mass in kg, up to a blue whale (2e5).")
             self.neck = gui.add_slider("Neck length (-0.1 = sample)", min=-0.1, max=1.5,
                                        step=0.01, initial_value=-0.1,
                                        hint="Neck chord in frame units (1 = the largest "
@@ -93,11 +104,21 @@ class CreatureTab(StudioTab):
             self.part_buttons = gui.add_button_group("", ("Scale neck", "Scale tail"))
             self.part_buttons.on_click(self._part_clicked)
         self.info = gui.add_markdown("")
-        self.exports = ExportRow(self, lambda: f"creature_{int(self.seed.value)}",
-                                 {"GLB": self._writer(".glb"), "BVH": self._writer(".bvh"),
-                                  "OSIM": self._writer(".osim")})
+        self.exports = ExportRow(
+            self, lambda: f"creature_{int(self.seed.value)}",
+            {"GLB": self._writer(".glb"), "BVH": self._writer(".bvh"),
+             "OSIM": self._writer(".osim")},
+            contents={"GLB": "skinned bone meshes with the skeleton (Y up, metres)",
+                      "BVH": "the skeleton's hierarchy and rest pose (one frame)",
+                      "OSIM": "OpenSim model: bodies with masses and inertias, joints"})
         self.latency_md = gui.add_markdown("")
-        self.run("initial", self.generate, timed=False, show=False)
+        if self.generator is None:
+            self.run("initial", self.generate, timed=False, show=False)
+
+    def restore(self) -> None:
+        """Redraw the generator's state after a page reload."""
+        if self.generator is not None:
+            self.redraw()
 
     # ------------------------------------------------------------------ generator
     def options(self) -> Any:
@@ -215,7 +236,7 @@ class CreatureTab(StudioTab):
             if "spine" in done:
                 self._draw_spine(gen.state("spine"))
         nxt = gen.next_step
-        self.info.content = self._describe(done, nxt)
+        self.info.content = self._describe(done, nxt) + "\n\n" + LEGEND
         self.latency_md.content = "Edit → redraw (server side):\n\n" + \
             self.app.latency.markdown("creature/")
         self.redrawn()
@@ -246,7 +267,7 @@ class CreatureTab(StudioTab):
         com = np.asarray(c.center_of_mass, dtype=np.float32)
         b = c.balance
         ok = b is None or not b.applicable or b.stable
-        com_colour = (30, 160, 60) if ok else (220, 40, 40)
+        com_colour = STABLE if ok else UNSTABLE
         self.scene.add_icosphere(f"{self.root}/com", radius=max(size / 40, 0.005),
                                  color=com_colour, position=tuple(com))
         ground = np.array([com, [com[0], 0.0, com[2]]], dtype=np.float32)[None]
@@ -256,7 +277,7 @@ class CreatureTab(StudioTab):
             poly = np.array([[x, 0.001, z] for x, z in b.support])
             self.scene.add_line_segments(f"{self.root}/support",
                                          draw.polygon_loop(poly).astype(np.float32),
-                                         (240, 150, 20), thickness=max(size / 200, 0.002))
+                                         SUPPORT, thickness=max(size / 200, 0.002))
         lo = np.minimum(p.min(axis=0), ends.min(axis=0))
         hi = np.maximum(p.max(axis=0), ends.max(axis=0))
         centre = (lo + hi) / 2  # Y-up creature frame -> Z-up view: (x, y, z) -> (x, -z, y)
@@ -279,8 +300,8 @@ class CreatureTab(StudioTab):
         if c is not None:
             b = c.balance
             lines.append(f"{len(c)} joints, {c.total_mass:.3g} kg, height {c.height:.2f} m, "
-                         f"length {c.length:.2f} m, class {c.params.get('class', '?')}, "
-                         f"nearest species {c.params.get('nearest_species', '?')}")
+                         f"length {c.length:.2f} m, class {plain(c.params.get('class', '?'))}, "
+                         f"nearest species {plain(c.params.get('nearest_species', '?'))}")
             if b is None or not b.applicable:
                 lines.append("Balance: not applicable (no legs on the ground)")
             else:

@@ -9,7 +9,7 @@ import numpy as np
 
 from biomorph.errors import FormatError, UnsupportedFormatError
 from biomorph.studio import draw
-from biomorph.studio.base import StudioTab
+from biomorph.studio.base import StudioTab, plain
 
 NO_FILE = "(no files in the data folder)"
 MAX_DISPLAY_POINTS = 200_000
@@ -33,6 +33,8 @@ class FilesTab(StudioTab):
 
     key = "files"
     label = "Files"
+    getting_started = ("Getting started: choose a file of the data folder and press Open, "
+                       "or upload one; clouds are coloured by height, graphs by branch order.")
 
     def __init__(self, app: Any) -> None:
         super().__init__(app)
@@ -43,18 +45,25 @@ class FilesTab(StudioTab):
 
     def build(self) -> None:
         gui = self.gui
-        gui.add_markdown(f"Files of the data folder `{self.app.sandbox.root}`.")
+        gui.add_markdown(f"Files of the data folder {plain(self.app.sandbox.root)}.")
         self.file = gui.add_dropdown("File", options=self._options(), hint="A file to open.")
         refresh = gui.add_button("Refresh list")
         refresh.on_click(self.action("refresh", self.refresh, timed=False, show=False))
         opener = gui.add_button("Open")
-        opener.on_click(self.action("open", lambda: self.open(self.file.value)))
+        opener.on_click(self.action("open", lambda: self.open(self.file.value), heavy=True))
         self.upload = self.app.add_upload(self, "Upload and open", self._opened_upload,
                                           _extensions())
         self.frame = gui.add_slider("Frame", min=0, max=1, step=1, initial_value=0,
                                     visible=False)
         self.frame.on_update(self.live("frame", self._draw_motion_frame))
         self.info = gui.add_markdown("")
+
+    def restore(self) -> None:
+        """Redraw the opened file after a page reload."""
+        if self.loaded is not None:
+            self._clear()
+            getattr(self, f"_draw_{self.loaded_kind}")(self.loaded)
+            self._focus_content()
 
     def _options(self) -> tuple[str, ...]:
         files = self.app.sandbox.list_files(_extensions())
@@ -101,7 +110,7 @@ class FilesTab(StudioTab):
         self._clear()
         getattr(self, f"_draw_{kind}")(obj)
         self._focus_content()
-        self.set_status(f"Opened `{name}` ({kind}).")
+        self.set_status(f"Opened {plain(name)} ({kind}).")
         self.redrawn()
 
     def _focus_content(self) -> None:
@@ -146,9 +155,10 @@ class FilesTab(StudioTab):
                                    draw.height_colors(shown), point_size=size / 400,
                                    point_shape="circle")
         lo, hi = cloud.bounds()
-        self.info.content = (f"**{cloud.n_points:,} points** (showing {len(shown):,}); "
-                             f"extent {np.round(hi - lo, 3).tolist()} m; attributes: "
-                             f"{', '.join(cloud.attributes) or 'none'}")
+        self.info.content = (f"**{cloud.n_points:,} points** (showing {len(shown):,}; colour: "
+                             f"height, brown low → green high); extent "
+                             f"{np.round(hi - lo, 3).tolist()} m; attributes: "
+                             f"{plain(', '.join(cloud.attributes) or 'none')}")
 
     def _draw_graph(self, graph: Any) -> None:
         pos = np.asarray(graph.position)
@@ -160,7 +170,8 @@ class FilesTab(StudioTab):
         self.scene.add_line_segments(f"{self.root}/edges", seg.astype(np.float32), colors,
                                      thickness=max(size / 300, 1e-4))
         self.info.content = (f"**{graph.n_nodes:,} nodes**, {len(graph.roots)} tree(s), "
-                             f"{len(graph.leaves)} tips, total length {graph.total_length:.2f} m")
+                             f"{len(graph.leaves)} tips, total length {graph.total_length:.2f} m"
+                             f"; colour: branch order\n\n{draw.order_legend(depth)}")
 
     def _draw_motion(self, motion: Any) -> None:
         n_frames = int(np.asarray(motion.rotation).shape[0])

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from biomorph.studio.base import StudioTab
+from biomorph.studio.base import StudioTab, plain
 from biomorph.studio.widgets import ExportRow, FilePicker
 
 LEAF_GREEN = (70, 150, 60)
@@ -22,6 +22,8 @@ class LeafTab(StudioTab):
 
     key = "leaf"
     label = "Leaf"
+    getting_started = ("Getting started: pick a preset, then move Age to grow the leaf, "
+                       "the operator to bend it and Triangles to reduce it.")
 
     def __init__(self, app: Any) -> None:
         super().__init__(app)
@@ -81,8 +83,12 @@ class LeafTab(StudioTab):
             self.lod = gui.add_slider("Triangles", min=2, max=400, step=1, initial_value=120)
             self.lod_info = gui.add_markdown("")
         self.canopy = gui.add_checkbox("Small canopy (3 x 3 plants)", initial_value=False)
-        self.exports = ExportRow(self, lambda: f"leaf_{self.preset.value}",
-                                 {"OBJ": self._write_obj, "GLB": self._write_glb})
+        self.exports = ExportRow(
+            self, lambda: f"leaf_{self.preset.value}",
+            {"OBJ": self._write_obj, "GLB": self._write_glb},
+            contents={"OBJ": "the leaf (or canopy) mesh as drawn: vertices and triangles, "
+                             "Z up, metres",
+                      "GLB": "the same mesh as binary glTF (Z up kept, metres)"})
         self.latency_md = gui.add_markdown("")
 
         self.preset.on_update(self.action("preset", self.load_preset))
@@ -94,6 +100,9 @@ class LeafTab(StudioTab):
         self.lod.on_update(self.live("lod", self.redraw))
         self.canopy.on_update(self.action("canopy", self.redraw))
         self.run("initial", self.redraw, timed=False, show=False)
+
+    def restore(self) -> None:
+        """Nothing to restore beyond the controls: :meth:`build` redrew from them."""
 
     # ------------------------------------------------------------------ model
     def current_shape(self) -> Any:
@@ -141,7 +150,7 @@ class LeafTab(StudioTab):
         self._set_sliders(shape)
         self.custom = shape
         self.redraw()
-        self.set_status(f"Leaf shape `{path.name}` in use (choose a preset to go back).")
+        self.set_status(f"Leaf shape {plain(path.name)} in use (choose a preset to go back).")
 
     def load_preset(self) -> None:
         """Put the preset's own values on the sliders, then redraw."""
@@ -202,8 +211,10 @@ class LeafTab(StudioTab):
         self.scene.add_mesh_simple(f"{self.root}/mesh", np.asarray(mesh.vertices, np.float32),
                                    np.asarray(mesh.faces, np.int32), color=LEAF_GREEN,
                                    side="double", flat_shading=False)
-        mid = self.shape.midrib(101, age=float(self.age.value)) if not self.canopy.value \
-            else np.zeros((2, 3))
+        # the midrib line of the surface at this age (u = 0), so it grows with the leaf
+        mid = self.shape.surface(np.linspace(0.0, 1.0, 101), [0.0],
+                                 age=float(self.age.value))[:, 0] \
+            if not self.canopy.value else np.zeros((2, 3))
         seg = np.stack([mid[:-1], mid[1:]], axis=1).astype(np.float32)
         self.scene.add_line_segments(f"{self.root}/midrib", seg, (200, 40, 40),
                                      thickness=0.002, visible=not self.canopy.value)

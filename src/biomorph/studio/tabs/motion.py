@@ -16,12 +16,16 @@ from typing import Any
 import numpy as np
 
 from biomorph.errors import InputError, ParameterError
-from biomorph.studio.base import StudioTab
+from biomorph.studio.base import StudioTab, plain
 from biomorph.studio.widgets import ExportRow, FilePicker
 
 MOTION_EXTENSIONS = (".bvh", ".htr")
 CHANNELS = ("Xrotation", "Yrotation", "Zrotation", "Xposition", "Yposition", "Zposition")
 PLOT_POINTS = 1500  # samples per plotted curve (decimated for long clips)
+#: uPlot draws x as clock time unless told otherwise: seconds on a plain numeric axis.
+SECONDS_AXIS = {"scales": {"x": {"time": False}},
+                "axes": ({"label": "time (s)"}, {"label": "degrees / units"})}
+TIMELINE_MARKS = 5  # labelled frame numbers under the frame slider
 
 
 def parse_keys(text: str, what: str) -> tuple[np.ndarray, np.ndarray]:
@@ -57,6 +61,8 @@ class MotionTab(StudioTab):
 
     key = "motion"
     label = "Motion"
+    getting_started = ("Getting started: open or upload a BVH/HTR clip under Clip, press "
+                       "Play (or Space), then move the equalizer, speed or cycle controls.")
     y_up = True
 
     def __init__(self, app: Any) -> None:
@@ -74,6 +80,7 @@ class MotionTab(StudioTab):
         self._closing = threading.Event()
         self._bones = None
         self._joints = None
+        self.stage_errors: dict[str, str] = {}
 
     def requirement(self) -> str | None:
         try:
@@ -91,8 +98,10 @@ class MotionTab(StudioTab):
         self.info = gui.add_markdown("Open a BVH or HTR clip.")
         self.play = gui.add_button_group("Playback", ("Play", "Pause"))
         self.play.on_click(self._play_clicked)
-        self.frame = gui.add_slider("Frame", min=0, max=1, step=1, initial_value=0)
+        self.frame = gui.add_slider("Frame", min=0, max=1, step=1, initial_value=0,
+                                    hint="Timeline: frame numbers below; Space plays/pauses.")
         self.frame.on_update(self._frame_changed)
+        self.time_md = gui.add_markdown("")
         self.follow = gui.add_checkbox("Follow root", initial_value=True,
                                        hint="Keep the root above the origin while playing.")
         self.follow.on_update(self.action("follow", lambda: self.draw_frame(self.frame_index)))
@@ -118,11 +127,14 @@ class MotionTab(StudioTab):
             else:
                 self.speed = gui.add_slider("Speed", min=0.1, max=4.0, step=0.05,
                                             initial_value=1.0)
-                self.speed_keys = gui.add_text("Speed keys (s:speed)", initial_value="",
-                                               hint="Optional curve, e.g. '0:1, 2:2.5, 4:1'; "
-                                                    "overrides the slider.")
+                with gui.add_form(None) as form:
+                    self.speed_keys = gui.add_text(
+                        "Speed keys (s:speed)", initial_value="",
+                        hint="Optional curve, e.g. '0:1, 2:2.5, 4:1'; overrides the slider. "
+                             "Applied on Enter or Apply.")
+                    gui.add_button("Apply speed keys").on_click(lambda _e: form.submit())
+                form.on_submit(self.action("speed keys", self.recompute))
                 self.speed.on_update(self.live("speed", self.recompute))
-                self.speed_keys.on_update(self.action("speed keys", self.recompute))
         with gui.add_folder("Cycle", expand_by_default=False):
             if _api("make_cycle") is None:
                 gui.add_markdown("_waiting for the cycle API_")
@@ -153,12 +165,15 @@ class MotionTab(StudioTab):
                                                   step=0.05, initial_value=1.0)
                 self.blend_length = gui.add_slider("Transition (s)", min=0.05, max=5.0,
                                                    step=0.05, initial_value=0.5)
-                self.blend_keys = gui.add_text("Blend curve keys", initial_value="0:0, 1:1",
-                                               hint="b(t) over the transition, t in 0..1")
+                with gui.add_form(None) as bform:
+                    self.blend_keys = gui.add_text(
+                        "Blend curve keys", initial_value="0:0, 1:1",
+                        hint="b(t) over the transition, t in 0..1; applied on Enter or Apply.")
+                    gui.add_button("Apply blend keys").on_click(lambda _e: bform.submit())
+                bform.on_submit(self.action("blend keys", self.recompute))
                 for h in (self.blend_on, self.blend_offset, self.blend_scale,
                           self.blend_length):
                     h.on_update(self.live("blend", self.recompute))
-                self.blend_keys.on_update(self.action("blend keys", self.recompute))
                 gui.add_button("Auto-align B to A").on_click(self.action("auto-align",
                                                                          self.auto_align))
         with gui.add_folder("Channel plot"):
@@ -171,12 +186,16 @@ class MotionTab(StudioTab):
                 data=(np.arange(2.0), np.zeros(2), np.zeros(2)),
                 series=({"label": "s"}, {"label": "original", "stroke": "#999", "width": 1},
                         {"label": "edited", "stroke": "#d33", "width": 1.5}),
-                height=170, title="channel")
+                height=170, title="channel", **SECONDS_AXIS)
             self.bands_plot = gui.add_uplot(
                 data=(np.arange(2.0), np.zeros(2)), series=({"label": "s"}, {"label": "-"}),
-                height=150, title="equalizer bands", visible=False)
-        self.exports = ExportRow(self, lambda: f"{self.source_name}_edited",
-                                 {"BVH": self._write_bvh, "GLB": self._write_glb})
+                height=150, title="equalizer bands", visible=False, **SECONDS_AXIS)
+        self.exports = ExportRow(
+            self, lambda: f"{self.source_name}_edited",
+            {"BVH": self._write_bvh, "GLB": self._write_glb},
+            contents={"BVH": "the edited motion: hierarchy, offsets and every frame's "
+                             "channels (Y up, the clip's units)",
+                      "GLB": "the skeleton as a skinned glTF with the edited animation"})
         self.latency_md = gui.add_markdown("")
 
     # ------------------------------------------------------------------ loading
@@ -205,17 +224,18 @@ class MotionTab(StudioTab):
         if self.cycle_on is not None:
             self.cycle_range.max = motion.n_frames - 1
             self.cycle_range.value = (0, motion.n_frames - 1)
-        self.info.content = (f"**{path.name}**: {motion.n_joints} joints, {motion.n_frames} "
-                             f"frames at {motion.fps:.1f} fps ({motion.duration:.1f} s)")
+        self.info.content = (f"**{plain(path.name)}**: {motion.n_joints} joints, "
+                             f"{motion.n_frames} frames at {motion.fps:.1f} fps "
+                             f"({motion.duration:.1f} s)")
         self.recompute()
         tall = height * self.unit  # Y-up clip, shown Z-up with the root over the origin
         self.app.focus(self.key, np.array([0.0, 0.0, tall / 2]), 1.6 * tall, force=True)
-        self.set_status(f"Opened `{self.app.sandbox.relative(path)}`.")
+        self.set_status(f"Opened {plain(self.app.sandbox.relative(path))}.")
 
     def load_b(self, path: Path) -> None:
         """Open clip B (for blending)."""
         self.clip_b = self._read(path)
-        self.set_status(f"Clip B: `{path.name}` ({self.clip_b.n_frames} frames).")
+        self.set_status(f"Clip B: {plain(path.name)} ({self.clip_b.n_frames} frames).")
         if self.source is not None:
             self.recompute()
 
@@ -226,53 +246,104 @@ class MotionTab(StudioTab):
 
     # ------------------------------------------------------------------ pipeline
     def pipeline(self) -> Any:
-        """Run the enabled edit stages on clip A; return the edited motion."""
+        """Run the enabled edit stages on clip A; return the edited motion.
+
+        A stage that fails is reported (:attr:`stage_errors`) and left out, so later edits
+        keep working; export refuses while a stage fails (it would not be what is shown
+        on the controls)."""
         mo = self._need_clip()
         self.seams = []
-        if self.blend_on is not None and self.blend_on.value:
-            if self.clip_b is None:
-                raise InputError("blending needs clip B: open one under Blend")
-            ft = mo.frame_time
-            off = float(self.blend_offset.value) / ft
-            trans = float(self.blend_length.value) / ft
-            t, w = parse_keys(self.blend_keys.value, "blend curve")
-            curve = {float(off + ti * trans): float(wi) for ti, wi in zip(t, w, strict=True)}
-            mo = _api("blend")([mo, self.clip_b], offsets=[0.0, off],
-                               scales=[1.0, float(self.blend_scale.value)], transition=trans,
-                               curve=curve if len(curve) > 1 else None)
-        if self.gains:
-            gains = [g.value for g in self.gains]
-            if any(abs(g - 1.0) > 1e-9 for g in gains):
-                mo = _api("equalize")(mo, gains)
-        if self.speed is not None:
-            fn = _api("change_speed")
-            if self.speed_keys.value.strip():
-                times, speeds = parse_keys(self.speed_keys.value, "speed")
-                mo = fn(mo, {float(ti / mo.frame_time): float(v)
-                             for ti, v in zip(times, speeds, strict=True)})
-            elif abs(self.speed.value - 1.0) > 1e-9:
-                mo = fn(mo, float(self.speed.value))
-        if self.cycle_on is not None and self.cycle_on.value:
-            lo, hi = (int(v) for v in self.cycle_range.value)
-            trans = int(self.cycle_transition.value)
-            repeats = int(self.cycle_repeats.value)
-            mo = _api("make_cycle")(mo, lo, min(hi + 1, mo.n_frames), trans, cycles=repeats)
-            period = mo.n_frames // repeats
-            self.seams = [k * period for k in range(1, repeats)]
+        self.stage_errors = {}
+        for name, stage in (("blend", self._blend), ("equalizer", self._equalize),
+                            ("speed", self._speed), ("cycle", self._cycle)):
+            try:
+                mo = stage(mo)
+            except Exception as exc:  # noqa: BLE001 - reported, the stage is left out
+                from biomorph.studio.base import error_text
+
+                self.stage_errors[name] = error_text(exc)
+        return mo
+
+    def _blend(self, mo: Any) -> Any:
+        if self.blend_on is None or not self.blend_on.value:
+            return mo
+        if self.clip_b is None:
+            raise InputError("blending needs clip B: open one under Blend")
+        ft = mo.frame_time
+        off = float(self.blend_offset.value) / ft
+        trans = float(self.blend_length.value) / ft
+        t, w = parse_keys(self.blend_keys.value, "blend curve")
+        curve = {float(off + ti * trans): float(wi) for ti, wi in zip(t, w, strict=True)}
+        return _api("blend")([mo, self.clip_b], offsets=[0.0, off],
+                             scales=[1.0, float(self.blend_scale.value)], transition=trans,
+                             curve=curve if len(curve) > 1 else None)
+
+    def _equalize(self, mo: Any) -> Any:
+        gains = [g.value for g in self.gains]
+        if gains and any(abs(g - 1.0) > 1e-9 for g in gains):
+            return _api("equalize")(mo, gains)
+        return mo
+
+    def _speed(self, mo: Any) -> Any:
+        if self.speed is None:
+            return mo
+        fn = _api("change_speed")
+        if self.speed_keys.value.strip():
+            times, speeds = parse_keys(self.speed_keys.value, "speed")
+            if (speeds <= 0).any() or (speeds > self.speed.max).any() or \
+                    (speeds < self.speed.min).any():
+                raise ParameterError(f"speed keys must lie in {self.speed.min:g}.."
+                                     f"{self.speed.max:g} (the slider's range)")
+            return fn(mo, {float(ti / mo.frame_time): float(v)
+                           for ti, v in zip(times, speeds, strict=True)})
+        if abs(self.speed.value - 1.0) > 1e-9:
+            return fn(mo, float(self.speed.value))
+        return mo
+
+    def _cycle(self, mo: Any) -> Any:
+        if self.cycle_on is None or not self.cycle_on.value:
+            return mo
+        lo, hi = (int(v) for v in self.cycle_range.value)
+        trans = int(self.cycle_transition.value)
+        repeats = int(self.cycle_repeats.value)
+        mo = _api("make_cycle")(mo, lo, min(hi + 1, mo.n_frames), trans, cycles=repeats)
+        period = mo.n_frames // repeats
+        self.seams = [k * period for k in range(1, repeats)]
         return mo
 
     def recompute(self) -> None:
-        """Recompute the edited motion, redraw the frame and the plot."""
+        """Recompute the edited motion, redraw the frame, the timeline and the plot."""
         self.edited = self.pipeline()
         n = self.edited.n_frames
         if self.frame.max != n - 1:
             self.frame.max = max(n - 1, 1)
+            self.frame.marks = tuple(
+                (int(round(v)), str(int(round(v))))
+                for v in np.linspace(0, max(n - 1, 1), TIMELINE_MARKS))
         self.frame_index = min(self.frame_index, n - 1)
         self.draw_frame(self.frame_index)
         self.draw_seam()
         self.update_plot()
         self.latency_md.content = "Edit → redraw (server side):\n\n" + \
             self.app.latency.markdown("motion/")
+        if self.stage_errors:
+            raise InputError("; ".join(f"the {k} stage failed and is left out: {v}"
+                                       for k, v in self.stage_errors.items()))
+
+    def restore(self) -> None:
+        """Redraw the edited clip after a page reload."""
+        self._bones = self._joints = None
+        if self.source is not None:
+            self.recompute()
+
+    def on_key(self, key: str) -> None:
+        """Space: play / pause."""
+        if key != "space":
+            return
+        if self._playing.is_set():
+            self._playing.clear()
+        else:
+            self.start_playing()
 
     def _reset_gains(self) -> None:
         for g in self.gains:
@@ -300,6 +371,8 @@ class MotionTab(StudioTab):
             return
         f = int(np.clip(f, 0, mo.n_frames - 1))
         self.frame_index = f
+        self.time_md.content = (f"Frame **{f}** of 0–{mo.n_frames - 1} · "
+                                f"{f * mo.frame_time:.2f} s of {mo.duration:.2f} s")
         p = mo.world_positions(slice(f, f + 1))[0] * self.unit
         if self.follow.value:  # keep the character in view: root over the origin
             p = p - p[0] * np.array([1.0, 0.0, 1.0])
@@ -411,6 +484,10 @@ class MotionTab(StudioTab):
     def _current(self) -> Any:
         if self.edited is None:
             raise InputError("nothing to export: open a clip first")
+        if self.stage_errors:
+            stages = ", ".join(self.stage_errors)
+            raise InputError(f"not exported: the {stages} stage failed, so the result is not "
+                             "what the controls say; fix it or turn it off first")
         return self.edited
 
     def _write_bvh(self, path: Path) -> None:

@@ -13,11 +13,12 @@ import numpy as np
 
 from biomorph.errors import BiomorphError, InputError
 from biomorph.studio import draw
-from biomorph.studio.base import StudioTab
+from biomorph.studio.base import StudioTab, plain
 from biomorph.studio.widgets import ExportRow, FilePicker
 
 CLOUD_EXTENSIONS = (".las", ".laz", ".ply", ".xyz", ".txt", ".csv", ".asc", ".pts", ".npy")
-EXPECTED_TICKS = 11  # progress callbacks of one skeletonize run (for the bar)
+#: Colour classes of the tubes (log-spaced radius bins between the 2nd and 98th percentile).
+RADIUS_BINS = 6
 
 
 class Cancelled(BiomorphError):
@@ -29,6 +30,8 @@ class TreeTab(StudioTab):
 
     key = "tree"
     label = "Tree"
+    getting_started = ("Getting started: press Synthesise and scan (or open a LAS/PLY/XYZ "
+                       "cloud), then Run; the skeleton is coloured by branch order.")
 
     def __init__(self, app: Any) -> None:
         super().__init__(app)
@@ -39,6 +42,11 @@ class TreeTab(StudioTab):
         self.job: threading.Thread | None = None
         self._cancel = threading.Event()
         self.ticks: list[str] = []
+        self.generation = 0  # bumped by every new cloud: a job for an older one is dropped
+        self._phase = 0
+        self._tubes: list[tuple[Any, Any, tuple[int, int, int]]] = []
+        self._tube_handles: list[Any] = []
+        self._tube_range = (0.001, 0.01)
         self._cloud_node: Any = None
         self._skeleton_node: Any = None
 
@@ -61,11 +69,11 @@ class TreeTab(StudioTab):
             self.preset = gui.add_dropdown("Synthetic tree", options=tuple(PRESETS),
                                            initial_value="aspen" if "aspen" in PRESETS
                                            else tuple(PRESETS)[0])
-            self.seed = gui.add_number("Seed", initial_value=1, min=0, step=1)
+            self.seed = gui.add_number("Seed", initial_value=1, min=0, max=2**31 - 1, step=1)
             self.n_points = gui.add_slider("Scan points", min=2000, max=100000, step=1000,
                                            initial_value=8000)
             gui.add_button("Synthesise and scan").on_click(
-                self.action("synthesise", self.synthesise, timed=False))
+                self.action("synthesise", self.synthesise, timed=False, heavy=True))
             self.cloud_info = gui.add_markdown("")
         with gui.add_folder("Method"):
             self.method = gui.add_dropdown("Method", options=("graph", "voxel"),
@@ -73,11 +81,11 @@ class TreeTab(StudioTab):
             self.k = gui.add_slider("Neighbours k (graph)", min=4, max=30, step=1,
                                     initial_value=10)
             self.node_spacing = gui.add_number("Node spacing m (0 = auto)", initial_value=0.0,
-                                               min=0.0, step=0.01)
+                                               min=0.0, max=1.0, step=0.01)
             self.max_iter = gui.add_slider("Iterations (graph)", min=1, max=10, step=1,
                                            initial_value=5)
             self.cell = gui.add_number("Voxel cell m (voxel)", initial_value=0.05, min=0.005,
-                                       step=0.005)
+                                       max=1.0, step=0.005)
             self.radius = gui.add_dropdown("Radius", options=("fit", "allometric"),
                                            initial_value="fit")
             self.cleanup = gui.add_checkbox("Cleanup", initial_value=True)
@@ -87,16 +95,29 @@ class TreeTab(StudioTab):
         with gui.add_folder("Display"):
             self.show_cloud = gui.add_checkbox("Cloud", initial_value=True)
             self.show_skeleton = gui.add_checkbox("Skeleton (by order)", initial_value=True)
-            self.show_tubes = gui.add_checkbox("Tubes (by radius)", initial_value=False)
+            self.show_tubes = gui.add_checkbox("Tubes (by radius)", initial_value=True)
             self.max_display = gui.add_slider("Cloud points shown", min=5000, max=200000,
                                               step=5000, initial_value=50000)
             for h in (self.show_cloud, self.show_skeleton, self.show_tubes):
                 h.on_update(self.action("display", self.update_visibility))
             self.max_display.on_update(self.live("display points", self.draw_cloud))
+        self.legend_md = gui.add_markdown("")
         self.metrics_md = gui.add_markdown("")
-        self.exports = ExportRow(self, lambda: f"{self.cloud_name}_skeleton",
-                                 {"PLY": self._write_ply, "GLB": self._write_glb,
-                                  "CSV": self._write_csv})
+        self.exports = ExportRow(
+            self, lambda: f"{self.cloud_name}_skeleton",
+            {"PLY": self._write_ply, "GLB": self._write_glb, "CSV": self._write_csv},
+            contents={"PLY": "skeleton graph: nodes (x y z radius, parent, order), "
+                             "in the cloud's own coordinates",
+                      "GLB": "tube mesh of the branches (Z up, metres)",
+                      "CSV": "QSM cylinder table: one cylinder per edge with radius, "
+                             "length, branch and order"})
+
+    def restore(self) -> None:
+        """Redraw the cloud and the skeleton after a page reload."""
+        if self.result is not None:
+            self.draw_result()
+        elif self.cloud is not None:
+            self.draw_cloud()
 
     # ------------------------------------------------------------------ cloud
     def load(self, path: Path) -> None:
@@ -108,24 +129,40 @@ class TreeTab(StudioTab):
             raise InputError(f"{path.name}: {cloud.n_points} points; expected a tree scan")
         self.set_cloud(cloud, path.stem)
         self.truth = None
-        self.set_status(f"Opened `{self.app.sandbox.relative(path)}`.")
+        self.set_status(f"Opened {plain(self.app.sandbox.relative(path))}.")
 
     def synthesise(self) -> None:
         """Grow a synthetic tree (preset, seed) and simulate a LiDAR scan of it."""
         from biomorph.tree.synthetic import generate_tree, simulate_scan
 
-        seed = int(self.seed.value)
-        self.truth = generate_tree(self.preset.value, seed=seed)
-        cloud = simulate_scan(self.truth, n_points=int(self.n_points.value), seed=seed)
-        self.set_cloud(cloud, f"{self.preset.value}_{seed}")
-        self.set_status(f"Synthetic {self.preset.value} (seed {seed}): "
-                        f"{self.truth.n_nodes} true nodes, {len(self.truth.leaves)} tips.")
+        seed, preset = int(self.seed.value), self.preset.value
+        self.progress.value, self.progress.animated = 5.0, True
+        try:
+            self.set_status(f"Growing a synthetic {plain(preset)} (1/2) …")
+            truth = generate_tree(preset, seed=seed)
+            self.progress.value = 50.0
+            self.set_status(f"Scanning it with {int(self.n_points.value):,} points (2/2) …")
+            cloud = simulate_scan(truth, n_points=int(self.n_points.value), seed=seed)
+        finally:
+            self.progress.animated = False
+        self.set_cloud(cloud, f"{preset}_{seed}")
+        self.truth = truth
+        self.progress.value = 100.0
+        self.set_status(f"Synthetic {plain(preset)} (seed {seed}): "
+                        f"{truth.n_nodes} true nodes, {len(truth.leaves)} tips. Press Run.")
 
     def set_cloud(self, cloud: Any, name: str) -> None:
+        """Use ``cloud`` from now on; a run on the previous cloud is cancelled and its
+        result dropped (never drawn or exported under the new name)."""
+        self.generation += 1
+        if self.job is not None and self.job.is_alive():
+            self._cancel.set()
         self.cloud, self.cloud_name, self.result = cloud, name, None
+        self.legend_md.content = ""
         for node in ("skeleton", "tubes"):
             self.scene.remove_by_name(f"{self.root}/{node}")
         self._skeleton_node = None
+        self._tubes, self._tube_handles = [], []
         self.metrics_md.content = ""
         self.progress.value = 0.0
         lo, hi = cloud.bounds()
@@ -166,15 +203,18 @@ class TreeTab(StudioTab):
         if self.cloud is None:
             raise InputError("no cloud: open or synthesise one first")
         if self.job is not None and self.job.is_alive():
-            raise InputError("a skeletonisation is already running; cancel it first")
-        params = self.parameters()
-        self._cancel.clear()
+            self._cancel.set()  # a new run replaces the running one (never mixes them)
+        opts = self.options()
+        release = self.app.job_slot()
+        self._cancel = threading.Event()  # a fresh event: an old job keeps its own
         self.ticks = []
+        self._phase = 0
         self.progress.value = 2.0
         self.progress.animated = True
-        self.set_status(f"Running the {params['method']} method …")
-        self.job = threading.Thread(target=self._work, args=(self.cloud, params), daemon=True,
-                                    name="studio-tree-job")
+        self.set_status(f"Running the {opts.method} method …")
+        self.job = threading.Thread(target=self._work, daemon=True, name="studio-tree-job",
+                                    args=(self.cloud, opts, self.generation, self._cancel,
+                                          release))
         self.job.start()
 
     def cancel(self) -> None:
@@ -183,49 +223,78 @@ class TreeTab(StudioTab):
             self._cancel.set()
             self.set_status("Cancelling at the next step …")
 
-    def parameters(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`biomorph.tree.skeletonize` from the controls."""
-        p: dict[str, Any] = {"method": self.method.value, "radius": self.radius.value,
-                             "cleanup": bool(self.cleanup.value), "seed": int(self.seed.value)}
-        if self.method.value == "graph":
-            p.update(k=int(self.k.value), max_iter=int(self.max_iter.value))
-            if float(self.node_spacing.value) > 0:
-                p["node_spacing"] = float(self.node_spacing.value)
-        else:
-            p["voxel"] = {"cell_size": float(self.cell.value)}
-        return p
+    def options(self) -> Any:
+        """:class:`biomorph.tree.options.SkeletonizeOptions` from the controls (the same
+        typed options the Python API, the CLI and ``tree batch`` use)."""
+        from biomorph.tree.options import (
+            CleanupOptions,
+            GraphOptions,
+            RadiusOptions,
+            SkeletonizeOptions,
+            VoxelOptions,
+        )
 
-    def _progress(self, n: float = 1, description: str | None = None) -> None:
-        if self._cancel.is_set():
-            raise Cancelled("skeletonisation cancelled")
-        self.ticks.append(description or "")
-        self.progress.value = min(98.0, 100.0 * len(self.ticks) / EXPECTED_TICKS)
-        if description:
-            self.set_status(f"Running … {description}")
+        spacing = float(self.node_spacing.value)
+        return SkeletonizeOptions(
+            method=self.method.value, seed=int(self.seed.value),
+            graph=GraphOptions(k=int(self.k.value), max_iter=int(self.max_iter.value),
+                               node_spacing=spacing if spacing > 0 else None),
+            voxel=VoxelOptions(cell_size=float(self.cell.value)),
+            cleanup=CleanupOptions(enabled=bool(self.cleanup.value)),
+            radius=RadiusOptions(method=self.radius.value))
 
-    def _work(self, cloud: Any, params: dict[str, Any]) -> None:
+    def _progress(self, cancel: threading.Event) -> Any:
+        """The pipeline's progress callback: one step of the bar per finished phase of
+        :data:`biomorph.tree.pipeline.PHASES`; the skeleton method's own sub-phases move
+        the bar within the skeleton phase (each halves the distance to its end)."""
+        from biomorph.tree.pipeline import PHASES
+
+        n = len(PHASES)
+
+        def advance(_n: float = 1, description: str | None = None) -> None:
+            if cancel.is_set():
+                raise Cancelled("skeletonisation cancelled")
+            self.ticks.append(description or "")
+            main = len(self.ticks) == 1 or description == "skeleton" or self._phase >= 2
+            if main:
+                self._phase = min(self._phase + 1, n)
+                value = 100.0 * self._phase / n
+            else:  # a sub-phase of the skeleton method
+                value = self.progress.value + (100.0 * 2 / n - self.progress.value) / 2
+            self.progress.value = min(99.0, value)
+            label = PHASES[self._phase - 1] if main else description
+            self.set_status(f"Running … {plain(label)} ({self._phase}/{n} phases done)")
+        return advance
+
+    def _work(self, cloud: Any, opts: Any, generation: int, cancel: threading.Event,
+              release: Any) -> None:
         from biomorph.tree.pipeline import skeletonize
 
         t0 = time.perf_counter()
         try:
-            result = skeletonize(cloud, progress=self._progress, **params)
-            if self._cancel.is_set():
-                raise Cancelled("skeletonisation cancelled")
+            result = skeletonize(cloud, options=opts, progress=self._progress(cancel))
             with self.lock:
+                if cancel.is_set() or generation != self.generation:
+                    raise Cancelled("skeletonisation cancelled")
                 self.result = result
                 self.draw_result()
-            self.progress.value = 100.0
-            self.set_status(f"Done in {time.perf_counter() - t0:.1f} s "
-                            f"({result.graph.n_nodes} nodes).")
+                self.progress.value = 100.0
+                self.set_status(f"Done in {time.perf_counter() - t0:.1f} s "
+                                f"({result.graph.n_nodes} nodes).")
+                self.last_error = None
         except Cancelled:
-            self.progress.value = 0.0
-            self.set_status("Cancelled; the previous result is kept.")
-            self.app.notify("Tree", "skeletonisation cancelled", color="yellow")
+            if generation == self.generation:
+                self.progress.value = 0.0
+                self.set_status("Cancelled; the previous result is kept.")
+                self.app.notify("Tree", "skeletonisation cancelled", color="yellow")
         except Exception as exc:  # noqa: BLE001 - shown in the page
-            self.progress.value = 0.0
-            self.fail(exc, "skeletonisation")
+            if generation == self.generation:
+                self.progress.value = 0.0
+                self.fail(exc, "skeletonisation")
         finally:
-            self.progress.animated = False
+            release()
+            if generation == self.generation:
+                self.progress.animated = False
 
     # ------------------------------------------------------------------ drawing
     def draw_result(self) -> None:
@@ -239,35 +308,62 @@ class TreeTab(StudioTab):
         self._skeleton_node = self.scene.add_line_segments(
             f"{self.root}/skeleton", seg.astype(np.float32), colors,
             thickness=max(size / 400, 0.004), visible=self.show_skeleton.value)
+        self._tubes = self.tube_parts()
         self.draw_tubes()
+        legend = draw.order_legend(depth[child]) + " (skeleton lines)"
+        if self._tubes:
+            legend += "\n\n" + draw.radius_legend(*self._tube_range)
+        self.legend_md.content = legend
         self.metrics_md.content = self.metrics_table()
+        _, size = draw.fit_camera(g.position)
+        centre = (g.position.min(axis=0) + g.position.max(axis=0)) / 2
+        self.app.focus(self.key, centre, size)
         self.redrawn()
 
-    def draw_tubes(self) -> None:
+    def tube_parts(self) -> list[tuple[np.ndarray, np.ndarray, tuple[int, int, int]]]:
+        """The tube mesh split into :data:`RADIUS_BINS` parts by branch radius (log
+        bins), each with its colour of :func:`draw.radius_colors`."""
+        from scipy.spatial import cKDTree
+
         from biomorph.tree.export import tube_mesh
 
         g = self.result.graph
-        self.scene.remove_by_name(f"{self.root}/tubes")
-        if g.radius is None:
-            return
+        if g.radius is None or g.n_nodes < 2:
+            return []
         mesh = tube_mesh(g)
-        order = mesh.face_ids.get("order", np.zeros(mesh.n_faces, np.int64))
-        for o in np.unique(order)[:9]:
-            faces = mesh.faces[order == o]
+        lo, hi = self._tube_range = draw.radius_scale(g.radius)
+        # every tube ring is centred on its node: a vertex's nearest node gives its radius
+        _, node = cKDTree(g.position).query(mesh.vertices)
+        face_r = np.asarray(g.radius)[node][mesh.faces].mean(axis=1)
+        edges = np.geomspace(lo, hi, RADIUS_BINS + 1)
+        which = np.clip(np.searchsorted(edges, face_r) - 1, 0, RADIUS_BINS - 1)
+        parts = []
+        for b in range(RADIUS_BINS):
+            faces = mesh.faces[which == b]
+            if len(faces) == 0:
+                continue
             used, inv = np.unique(faces, return_inverse=True)
-            self.scene.add_mesh_simple(
-                f"{self.root}/tubes/order{int(o)}", mesh.vertices[used].astype(np.float32),
-                inv.reshape(-1, 3).astype(np.int32),
-                color=tuple(int(c) for c in draw.palette(np.array([o]))[0]),
-                visible=self.show_tubes.value)
+            mid = float(np.sqrt(edges[b] * edges[b + 1]))
+            colour = tuple(int(c) for c in draw.radius_colors(np.array([mid]), lo, hi)[0])
+            parts.append((mesh.vertices[used].astype(np.float32),
+                          inv.reshape(-1, 3).astype(np.int32), colour))
+        return parts
+
+    def draw_tubes(self) -> None:
+        """Shaded tubes, coloured by radius (legend in the tab)."""
+        self.scene.remove_by_name(f"{self.root}/tubes")
+        self._tube_handles = [
+            self.scene.add_mesh_simple(f"{self.root}/tubes/r{i}", verts, faces, color=colour,
+                                       visible=self.show_tubes.value)
+            for i, (verts, faces, colour) in enumerate(self._tubes)]
 
     def update_visibility(self) -> None:
         for handle, box in ((self._cloud_node, self.show_cloud),
                             (self._skeleton_node, self.show_skeleton)):
             if handle is not None:
                 handle.visible = box.value
-        if self.result is not None:
-            self.draw_tubes()
+        for handle in self._tube_handles:
+            handle.visible = self.show_tubes.value
         self.redrawn()
 
     def metrics_table(self) -> str:
