@@ -61,10 +61,13 @@ def relative_length(age: float, extension_end: float = EXTENSION_END) -> float:
     return MIN_RELATIVE_LENGTH + (1.0 - MIN_RELATIVE_LENGTH) * frac
 
 
-def state_at_age(shape: ShapeLike, age: float, extension_end: float = EXTENSION_END,
+def state_at_age(shape: ShapeLike, age: float, extension_end: float | None = None,
                  hidden: float = 0.0, width_factor: float = 1.0, bend: float = 0.0
                  ) -> LeafState:
-    """Default state of ``shape`` at ``age`` (length from :func:`relative_length`)."""
+    """Default state of ``shape`` at ``age`` (length from :func:`relative_length`; the
+    extension ends at ``extension_end``, default the shape's own ``extension_end``)."""
+    if extension_end is None:
+        extension_end = float(getattr(shape, "extension_end", EXTENSION_END))
     l_cur = shape.length * relative_length(age, extension_end)
     return LeafState(check_age(age), l_cur, max(l_cur - hidden, 0.0), width_factor, bend)
 

@@ -23,6 +23,7 @@ stem, as CARIBU expects).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,8 +31,8 @@ from numpy.typing import NDArray
 
 from biomorph.core.mesh import Mesh
 from biomorph.errors import ParameterError
-from biomorph.leaf.age import EXTENSION_END, MIN_RELATIVE_LENGTH
-from biomorph.leaf.mesh import LeafBatch, mesh_batch
+from biomorph.leaf.age import MIN_RELATIVE_LENGTH
+from biomorph.leaf.mesh import LeafBatch, concat_batches, mesh_batch, rest_on_soil
 from biomorph.leaf.shape import LeafShape, check_age
 
 Array = NDArray[np.float64]
@@ -52,9 +53,18 @@ class PlantSpec:
     insertion_jitter_deg: float = 8.0
     length_jitter: float = 0.08            # relative standard deviation
     shape_overrides: dict = field(default_factory=dict)
+    shape_classes: bool = True             # per-rank shape classes of the preset (if any)
+    draw_members: bool = False             # draw each leaf from its class database (ADEL)
+    soil: bool = True                      # bend leaves at the soil plane z = 0
+    thermal_time: float | None = None      # °Cd since emergence: leaf ages from phyllochrons
+    phyllochron: float | None = None       # °Cd per leaf (default per preset, see thermal)
 
     def validate(self) -> None:
         check_age(self.age)
+        if self.thermal_time is not None and not self.thermal_time >= 0:
+            raise ParameterError(f"thermal time {self.thermal_time!r} must be >= 0 °Cd")
+        if self.phyllochron is not None and not self.phyllochron > 0:
+            raise ParameterError(f"phyllochron {self.phyllochron!r} must be > 0 °Cd")
         if self.leaves < 1:
             raise ParameterError(f"leaves per plant {self.leaves} must be >= 1")
         for name in ("appearance", "lifespan", "stem_radius"):
@@ -108,19 +118,45 @@ class Field:
     azimuth: Array              # (N,)
     origin: Array               # (N, 3) insertion point
     ground_area: float
+    shapes: tuple = ()          # per-leaf shapes by ``shape_id`` (empty: ``shape`` for all)
+    shape_id: NDArray[np.int64] | None = None
+    soil: bool = True
+    requested_leaves: int = 0   # leaves per plant asked for
 
     @property
     def n_leaves(self) -> int:
         return int(self.plant.size)
+
+    def leaf_shapes(self) -> tuple[tuple, NDArray[np.int64]]:
+        """``(shapes, shape_id)``: the distinct leaf shapes and each leaf's index."""
+        if self.shapes and self.shape_id is not None:
+            return self.shapes, self.shape_id
+        return (self.shape,), np.zeros(self.n_leaves, np.int64)
+
+    def missing_leaves(self) -> int:
+        """Leaves per plant asked for but not emerged at this age (0 when all are)."""
+        if not self.requested_leaves or not self.plant_pos.shape[0]:
+            return 0
+        per = np.bincount(self.plant, minlength=self.plant_pos.shape[0])
+        return int(self.requested_leaves - per.min())
 
 
 def _plant_leaves(spec: PlantSpec, plant_age: float, plants: int, rng: np.random.Generator):
     """Leaf parameters of ``plants`` plants at once: arrays ``(plants, leaves)``."""
     n = spec.leaves
     i = np.arange(n)
-    emerge = i * spec.appearance
-    present = np.broadcast_to(plant_age >= emerge, (plants, n))
-    age = np.broadcast_to(np.clip((plant_age - emerge) / spec.lifespan, 0.0, 1.0), (plants, n))
+    if spec.thermal_time is not None:
+        from biomorph.leaf.thermal import ThermalTime
+
+        tt = ThermalTime.for_preset(spec.preset, spec.phyllochron)
+        a_tt = tt.leaf_age(spec.thermal_time, i + 1)
+        present = np.broadcast_to(a_tt >= 0.0, (plants, n))
+        age = np.broadcast_to(np.clip(a_tt, 0.0, 1.0), (plants, n))
+    else:
+        emerge = i * spec.appearance
+        present = np.broadcast_to(plant_age >= emerge, (plants, n))
+        age = np.broadcast_to(np.clip((plant_age - emerge) / spec.lifespan, 0.0, 1.0),
+                              (plants, n))
     x = i / max(n - 1, 1)
     profile = 0.55 + 0.45 * np.sin(np.pi * (0.15 + 0.7 * x))
     lscale = profile * np.clip(1 + spec.length_jitter * rng.standard_normal((plants, n)),
@@ -161,6 +197,11 @@ def build_field(spec: FieldSpec, seed: int | np.random.Generator = 0, origin=(0.
     pos += np.asarray(origin, float)
     H = ps.stem_height or 2.5 * shape.length
     elong = np.clip(plant_age / 0.8, 0.1, 1.0)
+    if ps.thermal_time is not None:
+        from biomorph.leaf.thermal import ThermalTime
+
+        tt = ThermalTime.for_preset(ps.preset, ps.phyllochron)
+        elong = float(np.clip(tt.haun_stage(ps.thermal_time) / ps.leaves, 0.1, 1.0))
     stem_h = np.full(spec.plants, H * elong)
     n = ps.leaves
     rel_h = ((np.arange(n) + 1) / n) ** 1.3
@@ -171,9 +212,54 @@ def build_field(spec: FieldSpec, seed: int | np.random.Generator = 0, origin=(0.
     cat = {"plant": pp, "rank": kk + 1, "age": a[pp, kk], "ls": ls[pp, kk], "az": az[pp, kk],
            "incl": incl[pp, kk], "org": org}
     ground = spec.rows * spec.row_spacing * per_row * dx
-    return Field(shape, pos, stem_h, ps.stem_radius, cat["plant"].astype(np.int64),
-                 cat["rank"].astype(np.int64), cat["age"], cat["ls"], cat["incl"], cat["az"],
-                 cat["org"].reshape(-1, 3), float(ground))
+    shapes, shape_id, ls_leaf = _class_shapes(ps, shape, kk, cat["ls"], rng)
+    fld = Field(shape, pos, stem_h, ps.stem_radius, cat["plant"].astype(np.int64),
+                cat["rank"].astype(np.int64), cat["age"], ls_leaf, cat["incl"], cat["az"],
+                cat["org"].reshape(-1, 3), float(ground), shapes, shape_id, ps.soil, n)
+    missing = fld.missing_leaves()
+    if missing:
+        when = (f"thermal time {ps.thermal_time:g} °Cd" if ps.thermal_time is not None else
+                f"plant age {plant_age:g} (leaf i emerges at age i × appearance "
+                f"{ps.appearance:g})")
+        warnings.warn(f"{missing} of the {n} requested leaves per plant have not emerged at "
+                      f"{when}; the plants have {n - missing} leaves", LeafCountWarning,
+                      stacklevel=3)
+    return fld
+
+
+class LeafCountWarning(UserWarning):
+    """A requested number of leaves cannot have emerged by the requested age."""
+
+
+def _class_shapes(ps: PlantSpec, base: LeafShape, kk: NDArray[np.int64], ls: Array,
+                  rng: np.random.Generator):
+    """Per-leaf shape classes (by rank) of the preset, and length scales relative to them.
+
+    With classes, each leaf takes its rank class's shape, length and width (the class
+    medians of the digitised leaves, so the rank profile is the data's); the length jitter
+    is kept. Without, the preset shape and the bell-shaped rank profile."""
+    from biomorph.leaf.shape import class_of_rank, preset_classes
+
+    classes = preset_classes(ps.preset) if ps.shape_classes else None
+    if not classes or ps.shape_overrides:
+        return (), None, ls
+    n = ps.leaves
+    i = np.arange(n)
+    profile = 0.55 + 0.45 * np.sin(np.pi * (0.15 + 0.7 * i / max(n - 1, 1)))
+    jitter = ls / profile[kk]                      # undo the bell profile, keep the jitter
+    keys = [class_of_rank(ps.preset, int(k) + 1, n) for k in kk]
+    members = ([int(rng.integers(classes[k]["n_members"])) for k in keys]
+               if ps.draw_members else [0] * len(keys))
+    index: dict[tuple[str, int], int] = {}
+    shapes: list[LeafShape] = []
+    sid = np.empty(len(keys), np.int64)
+    for j, km in enumerate(zip(keys, members, strict=True)):
+        if km not in index:
+            index[km] = len(shapes)
+            shapes.append(LeafShape.from_preset(ps.preset, rank_class=km[0], member=km[1]))
+        sid[j] = index[km]
+    lengths = np.array([sh.length for sh in shapes])[sid]
+    return tuple(shapes), sid, jitter * lengths / base.length
 
 
 def _interp_rows(knots: Array, rows: Array, q: Array) -> Array:
@@ -187,25 +273,52 @@ def _interp_rows(knots: Array, rows: Array, q: Array) -> Array:
 
 def batch_from_field(fld: Field, s: Array, twist: bool = True, undulation: bool = True
                      ) -> LeafBatch:
-    """Vectorised profiles of every leaf of ``fld`` at visible fractions ``s`` ``(K,)``."""
-    shape = fld.shape
+    """Vectorised profiles of every leaf of ``fld`` at visible fractions ``s`` ``(K,)``
+    (one vectorised pass per distinct leaf shape), bent at the soil when ``fld.soil``."""
+    shapes, sid = fld.leaf_shapes()
     sg = np.asarray(s, float)
-    L = shape.length * fld.length_scale                                    # (N,)
-    rel = MIN_RELATIVE_LENGTH + (1 - MIN_RELATIVE_LENGTH) * np.clip(fld.age / EXTENSION_END,
-                                                                    0, 1)
+    if len(shapes) == 1:
+        batch = _batch_one_shape(fld, shapes[0], np.arange(fld.n_leaves), sg, twist,
+                                 undulation)
+    else:
+        parts, order = [], []
+        for k, shape in enumerate(shapes):
+            idx = np.flatnonzero(sid == k)
+            if idx.size:
+                parts.append(_batch_one_shape(fld, shape, idx, sg, twist, undulation))
+                order.append(idx)
+        batch = concat_batches(parts)
+        inv = np.empty(fld.n_leaves, np.int64)
+        inv[np.concatenate(order)] = np.arange(fld.n_leaves)
+        batch = LeafBatch(*[getattr(batch, f)[inv] for f in _BATCH_FIELDS])
+    return rest_on_soil(batch, 0.0) if fld.soil else batch
+
+
+_BATCH_FIELDS = ("phi", "seg", "width", "theta", "wave_amp", "wave_arg", "v", "origin",
+                 "azimuth", "plant", "leaf")
+
+
+def _batch_one_shape(fld: Field, shape: LeafShape, idx: NDArray[np.int64], sg: Array,
+                     twist: bool, undulation: bool) -> LeafBatch:
+    """Profiles of the leaves ``idx`` of ``fld`` that share ``shape`` (``length_scale`` is
+    relative to the field's base shape)."""
+    age = fld.age[idx]
+    L = fld.shape.length * fld.length_scale[idx]                           # (N,)
+    wscale = L / shape.length
+    ext = shape.extension_end
+    rel = MIN_RELATIVE_LENGTH + (1 - MIN_RELATIVE_LENGTH) * np.clip(age / ext, 0, 1)
     l_cur = L * rel
     sigma = sg[None, :] * l_cur[:, None]                                   # (N,K) metres
     shat = np.clip(1.0 - (l_cur[:, None] - sigma) / L[:, None], 0, 1)  # exact 1 at the tip
     smid = 0.5 * (sigma[:, 1:] + sigma[:, :-1]) / L[:, None]
+    phi = np.interp(smid, shape.s, shape.phi)
     if shape.collection is not None:
         c = shape.collection
-        rows = c.phi_at(fld.age)                                           # (N, M)
-        phi = _interp_rows(c.s, np.atleast_2d(rows), smid)
-    else:
-        phi = np.interp(smid, shape.s, shape.phi)
-    phi = phi + fld.incline[:, None]
+        rows = np.atleast_2d(c.phi_at(age)) - c.phi_at(ext)[None, :]       # (N, M) change
+        phi = phi + _interp_rows(c.s, rows, smid)
+    phi = phi + fld.incline[idx, None]
     seg = np.diff(sg)[None, :] * l_cur[:, None]
-    width = shape.width * fld.length_scale[:, None] * np.interp(shat, shape.s_r, shape.r)
+    width = shape.width * wscale[:, None] * np.interp(shat, shape.s_r, shape.r)
     theta = shape.theta_at(shat) if twist else np.zeros_like(shat)
     if undulation and shape.undulation > 0:
         amp = shape.undulation * (1 - shat)
@@ -213,8 +326,8 @@ def batch_from_field(fld: Field, s: Array, twist: bool = True, undulation: bool 
     else:
         amp = arg = np.zeros_like(shat)
     v = np.broadcast_to(sg, shat.shape).copy()
-    return LeafBatch(phi, seg, width, theta, amp, arg, v, fld.origin, fld.azimuth, fld.plant,
-                     fld.rank)
+    return LeafBatch(phi, seg, width, theta, amp, arg, v, fld.origin[idx], fld.azimuth[idx],
+                     fld.plant[idx], fld.rank[idx])
 
 
 def lod_samples(shape: LeafShape, triangles: int, age: float = 0.8, reduction=None) -> Array:
@@ -294,10 +407,12 @@ def plant_growth_frames(spec: PlantSpec | FieldSpec, frames: int, seed: int = 0,
         org[:, 2] = full.plant_pos[full.plant, 2] + (org[:, 2] - full.plant_pos[full.plant, 2]
                                                       ) * elong
         fr = Field(full.shape, full.plant_pos, stem_h, full.stem_radius, full.plant, full.rank,
-                   leaf_age, scale, full.incline, full.azimuth, org, full.ground_area)
+                   leaf_age, scale, full.incline, full.azimuth, org, full.ground_area,
+                   full.shapes, full.shape_id, full.soil, full.requested_leaves)
         out.append(field_mesh(fr, s=sg, drop_degenerate=False))
     return out
 
 
-__all__ = ["Field", "FieldSpec", "PlantSpec", "batch_from_field", "build_field", "build_plant",
-           "field_mesh", "leaf_area_index", "lod_samples", "plant_growth_frames", "stem_mesh"]
+__all__ = ["Field", "FieldSpec", "LeafCountWarning", "PlantSpec", "batch_from_field",
+           "build_field", "build_plant", "field_mesh", "leaf_area_index", "lod_samples",
+           "plant_growth_frames", "stem_mesh"]

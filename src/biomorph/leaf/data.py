@@ -101,7 +101,10 @@ def read_sr(path: PathLike, key: str = "rankclass") -> dict:
 
 
 def read_trajectories(path: PathLike) -> dict[int, MidribCollection]:
-    """ECHAP median trajectories ``age,x,y,lindex`` → one :class:`MidribCollection` per class."""
+    """ECHAP median trajectories ``age,x,y,lindex`` → one :class:`MidribCollection` per class.
+
+    Ages are phyllochrons since the leaf reached full extension (age = HS − rank), so the
+    collections record ``full_extension_age = 0``."""
     by: dict[int, dict[float, list[list[float]]]] = defaultdict(lambda: defaultdict(list))
     for _, (age, x, y, lindex) in _rows(path, ("age", "x", "y", "lindex")):
         by[int(lindex)][age].append([x, y])
@@ -111,7 +114,8 @@ def read_trajectories(path: PathLike) -> dict[int, MidribCollection]:
         pts = [np.array(curves[a]) for a in ages]
         out[lindex] = MidribCollection.from_curves(
             ages, [(p[:, 0], p[:, 1]) for p in pts], n=51,
-            source=f"{Path(path).name} lindex={lindex}")
+            source=f"{Path(path).name} lindex={lindex}",
+            full_extension_age=0.0)   # age = Haun stage − rank: 0 at full extension
     return out
 
 
@@ -171,62 +175,138 @@ def _r6(a) -> list[float]:
     return [float(f"{v:.6g}") for v in np.asarray(a, float).reshape(-1)]
 
 
+def _rank_of(leaf: LeafShape) -> int:
+    return int(leaf.name.split()[1][1:])
+
+
+def _group_ranks(counts: dict[int, int]) -> list[list[int]]:
+    """Contiguous rank groups holding at least half the median per-rank leaf count each
+    (ranks with few digitised leaves are merged with the next rank; a short tail joins the
+    last group)."""
+    need = 0.5 * float(np.median(list(counts.values())))
+    groups: list[list[int]] = []
+    cur: list[int] = []
+    for rank in sorted(counts):
+        cur.append(rank)
+        if sum(counts[k] for k in cur) >= need:
+            groups.append(cur)
+            cur = []
+    if cur:
+        if groups:
+            groups[-1] += cur
+        else:
+            groups.append(cur)
+    return groups
+
+
+def _class_entry(leaves: list[LeafShape], s_r: Array, r: Array, n: int = 101) -> dict:
+    """Medoid shape, ADEL-like member database and figures of one class of leaves."""
+    from biomorph.leaf.fit import class_figures, class_members, curves_of, pairwise, unit_curve
+
+    curves = curves_of(leaves)
+    dist = pairwise(curves)
+    members = class_members(curves, dist=dist)
+    s = np.linspace(0, 1, n)
+    best = leaves[members[0]]
+    phi = np.array(_r6(best.phi_at(s)))          # the stored shape, as it will be read back
+    fig = class_figures(curves, unit_curve(lambda q: np.interp(q, s, phi)), dist)
+    return {"n_leaves": fig["n"], "medoid": best.name, "s": _r6(s), "phi": _r6(best.phi_at(s)),
+            "s_r": _r6(s_r), "r": _r6(r / r.max()),
+            "length": float(f"{np.median([lf.length for lf in leaves]):.6g}"),
+            "width": float(f"{np.median([lf.width for lf in leaves]):.6g}"),
+            "median_maxdist": round(fig["median_maxdist"], 4),
+            "spread": round(fig["spread"], 4), "chord_deg": round(fig["chord_deg"], 2),
+            "members_phi": [_r6(leaves[m].phi_at(s)) for m in members],
+            "members_maxdist": round(float(np.median(dist[:, members].min(axis=1))), 4)}
+
+
+def _wheat_dims(root: Path) -> dict:
+    cols = ("xn", "L_blade", "W_blade", "L_sheath", "L_internode", "W_sheath", "H_col",
+            "W_internode")
+    rows = np.array([v for _, v in _rows(root / "adel" / "Wheat_dimension_profiles.csv",
+                                         cols)])
+    return {c: _r6(rows[:, k] * (1 if c == "xn" else 0.01)) for k, c in enumerate(cols)}
+
+
 def derive_presets(root: PathLike | None = None) -> dict:
     """Derive the ``maize``, ``wheat`` and ``grass`` presets from the shared data.
 
-    * wheat — median tangent-angle profile φ(s) of the 450 So99 midribs, mean of the six
-      SRSo width classes, length and width of the longest blade of
-      ``Wheat_dimension_profiles.csv``, and the Tremie12 midrib collection N(age, s)
-      (29 ages) for growing leaves;
-    * maize — median φ(s) and relative width of the ``leaves_db`` maize leaves at least
-      80 % as long as the longest, their median length and maximal width;
-    * grass — the wheat shapes of the most bent rank class with a narrow blade
-      (width/length = 0.025 of the wheat leaves' own ratio scaled) and a half twist.
-      Twist and undulation are not in the data: they are set by hand and marked so.
+    * wheat — one class per So99 rank class (1..6): its medoid midrib (see
+      :mod:`biomorph.leaf.fit`), its SRSo width profile and a member database; the single
+      mature preset is the medoid of all 450 midribs with the mean SRSo width; length and
+      width of the longest blade of ``Wheat_dimension_profiles.csv`` (also kept whole, in
+      metres, as the per-rank dimension table); the Tremie12 midrib collection N(age, s)
+      (29 ages, −2..12 phyllochrons from full extension) for growing leaves;
+    * maize — one class per group of ranks of ``leaves_db`` (groups hold at least half the
+      median per-rank count): medoid midrib, median relative width, median length and
+      width; the single mature preset is the medoid of all 158 leaves, with the median
+      length and width of the leaves at least 80 % as long as the longest;
+    * grass — the wheat shapes of the most bent rank class with a narrow blade and a half
+      twist. Twist and undulation are not in the data: they are set by hand and marked so.
     """
+    from biomorph.leaf.fit import curves_of, medoid
+
     root = Path(root) if root is not None else shared_leaves()
     out: dict = {}
     wheat = wheat_leaves(root)
-    s, phi, _ = _median_profile(wheat)
+    s = np.linspace(0, 1, 101)
     sr = read_sr(root / "adel" / "SRSo.csv")
     r_w = np.mean([np.interp(s, *sr[k]) for k in sorted(sr)], axis=0)
-    dims = _rows(root / "adel" / "Wheat_dimension_profiles.csv", ("L_blade", "W_blade"))
-    dims_a = np.array([v for _, v in dims])
-    i_max = int(np.argmax(dims_a[:, 0]))
-    L_w, W_w = dims_a[i_max] * 0.01
+    dims = _wheat_dims(root)
+    i_max = int(np.argmax(dims["L_blade"]))
+    L_w, W_w = dims["L_blade"][i_max], dims["W_blade"][i_max]
     traj = read_trajectories(root / "adel" / "echap_leaf_data" /
                              "median_leaf_trajectories_Tremie12.csv")[1]
+    w_all = wheat[medoid(curves_of(wheat))]
+    classes = {str(k): _class_entry([lf for lf in wheat if _rank_of(lf) == k], *sr[k])
+               for k in sorted(sr)}
     out["wheat"] = {
-        "source": "So99.csv (450 midribs, median angle), SRSo.csv (mean width), "
-                  "Wheat_dimension_profiles.csv (longest blade), Tremie12 trajectories",
+        "source": "So99.csv (450 midribs: medoid of all, and per rank class), SRSo.csv "
+                  "(widths per class), Wheat_dimension_profiles.csv (longest blade, "
+                  "per-rank dimensions), Tremie12 trajectories",
         "length": float(f"{L_w:.6g}"), "width": float(f"{W_w:.6g}"),
-        "s": _r6(s), "phi": _r6(phi), "s_r": _r6(s), "r": _r6(r_w / r_w.max()),
+        "s": _r6(s), "phi": _r6(w_all.phi_at(s)), "s_r": _r6(s), "r": _r6(r_w / r_w.max()),
         "twist_deg": 0.0, "undulation": 0.0, "wavelength": 0.05,
         "collection": {"ages": _r6(traj.ages), "s": _r6(traj.s),
-                       "phi": [_r6(row) for row in traj.phi], "source": traj.source},
+                       "phi": [_r6(row) for row in traj.phi], "source": traj.source,
+                       "full_extension_age": 0.0},
+        "class_rule": "normalised_rank", "classes": classes, "dimensions": dims,
     }
     maize = maize_leaves(root)
     lmax = max(lf.length for lf in maize)
     big = [lf for lf in maize if lf.length >= 0.8 * lmax]
-    s, phi, r_m = _median_profile(big)
+    counts: dict[int, int] = {}
+    for lf in maize:
+        counts[_rank_of(lf)] = counts.get(_rank_of(lf), 0) + 1
+    m_classes = {}
+    for grp in _group_ranks(counts):
+        members = [lf for lf in maize if _rank_of(lf) in grp]
+        r_m = np.median([lf.r_at(s) for lf in members], axis=0)
+        entry = _class_entry(members, s, r_m)
+        entry["ranks"] = grp
+        m_classes["-".join(map(str, (grp[0], grp[-1]))) if len(grp) > 1 else str(grp[0])] = entry
+    m_all = maize[medoid(curves_of(maize))]
     out["maize"] = {
-        "source": f"maize_leaves_db (median of the {len(big)} leaves >= 80% of the longest)",
+        "source": f"maize_leaves_db (medoid of the {len(maize)} leaves; length and width: "
+                  f"median of the {len(big)} leaves >= 80% of the longest; classes per rank "
+                  "group)",
         "length": float(f"{np.median([lf.length for lf in big]):.6g}"),
         "width": float(f"{np.median([lf.width for lf in big]):.6g}"),
-        "s": _r6(s), "phi": _r6(phi), "s_r": _r6(s), "r": _r6(r_m),
+        "s": _r6(s), "phi": _r6(m_all.phi_at(s)), "s_r": _r6(s),
+        "r": _r6(np.median([lf.r_at(s) for lf in big], axis=0)),
         "twist_deg": 30.0, "undulation": 0.004, "wavelength": 0.06,
         "hand_set": ["twist_deg", "undulation", "wavelength"],
+        "class_rule": "rank_groups", "classes": m_classes,
     }
-    ranks = sorted({int(lf.name.split()[1][1:]) for lf in wheat})
-    bent = min(ranks, key=lambda k: np.median(
-        [lf.phi[-1] for lf in wheat if lf.name.split()[1] == f"r{k}"]))
-    cls_leaves = [lf for lf in wheat if lf.name.split()[1] == f"r{bent}"]
-    s, phi, _ = _median_profile(cls_leaves)
+    bent = min(sr, key=lambda k: np.median(
+        [lf.phi[-1] for lf in wheat if _rank_of(lf) == k]))
+    cls_leaves = [lf for lf in wheat if _rank_of(lf) == bent]
+    sm, phi, _ = _median_profile(cls_leaves)
     out["grass"] = {
         "source": f"So99.csv rank class {bent} (most bent; median angle), SRSo class {bent}",
         "length": 0.3, "width": 0.006,
-        "s": _r6(s), "phi": _r6(phi), "s_r": _r6(s),
-        "r": _r6(np.interp(s, *sr[bent]) / sr[bent][1].max()),
+        "s": _r6(sm), "phi": _r6(phi), "s_r": _r6(sm),
+        "r": _r6(np.interp(sm, *sr[bent]) / sr[bent][1].max()),
         "twist_deg": 180.0, "undulation": 0.0, "wavelength": 0.05,
         "hand_set": ["length", "width", "twist_deg"],
     }

@@ -76,17 +76,18 @@ class LeafTimeline:
     def __init__(self, shape: ShapeLike, rates: GrowthRates | None = None,
                  duration: float = 1.0, dt: float | None = None,
                  initial: LeafState | None = None, hidden: float = 0.0,
-                 extension_end: float = EXTENSION_END) -> None:
+                 extension_end: float | None = None) -> None:
         if not np.isfinite(duration) or duration <= 0:
             raise ParameterError(f"duration {duration!r} must be > 0 s")
         self.shape = shape
         self.rates = rates or GrowthRates(age_rate=1.0 / duration)
         self.duration = float(duration)
         self.hidden = float(hidden)
-        self.extension_end = extension_end
+        self.extension_end = float(getattr(shape, "extension_end", EXTENSION_END)
+                                   if extension_end is None else extension_end)
         steps = 400 if dt is None else max(1, int(np.ceil(duration / dt)))
         self.times = np.linspace(0.0, self.duration, steps + 1)
-        s0 = initial or state_at_age(shape, 0.0, extension_end, hidden)
+        s0 = initial or state_at_age(shape, 0.0, self.extension_end, hidden)
         self._states = self._integrate(s0)
 
     def _integrate(self, s0: LeafState) -> NDArray[np.float64]:

@@ -52,6 +52,7 @@ class LeafBatch:
     azimuth: Array
     plant: NDArray[np.int64]
     leaf: NDArray[np.int64]
+    ground: float | None = None
 
     @property
     def n(self) -> int:
@@ -123,6 +124,35 @@ def leaf_profile(shape, state, s: Array, twist: bool = True, undulation: bool = 
     return phi, seg, width, theta, amp, arg, s.copy()
 
 
+def rest_on_soil(batch: LeafBatch, ground: float = 0.0) -> LeafBatch:
+    """Bend every midrib at the soil plane ``z = ground`` as a real leaf does.
+
+    Walking from the base, a segment that would end below the soil is turned so it ends on
+    it (same length, so the arc length is kept); from there on the blade lies on the soil
+    (twist and undulation are flattened where the midrib touches it) and later segments
+    may only rise or run along it. Meshes of the result also clamp margin vertices to the
+    soil (``ground`` is kept on the batch), so no vertex is below ground.
+    """
+    phi = batch.phi.copy()
+    theta = batch.theta.copy()
+    amp = batch.wave_amp.copy()
+    z = batch.origin[:, 2].astype(float).copy()
+    dz = batch.seg * np.sin(phi)
+    for k in range(batch.k - 1):
+        low = z + dz[:, k] < ground
+        if low.any():
+            new_dz = np.minimum(ground - z[low], 0.0)
+            ratio = np.divide(new_dz, batch.seg[low, k], out=np.zeros_like(new_dz),
+                              where=batch.seg[low, k] > 0)
+            phi[low, k] = np.arcsin(np.clip(ratio, -1.0, 1.0))
+            theta[low, k + 1] = 0.0
+            amp[low, k + 1] = 0.0
+            z[low] += new_dz
+        z[~low] += dz[~low, k]
+    return LeafBatch(phi, batch.seg, batch.width, theta, amp, batch.wave_arg, batch.v,
+                     batch.origin, batch.azimuth, batch.plant, batch.leaf, float(ground))
+
+
 def concat_batches(batches: Sequence[LeafBatch]) -> LeafBatch:
     """One batch from several with the same ``K``."""
     ks = {b.k for b in batches}
@@ -130,7 +160,11 @@ def concat_batches(batches: Sequence[LeafBatch]) -> LeafBatch:
         raise ParameterError(f"batches have different sample counts {sorted(ks)}")
     names = ("phi", "seg", "width", "theta", "wave_amp", "wave_arg", "v", "origin", "azimuth",
              "plant", "leaf")
-    return LeafBatch(*[np.concatenate([getattr(b, f) for b in batches]) for f in names])
+    grounds = {b.ground for b in batches}
+    ground = grounds.pop() if len(grounds) == 1 else min(
+        (g for g in grounds if g is not None), default=None)
+    return LeafBatch(*[np.concatenate([getattr(b, f) for b in batches]) for f in names],
+                     ground=ground)
 
 
 def leaf_grid(batch: LeafBatch, u: ArrayLike, with_normals: bool = False):
@@ -169,6 +203,8 @@ def leaf_grid(batch: LeafBatch, u: ArrayLike, with_normals: bool = False):
         wave = batch.wave_amp[..., None] * (2 * ua) ** 2 * np.sin(batch.wave_arg[..., None]
                                                                   + side)
         pts += wave[..., None] * m[:, :, None, :]
+    if batch.ground is not None:
+        np.maximum(pts[..., 2], batch.ground, out=pts[..., 2])
     if not with_normals:
         return pts
     if waves:
@@ -292,4 +328,5 @@ def split_boundary_edge(mesh: Mesh, face: int | None = None, edge: int | None = 
 
 
 __all__ = ["LeafBatch", "concat_batches", "leaf_areas", "leaf_grid", "leaf_profile", "mesh_batch",
+           "rest_on_soil",
            "split_boundary_edge"]

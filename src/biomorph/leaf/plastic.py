@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.errors import ParameterError
-from biomorph.leaf.shape import LeafShape, MidribCollection
+from biomorph.leaf.shape import LeafShape
 
 Array = NDArray[np.float64]
 
@@ -108,8 +108,7 @@ def apply_op(shape: LeafShape, op: PlasticOp) -> LeafShape:
     coll = shape.collection
     if coll is not None:
         rows = [_apply_angles(coll.s, row, op) for row in coll.phi]
-        coll = MidribCollection(coll.ages, rows[0][0], np.array([r[1] for r in rows]),
-                                coll.source)
+        coll = coll.with_phi(rows[0][0], np.array([r[1] for r in rows]))
     return shape.with_(s=s, phi=phi, collection=coll)
 
 

@@ -40,7 +40,7 @@ from biomorph.core.curves import (
     solve_arc_length,
 )
 from biomorph.errors import InputError, ParameterError
-from biomorph.leaf.age import check_age
+from biomorph.leaf.age import EXTENSION_END, check_age
 
 Array = NDArray[np.float64]
 
@@ -92,6 +92,7 @@ class MidribCollection:
     s: Array
     phi: Array
     source: str = ""
+    full_extension_age: float | None = None
 
     def __post_init__(self) -> None:
         ages = _as_1d("collection ages", self.ages)
@@ -108,14 +109,30 @@ class MidribCollection:
 
     @classmethod
     def from_curves(cls, ages: ArrayLike, curves: list[tuple[ArrayLike, ArrayLike]],
-                    n: int = 51, source: str = "") -> MidribCollection:
+                    n: int = 51, source: str = "", full_extension_age: float | None = None
+                    ) -> MidribCollection:
         """Build from one digitised curve ``(x, y)`` per age (any units, any point count)."""
         s_common = np.linspace(0.0, 1.0, n)
         rows = []
         for x, y in curves:
             s, phi, _ = angles_from_points(x, y)
             rows.append(np.interp(s_common, s, phi))
-        return cls(np.asarray(ages, float), s_common, np.array(rows), source)
+        return cls(np.asarray(ages, float), s_common, np.array(rows), source,
+                   full_extension_age)
+
+    def with_phi(self, s: ArrayLike, phi: ArrayLike) -> MidribCollection:
+        """Same ages and metadata, new knots and angles."""
+        return MidribCollection(self.ages, np.asarray(s, float), np.asarray(phi, float),
+                                self.source, self.full_extension_age)
+
+    @property
+    def extension_end(self) -> float | None:
+        """Normalised age of full extension (``full_extension_age`` in data units), or
+        ``None`` when the collection does not say."""
+        if self.full_extension_age is None or self.ages.size < 2:
+            return None
+        span = self.ages[-1] - self.ages[0]
+        return float(np.clip((self.full_extension_age - self.ages[0]) / span, 0.0, 1.0))
 
     def data_age(self, age: ArrayLike) -> Array:
         """Stored-age value of normalised ``age`` in [0, 1]."""
@@ -247,9 +264,17 @@ class LeafShape:
 
     # ------------------------------------------------------------------ constructors
     @classmethod
-    def from_preset(cls, name: str, **overrides: Any) -> LeafShape:
-        """A built-in preset (``maize``, ``wheat``, ``grass``) fitted to real leaves."""
-        data = load_presets()
+    def from_preset(cls, name: str, rank_class: str | int | None = None, member: int = 0,
+                    **overrides: Any) -> LeafShape:
+        """A built-in preset (``maize``, ``wheat``, ``grass``) fitted to real leaves.
+
+        ``rank_class`` picks one of the preset's shape classes (wheat: So99 rank classes
+        ``1``..``6``; maize: rank groups such as ``"12"`` or ``"14-16"``; see
+        :func:`preset_classes` and :func:`class_of_rank`): its medoid midrib, its width
+        profile, its median length and width. ``member`` > 0 picks another leaf of the
+        class's member database (ADEL-like draws). Overrides replace fields.
+        """
+        data = _presets()
         if name not in data:
             raise ParameterError(f"unknown leaf preset {name!r}; expected one of "
                                  f"{', '.join(sorted(data))}")
@@ -258,11 +283,28 @@ class LeafShape:
         if "collection" in p:
             c = p["collection"]
             coll = MidribCollection(np.array(c["ages"]), np.array(c["s"]), np.array(c["phi"]),
-                                    c.get("source", ""))
+                                    c.get("source", ""), c.get("full_extension_age"))
+        label = name
+        if rank_class is not None:
+            classes = p.get("classes", {})
+            key = str(rank_class)
+            if key not in classes:
+                raise ParameterError(f"preset {name!r} has no shape class {rank_class!r}; "
+                                     f"expected one of {', '.join(classes) or '(none)'}")
+            cp = classes[key]
+            phis = cp["members_phi"]
+            if not 0 <= member < len(phis):
+                raise ParameterError(f"member {member} of class {key} of {name!r} is outside "
+                                     f"0..{len(phis) - 1}")
+            p = {**p, "s": cp["s"], "phi": phis[member], "s_r": cp["s_r"], "r": cp["r"],
+                 "length": cp["length"], "width": cp["width"]}
+            label = f"{name} class {key}" + (f" member {member}" if member else "")
         shape = cls(np.array(p["s"]), np.array(p["phi"]), np.array(p["s_r"]), np.array(p["r"]),
                     p["length"], p["width"], twist=np.radians(p.get("twist_deg", 0.0)),
                     undulation=p.get("undulation", 0.0), wavelength=p.get("wavelength", 0.05),
-                    collection=coll, name=name, meta={"source": p.get("source", "")})
+                    collection=coll, name=label,
+                    meta={"source": p.get("source", ""), "preset": name,
+                          "rank_class": None if rank_class is None else str(rank_class)})
         return replace(shape, **overrides) if overrides else shape
 
     @classmethod
@@ -315,11 +357,27 @@ class LeafShape:
         return replace(self, **changes)
 
     # ------------------------------------------------------------------ evaluation
+    @property
+    def extension_end(self) -> float:
+        """Normalised age at which the blade reaches full length: from the collection when
+        it records its full-extension age (wheat Tremie12: age 0 of −2..12 phyllochrons →
+        2/14 = 0.143), else :data:`~biomorph.leaf.age.EXTENSION_END`."""
+        ext = None if self.collection is None else self.collection.extension_end
+        return EXTENSION_END if ext is None else ext
+
     def phi_at(self, s: ArrayLike, age: float | None = None) -> Array:
-        """Tangent angle (radians) at ``s``; from the collection at ``age`` when given."""
-        if age is not None and self.collection is not None:
-            return self.collection.phi_at(check_age(age), s)
-        return np.interp(np.asarray(s, float), self.s, self.phi)
+        """Tangent angle (radians) at ``s``; at ``age`` when given.
+
+        A growing leaf is the mature shape plus the collection's change of angle since full
+        extension, ``φ(s) + N_φ(age, s) − N_φ(a_ext, s)``: at full extension it equals the
+        mature shape exactly, younger leaves are straighter, older ones droop as the
+        measured collection does. Without a collection the shape does not change with age.
+        """
+        base = np.interp(np.asarray(s, float), self.s, self.phi)
+        if age is None or self.collection is None:
+            return base
+        c = self.collection
+        return base + c.phi_at(check_age(age), s) - c.phi_at(self.extension_end, s)
 
     def theta_at(self, s: ArrayLike) -> Array:
         """Twist angle θ(s) (radians) about the midrib at mature coordinate ``s``."""
@@ -388,5 +446,51 @@ def load_presets() -> dict[str, Any]:
     return json.loads(_presets_text())
 
 
+@lru_cache(maxsize=1)
+def _presets_cached() -> dict[str, Any]:
+    return json.loads(_presets_text())
+
+
+def _presets() -> dict[str, Any]:
+    """The parsed preset table shared by the readers in this module (do not mutate)."""
+    return _presets_cached()
+
+
+def preset_classes(name: str) -> dict[str, dict[str, Any]]:
+    """Shape classes of a preset: ``{key: {n_leaves, median_maxdist, spread, ranks?...}}``."""
+    data = _presets()
+    if name not in data:
+        raise ParameterError(f"unknown leaf preset {name!r}; expected one of "
+                             f"{', '.join(sorted(data))}")
+    return {k: {**{f: v for f, v in c.items()
+                   if f not in ("members_phi", "phi", "s", "r", "s_r")},
+                "n_members": len(c["members_phi"])}
+            for k, c in data[name].get("classes", {}).items()}
+
+
+def class_of_rank(name: str, rank: int, n_ranks: int) -> str | None:
+    """Shape class of leaf ``rank`` (1 = lowest) on a plant of ``n_ranks`` leaves.
+
+    * wheat (``normalised_rank``): the So99 classes split the leaves of a stem in six equal
+      parts from the bottom, class ``ceil(6 · rank / n_ranks)``;
+    * maize (``rank_groups``): the group holding that rank (the digitised ranks 2..16; a
+      rank outside falls in the nearest group).
+    Returns ``None`` for presets without classes.
+    """
+    p = _presets().get(name, {})
+    classes = p.get("classes")
+    if not classes:
+        return None
+    if rank < 1 or n_ranks < 1 or rank > n_ranks:
+        raise ParameterError(f"leaf rank {rank} is outside 1..{n_ranks}")
+    keys = list(classes)
+    if p.get("class_rule") == "normalised_rank":
+        k = int(np.clip(np.ceil(len(keys) * rank / n_ranks), 1, len(keys)))
+        return keys[k - 1]
+    best = min(keys, key=lambda key: min(abs(rank - r) for r in classes[key]["ranks"]))
+    return best
+
+
 __all__ = ["LeafShape", "MidribCollection", "PRESET_NAMES", "angles_from_points", "check_age",
-           "integrate_angles", "load_presets", "midrib_arc_length", "solve_arc_length"]
+           "class_of_rank", "integrate_angles", "load_presets", "midrib_arc_length",
+           "preset_classes", "solve_arc_length"]

@@ -1,0 +1,95 @@
+"""Shape classes fitted to digitised leaves, and the distance used to judge them.
+
+Distance between two leaves: both midribs are scaled to unit length and sampled at the
+same 101 arc-length fractions; the distance is the **maximum** Euclidean distance between
+corresponding points, in units of the leaf length ``L`` (so 0.1 means "never further than a
+tenth of the leaf length apart"). This is the figure ``bench/leaf.py`` reports per class.
+
+A class's shape is its **medoid**: the digitised leaf whose median distance to the other
+leaves of the class is smallest. Unlike a median of tangent angles (which averages two
+families of arching and erect leaves into a shape that belongs to neither), the medoid is a
+real leaf of the class and minimises the median distance among real shapes. The spread of
+a class is the median pairwise distance between its leaves; a fitted shape is *within the
+spread* when its median distance to the class is below that.
+
+ADEL (openalea.adel) does not use one shape per class: it draws a leaf at random from the
+class database. :func:`class_members` keeps the ``k`` greedy medoids of a class (k chosen
+so the median distance of the class to its nearest member is at most ``target``), which
+plants then draw from with their seed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from biomorph.core.curves import integrate_angles
+
+Array = NDArray[np.float64]
+
+#: Arc-length fractions at which midribs are compared.
+COMPARE_S = np.linspace(0.0, 1.0, 101)
+
+
+def unit_curve(phi_at, s: Array = COMPARE_S) -> Array:
+    """Unit-length midrib ``(len(s), 2)`` of a tangent-angle function ``phi_at(s)``."""
+    mid = 0.5 * (s[1:] + s[:-1])
+    return integrate_angles(np.asarray(phi_at(mid), float), np.diff(s))
+
+
+def curves_of(shapes: Sequence) -> Array:
+    """Unit midribs ``(n, 101, 2)`` of leaf shapes (objects with ``phi_at``)."""
+    return np.array([unit_curve(sh.phi_at) for sh in shapes])
+
+
+def max_distances(curves: Array, ref: Array) -> Array:
+    """Max point distance (units of L) of each curve ``(n, k, 2)`` to ``ref`` ``(k, 2)``."""
+    return np.linalg.norm(curves - ref[None], axis=-1).max(axis=-1)
+
+
+def pairwise(curves: Array) -> Array:
+    """Matrix of max point distances between all curves ``(n, n)``."""
+    n = curves.shape[0]
+    out = np.zeros((n, n))
+    for i in range(n):
+        out[i] = max_distances(curves, curves[i])
+    return out
+
+
+def medoid(curves: Array, dist: Array | None = None) -> int:
+    """Index of the curve with the smallest median distance to the others."""
+    d = pairwise(curves) if dist is None else dist
+    return int(np.argmin(np.median(d, axis=1)))
+
+
+def class_members(curves: Array, target: float = 0.1, k_max: int = 12,
+                  dist: Array | None = None) -> list[int]:
+    """Greedy medoids: start from :func:`medoid`, add the curve that lowers the median
+    nearest-member distance most, until it is ``<= target`` or ``k_max`` members."""
+    d = pairwise(curves) if dist is None else dist
+    members = [medoid(curves, d)]
+    while len(members) < min(k_max, len(curves)):
+        near = d[:, members].min(axis=1)
+        if np.median(near) <= target:
+            break
+        scores = np.median(np.minimum(near[:, None], d), axis=0)
+        scores[members] = np.inf
+        members.append(int(np.argmin(scores)))
+    return members
+
+
+def class_figures(curves: Array, ref: Array, dist: Array | None = None) -> dict[str, float]:
+    """Median / 90th percentile distance of the class to ``ref`` and the class spread."""
+    d = pairwise(curves) if dist is None else dist
+    e = max_distances(curves, ref)
+    iu = np.triu_indices(len(curves), 1)
+    return {"n": int(len(curves)), "median_maxdist": float(np.median(e)),
+            "p90_maxdist": float(np.percentile(e, 90)),
+            "spread": float(np.median(d[iu])) if iu[0].size else 0.0,
+            "chord_deg": float(np.degrees(np.arctan2(ref[-1, 1], ref[-1, 0])))}
+
+
+__all__ = ["COMPARE_S", "class_figures", "class_members", "curves_of", "max_distances",
+           "medoid", "pairwise", "unit_curve"]
