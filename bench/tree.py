@@ -3,6 +3,15 @@
     .venv/bin/python bench/tree.py              # 14k + 100k timing, accuracy, real data
     .venv/bin/python bench/tree.py --full       # + 1,000,000 points
     .venv/bin/python bench/tree.py --only speed|accuracy|real [--seeds 3]
+    .venv/bin/python bench/tree.py --only peers [--clouds rtwig_cloud.txt] [--no-pytlidar]
+    .venv/bin/python bench/tree.py --only truth [--seeds 3] [--sizes 60000 240000]
+
+``peers`` prints one table per real cloud: measure × (each reference model, biomorph graph,
+biomorph voxel, pytlidar -- PyPI's Python TreeQSM, install with ``pip install --no-deps
+pytlidar plotly``), with wall and CPU seconds of the same run; every model is read as a
+BranchGraph and measured by the same functions (:mod:`biomorph.tree.metrics`).
+``truth`` compares volume (total and per diameter class), length and F1 with the synthetic
+truth of the presets (clean and 8 mm noise + occlusion + leaves).
 
 Prints markdown tables with the thesis's figures beside ours. Each timing runs in a fresh
 subprocess so its peak memory (``ru_maxrss``) is its own. Times are wall-clock seconds on
@@ -20,6 +29,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "trees"
@@ -187,10 +197,240 @@ def real() -> None:
               f"{100 * np.median(dbh) if dbh else float('nan'):.1f} | {dt:.1f} |")
 
 
+# ----------------------------------------------------------------------------- peers (issue 13)
+
+#: the clouds of the peer table, and the reference models that come with them
+PEER_CLOUDS = ("rtwig_cloud.txt", "plantscan3d_A3B4.asc", "adtree_tree1.xyz",
+               "adtree_tree7.xyz", "archi_tree2.las", "treels_spruce.laz",
+               "treels_pine_plot.laz", "adtree_tiny_for_debug.xyz")
+#: pytlidar is a single-tree method (TreeQSM): a plot of several trees is not its input
+SINGLE_TREE_ONLY = {"treels_pine_plot.laz"}
+
+
+def cylinders_to_graph(start, axis, length, radius, parent, order):
+    """A cylinder model (``parent`` 0-based, -1 = none) as a BranchGraph: one node at the end
+    of every cylinder plus one at the start of every root cylinder; each node carries its
+    cylinder's radius and branch order, so tree A's metrics read every model alike."""
+    from biomorph.core.graph import BranchGraph
+
+    start = np.asarray(start, float).reshape(-1, 3)
+    end = start + np.asarray(axis, float).reshape(-1, 3) * np.asarray(length, float)[:, None]
+    parent = np.asarray(parent, np.int64)
+    m = parent.size
+    roots = np.flatnonzero(parent < 0)
+    par = np.where(parent >= 0, parent, m + np.searchsorted(roots, np.arange(m)))
+    rad = np.asarray(radius, float)
+    dep = np.asarray(order, np.int64)
+    return BranchGraph(np.vstack([end, start[roots]]), np.concatenate([par, np.full(roots.size,
+                                                                                    -1)]),
+                       radius=np.concatenate([rad, rad[roots]]),
+                       depth=np.concatenate([dep, dep[roots]]))
+
+
+def read_treeqsm_mat(path: Path):
+    """TreeQSM's ``OptQSM.cylinder`` (MATLAB, 1-based parents, 0 = none) as a BranchGraph."""
+    import scipy.io as sio
+
+    q = sio.loadmat(path, squeeze_me=True, struct_as_record=False)["OptQSM"]
+    c = q.cylinder
+    return cylinders_to_graph(c.start, c.axis, c.length, c.radius,
+                              np.asarray(c.parent, np.int64) - 1, c.BranchOrder)
+
+
+def run_pytlidar(xyz: NDArray) -> dict:
+    """PyTLidar's TreeQSM on the points, with its own input estimate (``define_input``);
+    no plots or files. Returns the BranchGraph, wall and CPU seconds (or ``error``)."""
+    import contextlib
+    import io
+    import logging
+    import os
+    import tempfile
+
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    logging.getLogger("matplotlib.font_manager").setLevel(logging.ERROR)
+    try:
+        from PyTLidar.treeqsm import treeqsm
+        from PyTLidar.Utils.define_input import define_input
+    except ImportError:
+        return {"error": "pytlidar not installed (pip install --no-deps pytlidar plotly)"}
+    t0, c0 = time.perf_counter(), time.process_time()
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), tempfile.TemporaryDirectory() as tmp:
+            inp = define_input(np.asarray(xyz, float), 1, 1, 1)[0]
+            inp.update(plot=0, savetxt=0, savemat=0, disp=0, savepdf=0)
+            models, _ = treeqsm(np.asarray(xyz, float), inp, results_location=tmp)
+        c = models[0]["cylinder"]
+        par = np.asarray(c["parent"], np.int64)
+        par = par - 1 if par.min() >= 0 and par[0] == 0 and par.size > 1 and par[1] == 1 else par
+        g = cylinders_to_graph(c["start"], c["axis"], c["length"], c["radius"], par,
+                               c["BranchOrder"])
+        out: dict = {"graph": g}
+    except Exception as exc:  # noqa: BLE001 - a peer failing is a result, not a crash
+        out = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
+    out.update(wall=time.perf_counter() - t0, cpu=time.process_time() - c0)
+    return out
+
+
+def run_biomorph(cloud, method: str) -> dict:
+    from biomorph.tree.pipeline import skeletonize
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    try:
+        skel = skeletonize(cloud, method=method)
+        out: dict = {"graph": skel.world_graph(), "trees": skel.metrics.get("n_trees")}
+    except Exception as exc:  # noqa: BLE001 - reported in the table
+        out = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
+    out.update(wall=time.perf_counter() - t0, cpu=time.process_time() - c0)
+    return out
+
+
+def model_measures(graph, xyz: NDArray, refs: dict) -> dict:
+    """The peer-table measures of one model (tree A's metrics; F1 against each reference)."""
+    from biomorph.tree.metrics import class_labels, cylinder_fit, tree_attributes, volume_by_class
+    from biomorph.tree.reference import compare_to_reference
+
+    attrs = tree_attributes(graph)
+    fit = cylinder_fit(graph, xyz)
+    vc = volume_by_class(graph)
+    row = {"volume": sum(a["total_volume"] for a in attrs) * 1e3,
+           "length": sum(a["total_length"] for a in attrs),
+           "trunk": max(a["trunk_length"] for a in attrs),
+           "tips": int(graph.leaves.size), "max_order": max(a["max_order"] for a in attrs),
+           "far": 100 * fit["far_share"]}
+    for lab in class_labels():
+        row[f"V {lab}"] = vc[lab]["volume"] * 1e3
+        res = fit["classes"][lab]["residual"]
+        row[f"res {lab}"] = 100 * res if np.isfinite(res) else float("nan")
+    for name, ref in refs.items():
+        row[f"F1 vs {name}"] = compare_to_reference(graph, ref, tolerance=0.05)["f1"]
+    return row
+
+
+PEER_ROWS = [("volume", "volume L", "{:.1f}"), ("length", "length m", "{:.1f}"),
+             ("trunk", "trunk length m", "{:.2f}"), ("tips", "tips", "{:d}"),
+             ("max_order", "max order", "{:d}")]
+
+
+def _fmt(v, f: str) -> str:
+    if v is None or (isinstance(v, float) and not np.isfinite(v)):
+        return "—"
+    return f.format(int(v)) if "d" in f else f.format(v)
+
+
+def peers(names: tuple[str, ...], with_pytlidar: bool = True) -> None:
+    from biomorph.io import read_graph, read_points
+    from biomorph.tree.metrics import class_labels
+    from biomorph.tree.reference import read_qsm_csv
+
+    if not DATA.is_dir():
+        print(f"\n(real data not found at {DATA}; skipped)")
+        return
+    for name in names:
+        cloud = read_points(DATA / name)
+        xyz = cloud.xyz
+        refs: dict = {}
+        if name == "rtwig_cloud.txt":
+            refs["TreeQSM"] = read_treeqsm_mat(DATA / "rtwig_QSM_treeqsm.mat")
+            refs["SimpleForest"] = read_qsm_csv(DATA / "rtwig_QSM_simpleforest.csv")
+        if name == "plantscan3d_A3B4.asc":
+            m = read_graph(DATA / "plantscan3d_A3B4.mtg")
+            refs["plantscan3d"] = m.with_(position=m.position + xyz.mean(axis=0))
+        cols: dict[str, dict] = {k: {"graph": g, "wall": None, "cpu": None}
+                                 for k, g in refs.items()}
+        cols["biomorph graph"] = run_biomorph(cloud, "graph")
+        cols["biomorph voxel"] = run_biomorph(cloud, "voxel")
+        if with_pytlidar and name not in SINGLE_TREE_ONLY:
+            cols["pytlidar"] = run_pytlidar(xyz)
+        meas = {}
+        for k, c in cols.items():
+            if "graph" in c:
+                try:
+                    meas[k] = model_measures(c["graph"], xyz, refs)
+                except Exception as exc:  # noqa: BLE001 - reported in the table
+                    c["error"] = f"{type(exc).__name__}: {str(exc)[:80]}"
+        print(f"\n### {name} ({cloud.n_points:,} points)\n")
+        print("| measure | " + " | ".join(cols) + " |")
+        print("|---|" + "---|" * len(cols))
+        rows = list(PEER_ROWS)
+        rows += [(f"F1 vs {r}", f"F1@5 cm vs {r}", "{:.3f}") for r in refs]
+        rows += [(f"V {lab}", f"volume {lab} L", "{:.2f}") for lab in class_labels()]
+        rows += [("far", "points > 10 cm from every cylinder %", "{:.1f}")]
+        rows += [(f"res {lab}", f"median signed residual {lab} % of r", "{:+.0f}")
+                 for lab in class_labels()]
+        for key, label, f in rows:
+            cells = [_fmt(meas[k].get(key), f) if k in meas else "—" for k in cols]
+            print(f"| {label} | " + " | ".join(cells) + " |")
+        for what in ("wall", "cpu"):
+            cells = [_fmt(c.get(what), "{:.1f}") for c in cols.values()]
+            print(f"| {what} s | " + " | ".join(cells) + " |")
+        for k, c in cols.items():
+            if "error" in c:
+                print(f"\n{k}: {c['error']}")
+        if "pytlidar" in cols and cols["pytlidar"].get("cpu"):
+            g, p = cols["biomorph graph"], cols["pytlidar"]
+            print(f"\nSpeed: pytlidar / biomorph graph = {p['wall'] / g['wall']:.1f}× wall, "
+                  f"{p['cpu'] / g['cpu']:.1f}× CPU (same run).")
+        sys.stdout.flush()
+
+
+def truth_table(seeds: int, sizes: tuple[int, ...], methods: tuple[str, ...]) -> None:
+    """Synthetic truth: total volume, volume per diameter class, length and F1 (issue 13)."""
+    from biomorph.tree.metrics import class_labels, compare_to_truth, volume_by_class
+    from biomorph.tree.pipeline import skeletonize
+    from biomorph.tree.synthetic import PRESETS, generate_tree, simulate_scan
+
+    conditions = {"clean": dict(noise=0.002, occlusion=False, scanners=4),
+                  "8 mm+occl.": dict(noise=0.008, occlusion=True, scanners=2, leaves=0.05)}
+    labs = class_labels()
+    print(f"\n### Against synthetic truth (seeds 0..{seeds - 1}, median over seeds; "
+          "ratios to the truth in %)\n")
+    print("| preset | condition | points | method | volume | " + " | ".join(labs)
+          + " | length | F1 | s |")
+    print("|---|---|---|---|---|" + "---|" * len(labs) + "---|---|---|")
+    for preset in sorted(PRESETS):
+        for cname, kw in conditions.items():
+            for n in sizes:
+                res: dict[str, list] = {m: [] for m in methods}
+                for seed in range(seeds):
+                    truth = generate_tree(preset, seed=seed)
+                    cloud = simulate_scan(truth, n_points=n, seed=seed, ground=True, **kw)
+                    vt = volume_by_class(truth)
+                    tv = sum(v["volume"] for v in vt.values())
+                    for method in methods:
+                        t0 = time.perf_counter()
+                        try:
+                            g = skeletonize(cloud, method=method).world_graph()
+                        except Exception as exc:  # noqa: BLE001 - report and carry on
+                            print(f"<!-- {preset} {cname} {n} {method} {seed}: {exc} -->")
+                            continue
+                        dt = time.perf_counter() - t0
+                        vc = volume_by_class(g)
+                        c = compare_to_truth(g, truth, cloud=cloud)
+                        cls = [vc[lab]["volume"] / vt[lab]["volume"]
+                               if vt[lab]["volume"] > 1e-6 else np.nan for lab in labs]
+                        res[method].append([sum(v["volume"] for v in vc.values()) / tv, *cls,
+                                            c["tbl_ratio"], c["f1"], dt])
+                for method, vals in res.items():
+                    if not vals:
+                        continue
+                    v = np.nanmedian(np.array(vals, dtype=float), axis=0)
+                    cells = " | ".join(_fmt(100 * x, "{:.0f}") for x in v[1:1 + len(labs)])
+                    print(f"| {preset} | {cname} | {n:,} | {method} | {100 * v[0]:.0f} | "
+                          f"{cells} | {100 * v[-3]:.0f} | {v[-2]:.3f} | {v[-1]:.1f} |")
+                sys.stdout.flush()
+    print("\nTargets: volume ±10 %, each class ±20 %, length ±10 %, F1 ≥ 0.9.")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also time 1,000,000 points")
-    ap.add_argument("--only", choices=("speed", "accuracy", "real"))
+    ap.add_argument("--only", choices=("speed", "accuracy", "real", "peers", "truth"))
+    ap.add_argument("--clouds", nargs="*", default=list(PEER_CLOUDS),
+                    help="real clouds of the peer table (names in ../shared/data/trees)")
+    ap.add_argument("--no-pytlidar", action="store_true", help="peer table without pytlidar")
+    ap.add_argument("--sizes", type=int, nargs="*", default=[60_000, 240_000],
+                    help="points per synthetic scan of the truth table")
+    ap.add_argument("--methods", nargs="*", default=["graph", "voxel"])
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--points", type=int, default=60_000, help="points per synthetic scan")
     ap.add_argument("--tip-support", type=float, default=None,
@@ -207,6 +447,10 @@ def main() -> None:
         accuracy(a.seeds, a.points, a.tip_support)
     if a.only in (None, "real"):
         real()
+    if a.only in (None, "peers"):
+        peers(tuple(a.clouds), not a.no_pytlidar)
+    if a.only in (None, "truth"):
+        truth_table(a.seeds, tuple(a.sizes), tuple(a.methods))
 
 
 if __name__ == "__main__":
