@@ -23,7 +23,7 @@ try:
 except SystemExit:
     pass
 heavy = sorted({{m.split('.')[0] for m in sys.modules}} & set({heavy!r}))
-print(','.join(heavy))
+print('HEAVY=' + ','.join(heavy))
 """
 
 
@@ -33,5 +33,7 @@ print(','.join(heavy))
 def test_help_loads_no_numeric_stack(argv):
     out = subprocess.run([sys.executable, "-c", PROBE.format(argv=argv, heavy=HEAVY)],
                          capture_output=True, text=True, timeout=120, check=True)
-    heavy = out.stdout.strip().splitlines()[-1] if out.stdout.strip() else ""
+    marks = [ln for ln in out.stdout.splitlines() if ln.startswith("HEAVY=")]
+    assert marks, out.stdout + out.stderr
+    heavy = marks[-1].removeprefix("HEAVY=")
     assert heavy == "", f"biomorph {' '.join(argv)} imported {heavy}"
