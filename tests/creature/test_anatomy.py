@@ -31,3 +31,39 @@ def test_back_splits_into_thoracic_lumbar_sacral_in_mammals_only():
     assert back.count("sacral") == 3 and back.count("lumbar") == 5
     assert back[-1] == "sacral" and back[0] == "thoracic"
     assert "lumbar" not in vertebra_parts(vreg, "reptile")
+
+
+def test_feet_are_digits_with_end_joints_and_carry_the_contacts():
+    from biomorph.creature.balance import convex_hull
+
+    for seed, kw in ((3, {"legs": 4}), (4, {"cls": "bird"}), (9, {"legs": 4, "weight": 600.0})):
+        c = generate(seed, **kw)
+        parts = set(c.part)
+        assert "mandible" in parts and "phalanx" in parts
+        assert parts & {"hoof", "claw", "nail"}
+        jaw = c.part.index("mandible")
+        assert c.part[c.skeleton.parent[jaw]] == "skull"
+        # every contact is a digit joint / end-bone tip or a flat foot's ankle, on the ground
+        for cp, j in zip(c.contacts, c.contact_joint, strict=True):
+            assert c.part[j] in ("phalanx", "hoof", "claw", "nail", "metatarsal", "metacarpal")
+            assert abs(cp[1]) <= 1e-6 * c.height
+        # the balance report's support polygon is the hull of those contact points
+        hull = convex_hull(c.contacts[:, [0, 2]])
+        assert len(hull) == len(c.balance.support) and c.balance.stable
+        # end joints end their digit: no children
+        ends = [j for j, p in enumerate(c.part) if p in ("hoof", "claw", "nail")]
+        assert not set(ends) & set(c.skeleton.parent.tolist())
+
+
+def test_digit_counts_follow_class_and_foot_posture():
+    from biomorph.creature.feet import digit_plan
+
+    assert len(digit_plan("leg", "hind", "mammal", "unguligrade")) == 2
+    assert {d.end for d in digit_plan("leg", "hind", "mammal", "unguligrade")} == {"hoof"}
+    assert len(digit_plan("leg", "fore", "mammal", "digitigrade")) == 4
+    assert len(digit_plan("leg", "hind", "mammal", "plantigrade")) == 5
+    bird = digit_plan("leg", "hind", "bird", "digitigrade")
+    assert len(bird) == 4 and sum(d.backward for d in bird) == 1
+    assert digit_plan("fin", "fore", "fish", "plantigrade") == ()
+    assert {d.end for d in digit_plan("arm", "fore", "mammal", "plantigrade", "primate")} == {
+        "nail"}

@@ -22,7 +22,7 @@ def test_json_and_obj(creature, tmp_path):
     assert d["n_joints"] == len(creature) and d["balance"]["stable"]
     assert np.isclose(sum(b["mass"] for b in d["bones"]), creature.total_mass)
     from biomorph.io.obj import read_mesh
-    m = read_mesh(export(creature, tmp_path / "c.obj"))
+    m = read_mesh(export(creature, tmp_path / "c.obj", bone_shape="box"))
     assert m.n_faces == 12 * int(np.sum(creature.bone_length > 0))
 
 

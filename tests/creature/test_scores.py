@@ -62,13 +62,13 @@ def test_two_pc1_scores_differ_along_pc1():
     assert (len(lo) != len(hi) or not np.allclose(lo.joint_positions, hi.joint_positions))
 
 
-# creature before issue 7 (commit 35bdde5): joints, total mass, sum of joint positions.
-# Compared to 1e-9: the last digits follow the numpy/BLAS build (a fresh install on
-# 2026-12-01 moved the masses by 7e-12 relative); any real change of the generator moves
-# them by far more. With and without scores=None are compared bit for bit below.
-OLD = {0: (65, 3556.944733708012, 93.64512260633762),
-       5: (81, 291.4771989996077, -16.073428193876346),
-       11: (70, 76.4498661303456, 48.2879640024899)}
+# reference creatures (issue 14: digits, jaw and contact-based balance): joints, total mass,
+# sum of joint positions. Compared to 1e-9: the last digits follow the numpy/BLAS build; any
+# real change of the generator moves them by far more. With and without scores=None are
+# compared bit for bit below.
+OLD = {0: (114, 3556.944733731626, 142.88355749294033),
+       5: (88, 291.4771990027269, -9.354815545115699),
+       11: (87, 76.44986612979811, 54.33274989622435)}
 
 
 @pytest.mark.parametrize("seed", sorted(OLD))

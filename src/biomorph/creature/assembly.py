@@ -18,6 +18,7 @@ from biomorph.core import transforms as tf
 from biomorph.core.skeleton import JointSkeleton
 from biomorph.creature import anatomy as an
 from biomorph.creature import balance as bal
+from biomorph.creature import feet
 from biomorph.creature import limbs as lb
 from biomorph.creature import mass as ms
 from biomorph.creature import skulls as sk
@@ -29,9 +30,15 @@ from biomorph.creature.states import LimbsState, SkullState, SpineState
 
 _M = np.diag([1.0, 1.0, -1.0])
 
+#: Share of the distal segment's (hand / foot) soft-tissue volume carried by its digits (a
+#: human foot: toes ≈ 0.3 of the foot's mass; a horse's pastern and hoof ≈ 0.3 below the
+#: cannon bone).
+DIGIT_MASS_SHARE = 0.3
+
 #: Relative joint ranges (degrees, about local x, y, z) for spine/skull/girdle bones.
 SPINE_RANGE = {"neck": (20, 15, 30), "back": (5, 5, 8), "tail": (15, 12, 20),
-               "head": (25, 20, 40), "girdle": (5, 5, 10)}
+               "head": (25, 20, 40), "girdle": (5, 5, 10), "jaw": (3, 5, 35),
+               "digit": (10, 5, 60)}
 
 
 def _frames_from_dirs(d: NDArray) -> NDArray:
@@ -118,12 +125,13 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
         "anat_a": [np.zeros((m, 3))], "anat_l": [np.zeros((m, 3, 2))]}
 
     def put(names, parent, kind, region, side, W, pos, blen, box, volv, mc, msz, lim, aa, al,
-            part):
+            part, digit=None):
         blocks["names"] += names
         blocks["kind"] += kind
         blocks["region"] += region
         blocks["part"] += list(part)
-        blocks["digit"].append(np.zeros(len(names), np.int64))
+        blocks["digit"].append(np.zeros(len(names), np.int64) if digit is None
+                               else np.asarray(digit, np.int64))
         for key, val in (("parent", parent), ("side", side), ("W", W), ("pos", pos),
                          ("blen", blen), ("box", box), ("vol", volv), ("mass_c", mc),
                          ("mass_sz", msz), ("lim", lim), ("anat_a", aa), ("anat_l", al)):
@@ -135,12 +143,17 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
     d = np.array([np.cos(ang), np.sin(ang), 0.0])
     org = np.array([skull.origin[0], skull.origin[1], 0.0])
     sbox = sk.box_size(shape, skull.length)
-    put(["skull"], [slot[0]], ["skull"], ["head"], [0], _frames_from_dirs(d[None]), [org],
-        [skull.length], [sbox], [ms.ellipsoid_volume(sbox)],
-        [org + d * skull.length / 2], [sbox], [_RANGES["head"]], np.zeros((1, 3)),
-        np.zeros((1, 3, 2)), ["skull"])
-    n_now = m + 1
-    contacts, contact_joint, patches = [], [], []
+    Wsk = _frames_from_dirs(d[None])
+    jaw = sk.jaw(shape, skull.length, Wsk[0], org)
+    vsk = ms.ellipsoid_volume(sbox)
+    put(["skull", "jaw"], [slot[0], m], ["skull"] * 2, ["head"] * 2, [0, 0],
+        np.concatenate([Wsk, jaw.W[None]]), [org, jaw.pos], [skull.length, jaw.length],
+        [sbox, jaw.box], [(1 - sk.JAW_MASS_FRACTION) * vsk, sk.JAW_MASS_FRACTION * vsk],
+        [org + d * skull.length / 2, jaw.pos + jaw.W[:, 1] * jaw.length / 2], [sbox, jaw.box],
+        [_RANGES["head"], _RANGES["jaw"]], np.zeros((2, 3)), np.zeros((2, 3, 2)),
+        ["skull", "mandible"])
+    n_now = m + 2
+    contacts, contact_joint = [], []
     seg_names = ("girdle", "upper", "lower", "distal")
     for (gname, k, spec, at), (gpt, apt), pose, L3 in zip(
             limbs.places, limbs.attach, limbs.poses, limbs.lengths, strict=True):
@@ -166,6 +179,17 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
         aa = np.concatenate([np.zeros((1, 3)), pose.angles])
         al = np.concatenate([np.zeros((1, 3, 2)), pose.limits])
         kinds = ["girdle"] + [spec.kind] * 3
+        dg = limb_digits(pose, L3, spec.kind, gname, spine,
+                         limbs.ground if pose.contact is not None else None)
+        nd = len(dg.name)
+        dbox = np.stack([2 * dg.radius, np.maximum(dg.length, 1e-9), 2 * dg.radius], axis=1)
+        dmc = dg.pos + dg.W[:, :, 1] * (0.5 * dg.length)[:, None]
+        dvol = np.zeros(nd)
+        if nd:  # the digits carry their share of the hand / foot (mass unchanged in total)
+            dvol = DIGIT_MASS_SHARE * vols[2] * dg.length / max(dg.length.sum(), 1e-30)
+            vv = vv.copy()
+            vv[3] *= 1.0 - DIGIT_MASS_SHARE
+        dlim = np.stack([_RANGES["digit"]] * nd) if nd else np.zeros((0, 3, 2))
         for sd, sgn in (("r", 1), ("l", -1)):
             base = n_now
             par = [slot[vidx], base, base + 1, base + 2]
@@ -181,11 +205,18 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
                 [sgn] * 4, Ws, ps, bl, bx, vv, mcs, msz, lim, aas, als,
                 an.limb_parts(spec.kind, gname))
             n_now += 4
-            if pose.contact is not None:
+            if nd:
                 M = np.array([1.0, 1.0, float(sgn)])
-                contacts.append(pose.contact * M)
-                contact_joint.append(n_now - 1)
-                patches += pad(pose, L3, float(sgn))
+                dW = dg.W if sgn > 0 else _M @ dg.W @ _M
+                dpar = np.where(dg.parent < 0, n_now - 1, n_now + dg.parent)
+                put([f"{tag}_{nm}_{sd}" for nm in dg.name], dpar, [spec.kind] * nd,
+                    [gname] * nd, [sgn] * nd, dW, dg.pos * M, dg.length, dbox, dvol,
+                    dmc * M, dbox, dlim, np.zeros((nd, 3)), np.zeros((nd, 3, 2)), dg.part,
+                    dg.digit)
+            for cp, cl in zip(dg.contacts, dg.contact_local, strict=True):
+                contacts.append(cp * [1.0, 1.0, float(sgn)])
+                contact_joint.append(n_now - 1 if cl < 0 else n_now + int(cl))
+            n_now += nd
     names = blocks["names"]
     side = np.concatenate(blocks["side"])
     idx_of = {nm: i for i, nm in enumerate(names)}
@@ -202,7 +233,7 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
                 anat_l=cat["anat_l"], mirror=mirror, n=len(names),
                 contacts=np.array(contacts).reshape(-1, 3),
                 contact_joint=np.array(contact_joint, dtype=np.int64),
-                patches=np.array(patches).reshape(-1, 2), density=ms.density(cls),
+                patches=np.array(contacts).reshape(-1, 3)[:, [0, 2]], density=ms.density(cls),
                 ground=limbs.ground)
 
 
@@ -214,27 +245,27 @@ def balance_px(asm: dict, opts: Options) -> bal.BalanceReport:
                         opts.min_margin_fraction)
 
 
-#: Toe pad of a digitigrade/unguligrade foot: forward and backward reach from the contact
-#: point as fractions of the distal segment (toes/hoof are not modelled as bones).
-TOE_PAD = (0.45, 0.2)
+def limb_digits(pose: lb.LimbPose, L3: NDArray, kind: str, girdle: str, spine: SpineState,
+                ground: float | None) -> feet.Digits:
+    """Digit joints (right side, creature px) of one limb; a standing leg's digits lie on
+    ``ground`` and carry its contact points (:mod:`biomorph.creature.feet`)."""
+    role = "hind" if girdle == "hip" else "fore"
+    plan = feet.digit_plan(kind, role, spine.cls, foot_posture(spine, pose), spine.skull)
+    if L3[2] <= 1e-6 * max(float(np.sum(L3)), 1e-30):
+        plan = ()   # no hand / foot bone to carry digits
+    rb = ms.BONE_FRACTION * ms.LIMB_RADIUS[kind] * np.asarray(L3, float)
+    width = max(1.5 * rb[2], 0.02 * float(np.sum(L3)))
+    heel = pose.points[2] if pose.foot_flat and ground is not None else None
+    return feet.build(plan, pose.rotations[2] @ _RZ_PI, pose.points[3], float(L3[2]),
+                      float(rb[2]), width, ground, heel)
 
 
-def pad(pose: lb.LimbPose, L3: NDArray, sgn: float) -> list[NDArray]:
-    """Four (x, z) corners of one foot's contact patch (creature px)."""
-    rb = ms.BONE_FRACTION * ms.LIMB_RADIUS["leg"] * L3
-    wdt = max(1.5 * rb[2], 0.02 * L3.sum())
-    tip, ank = pose.points[3], pose.points[2]
+def foot_posture(spine: SpineState, pose: lb.LimbPose) -> str:
+    """The foot posture a leg actually stands in (a plantigrade foot that could not lie flat
+    stands on its toes)."""
     if pose.foot_flat:
-        dh = np.array([tip[0] - ank[0], sgn * (tip[2] - ank[2])])
-        nd = np.linalg.norm(dh)
-        dh = dh / nd if nd > 1e-9 else np.array([1.0, 0.0])
-        q0, q1 = np.array([ank[0], sgn * ank[2]]), np.array([tip[0], sgn * tip[2]])
-    else:
-        dh = np.array([1.0, 0.0])
-        c = np.array([tip[0], sgn * tip[2]])
-        q0, q1 = c - TOE_PAD[1] * L3[2] * dh, c + TOE_PAD[0] * L3[2] * dh
-    perp = np.array([-dh[1], dh[0]])
-    return [q0 + wdt * perp, q0 - wdt * perp, q1 + wdt * perp, q1 - wdt * perp]
+        return "plantigrade"
+    return "unguligrade" if spine.stance == "unguligrade" else "digitigrade"
 
 
 def depth_first(asm: dict) -> dict:

@@ -431,9 +431,10 @@ def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: 
              foot_clearance: float = 0.0) -> LimbPose:
     """Pose a leg with ground contact by the seed's descent.
 
-    Digitigrade/unguligrade: the tip of the distal bone touches the ground. Plantigrade: the
-    wrist/ankle comes down to ``ground + foot_clearance`` and the distal bone is laid flat,
-    pointing forward (the ankle angle is then set, not searched).
+    Digitigrade/unguligrade: the tip of the distal bone comes down to ``ground +
+    foot_clearance`` (the height its digits need to reach the ground, e.g. an ungulate's
+    pastern). Plantigrade: the wrist/ankle comes down to ``ground + foot_clearance`` and the
+    distal bone is laid flat, pointing forward (the ankle angle is then set, not searched).
     """
     limits = LIMITS_DEG[role] * DEG
     box = STAND_LIMITS_DEG[role] * DEG if params.plausible else limits
@@ -443,7 +444,7 @@ def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: 
     plant = stance == "plantigrade"
     contact = 2 if plant else 3
     n_active = 2 if plant else 3
-    g = ground + (foot_clearance if plant else 0.0)
+    g = ground + foot_clearance
     lengths = np.asarray(lengths, float)
     for _ in range(30):  # a leg whose folded start pierces the ground is shortened (as the
         _, p0 = forward(base, lengths, start)  # generator does): it cannot stand plausibly

@@ -13,15 +13,15 @@ CHECKS = ("ground_contact", "above_ground", "within_limits", "symmetric", "spine
 
 
 def leg_height_steps(c: Creature) -> list[NDArray[np.float64]]:
-    """Per grounded leg the height drops ``y[k] - y[k+1]`` along attachment → knee/elbow →
-    ankle/wrist → ground contact (metres; all ≥ 0 for a plausible standing leg). A plantigrade
-    leg, whose contact is the ankle itself, has two drops."""
+    """Per ground contact the height drops ``y[k] - y[k+1]`` along the leg's joints from the
+    hip/shoulder (femur/humerus joint) through knee/elbow, ankle/wrist and the digit's
+    phalanges to the contact point (metres; all ≥ 0 for a plausible standing leg)."""
     parents = c.skeleton.parent
     p = c.joint_positions
     out = []
     for cp, j in zip(c.contacts, c.contact_joint, strict=True):
         chain = [int(j)]
-        while len(chain) < 3 and parents[chain[-1]] >= 0 and c.kind[parents[chain[-1]]] == "leg":
+        while parents[chain[-1]] >= 0 and c.kind[parents[chain[-1]]] == "leg":
             chain.append(int(parents[chain[-1]]))
         ys = [p[k, 1] for k in chain[::-1]]
         if np.linalg.norm(p[j] - cp) > 1e-9 * max(c.height, 1e-12):

@@ -15,7 +15,13 @@ from numpy.typing import NDArray
 
 from biomorph.creature import balance as bal
 from biomorph.creature import mass as ms
-from biomorph.creature.assembly import assemble, balance_px, below_ground, pad, to_creature
+from biomorph.creature.assembly import (
+    assemble,
+    balance_px,
+    below_ground,
+    limb_digits,
+    to_creature,
+)
 from biomorph.creature.creature import Creature
 from biomorph.creature.options import Options
 from biomorph.creature.states import LimbsState, SkullState, SpineState, step_rng
@@ -94,19 +100,21 @@ def pitch_body(spine: dict, limbs: dict, asm: dict, report: bal.BalanceReport,
     return replace(spine, points=to_creature_px(rot + pivot))
 
 
-def limb_mass_and_patches(limbs: dict) -> tuple[float, NDArray, NDArray]:
-    """Volume, volume-weighted centre sum and contact patches (x, z) of all limbs (both
+def limb_mass_and_patches(limbs: LimbsState, spine: SpineState
+                          ) -> tuple[float, NDArray, NDArray]:
+    """Volume, volume-weighted centre sum and ground contact points (x, z) of all limbs (both
     sides) straight from the poses — the cheap part of a balance re-check."""
     vol, mom, patches = 0.0, np.zeros(3), []
-    for (_g, _k, spec, _at), pose, L3 in zip(limbs.places, limbs.poses, limbs.lengths,
-                                             strict=True):
+    for (g, _k, spec, _at), pose, L3 in zip(limbs.places, limbs.poses, limbs.lengths,
+                                            strict=True):
         v = ms.limb_volume(L3, spec.kind)
         mid = 0.5 * (pose.points[:3] + pose.points[1:])
         vol += 2 * v.sum()
         mom += 2 * (v[:, None] * mid * [1, 1, 0]).sum(axis=0)
         if pose.contact is not None:
-            patches += pad(pose, L3, 1.0) + pad(pose, L3, -1.0)
-    return vol, mom, np.array(patches).reshape(-1, 2)
+            c = limb_digits(pose, L3, spec.kind, g, spine, limbs.ground).contacts[:, [0, 2]]
+            patches += [c, c * [1.0, -1.0]]
+    return vol, mom, (np.concatenate(patches) if patches else np.zeros((0, 2)))
 
 
 def finish(spine: SpineState, girdles, limbs: LimbsState, skull: SkullState, opts: Options,
@@ -156,7 +164,7 @@ def finish(spine: SpineState, girdles, limbs: LimbsState, skull: SkullState, opt
                                    shifts, ground=limbs0.ground, previous=limbs0)
             except ParameterError:
                 break
-            lvol, lmom, patches = limb_mass_and_patches(limbs)
+            lvol, lmom, patches = limb_mass_and_patches(limbs, spine)
             com = (bmom + lmom) / max(bvol + lvol, 1e-30)
             report = bal.evaluate(com, bvol + lvol, patches, bl, opts.min_margin_fraction)
             work = dict(work, patches=patches)

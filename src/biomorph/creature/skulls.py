@@ -66,3 +66,34 @@ def mesh(shape: SkullShape, length: float) -> tuple[NDArray[np.float64], NDArray
     f = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
                   [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
     return v, f
+
+
+#: Share of the head's mass carried by the mandible (a dog's mandible is ~15-20 % of the
+#: skull's dry mass; we take the low end, the cranium carries brain and eyes).
+JAW_MASS_FRACTION = 0.15
+
+
+@dataclass(frozen=True)
+class Jaw:
+    """The mandible joint: world rotation (bone along +Y, Z lateral), position, length, box."""
+
+    W: NDArray[np.float64]
+    pos: NDArray[np.float64]
+    length: float
+    box: NDArray[np.float64]
+
+
+def jaw(shape: SkullShape, length: float, W: NDArray, origin: NDArray) -> Jaw:
+    """The mandible of a skull with world rotation ``W`` at ``origin``: hinged below the
+    cranium's back (the jaw joint sits ventral and a little rostral of the occiput), running
+    along the skull's ventral edge to just behind the snout's lower tip."""
+    h, w, t = shape.height * length, shape.width * length, shape.taper
+    start = np.array([0.32 * h, 0.12 * length])               # (ventral x, along y)
+    end = np.array([(2 * t - 1) * h / 2 + 0.08 * h, 0.95 * length])
+    v = end - start
+    L = float(np.hypot(*v))
+    y = W[:, 0] * v[0] / L + W[:, 1] * v[1] / L
+    z = W[:, 2]
+    Wj = np.stack([np.cross(y, z), y, z], axis=1)
+    pos = np.asarray(origin, float) + W[:, 0] * start[0] + W[:, 1] * start[1]
+    return Jaw(Wj, pos, L, np.array([0.18 * h, L, 0.8 * w]))

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.curves import bezier_eval
+from biomorph.creature import feet
 from biomorph.creature import girdles as gd
 from biomorph.creature import limbs as lb
 from biomorph.creature import mass as ms
@@ -287,15 +288,18 @@ def step_limbs(spine: SpineState, girdles: tuple[gd.Girdle, ...], opts: Options,
         base = attach[i][1]
         if spec.kind == "leg":
             role = "hind" if gname == "hip" else "fore"
+            plan = feet.digit_plan("leg", role, cls, stance, spine.skull)
             pose = None
             if previous is not None:  # balance repair: keep the pose, re-ground continuously
                 prev = previous.poses[i]
-                pose = lb.reground(prev, base, previous.lengths[i], ground, opts.descent)
+                lift = feet.clearance(plan, float(previous.lengths[i][2]))
+                pose = lb.reground(prev, base, previous.lengths[i], ground + lift,
+                                   opts.descent)
                 if pose is not None:
                     lengths[i] = previous.lengths[i]
             if pose is None:
                 pose = lb.pose_leg(base, lengths[i], ground, role, stance, posture, rng,
-                                   opts.descent)
+                                   opts.descent, feet.clearance(plan, float(lengths[i][2])))
             lengths[i] = pose.lengths
         else:
             pose = lb.pose_free(spec.kind, base, lengths[i], rng)
