@@ -20,7 +20,9 @@ import pytest
 CHROMIUM = Path(os.environ.get("BIOMORPH_CHROMIUM", "/usr/bin/chromium"))
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
                  "--no-first-run", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync"]
+                 "--disable-component-update", "--disable-sync",
+                 # a stand-in for a rebinding DNS: evil.test resolves to this machine
+                 "--host-resolver-rules=MAP evil.test 127.0.0.1"]
 VIEWPORT = {"width": 880, "height": 600}
 
 
@@ -217,6 +219,7 @@ def open_page(app, browser, url: str | None = None):
     ctx = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
     page = ctx.new_page()
     page.goto(url or app.url)
+    page.bring_to_front()  # viser's page connects only while it has the focus
     page.get_by_role("button", name="Files", exact=True).first.wait_for(timeout=30000)
 
     def built():
