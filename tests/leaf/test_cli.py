@@ -34,18 +34,21 @@ def test_mesh_obj_has_ids_and_area(tmp_path, capsys) -> None:
 
 
 @pytest.mark.parametrize("args,match", [
-    (["--age", "1.5"], "outside [0, 1]"),
-    (["--age", "-0.1"], "outside [0, 1]"),
-    (["--triangles", "0"], "below the minimum"),
-    (["--length", "-1"], "positive"),
+    (["--age", "1.5"], "--age: got 1.5; expected [0, 1]"),
+    (["--age", "-0.1"], "expected [0, 1]"),
+    (["--triangles", "0"], "--triangles: got 0; expected >= 1"),
+    (["--length", "-1"], "--length: got -1.0; expected > 0"),
+    (["--length", "nan"], "--length"),
     (["--undulation", "-0.01"], ">= 0"),
+    (["--n-s", "1"], "--n-s"),
     (["--preset", "oak"], "unknown leaf preset"),
+    (["--preset", "wheat", "--class", "9"], "no shape class"),
 ])
 def test_mesh_bad_input(tmp_path, capsys, args, match) -> None:
     out = tmp_path / "leaf.obj"
     assert run(["leaf", "mesh", *args, "-o", str(out)]) == 2
     err = capsys.readouterr().err
-    assert match in err.replace("\n", " ")
+    assert match in err.replace("\n", " ") and len(err.strip().splitlines()) == 1
     assert not out.exists() and list(tmp_path.iterdir()) == []
 
 
@@ -161,3 +164,26 @@ def test_ids_in_every_export(tmp_path) -> None:
     assert "g plant_3__leaf_1" in groups
     attrs = read_gltf_summary(tmp_path / "f.glb")["attributes"]
     assert any("PLANT" in a for a in attrs) and any("LEAF" in a for a in attrs)
+
+
+def test_canopy_thermal_time_classes_and_warning(tmp_path, capsys) -> None:
+    out = tmp_path / "f.ply"
+    assert run(["leaf", "canopy", "--plants", "6", "--rows", "2", "--preset", "maize",
+                "--leaves", "16", "--thermal-time", "400", "--json", "-o", str(out)]) == 0
+    cap = capsys.readouterr()
+    s = json.loads(cap.out)
+    assert s["missing_leaves_per_plant"] > 0 and "have not emerged" in cap.err
+    assert s["below_ground_vertices"] == 0 and len(s["ground"].split(",")) == 4
+
+
+@pytest.mark.parametrize("args,match", [
+    (["--thermal-time", "-5"], "--thermal-time"),
+    (["--phyllochron", "0"], "--phyllochron"),
+    (["--density", "inf"], "--density"),
+    (["--leaves", "0"], "--leaves"),
+])
+def test_canopy_bad_numbers(tmp_path, capsys, args, match) -> None:
+    out = tmp_path / "f.glb"
+    assert run(["leaf", "canopy", *args, "-o", str(out)]) == 2
+    assert match in capsys.readouterr().err
+    assert not out.exists()

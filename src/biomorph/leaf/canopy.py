@@ -122,6 +122,7 @@ class Field:
     shape_id: NDArray[np.int64] | None = None
     soil: bool = True
     requested_leaves: int = 0   # leaves per plant asked for
+    tile: tuple[float, float, float, float] | None = None   # ground rectangle (x0 y0 x1 y1)
 
     @property
     def n_leaves(self) -> int:
@@ -215,7 +216,8 @@ def build_field(spec: FieldSpec, seed: int | np.random.Generator = 0, origin=(0.
     shapes, shape_id, ls_leaf = _class_shapes(ps, shape, kk, cat["ls"], rng)
     fld = Field(shape, pos, stem_h, ps.stem_radius, cat["plant"].astype(np.int64),
                 cat["rank"].astype(np.int64), cat["age"], ls_leaf, cat["incl"], cat["az"],
-                cat["org"].reshape(-1, 3), float(ground), shapes, shape_id, ps.soil, n)
+                cat["org"].reshape(-1, 3), float(ground), shapes, shape_id, ps.soil, n,
+                _tile(origin, dx, spec.row_spacing, per_row, spec.rows))
     missing = fld.missing_leaves()
     if missing:
         when = (f"thermal time {ps.thermal_time:g} °Cd" if ps.thermal_time is not None else
@@ -225,6 +227,14 @@ def build_field(spec: FieldSpec, seed: int | np.random.Generator = 0, origin=(0.
                       f"{when}; the plants have {n - missing} leaves", LeafCountWarning,
                       stacklevel=3)
     return fld
+
+
+def _tile(origin, dx: float, dy: float, per_row: int, rows: int
+          ) -> tuple[float, float, float, float]:
+    """Ground rectangle of the planting pattern: plants sit at cell centres, so the field
+    repeats with this tile (the light model's periodic ground)."""
+    ox, oy = float(origin[0]), float(origin[1])
+    return (ox - dx / 2, oy - dy / 2, ox + per_row * dx - dx / 2, oy + rows * dy - dy / 2)
 
 
 class LeafCountWarning(UserWarning):
@@ -408,7 +418,7 @@ def plant_growth_frames(spec: PlantSpec | FieldSpec, frames: int, seed: int = 0,
                                                       ) * elong
         fr = Field(full.shape, full.plant_pos, stem_h, full.stem_radius, full.plant, full.rank,
                    leaf_age, scale, full.incline, full.azimuth, org, full.ground_area,
-                   full.shapes, full.shape_id, full.soil, full.requested_leaves)
+                   full.shapes, full.shape_id, full.soil, full.requested_leaves, full.tile)
         out.append(field_mesh(fr, s=sg, drop_degenerate=False))
     return out
 

@@ -63,4 +63,74 @@ def read_points_csv(path: str | Path, columns: tuple[str, ...]) -> tuple[np.ndar
     return tuple(arr[:, k] for k in range(len(columns)))
 
 
-__all__ = ["MESH_EXT", "read_points_csv", "write_leaf_mesh"]
+_COMPONENT = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
+              5126: np.float32}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+
+
+def _accessor(gltf: Any, blob: bytes, index: int) -> np.ndarray:
+    acc = gltf.accessors[index]
+    view = gltf.bufferViews[acc.bufferView]
+    dtype = np.dtype(_COMPONENT[acc.componentType])
+    width = _WIDTH[acc.type]
+    start = (view.byteOffset or 0) + (acc.byteOffset or 0)
+    stride = view.byteStride or dtype.itemsize * width
+    raw = np.frombuffer(blob, dtype=np.uint8, count=stride * (acc.count - 1) +
+                        dtype.itemsize * width, offset=start)
+    rows = np.lib.stride_tricks.as_strided(raw, (acc.count, dtype.itemsize * width),
+                                           (stride, 1))
+    return np.ascontiguousarray(rows).view(dtype).reshape(acc.count, width).squeeze(-1) \
+        if width == 1 else np.ascontiguousarray(rows).view(dtype).reshape(acc.count, width)
+
+
+def read_canopy(path: str | Path) -> Any:
+    """A Z-up canopy mesh with its ``plant``/``leaf`` face ids, from ``.glb`` (as written by
+    :func:`write_leaf_mesh`: glTF Y-up turned back to Z-up, ids from the ``_PLANT_ID`` /
+    ``_LEAF_ID`` vertex attributes), ``.obj`` (face-id groups) or ``.ply``."""
+    from biomorph.core.mesh import Mesh
+
+    path = Path(path)
+    if not path.is_file():
+        raise FormatError(path, "file does not exist")
+    ext = path.suffix.lower()
+    if ext in (".obj", ".ply"):
+        from biomorph import io
+
+        return io.read_mesh(path)
+    if ext != ".glb":
+        raise FormatError(path, f"extension {ext or '(none)'!r}: expected .glb, .obj or .ply")
+    import pygltflib
+
+    try:
+        gltf = pygltflib.GLTF2().load_binary(str(path))
+        blob = gltf.binary_blob() or b""
+    except Exception as exc:  # noqa: BLE001 - any parse failure is a format error
+        raise FormatError(path, f"not a readable binary glTF ({exc})") from None
+    verts, faces, ids = [], [], {"plant": [], "leaf": []}
+    offset = 0
+    try:
+        for mesh in gltf.meshes:
+            for prim in mesh.primitives:
+                if prim.mode not in (None, 4) or prim.indices is None:
+                    continue
+                pos = _accessor(gltf, blob, prim.attributes.POSITION).astype(np.float64)
+                idx = _accessor(gltf, blob, prim.indices).astype(np.int64).reshape(-1, 3)
+                extra = {k: getattr(prim.attributes, k, None) for k in ("_PLANT_ID",
+                                                                       "_LEAF_ID")}
+                for key, name in (("plant", "_PLANT_ID"), ("leaf", "_LEAF_ID")):
+                    acc = extra.get(name)
+                    vals = (_accessor(gltf, blob, acc).astype(np.int64) if acc is not None
+                            else np.full(len(pos), 1 if key == "leaf" else 0, np.int64))
+                    ids[key].append(vals[idx[:, 0]])
+                verts.append(np.stack([pos[:, 0], -pos[:, 2], pos[:, 1]], axis=1))
+                faces.append(idx + offset)
+                offset += len(pos)
+    except (ValueError, IndexError, KeyError, TypeError) as exc:
+        raise FormatError(path, f"broken glTF accessor ({exc})") from None
+    if not faces:
+        raise FormatError(path, "holds no triangles; expected a canopy mesh")
+    return Mesh(np.concatenate(verts), np.concatenate(faces),
+                face_ids={k: np.concatenate(v) for k, v in ids.items()})
+
+
+__all__ = ["MESH_EXT", "read_canopy", "read_points_csv", "write_leaf_mesh"]

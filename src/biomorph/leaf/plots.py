@@ -126,4 +126,39 @@ def mesh_preview(meshes: Sequence[Mesh], path: PathLike, titles: Sequence[str] |
     return _save(fig, path)
 
 
-__all__ = ["mesh_preview", "reduction_curves", "time_vs_triangles"]
+
+
+def light_map(mesh: Mesh, values: np.ndarray, path: PathLike, title: str = "",
+              label: str = "absorbed PAR (µmol m⁻² s⁻¹)") -> Path:
+    """False-colour top view of per-triangle ``values`` (painter's order: higher triangles
+    drawn last), with a colour bar. Uses matplotlib's ``Figure`` API only (no global
+    backend switch)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import PolyCollection
+    from matplotlib.figure import Figure
+
+    tri = mesh.vertices[mesh.faces]
+    order = np.argsort(tri[:, :, 2].mean(axis=1))
+    vals = np.asarray(values, float)[order]
+    fig = Figure(figsize=(7, 6))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    coll = PolyCollection(tri[order, :, :2], array=vals, cmap="inferno", edgecolors="none",
+                          linewidths=0)
+    coll.set_clim(0.0, float(np.percentile(vals, 99.5)) if vals.size else 1.0)
+    ax.add_collection(coll)
+    lo, hi = mesh.vertices[:, :2].min(axis=0), mesh.vertices[:, :2].max(axis=0)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.set_facecolor((0.35, 0.27, 0.2))         # soil
+    ax.set_xlabel("x (m, east)")
+    ax.set_ylabel("y (m, north)")
+    ax.set_title(title)
+    fig.colorbar(coll, ax=ax, label=label)
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    return Path(path)
+
+
+__all__ = ["light_map", "mesh_preview", "reduction_curves", "time_vs_triangles"]

@@ -110,9 +110,13 @@ def _indices(builder: _Builder, faces: NDArray, n_vertices: int) -> int:
     return builder.accessor(faces.reshape(-1).astype(dtype), target=ELEMENT_ARRAY_BUFFER)
 
 
-def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool
+def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool,
+                    vertex_attributes: Mapping[str, Any] | None = None
                     ) -> tuple[dict[str, Any], NDArray[np.int64] | None]:
-    """A triangle primitive for ``mesh``; also the vertex mapping if ids split vertices."""
+    """A triangle primitive for ``mesh``; also the vertex mapping if ids split vertices.
+
+    ``vertex_attributes`` maps names to float arrays ``(n_vertices,)`` or
+    ``(n_vertices, k)`` (k <= 4), written as custom attributes ``_NAME`` (float32)."""
     if mesh.n_faces == 0 or mesh.n_vertices == 0:
         raise InputError(f"mesh has {mesh.n_vertices} vertices and {mesh.n_faces} faces; "
                          "expected at least one triangle")
@@ -133,20 +137,34 @@ def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool
     for key, ids in vertex_ids.items():
         attrs[_id_attribute_name(key)] = builder.accessor(_id_array(key, ids),
                                                           target=ARRAY_BUFFER)
+    for key, values in (vertex_attributes or {}).items():
+        arr = np.asarray(values, dtype=np.float64)
+        if src is not None:
+            arr = arr[src]
+        if arr.shape[0] != mesh.n_vertices or arr.ndim > 2 or (arr.ndim == 2 and
+                                                                 arr.shape[1] > 4):
+            raise InputError(f"vertex attribute {key!r} has shape {arr.shape}; expected "
+                             f"({mesh.n_vertices},) or ({mesh.n_vertices}, k<=4)")
+        name = "_" + ("".join(ch if ch.isalnum() else "_" for ch in key).upper() or "DATA")
+        attrs[name] = builder.accessor(_float32(f"vertex attribute {key}", arr),
+                                       target=ARRAY_BUFFER)
     prim = {"attributes": attrs, "indices": _indices(builder, mesh.faces, mesh.n_vertices),
             "material": builder.material(_MESH_MATERIAL), "mode": _TRIANGLES}
     return prim, src
 
 
 def _add_mesh_nodes(builder: _Builder, meshes: list[Mesh], *, merge: bool, y_up: bool,
-                    name: str | None) -> list[int]:
-    groups = [_merge(meshes)] if merge else meshes
+                    name: str | None, vertex_attributes: Mapping[str, Any] | None = None
+                    ) -> list[int]:
+    if vertex_attributes and len(meshes) != 1:
+        raise InputError(f"vertex_attributes need exactly one mesh; got {len(meshes)}")
+    groups = [meshes[0]] if vertex_attributes else ([_merge(meshes)] if merge else meshes)
     nodes = []
     for i, mesh in enumerate(groups):
         label = name or "mesh"
         if len(groups) > 1:
             label = f"{label}_{i}"
-        prim, _ = _mesh_primitive(builder, mesh, y_up)
+        prim, _ = _mesh_primitive(builder, mesh, y_up, vertex_attributes)
         builder.doc["meshes"].append({"name": label, "primitives": [prim]})
         nodes.append(builder.node({"name": label, "mesh": len(builder.doc["meshes"]) - 1},
                                   root=True))

@@ -22,7 +22,9 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
                meshes: Any = None, y_up: bool = True, name: str | None = None, merge: bool = True,
                frames: Sequence[Any] | None = None, frame_time: float = 1 / 30,
                scale: float = 1.0, joint_extras: Sequence[Mapping[str, Any] | None] | None = None,
-               extras: Mapping[str, Any] | None = None) -> Path:
+               extras: Mapping[str, Any] | None = None,
+               vertex_attributes: Mapping[str, Any] | None = None,
+               joint_geometry: Any = None, skinned_mesh: Any = None) -> Path:
     """Write a skeleton, an animated skeleton, meshes or mesh frames as binary glTF (.glb).
 
     Parameters
@@ -51,6 +53,14 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
     joint_extras : one JSON-ready mapping (or ``None``) per joint, written as that joint
         node's ``extras`` (Blender's importer makes them bone custom properties).
     extras : JSON-ready mapping written as the armature node's ``extras``.
+    joint_geometry : ``(vertices (k, 3), normals (k, 3), joint (k,), faces (m, 3))``: bone
+        models already concatenated, each vertex in its joint's local frame, rigidly skinned
+        to that joint (the fast path for many small per-joint meshes).
+    skinned_mesh : ``(vertices, normals, joints (k, 4), weights (k, 4), faces)`` in the
+        skeleton's rest world frame: a second, smoothly weighted skinned mesh (a body
+        envelope); weights are normalised to sum to 1.
+    vertex_attributes : float arrays per vertex of the (single) mesh, ``{name: (n,) or
+        (n, k<=4)}``, written as custom attributes ``_NAME`` (e.g. absorbed light).
 
     Returns the written path.
     """
@@ -87,7 +97,8 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
             "vertices" in meshes and "faces" in meshes) else None
         joints = _add_skeleton(builder, skeleton, bone_shape=bone_shape, bone_width=bone_width,
                                joint_meshes=joint_meshes, y_up=y_up, name=name,
-                               joint_extras=joint_extras, extras=extras)
+                               joint_extras=joint_extras, extras=extras,
+                               joint_geometry=joint_geometry, skinned=skinned_mesh)
         if motion is not None:
             _add_motion(builder, motion, skeleton, joints, y_up, name)
         if meshes is not None and joint_meshes is None:
@@ -99,7 +110,8 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
         if meshes is not None:
             parts.extend(_as_meshes(meshes))
         if parts:
-            _add_mesh_nodes(builder, parts, merge=merge, y_up=y_up, name=name)
+            _add_mesh_nodes(builder, parts, merge=merge, y_up=y_up, name=name,
+                            vertex_attributes=vertex_attributes)
         elif frames is None:
             raise InputError("nothing to write: expected a JointSkeleton, a motion, meshes or "
                              "frames")
