@@ -36,18 +36,33 @@ def test_real_file_reads_and_round_trips(tmp_path, name, frames, joints, fps, wr
     # unit, hemisphere-continuous quaternions
     assert np.allclose(np.linalg.norm(mo.rotation, axis=-1), 1.0, atol=1e-12)
     assert (np.sum(mo.rotation[1:] * mo.rotation[:-1], axis=-1) >= 0).all()
-    out = write_bvh(tmp_path / "rt.bvh", mo)
+    out = write_bvh(tmp_path / "rt.bvh", mo, euler="continuous")
     back = read_bvh(out)
     assert back.names == mo.names
     assert back.skeleton.channels == mo.skeleton.channels
     assert back.frame_time == mo.frame_time
     assert np.allclose(back.root_position, mo.root_position, atol=1e-6)
     assert np.max(tf.quat_angle(back.rotation, mo.rotation)) < 1e-6
-    # written Euler curves are continuous (no ±360 jumps)
+    # euler="continuous": written Euler curves have no ±360 jumps
     assert back.meta["euler_wraps_in_file"] == 0
     # writing again is idempotent to the last digit
-    again = write_bvh(tmp_path / "rt2.bvh", back)
+    again = write_bvh(tmp_path / "rt2.bvh", back, euler="continuous")
     assert again.read_bytes() == out.read_bytes()
+    # the default writes principal values: every angle within ±180°, same rotations
+    wrapped = write_bvh(tmp_path / "wrap.bvh", mo)
+    data = np.loadtxt(wrapped.read_text().split("Frame Time:")[1].split("\n", 1)[1].splitlines(),
+                      ndmin=2)
+    rot_cols = [i for i, c in enumerate(c for j in _dfs(mo) for c in mo.skeleton.channels[j])
+                if c.endswith("rotation")]
+    assert np.abs(data[:, rot_cols]).max() <= 180.0 + 1e-6
+    w = read_bvh(wrapped)
+    assert np.max(tf.quat_angle(w.rotation, mo.rotation)) < 1e-6
+
+
+def _dfs(mo):
+    from biomorph.core.motion import dfs_preorder
+
+    return dfs_preorder(mo.skeleton.parent)
 
 
 def test_mixed_orders_and_z_up():
@@ -136,7 +151,7 @@ def _broken(tmp_path, text: str):
     p = tmp_path / "bad.bvh"
     p.write_text(text)
     with pytest.raises(FormatError) as info:
-        read_bvh(p)
+        read_bvh(p, strict=True)
     return info.value
 
 
@@ -161,6 +176,33 @@ def test_malformed_files_name_the_line(tmp_path, mutate, line, needle):
     if line is not None:
         assert err.line == line, str(err)
     assert "bad.bvh" in str(err)
+
+
+@pytest.mark.parametrize("mutate,frames,needle", [
+    (lambda s: s.replace("Frames:\t3", "Frames: 2"), 3, "'Frames: 2' but 3 complete"),
+    (lambda s: s.replace("Frames:\t3", "Frames: 7"), 3, "'Frames: 7' but 3 complete"),
+    (lambda s: s.rsplit("\n", 2)[0] + "\n", 2, "'Frames: 3' but 2 complete"),
+    (lambda s: s.rstrip("\n").rsplit(" ", 3)[0] + "\n", 2, "cut-off last line"),
+])
+def test_frame_count_mismatch_is_tolerated_with_a_warning(tmp_path, mutate, frames, needle):
+    from biomorph.core.motion import MotionInputWarning
+
+    p = tmp_path / "odd.bvh"
+    p.write_text(mutate(GOOD))
+    with pytest.warns(MotionInputWarning, match="odd.bvh"):
+        mo = read_bvh(p)
+    assert mo.n_frames == frames
+    assert any(needle in t for t in mo.meta["tolerated"]), mo.meta["tolerated"]
+    good = read_bvh(_write(tmp_path, GOOD))
+    assert np.array_equal(mo.rotation, good.rotation[:frames])
+    with pytest.raises(FormatError):
+        read_bvh(p, strict=True)
+
+
+def _write(tmp_path, text):
+    p = tmp_path / "good.bvh"
+    p.write_text(text)
+    return p
 
 
 def test_empty_and_non_bvh(tmp_path):

@@ -95,7 +95,7 @@ def test_bad_htr(tmp_path, mutate, needle):
     p = tmp_path / "bad.htr"
     p.write_bytes(mutate(SMALL).encode())
     with pytest.raises(FormatError) as info:
-        read_htr(p)
+        read_htr(p, strict=True)
     assert needle in str(info.value) and "bad.htr" in str(info.value)
 
 
@@ -112,5 +112,21 @@ def test_damaged_htr_values(tmp_path, mutate, needle):
     p = tmp_path / "bad.htr"
     p.write_bytes(mutate(SMALL).encode())
     with pytest.raises(FormatError) as info:
-        read_htr(p)
+        read_htr(p, strict=True)
     assert needle in str(info.value) and "bad.htr" in str(info.value)
+
+
+@pytest.mark.parametrize("mutate,frames,needle", [
+    (lambda s: s.replace("[EndOfFile]\r\n", ""), 2, "no [EndOfFile]"),
+    (lambda s: s.replace("1\t0\t0\t0\t30\t0\t0\t1\r\n", ""), 1, "read the 1 frames"),
+    (lambda s: s.replace("NumFrames 2", "NumFrames 2000000000000"), 2, "NumFrames 2000000000000"),
+])
+def test_tolerated_htr_reads_with_a_warning(tmp_path, mutate, frames, needle):
+    from biomorph.core.motion import MotionInputWarning
+
+    p = tmp_path / "odd.htr"
+    p.write_bytes(mutate(SMALL).encode())
+    with pytest.warns(MotionInputWarning, match="odd.htr"):
+        m = read_htr(p)
+    assert m.n_frames == frames
+    assert any(needle in t for t in m.meta["tolerated"]), m.meta["tolerated"]

@@ -116,7 +116,7 @@ def test_bad_inputs_exit_2_and_write_nothing(tmp_path, walk_bvh, capsys):
     other = write_bvh(tmp_path / "other.bvh", walk(100, 60, n_joints=30))
     w = str(walk_bvh)
     cases = [
-        (["equalize", str(trunc), "-o", "OUT"], "truncated"),
+        (["equalize", str(trunc), "-o", "OUT", "--strict"], "truncated"),
         (["info", str(notnum)], "not a number"),
         (["convert", str(badhtr), "-o", "OUT"], "missing section"),
         (["blend", w, str(other), "-o", "OUT"], "do not share a skeleton"),

@@ -95,10 +95,11 @@ def test_displacement_hits_keys_and_is_zero_outside_support():
     assert np.array_equal(out.rotation[same], m.rotation[same])
     others = [i for i in range(m.n_joints) if i != j]
     assert np.array_equal(out.rotation[:, others], m.rotation[:, others])
-    # high-frequency detail is kept: the change is smooth (its second difference is tiny)
+    # high-frequency detail is kept: the change is smooth (its second difference is tiny;
+    # auto-clamped keys are C1, the former C2 spline reached 0.0096 here, these 0.0139)
     diff = tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(m.rotation[:, j]),
                                               out.rotation[:, j]))
-    assert np.abs(np.diff(diff, 2, axis=0)).max() < 0.01
+    assert np.abs(np.diff(diff, 2, axis=0)).max() < 0.015
 
 
 # 6 ---------------------------------------------------------------------------------------

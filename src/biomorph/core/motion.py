@@ -52,6 +52,19 @@ POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 DEFAULT_ORDER = "ZXY"
 
 
+class MotionInputWarning(UserWarning):
+    """A reader tolerated an irregular file (e.g. ``Frames:`` disagreeing with the data rows);
+    the same message is kept in ``motion.meta["tolerated"]``."""
+
+
+def tolerate(meta: dict[str, Any], message: str) -> None:
+    """Record in ``meta["tolerated"]`` and warn (one line) that a reader accepted ``message``."""
+    import warnings
+
+    meta.setdefault("tolerated", []).append(message)
+    warnings.warn(message, MotionInputWarning, stacklevel=3)
+
+
 def frozen(a: Array | None) -> Array | None:
     """Mark a freshly computed array read-only so :class:`Motion` takes it without copying
     (internal: only for arrays nobody else holds)."""
@@ -586,7 +599,8 @@ def fk_positions(rest, rot, trans, parent, pos_out, quat_out):  # pragma: no cov
             pos_out[t, j, 2] = pos_out[t, p, 2] + rz
 
 
-__all__ = ["Motion", "concatenate", "dfs_preorder", "reorder_joints", "check_range",
+__all__ = ["Motion", "MotionInputWarning", "tolerate", "concatenate", "dfs_preorder",
+           "reorder_joints", "check_range",
            "same_skeleton", "guess_up_axis", "frozen", "preview_positions", "sample_arrays",
            "sample_linear", "transform_root", "to_y_up",
            "ROTATION_CHANNELS", "POSITION_CHANNELS", "DEFAULT_ORDER"]

@@ -187,9 +187,14 @@ def _rot(angles: list[float], axes: str, degrees: bool, path: Path | None = None
     return q
 
 
-def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0):
-    """Read AMC frames against a parsed ASF (:func:`read_asf`) into a Motion."""
-    from biomorph.core.motion import Motion, dfs_preorder, guess_up_axis, reorder_joints
+def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0,
+             strict: bool = False):
+    """Read AMC frames against a parsed ASF (:func:`read_asf`) into a Motion.
+
+    A last frame that lists only some bones (a file cut off while writing) is dropped with a
+    :class:`~biomorph.core.motion.MotionInputWarning` (kept in ``meta["tolerated"]``) unless
+    ``strict``; a bone missing from an inner frame stays an error."""
+    from biomorph.core.motion import Motion, dfs_preorder, guess_up_axis, reorder_joints, tolerate
 
     p = Path(path)
     if not (np.isfinite(fps) and fps > 0):
@@ -269,6 +274,14 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0):
         frames[-1][name] = (ln, vals)
     if not frames:
         raise FormatError(p, "no frames; expected frame numbers followed by bone values")
+    tolerated: dict = {}
+    needed = [nm for j, nm in enumerate(names) if j == 0 or asf["bones"][nm]["dof"]]
+    if not strict and len(frames) > 1 and any(nm not in frames[-1] for nm in needed):
+        tolerate(tolerated, f"{os.fspath(p)}: last frame (line {frame_line[-1]}) lists "
+                            f"{len(frames[-1])} of {len(needed)} bones; dropped it and read "
+                            f"{len(frames) - 1} frames (--strict refuses)")
+        frames.pop()
+        frame_line.pop()
     f = len(frames)
     rot = np.zeros((f, n, 4))
     rot[..., 3] = 1.0
@@ -322,7 +335,7 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0):
     except InputError as exc:
         raise FormatError(p, str(exc)) from None
     meta = {"source": os.fspath(p), "format": "asf/amc", "units": "m",
-            "asf": os.fspath(asf["path"]), "euler_wraps_in_file": 0}
+            "asf": os.fspath(asf["path"]), "euler_wraps_in_file": 0, **tolerated}
     skel, perm = reorder_joints(skel, dfs_preorder(skel.parent))  # BVH joint order
     mo = Motion(skel, rot[:, perm], root_pos, 1.0 / fps, None, meta)
     mo.meta["up_guess"] = guess_up_axis(mo)
@@ -354,8 +367,10 @@ def _sibling_asf(amc: Path) -> Path:
 
 
 def read_motion(path: str | os.PathLike[str], amc: str | os.PathLike[str] | None = None,
-                asf: str | os.PathLike[str] | None = None, fps: float = 120.0):
-    """Read ASF+AMC into a :class:`biomorph.motion.Motion` given either file."""
+                asf: str | os.PathLike[str] | None = None, fps: float = 120.0,
+                strict: bool = False):
+    """Read ASF+AMC into a :class:`biomorph.motion.Motion` given either file (``strict``: see
+    :func:`read_amc`)."""
     p = Path(path)
     if p.suffix.lower() == ".asf":
         asf_path, amc_path = p, Path(amc) if amc is not None else _sibling_amc(p)
@@ -363,7 +378,7 @@ def read_motion(path: str | os.PathLike[str], amc: str | os.PathLike[str] | None
         amc_path, asf_path = p, Path(asf) if asf is not None else _sibling_asf(p)
     else:
         raise FormatError(p, "expected an .asf or .amc file")
-    return read_amc(amc_path, read_asf(asf_path), fps)
+    return read_amc(amc_path, read_asf(asf_path), fps, strict)
 
 
 __all__ = ["read_motion", "read_asf", "read_amc"]

@@ -22,9 +22,11 @@ Writing
 -------
 ``write_bvh(path, motion_or_skeleton, precision=6)`` writes each joint's channels in the
 skeleton's channel order (defaults: root ``Xposition Yposition Zposition Zrotation
-Xrotation Yrotation``, other joints ``Zrotation Xrotation Yrotation``), Euler angles unwrapped
-over time so the curves are continuous, fixed-point with ``precision`` decimals. The file is
-written atomically.
+Xrotation Yrotation``, other joints ``Zrotation Xrotation Yrotation``), fixed-point with
+``precision`` decimals. Euler angles are principal values in ±180° by default
+(``euler="wrap"``, what Blender, Maya and MotionBuilder export and every importer reads);
+``euler="continuous"`` unwraps them over time instead (curves without ±360° jumps, values
+may exceed 180°: up to 543° on the Rokoko dance). The file is written atomically.
 """
 
 from __future__ import annotations
@@ -523,10 +525,49 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
 _NUM = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
 
 
+def _complete_rows(buf: np.ndarray, data_start: int, n_ch: int) -> tuple[int, int, bool]:
+    """``(rows, end, partial)``: complete frame rows in ``buf[data_start:end]`` when only the
+    last line may be short (``partial``: it was cut off); ``rows = -1`` when the values do not
+    split into whole rows for another reason (the strict diagnostics then apply)."""
+    total = int(_count_tokens(buf, data_start, buf.size))
+    if n_ch <= 0:
+        return -1, buf.size, False
+    if total % n_ch == 0:
+        return total // n_ch, buf.size, False
+    text_end = buf.size
+    while text_end > data_start and buf[text_end - 1] in (9, 10, 11, 12, 13, 32):
+        text_end -= 1
+    nl = np.flatnonzero(buf[data_start:text_end] == 10)
+    end = data_start + (int(nl[-1]) + 1 if nl.size else 0)
+    head = int(_count_tokens(buf, data_start, end))
+    if head % n_ch:
+        return -1, buf.size, False
+    return head // n_ch, end, True
+
+
 def _parse_motion(path, raw, buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols,
-                  offset):
+                  offset, strict=True, meta=None):
     """The MOTION section in one piece (exact diagnostics): values, then rotations, root
-    positions, joint translations and the Euler wrap count."""
+    positions, joint translations and the Euler wrap count.
+
+    ``strict=False``: when ``Frames:`` disagrees with the data (more rows, fewer rows, a last
+    row cut off) every complete row is read and the discrepancy is recorded in
+    ``meta["tolerated"]`` with a :class:`~biomorph.core.motion.MotionInputWarning` — what
+    Blender's importer, ``bvh`` and ``bvhtoolbox`` do (they read all rows; bvhio reads the
+    declared count). Malformed values and rows of the wrong length stay errors."""
+    if not strict and n_ch > 0:
+        rows, end, partial = _complete_rows(buf, data_start, n_ch)
+        if rows >= 1 and (rows != n_frames or partial):
+            from biomorph.core.motion import tolerate
+
+            got = _parse_motion(path, raw[:end], buf[:end], data_start, rows, n_ch, rot_cols,
+                                rot_axes, pos_cols, offset)
+            what = f"'Frames: {n_frames}' but {rows} complete data rows"
+            if partial:
+                what += f"; the cut-off last line (line {_line_of(raw, end)}) was dropped"
+            tolerate(meta if meta is not None else {},
+                     f"{os.fspath(path)}: {what}; read {rows} frames (--strict refuses)")
+            return got
     out = _empty((n_frames * n_ch,))
     count, status, err, bad_line, bad_count = _scan_floats_parallel(buf, data_start, out,
                                                                     max(n_ch, 1))
@@ -650,11 +691,14 @@ def _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols
     return conv.result()
 
 
-def read_bvh(path: str | os.PathLike[str], up: str | None = None):
+def read_bvh(path: str | os.PathLike[str], up: str | None = None, strict: bool = False):
     """Read a BVH file into a :class:`biomorph.motion.Motion` (see the module docstring).
 
     ``up="z"`` converts a Z-up file to Y-up (rotating the root about X by -90°); by default
     the file is kept as is and ``motion.meta["up_guess"]`` says which axis looks vertical.
+    A ``Frames:`` count that disagrees with the data rows is tolerated (all complete rows
+    are read, one :class:`~biomorph.core.motion.MotionInputWarning`, the message kept in
+    ``meta["tolerated"]``) unless ``strict=True``, which raises :class:`FormatError`.
     """
     from biomorph.core.motion import Motion, guess_up_axis
 
@@ -724,17 +768,19 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None):
     if n_frames * n_ch * 8 >= _STREAM_MIN_BYTES:
         streamed = _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes,
                                   pos_cols, offset)
+    tolerated: dict = {}
     if streamed is not None:
         rotation, root_pos, translation, wraps = streamed
     else:
         rotation, root_pos, translation, wraps = _parse_motion(
-            path, raw, buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols, offset)
+            path, raw, buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols, offset,
+            strict, tolerated)
     try:
         skel = JointSkeleton(names, parent, offset, channels=channels, end_site=end)
     except InputError as exc:
         raise FormatError(path, str(exc)) from None
     meta = {"source": os.fspath(path), "format": "bvh", "units": "file units",
-            "euler_wraps_in_file": wraps}
+            "euler_wraps_in_file": wraps, **tolerated}
     for arr in (rotation, root_pos, translation):  # fresh arrays: hand them over, no copy
         if arr is not None:
             arr.setflags(write=False)
@@ -764,16 +810,21 @@ def _fmt(v: float, precision: int) -> str:
     return s[1:] if s.startswith("-") and float(s) == 0 else s
 
 
-def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int = 6) -> Path:
+def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int = 6,
+              euler: str = "wrap") -> Path:
     """Write a Motion (or a JointSkeleton as a one-frame rest pose) as BVH; atomic.
 
     Rotations are written as Euler angles (degrees) in each joint's channel order, composed
-    with the joint's rest rotation (BVH has none), and unwrapped over time. Joints without
+    with the joint's rest rotation (BVH has none); ``euler="wrap"`` (default) writes them in
+    ±180°, ``"continuous"`` unwraps them over time. Joints without
     channels in ``skeleton.channels`` get the defaults (root 6, others 3 rotations)."""
     from biomorph.core.motion import Motion
 
     if not isinstance(precision, (int, np.integer)) or not 0 <= precision <= 12:
         raise ParameterError(f"precision {precision!r}; expected an integer 0..12")
+    if euler not in ("wrap", "continuous"):
+        raise ParameterError(f"euler {euler!r}; expected 'wrap' (±180°) or 'continuous'")
+    euler_mode = euler
     if isinstance(motion_or_skeleton, JointSkeleton):
         sk = motion_or_skeleton
         mo = Motion(sk, tf.quat_identity((1, sk.n_joints)), sk.offset[:1].copy(), 1.0 / 30)
@@ -806,7 +857,8 @@ def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int =
             with warnings.catch_warnings():  # gimbal lock: scipy picks a valid solution
                 warnings.simplefilter("ignore", UserWarning)
                 e = tf.quat_to_euler(q, order)
-            euler = np.degrees(tf.unwrap_euler(e, axis=0))
+            euler = np.degrees(tf.unwrap_euler(e, axis=0) if euler_mode == "continuous"
+                               else e)
         for c in chans[j]:
             a = "XYZ".index(c[0])
             if c.endswith("rotation"):

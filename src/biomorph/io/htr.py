@@ -70,9 +70,15 @@ def _sections(path: str | os.PathLike[str]) -> dict[str, list[tuple[int, list[st
     return secs
 
 
-def read_htr(path: str | os.PathLike[str], reverse_order: bool = False):
-    """Read an HTR file into a :class:`biomorph.motion.Motion` (see module docstring)."""
-    from biomorph.core.motion import Motion, dfs_preorder, guess_up_axis, reorder_joints
+def read_htr(path: str | os.PathLike[str], reverse_order: bool = False, strict: bool = False):
+    """Read an HTR file into a :class:`biomorph.motion.Motion` (see module docstring).
+
+    Tolerated unless ``strict`` (one :class:`~biomorph.core.motion.MotionInputWarning` each,
+    kept in ``meta["tolerated"]``): segment blocks whose frame count differs from
+    ``NumFrames`` (the frames every segment has are read) and a missing ``[EndOfFile]``."""
+    from biomorph.core.motion import Motion, dfs_preorder, guess_up_axis, reorder_joints, tolerate
+
+    tolerated: dict = {}
 
     secs = _sections(path)
     for need in ("Header", "SegmentNames&Hierarchy", "BasePosition"):
@@ -168,6 +174,16 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False):
     if missing:
         raise FormatError(path, f"[BasePosition] lacks segment {missing[0]!r}")
     # frames (counts checked before allocating: a damaged NumFrames must not allocate)
+    counts = {s: len(secs[s]) for s in names if s in secs}
+    if not strict and counts and min(counts.values()) >= 1 and (
+            set(counts.values()) != {n_frames}):
+        have = min(counts.values())
+        odd = next(s for s in names if counts.get(s) != n_frames)
+        tolerate(tolerated, f"{os.fspath(path)}: NumFrames {n_frames} but segment [{odd}] has "
+                            f"{counts[odd]} frames; read the {have} frames every segment has "
+                            "(--strict refuses)")
+        n_frames = have
+        secs = {k: (v[:have] if k in counts else v) for k, v in secs.items()}
     for s in names:
         rows = secs.get(s)
         if rows is not None and len(rows) != n_frames:
@@ -213,7 +229,10 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False):
         if block.shape[1] >= 7:
             sf_dev = max(sf_dev, float(np.abs(block[:, 6] - 1.0).max()))
     if "EndOfFile" not in secs:
-        raise FormatError(path, "no [EndOfFile] marker (truncated file?)")
+        if strict:
+            raise FormatError(path, "no [EndOfFile] marker (truncated file?)")
+        tolerate(tolerated, f"{os.fspath(path)}: no [EndOfFile] marker; read the frames present "
+                            "(--strict refuses)")
     ang = rot if degrees else np.degrees(rot)
     base_r = base[:, 3:6] if degrees else np.degrees(base[:, 3:6])
     cols = ["XYZ".index(a) for a in bvh_order]  # file columns are Rx Ry Rz
@@ -241,7 +260,7 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False):
             "htr_units": unit_name, "htr_order": order, "bvh_order": bvh_order,
             "gravity_axis": header.get("globalaxisofgravity", "Y"),
             "bone_scale_max_deviation": sf_dev, "euler_wraps_in_file":
-                int(np.count_nonzero(np.abs(np.diff(ang, axis=0)) > 180))}
+                int(np.count_nonzero(np.abs(np.diff(ang, axis=0)) > 180)), **tolerated}
     skel, perm = reorder_joints(skel, dfs_preorder(skel.parent))  # BVH joint order
     local_t = local_t[:, perm]
     mo = Motion(skel, pose[:, perm], local_t[:, 0], 1.0 / rate, local_t if inner else None,

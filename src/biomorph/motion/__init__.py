@@ -19,6 +19,8 @@ import no numeric stack; ``Motion`` and its helpers live in :mod:`biomorph.core.
 """
 
 import importlib
+import sys
+import types
 from typing import Any
 
 _WHERE = {
@@ -51,3 +53,17 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
+
+
+class _Package(types.ModuleType):
+    """Keeps a lazily exported function when its same-named submodule loads: importing
+    ``biomorph.motion.blend`` sets the package attribute ``blend`` to the module, which
+    would shadow the function ``blend`` (the eager ``from … import`` used to overwrite it)."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _WHERE and isinstance(value, types.ModuleType):
+            value = getattr(importlib.import_module(_WHERE[name]), name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

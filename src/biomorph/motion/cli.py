@@ -16,6 +16,7 @@ from typing import Annotated, Any
 
 import typer
 
+from biomorph._cli import bounded
 from biomorph.errors import ParameterError, UnsupportedFormatError
 
 app = typer.Typer(name="motion", no_args_is_help=True, add_completion=False,
@@ -27,15 +28,50 @@ Json = Annotated[bool, typer.Option("--json", help="Print a machine-readable sum
 Up = Annotated[str | None, typer.Option("--up", help="Vertical axis of the input (z: convert "
                                                      "Z-up data to Y-up before editing).")]
 Output = Annotated[Path, typer.Option("-o", "--output", help="Output .bvh or .glb.")]
+Strict = Annotated[bool, typer.Option("--strict", help="Refuse files whose frame count "
+                                                       "disagrees with their data.")]
+Feet = Annotated[bool, typer.Option("--lock-feet/--no-lock-feet",
+                                    help="Keep planted feet in place after the operator "
+                                         "(contact detection + two-bone IK).")]
+Euler = Annotated[str, typer.Option("--euler", help="BVH angles: wrap (±180°) or "
+                                                    "continuous (unwrapped over time).")]
 
+def _read(path: Path, up: str | None = None, strict: bool | None = None):
+    import warnings
 
-def _read(path: Path, up: str | None = None):
     from biomorph import io
-    from biomorph.motion.align import to_y_up
+    from biomorph._cli import err_console
+    from biomorph.core.motion import MotionInputWarning, to_y_up
 
-    mo = io.read_motion(path)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", MotionInputWarning)
+        mo = io.read_motion(path, strict=bool(strict))
+    for w in caught:
+        if issubclass(w.category, MotionInputWarning):
+            err_console.print(f"warning: {w.message}", markup=False, highlight=False)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if up is not None:
         mo = to_y_up(mo, up)
+    return mo
+
+
+def _finish(path: Path, mo, reference=None, lock: bool = True, euler: str = "wrap"):
+    """Lock planted feet (against ``reference`` when it shares the timing), then write."""
+    import warnings
+
+    from biomorph._cli import err_console
+    from biomorph.motion.contact import ContactWarning, lock_feet
+
+    if euler not in ("wrap", "continuous"):
+        raise ParameterError(f"--euler {euler!r}; expected wrap or continuous")
+    if lock:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ContactWarning)
+            mo = lock_feet(mo, reference)
+        for w in caught:
+            err_console.print(f"warning: {w.message}", markup=False, highlight=False)
+    _write(path, mo, euler)
     return mo
 
 
@@ -45,12 +81,12 @@ def _check_out(path: Path) -> None:
                                      f" expected one of {' '.join(OUT_FORMATS)}")
 
 
-def _write(path: Path, mo) -> Path:
+def _write(path: Path, mo, euler: str = "wrap") -> Path:
     from biomorph import io
 
     if path.suffix.lower() == ".glb":
         return io.write_gltf(path, mo)
-    return io.write_bvh(path, mo)
+    return io.write_bvh(path, mo, euler=euler)
 
 
 def _floats(text: str, name: str) -> list[float]:
@@ -89,16 +125,17 @@ def _deg_keys(text: str, dim: int) -> list[tuple[float, Any]]:
 
 @app.command()
 def info(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC file.")],
-         up: Up = None, as_json: Json = False) -> None:
-    """Sizes, rates, fastest joints (angular speed/acceleration), Euler wraps, foot skate.
+         up: Up = None, strict: Strict = False, as_json: Json = False) -> None:
+    """Sizes, rates, fastest joints, Euler wraps, foot skate, and what the reader tolerated.
 
     Example: biomorph motion info walk.bvh --json
     """
     from biomorph.motion.quality import quality_report
 
-    mo = _read(path, up)
+    mo = _read(path, up, strict)
     rep = quality_report(mo)
     rep["file"] = str(path)
+    rep["tolerated"] = list(mo.meta.get("tolerated", []))
     if as_json:
         _emit(rep, True)
         return
@@ -113,34 +150,43 @@ def info(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC file.")]
         elif k == "foot_skate":
             v = (f"{v['skate_speed']:.4g} units/s ({v['skate_per_body_scale']:.3g} body/s), "
                  f"contact {100 * v['contact_fraction']:.0f}%, ground {v['ground_height']:.3g}")
+        elif k == "tolerated":
+            v = "; ".join(v) if v else "nothing"
         elif isinstance(v, float):
             v = f"{v:.6g}"
         t.add_row(k, str(v))
     out_console.print(t)
 
 
+Gain = Annotated[str, typer.Option(help="Band gains, highest band first.")]
+
+
 @app.command()
 def equalize(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-             gains: Annotated[str, typer.Option(help="Band gains, highest band first.")] =
-             "1,1,1,1,1",
+             gains: Gain = "1,1,1,1,1",
              joint: Annotated[list[str] | None, typer.Option(help="Joint(s); default all.")] =
              None,
              below: Annotated[bool, typer.Option("--below", help="Include the hierarchy below "
                                                                  "each joint.")] = False,
              channels: Annotated[str, typer.Option(help="all | rotation | position")] = "all",
              boundary: Annotated[str, typer.Option(help="edge | reflect")] = "edge",
-             up: Up = None, as_json: Json = False) -> None:
-    """Motion Equalizer: scale frequency bands (à-trous filter bank).
+             root: Annotated[str, typer.Option(help="Last gain on the root path: trajectory "
+                                                    "(kept) | start | world.")] = "trajectory",
+             up: Up = None, strict: Strict = False, lock_feet: Feet = True,
+             euler: Euler = "wrap", as_json: Json = False) -> None:
+    """Motion Equalizer: scale frequency bands (à-trous filter bank), feet kept planted.
 
     Example: biomorph motion equalize walk.bvh -o smooth.bvh --gains 0,0,1,1,1
     """
     from biomorph.motion.equalizer import equalize as eq
 
     _check_out(output)
+    g = _floats(gains, "gains")
     t0 = time.perf_counter()
-    mo = eq(_read(path, up), _floats(gains, "gains"), joint, channels, below, boundary)
-    _write(output, mo)
-    _emit(_summary(mo, output, t0, gains=_floats(gains, "gains")), as_json)
+    src = _read(path, up, strict)
+    mo = eq(src, g, joint, channels, below, boundary, root)
+    mo = _finish(output, mo, src, lock_feet, euler)
+    _emit(_summary(mo, output, t0, gains=g), as_json)
 
 
 @app.command()
@@ -151,8 +197,12 @@ def edit(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
                                                "position offsets in file units.")],
          kind: Annotated[str, typer.Option(help="rotation | position")] = "rotation",
          fade: Annotated[float | None, typer.Option(help="Fade in/out frames (default "
-                                                         "0.25 s).")] = None,
-         up: Up = None, as_json: Json = False) -> None:
+                                                         "0.25 s).",
+                                                    callback=bounded(0, 1e7))] = None,
+         tangent: Annotated[str, typer.Option(help="auto (clamped, no overshoot) | spline | "
+                                                   "linear | flat")] = "auto",
+         up: Up = None, strict: Strict = False, lock_feet: Feet = True,
+         euler: Euler = "wrap", as_json: Json = False) -> None:
     """Displacement map: add a smooth offset curve through keys to one joint.
 
     Example: biomorph motion edit walk.bvh -o reach.bvh --joint RightArm --key "120:0/0/30"
@@ -166,33 +216,78 @@ def edit(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
     keys = _deg_keys(key, 3)
     if kind == "rotation":
         keys = [(f, np.radians(v)) for f, v in keys]
-    mo = displace(_read(path, up), joint, keys, kind, fade)
-    _write(output, mo)
+    src = _read(path, up, strict)
+    mo = displace(src, joint, keys, kind, fade, tangent=tangent)
+    mo = _finish(output, mo, src, lock_feet, euler)
     _emit(_summary(mo, output, t0, keys=len(keys)), as_json)
 
 
 @app.command()
+def layers(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
+           layer: Annotated[list[str], typer.Option(
+               help="name:joint:kind:weight:keys, e.g. 'reach:RightArm:rotation:1:120:0/0/30' "
+                    "(repeat for more layers; rotation keys in degrees).")],
+           up: Up = None, strict: Strict = False, lock_feet: Feet = True,
+           euler: Euler = "wrap", as_json: Json = False) -> None:
+    """Additive animation layers (overAnimate): each layer a displacement map with a weight.
+
+    Example: biomorph motion layers walk.bvh -o out.bvh --layer "up:Hips:position:1:60:0/2/0"
+    """
+    import numpy as np
+
+    from biomorph.motion.displacement import Layer, apply_layers
+
+    _check_out(output)
+    t0 = time.perf_counter()
+    made = []
+    for text in layer:
+        parts = text.split(":", 4)
+        if len(parts) != 5:
+            raise ParameterError(f"--layer {text!r}: expected name:joint:kind:weight:keys")
+        name, joint, kind, weight, keys = parts
+        try:
+            w = float(weight)
+        except ValueError:
+            raise ParameterError(f"--layer {text!r}: weight {weight!r} is not a number") from None
+        from biomorph._cli import check_value
+
+        check_value("--layer weight", w, -1e6, 1e6)
+        k = _deg_keys(keys, 3)
+        if kind == "rotation":
+            k = [(f, np.radians(v)) for f, v in k]
+        made.append(Layer.make(name, joint, k, kind, w))
+    src = _read(path, up, strict)
+    mo = apply_layers(src, made)
+    mo = _finish(output, mo, src, lock_feet, euler)
+    _emit(_summary(mo, output, t0, layers=len(made)), as_json)
+
+
+@app.command()
 def reorient(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-             angle: Annotated[float, typer.Option(help="Turn about the vertical, degrees.")] =
-             0.0,
+             angle: Annotated[float, typer.Option(help="Turn about the vertical, degrees.",
+                                                  callback=bounded(-1e6, 1e6))] = 0.0,
              move: Annotated[str, typer.Option(help="Translation x,y,z (file units).")] =
              "0,0,0",
-             up: Up = None, as_json: Json = False) -> None:
+             up: Up = None, strict: Strict = False, euler: Euler = "wrap",
+             as_json: Json = False) -> None:
     """Re-orient / re-position the whole motion (root recomputed, the rest untouched).
 
     Example: biomorph motion reorient walk.bvh -o west.bvh --angle 90 --move 0,0,2
     """
     import numpy as np
 
+    from biomorph._cli import check_value
     from biomorph.motion.align import reorient as ro
 
     _check_out(output)
     t = _floats(move, "move")
     if len(t) != 3:
         raise ParameterError(f"--move {move!r}: expected three numbers x,y,z")
+    for v in t:
+        check_value("--move", v, -1e12, 1e12)
     t0 = time.perf_counter()
-    mo = ro(_read(path, up), np.radians(angle), t)
-    _write(output, mo)
+    mo = ro(_read(path, up, strict), np.radians(angle), t)
+    _finish(output, mo, None, False, euler)
     _emit(_summary(mo, output, t0, angle_deg=angle), as_json)
 
 
@@ -200,7 +295,8 @@ def reorient(path: Annotated[Path, typer.Argument(help="Input motion.")], output
 def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, same "
                                                            "skeleton.")],
           output: Output,
-          transition: Annotated[float, typer.Option(help="Cross-fade length, frames.")] = 30,
+          transition: Annotated[float, typer.Option(help="Cross-fade length, frames.",
+                                                    callback=bounded(0, 1e7))] = 30,
           offsets: Annotated[str | None, typer.Option(help="Start frame of every clip.")] =
           None,
           scales: Annotated[str | None, typer.Option(help="Time scale of every clip.")] = None,
@@ -214,7 +310,11 @@ def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, s
           "Xrotation",
           no_align_root: Annotated[bool, typer.Option("--no-align-root",
                                                       help="Keep each clip's root.")] = False,
-          up: Up = None, as_json: Json = False) -> None:
+          joint: Annotated[str | None, typer.Option(
+              help="Blend only this joint and the hierarchy below it (the rest from the "
+                   "first clip).")] = None,
+          up: Up = None, strict: Strict = False, lock_feet: Feet = True,
+          euler: Euler = "wrap", as_json: Json = False) -> None:
     """Blend clips with a blend curve, timing offsets/scales and automatic alignment.
 
     Example: biomorph motion blend walk.bvh run.bvh -o walk2run.bvh --transition 40
@@ -222,12 +322,13 @@ def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, s
     """
     from biomorph.motion.blend import blend as bl
     from biomorph.motion.keys import parse_keys
+    from biomorph.motion.partial import merge_below
 
     _check_out(output)
     if len(paths) < 2:
         raise ParameterError("blend needs at least two input clips")
     t0 = time.perf_counter()
-    clips = [_read(p, up) for p in paths]
+    clips = [_read(p, up, strict) for p in paths]
     off = None if offsets is None else _floats(offsets, "offsets")
     sc = None if scales is None else _floats(scales, "scales")
     cv: Any = None
@@ -238,7 +339,11 @@ def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, s
             cv = [(f, float(v[0])) for f, v in parse_keys(curve, dim=1)]
     mo = bl(clips, off, sc, transition, cv, not no_align_root, align, align_joint,
             align_channel)
-    _write(output, mo)
+    ref = None
+    if joint is not None:
+        mo = merge_below(clips[0], mo, joint)
+        ref = clips[0]
+    mo = _finish(output, mo, ref, lock_feet, euler)
     _emit(_summary(mo, output, t0, offsets=mo.meta["blend"]["offsets"]), as_json)
 
 
@@ -246,44 +351,64 @@ def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, s
 def speed(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
           curve: Annotated[str, typer.Option("--speed", help="Constant or keys frame:speed "
                                                              "(1 = original).")] = "1",
-          up: Up = None, as_json: Json = False) -> None:
+          joint: Annotated[str | None, typer.Option(
+              help="Retime only this joint and the hierarchy below it (the rest keeps its "
+                   "timing; output keeps the input's length).")] = None,
+          up: Up = None, strict: Strict = False, lock_feet: Feet = True,
+          euler: Euler = "wrap", as_json: Json = False) -> None:
     """Retime with a speed curve (2 = twice as fast), output at the original frame rate.
 
     Example: biomorph motion speed walk.bvh -o fast.bvh --speed "0:1,100:2,200:1"
     """
+    from biomorph._cli import check_value
     from biomorph.motion.keys import parse_keys
+    from biomorph.motion.partial import merge_below
     from biomorph.motion.timewarp import change_speed
 
     _check_out(output)
     t0 = time.perf_counter()
     try:
         sp: Any = float(curve)
+        check_value("--speed", sp, 0, 1e6, lo_open=True)
     except ValueError:
         sp = [(f, float(v[0])) for f, v in parse_keys(curve, dim=1)]
-    src = _read(path, up)
+    src = _read(path, up, strict)
     if not isinstance(sp, float):
         bad = [f for f, _ in sp if not 0 <= f <= src.n_frames - 1]
         if bad:
             raise ParameterError(f"speed key at frame {bad[0]:g} is outside the clip; "
                                  f"expected 0..{src.n_frames - 1}")
     mo = change_speed(src, sp)
-    _write(output, mo)
+    ref = None
+    if joint is not None:
+        mo = merge_below(src, mo, joint)
+        ref = src
+    mo = _finish(output, mo, ref, lock_feet, euler)
     _emit(_summary(mo, output, t0, frames_in=src.n_frames), as_json)
 
 
 @app.command()
 def cycle(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-          start: Annotated[int | None, typer.Option(help="First frame of the range.")] = None,
-          stop: Annotated[int | None, typer.Option(help="End frame (exclusive).")] = None,
-          transition: Annotated[int, typer.Option(help="Cross-fade frames.")] = 10,
-          cycles: Annotated[int, typer.Option(help="Number of cycles to write.")] = 1,
+          start: Annotated[int | None, typer.Option(help="First frame of the range.",
+                                                    callback=bounded(0, 1e9))] = None,
+          stop: Annotated[int | None, typer.Option(help="End frame (exclusive).",
+                                                   callback=bounded(1, 1e9))] = None,
+          transition: Annotated[int, typer.Option(help="Cross-fade frames.",
+                                                  callback=bounded(1, 1e7))] = 10,
+          cycles: Annotated[int, typer.Option(help="Number of cycles to write.",
+                                              callback=bounded(1, 10000))] = 1,
           auto: Annotated[bool, typer.Option("--auto", help="Search the best loop range.")] =
           False,
-          min_length: Annotated[int, typer.Option(help="Shortest loop for --auto.")] = 30,
+          min_length: Annotated[int, typer.Option(help="Shortest loop for --auto.",
+                                                  callback=bounded(2, 1e9))] = 30,
+          mode: Annotated[str, typer.Option(help="world (travel on) | in-place | root-motion "
+                                                 "(path on a ground-level root joint).")] =
+          "world",
           no_offset: Annotated[bool, typer.Option("--no-offset",
-                                                  help="Loop in place.")] = False,
-          up: Up = None, as_json: Json = False) -> None:
-    """Make a seamless loop (cycle with offset); --auto finds the best range.
+                                                  help="Same as --mode in-place.")] = False,
+          up: Up = None, strict: Strict = False, lock_feet: Feet = True,
+          euler: Euler = "wrap", as_json: Json = False) -> None:
+    """Make a seamless loop (cycle with offset, in place, or root motion); never teleports.
 
     Example: biomorph motion cycle walk.bvh -o loop.bvh --auto --transition 12 --cycles 4
     """
@@ -291,32 +416,90 @@ def cycle(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
 
     _check_out(output)
     t0 = time.perf_counter()
-    mo = _read(path, up)
+    mo = _read(path, up, strict)
     cost = None
     if auto:
         start, stop, cost = best_loop(mo, min_length, None, transition)
     s = 0 if start is None else start
     e = mo.n_frames if stop is None else stop
-    out = make_cycle(mo, s, e, transition, cycles, not no_offset)
-    _write(output, out)
+    up_axis = (up and "y") or mo.meta.get("up_guess") or "y"
+    out = make_cycle(mo, s, e, transition, cycles, up=up_axis,
+                     mode="in-place" if no_offset else mode)
+    out = _finish(output, out, None, lock_feet and mode != "root-motion", euler)
     _emit(_summary(out, output, t0, start=s, stop=e, period=out.meta["cycle"]["period"],
-                   loop_cost=cost), as_json)
+                   mode=out.meta["cycle"]["mode"], loop_cost=cost), as_json)
+
+
+@app.command()
+def root(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
+         action: Annotated[str, typer.Option(help="extract (path onto a ground-level root "
+                                                  "joint) | in-place | apply (fold a ground "
+                                                  "root back into the hips).")] = "extract",
+         keep_heading: Annotated[bool, typer.Option(
+             "--keep-heading", help="Leave the turns in the body (path translation only).")] =
+         False,
+         up: Up = None, strict: Strict = False, euler: Euler = "wrap",
+         as_json: Json = False) -> None:
+    """Root motion: extract the path to a ground-level root, make a clip in place, re-apply.
+
+    Example: biomorph motion root walk.bvh -o walk_rm.bvh --action extract
+    """
+    from biomorph.motion import rootmotion as rm
+
+    _check_out(output)
+    t0 = time.perf_counter()
+    mo = _read(path, up, strict)
+    up_axis = (up and "y") or mo.meta.get("up_guess") or "y"
+    if action == "extract":
+        out = rm.extract_root_motion(mo, up_axis, with_heading=not keep_heading)
+    elif action == "in-place":
+        out = rm.in_place(mo, up_axis, with_heading=not keep_heading)
+    elif action == "apply":
+        out = rm.apply_root_motion(mo)
+    else:
+        raise ParameterError(f"--action {action!r}; expected extract, in-place or apply")
+    _finish(output, out, None, False, euler)
+    _emit(_summary(out, output, t0, action=action), as_json)
+
+
+@app.command()
+def trim(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
+         start: Annotated[int, typer.Option(help="First frame kept.",
+                                            callback=bounded(0, 1e12))] = 0,
+         stop: Annotated[int | None, typer.Option(help="End frame (exclusive; default: the "
+                                                       "end).", callback=bounded(1, 1e12))] =
+         None,
+         up: Up = None, strict: Strict = False, euler: Euler = "wrap",
+         as_json: Json = False) -> None:
+    """Keep frames start..stop-1.
+
+    Example: biomorph motion trim take.bvh -o part.bvh --start 120 --stop 480
+    """
+    _check_out(output)
+    t0 = time.perf_counter()
+    mo = _read(path, up, strict)
+    out = mo.frames(start, mo.n_frames if stop is None else stop)
+    _finish(output, out, None, False, euler)
+    _emit(_summary(out, output, t0, start=start), as_json)
 
 
 @app.command()
 def convert(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC.")], output: Output,
-            fps: Annotated[float | None, typer.Option(help="Resample to this rate.")] = None,
-            up: Up = None, as_json: Json = False) -> None:
+            fps: Annotated[float | None, typer.Option(help="Resample to this rate.",
+                                                      callback=bounded(0, 10000,
+                                                                       lo_open=True))] = None,
+            up: Up = None, strict: Strict = False, euler: Euler = "wrap",
+            as_json: Json = False) -> None:
     """Convert (and optionally resample / make Y-up) a motion to BVH or glTF.
 
     Example: biomorph motion convert take.htr -o take.bvh --fps 30
     """
     _check_out(output)
     t0 = time.perf_counter()
-    mo = _read(path, up)
+    mo = _read(path, up, strict)
     if fps is not None:
         mo = mo.resample(fps)
-    _write(output, mo)
+    _finish(output, mo, None, False, euler)
     _emit(_summary(mo, output, t0), as_json)
 
 

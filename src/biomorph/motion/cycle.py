@@ -54,14 +54,32 @@ def _offset_transform(seg: Motion, p: int, up: str) -> tuple[Array, Array, Array
     return q, a, b
 
 
+CYCLE_MODES = ("world", "in-place", "root-motion")
+
+
 def make_cycle(motion: Motion, start: int, stop: int, transition: int, cycles: int = 1,
-               offset: bool = True, up: str = "y") -> Motion:
+               offset: bool = True, up: str = "y", mode: str | None = None) -> Motion:
     """Loop frames ``start:stop`` with a ``transition``-frame cross-fade; ``cycles`` copies.
+
+    ``mode`` (default ``"world"``; ``offset=False`` means ``"in-place"``):
+
+    * ``"world"``: cycle with offset, each cycle continues where the last one ended;
+    * ``"in-place"``: the per-cycle travel (translation and turn) is removed as a steady
+      drift (:func:`biomorph.motion.rootmotion.remove_drift`), so the loop stays put, keeps
+      its sway and bounce and never jumps at a seam;
+    * ``"root-motion"``: the world-space cycle with its path on a ground-level root joint
+      (:func:`biomorph.motion.rootmotion.extract_root_motion`).
 
     Returns ``cycles × (stop − start − transition)`` frames; ``meta["cycle"]`` holds the
     per-cycle root offset (heading change in rad, translation)."""
+    mode = mode or ("world" if offset else "in-place")
+    if mode not in CYCLE_MODES:
+        raise ParameterError(f"cycle mode {mode!r}; expected one of {', '.join(CYCLE_MODES)}")
     check_range(motion, start, stop, "cycle range")
     n = stop - start
+    if n < 2:
+        raise ParameterError(f"cycle range {start}:{stop} holds {n} frame; expected at least 2")
+    offset = True
     if not isinstance(transition, (int, np.integer)) or transition < 1 or transition >= n:
         raise ParameterError(f"transition of {transition} frames does not fit the cycle range "
                              f"of {n} frames; expected 1 <= transition < {n}")
@@ -104,8 +122,18 @@ def make_cycle(motion: Motion, start: int, stop: int, transition: int, cycles: i
     ang = 2.0 * np.arctan2(np.linalg.norm(q[:3]), q[3]) * (1 if q[_up_index(up)] >= 0 else -1)
     meta["cycle"] = {"start": start, "stop": stop, "transition": int(transition), "period": p,
                      "cycles": int(cycles), "heading_offset": float(ang),
-                     "translation_offset": (b - a).tolist()}
-    return out.with_(meta=meta)
+                     "translation_offset": (b - a).tolist(), "mode": mode}
+    out = out.with_(meta=meta)
+    if mode == "in-place":
+        from biomorph.motion.rootmotion import remove_drift
+
+        # the offset D maps S[0] to S[P]: x -> R(x - a) + b, a travel of b - a turned by R
+        out = remove_drift(out, tf.quat_rotate(tf.quat_conjugate(q), b - a), ang, p, up)
+    elif mode == "root-motion":
+        from biomorph.motion.rootmotion import extract_root_motion
+
+        out = extract_root_motion(out, up)
+    return out
 
 
 def loop_cost(motion: Motion, velocity_weight: float = 1.0) -> tuple[Array, Array]:

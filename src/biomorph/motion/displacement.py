@@ -13,7 +13,13 @@ capture (the offset curve is smooth, the capture is not touched elsewhere).
 
 Support: ``[first key − fade, last key + fade]`` (frames, clamped to the clip; where it
 reaches the clip's end the offset is held instead of faded), or given explicitly.
-The spline is ``scipy.interpolate.CubicSpline`` with clamped (zero-derivative) ends.
+Tangents (``tangent=``, issue 15): ``"auto"`` (default) — auto-clamped cubic Hermite keys as
+in Blender's and Maya's graph editors: the slope at a key is the harmonic mean of the two
+neighbouring secants (Fritsch–Carlson) and zero where the curve turns, so the curve never
+leaves the range of its two neighbouring keys (a lone 30° key reaches exactly 30°, never
+34.6°, and never swings below 0); ``"spline"`` — the former ``scipy.interpolate.CubicSpline``
+with clamped ends (C2, overshoots); ``"linear"``; ``"flat"`` (zero slope at every key, an
+ease in/out between keys).
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.interpolate import CubicSpline
+from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from biomorph.core import transforms as tf
 from biomorph.core.motion import Motion, frozen
@@ -54,14 +60,41 @@ def _support(frames: Array, n_frames: int, fade: float | None,
     return float(frames.min() - fade), float(frames.max() + fade)
 
 
+TANGENTS = ("auto", "spline", "linear", "flat")
+
+
+def auto_clamped_slopes(x: Array, y: Array) -> Array:
+    """Key slopes ``(k, d)``: harmonic mean of neighbouring secants where they agree in sign,
+    0 at turning points and at both ends (no overshoot beyond neighbouring keys)."""
+    sec = np.diff(y, axis=0) / np.diff(x)[:, None]
+    m = np.zeros_like(y)
+    a, b = sec[:-1], sec[1:]
+    same = a * b > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hm = np.where(same, 2 * a * b / (a + b), 0.0)
+    m[1:-1] = hm
+    return m
+
+
+def _interp(kx: Array, ky: Array, t: Array, tangent: str) -> Array:
+    if tangent == "linear":
+        return np.stack([np.interp(t, kx, ky[:, c]) for c in range(ky.shape[1])], axis=1)
+    if tangent == "spline":
+        return CubicSpline(kx, ky, bc_type="clamped", axis=0)(t)
+    slopes = auto_clamped_slopes(kx, ky) if tangent == "auto" else np.zeros_like(ky)
+    return CubicHermiteSpline(kx, ky, slopes, axis=0)(t)
+
+
 def displacement_curve(keys: Keys, n_frames: int, fade: float | None = None,
-                       support: tuple[float, float] | None = None, fps: float = 30.0
-                       ) -> Array:
+                       support: tuple[float, float] | None = None, fps: float = 30.0,
+                       tangent: str = "auto") -> Array:
     """Offset per frame ``float[n_frames, d]``: a clamped cubic spline through the keys and
     through 0 (with zero slope) at both support ends; exactly 0 outside the support.
 
     If the support reaches before frame 0 (after the last frame) there is no zero knot on
     that side: the offset is held flat (zero slope) towards the clip end instead."""
+    if tangent not in TANGENTS:
+        raise ParameterError(f"tangent {tangent!r}; expected one of {', '.join(TANGENTS)}")
     x, y = key_arrays(keys)
     s0, s1 = _support(x, n_frames, fade, support, fps)
     kx, ky = list(x), list(y)
@@ -77,10 +110,9 @@ def displacement_curve(keys: Keys, n_frames: int, fade: float | None = None,
         inside = (t >= max(s0, 0)) & (t <= min(s1, n_frames - 1))
         out[inside] = ky[0]
         return out
-    spline = CubicSpline(np.array(kx), np.array(ky), bc_type="clamped", axis=0)
     lo, hi = kx[0], kx[-1]
     inside = (t >= lo) & (t <= hi)
-    out[inside] = spline(t[inside])
+    out[inside] = _interp(np.array(kx), np.array(ky), t[inside], tangent)
     # beyond a key that is not followed by a zero knot (support past the clip end) hold it
     out[t < lo] = ky[0] if lo == x[0] and s0 < 0 else 0.0
     out[t > hi] = ky[-1] if hi == x[-1] and s1 > n_frames - 1 else 0.0
@@ -123,7 +155,8 @@ def apply_offsets(motion: Motion, joint: str | int, offset: Array, kind: str = "
 
 
 def displace(motion: Motion, joint: str | int, keys: Keys, kind: str = "rotation",
-             fade: float | None = None, support: tuple[float, float] | None = None) -> Motion:
+             fade: float | None = None, support: tuple[float, float] | None = None,
+             tangent: str = "auto") -> Motion:
     """Displacement-map one joint: ``keys`` ``{frame: offset (3,)}`` (rotation vectors in
     radians, or translations), faded in/out over ``fade`` frames (default 0.25 s).
 
@@ -134,7 +167,7 @@ def displace(motion: Motion, joint: str | int, keys: Keys, kind: str = "rotation
     if y.shape[1] != 3:
         raise ParameterError(f"{kind} keys need 3 values each, got {y.shape[1]}")
     off = displacement_curve(list(zip(x, y, strict=True)), motion.n_frames, fade, support,
-                             motion.fps)
+                             motion.fps, tangent)
     return apply_offsets(motion, joint, off, kind)
 
 

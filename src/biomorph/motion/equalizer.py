@@ -43,8 +43,26 @@ joint:
 Both reproduce the input at unity gains (to 1e-15) and never produce a wrap spike. The
 mean-log path also costs one log and one exp per frame and joint instead of two of each
 when the last gain is not 1 (the 1-minute 60-joint benchmark clip: 25 ms CPU either way,
-was 56–70 ms with the reference path for every joint). Root translation (and per-joint
-translations, if any) are filtered as they are.
+was 56–70 ms with the reference path for every joint).
+
+Translations (root-aware, issue 15)
+-----------------------------------
+The root translation is a *trajectory*, not a signal about the world origin: scaling its
+low-pass ``G_K`` by the last gain moved the hips toward the origin and through the floor
+(the fair1 zombie walk's hips dropped from 33.5 to 26.8 units at gain 0.8). ``root=`` says
+what the last gain does to translations (root and any per-joint translations):
+
+* ``"trajectory"`` (default): the band-pass bands ``L_0..L_{K-1}`` get their gains (bounce,
+  sway, jitter are filtered), the low-pass path keeps gain 1 — where the character goes and
+  how high the hips are stay as captured, for every gain setting;
+* ``"start"``: the last gain scales the low-pass path about the first frame (a gain of 0.5
+  halves the distance travelled from where the clip starts; the start height is kept);
+* ``"world"``: the previous behaviour, about the world origin (only for data whose origin
+  means something).
+
+Chosen default: ``"trajectory"``, because the seed's sliders are meant to change the *style*
+of a motion (its frequency content), and a path change is a separate, explicit edit
+(:mod:`biomorph.motion.rootmotion`, :func:`biomorph.motion.align.reorient`).
 """
 
 from __future__ import annotations
@@ -170,10 +188,21 @@ def resolve_joints(motion: Motion, joints: Sequence[str | int] | str | int | Non
     return np.unique(np.asarray(idx, dtype=np.int64))
 
 
+def _equalize_translation(x: Array, g: Array, boundary: str, root: str) -> Array:
+    """Translations ``(f, ..., 3)`` filtered under the ``root`` policy (module docstring)."""
+    if root == "world" or g[-1] == 1.0:
+        return equalize_signal(x, g, boundary)
+    if root == "trajectory":
+        g1 = np.array(g)
+        g1[-1] = 1.0
+        return equalize_signal(x, g1, boundary)
+    return equalize_signal(x - x[:1], g, boundary) + x[:1]
+
+
 def equalize(motion: Motion, gains: ArrayLike = DEFAULT_GAINS,
              joints: Sequence[str | int] | str | int | None = None,
              channels: str = "all", hierarchy_below: bool = False,
-             boundary: str = "edge") -> Motion:
+             boundary: str = "edge", root: str = "trajectory") -> Motion:
     """The Motion Equalizer: scale each frequency band of the chosen joints' signals.
 
     Parameters
@@ -184,6 +213,9 @@ def equalize(motion: Motion, gains: ArrayLike = DEFAULT_GAINS,
     joints : names or indices (``None`` = all joints); ``hierarchy_below`` adds subtrees.
     channels : ``"rotation"``, ``"position"`` (root / joint translations) or ``"all"``.
     boundary : ``"edge"`` (hold end values) or ``"reflect"``.
+    root : what the last gain does to translations: ``"trajectory"`` (default: nothing, the
+        path is kept), ``"start"`` (scale about the first frame) or ``"world"`` (about the
+        origin); see the module docstring.
 
     Example: ``equalize(mo, [0, 0, 1, 1, 1])`` removes the two highest bands (denoise);
     ``equalize(mo, [1, 1, 1.5, 1.5, 1])`` exaggerates the mid frequencies.
@@ -191,6 +223,8 @@ def equalize(motion: Motion, gains: ArrayLike = DEFAULT_GAINS,
     if channels not in ("all", "rotation", "position"):
         raise ParameterError(f"channels {channels!r}; expected 'all', 'rotation' or 'position'")
     g = _check_gains(gains, motion.n_frames)
+    if root not in ("trajectory", "start", "world"):
+        raise ParameterError(f"root {root!r}; expected 'trajectory', 'start' or 'world'")
     mode = _mode(boundary)
     levels = g.size - 1
     sel = resolve_joints(motion, joints, hierarchy_below)
@@ -209,10 +243,10 @@ def equalize(motion: Motion, gains: ArrayLike = DEFAULT_GAINS,
             rot[:, sel] = q2
     if channels in ("all", "position"):
         if 0 in sel:
-            pos = equalize_signal(pos, g, boundary)
+            pos = _equalize_translation(pos, g, boundary, root)
         if jt is not None:
             jt = np.array(jt)
-            jt[:, sel] = equalize_signal(jt[:, sel], g, boundary)
+            jt[:, sel] = _equalize_translation(jt[:, sel], g, boundary, root)
             jt[:, 0] = pos
     meta = dict(motion.meta)
     meta.setdefault("history", [])
