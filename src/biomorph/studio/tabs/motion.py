@@ -81,6 +81,7 @@ class MotionTab(StudioTab):
         self._bones = None
         self._joints = None
         self.stage_errors: dict[str, str] = {}
+        self._stage_cache: dict[str, tuple[Any, Any, list[int]]] = {}
 
     def requirement(self) -> str | None:
         try:
@@ -251,18 +252,50 @@ class MotionTab(StudioTab):
         A stage that fails is reported (:attr:`stage_errors`) and left out, so later edits
         keep working; export refuses while a stage fails (it would not be what is shown
         on the controls)."""
-        mo = self._need_clip()
-        self.seams = []
-        self.stage_errors = {}
-        for name, stage in (("blend", self._blend), ("equalizer", self._equalize),
-                            ("speed", self._speed), ("cycle", self._cycle)):
-            try:
-                mo = stage(mo)
-            except Exception as exc:  # noqa: BLE001 - reported, the stage is left out
-                from biomorph.studio.base import error_text
+        from biomorph.studio.base import error_text
 
+        mo = self._need_clip()
+        self.stage_errors = {}
+        cache = self._stage_cache
+        for name, stage, params in (("blend", self._blend, self._blend_params),
+                                    ("equalizer", self._equalize, self._equalize_params),
+                                    ("speed", self._speed, self._speed_params),
+                                    ("cycle", self._cycle, self._cycle_params)):
+            key = (id(mo), id(self.clip_b), params())
+            hit = cache.get(name)
+            if hit is not None and hit[0] == key:  # same input, same controls: reuse
+                mo, self.seams = hit[1], hit[2] if name == "cycle" else self.seams
+                continue
+            if name == "cycle":
+                self.seams = []
+            try:
+                out = stage(mo)
+            except Exception as exc:  # noqa: BLE001 - reported, the stage is left out
                 self.stage_errors[name] = error_text(exc)
+                cache.pop(name, None)
+                continue
+            cache[name] = (key, out, list(self.seams))
+            mo = out
         return mo
+
+    # each stage's controls, as a key of the stage cache (an edit reruns its stage and the
+    # ones after it, never the ones before)
+    def _blend_params(self) -> tuple:
+        if self.blend_on is None or not self.blend_on.value:
+            return ()
+        return (self.blend_offset.value, self.blend_scale.value, self.blend_length.value,
+                self.blend_keys.value)
+
+    def _equalize_params(self) -> tuple:
+        return tuple(g.value for g in self.gains)
+
+    def _speed_params(self) -> tuple:
+        return () if self.speed is None else (self.speed.value, self.speed_keys.value)
+
+    def _cycle_params(self) -> tuple:
+        if self.cycle_on is None or not self.cycle_on.value:
+            return ()
+        return (self.cycle_range.value, self.cycle_transition.value, self.cycle_repeats.value)
 
     def _blend(self, mo: Any) -> Any:
         if self.blend_on is None or not self.blend_on.value:
