@@ -74,6 +74,7 @@ from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import InputError, ParameterError
 from biomorph.tree.allometry import allometric_radii, skeleton_distance
+from biomorph.tree.foliage import check_not_only_leaves
 from biomorph.tree.neighbours import (
     LEVEL_CELL,
     NODE_SPACING,
@@ -86,7 +87,7 @@ from biomorph.tree.neighbours import (
     shortest_path_forest,
 )
 from biomorph.tree.resample import densify, extend_tips
-from biomorph.tree.roots import find_roots
+from biomorph.tree.roots import check_single_tree, check_trunk_reaches_ground, find_roots
 from biomorph.tree.treesolve import (
     EDGE_WEIGHTS,
     importance_weights,
@@ -138,7 +139,8 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
                       reweight: float = 0.5, height: NDArray[np.float64] | None = None,
                       root_slice: float = 0.5, min_tree_distance: float = 0.6,
                       allometry_exponent: float = 2.5, seed: int = 0,
-                      edge_weights: str = "livny", progress=None) -> LivnyResult:
+                      edge_weights: str = "livny", progress=None,
+                      source: str = "point cloud") -> LivnyResult:
     """Livny et al. 2010 steps i–vii on a point cloud (cleanup is :mod:`~biomorph.tree.cleanup`).
 
     Parameters
@@ -158,6 +160,12 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     edge_weights : weights of steps iv–v: the seed's ``"livny"`` (default) or ``"branch"``
         (see the module doc).
     progress : optional ``advance(n, description)`` callback.
+    source : name of the cloud in error messages.
+
+    Raises :class:`~biomorph.errors.InputError` (one line, exit 2 at the CLI) for clouds
+    with no tree model to give: foliage only (:func:`~biomorph.tree.foliage.check_not_only_leaves`),
+    no trunk reaching a found ground (:func:`~biomorph.tree.roots.check_trunk_reaches_ground`),
+    or two stems in a one-tree run, ``n_trees=1`` (:func:`~biomorph.tree.roots.check_single_tree`).
     """
     xyz = np.ascontiguousarray(xyz, dtype=np.float64)
     n = xyz.shape[0]
@@ -170,6 +178,11 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     if edge_weights not in EDGE_WEIGHTS:
         raise ParameterError(f"edge_weights {edge_weights!r}; expected one of "
                              f"{', '.join(EDGE_WEIGHTS)}")
+    check_not_only_leaves(xyz, source)
+    check_trunk_reaches_ground(height, source=source)
+    if n_trees == 1:
+        check_single_tree(xyz, height=height, root_slice=root_slice,
+                          min_tree_distance=min_tree_distance, source=source)
     timings: dict[str, float] = {}
 
     def tick(name: str, t0: float) -> float:

@@ -15,9 +15,14 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from biomorph.errors import ParameterError
+from biomorph.errors import InputError, ParameterError
 
-__all__ = ["find_roots"]
+__all__ = ["find_roots", "stem_bases", "check_single_tree", "check_trunk_reaches_ground"]
+
+#: a second stem counts (two trees touching in a one-tree run) when its base cluster holds at
+#: least this share of the points of the largest one: smaller base clusters are root
+#: flares, low branch tips or ground residue beside the stem
+SECOND_STEM_SHARE = 0.25
 
 
 def _grid_clusters(xy: NDArray[np.float64], cell: float, min_points: int) -> NDArray[np.int64]:
@@ -212,3 +217,75 @@ def find_roots(xyz: NDArray[np.float64], *, n_trees: int | None = None,
         roots, tree = [base], [np.zeros(base.size, dtype=np.int64)]
     return np.concatenate(roots).astype(np.int64), np.concatenate(tree)
 
+
+
+def stem_bases(xyz: NDArray[np.float64], *, height: NDArray[np.float64] | None = None,
+               root_slice: float = 0.5, min_tree_distance: float = 0.6,
+               stem_slice: tuple[float, float] = (0.8, 1.6)) -> NDArray[np.float64]:
+    """XY centres (m) of the stems standing on the ground, largest first.
+
+    With ``height`` (a ground was found) these are :func:`_stem_roots`' stems: density
+    clusters at breast height that continue down to the ground. Without it, the density
+    clusters of the lowest ``root_slice`` that continue upwards (points of the next slice
+    within the cluster's radius + 10 cm). Only clusters holding ``SECOND_STEM_SHARE`` of the
+    largest one's points count."""
+    cell = max(root_slice / 5.0, 1e-3)
+    if height is not None:
+        h = np.asarray(height, dtype=float)
+        found = _stem_roots(xyz, h, stem_slice, 0.1, min_tree_distance, 0.05)
+        if found is not None:
+            roots, tree = found
+            cnt = np.bincount(tree)
+            keep = np.flatnonzero(cnt >= SECOND_STEM_SHARE * cnt.max())
+            return np.array([xyz[roots[tree == t], :2].mean(axis=0) for t in keep])
+    z = xyz[:, 2] - xyz[:, 2].min()
+    sl = np.flatnonzero(z <= root_slice)
+    if sl.size < 10:
+        return np.zeros((0, 2))
+    lab = _density_clusters(xyz[sl, :2], cell, min_tree_distance)
+    ids, cnt = np.unique(lab[lab >= 0], return_counts=True)
+    if ids.size == 0:
+        return np.zeros((0, 2))
+    above = np.flatnonzero((z > root_slice) & (z <= 2 * root_slice))
+    kd = cKDTree(xyz[above, :2]) if above.size else None
+    out = []
+    for t in ids[np.argsort(-cnt, kind="stable")]:
+        if cnt[ids == t][0] < SECOND_STEM_SHARE * cnt.max():
+            continue
+        pts = xyz[sl[lab == t], :2]
+        c = pts.mean(axis=0)
+        rho = float(np.max(np.linalg.norm(pts - c, axis=1)))
+        if kd is not None and len(kd.query_ball_point(c, rho + 0.1)) >= 5:
+            out.append(c)
+    return np.array(out).reshape(-1, 2)
+
+
+def check_single_tree(xyz: NDArray[np.float64], *, height: NDArray[np.float64] | None = None,
+                      root_slice: float = 0.5, min_tree_distance: float = 0.6,
+                      source: str = "point cloud") -> None:
+    """A one-tree run (``n_trees=1``) on a cloud with two or more stems is a wrong model (one
+    tree spanning two stems): raise :class:`InputError` naming the stems found."""
+    bases = stem_bases(xyz, height=height, root_slice=root_slice,
+                       min_tree_distance=min_tree_distance)
+    if bases.shape[0] < 2:
+        return
+    d = float(np.linalg.norm(bases[1] - bases[0]))
+    where = ", ".join(f"({x + 0.0:.2f}, {y + 0.0:.2f})" for x, y in np.round(bases[:4], 2))
+    raise InputError(f"{source}: {bases.shape[0]} stems found at x, y = {where} m "
+                     f"({d:.2f} m apart); expected one tree with n_trees=1 -- touching trees "
+                     "need --n-trees 2 (or the default automatic count)")
+
+
+def check_trunk_reaches_ground(height: NDArray[np.float64] | None, *, max_gap: float = 0.8,
+                               source: str = "point cloud") -> None:
+    """With a ground found, a trunk must reach down to it: when no point lies within
+    ``max_gap`` (default the 0.8 m bottom of the breast-height band, where a stem is
+    always measured) of the ground there is no trunk in the scan (a crown alone, a
+    cloud cut above the ground) -- raise :class:`InputError`."""
+    if height is None or np.size(height) == 0:
+        return
+    low = float(np.min(height))
+    if low > max_gap:
+        raise InputError(f"{source}: no trunk found -- the lowest point above the ground is "
+                         f"{low:.2f} m high; expected a stem reaching within {max_gap:g} m of "
+                         "the ground (a crown-only scan, or a cloud cut above the base?)")

@@ -56,6 +56,7 @@ from biomorph.core.graph import BranchGraph
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 from biomorph.tree.cleanup import smooth_chains
+from biomorph.tree.foliage import check_not_only_leaves
 from biomorph.tree.thinning import thin_palagyi_kuba
 
 __all__ = ["skeletonize_voxel", "VoxelSkeleton", "voxelize", "preprocess_volume",
@@ -515,6 +516,7 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
         raise InputError(f"{cloud.source or 'point cloud'}: no voxels left after removing "
                          f"components smaller than {min_size} voxels (cell {cell:.3g} m); "
                          "expected a connected tree -- lower min_size or raise cell_size")
+    check_not_only_leaves(cloud.xyz, cloud.source or "point cloud")
     t2 = time.perf_counter()
 
     note("thin")
