@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from biomorph._cli import bounded
 from biomorph.errors import ParameterError
 
 app = typer.Typer(name="creature", no_args_is_help=True, add_completion=False,
@@ -47,7 +48,7 @@ def parse_pc(items: list[str] | None, k: int | None = None) -> dict[int, float] 
 
 
 def _options(seed, legs, wings, arms, centaur, weight, neck_length, tail_length, cls, k,
-             temperature, allow_unstable, dataset, pcs=None):
+             temperature, allow_unstable, dataset, pcs=None, allow_extrapolation=False):
     from biomorph.creature.generator import Options
 
     if cls is not None:
@@ -56,35 +57,48 @@ def _options(seed, legs, wings, arms, centaur, weight, neck_length, tail_length,
                    neck_length=neck_length, tail_length=tail_length, cls=cls, k=k,
                    temperature=temperature, require_stable=not allow_unstable,
                    dataset=None if dataset is None else str(dataset),
-                   scores=parse_pc(pcs, k)).validate()
+                   scores=parse_pc(pcs, k),
+                   allow_extrapolation=allow_extrapolation).validate()
 
 
 @app.command()
 def generate(
     output: Annotated[Path, typer.Option("-o", "--output", help="Output file: .glb .bvh .obj "
                                          ".osim .xml .json")] = Path("creature.glb"),
-    seed: Annotated[int, typer.Option(help="Random seed (same seed → same creature).")] = 0,
-    legs: Annotated[int | None, typer.Option(help="Legs with ground contact: 0, 2, 4 or 6.")
-                    ] = None,
+    seed: Annotated[int, typer.Option(help="Random seed (same seed → same creature).",
+                                      callback=bounded(0))] = 0,
+    legs: Annotated[int | None, typer.Option(help="Legs with ground contact: 0, 2, 4 or 6.",
+                                             callback=bounded(0, 6))] = None,
     wings: Annotated[bool | None, typer.Option("--wings/--no-wings",
                                                help="Force wings on or off.")] = None,
     arms: Annotated[bool, typer.Option("--arms", help="Add a pair of arms.")] = False,
     centaur: Annotated[bool, typer.Option("--centaur", help="Extra girdle with arms below the "
                                           "head (lengthens the neck if needed).")] = False,
-    weight: Annotated[float | None, typer.Option(help="Body weight in kg.")] = None,
+    weight: Annotated[float | None, typer.Option(
+        help="Body weight in kg (the dataset spans 0.01..120000 kg; up to 10× beyond).",
+        callback=bounded(0, lo_open=True))] = None,
+    allow_extrapolation: Annotated[bool, typer.Option(
+        "--allow-extrapolation", help="Accept a weight more than 10× outside the dataset's "
+        "range.")] = False,
     neck_length: Annotated[float | None, typer.Option(
-        help="Neck chord in frame units (1 = the skeleton's largest extent).")] = None,
-    tail_length: Annotated[float | None, typer.Option(help="Tail chord in frame units.")
-                           ] = None,
+        help="Neck chord in frame units (1 = the skeleton's largest extent).",
+        callback=bounded(0, 1.5))] = None,
+    tail_length: Annotated[float | None, typer.Option(help="Tail chord in frame units.",
+                                                      callback=bounded(0, 1.5))] = None,
     cls: Annotated[str | None, typer.Option("--class", help="fish, amphibian, reptile, bird "
                                             "or mammal.")] = None,
-    k: Annotated[int | None, typer.Option(help="Sample from the top k PCA components.")
-                 ] = None,
-    temperature: Annotated[float, typer.Option(help="Variance scale of sampling.")] = 1.0,
+    k: Annotated[int | None, typer.Option(help="Sample from the top k PCA components.",
+                                          callback=bounded(1, 29))] = None,
+    temperature: Annotated[float, typer.Option(help="Variance scale of sampling.",
+                                               callback=bounded(0))] = 1.0,
     pc: Annotated[list[str] | None, typer.Option(
         "--pc", help="Fix a PCA component score: N=SCORE, N counted from 1 (PC1 = largest "
         "variance), SCORE in standard deviations, -4..4; repeatable.")] = None,
-    bone_shape: Annotated[str, typer.Option(help="box or bone (glb/obj).")] = "box",
+    bone_shape: Annotated[str, typer.Option(help="bone (procedural bone models) or box (the "
+                                            "seed's boxes) (glb/obj).")] = "bone",
+    lod: Annotated[int, typer.Option(help="Bone-model level of detail 0, 1 or 2.")] = 1,
+    skin: Annotated[bool, typer.Option("--skin", help="Add the body envelope (muscles + skin "
+                                       "surface, smoothly skinned) (glb/obj).")] = False,
     walk: Annotated[bool, typer.Option("--walk", help="Add a procedural walk cycle "
                                        "(glb/bvh).")] = False,
     rigify: Annotated[bool, typer.Option("--rigify", help="glb: a Rigify metarig (connected "
@@ -110,16 +124,22 @@ def generate(
     from biomorph.creature.mesh import SHAPES
 
     check_extension(output)
+    if rigify and legs == 0:
+        raise ParameterError("--rigify with --legs 0: a Rigify metarig needs legs (its leg "
+                             "chains carry the IK and the root); drop --rigify or ask for legs")
     if bone_shape not in SHAPES:
         raise ParameterError(f"--bone-shape {bone_shape!r}; expected one of {', '.join(SHAPES)}")
+    if lod not in (0, 1, 2):
+        raise ParameterError(f"--lod {lod}; expected 0, 1 or 2")
     opts = _options(seed, legs, wings, arms, centaur, weight, neck_length, tail_length, cls, k,
-                    temperature, allow_unstable, dataset, pc)
+                    temperature, allow_unstable, dataset, pc, allow_extrapolation)
     creature = Generator(opts).run()
     summary = creature.summary()
     if settle:
         from biomorph.io.mjcf import settle as _settle
         summary["mujoco_settle"] = _settle(creature)
-    path = export(creature, output, bone_shape=bone_shape, walk=walk, rigify=rigify)
+    path = export(creature, output, bone_shape=bone_shape, walk=walk, rigify=rigify, lod=lod,
+                  skin=skin)
     summary["output"] = str(path)
     if as_json:
         print_json(summary)
@@ -148,13 +168,15 @@ def _batch_item(item: dict) -> dict:
 
 @app.command()
 def batch(
-    count: Annotated[int, typer.Option(help="Number of creatures.")] = 100,
+    count: Annotated[int, typer.Option(help="Number of creatures.", callback=bounded(1))
+                     ] = 100,
     out: Annotated[Path, typer.Option(help="Output folder.")] = Path("creatures"),
     fmt: Annotated[str, typer.Option("--format", help="glb, bvh, obj, osim, xml or json.")
                    ] = "glb",
-    seed_start: Annotated[int, typer.Option(help="First seed.")] = 0,
-    chunk: Annotated[int, typer.Option(help="Creatures per task.")] = 100,
-    workers: Annotated[int | None, typer.Option(help="Worker processes (0 = serial).")] = None,
+    seed_start: Annotated[int, typer.Option(help="First seed.", callback=bounded(0))] = 0,
+    chunk: Annotated[int, typer.Option(help="Creatures per task.", callback=bounded(1))] = 100,
+    workers: Annotated[int | None, typer.Option(help="Worker processes (0 = serial).",
+                                                callback=bounded(0))] = None,
     scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
 ) -> None:
@@ -239,9 +261,11 @@ def annotate(
     name: Annotated[str | None, typer.Option(help="Species name (default: file stem).")
                     ] = None,
     cls: Annotated[str, typer.Option("--class", help="Animal class.")] = "mammal",
-    weight: Annotated[float, typer.Option(help="Weight in kg.")] = 1.0,
+    weight: Annotated[float, typer.Option(help="Weight in kg.",
+                                          callback=bounded(0, lo_open=True))] = 1.0,
     wings: Annotated[bool, typer.Option("--wings/--no-wings")] = False,
-    legs: Annotated[int, typer.Option(help="Legs with ground contact: 0, 2 or 4.")] = 4,
+    legs: Annotated[int, typer.Option(help="Legs with ground contact: 0, 2 or 4.",
+                                      callback=bounded(0, 4))] = 4,
     out: Annotated[Path, typer.Option("--dataset", help="Species CSV to append to (created "
                                       "from the built-in 44 if absent).")
                    ] = Path("species.csv"),
@@ -262,6 +286,59 @@ def annotate(
         print_json({"row": row, "dataset": str(path)})
     else:
         out_console.print(f"appended {row['name']} to {path}")
+
+
+@app.command()
+def render(
+    output: Annotated[Path, typer.Option("-o", "--output", help="PNG to write.")
+                      ] = Path("creature.png"),
+    seed: Annotated[int, typer.Option(help="Random seed (same seed → same creature).")] = 0,
+    legs: Annotated[int | None, typer.Option(help="Legs with ground contact: 0, 2, 4 or 6.")
+                    ] = None,
+    wings: Annotated[bool | None, typer.Option("--wings/--no-wings",
+                                               help="Force wings on or off.")] = None,
+    weight: Annotated[float | None, typer.Option(help="Body weight in kg.")] = None,
+    cls: Annotated[str | None, typer.Option("--class", help="fish, amphibian, reptile, bird "
+                                            "or mammal.")] = None,
+    view: Annotated[list[str] | None, typer.Option(
+        "--view", help="side, three_quarter, front or top; repeatable (default: side and "
+        "three_quarter).")] = None,
+    bone_shape: Annotated[str, typer.Option(help="bone or box.")] = "bone",
+    lod: Annotated[int, typer.Option(help="Bone-model level of detail 0, 1 or 2.")] = 1,
+    skin: Annotated[bool, typer.Option("--skin/--no-skin", help="Also draw muscles and the "
+                                       "body envelope.")] = True,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+) -> None:
+    """Shaded 3-D pictures (side and three-quarter) of a creature's skeleton and skin.
+
+    Example: biomorph creature render --seed 7 --legs 4 -o horse.png
+    """
+    from biomorph._cli import check_suffix, out_console, print_json
+    from biomorph.creature.generator import Generator
+    from biomorph.creature.mesh import SHAPES
+    from biomorph.creature.render import VIEWS, render_creature
+
+    check_suffix(output, (".png",), "--output")
+    views = tuple(view or ("side", "three_quarter"))
+    for v in views:
+        if v not in VIEWS:
+            raise ParameterError(f"--view {v!r}; expected one of {', '.join(VIEWS)}")
+    if bone_shape not in SHAPES:
+        raise ParameterError(f"--bone-shape {bone_shape!r}; expected one of {', '.join(SHAPES)}")
+    if lod not in (0, 1, 2):
+        raise ParameterError(f"--lod {lod}; expected 0, 1 or 2")
+    opts = _options(seed, legs, wings, False, False, weight, None, None, cls, None, 1.0,
+                    False, None, None)
+    creature = Generator(opts).run()
+    s = creature.summary()
+    path = render_creature(creature, output, views=views, shape=bone_shape, lod=lod, skin=skin,
+                           title=f"seed {seed}: {s['class']}, {s['legs']} legs, "
+                                 f"{s['mass_kg']:.3g} kg")
+    summary = {**s, "output": str(path), "views": list(views)}
+    if as_json:
+        print_json(summary)
+    else:
+        out_console.print(f"wrote {path}: {s['class']}, {len(views)} views, skin={skin}")
 
 
 @app.command("rigify-setup")

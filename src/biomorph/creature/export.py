@@ -43,21 +43,24 @@ TO_GLTF = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
 BONE_FLOOR_M = 0.0045
 
 
-def export(creature: Creature, path: str | os.PathLike[str], bone_shape: str = "box",
-           walk: bool = False, rigify: bool = False, lod: int = 1) -> Path:
+def export(creature: Creature, path: str | os.PathLike[str], bone_shape: str = "bone",
+           walk: bool = False, rigify: bool = False, lod: int = 1, skin: bool = False) -> Path:
     """Write ``creature`` to ``path`` (format by extension); atomic; returns the path.
 
     ``walk`` adds a procedural walk cycle (glb, bvh). ``rigify``: for ``.glb`` a real
     Rigify metarig (:func:`biomorph.creature.rigify.build_metarig`, rig types and exact
     bone heads/tails as node extras); for the other formats Rigify-style names only.
-    ``.glb`` files use glTF's axes (+Z forward, left on +X)."""
+    ``.glb`` files use glTF's axes (+Z forward, left on +X); ``skin`` adds the body
+    envelope skinned with smooth weights (glb) or as its own OBJ group (obj). ``bone_shape``
+    ``bone`` (procedural bone models, :mod:`biomorph.creature.bones`) or ``box`` (the
+    seed's boxes); ``lod`` 0, 1 or 2."""
     ext = check_extension(path)
     if rigify and not any(k == "spine" for k in creature.kind):
         from biomorph.errors import ParameterError
         raise ParameterError("--rigify needs a creature with a spine")
     if ext == ".glb":
         return write_glb(creature, path, bone_shape=bone_shape, walk=walk, rigify=rigify,
-                         lod=lod)
+                         lod=lod, skin=skin)
     original = creature
     if rigify:
         from biomorph.creature.rigify import with_rigify_names
@@ -114,24 +117,27 @@ def floor_bone_lengths(skeleton, floor: float = BONE_FLOOR_M):
     return skeleton.with_(offset=off), int(short.sum())
 
 
-def write_glb(creature: Creature, path: str | os.PathLike[str], *, bone_shape: str = "box",
-              walk: bool = False, rigify: bool = False, lod: int = 1) -> Path:
+def write_glb(creature: Creature, path: str | os.PathLike[str], *, bone_shape: str = "bone",
+              walk: bool = False, rigify: bool = False, lod: int = 1,
+              skin: bool = False) -> Path:
     """Skinned GLB of ``creature`` in glTF's axes: bone models rigidly skinned to their
-    joints, optionally a walk cycle and/or a Rigify metarig (see :func:`export`)."""
-    from biomorph.creature.mesh import joint_meshes
+    joints, optionally the body envelope with smooth weights (``skin``), a walk cycle and/or
+    a Rigify metarig (see :func:`export`)."""
+    from biomorph.creature.bones import geometry
     from biomorph.io.gltf import write_gltf
 
-    meshes = joint_meshes(creature, bone_shape, lod=lod)
+    geo = geometry(creature, bone_shape, lod)
     motion = None
     if walk:
         from biomorph.creature.walk import walk_cycle
         motion = walk_cycle(creature)
     extras: list | None = None
+    owner_of = None
     if rigify:
         from biomorph.creature.rigify import build_metarig, joint_extras, retarget
 
         rig = build_metarig(creature)
-        meshes = _meshes_on_rig(creature, rig, meshes)
+        geo, owner_of = _geometry_on_rig(creature, rig, geo)
         skeleton = rig.skeleton
         motion = None if motion is None else retarget(motion, rig)
         extras = joint_extras(rig, TO_GLTF)
@@ -139,40 +145,52 @@ def write_glb(creature: Creature, path: str | os.PathLike[str], *, bone_shape: s
         skeleton = creature.skeleton
         if motion is None:
             skeleton, _ = floor_bone_lengths(skeleton)
+    skinned = _skin_arrays(creature, skeleton, lod, owner_of) if skin else None
     skeleton, motion = _to_gltf_axes(skeleton, motion)
+    if skinned is not None:
+        skinned = (skinned[0] @ TO_GLTF.T, skinned[1] @ TO_GLTF.T, *skinned[2:])
     arm_extras = {"biomorph_metarig": 1} if rigify else None
-    return write_gltf(path, skeleton, motion=motion, bone_shape=None, meshes=meshes,
-                      name="creature", joint_extras=extras, extras=arm_extras)
+    return write_gltf(path, skeleton, motion=motion, bone_shape=None, joint_geometry=geo,
+                      name="creature", joint_extras=extras, extras=arm_extras,
+                      skinned_mesh=skinned)
 
 
-def _meshes_on_rig(creature: Creature, rig, meshes: dict) -> dict:
-    """Bone models moved from their creature joint's frame into a rig bone riding on it."""
-    from biomorph.core.mesh import Mesh
+def _skin_arrays(creature: Creature, skeleton, lod: int, owner_of):
+    """Envelope vertices/normals in the exported skeleton's rest world frame, joints and
+    weights re-indexed onto its bones (rig bones ride on creature joints)."""
+    from biomorph.creature.skin import body
 
+    b = body(creature, lod=lod)
+    env = b.envelope
+    jnt, w = b.joints, b.weights
+    if owner_of is not None:
+        jnt = owner_of[jnt]
+        # rig world differs from the creature's only by the carry offsets: positions of the
+        # rest pose are the same points
+    return env.vertices, env.normals, jnt, w, env.faces
+
+
+def _geometry_on_rig(creature: Creature, rig, geo):
+    """Bone-model vertices moved from their creature joint's frame into a rig bone riding
+    on that joint (or on its nearest ancestor that has one); also the rig bone per joint."""
     first: dict[int, int] = {}
     for b, o in enumerate(rig.owner.tolist()):
         first.setdefault(o, b)
     par = creature.skeleton.parent
-    out = {}
-    for j, m in meshes.items():
+    n = len(creature)
+    to_rig = np.zeros(n, np.int64)
+    mats = np.tile(np.eye(4), (n, 1, 1))
+    for j in range(n):
         o = j
         while o not in first and par[o] >= 0:
             o = int(par[o])
         b = first.get(o, 0)
-        # rig frame = owner frame @ carry (b rides on o); j's frame relative to o's
+        to_rig[j] = b
+        # rig frame = owner frame @ carry; j's frame relative to o's
         rel = np.linalg.inv(creature.world[o]) @ creature.world[j]
-        m_to_b = np.linalg.inv(rig.carry[b]) @ rel
-        v = m.vertices @ m_to_b[:3, :3].T + m_to_b[:3, 3]
-        n = None if m.normals is None else m.normals @ m_to_b[:3, :3].T
-        out[b] = _merged(out.get(b), Mesh(v, m.faces, normals=n))
-    return out
-
-
-def _merged(a, b):
-    if a is None:
-        return b
-    from biomorph.core.mesh import Mesh
-    n = None if a.normals is None or b.normals is None else np.concatenate([a.normals,
-                                                                            b.normals])
-    return Mesh(np.concatenate([a.vertices, b.vertices]),
-                np.concatenate([a.faces, b.faces + a.n_vertices]), normals=n)
+        mats[j] = np.linalg.inv(rig.carry[b]) @ rel
+    v, nrm, jnt, f = geo
+    m = mats[jnt]
+    v2 = np.einsum("kij,kj->ki", m[:, :3, :3], v) + m[:, :3, 3]
+    n2 = np.einsum("kij,kj->ki", m[:, :3, :3], nrm)
+    return (v2, n2, to_rig[jnt], f), to_rig

@@ -32,6 +32,10 @@ _TRIANGLES = 4
 _BONE_MATERIAL = {"name": "bone", "doubleSided": False,
                   "pbrMetallicRoughness": {"baseColorFactor": [0.89, 0.85, 0.78, 1.0],
                                            "metallicFactor": 0.0, "roughnessFactor": 0.7}}
+_SKIN_MATERIAL = {"name": "skin", "doubleSided": False,
+                  "pbrMetallicRoughness": {"baseColorFactor": [0.80, 0.55, 0.45, 0.55],
+                                           "metallicFactor": 0.0, "roughnessFactor": 0.6},
+                  "alphaMode": "BLEND"}
 _MESH_MATERIAL = {"name": "surface", "doubleSided": True,
                   "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
                                            "metallicFactor": 0.0, "roughnessFactor": 0.8}}

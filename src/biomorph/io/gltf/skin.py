@@ -11,8 +11,14 @@ from numpy.typing import NDArray
 from biomorph.core import transforms as tf
 from biomorph.core.skeleton import JointSkeleton
 from biomorph.errors import InputError, ParameterError
-from biomorph.io.gltf.arrays import _Z_TO_Y, _Z_TO_Y_QUAT, _float32, _joint_nodes
-from biomorph.io.gltf.builder import _BONE_MATERIAL, _TRIANGLES, ARRAY_BUFFER, _Builder
+from biomorph.io.gltf.arrays import _Z_TO_Y, _Z_TO_Y_QUAT, _float32, _joint_nodes, _unit_rows
+from biomorph.io.gltf.builder import (
+    _BONE_MATERIAL,
+    _SKIN_MATERIAL,
+    _TRIANGLES,
+    ARRAY_BUFFER,
+    _Builder,
+)
 from biomorph.io.gltf.meshes import _indices
 from biomorph.io.gltf.sticks import _SHAPES, _bone_solids, _joint_meshes
 
@@ -31,7 +37,8 @@ def _converted_rest(skeleton: JointSkeleton, y_up: bool) -> tuple[NDArray, NDArr
 def _add_skeleton(builder: _Builder, skeleton: JointSkeleton, *, bone_shape: str | None,
                   bone_width: Any, joint_meshes: Mapping[Any, Any] | None, y_up: bool,
                   name: str | None, joint_extras: Sequence[Mapping[str, Any] | None] | None = None,
-                  extras: Mapping[str, Any] | None = None) -> list[int]:
+                  extras: Mapping[str, Any] | None = None, joint_geometry: Any = None,
+                  skinned: Any = None) -> list[int]:
     """Joint nodes, armature node, skin and skinned bone mesh; returns joint node indices.
 
     ``joint_extras`` (one JSON-ready mapping or ``None`` per joint) and ``extras`` (armature
@@ -86,6 +93,8 @@ def _add_skeleton(builder: _Builder, skeleton: JointSkeleton, *, bone_shape: str
         parts.append(_bone_solids(skeleton, world, bone_shape, bone_width))
     if joint_meshes:
         parts.append(_joint_meshes(skeleton, world, joint_meshes, builder.scale))
+    if joint_geometry is not None:
+        parts.append(_joint_geometry(skeleton, world, joint_geometry, builder.scale))
     parts = [p for p in parts if len(p[0])]
     if parts:
         base = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
@@ -110,4 +119,71 @@ def _add_skeleton(builder: _Builder, skeleton: JointSkeleton, *, bone_shape: str
         builder.doc["meshes"].append({"name": label, "primitives": [prim]})
         builder.node({"name": label, "mesh": len(builder.doc["meshes"]) - 1,
                       "skin": len(builder.doc["skins"]) - 1}, root=True)
+    if skinned is not None:
+        _add_smooth_skin(builder, skinned, n, world, f"{name or 'armature'}_skin_mesh")
     return joints
+
+
+def _joint_geometry(skeleton: JointSkeleton, world: NDArray, geometry: Sequence[Any],
+                    scale: float) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """``(vertices, normals, joint, faces)`` with each vertex in its joint's frame, moved
+    to bind space in one batched transform."""
+    try:
+        verts, nrm, jnt, faces = (np.asarray(a) for a in geometry)
+    except (TypeError, ValueError):
+        raise ParameterError("joint_geometry must be (vertices, normals, joint, faces)") from None
+    k = len(verts)
+    if verts.shape != (k, 3) or nrm.shape != (k, 3) or jnt.shape != (k,) or \
+            faces.ndim != 2 or faces.shape[1] != 3:
+        raise ParameterError(f"joint_geometry shapes {verts.shape}, {nrm.shape}, "
+                             f"{jnt.shape}, {faces.shape}; expected (k, 3), (k, 3), (k,), "
+                             "(m, 3)")
+    n = len(skeleton)
+    if k and (jnt.min() < 0 or jnt.max() >= n):
+        raise ParameterError(f"joint_geometry joint index outside 0..{n - 1}")
+    if faces.size and (faces.min() < 0 or faces.max() >= k):
+        raise ParameterError(f"joint_geometry face index outside 0..{k - 1}")
+    jnt = jnt.astype(np.int64)
+    rot, trans = world[jnt, :3, :3], world[jnt, :3, 3]
+    pos = np.einsum("kij,kj->ki", rot, verts * scale) + trans
+    return pos, _unit_rows(np.einsum("kij,kj->ki", rot, nrm)), jnt, faces.astype(np.int64)
+
+
+def _add_smooth_skin(builder: _Builder, skinned: Sequence[Any], n: int, world: NDArray,
+                     label: str) -> None:
+    """A second skinned mesh (e.g. a body envelope) with up to four weighted joints per
+    vertex: ``(vertices, normals, joints (k, 4), weights (k, 4), faces)`` in bind space
+    (the skeleton's rest world frame, before any ``scale``)."""
+    try:
+        verts, nrm, jnt, wts, faces = (np.asarray(a) for a in skinned)
+    except (TypeError, ValueError):
+        raise ParameterError("skinned_mesh must be (vertices, normals, joints, weights, "
+                             "faces)") from None
+    k = len(verts)
+    if verts.shape != (k, 3) or nrm.shape != (k, 3) or jnt.shape != (k, 4) or \
+            wts.shape != (k, 4) or faces.ndim != 2 or faces.shape[1] != 3 or not k:
+        raise ParameterError(f"skinned_mesh shapes {verts.shape}, {nrm.shape}, {jnt.shape}, "
+                             f"{wts.shape}, {faces.shape}; expected (k, 3), (k, 3), (k, 4), "
+                             "(k, 4), (m, 3) with k > 0")
+    if jnt.min() < 0 or jnt.max() >= n:
+        raise ParameterError(f"skinned_mesh joint index outside 0..{n - 1}")
+    w = np.clip(np.asarray(wts, float), 0.0, None)
+    total = w.sum(axis=1, keepdims=True)
+    if np.any(total <= 0):
+        raise ParameterError("skinned_mesh has vertices whose weights sum to 0")
+    w = (w / total).astype(np.float32)
+    w[:, 0] += 1.0 - w.sum(axis=1)  # exact unit sums in float32
+    jdtype = np.uint8 if n <= 256 else np.uint16
+    attrs = {
+        "POSITION": builder.accessor(_float32("skin vertices", verts * builder.scale),
+                                     target=ARRAY_BUFFER, bounds=True),
+        "NORMAL": builder.accessor(_unit_rows(np.asarray(nrm, float)).astype(np.float32),
+                                   target=ARRAY_BUFFER),
+        "JOINTS_0": builder.accessor(np.where(w > 0, jnt, 0).astype(jdtype),
+                                     target=ARRAY_BUFFER),
+        "WEIGHTS_0": builder.accessor(w, target=ARRAY_BUFFER)}
+    prim = {"attributes": attrs, "indices": _indices(builder, np.asarray(faces), k),
+            "material": builder.material(_SKIN_MATERIAL), "mode": _TRIANGLES}
+    builder.doc["meshes"].append({"name": label, "primitives": [prim]})
+    builder.node({"name": label, "mesh": len(builder.doc["meshes"]) - 1,
+                  "skin": len(builder.doc["skins"]) - 1}, root=True)

@@ -1,0 +1,34 @@
+"""Procedural bone models fitted into each joint's box (the seed's plan for its terminals).
+
+``joint_meshes(creature, shape, lod)`` gives one mesh per joint with a bone, in that joint's
+local frame (bone along +Y from the joint, metres), ready to be rigidly skinned to it (glTF)
+or moved to world space (OBJ, renders). ``shape="box"`` keeps the seed's boxes (and its
+tapered skull); ``shape="bone"`` (default) dresses each joint by its anatomical ``part``
+(:mod:`biomorph.creature.anatomy`; joints without a label fall back to their kind/region):
+
+=================  =======================================================================
+cervical … caudal  vertebra: centrum, neural arch and spine, transverse processes, caudal
+                   chevrons; spine height and process span vary along each region
+thoracic           + a pair of ribs round the trunk (the joint's soft-tissue box) and a
+                   sternebra on the front 60 % (true ribs); fish: straight pleural ribs
+skull / mandible   cranium, orbits, zygomatic arches, snout by the skull type's taper; the
+                   mandible on its own joint when the creature has one, else as a separate
+                   piece of the skull mesh
+scapula / pelvis   blade + spine + glenoid / ilium blade + acetabulum, pubis and ischium
+                   meeting at the midline; clavicle where the class has one
+long bones         shaft with epiphyses (humerus, femur), paired shafts (radius + ulna,
+                   tibia + fibula)
+metapodials        hands/feet/wing hands: metapodials + phalanges per class, claws, hooves
+                   (unguligrade stance) or nails; fins: radials and a fan of rays
+phalanx … nail     digit joints (when the skeleton has them)
+=================  =======================================================================
+
+Levels of detail: ``lod`` 0 (5-sided rings), 1 (8, default), 2 (14). Unit models are cached
+(read-only arrays), so a creature costs only the scaling (see ``bench/gltf.py``).
+"""
+
+from __future__ import annotations
+
+from biomorph.creature.bones.fit import LODS, SHAPES, geometry, joint_meshes, world_mesh
+
+__all__ = ["SHAPES", "LODS", "geometry", "joint_meshes", "world_mesh"]

@@ -1,0 +1,166 @@
+"""The body envelope: an implicit surface over bones and muscles, skinned with smooth weights.
+
+Field: each bone contributes two tapered capsules from its joint to its far end whose radius
+is the bone's own half-width plus a thin layer of tissue at the ends (the bony landmarks:
+joints, the skull, the tips of the spines) and the soft-tissue half-width of its mass box
+(``Creature.mass_size``) in the middle; trunk vertebrae add one sphere at the centre of
+their soft-tissue mass (``mass_center``) so the belly hangs below the spine; every muscle
+adds capsules along its swept volume. The signed field ``max_i (r_i − d_i(p))`` is
+rasterised on a grid (each capsule only over its own bounding box), smoothed with a Gaussian
+of 0.9 cells, which blends the spheres into one skin, and contoured at 0 with
+``skimage.measure.marching_cubes``. Grid cell: the median capsule radius / 1.2, kept
+between ``RES_MAX[lod]`` and ``RESOLUTION[lod]`` cells along the creature's longest side.
+
+Weights: each envelope vertex is bound to the four bone segments nearest to it, with
+weights ``1 / (d + h)²`` normalised (``h`` the grid cell: no vertex lies on a single bone
+with weight 1 unless it is far from every other), so joints bend smoothly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from biomorph.core.mesh import Mesh
+from biomorph.creature.creature import Creature
+
+#: grid cells along the longest side per level of detail
+RESOLUTION = (40, 64, 96)
+#: finest grid (cells along the longest side) per level of detail
+RES_MAX = (80, 160, 240)
+#: tissue over bone at the bony landmarks, as a share of the bone's half-width
+LANDMARK_TISSUE = 0.35
+#: smoothing of the field (grid cells)
+SMOOTH = 0.9
+
+
+@dataclass(frozen=True)
+class Body:
+    """Envelope mesh (world, normals set), its per-vertex joints/weights ``(k, 4)``, and the
+    muscles (list and mesh)."""
+
+    envelope: Mesh
+    joints: NDArray[np.int64]
+    weights: NDArray[np.float64]
+    muscles: Mesh | None
+    muscle_list: list
+
+
+def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Tapered capsules of the field: start/end points ``(s, 3)`` and radii ``(s,)``."""
+    a_s, b_s, ra_s, rb_s = [], [], [], []
+    ends = c.bone_ends
+    pos = c.joint_positions
+    for j in np.flatnonzero(c.bone_length > 1e-9).tolist():
+        bone_hw = 0.5 * max(c.box_size[j, 0], c.box_size[j, 2])
+        soft_hw = 0.25 * (c.mass_size[j, 0] + c.mass_size[j, 2])
+        end_r = bone_hw * (1 + LANDMARK_TISSUE)
+        if c.kind[j] == "skull":
+            mid_r = end_r
+            end_r = 0.5 * min(c.box_size[j, 0], c.box_size[j, 2]) * (1 + LANDMARK_TISSUE)
+        elif c.kind[j] == "spine":
+            mid_r = end_r
+        else:
+            mid_r = max(end_r, 0.8 * soft_hw)
+        mid = 0.5 * (pos[j] + ends[j])
+        a_s += [pos[j], mid]
+        b_s += [mid, ends[j]]
+        ra_s += [end_r, mid_r]
+        rb_s += [mid_r, end_r]
+        if c.kind[j] == "spine" and c.region[j] in ("back", "neck", "tail"):
+            # the trunk's soft tissue: from the vertebra to the centre of its mass
+            r = 0.42 * 0.5 * (c.mass_size[j, 0] + c.mass_size[j, 2])
+            a_s.append(c.mass_center[j])
+            b_s.append(c.mass_center[j])
+            ra_s.append(r)
+            rb_s.append(r)
+    for m in ms:
+        a_s.extend(m.path[:-1])
+        b_s.extend(m.path[1:])
+        ra_s.extend(m.radius[:-1])
+        rb_s.extend(m.radius[1:])
+    return np.array(a_s), np.array(b_s), np.array(ra_s), np.array(rb_s)
+
+
+def _field(caps: tuple[NDArray, NDArray, NDArray, NDArray], lo: NDArray, h: float,
+           shape: tuple[int, ...]) -> NDArray:
+    """``max_i (r_i(t) - |p - segment_i(t)|)`` on the grid, each capsule over its box."""
+    grid = np.full(shape, -2.0 * h)
+    for a, b, ra, rb in zip(*caps, strict=True):
+        r = max(ra, rb)
+        a_i = np.maximum(np.floor((np.minimum(a, b) - r - 2 * h - lo) / h).astype(int), 0)
+        b_i = np.minimum(np.ceil((np.maximum(a, b) + r + 2 * h - lo) / h).astype(int) + 1,
+                         shape)
+        if np.any(b_i <= a_i):
+            continue
+        axes = [lo[k] + h * np.arange(a_i[k], b_i[k]) for k in range(3)]
+        p = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+        ab = b - a
+        L2 = float(ab @ ab)
+        t = np.clip(((p - a) @ ab) / L2, 0.0, 1.0) if L2 > 1e-18 else np.zeros(p.shape[:3])
+        d = np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+        val = ra + (rb - ra) * t - d
+        sub = grid[a_i[0]:b_i[0], a_i[1]:b_i[1], a_i[2]:b_i[2]]
+        np.maximum(sub, val, out=sub)
+    return grid
+
+
+def _weights(c: Creature, v: NDArray, h: float) -> tuple[NDArray, NDArray]:
+    """Four nearest bone segments per vertex, inverse-square distance weights."""
+    bones = np.flatnonzero(c.bone_length > 1e-9)
+    a = c.joint_positions[bones]
+    ab = c.bone_ends[bones] - a
+    L2 = np.maximum((ab ** 2).sum(axis=1), 1e-18)
+    t = np.clip(((v[:, None, :] - a[None]) * ab[None]).sum(axis=2) / L2, 0, 1)
+    d = np.linalg.norm(v[:, None, :] - (a[None] + t[..., None] * ab[None]), axis=2)
+    k = min(4, len(bones))
+    near = np.argpartition(d, k - 1, axis=1)[:, :k]
+    dn = np.take_along_axis(d, near, axis=1)
+    w = 1.0 / (dn + h) ** 2
+    w /= w.sum(axis=1, keepdims=True)
+    joints = np.zeros((len(v), 4), np.int64)
+    weights = np.zeros((len(v), 4))
+    joints[:, :k] = bones[near]
+    weights[:, :k] = w
+    return joints, weights
+
+
+def envelope(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[Mesh, float]:
+    """The envelope mesh over bones (and muscles ``ms``) and the grid cell size (m)."""
+    from scipy.ndimage import gaussian_filter
+    from skimage.measure import marching_cubes
+
+    caps = _capsules(c, ms or [])
+    a, b, ra, rb = caps
+    r = np.maximum(ra, rb)[:, None]
+    lo = np.minimum(a - r, b - r).min(axis=0)
+    hi = np.maximum(a + r, b + r).max(axis=0)
+    ext = float((hi - lo).max())
+    # cell: fine enough that the median limb/bone capsule spans ~2.4 cells, within the
+    # RESOLUTION range for this level of detail
+    fine, coarse = ext / RES_MAX[lod], ext / RESOLUTION[lod]
+    h = float(np.clip(np.median(np.minimum(ra, rb)) / 1.2, fine, coarse))
+    # thin capsules would vanish between grid points: keep each at least a cell wide
+    caps = (a, b, np.maximum(ra, 1.4 * h), np.maximum(rb, 1.4 * h))
+    lo = lo - 3 * h
+    shape = tuple((np.ceil((hi + 3 * h - lo) / h)).astype(int) + 1)
+    grid = gaussian_filter(_field(caps, lo, h, shape), SMOOTH)
+    verts, faces, _, _ = marching_cubes(grid, level=0.0, spacing=(h, h, h))
+    verts = verts + lo
+    faces = faces.astype(np.int64)
+    tri = verts[faces]
+    if (tri[:, 0] * np.cross(tri[:, 1], tri[:, 2])).sum() < 0:  # wind the faces outwards
+        faces = faces[:, ::-1]
+    return Mesh(verts, faces).compute_normals(), h
+
+
+def body(c: Creature, lod: int = 1, with_muscles: bool = True) -> Body:
+    """Muscles, envelope and skin weights of ``c``."""
+    from biomorph.creature.muscles import muscle_mesh, muscles
+
+    ms = muscles(c, lod) if with_muscles else []
+    env, h = envelope(c, ms, lod)
+    joints, weights = _weights(c, env.vertices, h)
+    return Body(env, joints, weights, muscle_mesh(ms, lod), ms)

@@ -1,0 +1,124 @@
+"""Procedural bone models: every joint dressed, models inside their boxes, closed outward
+meshes, regional variation along the spine, rib cage, skull with mandible, LODs, GLB."""
+
+from __future__ import annotations
+
+import numpy as np
+import pygltflib
+import pytest
+
+import biomorph.creature as bc
+from biomorph.creature.bones import LODS, geometry, joint_meshes, world_mesh
+from biomorph.creature.bones import appendicular as ap
+from biomorph.creature.bones import axial as ax
+from biomorph.creature.bones.fit import parts_of
+from biomorph.creature.export import export
+from biomorph.errors import ParameterError
+
+
+def signed_volume(v, f):
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    return float((a * np.cross(b, c)).sum() / 6)
+
+
+@pytest.fixture(scope="module", params=[0, 3])
+def creature(request):
+    return bc.generate(seed=request.param)
+
+
+def test_every_bone_dressed_with_closed_outward_meshes(creature):
+    meshes = joint_meshes(creature)
+    with_bone = set(np.flatnonzero(creature.bone_length > 1e-9).tolist())
+    assert set(meshes) == with_bone
+    for j, m in meshes.items():
+        assert signed_volume(m.vertices, m.faces) > 0, creature.names[j]
+        assert np.allclose(np.linalg.norm(m.normals, axis=1), 1.0)
+    w = world_mesh(creature)
+    assert signed_volume(w.vertices, w.faces) > 0
+    assert w.vertices[:, 1].min() > -0.02 * creature.height  # nothing sinks into the ground
+
+
+def test_limb_and_vertebra_models_fit_their_boxes(creature):
+    meshes = joint_meshes(creature)
+    parts = parts_of(creature)
+    for j, m in meshes.items():
+        if parts[j] in ("thoracic", "scapula", "pelvis"):  # ribs/clavicle/pubis reach out
+            continue
+        L = creature.bone_length[j]
+        half = np.array([creature.box_size[j, 0], 0, creature.box_size[j, 2]]) / 2
+        tol = 0.08 * max(L, half.max())
+        v = m.vertices
+        assert np.all(np.abs(v[:, [0, 2]]) <= half[[0, 2]] * 1.05 + tol), creature.names[j]
+        assert v[:, 1].min() >= -tol and v[:, 1].max() <= L + tol, creature.names[j]
+
+
+def test_vertebrae_vary_by_region():
+    def spine_top(region, t):
+        v, _, _ = ax.vertebra(region, t, 1)
+        return v[:, 0].max()
+
+    def span(region, t):
+        v, _, _ = ax.vertebra(region, t, 1)
+        return np.ptp(v[:, 2])
+
+    assert spine_top("thoracic", 0) > spine_top("cervical", 0) + 0.1
+    assert spine_top("thoracic", 0) > spine_top("thoracic", ax.BINS - 1)  # withers tallest
+    assert span("lumbar", 2) > span("thoracic", 2)                        # long processes
+    assert spine_top("caudal", ax.BINS - 1) < spine_top("caudal", 0)      # fading out
+    # the caudal vertebrae carry chevrons below the centrum near the tail base
+    assert ax.vertebra("caudal", 0, 1)[0][:, 0].min() < ax.vertebra("lumbar", 0, 1)[0][:, 0].min()
+
+
+def test_rib_cage_wraps_the_trunk(creature):
+    parts = parts_of(creature)
+    meshes = joint_meshes(creature)
+    thor = [j for j in range(len(creature)) if parts[j] == "thoracic" and j in meshes]
+    assert thor
+    for j in thor[:3]:
+        v = meshes[j].vertices
+        width = creature.mass_size[j, 2]
+        assert np.ptp(v[:, 2]) > 0.7 * max(width, creature.box_size[j, 2])  # ribs span it
+    fish_ribs = ax.rib_pair(1.0, True, 1)[0]
+    tetra_ribs = ax.rib_pair(1.0, False, 1)[0]
+    assert tetra_ribs[:, 0].min() < fish_ribs[:, 0].min()  # ribs reach the sternum, fish don't
+
+
+def test_skull_has_orbits_and_a_separate_mandible():
+    with_jaw = ax.skull(0.5, 1, True)
+    without = ax.skull(0.5, 1, False)
+    jaw = ax.mandible(0.5, 1)
+    assert len(with_jaw[0]) == len(without[0]) + len(jaw[0])
+    assert jaw[0][:, 0].min() < without[0][:, 0].min()  # the jaw hangs below the cranium
+
+
+def test_autopods_have_digits_per_class():
+    def tips(vf):
+        v = vf[0]
+        return v[v[:, 1] > 0.97 * v[:, 1].max()]
+
+    five = ap.autopod(5, 0.4, "claw", 1, 0.62)
+    two = ap.autopod(2, 0.2, "hoof", 1, 0.62)
+    assert len(five[0]) > 2 * len(two[0])
+    assert np.ptp(tips(five)[:, 2]) > 0
+
+
+def test_levels_of_detail_and_box_shape(creature):
+    counts = [len(geometry(creature, "bone", lod)[3]) for lod in LODS]
+    assert counts[0] < counts[1] < counts[2]
+    box = joint_meshes(creature, "box")
+    assert all(m.n_vertices == 8 for j, m in box.items() if creature.kind[j] != "skull")
+    with pytest.raises(ParameterError, match="level of detail"):
+        geometry(creature, "bone", 3)
+    with pytest.raises(ParameterError, match="bone shape"):
+        geometry(creature, "blob")
+
+
+def test_glb_with_bone_models_and_skin_is_valid(creature, tmp_path):
+    from tests.gltf_validator import assert_valid_glb
+
+    p = export(creature, tmp_path / "c.glb", skin=True)
+    assert_valid_glb(p)
+    doc = pygltflib.GLTF2().load(str(p))
+    names = [m.name for m in doc.meshes]
+    assert names == ["creature_bones", "creature_skin_mesh"]
+    assert all(n.skin == 0 for n in doc.nodes if n.mesh is not None)
