@@ -4,20 +4,77 @@ Each pillar contributes a sub-command group from ``biomorph/<pillar>/cli.py`` (a
 ``typer.Typer`` named ``app``) and a demo from ``biomorph/<pillar>/demo.py``
 (``run_demo(out_dir) -> list[report.Section]``). Any :class:`BiomorphError` becomes one line
 on stderr and exit code 2; Ctrl-C exits with 130 and leaves no partial output.
+
+Every command runs through :func:`_guarded`, which holds the guarantees that do not depend on
+the command (README "Guarantees"):
+
+* every int/float option is finite and inside a generic range (ints in ``[0, 2**31-1]``, the
+  largest count LAS/PLY/glTF indices hold; floats within ``±1e9``), on top of the option's
+  own ``bounded(...)`` range;
+* input files (path arguments and path options other than ``--out``/``--output``) must be
+  regular files when they exist: named pipes and devices are refused instead of hanging;
+* an output that is one of the inputs is refused, and atomic writes onto an input fail;
+* an output *folder* (``--out`` without an extension) is locked for the run, and temporary
+  files of earlier killed runs in it are removed; appended files are locked per write;
+* Ctrl-C anywhere (imports included) prints one line and exits with 130 within a second.
 """
 
 from __future__ import annotations
 
+import os
+import signal
 import sys
-from pathlib import Path
-from typing import Annotated
 
-import typer
 
-from biomorph import __version__
-from biomorph._cli import err_console, out_console, print_json
-from biomorph.errors import BiomorphError
-from biomorph.pillars import PILLARS, optional_module
+def _entry_point() -> bool:
+    """True when this process is the ``biomorph`` executable or ``python -m biomorph.cli``."""
+    argv0 = sys.argv[0] if sys.argv else ""
+    return os.path.basename(argv0) in ("biomorph", "biomorph.exe") or \
+        argv0.endswith(os.path.join("biomorph", "cli.py"))
+
+
+def _interrupted_while_starting(signum: int, frame: object) -> None:
+    os.write(2, b"interrupted; no partial output was written\n")
+    os._exit(130)
+
+
+def _worker_process() -> bool:
+    """True in a process that multiprocessing spawned from the CLI (dask batch workers)."""
+    mp = sys.modules.get("multiprocessing")
+    if mp is None:
+        return False
+    current = mp.current_process()  # "_inheriting" while a spawned child imports __main__
+    return mp.parent_process() is not None or bool(getattr(current, "_inheriting", False))
+
+
+if _worker_process():  # the parent handles Ctrl-C and shuts its workers down
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+elif _entry_point():  # Ctrl-C during the imports below: one line, no traceback
+    signal.signal(signal.SIGINT, _interrupted_while_starting)
+
+import contextlib  # noqa: E402
+import functools  # noqa: E402
+import typing  # noqa: E402
+from collections.abc import Callable  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Annotated, Any  # noqa: E402
+
+import typer  # noqa: E402
+
+from biomorph import __version__  # noqa: E402
+from biomorph._cli import (  # noqa: E402
+    EXIT_INTERRUPTED,
+    INTERRUPT_LINE,
+    check_value,
+    err_console,
+    file_lock,
+    folder_lock,
+    interrupt_guard,
+    out_console,
+    print_json,
+)
+from biomorph.errors import BiomorphError, ParameterError, check_regular_file  # noqa: E402
+from biomorph.pillars import PILLARS, optional_module  # noqa: E402
 
 try:  # typer >= 0.20 vendors click; older releases use click itself
     from typer._click.exceptions import ClickException as _ClickException
@@ -111,30 +168,194 @@ def _add_pillar_apps() -> None:
 _add_pillar_apps()
 
 
+#: generic ranges of every numeric option (on top of each option's own ``bounded`` range):
+#: counts, seeds and indices fit int32 (LAS/PLY/glTF index limits); no length, time, angle
+#: or factor a user means is beyond 1e9 of its unit
+INT_RANGE = (0, 2**31 - 1)
+FLOAT_ABS_MAX = 1e9
+#: option names that name outputs (never inputs)
+OUTPUT_PARAMS = frozenset({"out", "output", "out_dir", "plot"})
+#: (command path, parameter) of files a command appends to: locked for the run
+APPENDED = {("creature", "annotate"): "out"}
+
+
+def _numeric_kind(annotation: Any) -> str | None:
+    """``"int"``/``"float"`` for an option annotated with int/float (optional or a list)."""
+    if annotation in (int, float):
+        return annotation.__name__
+    for arg in typing.get_args(annotation):
+        kind = _numeric_kind(arg)
+        if kind:
+            return kind
+    return None
+
+
+def _path_like(annotation: Any) -> bool:
+    if annotation is Path:
+        return True
+    return any(_path_like(a) for a in typing.get_args(annotation))
+
+
+def _check_numbers(command: Any, params: dict[str, Any]) -> None:
+    for p in command.params:
+        descriptor = getattr(p, "type_descriptor", None)
+        kind = _numeric_kind(getattr(descriptor, "annotation", None))
+        value = params.get(p.name)
+        if kind is None or value is None:
+            continue
+        name = p.opts[-1] if p.opts else p.name
+        for v in value if isinstance(value, list | tuple) else (value,):
+            if kind == "int":
+                check_value(name, v, *INT_RANGE)
+            else:
+                check_value(name, v, -FLOAT_ABS_MAX, FLOAT_ABS_MAX)
+
+
+def _paths(command: Any, params: dict[str, Any]) -> tuple[list[Path], dict[str, Path]]:
+    """(input paths, {param name: output path}) of one invocation."""
+    inputs: list[Path] = []
+    outputs: dict[str, Path] = {}
+    for p in command.params:
+        descriptor = getattr(p, "type_descriptor", None)
+        value = params.get(p.name)
+        if value is None or not _path_like(getattr(descriptor, "annotation", None)):
+            continue
+        values = [Path(v) for v in (value if isinstance(value, list | tuple) else [value])]
+        if p.name in OUTPUT_PARAMS:
+            outputs[p.name] = values[0]
+        else:
+            inputs.extend(values)
+    return inputs, outputs
+
+
+def _check_paths(cmd_path: tuple[str, ...], command: Any, params: dict[str, Any]
+                 ) -> tuple[list[Path], Path | None, Path | None]:
+    """Refuse non-regular inputs and outputs that are inputs; return (inputs, output folder
+    to lock, appended file to lock)."""
+    inputs, outputs = _paths(command, params)
+    for p in inputs:
+        if os.path.lexists(p) and not p.is_dir():
+            check_regular_file(p)
+    real_inputs = {os.path.realpath(p): p for p in inputs}
+    appended = APPENDED.get(cmd_path)
+    append_file = None
+    folder = None
+    for name, out in outputs.items():
+        opt = "--" + name.replace("_", "-")
+        if name == appended:
+            append_file = out
+            continue
+        if os.path.realpath(out) in real_inputs:
+            raise ParameterError(f"{opt} {out}: is also an input of this command and would "
+                                 "be overwritten; choose another output")
+        if name == "out" and (out.is_dir() or not out.suffix):
+            folder = out  # an input inside it is protected: atomic writes refuse to replace it
+    return inputs, folder, append_file
+
+
+def _guarded(cmd_path: tuple[str, ...], command: Any, callback: Callable[..., Any]
+             ) -> Callable[..., Any]:
+    @functools.wraps(callback)
+    def wrapper(**params: Any) -> Any:
+        from biomorph.io.atomic import protect, unprotect
+
+        _check_numbers(command, params)
+        inputs, folder, append_file = _check_paths(cmd_path, command, params)
+        protect(inputs)
+        try:
+            if append_file is not None:
+                import hashlib
+                import tempfile
+
+                digest = hashlib.sha1(os.path.realpath(append_file).encode()).hexdigest()
+                lock = Path(tempfile.gettempdir(), "biomorph-locks", f"{digest[:16]}.lock")
+                with file_lock(lock, what=f"{append_file} (appended by another run)"):
+                    return callback(**params)
+            if folder is not None:
+                with folder_lock(folder):
+                    return callback(**params)
+            return callback(**params)
+        finally:
+            unprotect(inputs)
+
+    return wrapper
+
+
+def _wrap_commands(group: Any, path: tuple[str, ...] = ()) -> None:
+    for name, sub in getattr(group, "commands", {}).items():
+        if hasattr(sub, "commands"):
+            _wrap_commands(sub, path + (name,))
+        elif sub.callback is not None and not getattr(sub.callback, "_biomorph_guarded", False):
+            sub.callback = _guarded(path + (name,), sub, sub.callback)
+            sub.callback._biomorph_guarded = True  # type: ignore[attr-defined]
+
+
+@functools.cache
+def _command() -> Any:
+    """The click command tree of :data:`app`, every command wrapped by :func:`_guarded`."""
+    command = typer.main.get_command(app)
+    _wrap_commands(command)
+    return command
+
+
+def _one_line(exc: Any) -> str:
+    """A click usage error as one line naming the command and the problem."""
+    message = " ".join(exc.format_message().split())
+    ctx = getattr(exc, "ctx", None)
+    where = ctx.command_path if ctx is not None else "biomorph"
+    return f"{where}: {message} (see {where} --help)"
+
+
+def _error(message: str) -> None:
+    """Print ``error: message`` on stderr as one line (the message is not rich markup)."""
+    from rich.markup import escape
+
+    err_console.print(f"[bold red]error:[/] {escape(' '.join(message.split()))}", markup=True,
+                      highlight=False)
+
+
 def run(argv: list[str] | None = None) -> int:
     """Run the CLI on ``argv``; return the exit code (0 ok, 2 bad input/usage, 130 Ctrl-C)."""
-    try:
-        result = app(args=argv, prog_name="biomorph", standalone_mode=False)
-    except BiomorphError as exc:
-        err_console.print(f"[bold red]error:[/] {exc}", markup=True, highlight=False)
-        return 2
-    except typer.Exit as exc:
-        return int(exc.exit_code or 0)
-    except _ClickException as exc:
-        exc.show()
-        return 2 if exc.exit_code == 2 else int(exc.exit_code)
-    except (KeyboardInterrupt, typer.Abort):
-        err_console.print("interrupted; no partial output was written")
-        return 130
-    except OSError as exc:  # unreadable/unwritable paths, full disk
-        err_console.print(f"[bold red]error:[/] {exc.strerror or exc}: "
-                          f"{exc.filename or ''}".rstrip(": "))
-        return 2
+    with interrupt_guard() as interrupted:
+        try:
+            result = _command().main(args=argv, prog_name="biomorph", standalone_mode=False)
+        except BiomorphError as exc:
+            _error(str(exc))
+            return 2
+        except typer.Exit as exc:
+            code = int(exc.exit_code or 0)
+            if code == EXIT_INTERRUPTED and interrupted():
+                err_console.print(INTERRUPT_LINE)
+            return code
+        except _ClickException as exc:
+            if exc.exit_code == 2:
+                _error(_one_line(exc))
+                return 2
+            exc.show()
+            return int(exc.exit_code)
+        except (KeyboardInterrupt, typer.Abort):
+            err_console.print(INTERRUPT_LINE)
+            return EXIT_INTERRUPTED
+        except OSError as exc:  # unreadable/unwritable paths, full disk
+            where = os.fspath(exc.filename) if exc.filename else ""
+            _error(f"{where + ': ' if where else ''}{exc.strerror or exc}")
+            return 2
+        except MemoryError:
+            _error("out of memory; the request is larger than this machine's memory")
+            return 2
+        if result == EXIT_INTERRUPTED and interrupted():
+            err_console.print(INTERRUPT_LINE)
     return int(result) if isinstance(result, int) else 0
 
 
 def main() -> None:
-    sys.exit(run(sys.argv[1:]))
+    code = run(sys.argv[1:])
+    if code == EXIT_INTERRUPTED:  # skip the interpreter's slow teardown after Ctrl-C
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(code)
+    sys.exit(code)
 
 
 if __name__ == "__main__":

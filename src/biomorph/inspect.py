@@ -17,14 +17,13 @@ Lengths are in the file's units (metres for point clouds and skeletons by conven
 
 from __future__ import annotations
 
-import importlib
 import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from biomorph.errors import FormatError, UnsupportedFormatError
+from biomorph.errors import UnsupportedFormatError, check_regular_file
 
 PathLike = str | os.PathLike[str]
 
@@ -39,10 +38,7 @@ def file_kind(path: PathLike) -> str:
 
     p = Path(path)
     ext = p.suffix.lower()
-    if not p.exists():
-        raise FormatError(path, "file does not exist")
-    if p.is_dir():
-        raise FormatError(path, "is a directory; expected a file")
+    check_regular_file(p)
     if ext == ".ply":
         from biomorph.io.ply import ply_kind
 
@@ -173,23 +169,10 @@ def describe_mesh(mesh: Any) -> dict[str, Any]:
 
 
 def load_motion(path: PathLike) -> Any:
-    """Read BVH/HTR/ASF motion through :func:`biomorph.io.read_motion` (falls back to the
-    format module's ``read_bvh`` while a module lacks ``read_motion``)."""
+    """Read BVH/HTR/ASF motion through :func:`biomorph.io.read_motion`."""
     from biomorph import io as bio
 
-    ext = Path(path).suffix.lower()
-    try:
-        return bio.read_motion(path)
-    except AttributeError:
-        mod = importlib.import_module(f"biomorph.io.{bio.MOTION_FORMATS[ext]}")
-        if ext == ".bvh" and hasattr(mod, "read_bvh"):
-            return mod.read_bvh(path)
-        raise
-    except ModuleNotFoundError as exc:
-        if exc.name and exc.name.startswith("biomorph.io."):
-            raise UnsupportedFormatError(f"{os.fspath(path)}: no reader for {ext} motion files "
-                                         "is installed yet") from None
-        raise
+    return bio.read_motion(path)
 
 
 def load_mesh(path: PathLike) -> Any:
@@ -265,7 +248,8 @@ def describe(path: PathLike) -> dict[str, Any]:
     ext = p.suffix.lower()
     if ext in (".glb", ".gltf"):
         return describe_gltf(path)
-    if ext in (".las", ".laz") and p.is_file():
+    check_regular_file(p)
+    if ext in (".las", ".laz"):
         from biomorph.io.las import check_header
 
         if check_header(p)["point_count"] > LARGE_LAS_POINTS:

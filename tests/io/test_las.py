@@ -120,3 +120,77 @@ def test_empty_point_record_rejected(tmp_path):
     empty.write(str(p))
     with pytest.raises(FormatError, match="no points"):
         las.read_points(p)
+
+
+LAZ_DAMAGE = {
+    # name: (patch(data) -> data, words the one-line FormatError must contain)
+    "point-count": (lambda d: _patched(d, 107, "<I", 0x7FFFFFFF), "chunk"),
+    "chunk-table-cut": (lambda d: d[:-7], "chunk table"),
+    "chunk-count": (lambda d: _patched(d, _table_at(d) + 4, "<I", 0x7FFFFFFF), "chunks"),
+    "chunk-table-version": (lambda d: _patched(d, _table_at(d), "<I", 7), "version"),
+    "chunk-table-offset": (lambda d: _patched(d, _points_at(d), "<q", 2**40), "offset"),
+    "vlr-length": (lambda d: _patched(d, 227 + 20, "<H", 0xFFFF), "VLR 0"),
+    "laszip-items": (lambda d: _patched(d, _laszip_at(d) + 32, "<H", 0), "items"),
+    "x-scale-0": (lambda d: _patched(d, 131, "<d", 0.0), "x scale"),
+    "y-scale-nan": (lambda d: _patched(d, 139, "<d", float("nan")), "y scale"),
+}
+
+
+def _patched(data: bytes, at: int, fmt: str, value) -> bytes:
+    import struct
+
+    b = bytearray(data)
+    struct.pack_into(fmt, b, at, value)
+    return bytes(b)
+
+
+def _points_at(data: bytes) -> int:
+    import struct
+
+    return struct.unpack_from("<I", data, 96)[0]
+
+
+def _table_at(data: bytes) -> int:
+    import struct
+
+    return struct.unpack_from("<q", data, _points_at(data))[0]
+
+
+def _laszip_at(data: bytes) -> int:
+    import struct
+
+    pos = struct.unpack_from("<H", data, 94)[0]
+    while data[pos + 2:pos + 16] != b"laszip encoded":
+        pos += 54 + struct.unpack_from("<H", data, pos + 20)[0]
+    return pos + 54
+
+
+READ_IN_CHILD = """
+import sys
+from biomorph.errors import BiomorphError
+from biomorph.io.las import read_points
+try:
+    read_points(sys.argv[1])
+except BiomorphError as exc:
+    print(exc)
+    sys.exit(2)
+"""
+
+
+@pytest.mark.parametrize("damage", sorted(LAZ_DAMAGE))
+def test_corrupt_laz_is_one_format_error_never_an_abort(tmp_path, damage):
+    """Each damage made the native decompressor abort, segfault, allocate tens of GB, or was
+    silently accepted; now one FormatError names the field. Read in a child process so an
+    abort counts as a failure."""
+    import subprocess
+    import sys
+
+    patch, words = LAZ_DAMAGE[damage]
+    good = las.write_points(tmp_path / "g.laz", cloud_with_extras(2000))
+    bad = tmp_path / f"{damage}.laz"
+    bad.write_bytes(patch(good.read_bytes()))
+    res = subprocess.run([sys.executable, "-c", READ_IN_CHILD, str(bad)], capture_output=True,
+                         text=True, timeout=120)
+    assert res.returncode == 2, (res.returncode, res.stderr[-2000:])
+    msg = res.stdout.strip()
+    assert str(bad) in msg and words in msg and len(msg.splitlines()) == 1, msg

@@ -34,3 +34,19 @@ def die_on_two(seed: int) -> int:
 
         os._exit(13)
     return seed
+
+
+def staged_outputs(item: tuple[str, int]) -> int:
+    """Writes two files per item, atomically, with pauses before, between and inside the
+    writes (a stand-in for summary.json then preview.png) so a SIGKILL can land anywhere."""
+    from pathlib import Path
+
+    from biomorph.io.atomic import atomic_path
+
+    out, i = item
+    for name in ("first", "second"):
+        with atomic_path(Path(out) / f"{i}.{name}") as tmp:
+            tmp.write_bytes(bytes([i]) * 1000)
+            time.sleep(0.1)
+        time.sleep(0.1)
+    return i

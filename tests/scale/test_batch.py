@@ -150,3 +150,94 @@ def test_dead_worker_fails_its_item_only(scheduler):
     # with zero allowed failures a task queued on the dying worker may go down with it;
     # everything that finished is right
     assert all(rep.results[k] == int(k) for k in rep.ok) and len(rep.ok) >= 3
+
+
+LOOPBACK_PROBE = """
+import psutil
+from biomorph.scale.batch import _client
+if __name__ == "__main__":
+    with _client(2, None) as client:
+        print(client.scheduler_info()["address"])
+        procs = [psutil.Process(), *psutil.Process().children(recursive=True)]
+        for p in procs:
+            for c in p.net_connections(kind="inet"):
+                if c.status == psutil.CONN_LISTEN:
+                    print(c.laddr.ip)
+"""
+
+
+def test_local_cluster_listens_on_loopback_only(tmp_path):
+    """Scheduler, nannies, workers and dashboards of a LocalCluster bind 127.0.0.1 (probed
+    in a fresh process, so no other cluster's sockets are counted)."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "probe.py"
+    script.write_text(LOOPBACK_PROBE)
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                         timeout=120, check=True).stdout.split()
+    assert out[0].startswith("tcp://127.0.0.1:")
+    assert len(out[1:]) >= 4  # scheduler + dashboard + two workers at least
+    assert set(out[1:]) == {"127.0.0.1"}, out
+
+
+def test_markers_keyed_by_item_and_options(tmp_path):
+    first = run_batch(range(3), square_stats, out_dir=tmp_path, workers=0, progress=False,
+                      options={"format": "glb"})
+    assert first.ok == ["0", "1", "2"]
+    same = run_batch(range(3), square_stats, out_dir=tmp_path, workers=0, progress=False,
+                     options={"format": "glb"})
+    assert same.skipped == ["0", "1", "2"]
+    other = run_batch(range(3), square_stats, out_dir=tmp_path, workers=0, progress=False,
+                      options={"format": "bvh"})
+    assert other.ok == ["0", "1", "2"] and other.skipped == []
+    # an empty (half-written, legacy) marker never counts as done
+    marker = tmp_path / ".batch_done" / "1"
+    marker.write_text("")
+    again = run_batch(range(3), square_stats, out_dir=tmp_path, workers=0, progress=False,
+                      options={"format": "bvh"})
+    assert again.ok == ["1"]
+
+
+KILL_SCRIPT = """
+import sys
+from biomorph.scale import run_batch
+from tests.scale import staged_outputs
+out = sys.argv[1]
+run_batch([(out, i) for i in range(4)], staged_outputs, out_dir=out, key=lambda it: str(it[1]),
+          workers=0, progress=False)
+"""
+
+
+def _snapshot(folder):
+    """Every file's bytes (markers: existence only, their digest includes the folder)."""
+    return {p.relative_to(folder).as_posix(): b"" if p.parent.name == ".batch_done" else
+            p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name != "batch_report.json"}
+
+
+@pytest.mark.parametrize("kill_after", [0.35, 0.75, 1.15, 1.55])
+def test_resume_after_sigkill_is_exact(tmp_path, kill_after):
+    """SIGKILL a serial batch at several points (between and inside items, between the two
+    files of one item); the re-run finishes exactly what is missing: the same files as an
+    uninterrupted run, no temporary files, no item done twice."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    ref, out = tmp_path / "ref", tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    subprocess.run([sys.executable, "-c", KILL_SCRIPT, str(ref)], check=True, env=env,
+                   timeout=60)
+    proc = subprocess.Popen([sys.executable, "-c", KILL_SCRIPT, str(out)], env=env)
+    t0 = time.monotonic()
+    while not (out / "0.first").exists() and time.monotonic() - t0 < 30:
+        time.sleep(0.005)
+    time.sleep(kill_after)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    subprocess.run([sys.executable, "-c", KILL_SCRIPT, str(out)], check=True, env=env,
+                   timeout=60)
+    assert _snapshot(out) == _snapshot(ref)
+    assert [p for p in out.rglob("*") if ".tmp-" in p.name or p.name == ".biomorph.lock"] == []

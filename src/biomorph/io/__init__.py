@@ -27,7 +27,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from biomorph.errors import FormatError, UnsupportedFormatError
+from biomorph.errors import UnsupportedFormatError, check_regular_file
 
 PathLike = str | os.PathLike[str]
 
@@ -49,11 +49,9 @@ def _module(table: dict[str, str], path: PathLike, what: str) -> Any:
 
 
 def _check_readable(path: PathLike) -> None:
-    p = Path(path)
-    if not p.exists():
-        raise FormatError(path, "file does not exist")
-    if p.is_dir():
-        raise FormatError(path, "is a directory; expected a file")
+    """Refuse missing files, folders, named pipes and device files before any reader opens
+    them (a FIFO would block the reader forever)."""
+    check_regular_file(path)
 
 
 def read_points(path: PathLike, **kwargs: Any):

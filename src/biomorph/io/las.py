@@ -32,11 +32,21 @@ PathLike = str | os.PathLike[str]
 _COORD_DIMS = {"X", "Y", "Z", "x", "y", "z"}
 
 
-def check_header(path: PathLike) -> dict[str, int]:
-    """Validate the LAS public header block against the file size before laspy reads it.
+#: bytes of one VLR header and of one EVLR header (LAS 1.4 R15, tables 6 and 9)
+VLR_HEADER, EVLR_HEADER = 54, 60
+LASZIP_USER, LASZIP_RECORD = b"laszip encoded", 22204
+#: chunk size LASzip writes for variable-size chunks
+VARIABLE_CHUNK = 0xFFFFFFFF
 
-    A corrupted count (VLRs, EVLRs, points) would otherwise make a reader loop or allocate
-    for a very long time. Returns the raw fields read."""
+
+def check_header(path: PathLike) -> dict[str, int]:
+    """Validate the LAS public header block, the VLRs and (LAZ) the LASzip VLR and chunk
+    table against the file size before laspy or the decompressor read anything.
+
+    A corrupted count (VLRs, EVLRs, points, chunks) would otherwise make a reader loop,
+    allocate tens of GB or crash the process inside the native decompressor. Every refusal
+    is a :class:`FormatError` naming the field (VLR number, chunk, point record). Returns the
+    raw fields read."""
     import struct
 
     p = Path(path)
@@ -58,7 +68,7 @@ def check_header(path: PathLike) -> dict[str, int]:
             offset_points > size:
         raise FormatError(path, f"header size {header_size} / point data offset {offset_points} "
                                 f"do not fit the file of {size} bytes; truncated or corrupt")
-    if n_vlrs * 54 > offset_points - header_size:
+    if n_vlrs * VLR_HEADER > offset_points - header_size:
         raise FormatError(path, f"header announces {n_vlrs} VLRs but only "
                                 f"{offset_points - header_size} bytes precede the points; "
                                 "corrupt header")
@@ -66,18 +76,153 @@ def check_header(path: PathLike) -> dict[str, int]:
     if minor >= 4 and len(head) >= 255:
         start_evlr, n_evlr = struct.unpack_from("<QI", head, 235)
         count = struct.unpack_from("<Q", head, 247)[0] or legacy_count
-        if n_evlr and (start_evlr > size or n_evlr * 60 > size - start_evlr):
+        if n_evlr and (start_evlr > size or n_evlr * EVLR_HEADER > size - start_evlr):
             raise FormatError(path, f"header announces {n_evlr} extended VLRs that do not fit "
                                     "the file; corrupt header")
+    _check_scales(path, head)
+    laszip = _read_vlrs(path, p, header_size, offset_points, n_vlrs)
     compressed = bool(fmt_id & 0x80) or bool(fmt_id & 0x40)
     if not compressed and count * record_len > size - offset_points:
         raise FormatError(path, f"header announces {count} points of {record_len} bytes but "
                                 f"the file holds {size - offset_points} bytes of point data; "
                                 "truncated")
-    if compressed and count > 0 and size - offset_points < 8:
-        raise FormatError(path, "compressed point data is missing; truncated")
+    if compressed and count > 0:
+        if laszip is None:
+            raise FormatError(path, "compressed point format but no LASzip VLR "
+                                    "('laszip encoded', 22204); corrupt header")
+        _check_chunks(path, p, size, offset_points, count, record_len, laszip)
     return {"point_count": int(count), "record_length": int(record_len),
             "point_format": int(fmt_id & 0x3F)}
+
+
+def _check_scales(path: PathLike, head: bytes) -> None:
+    """Scale factors must be finite and non-zero, offsets finite (else every coordinate is
+    0, NaN or inf)."""
+    import math
+    import struct
+
+    scales = struct.unpack_from("<3d", head, 131)
+    offsets = struct.unpack_from("<3d", head, 155)
+    for axis, sc, off in zip("xyz", scales, offsets, strict=True):
+        if not math.isfinite(sc) or sc == 0:
+            raise FormatError(path, f"header {axis} scale factor is {sc!r}; expected a finite "
+                                    "non-zero number (e.g. 0.001)")
+        if not math.isfinite(off):
+            raise FormatError(path, f"header {axis} offset is {off!r}; expected a finite "
+                                    "number")
+
+
+def _read_vlrs(path: PathLike, p: Path, header_size: int, offset_points: int,
+               n_vlrs: int) -> bytes | None:
+    """Walk the VLRs between the header and the points; return the LASzip VLR's payload."""
+    import struct
+
+    laszip = None
+    with open(p, "rb") as fh:
+        fh.seek(header_size)
+        block = fh.read(offset_points - header_size)
+    pos = 0
+    for i in range(n_vlrs):
+        if pos + VLR_HEADER > len(block):
+            raise FormatError(path, f"VLR {i} of {n_vlrs} starts at byte {header_size + pos} "
+                                    f"but the point data begin at {offset_points}; corrupt "
+                                    "VLR lengths")
+        user = block[pos + 2:pos + 18].rstrip(b"\0")
+        record_id, length = struct.unpack_from("<HH", block, pos + 18)
+        end = pos + VLR_HEADER + length
+        if end > len(block):
+            raise FormatError(path, f"VLR {i} ({user.decode('latin-1')!r} {record_id}) "
+                                    f"announces {length} bytes that run past the start of the "
+                                    f"point data at byte {offset_points}; corrupt VLR")
+        if user == LASZIP_USER and record_id == LASZIP_RECORD:
+            laszip = block[pos + VLR_HEADER:end]
+        pos = end
+    return laszip
+
+
+def _check_chunks(path: PathLike, p: Path, size: int, offset_points: int, count: int,
+                  record_len: int, laszip: bytes) -> None:
+    """Check the LASzip VLR (items cover the record) and the chunk table (it fits the file,
+    its chunks hold ``count`` points and exactly the compressed bytes) without decoding a
+    single point."""
+    import struct
+
+    if len(laszip) < 34:
+        raise FormatError(path, f"LASzip VLR holds {len(laszip)} bytes; expected at least 34")
+    chunk_size, = struct.unpack_from("<I", laszip, 12)
+    n_items, = struct.unpack_from("<H", laszip, 32)
+    if n_items == 0 or len(laszip) < 34 + 6 * n_items:
+        raise FormatError(path, f"LASzip VLR announces {n_items} items in {len(laszip)} bytes; "
+                                "corrupt VLR")
+    item_bytes = sum(struct.unpack_from("<H", laszip, 34 + 6 * k + 2)[0]
+                     for k in range(n_items))
+    if item_bytes != record_len:
+        raise FormatError(path, f"LASzip items cover {item_bytes} bytes of the {record_len}-byte "
+                                "point record; corrupt VLR or header")
+    if chunk_size == 0:
+        raise FormatError(path, "LASzip chunk size is 0; corrupt VLR")
+    with open(p, "rb") as fh:
+        fh.seek(offset_points)
+        raw = fh.read(8)
+        if len(raw) < 8:
+            raise FormatError(path, "compressed point data is missing; truncated")
+        table_at, = struct.unpack("<q", raw)
+        if table_at == -1:  # written by a streaming compressor: the offset is at the end
+            fh.seek(size - 8)
+            table_at, = struct.unpack("<q", fh.read(8))
+        if not offset_points + 8 <= table_at <= size - 8:
+            raise FormatError(path, f"LAZ chunk table offset {table_at} lies outside the "
+                                    f"compressed data (bytes {offset_points + 8} to "
+                                    f"{size - 8}); truncated or corrupt")
+        fh.seek(table_at)
+        version, n_chunks = struct.unpack("<II", fh.read(8))
+    if version != 0:
+        raise FormatError(path, f"LAZ chunk table version {version} at byte {table_at}; "
+                                "expected 0 (corrupt chunk table)")
+    if chunk_size != VARIABLE_CHUNK:
+        expected = -(-count // chunk_size)
+        if n_chunks != expected:
+            raise FormatError(path, f"LAZ chunk table lists {n_chunks} chunks; {count} points "
+                                    f"in chunks of {chunk_size} need {expected} (corrupt chunk "
+                                    "table or point count)")
+    elif not 1 <= n_chunks <= count:
+        raise FormatError(path, f"LAZ chunk table lists {n_chunks} chunks for {count} points; "
+                                "corrupt chunk table")
+    if n_chunks > (size - table_at) * 8:  # an entry takes at least a bit or so
+        raise FormatError(path, f"LAZ chunk table lists {n_chunks} chunks but only "
+                                f"{size - table_at} bytes follow it; truncated")
+    _check_chunk_sizes(path, p, offset_points, table_at, count, chunk_size, laszip)
+
+
+def _check_chunk_sizes(path: PathLike, p: Path, offset_points: int, table_at: int, count: int,
+                       chunk_size: int, laszip: bytes) -> None:
+    import lazrs
+
+    try:
+        vlr = lazrs.LazVlr(laszip)
+        with open(p, "rb") as fh:
+            fh.seek(offset_points)
+            table = lazrs.read_chunk_table(fh, vlr)
+    except Exception as exc:  # noqa: BLE001 - lazrs raises its own (pyo3) types
+        raise FormatError(path, f"LAZ chunk table at byte {table_at} is unreadable "
+                                f"({_short(exc)})") from None
+    start = offset_points + 8
+    first_point = 0
+    for i, (n_points, n_bytes) in enumerate(table):
+        points_here = min(chunk_size, count - first_point) if chunk_size != VARIABLE_CHUNK \
+            else n_points
+        if n_bytes <= 0 or start + n_bytes > table_at or points_here <= 0:
+            raise FormatError(path, f"LAZ chunk {i} (points {first_point} to "
+                                    f"{first_point + max(points_here, 1) - 1}, {n_bytes} bytes "
+                                    f"from byte {start}) does not fit before the chunk table "
+                                    f"at byte {table_at}; truncated or corrupt")
+        start += n_bytes
+        first_point += points_here
+    if start != table_at or first_point != count:
+        held = start - offset_points - 8
+        raise FormatError(path, f"LAZ chunks hold {first_point} points in {held} bytes; the "
+                                f"header announces {count} points and "
+                                f"{table_at - offset_points - 8} bytes; corrupt chunk table")
 
 
 def read_points(path: PathLike) -> PointCloud:

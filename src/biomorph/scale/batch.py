@@ -9,7 +9,8 @@
     print(report.summary())            # "trees: 118 ok, 2 failed, 40 skipped in 312.4 s"
 
 * **Where it runs**: a ``LocalCluster(n_workers=workers, threads_per_worker=1,
-  processes=True)`` by default (one process per core, so numba/numpy code does not fight
+  processes=True)`` bound to 127.0.0.1 (scheduler, workers, nannies, dashboards) by
+  default (one process per core, so numba/numpy code does not fight
   over the GIL); ``scheduler="tcp://host:8786"`` connects to an existing cluster instead;
   ``workers=0`` — or a single item left to do — runs serially in this process (tests, small
   jobs, debugging with breakpoints).
@@ -18,8 +19,15 @@
   ``BatchReport.tracebacks``); the other items carry on. A worker process that dies counts
   as a failure of the items it held.
 * **Resuming**: items whose ``done(item)`` is true are skipped (``BatchReport.skipped``).
-  With ``out_dir`` and no ``done``, the runner keeps its own markers in
-  ``out_dir/.batch_done/`` and writes ``out_dir/batch_report.json`` at the end.
+  With ``out_dir`` and no ``done``, the runner keeps its own completion markers in
+  ``out_dir/.batch_done/``: a marker is written only after ``func`` returned (so after every
+  output of the item), and it holds a digest of the item and of ``options`` (whatever
+  changes the outputs: format, method, spacing …). An item counts as done only when its
+  marker exists *and* its digest matches, so a re-run with other options redoes it and a
+  run killed at any point (SIGKILL included) redoes exactly the unfinished items.
+  Temporary files of killed runs are removed from ``out_dir`` at the start (under the
+  folder's lock, :func:`biomorph._cli.folder_lock`); ``out_dir/batch_report.json`` is
+  written at the end.
 * **Ctrl-C** cancels outstanding futures, closes the client and the cluster, and re-raises
   ``KeyboardInterrupt`` (the CLI exits with 130); finished items keep their markers.
 * **Determinism**: ``func`` runs once per item with the item alone as input, so results are
@@ -50,6 +58,8 @@ T = TypeVar("T")
 R = TypeVar("R")
 
 MARKER_DIR = ".batch_done"
+#: every port of a LocalCluster started here listens on this address only
+LOOPBACK = "127.0.0.1"
 REPORT_NAME = "batch_report.json"
 
 
@@ -142,6 +152,25 @@ def _digest(text: str) -> str:
     return hashlib.sha1(text.encode("utf-8")).hexdigest()[:10]
 
 
+def fingerprint(item: Any, options: Any = None) -> str:
+    """Digest of an item and the options that shape its outputs (stable across runs for
+    JSON-like values, paths and dataclasses)."""
+    import hashlib
+    import json
+
+    from biomorph._cli import to_jsonable
+
+    text = json.dumps([to_jsonable(item), to_jsonable(options)], sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _marker_matches(path: Path, digest: str) -> bool:
+    try:
+        return path.read_text(encoding="utf-8").strip() == digest
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
 @contextlib.contextmanager
 def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
     """A dask client on a new LocalCluster or on ``scheduler``; both closed on exit."""
@@ -165,10 +194,16 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
                                         ) from None
             else:
                 try:
+                    # scheduler, workers, nannies and dashboard listen on the loopback
+                    # only: a batch run must not open ports to the network
                     cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                           processes=True, dashboard_address=":0",
+                                           processes=True, host=LOOPBACK,
+                                           dashboard_address=f"{LOOPBACK}:0",
+                                           worker_dashboard_address=f"{LOOPBACK}:0",
                                            silence_logs=logging.ERROR)
                 except (RuntimeError, OSError) as exc:
+                    if interrupted():  # Ctrl-C reached the workers while they started
+                        raise KeyboardInterrupt from None
                     raise BiomorphError(
                         f"could not start a dask LocalCluster with {workers} workers ({exc}); "
                         "a script that calls run_batch must do so under "
@@ -214,7 +249,7 @@ def run_batch(items: Sequence[T], func: Callable[[T], R], *, out_dir: str | os.P
               None = None, key: Callable[[T], str] = str,
               done: Callable[[T], bool] | None = None, workers: int | None = None,
               scheduler: str | None = None, progress: bool = True,
-              description: str = "batch") -> BatchReport[R]:
+              description: str = "batch", options: Any = None) -> BatchReport[R]:
     """Apply ``func`` to every item, in parallel on dask.distributed; never stop on one error.
 
     Parameters
@@ -232,6 +267,7 @@ def run_batch(items: Sequence[T], func: Callable[[T], R], *, out_dir: str | os.P
         then ignored.
     progress : show a rich progress bar on stderr when it is a terminal.
     description : label for the bar and the report.
+    options : what else changes the outputs (JSON-like); part of each completion marker.
 
     Returns a :class:`BatchReport`. ``KeyboardInterrupt`` cancels outstanding work, shuts the
     cluster down and propagates.
@@ -248,18 +284,31 @@ def run_batch(items: Sequence[T], func: Callable[[T], R], *, out_dir: str | os.P
         dup = next(k for k, c in Counter(keys).items() if c > 1)
         raise ParameterError(f"key {dup!r} names more than one item; keys must be unique")
     out = None if out_dir is None else Path(out_dir)
+    with contextlib.ExitStack() as stack:
+        if out is not None:
+            from biomorph._cli import folder_lock
+
+            stack.enter_context(folder_lock(out, option="out_dir"))
+        return _run_batch(items, keys, func, out, done, workers, scheduler, progress,
+                          description, options, t_start)
+
+
+def _run_batch(items: list[Any], keys: list[str], func: Callable[[Any], Any],
+               out: Path | None, done: Callable[[Any], bool] | None, workers: int | None,
+               scheduler: str | None, progress: bool, description: str, options: Any,
+               t_start: float) -> BatchReport[Any]:
     markers = out is not None and done is None
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        if markers:
-            (out / MARKER_DIR).mkdir(exist_ok=True)
+    if markers:
+        (out / MARKER_DIR).mkdir(exist_ok=True)  # type: ignore[operator]
+    digests = [fingerprint(item, options) for item in items] if markers else []
 
     def is_done(i: int) -> bool:
         if done is not None:
             return bool(done(items[i]))
-        return markers and _marker(out, keys[i]).exists()  # type: ignore[arg-type]
+        return markers and _marker_matches(_marker(out, keys[i]),  # type: ignore[arg-type]
+                                           digests[i])
 
-    report: BatchReport[R] = BatchReport(description=description)
+    report: BatchReport[Any] = BatchReport(description=description)
     todo = []
     for i in range(len(items)):
         if is_done(i):
@@ -274,8 +323,10 @@ def run_batch(items: Sequence[T], func: Callable[[T], R], *, out_dir: str | os.P
 
     def record(i: int, outcome: tuple[bool, Any, float, str]) -> None:
         outcomes[i] = outcome
-        if outcome[0] and markers:
-            _marker(out, keys[i]).touch()  # type: ignore[arg-type]
+        if outcome[0] and markers:  # last: after every output of the item exists
+            from biomorph.io.atomic import write_text
+
+            write_text(_marker(out, keys[i]), digests[i] + "\n")  # type: ignore[arg-type]
 
     with task(description, total=len(todo), enabled=None if progress else False) as advance:
         if serial or not todo:

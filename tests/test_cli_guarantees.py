@@ -1,0 +1,225 @@
+"""The CLI's cross-cutting guarantees (issue 18): Ctrl-C, non-regular inputs, outputs that are
+inputs, locked output folders and appended files, error messages naming the real target.
+
+Ctrl-C is tested through a real process (``python -m biomorph.cli``) receiving SIGINT on its
+whole process group, as a terminal sends it.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from biomorph._cli import INTERRUPT_LINE, LOCK_NAME, folder_lock
+from biomorph.cli import run
+
+CLI = [sys.executable, "-m", "biomorph.cli"]
+
+
+def _interrupt(args: list[str], wait_for: Path | None, delay: float) -> tuple[int, str, float]:
+    """Start the CLI, wait until ``wait_for`` exists (the command body has begun) plus
+    ``delay`` s, send SIGINT to its process group; return (exit code, stderr, seconds to
+    stop)."""
+    proc = subprocess.Popen(CLI + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    t0 = time.monotonic()
+    while wait_for is not None and not wait_for.exists() and proc.poll() is None \
+            and time.monotonic() - t0 < 90:
+        time.sleep(0.01)
+    assert proc.poll() is None, proc.communicate()
+    time.sleep(delay)
+    os.killpg(proc.pid, signal.SIGINT)
+    t1 = time.monotonic()
+    _, err = proc.communicate(timeout=30)
+    return proc.returncode, err, time.monotonic() - t1
+
+
+def _one_interrupt_line(err: str) -> None:
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    assert lines == [INTERRUPT_LINE], err
+    assert "Traceback" not in err
+
+
+def _temp_files(folder: Path) -> list[Path]:
+    return [p for p in folder.rglob("*") if ".tmp-" in p.name or p.name == LOCK_NAME]
+
+
+def test_ctrl_c_during_imports_one_line_exit_130(tmp_path):
+    code, err, took = _interrupt(["tree", "synth", "--out", str(tmp_path / "o")], None, 0.3)
+    assert code == 130
+    _one_interrupt_line(err)
+    assert took < 1.0
+    assert not (tmp_path / "o").exists()
+
+
+def test_ctrl_c_during_work_one_line_exit_130_no_partial_files(tmp_path):
+    out = tmp_path / "o"
+    code, err, took = _interrupt(["tree", "synth", "--points", "3000000", "--out", str(out)],
+                                 out / LOCK_NAME, 0.3)
+    assert code == 130
+    _one_interrupt_line(err)
+    assert took < 1.0
+    assert _temp_files(out) == []
+
+
+@pytest.fixture(scope="module")
+def clouds(tmp_path_factory):
+    from biomorph.io import write_points
+    from biomorph.tree.synthetic import generate_tree, simulate_scan
+
+    d = tmp_path_factory.mktemp("clouds")
+    cloud = simulate_scan(generate_tree("birch", seed=1), n_points=1500, seed=1)
+    return [write_points(d / f"{name}.ply", cloud) for name in ("a", "b", "c")]
+
+
+def test_ctrl_c_during_batch_worker_start_one_line(tmp_path, clouds):
+    out = tmp_path / "batch"
+    code, err, took = _interrupt(["tree", "batch", *map(str, clouds), "--workers", "2",
+                                  "--out", str(out)], out / LOCK_NAME, 0.5)
+    assert code == 130
+    _one_interrupt_line(err)  # no worker tracebacks, no misleading multiprocessing error
+    assert took < 1.5  # the process group is gone (workers killed with the parent)
+
+
+def test_named_pipe_and_device_refused_not_read(tmp_path, capsys):
+    fifo = tmp_path / "cloud.xyz"
+    os.mkfifo(fifo)
+    for argv in (["info", str(fifo)], ["tree", "skeletonize", str(fifo), "--out",
+                                       str(tmp_path / "o")], ["info", "/dev/zero"]):
+        assert run(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "Traceback" not in err
+        assert "named pipe" in err or "device file" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_output_that_is_an_input_is_refused(tmp_path, capsys, clouds):
+    out = tmp_path / "out"
+    out.mkdir()
+    own = out / "skeleton.ply"
+    own.write_bytes(clouds[0].read_bytes())
+    before = own.read_bytes()
+    assert run(["tree", "skeletonize", str(own), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "skeleton.ply" in err and "input" in err and len(err.splitlines()) == 1
+    assert own.read_bytes() == before
+    assert _temp_files(out) == []
+    bvh = tmp_path / "m.bvh"
+    bvh.write_text("HIERARCHY\n")
+    assert run(["motion", "reorient", str(bvh), "-o", str(bvh)]) == 2
+    assert "input" in capsys.readouterr().err
+
+
+def test_second_run_into_a_locked_folder_is_refused(tmp_path, capsys):
+    out = tmp_path / "o"
+    holder = subprocess.Popen(
+        [sys.executable, "-c",
+         "import time; from biomorph._cli import folder_lock\n"
+         f"with folder_lock({str(out)!r}):\n"
+         "    print('locked', flush=True); time.sleep(30)"],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        assert run(["tree", "synth", "--points", "500", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "another biomorph run" in err and str(out) in err
+        assert not (out / "cloud.ply").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_stale_temp_files_of_a_killed_run_are_removed(tmp_path):
+    out = tmp_path / "o"
+    (out / "sub").mkdir(parents=True)
+    stale = [out / ".cloud.ply.tmp-abcd1234.ply", out / "sub" / ".summary.json.tmp-zz_9y8x7.json"]
+    for p in stale:
+        p.write_bytes(b"x" * 100)
+    keep = out / "notes.tmp-abcd1234.txt"  # not a name atomic_path creates
+    keep.write_text("mine")
+    with folder_lock(out) as removed:
+        assert sorted(removed) == sorted(stale)
+    assert not any(p.exists() for p in stale) and keep.exists()
+    assert not (out / LOCK_NAME).exists()
+
+
+def test_concurrent_annotate_loses_no_rows(tmp_path):
+    from tests.creature.test_export_cli import SVG
+
+    ds = tmp_path / "species.csv"
+    procs = []
+    for i in range(3):
+        svg = tmp_path / f"animal{i}.svg"
+        svg.write_text(SVG)
+        procs.append(subprocess.Popen(CLI + ["creature", "annotate", str(svg), "--weight",
+                                             str(10 + i), "--dataset", str(ds)],
+                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    for p in procs:
+        _, err = p.communicate(timeout=120)
+        assert p.returncode == 0, err
+    from biomorph.creature.dataset import load_species
+
+    names = list(load_species(ds).name)
+    assert sorted(names[-3:]) == ["animal0", "animal1", "animal2"]
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root ignores file permissions")
+def test_permission_error_names_the_target_not_the_temp_file(tmp_path, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        assert run(["tree", "synth", "--points", "500", "--out", str(ro / "x")]) == 2
+    finally:
+        ro.chmod(0o755)
+    err = capsys.readouterr().err
+    assert str(ro) in err and ".tmp-" not in err
+
+
+def test_os_errors_name_the_target(tmp_path):
+    """Disk full / permission denied while writing name the target, never the temp file."""
+    import errno
+
+    from biomorph.io.atomic import atomic_path
+
+    target = tmp_path / "out.ply"
+    with pytest.raises(OSError) as info:
+        with atomic_path(target) as tmp:
+            raise OSError(errno.ENOSPC, "No space left on device", str(tmp))
+    assert info.value.filename == str(target) and info.value.errno == errno.ENOSPC
+    assert list(tmp_path.iterdir()) == []
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(OSError) as info:
+        with atomic_path(blocker / "inside.txt") as tmp:
+            tmp.write_text("never")
+    assert ".tmp-" not in str(info.value.filename)
+
+
+def test_disk_full_message_names_the_path(tmp_path, capsys, monkeypatch):
+    import errno
+
+    import biomorph.io.atomic as atomic
+
+    real = os.replace
+
+    def full(src, dst):
+        raise OSError(errno.ENOSPC, "No space left on device", src)
+
+    monkeypatch.setattr(atomic.os, "replace", full)
+    out = tmp_path / "o"
+    try:
+        assert run(["tree", "synth", "--points", "500", "--out", str(out)]) == 2
+    finally:
+        monkeypatch.setattr(atomic.os, "replace", real)
+    err = capsys.readouterr().err.strip()
+    assert "No space left on device" in err and str(out) in err and ".tmp-" not in err
+    assert len(err.splitlines()) == 1
+    assert [p for p in out.rglob("*") if ".tmp-" in p.name] == []
