@@ -220,3 +220,101 @@ def test_cli_bad_input_exit_2_no_file(tmp_path, capsys, args, needle):
     err = capsys.readouterr().err
     assert needle in err and len(err.strip().splitlines()) <= 2, err
     assert not out.exists()
+
+
+def test_mirror_twice_is_identity_and_reflects_positions(xia):
+    from biomorph.motion.names import left_right_pairs, mirror_name
+    from biomorph.motion.retarget import mirror
+
+    once = mirror(xia)
+    assert np.abs(mirror(once).world_positions() - xia.world_positions()).max() < 1e-9
+    assert mirror_name("LeftArm") == "RightArm" and mirror_name("thigh.L") == "thigh.R"
+    assert mirror_name("hand_r") == "hand_l" and mirror_name("LThumb") == "RThumb"
+    assert len(left_right_pairs(xia.names)) >= 10
+    w, wm = xia.world_positions(), once.world_positions()
+    other = [xia.names.index(mirror_name(n) or n) if (mirror_name(n) or n) in xia.names else i
+             for i, n in enumerate(xia.names)]
+    ref = w[:, other].copy()
+    ref[..., 0] *= -1  # the CMU skeleton's lateral axis is x
+    # the captured skeleton is not exactly symmetric (offsets differ by up to 0.26 units)
+    assert np.abs(wm - ref).max() < 0.05 * np.ptp(w[..., 1])
+
+
+def _renamed(m, prefix, scale):
+    from biomorph.core.skeleton import JointSkeleton
+
+    sk = m.skeleton
+    return JointSkeleton([prefix + n for n in sk.names], sk.parent, sk.offset * scale,
+                         sk.rest_rotation, sk.limits, sk.channels, sk.end_site * scale)
+
+
+def test_retarget_onto_a_mixamo_named_smaller_skeleton(xia):
+    from biomorph.motion.retarget import retarget
+
+    target = _renamed(xia, "mixamorig:", 0.5)
+    out = retarget(xia, target, feet=False)
+    assert out.names == target.names
+    assert np.abs(out.world_positions() - 0.5 * xia.world_positions()).max() < 1e-9
+    assert out.meta["retarget"]["leg_scale"] == pytest.approx(0.5)
+
+
+def test_retarget_cmu_walk_onto_the_rokoko_mixamo_rig(xia):
+    from biomorph.motion.retarget import retarget
+
+    dance = _read("ad_rokoko_jesse_dance.bvh")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ContactWarning)
+        out = retarget(xia, dance.skeleton)
+    w = out.world_positions()
+    assert np.isfinite(w).all() and out.n_frames == xia.n_frames
+    # hips at the target's own height (leg-length scaled), feet on its ground
+    hips_rest = dance.skeleton.offset[0, 1]
+    assert 0.7 * hips_rest < w[:, 0, 1].mean() < 1.3 * hips_rest
+    feet = [dance.names.index(n) for n in ("LeftFoot", "RightFoot")]
+    travel = np.linalg.norm(w[-1, 0, [0, 2]] - w[0, 0, [0, 2]])
+    src_travel = np.linalg.norm(xia.root_position[-1, [0, 2]] - xia.root_position[0, [0, 2]])
+    assert travel == pytest.approx(src_travel * out.meta["retarget"]["leg_scale"], rel=0.05)
+    assert w[:, feet, 1].min() > -0.1 * hips_rest
+
+
+def test_retarget_and_mirror_bad_input(xia, tmp_path):
+    from biomorph.errors import FormatError, InputError
+    from biomorph.motion.retarget import mirror, retarget
+
+    sine = _read("fairmotion_sinusoidal.bvh")
+    with pytest.raises(InputError, match="mirror needs left/right"):
+        mirror(sine)
+    with pytest.raises(InputError, match="preset"):
+        retarget(xia, sine.skeleton)
+    legless = _renamed(xia, "", 1.0)
+    names = list(legless.names)
+    names[names.index("LeftLeg")] = "LeftKnee"
+    from biomorph.core.skeleton import JointSkeleton
+
+    legless = JointSkeleton(names, legless.parent, legless.offset)
+    with pytest.raises(InputError, match="required joint 'l_shin'"):
+        retarget(xia, legless)
+    bad = tmp_path / "map.csv"
+    bad.write_text("source,target\nHips,Hips\nLeftUpLeg,NoSuchJoint\n")
+    with pytest.raises(InputError, match="NoSuchJoint"):
+        retarget(xia, xia.skeleton, csv_map=bad)
+    bad.write_text("Hips;Hips\n")
+    with pytest.raises(FormatError, match="expected source,target"):
+        retarget(xia, xia.skeleton, csv_map=bad)
+
+
+def test_cli_retarget_and_mirror(tmp_path, capsys):
+    walk = str(shared_file("motion", "xia_neutral_01_000_walk.bvh"))
+    dance = str(shared_file("motion", "ad_rokoko_jesse_dance.bvh"))
+    sine = str(shared_file("motion", "fairmotion_sinusoidal.bvh"))
+    out = tmp_path / "rt.bvh"
+    assert run(["motion", "retarget", walk, "--to", dance, "-o", str(out), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["mapped"] >= 20
+    assert read_bvh(out).n_joints == 60
+    assert run(["motion", "mirror", walk, "-o", str(tmp_path / "m.bvh")]) == 0
+    never = tmp_path / "never.bvh"
+    for argv in (["retarget", walk, "--to", sine, "-o", str(never)],
+                 ["mirror", sine, "-o", str(never)]):
+        assert run(["motion", *argv]) == 2
+        assert len(capsys.readouterr().err.strip().splitlines()) <= 2
+        assert not never.exists()

@@ -504,6 +504,54 @@ def convert(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC.")], 
 
 
 @app.command()
+def mirror(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
+           up: Up = None, strict: Strict = False, lock_feet: Feet = True,
+           euler: Euler = "wrap", as_json: Json = False) -> None:
+    """Swap left and right (names Left/Right, .L/.R, _l/_r, L_/R_): a mirror-image clip.
+
+    Example: biomorph motion mirror walk.bvh -o walk_mirrored.bvh
+    """
+    from biomorph.motion.retarget import mirror as mi
+
+    _check_out(output)
+    t0 = time.perf_counter()
+    out = mi(_read(path, up, strict))
+    out = _finish(output, out, None, lock_feet, euler)
+    _emit(_summary(out, output, t0), as_json)
+
+
+@app.command()
+def retarget(path: Annotated[Path, typer.Argument(help="Source motion.")], output: Output,
+             to: Annotated[Path, typer.Option("--to", help="Target skeleton: any motion file "
+                                                           "(BVH/HTR/ASF; its skeleton is "
+                                                           "used).")],
+             source_names: Annotated[str | None, typer.Option(
+                 help="Source name preset: cmu | mixamo | humanik | rokoko | rigify "
+                      "(default: detected).")] = None,
+             target_names: Annotated[str | None, typer.Option(
+                 help="Target name preset (default: detected).")] = None,
+             map_csv: Annotated[Path | None, typer.Option(
+                 "--map", help="CSV of source,target joint names (instead of presets).")] =
+             None,
+             up: Up = None, strict: Strict = False, lock_feet: Feet = True,
+             euler: Euler = "wrap", as_json: Json = False) -> None:
+    """Play a clip on another skeleton (other names, proportions, rest pose); feet planted.
+
+    Example: biomorph motion retarget cmu_walk.bvh --to mixamo_char.bvh -o walk_on_char.bvh
+    """
+    from biomorph.motion.retarget import retarget as rt
+
+    _check_out(output)
+    t0 = time.perf_counter()
+    src = _read(path, up, strict)
+    tgt = _read(to, None, strict)
+    out = rt(src, tgt.skeleton, source_names, target_names, map_csv, feet=False)
+    out = _finish(output, out, None, lock_feet, euler)
+    _emit(_summary(out, output, t0, mapped=out.meta["retarget"]["joints"],
+                   leg_scale=out.meta["retarget"]["leg_scale"]), as_json)
+
+
+@app.command()
 def plot(path: Annotated[Path, typer.Argument(help="Input motion.")],
          output: Annotated[Path, typer.Option("-o", "--output", help="PNG to write.")],
          joint: Annotated[str | None, typer.Option(help="Joint (default: first with "

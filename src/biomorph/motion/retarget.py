@@ -1,0 +1,246 @@
+"""Retargeting between skeletons with other names and proportions, and left/right mirroring.
+
+Retarget (:func:`retarget`)
+---------------------------
+1. Names: both skeletons are mapped to canonical humanoid joints (:mod:`biomorph.motion.names`:
+   CMU, Mixamo, Rokoko/HumanIK, Rigify presets, detected from the names, or a user CSV of
+   ``source,target`` names). The legs and hips (:data:`~biomorph.motion.names.REQUIRED`) must
+   be mapped on both sides.
+2. Rest-pose alignment: for every mapped joint the target's rest bone (joint → its mapped
+   child, or its first child) is turned onto the source's rest bone direction, so a T-pose
+   source drives an A-pose target without lifting its arms by the difference.
+3. Rotations: the source joint's world rotation *relative to its rest* is applied to the
+   aligned target joint in world space, then converted to the target's local pose rotations
+   parents first; unmapped target joints keep their rest pose relative to their parent.
+4. Root: the hips trajectory is scaled by the ratio of leg lengths (thigh + shin, measured on
+   the rest poses), so a shorter character takes proportionally shorter steps and its hips
+   stay at its own height.
+5. Feet: :func:`biomorph.motion.contact.lock_feet` then holds the planted feet (the CLI and
+   ``feet=True`` do this by default).
+
+Mirror (:func:`mirror`)
+-----------------------
+Left and right swap by name (Left/Right, ``.L``/``.R``, ``_l``/``_r``, ``L_``/``R_``): the
+world rotation of each joint (rest included) is reflected across the body's sagittal plane
+(normal: the lateral axis, found from the rest positions of the left/right pairs) —
+``R' = M R M`` with ``M`` the reflection, i.e. the quaternion component along the lateral
+axis kept and the other two negated — and assigned to its mirror joint; the root trajectory
+is reflected too.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from biomorph.core import transforms as tf
+from biomorph.core.motion import Motion, _qmul, fk_positions, frozen, ro, ro_int
+from biomorph.core.skeleton import JointSkeleton
+from biomorph.errors import InputError
+from biomorph.motion import names as nm
+
+Array = NDArray[np.float64]
+
+
+def _rest_world(sk: JointSkeleton) -> tuple[Array, Array]:
+    """World positions (n, 3) and orientations (n, 4) of the rest pose."""
+    n = sk.n_joints
+    pos, quat = np.empty((1, n, 3)), np.empty((1, n, 4))
+    fk_positions(ro(sk.rest_rotation), ro(tf.quat_identity((1, n))), ro(sk.offset[None]),
+                 ro_int(sk.parent), pos, quat)
+    return pos[0], quat[0]
+
+
+@njit(cache=True)
+def _retarget_kernel(ws, src_of, pre, post, rest_t, parent, rot_out):  # pragma: no cover
+    """Per frame and target joint (parents first): mapped joints get the world rotation
+    ``ws[src] · pre[j] · post[j]`` (source delta from rest, then the aligned target rest:
+    ``pre = qs⁻¹``, ``post = align · qt``), unmapped ones their parent's world times their
+    rest; the local pose is ``rest⁻¹ · parent⁻¹ · world``."""
+    f, n = ws.shape[0], parent.size
+    world = np.empty((n, 4))
+    for t in range(f):
+        for j in range(n):
+            p = parent[j]
+            if p >= 0:
+                px, py, pz, pw = world[p, 0], world[p, 1], world[p, 2], world[p, 3]
+            else:
+                px, py, pz, pw = 0.0, 0.0, 0.0, 1.0
+            s = src_of[j]
+            if s >= 0:
+                x, y, z, w = _qmul(ws[t, s, 0], ws[t, s, 1], ws[t, s, 2], ws[t, s, 3],
+                                   pre[j, 0], pre[j, 1], pre[j, 2], pre[j, 3])
+                x, y, z, w = _qmul(x, y, z, w, post[j, 0], post[j, 1], post[j, 2], post[j, 3])
+            else:
+                x, y, z, w = _qmul(px, py, pz, pw, rest_t[j, 0], rest_t[j, 1], rest_t[j, 2],
+                                   rest_t[j, 3])
+            world[j, 0], world[j, 1], world[j, 2], world[j, 3] = x, y, z, w
+            # local = rest^-1 * parent^-1 * world
+            lx, ly, lz, lw = _qmul(-px, -py, -pz, pw, x, y, z, w)
+            lx, ly, lz, lw = _qmul(-rest_t[j, 0], -rest_t[j, 1], -rest_t[j, 2], rest_t[j, 3],
+                                   lx, ly, lz, lw)
+            if t > 0 and (lx * rot_out[t - 1, j, 0] + ly * rot_out[t - 1, j, 1]
+                          + lz * rot_out[t - 1, j, 2] + lw * rot_out[t - 1, j, 3]) < 0:
+                lx, ly, lz, lw = -lx, -ly, -lz, -lw
+            rot_out[t, j, 0], rot_out[t, j, 1], rot_out[t, j, 2], rot_out[t, j, 3] = \
+                lx, ly, lz, lw
+
+
+def _maps(source: JointSkeleton, target: JointSkeleton, source_preset: str | None,
+          target_preset: str | None, csv_map: str | os.PathLike[str] | None
+          ) -> list[tuple[int, int, str]]:
+    """(source joint, target joint, canonical name) pairs."""
+    if csv_map is not None:
+        pairs = nm.read_map_csv(csv_map)
+        si = {nm.bare(n): i for i, n in enumerate(source.names)}
+        ti = {nm.bare(n): i for i, n in enumerate(target.names)}
+        miss = [a for a in pairs if nm.bare(a) not in si] + \
+            [b for b in pairs.values() if nm.bare(b) not in ti]
+        if miss:
+            raise InputError(f"{os.fspath(csv_map)}: joint {miss[0]!r} is not in the "
+                             f"{'source' if nm.bare(miss[0]) not in si else 'target'} skeleton")
+        out = [(si[nm.bare(a)], ti[nm.bare(b)], "") for a, b in pairs.items()]
+        s_can = {v: k for k, v in nm.resolve(source.names, nm.detect_preset(source.names)).items()}
+        out = [(s, t, s_can.get(s, "")) for s, t, _ in out]
+    else:
+        sp = source_preset or nm.detect_preset(source.names)
+        tp = target_preset or nm.detect_preset(target.names)
+        s_map, t_map = nm.resolve(source.names, sp), nm.resolve(target.names, tp)
+        for side, m, p, sk in (("source", s_map, sp, source), ("target", t_map, tp, target)):
+            miss = [c for c in nm.REQUIRED if c not in m]
+            if miss:
+                raise InputError(f"retarget map misses required joint {miss[0]!r} in the {side} "
+                                 f"skeleton (preset {p!r}: expected "
+                                 f"{nm.PRESETS[p].get(miss[0], miss[0])!r} among "
+                                 f"{', '.join(sk.names[:4])}, …)")
+        out = [(s_map[c], t_map[c], c) for c in nm.CANONICAL if c in s_map and c in t_map]
+    # joints outside the canonical set (fingers, extra spine or clavicle joints) follow by
+    # identical name when both skeletons have them
+    used_s, used_t = {s for s, _, _ in out}, {t for _, t, _ in out}
+    si = {nm.bare(n): i for i, n in enumerate(source.names)}
+    for t, name in enumerate(target.names):
+        s = si.get(nm.bare(name))
+        if s is not None and t not in used_t and s not in used_s:
+            out.append((s, t, ""))
+    got = {c for *_, c in out}
+    miss = [c for c in nm.REQUIRED if c not in got]
+    if miss:
+        raise InputError(f"retarget map misses required joint {miss[0]!r}; expected the hips "
+                         "and both legs (thigh, shin, foot) mapped")
+    return out
+
+
+def _leg_length(sk: JointSkeleton, pos: Array, m: dict[str, int]) -> float:
+    out = []
+    for s in ("l", "r"):
+        a, b, c = m[f"{s}_thigh"], m[f"{s}_shin"], m[f"{s}_foot"]
+        out.append(np.linalg.norm(pos[b] - pos[a]) + np.linalg.norm(pos[c] - pos[b]))
+    return float(np.mean(out))
+
+
+def retarget(source: Motion, target: JointSkeleton, source_preset: str | None = None,
+             target_preset: str | None = None, csv_map: str | os.PathLike[str] | None = None,
+             feet: bool = True) -> Motion:
+    """``source`` played on the ``target`` skeleton (see the module docstring)."""
+    pairs = _maps(source.skeleton, target, source_preset, target_preset, csv_map)
+    s_of = {t: s for s, t, _ in pairs}
+    ps, qs = _rest_world(source.skeleton)
+    pt, qt = _rest_world(target)
+    s_can = {c: s for s, _, c in pairs if c}
+    t_can = {c: t for _, t, c in pairs if c}
+    scale = _leg_length(target, pt, t_can) / max(_leg_length(source.skeleton, ps, s_can), 1e-12)
+    # rest alignment per mapped target joint: turn its rest bone onto the source's
+    align = {}
+    t_kids = {j: [int(k) for k in np.flatnonzero(target.parent == j)] for j in s_of}
+    for t, s in s_of.items():
+        kids = [k for k in t_kids[t] if k in s_of] or t_kids[t]
+        if not kids:
+            align[t] = tf.quat_identity()
+            continue
+        k = kids[0]
+        dt = pt[k] - pt[t]
+        ds = (ps[s_of[k]] - ps[s]) if k in s_of else tf.quat_rotate(
+            tf.quat_multiply(qs[s], tf.quat_conjugate(qt[t])), dt)
+        if np.linalg.norm(dt) < 1e-12 or np.linalg.norm(ds) < 1e-12:
+            align[t] = tf.quat_identity()
+            continue
+        a, b = dt / np.linalg.norm(dt), ds / np.linalg.norm(ds)
+        c = np.cross(a, b)
+        q = np.array([*c, 1.0 + float(a @ b)])
+        align[t] = tf.quat_normalize(q) if q[3] > 1e-9 else tf.quat_from_axis_angle(
+            np.cross(a, np.eye(3)[np.argmin(np.abs(a))]), np.pi)
+    wpos, ws = source._fk(None)
+    f, n = source.n_frames, target.n_joints
+    src_of = np.full(n, -1, dtype=np.int64)
+    pre = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+    post = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+    for t, s in s_of.items():
+        src_of[t] = s
+        pre[t] = tf.quat_conjugate(qs[s])
+        post[t] = tf.quat_multiply(align[t], qt[t])
+    rot = np.empty((f, n, 4))
+    _retarget_kernel(ro(ws), ro_int(src_of), ro(pre), ro(post), ro(target.rest_rotation),
+                     ro_int(target.parent), rot)
+    hips_s, hips_t = s_can["hips"], t_can["hips"]
+    src_hips = wpos[:, hips_s]
+    root = src_hips * scale
+    if t_can["hips"] != 0:  # joints above the target's hips: keep them at rest, move the root
+        root = root - (pt[hips_t] - pt[0])
+    meta = {"source": source.meta.get("source"), "format": "retarget",
+            "up_guess": source.meta.get("up_guess", "y"),
+            "retarget": {"joints": len(pairs), "leg_scale": scale}}
+    out = Motion(target, frozen(rot), frozen(root),
+                 source.frame_time, None, meta)
+    if feet:
+        from biomorph.motion.contact import lock_feet
+
+        out = lock_feet(out)
+    return out
+
+
+def _lateral_axis(sk: JointSkeleton, pairs: list[tuple[int, int]]) -> int:
+    pos, _ = _rest_world(sk)
+    d = np.abs(np.array([pos[a] - pos[b] for a, b in pairs])).sum(axis=0)
+    return int(np.argmax(d))
+
+
+def mirror(motion: Motion, axis: int | None = None) -> Motion:
+    """Swap left and right (see the module docstring); ``axis`` the lateral axis (0, 1, 2),
+    found from the rest pose when None."""
+    sk = motion.skeleton
+    pairs = nm.left_right_pairs(sk.names)
+    if not pairs:
+        raise InputError(f"mirror needs left/right joint names (Left…/Right…, ….L/….R, …_l/…_r);"
+                         f" the skeleton has none ({', '.join(sk.names[:4])}, …)")
+    a = _lateral_axis(sk, pairs) if axis is None else int(axis)
+    other = np.arange(sk.n_joints)
+    for i, j in pairs:
+        other[i], other[j] = j, i
+    sign = -np.ones(4)
+    sign[a] = 1.0
+    sign[3] = 1.0
+    _, wq = motion._fk(None)
+    mw = wq[:, other] * sign  # world rotation of the mirror joint, reflected
+    rot = np.zeros_like(motion.rotation)
+    inv = tf.quat_conjugate
+    for j in range(sk.n_joints):
+        p = sk.parent[j]
+        pw = mw[:, p] if p >= 0 else tf.quat_identity((motion.n_frames,))
+        rot[:, j] = tf.quat_multiply(inv(sk.rest_rotation[j]), tf.quat_multiply(inv(pw), mw[:, j]))
+    pos = np.array(motion.root_position)
+    pos[:, a] = -pos[:, a]
+    jt = None
+    if motion.joint_translation is not None:
+        jt = np.array(motion.joint_translation[:, other])
+        jt[..., a] = -jt[..., a]
+        jt[:, 0] = pos
+    meta = dict(motion.meta)
+    meta["history"] = [*meta.get("history", []), f"mirror axis={'xyz'[a]}"]
+    return motion.with_(rotation=frozen(tf.quat_continuous(rot, axis=0)),
+                        root_position=frozen(pos), joint_translation=jt, meta=meta)
+
+
+__all__ = ["retarget", "mirror"]
