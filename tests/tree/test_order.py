@@ -27,18 +27,72 @@ def test_orders_follow_the_weight_and_angle_rule():
     assert d.tolist() == [0, 0, 0, 0, 0, 0, 1, 1, 1]
 
 
-def test_thresholds_are_parameters():
+def test_thresholds_are_parameters_of_the_angle_rule():
     g = _tree()
     # with a 5° angle limit nothing continues at the forks: every fork child is new
-    d = order.branch_order(g, max_angle=np.radians(5))
+    d = order.branch_order(g, max_angle=np.radians(5), rule="angle")
     assert d[4] == 1 and d[6] == 1
     # weight share of 0.95: no child carries 95 % at the forks, so orders step up
-    d2 = order.branch_order(g, weight_share=0.95)
+    d2 = order.branch_order(g, weight_share=0.95, rule="angle")
     assert d2[4] == d2[3] + 1 and d2[2] == 1
     with pytest.raises(ParameterError):
-        order.branch_order(g, weight_share=1.5)
+        order.branch_order(g, weight_share=1.5, rule="angle")
     with pytest.raises(ParameterError):
-        order.branch_order(g, max_angle=0)
+        order.branch_order(g, max_angle=0, rule="angle")
+    with pytest.raises(ParameterError):
+        order.branch_order(g, rule="tallest")
+    with pytest.raises(ParameterError):
+        order.branch_order(g, tie=0)
+    # the supported rule ignores the angle: the same trunk at any limit
+    assert order.branch_order(g, max_angle=np.radians(5)).tolist() == \
+        order.branch_order(g).tolist()
+
+
+def _bent_stem(n_whorls=6):
+    """A leaning stem that bends 60° at z = 2 m (a hard 45° cut loses it), with a short
+    side branch at every stem node above the bend (a whorl of one)."""
+    pos = [[0, 0, 0], [0, 0, 1.0], [0, 0, 2.0]]
+    parent = [-1, 0, 1]
+    d = np.array([np.sin(np.radians(60)), 0, np.cos(np.radians(60))])
+    for i in range(n_whorls):
+        pos.append(list(np.array(pos[2]) + (i + 1) * 0.5 * d))
+        parent.append(2 if i == 0 else len(pos) - 3)
+        stem_node = len(pos) - 1
+        pos.append(list(np.array(pos[stem_node]) + [0, 0.3, 0.0]))   # 0.3 m side twig
+        parent.append(stem_node)
+    pos.append(list(np.array(pos[-2]) + 0.5 * d))                     # the leader's tip
+    parent.append(len(pos) - 3)
+    pos.append([0, 0.3, 2.0])                                          # a twig at the bend
+    parent.append(2)
+    return BranchGraph(np.array(pos, dtype=float), np.array(parent))
+
+
+def test_the_trunk_follows_the_most_wood_however_it_bends():
+    g = _bent_stem()
+    stem = [0, 1, 2] + list(range(3, g.n_nodes - 2, 2)) + [g.n_nodes - 2]
+    d = order.branch_order(g)
+    assert (d[stem] == 0).all() and (np.delete(d, stem) == 1).all()
+    # the seed's rule loses the stem at the bend (orders climb along it)
+    assert order.branch_order(g, rule="angle").max() > 1
+
+
+def test_a_codominant_fork_continues_into_the_straighter_child():
+    # fork at node 1: a child 30° off carrying 1.0 m, one 5° off carrying 0.8 m (tie 0.5)
+    a30, a5 = np.radians(30), np.radians(5)
+    pos = np.array([[0, 0, 0], [0, 0, 1.0],
+                    [np.sin(a30), 0, 1 + np.cos(a30)],
+                    [-0.8 * np.sin(a5), 0, 1 + 0.8 * np.cos(a5)]])
+    g = BranchGraph(pos, np.array([-1, 0, 1, 1]))
+    assert order.branch_order(g).tolist() == [0, 0, 1, 0]
+    # with a strict tie share the heavier one wins
+    assert order.branch_order(g, tie=0.9).tolist() == [0, 0, 0, 1]
+
+
+def test_order_and_continuation_from_segments_round_trip():
+    g = _tree()
+    seg = order.segments(g)
+    assert order.order_from_segments(g, seg).tolist() == order.branch_order(g).tolist()
+    assert order.continuation_from_segments(g, seg).tolist() == order.continuation(g).tolist()
 
 
 def test_segments_are_branches_of_constant_order():

@@ -58,7 +58,8 @@ def _graph_of(obj: Any) -> BranchGraph:
     return g
 
 
-def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4):
+def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4,
+              segment: NDArray[np.int64] | None = None):
     """Tube mesh of a skeleton with radii (a :class:`biomorph.core.mesh.Mesh`).
 
     One ring of ``sides`` vertices per node, perpendicular to the node's branch direction;
@@ -68,7 +69,7 @@ def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4):
     faces. Metres, same frame as the graph.
     """
     from biomorph.core.mesh import Mesh
-    from biomorph.tree.order import continuation
+    from biomorph.tree.order import continuation, continuation_from_segments
     from biomorph.tree.radius import _tangents, node_axes
 
     if sides < 3:
@@ -80,7 +81,7 @@ def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4):
     r = np.maximum(graph.radius, min_radius)
     axes = node_axes(graph)
     par = graph.parent
-    cont = continuation(graph)
+    cont = continuation(graph) if segment is None else continuation_from_segments(graph, segment)
     ch = np.flatnonzero(par >= 0)
     branch_start = ch[cont[par[ch]] != ch]          # children that start a new branch
     # ring centres, axes and radii: one per node, then one per branch start (at the parent)
@@ -136,7 +137,7 @@ def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4):
 def cylinder_table(graph: BranchGraph, segment: NDArray[np.int64] | None = None
                    ) -> dict[str, NDArray]:
     """QSM-style cylinders, one per edge (see the module doc for the columns)."""
-    from biomorph.tree.order import branch_order, continuation, segments
+    from biomorph.tree.order import branch_order, continuation_from_segments, segments
 
     par = graph.parent
     ch = graph.order[par[graph.order] >= 0]          # children in topological order
@@ -150,7 +151,7 @@ def cylinder_table(graph: BranchGraph, segment: NDArray[np.int64] | None = None
     radius = graph.radius[ch] if graph.radius is not None else np.zeros(m)
     seg = segments(graph) if segment is None else np.asarray(segment)
     depth = graph.depth if graph.depth is not None else branch_order(graph)
-    cont = continuation(graph)
+    cont = continuation_from_segments(graph, seg)
     extension = np.where(cont[ch] >= 0, cid[np.maximum(cont[ch], 0)], 0)
     # position in branch: count of cylinders from the branch start
     _, seg_rank = np.unique(seg, return_inverse=True)
@@ -235,7 +236,7 @@ def export_skeleton(skel: Any, out_dir: PathLike, *, formats: tuple[str, ...] | 
         written["csv"] = write_cylinders(out / "cylinders.csv", gw, seg)
     mesh = None
     if {"glb", "obj", "mesh_ply"} & set(formats):
-        mesh = tube_mesh(g, sides=sides)
+        mesh = tube_mesh(g, sides=sides, segment=seg)
     if "glb" in formats:
         written["glb"] = write_mesh(out / "tube.glb", mesh, y_up=False)  # Z-up data
     if "obj" in formats or "mesh_ply" in formats:

@@ -228,16 +228,39 @@ class RadiusOptions:
                           kind="enabled")
     search_factor: float = 1.5
     smooth: int = 2
+    taper: bool = _opt(True, "--taper", "Keep circle fits only where the cross-section is "
+                       "well covered; elsewhere a taper model fitted on them "
+                       "(radius.taper_radii).", kind="enabled")
+    min_radius: float = _opt(0.001, "--min-radius", "Radius floor of the taper model, m.",
+                             lo=0)
 
 
 @dataclass(frozen=True)
 class OrderOptions:
-    """Trunk and branch order (:mod:`biomorph.tree.order`); ``angle`` in radians."""
+    """Trunk and branch order (:mod:`biomorph.tree.order`); ``angle`` in radians.
 
-    share: float = _opt(0.5, "--order-share", "Branch-order weight share.", lo=0, hi=1,
-                        hi_open=True)
-    angle: float = _opt(math.radians(45.0), "--order-angle", "Branch-order angle, degrees.",
-                        lo=0, hi=180, lo_open=True, kind="degrees")
+    ``rule="supported"`` (default): each fork continues into the child carrying the most
+    length; children carrying at least ``tie`` × that are codominant and the straightest
+    of them continues (``tie`` 0.5: a fork whose lighter side carries at least half the
+    heavier one's wood is codominant). ``rule="angle"``: the seed's rule with ``share``
+    and ``angle`` as hard limits.
+    """
+
+    rule: str = _opt("supported", "--order-rule", "supported (TreeQSM-style: the child "
+                     "carrying the most length continues, angle breaks ties) or angle "
+                     "(the seed's 45-degree rule).")
+    tie: float = _opt(0.5, "--order-tie", "Children carrying at least this share of the "
+                      "heaviest child's length are codominant (rule supported).",
+                      lo=0, hi=1, lo_open=True)
+    share: float = _opt(0.5, "--order-share", "Branch-order weight share (rule angle).",
+                        lo=0, hi=1, hi_open=True)
+    angle: float = _opt(math.radians(45.0), "--order-angle", "Branch-order angle, degrees "
+                        "(rule angle).", lo=0, hi=180, lo_open=True, kind="degrees")
+
+    def rule_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :func:`biomorph.tree.order.continuation`."""
+        return {"weight_share": self.share, "max_angle": self.angle, "rule": self.rule,
+                "tie": self.tie}
 
 
 STAGES = {"prepare": PrepareOptions, "graph": GraphOptions, "voxel": VoxelOptions,
@@ -259,7 +282,8 @@ _LEGACY = {"centre": ("prepare", "centre"), "filter": ("prepare", "filter"),
                                           "tip_support")},
            "radius": ("radius", "method"), "recentre": ("radius", "recentre"),
            "search_factor": ("radius", "search_factor"), "smooth": ("radius", "smooth"),
-           "order_share": ("order", "share"), "order_angle": ("order", "angle")}
+           "order_share": ("order", "share"), "order_angle": ("order", "angle"),
+           "order_rule": ("order", "rule"), "order_tie": ("order", "tie")}
 
 
 @dataclass(frozen=True)
@@ -287,6 +311,9 @@ class SkeletonizeOptions:
         if self.radius.method not in ("fit", "allometric"):
             raise ParameterError(f"radius must be 'fit' or 'allometric', got "
                                  f"{self.radius.method!r}")
+        if self.order.rule not in ("supported", "angle"):
+            raise ParameterError(f"order rule {self.order.rule!r}; expected 'supported' or "
+                                 "'angle'")
         fol = self.prepare.foliage
         if isinstance(fol, str) and fol != "auto":
             raise ParameterError(f"foliage {fol!r}; expected 'auto', None or a factor > 1")

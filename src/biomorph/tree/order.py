@@ -1,19 +1,34 @@
-"""Branch order (seed 001 §5.2, "Asttiefe") and segmentation by order.
+"""Branch order (seed 001 §5.2, "Asttiefe"): one trunk per tree, orders that rise only where
+a branch leaves its parent, and segmentation into branches.
 
-Breadth-first from each root (order 0). A node with one child passes its order on. At a
-fork ``v`` (incoming edge ``e(u, v)``), the children ``w`` whose weight share
-``c̃_w / Σ_j c̃_j`` exceeds ``weight_share`` (0.5) **and** whose edge ``e(v, w)`` turns by
-less than ``max_angle`` (45°) from ``e(u, v)`` are candidates; the heaviest candidate
-continues the parent's order, all other children start a new branch with order + 1.
-``c̃`` is the carried length (subtree length including the child's edge). At a root the
-incoming direction is ``+Z``.
+Every node with children passes its order on to exactly one of them, the *continuation*;
+all other children start a new branch with order + 1. Two rules choose it:
 
-:func:`segments` cuts the skeleton into branches: a new segment starts at every root and at
-every child that got a higher order than its parent (or that is not the continuation at a
-fork), so each segment is one branch of constant order, as TreeQSM's branches.
+``rule="supported"`` (default, TreeQSM-style): the continuation is the child carrying the
+    largest *supported length* ``c̃`` (its subtree's length plus its own edge). Children
+    carrying at least ``tie`` (0.5) × the largest ``c̃`` are a codominant fork; among
+    those the one turning least from the incoming direction continues (the angle is a
+    tie-breaker, never a cut). The trunk is therefore the path from the base that always
+    follows the most wood: on a conifer it runs to the top through every whorl, and a
+    stem that bends more than 45° (wind, phototropism, a leaning pine) stays order 0.
+    Directions are taken over ``look`` (3) edges on both sides of the fork, so a single
+    noisy skeleton edge does not decide a tie.
+``rule="angle"`` (the seed's rule): the children whose weight share ``c̃_w / Σ_j c̃_j``
+    exceeds ``weight_share`` **and** whose edge turns by less than ``max_angle`` (45°)
+    are candidates; the heaviest candidate continues, otherwise *nobody* does (the order
+    rises on all children). On real scans the stem climbs order at every bend: a 20 m pine
+    got no order-0 trunk at all and reached order 21 (issue 13).
+
+At a root the incoming direction is ``+Z``. The same rule runs on graph and voxel
+skeletons (``skeletonize``'s order phase). :func:`segments` cuts the skeleton into
+branches: a new segment starts at every root and at every child that is not the
+continuation of its parent, so each segment is one branch of constant order, as TreeQSM's
+branches.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numba
 import numpy as np
@@ -22,7 +37,10 @@ from numpy.typing import NDArray
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 
-__all__ = ["branch_order", "continuation", "segments", "with_order"]
+__all__ = ["branch_order", "continuation", "segments", "with_order", "RULES",
+           "continuation_from_segments", "order_from_segments"]
+
+RULES = ("supported", "angle")
 
 
 @numba.njit(cache=True)
@@ -73,23 +91,115 @@ def _continuation(parent, order, indptr, idx, carried, pos, share, cos_max):
     return cont
 
 
+@numba.njit(cache=True)
+def _heaviest_child(v, indptr, idx, carried):
+    best = -1
+    bw = -1.0
+    for j in range(indptr[v], indptr[v + 1]):
+        w = idx[j]
+        if carried[w] > bw:
+            bw = carried[w]
+            best = w
+    return best
+
+
+@numba.njit(cache=True)
+def _continuation_supported(parent, order, indptr, idx, carried, pos, tie, look):
+    n = parent.size
+    cont = np.full(n, -1, dtype=np.int64)
+    for k in range(n):
+        v = order[k]
+        a = indptr[v]
+        b = indptr[v + 1]
+        if b == a:
+            continue
+        if b - a == 1:
+            cont[v] = idx[a]
+            continue
+        # incoming direction over up to ``look`` edges
+        u = v
+        for _ in range(look):
+            if parent[u] < 0:
+                break
+            u = parent[u]
+        ix = pos[v, 0] - pos[u, 0]
+        iy = pos[v, 1] - pos[u, 1]
+        iz = pos[v, 2] - pos[u, 2]
+        ln = np.sqrt(ix * ix + iy * iy + iz * iz)
+        if ln == 0:
+            ix, iy, iz, ln = 0.0, 0.0, 1.0, 1.0
+        cmax = 0.0
+        for j in range(a, b):
+            if carried[idx[j]] > cmax:
+                cmax = carried[idx[j]]
+        best = -1
+        bestc = -2.0
+        bestw = -1.0
+        for j in range(a, b):
+            w = idx[j]
+            if carried[w] < tie * cmax:
+                continue
+            # outgoing direction: ``look`` edges down the child's heaviest path
+            x = w
+            for _ in range(look - 1):
+                y = _heaviest_child(x, indptr, idx, carried)
+                if y < 0:
+                    break
+                x = y
+            ox = pos[x, 0] - pos[v, 0]
+            oy = pos[x, 1] - pos[v, 1]
+            oz = pos[x, 2] - pos[v, 2]
+            lo = np.sqrt(ox * ox + oy * oy + oz * oz)
+            c = (ix * ox + iy * oy + iz * oz) / (ln * lo) if lo > 0 else -1.0
+            if c > bestc or (c == bestc and carried[w] > bestw):
+                bestc = c
+                bestw = carried[w]
+                best = w
+        cont[v] = best
+    return cont
+
+
 def continuation(graph: BranchGraph, weight_share: float = 0.5,
-                 max_angle: float = np.radians(45.0)) -> NDArray[np.int64]:
-    """For every node, the child that continues its branch (-1 if none)."""
+                 max_angle: float = np.radians(45.0), *, rule: str = "supported",
+                 tie: float = 0.5, look: int = 3) -> NDArray[np.int64]:
+    """For every node, the child that continues its branch (-1 if none); see the module
+    doc for the two rules (``weight_share``/``max_angle`` belong to ``rule="angle"``,
+    ``tie``/``look`` to ``rule="supported"``)."""
+    if rule not in RULES:
+        raise ParameterError(f"order rule {rule!r}; expected one of {', '.join(RULES)}")
+    indptr, idx = graph.children_csr
+    carried = graph.subtree_sum(graph.edge_length)
+    if rule == "supported":
+        if not 0 < tie <= 1:
+            raise ParameterError(f"order tie must lie in (0, 1], got {tie}")
+        if look < 1:
+            raise ParameterError(f"order look must be >= 1 edge, got {look}")
+        return _continuation_supported(graph.parent, graph.order, indptr, idx, carried,
+                                       graph.position, float(tie), int(look))
     if not 0 <= weight_share < 1:
         raise ParameterError(f"weight_share must lie in [0, 1), got {weight_share}")
     if not 0 < max_angle <= np.pi:
         raise ParameterError(f"max_angle must lie in (0, pi] radians, got {max_angle}")
-    indptr, idx = graph.children_csr
-    carried = graph.subtree_sum(graph.edge_length)
     return _continuation(graph.parent, graph.order, indptr, idx, carried, graph.position,
                          float(weight_share), float(np.cos(max_angle)))
 
 
+def continuation_from_segments(graph: BranchGraph, segment: NDArray[np.int64]
+                               ) -> NDArray[np.int64]:
+    """The continuation implied by a segmentation: the child in its parent's segment."""
+    par = graph.parent
+    cont = np.full(graph.n_nodes, -1, dtype=np.int64)
+    ch = np.flatnonzero(par >= 0)
+    same = ch[np.asarray(segment)[ch] == np.asarray(segment)[par[ch]]]
+    cont[par[same]] = same
+    return cont
+
+
 def branch_order(graph: BranchGraph, weight_share: float = 0.5,
-                 max_angle: float = np.radians(45.0)) -> NDArray[np.int64]:
-    """Branch order per node (0 = trunk); ``max_angle`` in radians."""
-    cont = continuation(graph, weight_share, max_angle)
+                 max_angle: float = np.radians(45.0), **rule: Any) -> NDArray[np.int64]:
+    """Branch order per node (0 = trunk); ``max_angle`` in radians; ``rule``, ``tie``,
+    ``look`` as :func:`continuation`."""
+    cont = continuation(graph, weight_share, max_angle, **rule)
     par = graph.parent
     inc = np.zeros(graph.n_nodes)
     ch = np.flatnonzero(par >= 0)
@@ -100,9 +210,9 @@ def branch_order(graph: BranchGraph, weight_share: float = 0.5,
 
 
 def segments(graph: BranchGraph, weight_share: float = 0.5,
-             max_angle: float = np.radians(45.0)) -> NDArray[np.int64]:
+             max_angle: float = np.radians(45.0), **rule: Any) -> NDArray[np.int64]:
     """Segment (branch) id per node: ids 0.. in topological order of the segment starts."""
-    cont = continuation(graph, weight_share, max_angle)
+    cont = continuation(graph, weight_share, max_angle, **rule)
     par = graph.parent
     n = graph.n_nodes
     start = np.ones(n, dtype=bool)
@@ -124,7 +234,19 @@ def _fill_segments(parent, order, sid):
             sid[v] = sid[parent[v]]
 
 
+def order_from_segments(graph: BranchGraph, segment: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Branch order implied by a segmentation: +1 at every segment start below a root."""
+    par = graph.parent
+    inc = np.zeros(graph.n_nodes)
+    ch = np.flatnonzero(par >= 0)
+    seg = np.asarray(segment)
+    inc[ch] = (seg[ch] != seg[par[ch]]).astype(float)
+    from biomorph.core import treeops
+
+    return treeops.accumulate_down(par, inc, graph.order).astype(np.int64)
+
+
 def with_order(graph: BranchGraph, weight_share: float = 0.5,
-               max_angle: float = np.radians(45.0)) -> BranchGraph:
+               max_angle: float = np.radians(45.0), **rule: Any) -> BranchGraph:
     """The graph with ``depth`` set to the branch order."""
-    return graph.with_(depth=branch_order(graph, weight_share, max_angle))
+    return graph.with_(depth=branch_order(graph, weight_share, max_angle, **rule))

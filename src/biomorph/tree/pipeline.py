@@ -155,6 +155,7 @@ class _Run:
     graph: BranchGraph | None = None
     segment: NDArray[np.int64] | None = None
     metrics: dict[str, Any] = field(default_factory=dict)
+    fit: Any = None
 
     @property
     def source(self) -> str:
@@ -368,8 +369,12 @@ def radius_phase(run: _Run) -> None:
     if ro.method == "fit":
         graph, fit = fit_radii(graph, xyz, recentre=ro.recentre,
                                search_factor=ro.search_factor, allometry_exponent=exponent,
-                               seed=run.opts.seed)
+                               taper=ro.taper, min_radius=ro.min_radius, seed=run.opts.seed)
+        run.fit = fit
         run.info["radius_fit_ok"] = float(fit.ok.mean()) if fit.ok.size else 0.0
+        if fit.reliable is not None:
+            run.info["radius_reliable"] = float(fit.reliable.mean()) if fit.ok.size else 0.0
+            run.info["taper_model"] = fit.model
     elif graph.radius is None:
         d, _ = livny.skeleton_distance(xyz, graph.parent, graph.position)
         graph = graph.with_(radius=livny.allometric_radii(
@@ -377,7 +382,7 @@ def radius_phase(run: _Run) -> None:
             tree=graph.trees, exponent=exponent, order=graph.order))
     run.graph = smooth_chains(graph, ro.smooth)
     run.params.update(radius=ro.method, recentre=ro.recentre, search_factor=ro.search_factor,
-                      smooth=ro.smooth)
+                      smooth=ro.smooth, taper=ro.taper, min_radius=ro.min_radius)
     run.timings["radius_fit"] = time.perf_counter() - t0
     run.tick("radii")
 
@@ -390,14 +395,15 @@ def order_phase(run: _Run) -> None:
     graph = run.graph
     assert graph is not None
     t0 = time.perf_counter()
-    graph = order.with_order(graph, oo.share, oo.angle)
-    run.segment = order.segments(graph, oo.share, oo.angle)
+    run.segment = order.segments(graph, **oo.rule_kwargs())
+    graph = graph.with_(depth=order.order_from_segments(graph, run.segment))
     if graph.weight is None:
         graph = graph.with_(weight=graph.subtree_length())
     if graph.tree_id is None:
         graph = graph.with_(tree_id=graph.trees)
     run.graph = graph
-    run.params.update(order_share=oo.share, order_angle_deg=float(np.degrees(oo.angle)))
+    run.params.update(order_rule=oo.rule, order_tie=oo.tie, order_share=oo.share,
+                      order_angle_deg=float(np.degrees(oo.angle)))
     run.timings["order"] = time.perf_counter() - t0
     run.tick("order")
 
@@ -408,8 +414,11 @@ MSE_POINTS = 200_000
 
 
 def metrics_phase(run: _Run) -> None:
-    """NOB, TBL, MSE, DBH, trunk radius, max order, segment count."""
-    from biomorph.tree.metrics import dbh_per_tree, skeleton_metrics
+    """NOB, TBL, MSE, DBH, trunk radius, max order, segment count, and the QSM measures
+    (:func:`biomorph.tree.metrics.qsm_report`: ``classes`` volume/length per diameter
+    class, ``orders`` per branch order, ``trees`` TreeQSM-style attributes, ``fit`` far
+    share and signed residual per class on the MSE sample)."""
+    from biomorph.tree.metrics import dbh_per_tree, qsm_report, skeleton_metrics
 
     graph, pc = run.graph, run.cloud
     assert graph is not None and pc is not None
@@ -428,6 +437,11 @@ def metrics_phase(run: _Run) -> None:
         metrics["dbh"] = None
     metrics["trunk_radius"] = [float(graph.radius[r]) for r in graph.roots]
     metrics["max_order"] = int(graph.depth.max()) if graph.n_nodes else 0
+    qsm = qsm_report(graph, mse_cloud)
+    attrs = {a["tree"]: a for a in qsm.pop("trees")}
+    for rec in metrics["trees"]:
+        rec.update(attrs.get(rec["tree"], {}))
+    metrics.update(qsm)
     seg = run.segment
     metrics["n_segments"] = int(seg.max() + 1) if seg is not None and seg.size else 0
     run.metrics = metrics
