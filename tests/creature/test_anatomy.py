@@ -67,3 +67,42 @@ def test_digit_counts_follow_class_and_foot_posture():
     assert digit_plan("fin", "fore", "fish", "plantigrade") == ()
     assert {d.end for d in digit_plan("arm", "fore", "mammal", "plantigrade", "primate")} == {
         "nail"}
+
+
+def test_stance_rules_hold_over_seeds():
+    from biomorph.creature.quality import ANATOMY_CHECKS, anatomy_check
+
+    fails = {k: [] for k in ANATOMY_CHECKS}
+    for seed in range(30):
+        c = generate(seed)
+        for k, ok in anatomy_check(c).items():
+            if not ok:
+                fails[k].append(seed)
+    # class coherence, weights, trunk and head pitch, digits: every seed
+    for k in ("class_legs", "weight_in_range", "head_pitch", "feet_have_digits",
+              "withers_height"):
+        assert not fails[k], (k, fails[k])
+    assert sum(map(len, fails.values())) <= 2, fails
+
+
+def test_a_600_kg_ungulate_stands_about_1_2_m_at_the_withers():
+    from biomorph.creature.quality import standing_height
+
+    for seed in range(3):
+        c = generate(seed, legs=4, weight=600.0, cls="mammal")
+        assert 1.1 <= standing_height(c) <= 1.3, standing_height(c)
+
+
+def test_class_coherence_and_extrapolation():
+    import pytest
+
+    from biomorph.errors import ParameterError
+
+    for seed in range(12):
+        assert generate(seed, legs=4).params["class"] != "bird"
+        assert generate(seed, legs=2).params["class"] != "fish"
+    assert generate(1, cls="bird", legs=4).params["legs"] == 4   # asked for: allowed
+    with pytest.raises(ParameterError, match="allow-extrapolation"):
+        generate(0, weight=5e6)
+    c = generate(0, weight=5e6, allow_extrapolation=True, legs=4)
+    assert c.total_mass == pytest.approx(5e6, rel=1e-6)

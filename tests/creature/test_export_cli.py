@@ -82,9 +82,12 @@ def test_cli_generate_json(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, needle", [
-    (["--legs", "7"], "legs=7"), (["--weight", "-5"], "weight"),
+    (["--legs", "7"], "--legs"), (["--legs", "3"], "legs=3"), (["--weight", "-5"], "weight"),
     (["--class", "dragon"], "dragon"), (["--class", "fish", "--wings"], "wings"),
-    (["-o", "x.fbx"], "fbx")])
+    (["-o", "x.fbx"], "fbx"), (["--class", "fish", "--legs", "2"], "fish"),
+    (["--rigify", "--legs", "0"], "--rigify"), (["--weight", "2e6"], "--allow-extrapolation"),
+    (["--weight", "0.00005"], "dataset's range"), (["--temperature", "-1"], "--temperature"),
+    (["--k", "30"], "--k"), (["--seed", "-3"], "--seed"), (["--neck-length", "2"], "neck")])
 def test_cli_bad_input_exit_2_nothing_written(tmp_path, capsys, args, needle):
     out = tmp_path / "c.glb"
     argv = ["creature", "generate", "-o", str(out)] + args

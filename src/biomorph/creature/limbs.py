@@ -428,7 +428,7 @@ class LimbPose:
 
 def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: str,
              posture: str, rng: np.random.Generator, params: DescentParams = DescentParams(),
-             foot_clearance: float = 0.0) -> LimbPose:
+             foot_clearance: float = 0.0, hip_max_deg: float | None = None) -> LimbPose:
     """Pose a leg with ground contact by the seed's descent.
 
     Digitigrade/unguligrade: the tip of the distal bone comes down to ``ground +
@@ -440,6 +440,11 @@ def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: 
     box = STAND_LIMITS_DEG[role] * DEG if params.plausible else limits
     # most bent flexion: hind thigh forward (max), shank back (min), foot forward (max)
     start = start_pose(role, posture, params.plausible)
+    if hip_max_deg is not None and role == "hind" and params.plausible:
+        # a standing femur stays this far from the vertical (class ranges, stance.py)
+        box = box.copy()
+        box[0, 0, 1] = min(box[0, 0, 1], hip_max_deg * DEG)
+        start[0, 0] = box[0, 0, 1]
     prob = np.array([[params.p_flex, params.p_abduct, params.p_twist]] * 3)
     plant = stance == "plantigrade"
     contact = 2 if plant else 3
@@ -487,9 +492,11 @@ def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: 
         cum_z = ang[0, 0] + ang[1, 0]
         ang[2] = [np.clip(np.pi / 2 - cum_z, *limits[2, 0]), 0.0, 0.0]
         rot, pts = forward(base, lengths, ang)
-        if pts[3, 1] < g - 1e-6 * float(np.sum(lengths)):
+        if (pts[3, 1] < g - 1e-6 * float(np.sum(lengths))
+                or pts[3, 1] > g + 0.003 * float(np.sum(lengths))):
             # the foot cannot lie flat within the ankle's limits: stand on the toes instead
-            return pose_leg(base, lengths, ground, role, "digitigrade", posture, rng, params)
+            return pose_leg(base, lengths, ground, role, "digitigrade", posture, rng, params,
+                            hip_max_deg=hip_max_deg)
         contact_pt = pts[2].copy()
     else:
         contact_pt = pts[3].copy()

@@ -19,6 +19,9 @@ STEPS = ("spine", "girdles", "limbs", "skull", "finish")
 LEG_COUNTS = (0, 2, 4, 6)
 
 
+#: How far (factor) a requested weight may lie outside the dataset's weight range.
+EXTRAPOLATION = 10.0
+
 #: Largest |score| (standard deviations) accepted in :attr:`Options.scores`.
 MAX_SCORE = 4.0
 
@@ -37,6 +40,8 @@ class Options:
     temperature), |score| <= 4; the other components are sampled as without them.
     stand_fraction : the shortest leg stands at this fraction of its straightened reach.
     require_stable : repair or resample until statically stable.
+    allow_extrapolation : accept a weight more than :data:`EXTRAPOLATION` × outside the
+    dataset's weight range (the PCA was fitted on 0.01 kg … 120 t animals).
     """
 
     seed: int = 0
@@ -58,6 +63,7 @@ class Options:
     max_resamples: int = 25
     dataset: str | None = None
     scores: dict[int, float] | None = None
+    allow_extrapolation: bool = False
 
     def __post_init__(self) -> None:
         # own copy: later changes to the caller's dict do not leak into the options
@@ -86,6 +92,16 @@ class Options:
                                  "expected 0, 2, 4 or 6")
         if self.weight is not None and not (np.isfinite(self.weight) and self.weight > 0):
             raise ParameterError(f"weight={self.weight} kg: expected a positive weight in kg")
+        if self.weight is not None and not self.allow_extrapolation:
+            from biomorph.creature.model import species_model
+
+            w = species_model(self.dataset).table.weight
+            lo, hi = float(w.min()) / EXTRAPOLATION, float(w.max()) * EXTRAPOLATION
+            if not lo <= self.weight <= hi:
+                raise ParameterError(
+                    f"weight={self.weight:g} kg is more than {EXTRAPOLATION:g}× outside the "
+                    f"dataset's range {w.min():g}..{w.max():g} kg; expected {lo:g}..{hi:g} kg "
+                    "or --allow-extrapolation")
         if self.cls is not None and self.cls not in CLASSES:
             raise ParameterError(f"class {self.cls!r} unknown; expected one of "
                                  f"{', '.join(CLASSES)}")

@@ -7,6 +7,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from biomorph.creature import spine as sp
 from biomorph.creature.creature import Creature
+from biomorph.creature.stance import RANGES
+from biomorph.creature.stance import allometric_height as _allometric
 
 CHECKS = ("ground_contact", "above_ground", "within_limits", "symmetric", "spine_c1",
           "stable", "monotone_leg_heights")
@@ -82,3 +84,104 @@ def vendi_score(features: ArrayLike) -> float:
     ev = np.linalg.eigvalsh(k / len(x))
     ev = ev[ev > 1e-12]
     return float(np.exp(-(ev * np.log(ev)).sum()))
+
+
+# --------------------------------------------------------------------------- anatomy checks
+def _joint(c: Creature, name: str) -> int | None:
+    try:
+        return c.names.index(name)
+    except ValueError:
+        return None
+
+
+def trunk_pitch_deg(c: Creature) -> float:
+    """Back chord (hip end → shoulder end of the back vertebrae) above the horizontal (deg,
+    + = shoulders higher)."""
+    back = [j for j, r in enumerate(c.region) if r == "back" and c.kind[j] == "spine"]
+    if len(back) < 2:
+        return 0.0
+    p = c.joint_positions
+    front = min(back, key=lambda j: c.names[j])          # back_01: at the shoulder
+    rear = max(back, key=lambda j: c.names[j])
+    d = p[front] - p[rear]
+    return float(np.degrees(np.arctan2(d[1], max(abs(d[0]), 1e-12) * np.sign(d[0] or 1.0))))
+
+
+def head_pitch_deg(c: Creature) -> float:
+    """Skull axis above the horizontal (deg, + = snout up)."""
+    j = _joint(c, "skull")
+    return 0.0 if j is None else float(np.degrees(np.arcsin(np.clip(c.world[j, 1, 1], -1, 1))))
+
+
+def femur_angles_deg(c: Creature) -> list[float]:
+    """Each standing hind leg's femur from the vertical (deg)."""
+    out = []
+    for j in range(len(c)):
+        if c.kind[j] == "leg" and c.part and c.part[j] == "femur" and c.side[j] > 0:
+            y = c.world[j, :3, 1]
+            out.append(float(np.degrees(np.arccos(np.clip(-y[1], -1, 1)))))
+    return out
+
+
+def knee_behind_elbow(c: Creature) -> bool:
+    """Quadrupeds: every hind knee lies behind (−x of) every front elbow."""
+    knees = [j for j, p in enumerate(c.part) if p == "tibia" and c.kind[j] == "leg"]
+    elbows = [j for j, p in enumerate(c.part) if p == "radius" and c.kind[j] == "leg"]
+    if not knees or not elbows:
+        return True
+    x = c.joint_positions[:, 0]
+    return bool(x[knees].max() < x[elbows].min())
+
+
+def standing_height(c: Creature) -> float | None:
+    """Withers (shoulder girdle on the spine) of a quadruped, hip of a biped (m)."""
+    legs = c.params.get("legs", 0)
+    name = "shoulder1_girdle_r" if legs >= 4 else "hip1_girdle_r" if legs == 2 else None
+    j = None if name is None else _joint(c, name)
+    return None if j is None else float(c.joint_positions[j, 1])
+
+
+def allometric_height(c: Creature) -> float | None:
+    """Predicted withers / hip height (m) for the creature's class, posture and mass."""
+    return _allometric(c.params.get("class", ""), c.params.get("posture", ""), c.total_mass)
+
+
+def anatomy_measures(c: Creature) -> dict[str, float | bool | None]:
+    """The measured values behind :func:`anatomy_check`."""
+    h, pred = standing_height(c), allometric_height(c)
+    return {"trunk_pitch_deg": trunk_pitch_deg(c), "head_pitch_deg": head_pitch_deg(c),
+            "femur_deg": femur_angles_deg(c), "knee_behind_elbow": knee_behind_elbow(c),
+            "height_m": h, "allometric_m": pred,
+            "withers_ratio": None if (h is None or not pred) else h / pred}
+
+
+ANATOMY_CHECKS = ("trunk_pitch", "head_pitch", "femur_angle", "knee_behind_elbow",
+                  "withers_height", "class_legs", "weight_in_range", "feet_have_digits")
+
+
+def anatomy_check(c: Creature, m: dict | None = None) -> dict[str, bool]:
+    """Each anatomical rule of issue 14 (ranges :data:`RANGES`) for one creature."""
+    m = anatomy_measures(c) if m is None else m
+    legs = c.params.get("legs", 0)
+    cls = c.params.get("class")
+    opts = c.params.get("options", {})
+    inside = lambda v, r: r[0] <= v <= r[1]  # noqa: E731
+    out = {}
+    tp = RANGES["trunk_pitch_biped" if legs == 2 else "trunk_pitch_quadruped"]
+    out["trunk_pitch"] = legs == 0 or inside(m["trunk_pitch_deg"], tp)
+    out["head_pitch"] = inside(m["head_pitch_deg"], RANGES["head_pitch"])
+    fr = RANGES["femur_from_vertical_bird" if cls == "bird" else "femur_from_vertical"]
+    out["femur_angle"] = all(inside(a, fr) for a in m["femur_deg"])
+    out["knee_behind_elbow"] = bool(m["knee_behind_elbow"])
+    out["withers_height"] = m["withers_ratio"] is None or inside(m["withers_ratio"],
+                                                                  RANGES["withers_ratio"])
+    asked = opts.get("legs") is not None or opts.get("cls") is not None
+    out["class_legs"] = asked or not ((cls == "bird" and legs != 2) or (cls == "fish" and legs))
+    out["weight_in_range"] = opts.get("weight") is not None or 0.01 <= c.total_mass <= 120000.0
+    grounded = set(int(j) for j in c.contact_joint)
+    out["feet_have_digits"] = all(
+        c.part[j] in ("phalanx", "hoof", "claw", "nail", "metatarsal", "metacarpal")
+        for j in grounded) and (not grounded or any(c.part[j] in ("hoof", "claw", "nail",
+                                                                  "phalanx")
+                                                    for j in grounded))
+    return out

@@ -24,8 +24,9 @@ from biomorph.creature.assembly import (
 )
 from biomorph.creature.creature import Creature
 from biomorph.creature.options import Options
+from biomorph.creature.stance import RANGES
 from biomorph.creature.states import LimbsState, SkullState, SpineState, step_rng
-from biomorph.creature.steps import DEG, step_limbs, step_skull, to_creature_px
+from biomorph.creature.steps import DEG, step_limbs, step_skull, to_creature_px, trunk_pitch
 from biomorph.errors import ParameterError
 
 
@@ -92,6 +93,10 @@ def pitch_body(spine: dict, limbs: dict, asm: dict, report: bal.BalanceReport,
     cands = [(a + np.pi) % (2 * np.pi) - np.pi for a in cands]
     theta = min(cands, key=abs)
     theta = float(np.clip(theta, -max_deg * DEG, max_deg * DEG))
+    # the lean stays inside the bipeds' standing trunk-pitch range (never head-down)
+    lo, hi = RANGES["trunk_pitch_biped"]
+    p0 = trunk_pitch(spine.points)
+    theta = float(np.clip(theta, (lo + 2.0) * DEG - p0, (hi - 2.0) * DEG - p0))
     if abs(theta) < 1e-4:
         return None
     ct, st = np.cos(theta), np.sin(theta)

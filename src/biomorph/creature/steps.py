@@ -24,6 +24,7 @@ from biomorph.creature import spine as sp
 from biomorph.creature import vertebrae as vt
 from biomorph.creature.model import species_model
 from biomorph.creature.options import Options
+from biomorph.creature.stance import TARGET, allometric_height
 from biomorph.creature.states import LimbsState, SkullState, SpineState
 from biomorph.errors import ParameterError
 
@@ -92,9 +93,10 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> Spi
     pts = raw["points"][0]
     lengths = np.clip(raw["lengths"][0], 0.0, None)
     weight = float(opts.weight if opts.weight is not None else raw["weight"][0])
-    weight = max(weight, 0.005)
+    if opts.weight is None:  # sampled weights stay inside the data's range (no 1-cm animals)
+        weight = float(np.clip(weight, table.weight.min(), table.weight.max()))
     feat = np.asarray(x, float)
-    idx, w = model.nearest(model.mean + (x - model.mean), n_neighbours=3)
+    idx, w = _neighbours(model, x, table, opts)
     if opts.cls is not None:
         cls = opts.cls
     else:
@@ -115,11 +117,11 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> Spi
         lv = float(np.clip(legs_v, 0.0, 4.0))
         legs = (2 if rng.random() < lv / 2 else 0) if lv <= 2 else (
             4 if rng.random() < (lv - 2) / 2 else 2)
-        if cls == "fish":
-            legs = 0
+    if opts.legs is None and "legs" not in class_pick:
+        legs = CLASS_LEGS.get(cls, legs)   # class coherence: birds stand on two, fish swim
     if cls == "fish":  # fish: the shoulder girdle sits right behind the head (no neck)
         pts[0:3] = pts[3]
-    pts = sp.c1_fix(pts)
+    pts = sp.c1_fix(level_trunk(pts, legs))
     xy, s, region = sp.sample(pts)
     rl = sp.region_lengths(s, region)
     if opts.centaur and rl[0] < gd.CENTAUR_MIN_NECK * rl[1]:
@@ -147,6 +149,58 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> Spi
                       skull_length=max(ratio * max(back_chord, 0.05 * s[-1]), 0.03 * s[-1]),
                       girth=girth, counts=counts, neighbours=near, features=feat,
                       wings_value=wings_v, legs_value=legs_v, nearest=table.name[pick])
+
+
+#: Leg counts a class always has when the user does not ask for others.
+CLASS_LEGS = {"bird": 2, "fish": 0}
+
+
+def _compatible(cls: str, opts: Options) -> bool:
+    """May a sample of class ``cls`` carry the requested legs / wings (class coherence: no
+    four-legged birds, no legged or winged fish unless the class is asked for)?"""
+    if opts.legs is not None:
+        if opts.legs >= 2 and cls == "fish":
+            return False
+        if opts.legs != 2 and cls == "bird":
+            return False
+    return not (opts.wings and cls == "fish")
+
+
+def _neighbours(model: pc.PCA, x: NDArray, table, opts: Options
+                ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The three nearest species (inverse-distance weights) among those whose class is
+    compatible with the request; with ``--class`` the nearest of any class (the class is
+    fixed, only stance/skull/counts are inherited from them)."""
+    idx, w = model.nearest(x, n_neighbours=len(table.name))
+    keep = [k for k, i in enumerate(idx)
+            if opts.cls is not None or _compatible(table.cls[i], opts)][:3] or [0, 1, 2]
+    ww = w[keep] / w[keep].sum()
+    return idx[keep], ww
+
+
+def trunk_pitch(points: NDArray) -> float:
+    """Back chord (hip p6 → shoulder p3) above the horizontal, frame px (head on the left),
+    radians, + = shoulders higher."""
+    d = np.asarray(points, float)[3] - np.asarray(points, float)[6]
+    return float(np.arctan2(d[1], -d[0]))
+
+
+def level_trunk(points: NDArray, legs: int) -> NDArray:
+    """Rotate the spine rigidly about the hip (p6) so the trunk pitch lies in the standing
+    range of the body plan (:data:`biomorph.creature.stance.TARGET`); legless bodies keep
+    the sampled curve. Rigid rotation keeps the C1 joins."""
+    if legs == 0:
+        return points
+    lo, hi = TARGET["trunk_pitch_biped" if legs == 2 else "trunk_pitch_quadruped"]
+    a = trunk_pitch(points)
+    want = float(np.clip(a, lo * DEG, hi * DEG))
+    if abs(want - a) < 1e-12:
+        return points
+    phi = a - want          # CCW rotation in the frame (head on the left) lowers the front
+    c, s_ = np.cos(phi), np.sin(phi)
+    p = np.asarray(points, float)
+    q = p - p[6]
+    return p[6] + np.stack([c * q[:, 0] - s_ * q[:, 1], s_ * q[:, 0] + c * q[:, 1]], axis=1)
 
 
 def _scale_neck(points: NDArray, factor: float) -> NDArray:
@@ -219,6 +273,38 @@ def _flatten(points: NDArray, which: str, floor: float) -> NDArray:
     return p_last
 
 
+def _allometric_ground(spine: SpineState, places, attach, lengths, legs, s, rl, skull_h,
+                       stand_fraction: float) -> float | None:
+    """Ground height (creature px) at which the withers (quadrupeds) or hip (bipeds) stand at
+    the allometric height of :mod:`biomorph.creature.stance`, or ``None`` where none applies.
+    The metres-per-px scale is the one ``finish`` will use (weight / density / volume),
+    re-estimated twice as the resized legs change the limb volume."""
+    cls = spine.cls
+    h_m = allometric_height(cls, spine.posture, spine.weight)
+    if h_m is None:
+        return None
+    girdle = "shoulder" if spine.legs >= 4 else "hip"
+    top = [attach[i][0][1] for i in legs if places[i][0] == girdle]
+    if not top:
+        return None
+    h, b, _ = ms.profile(s, rl, spine.girth, cls, skull_h, spine.legs == 0)
+    body = float(ms.slice_volumes(s, h, b).sum()) + ms.ellipsoid_volume(
+        sk.box_size(sk.get(spine.skull), spine.skull_length))
+    free = sum(2 * float(ms.limb_volume(lengths[i], p[2].kind).sum())
+               for i, p in enumerate(places) if i not in legs)
+    legv = sum(2 * float(ms.limb_volume(lengths[i], "leg").sum()) for i in legs)
+    ground = None
+    for _ in range(3):
+        scale = ms.size_scale(spine.weight, body + free + legv, cls)
+        ground = float(top[0]) - h_m / scale
+        # leg volume ∝ length³: resize by the stand height the legs will get
+        grow = [max(attach[i][1][1] - ground, 1e-6) / (stand_fraction * lb.max_reach(
+            lengths[i], spine.stance, spine.posture)) for i in legs]
+        legv = sum(2 * float(ms.limb_volume(lengths[i] * g, "leg").sum())
+                   for i, g in zip(legs, grow, strict=True))
+    return ground
+
+
 def step_limbs(spine: SpineState, girdles: tuple[gd.Girdle, ...], opts: Options,
                rng: np.random.Generator, shifts: dict[str, float] | None = None,
                ground: float | None = None, previous: LimbsState | None = None) -> LimbsState:
@@ -250,6 +336,13 @@ def step_limbs(spine: SpineState, girdles: tuple[gd.Girdle, ...], opts: Options,
     if legs:
         reach = [lb.max_reach(lengths[i], stance, posture) for i in legs]
         if ground is None:
+            target = _allometric_ground(spine, places, attach, lengths, legs, s, rl, skull_h,
+                                        opts.stand_fraction)
+            if target is not None:   # legs sized so the body stands at its allometric height
+                for i, r in zip(legs, reach, strict=True):
+                    lengths[i] = lengths[i] * max(attach[i][1][1] - target, 1e-6) / (
+                        opts.stand_fraction * r)
+                reach = [lb.max_reach(lengths[i], stance, posture) for i in legs]
             ground = max(attach[i][1][1] - opts.stand_fraction * r
                          for i, r in zip(legs, reach, strict=True))
             # every leg must reach down at least a quarter of its length (a low hip under a
@@ -299,7 +392,8 @@ def step_limbs(spine: SpineState, girdles: tuple[gd.Girdle, ...], opts: Options,
                     lengths[i] = previous.lengths[i]
             if pose is None:
                 pose = lb.pose_leg(base, lengths[i], ground, role, stance, posture, rng,
-                                   opts.descent, feet.clearance(plan, float(lengths[i][2])))
+                                   opts.descent, feet.clearance(plan, float(lengths[i][2])),
+                                   None if cls == "bird" else TARGET["femur_max"])
             lengths[i] = pose.lengths
         else:
             pose = lb.pose_free(spec.kind, base, lengths[i], rng)
@@ -338,4 +432,6 @@ def step_skull(spine: SpineState, limbs: LimbsState, opts: Options,
         if low >= floor or ang > 60 * DEG:
             break
         ang += 10 * DEG
+    lo, hi = TARGET["head_pitch"]
+    ang = float(np.clip(ang, lo * DEG, hi * DEG))
     return SkullState(shape=shape.name, length=length, angle=float(ang), origin=head)
