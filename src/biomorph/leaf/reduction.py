@@ -39,7 +39,13 @@ from biomorph.core.curves import integrate_angles
 from biomorph.core.mesh import Mesh
 from biomorph.errors import ParameterError
 from biomorph.leaf.age import state_at_age, visible_area
-from biomorph.leaf.mesh import LeafBatch, leaf_profile, mesh_batch, split_boundary_edge
+from biomorph.leaf.mesh import (
+    LeafBatch,
+    leaf_grid,
+    leaf_profile,
+    mesh_batch,
+    split_boundary_edge,
+)
 
 Array = NDArray[np.float64]
 
@@ -157,6 +163,81 @@ def reduction_order(x, z, s, w):  # pragma: no cover - compiled
     return order, errs, tris
 
 
+@njit(cache=True)
+def _seg_dist3(p, a, b):  # pragma: no cover - compiled
+    d0, d1, d2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    l2 = d0 * d0 + d1 * d1 + d2 * d2
+    t = 0.0
+    if l2 > 0.0:
+        t = ((p[0] - a[0]) * d0 + (p[1] - a[1]) * d1 + (p[2] - a[2]) * d2) / l2
+        if t < 0.0:
+            t = 0.0
+        elif t > 1.0:
+            t = 1.0
+    e0 = p[0] - (a[0] + t * d0)
+    e1 = p[1] - (a[1] + t * d1)
+    e2 = p[2] - (a[2] + t * d2)
+    return np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+
+
+@njit(cache=True)
+def _err_surface(i, a, b, rows, s, w):  # pragma: no cover - compiled
+    worst = 0.0
+    for r in range(rows.shape[1]):
+        d = _seg_dist3(rows[i, r], rows[a, r], rows[b, r])
+        if d > worst:
+            worst = d
+    er = _seg_dist(s[i], w[i], s[a], w[a], s[b], w[b])
+    return np.sqrt(worst * worst + er * er)
+
+
+@njit(cache=True)
+def reduction_order_surface(rows, s, w, cols):  # pragma: no cover - compiled
+    """Like :func:`reduction_order`, with the error of removing point ``i`` measured on
+    the surface: the largest 3D distance of its surface points ``rows[i, r]`` (margins and
+    midrib, units of L) to the chords between its neighbours' points, combined with the
+    width error. ``cols`` triangles columns per strip (1: margins only, 2: with midrib)."""
+    n = s.size
+    prev = np.arange(n) - 1
+    nxt = np.arange(n) + 1
+    ver = np.zeros(n, np.int64)
+    alive = np.ones(n, np.bool_)
+    cap = 3 * n + 8
+    hk = np.empty(cap)
+    hi = np.empty(cap, np.int64)
+    hv = np.empty(cap, np.int64)
+    size = 0
+    for i in range(1, n - 1):
+        size = _push(hk, hi, hv, size, _err_surface(i, i - 1, i + 1, rows, s, w), i, 0)
+    tri = 0
+    for i in range(n - 1):
+        tri += cols * _strip(w[i], w[i + 1])
+    order = np.empty(max(n - 2, 0), np.int64)
+    errs = np.empty(max(n - 2, 0))
+    tris = np.empty(max(n - 2, 0), np.int64)
+    k = 0
+    while size > 0:
+        key, i, v, size = _pop(hk, hi, hv, size)
+        if not alive[i] or v != ver[i]:
+            continue
+        a, b = prev[i], nxt[i]
+        tri += cols * (_strip(w[a], w[b]) - _strip(w[a], w[i]) - _strip(w[i], w[b]))
+        alive[i] = False
+        nxt[a] = b
+        prev[b] = a
+        order[k] = i
+        errs[k] = key
+        tris[k] = tri
+        k += 1
+        if a > 0:
+            ver[a] += 1
+            size = _push(hk, hi, hv, size, _err_surface(a, prev[a], b, rows, s, w), a, ver[a])
+        if b < n - 1:
+            ver[b] += 1
+            size = _push(hk, hi, hv, size, _err_surface(b, a, nxt[b], rows, s, w), b, ver[b])
+    return order, errs, tris
+
+
 def reduction_order_py(x: Array, z: Array, s: Array, w: Array):
     """Pure-Python reference of :func:`reduction_order` (``heapq`` + version stamps)."""
     n = len(x)
@@ -203,19 +284,20 @@ class Reduction:
     order: NDArray[np.int64]
     errors: Array
     triangles: NDArray[np.int64]
+    cols: int = 1            # triangle columns per strip: 1 margins only, 2 with midrib
 
     @property
     def full_triangles(self) -> int:
         """Triangles of the unreduced discretisation."""
         w = self.w
-        return int(np.sum((w[:-1] > 0).astype(int) + (w[1:] > 0)))
+        return self.cols * int(np.sum((w[:-1] > 0).astype(int) + (w[1:] > 0)))
 
     @property
     def min_triangles(self) -> int:
-        """Triangles of the coarsest mesh: base and tip only (1 or 2 triangles), or base,
-        one middle point and tip when both ends have zero width (2 triangles)."""
+        """Triangles of the coarsest mesh: base and tip only (1 or 2 triangles per
+        column), or base, one middle point and tip when both ends have zero width."""
         ends = int((self.w[0] > 0) + (self.w[-1] > 0))
-        return ends if ends > 0 else 2
+        return self.cols * (ends if ends > 0 else 2)
 
     def removed_for_budget(self, triangles: int) -> int:
         """Number of removals so the count is ``triangles`` or one less (then split once)."""
@@ -314,29 +396,122 @@ def _reduce_prof(s: Array, prof) -> Reduction:
 
 def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int | None = None,
                  twist: bool = True, undulation: bool = True, plant: int = 0, leaf: int = 0,
-                 state=None, reduction: Reduction | None = None) -> Mesh:
-    """Mesh of ``shape`` with exactly ``triangles`` triangles (see module docstring)."""
+                 state=None, reduction: Reduction | None = None, surface: bool = True) -> Mesh:
+    """Mesh of ``shape`` with exactly ``triangles`` triangles (see module docstring).
+
+    ``surface`` (default): points are removed by their error on the surface (margins and
+    midrib in 3D, so twist and undulation count), and undulated leaves keep a midrib
+    vertex in every cross-section (their margins move out of the midrib's plane, which a
+    single quad across the blade cannot follow) when the budget allows it (at least twice
+    the smallest midrib-less mesh). ``surface=False`` is the paper's 2D error (midrib in
+    its plane + width profile)."""
     triangles = int(triangles)
     if triangles < 1:
         raise ParameterError(f"triangle budget {triangles} is below the minimum mesh "
                              "(at least 1 triangle)")
     n_pts = n_points or max(200, triangles // 2 + 3)
     s, prof = _fine_profile(shape, n_pts, age, twist, undulation, state)
-    red = reduction or _reduce_prof(s, prof)
-    kept = red.kept(red.removed_for_budget(triangles))
     st = state if state is not None else (None if age is None else state_at_age(shape, age))
-    batch = coarse_batch(s, prof, kept, plant, leaf, exact_area=visible_area(shape, st))
-    mesh = mesh_batch(LeafBatch(*batch), n_u=2)
-    if mesh.n_faces < triangles:
-        # one triangle short: split a left-margin edge (a, a+2) of a strip's first triangle
+    exact = visible_area(shape, st)
+    if reduction is not None or not surface:
+        red = reduction or _reduce_prof(s, prof)
+        mesh = _coarse_mesh(s, prof, red, triangles, plant, leaf, exact)
+    else:
+        wavy = bool(np.any(prof[4] > 0))
+        best = None
+        for cols in ((1, 2, 4) if wavy else (1,)):
+            red = _reduce_surface(s, prof, cols)
+            if triangles < red.min_triangles or (cols > 1 and triangles < 2 * red.min_triangles):
+                continue
+            cand = _coarse_mesh(s, prof, red, triangles, plant, leaf, exact)
+            err = surface_error(shape, cand, age=age, n_s=200, n_u=5, twist=twist,
+                                undulation=undulation, state=st) if wavy else 0.0
+            if best is None or err < best[0]:
+                best = (err, cand, red)
+        if best is None:
+            red = _reduce_surface(s, prof, 1)
+            mesh = _coarse_mesh(s, prof, red, triangles, plant, leaf, exact)
+        else:
+            _, mesh, red = best
+    while mesh.n_faces < triangles:
+        # short of the budget: split a left-margin edge (a, a+n_u) of a strip's first
+        # triangle (one more triangle each, area and shape unchanged)
         f = np.asarray(mesh.faces)
-        left = np.flatnonzero((f[:, 1] - f[:, 0] == 2) & (f[:, 0] % 2 == 0))
+        nu = red.cols + 1
+        left = np.flatnonzero((f[:, 1] - f[:, 0] == nu) & (f[:, 0] % nu == 0))
         if left.size:
             face = int(left[np.argmax(mesh.face_areas()[left])])
             mesh = split_boundary_edge(mesh, face, 0)
         else:
             mesh = split_boundary_edge(mesh)
     return mesh
+
+
+def _coarse_mesh(s: Array, prof, red: Reduction, triangles: int, plant: int, leaf: int,
+                 exact: float) -> Mesh:
+    kept = red.kept(red.removed_for_budget(triangles))
+    batch = coarse_batch(s, prof, kept, plant, leaf, exact_area=exact)
+    return mesh_batch(LeafBatch(*batch), n_u=red.cols + 1)
+
+
+def _reduce_surface(s: Array, prof, cols: int) -> Reduction:
+    """Reduction with the 3D surface error (rows: margins, and the midrib when cols=2)."""
+    phi, seg, width = prof[0], prof[1], prof[2]
+    L = max(float(seg.sum()), 1e-12)
+    batch = LeafBatch(*[np.asarray(a)[None] for a in prof], np.zeros((1, 3)), np.zeros(1),
+                      np.zeros(1, np.int64), np.zeros(1, np.int64))
+    u = np.linspace(-0.5, 0.5, max(cols, 2) + 1)
+    rows = np.ascontiguousarray(leaf_grid(batch, u)[0] / L)             # (n, rows, 3)
+    xz = integrate_angles(phi, seg) / L
+    w = np.ascontiguousarray(width / L)
+    order, errs, tris = reduction_order_surface(rows, np.ascontiguousarray(s), w, cols)
+    return Reduction(np.asarray(s, float), xz[:, 0].copy(), xz[:, 1].copy(), w, order, errs,
+                     tris, cols)
+
+
+def surface_error(shape, mesh: Mesh, age: float | None = None, n_s: int = 400, n_u: int = 9,
+                  twist: bool = True, undulation: bool = True, state=None) -> float:
+    """Largest distance (metres) from ``n_s × n_u`` points of the exact surface (twist and
+    undulation included) to ``mesh``: the error measure of a reduced leaf."""
+    st = state if state is not None else (None if age is None else state_at_age(shape, age))
+    batch = LeafBatch.from_shapes([shape], states=[st], s=np.linspace(0, 1, n_s),
+                                  twist=twist, undulation=undulation)
+    pts = leaf_grid(batch, np.linspace(-0.5, 0.5, n_u))[0].reshape(-1, 3)
+    tri = np.asarray(mesh.vertices)[np.asarray(mesh.faces)]
+    return float(point_triangle_distance(pts, tri).max())
+
+
+def point_triangle_distance(points: Array, triangles: Array, chunk: int = 256) -> Array:
+    """Distance of each point ``(n, 3)`` to the nearest of ``triangles`` ``(m, 3, 3)``
+    (exact: closest point in the face, on an edge or at a corner)."""
+    p_all = np.asarray(points, float)
+    a, b, c = (triangles[None, :, k] for k in range(3))
+    ab, ac, bc = b - a, c - a, c - b
+    nrm = np.cross(ab, ac)
+    n2 = (nrm * nrm).sum(-1)
+    out = np.empty(len(p_all))
+    for s0 in range(0, len(p_all), chunk):
+        p = p_all[s0:s0 + chunk, None, :]
+        best = np.full(p.shape[0], np.inf)
+        for x, e in ((a, ab), (a, ac), (b, bc)):
+            e2 = np.maximum((e * e).sum(-1), 1e-300)
+            tt = np.clip(((p - x) * e).sum(-1) / e2, 0.0, 1.0)
+            d = np.linalg.norm(p - (x + tt[..., None] * e), axis=-1)
+            best = np.minimum(best, d.min(axis=1))
+        # projection inside the face (barycentric test)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            h = ((p - a) * nrm).sum(-1) / n2
+            q = p - h[..., None] * nrm
+            v0, v1, v2 = ab, ac, q - a
+            d00, d01, d11 = (v0 * v0).sum(-1), (v0 * v1).sum(-1), (v1 * v1).sum(-1)
+            d20, d21 = (v2 * v0).sum(-1), (v2 * v1).sum(-1)
+            den = d00 * d11 - d01 * d01
+            bv = (d11 * d20 - d01 * d21) / den
+            bw = (d00 * d21 - d01 * d20) / den
+        inside = (bv >= 0) & (bw >= 0) & (bv + bw <= 1) & (n2 > 0)
+        d_in = np.where(inside, np.abs(h) * np.sqrt(n2), np.inf)
+        out[s0:s0 + chunk] = np.minimum(best, d_in.min(axis=1))
+    return out
 
 
 def coarse_batch(s: Array, prof, kept: NDArray[np.int64], plant: int = 0, leaf: int = 0,
@@ -375,5 +550,6 @@ def mesh_leaf(shape, age: float | None = None, triangles: int | None = None, n_s
     return mesh_batch(batch, n_u)
 
 
-__all__ = ["Reduction", "coarse_batch", "mesh_leaf", "reduce_leaf", "reduce_profile",
-           "reduced_mesh", "reduction_order"]
+__all__ = ["Reduction", "coarse_batch", "mesh_leaf", "point_triangle_distance", "reduce_leaf",
+           "reduce_profile", "reduced_mesh", "reduction_order", "reduction_order_surface",
+           "surface_error"]
