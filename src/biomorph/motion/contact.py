@@ -36,6 +36,7 @@ import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from biomorph.core import transforms as tf
@@ -108,12 +109,13 @@ def _ground_and_scale(w: Array, legs: list[Leg], ui: int) -> tuple[float, float]
     return ground, scale if scale > 0 else float(np.ptp(w[..., ui]) or 1.0)
 
 
-def _schmitt(low_on: NDArray[np.bool_], low_off: NDArray[np.bool_]) -> NDArray[np.bool_]:
+@njit(cache=True)
+def _schmitt(low_on, low_off):  # pragma: no cover - compiled
     """On where ``low_on``; stays on while ``low_off`` (the looser test)."""
-    out = np.zeros(low_on.shape, dtype=bool)
+    out = np.zeros(low_on.shape, dtype=np.bool_)
     state = False
     for k in range(low_on.size):
-        state = bool(low_off[k]) if state else bool(low_on[k])
+        state = low_off[k] if state else low_on[k]
         out[k] = state
     return out
 
@@ -164,18 +166,20 @@ def _targets(on: NDArray[np.bool_], pts: Array, blend: int, follow: bool = False
     tgt = np.array(pts)
     wgt = np.zeros(f)
     dist = np.full(f, np.inf)
-    k = np.arange(f)
     step = np.linalg.norm(np.gradient(pts, axis=0), axis=-1) if f > 1 else np.zeros(f)
     for s, e in _runs(on):
         p = pts[s + int(np.argmin(step[s:e]))]
+        lo, hi = max(0, s - blend), min(f, e + blend)
+        k = np.arange(lo, hi)
         d = np.where(k < s, s - k, np.where(k >= e, k - e + 1, 0)).astype(float)
-        closer = d < dist
+        closer = d < dist[lo:hi]
         wk = np.clip(1.0 - d / (blend + 1), 0.0, 1.0)
         wk = wk * wk * (3 - 2 * wk)
         upd = closer & (wk > 0)
-        tgt[upd] = pts[upd] if follow else p
-        wgt[upd] = wk[upd]
-        dist[closer] = d[closer]
+        idx = k[upd]
+        tgt[idx] = pts[idx] if follow else p
+        wgt[idx] = wk[upd]
+        dist[k[closer]] = d[closer]
     return tgt, wgt
 
 
@@ -245,10 +249,11 @@ def lock_feet(motion: Motion, reference: Motion | None = None,
     opts = o if o.up is not None else replace(o, up=ref.meta.get("up_guess")
                                               or guess_up_axis(ref))
     follow = o.mode == "follow" or (o.mode == "auto" and ref is not motion)
-    w_ref = ref.world_positions()
+    pos, wq = motion._fk(None)
+    w_ref = pos if ref is motion else ref.world_positions()
     contacts = detect_contacts(ref, opts, w_ref)
     blend = max(1, round(o.blend_s * motion.fps))
-    pos, wq = motion._fk(None)
+    changed: list[int] = []
     rot = np.array(motion.rotation)
     rest = motion.skeleton.rest_rotation
     par = motion.skeleton.parent
@@ -295,10 +300,12 @@ def lock_feet(motion: Motion, reference: Motion | None = None,
                 foot_w[both] = tf.quat_multiply(_arc(cur, _unit(want)), foot_w[both])
         rot[act, lg.ankle] = tf.quat_multiply(inv(rest[lg.ankle]),
                                               tf.quat_multiply(inv(knee_w), foot_w))
+        changed += [lg.hip, lg.knee, lg.ankle]
     if clamped:
         warnings.warn(f"{clamped} foot-contact target(s) out of the leg's reach; clamped to "
                       "the leg length", ContactWarning, stacklevel=2)
-    rot = tf.quat_continuous(rot, axis=0)
+    if changed:
+        rot[:, changed] = tf.quat_continuous(rot[:, changed], axis=0)
     meta = dict(motion.meta)
     meta["feet_locked"] = {"contacts": {motion.names[j]: int(v.sum())
                                         for j, v in contacts.items()},

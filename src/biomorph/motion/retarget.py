@@ -201,6 +201,25 @@ def retarget(source: Motion, target: JointSkeleton, source_preset: str | None = 
     return out
 
 
+@njit(cache=True)
+def _local_from_world(world, rest, parent, out):  # pragma: no cover - compiled
+    """``out[t, j] = rest[j]⁻¹ · world[t, parent]⁻¹ · world[t, j]``, hemisphere-continuous
+    along t."""
+    f, n = world.shape[0], world.shape[1]
+    for t in range(f):
+        for j in range(n):
+            p = parent[j]
+            x, y, z, w = world[t, j, 0], world[t, j, 1], world[t, j, 2], world[t, j, 3]
+            if p >= 0:
+                x, y, z, w = _qmul(-world[t, p, 0], -world[t, p, 1], -world[t, p, 2],
+                                   world[t, p, 3], x, y, z, w)
+            x, y, z, w = _qmul(-rest[j, 0], -rest[j, 1], -rest[j, 2], rest[j, 3], x, y, z, w)
+            if t > 0 and (x * out[t - 1, j, 0] + y * out[t - 1, j, 1] + z * out[t - 1, j, 2]
+                          + w * out[t - 1, j, 3]) < 0:
+                x, y, z, w = -x, -y, -z, -w
+            out[t, j, 0], out[t, j, 1], out[t, j, 2], out[t, j, 3] = x, y, z, w
+
+
 def _lateral_axis(sk: JointSkeleton, pairs: list[tuple[int, int]]) -> int:
     pos, _ = _rest_world(sk)
     d = np.abs(np.array([pos[a] - pos[b] for a, b in pairs])).sum(axis=0)
@@ -224,12 +243,8 @@ def mirror(motion: Motion, axis: int | None = None) -> Motion:
     sign[3] = 1.0
     _, wq = motion._fk(None)
     mw = wq[:, other] * sign  # world rotation of the mirror joint, reflected
-    rot = np.zeros_like(motion.rotation)
-    inv = tf.quat_conjugate
-    for j in range(sk.n_joints):
-        p = sk.parent[j]
-        pw = mw[:, p] if p >= 0 else tf.quat_identity((motion.n_frames,))
-        rot[:, j] = tf.quat_multiply(inv(sk.rest_rotation[j]), tf.quat_multiply(inv(pw), mw[:, j]))
+    rot = np.empty(motion.rotation.shape)
+    _local_from_world(ro(mw), ro(sk.rest_rotation), ro_int(sk.parent), rot)
     pos = np.array(motion.root_position)
     pos[:, a] = -pos[:, a]
     jt = None
@@ -239,8 +254,8 @@ def mirror(motion: Motion, axis: int | None = None) -> Motion:
         jt[:, 0] = pos
     meta = dict(motion.meta)
     meta["history"] = [*meta.get("history", []), f"mirror axis={'xyz'[a]}"]
-    return motion.with_(rotation=frozen(tf.quat_continuous(rot, axis=0)),
-                        root_position=frozen(pos), joint_translation=jt, meta=meta)
+    return motion.with_(rotation=frozen(rot), root_position=frozen(pos), joint_translation=jt,
+                        meta=meta)
 
 
 __all__ = ["retarget", "mirror"]
