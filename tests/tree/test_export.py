@@ -71,7 +71,8 @@ def test_cylinder_table_follows_treeqsm_conventions(tmp_path):
 
 def test_export_all_in_world_coordinates(skel, tmp_path):
     files = export_skeleton(skel, tmp_path / "out", world=True)
-    assert set(files) == {"ply", "mtg", "glb", "obj", "mesh_ply", "csv", "json", "png"}
+    assert set(files) == {"ply", "mtg", "glb", "obj", "mesh_ply", "csv", "branches",
+                          "treedata", "json", "png"}
     g = read_graph(files["ply"])
     assert g.n_nodes == skel.graph.n_nodes
     assert np.allclose(g.position, skel.graph.position + skel.offset, atol=1e-6)
@@ -93,8 +94,38 @@ def test_export_all_in_world_coordinates(skel, tmp_path):
 
 def test_export_local_frame_and_subset(skel, tmp_path):
     files = export_skeleton(skel, tmp_path / "local", world=False, formats=("ply", "csv"))
-    assert set(files) == {"ply", "csv"}
+    assert set(files) == {"ply", "csv", "branches", "treedata"}
     g = read_graph(files["ply"])
     assert np.allclose(g.position, skel.graph.position, atol=1e-9)
     with pytest.raises(Exception, match="unknown export format"):
         export_skeleton(skel, tmp_path / "x", formats=("stl",))
+
+
+def test_tube_mesh_branches_are_closed_tubes_with_outward_normals():
+    g = _y_graph()
+    m = tube_mesh(g, sides=12)
+    parts = m.to_trimesh().split(only_watertight=False)
+    assert len(parts) == 2 and all(p.is_watertight for p in parts)   # stem and branch
+    assert np.allclose(np.linalg.norm(m.normals, axis=1), 1.0)
+    # ring vertices of the vertical stem: normals point away from the axis
+    ring = m.vertices[:12]
+    radial = ring - [0.0, 0.0, 0.0]
+    radial[:, 2] = 0
+    assert (np.einsum("ij,ij->i", m.normals[:12, :2], radial[:, :2]) > 0).all()
+
+
+def test_glb_frame_is_stated_in_its_metadata(tmp_path):
+    import pygltflib
+
+    from biomorph.tree.export import write_tube_glb
+
+    m = tube_mesh(_y_graph(), sides=6)
+    path, lacking = write_tube_glb(tmp_path / "near.glb", m, np.array([10.0, 20.0, 5.0]))
+    extras = pygltflib.GLTF2().load(str(path)).scenes[0].extras
+    assert extras["frame"] == "world" and extras["offset"] == [0.0, 0.0, 0.0]
+    assert not lacking.any()
+    geo = np.array([512_000.0, 5_400_000.0, 300.0])                 # UTM-like
+    path, lacking = write_tube_glb(tmp_path / "geo.glb", m, geo)
+    extras = pygltflib.GLTF2().load(str(path)).scenes[0].extras
+    assert extras["frame"] == "centred" and extras["offset"] == geo.tolist()
+    assert np.array_equal(lacking, geo)

@@ -6,22 +6,20 @@ file                   content
 ``skeleton.ply``       nodes ``x y z radius depth tree_id weight`` + edges (parent, child)
 ``skeleton.mtg``       OpenAlea / plantscan3d MTG with ``XX YY ZZ radius`` (``bm.io``)
 ``tube.glb/.obj/.ply`` tube mesh from the radii (generalised cylinders, one ring per node)
-``cylinders.csv``      QSM-style cylinder table (TreeQSM column names, 1-based ids)
+``cylinders.csv``      TreeQSM cylinder table (TreeQSM's column order, :mod:`~.qsm`)
+``branches.csv``       TreeQSM branch table (order, parent, diameter, volume L, ...)
+``treedata.csv``       TreeQSM tree attributes per tree (volumes L, lengths, DBH, crown)
 ``summary.json``       metrics, parameters, timings, counts, offset
 ``preview.png``        cloud + skeleton, three orthographic views and a perspective
 =====================  =====================================================================
 
 Coordinates: with ``world=True`` (default) positions are written back in the original frame
-(``+ offset``) for PLY, MTG, OBJ, CSV; the GLB is always written in the centred frame
-(glTF stores float32, which cannot hold georeferenced coordinates to millimetres) and
-``summary.json`` records the offset. Every file is written atomically.
+(``+ offset``) for PLY, MTG, OBJ, CSV and — when float32 can hold them to 0.06 mm
+(coordinates below :data:`GLB_WORLD_LIMIT`, 1 km) — the GLB; a georeferenced GLB stays
+centred and its scene ``extras`` (and ``summary.json``'s ``glb_offset``) give the offset to
+add. Every file is written atomically.
 
-Cylinder table (one cylinder per skeleton edge parent → child), columns as TreeQSM's
-``cylinder`` struct: ``ID`` (1-based), ``radius`` (m, the child node's radius), ``length``
-(m), ``start_x/y/z`` (m), ``axis_x/y/z`` (unit), ``parent`` (ID of the cylinder ending at the
-start node, 0 at a tree base), ``extension`` (ID of the cylinder continuing this one in
-the same branch, 0 if none), ``branch`` (1-based branch id), ``BranchOrder`` (0 = stem),
-``PositionInBranch`` (1-based), ``tree_id``.
+The QSM tables' columns, units and sources are documented in :mod:`biomorph.tree.qsm`.
 """
 
 from __future__ import annotations
@@ -38,15 +36,12 @@ from numpy.typing import NDArray
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.io.atomic import atomic_path, write_text
+from biomorph.tree.qsm import CYLINDER_COLUMNS
 
-__all__ = ["tube_mesh", "cylinder_table", "write_cylinders", "write_summary", "write_preview",
-           "export_skeleton", "CYLINDER_COLUMNS", "FORMATS"]
+__all__ = ["tube_mesh", "cylinder_table", "write_cylinders", "write_qsm_tables",
+           "write_summary", "write_preview", "export_skeleton", "CYLINDER_COLUMNS", "FORMATS"]
 
 PathLike = str | os.PathLike[str]
-
-CYLINDER_COLUMNS = ("ID", "radius", "length", "start_x", "start_y", "start_z", "axis_x",
-                    "axis_y", "axis_z", "parent", "extension", "branch", "BranchOrder",
-                    "PositionInBranch", "tree_id")
 
 FORMATS = ("ply", "mtg", "glb", "obj", "mesh_ply", "csv", "json", "png")
 
@@ -65,8 +60,10 @@ def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4,
     One ring of ``sides`` vertices per node, perpendicular to the node's branch direction;
     a branch that leaves a fork starts with its own ring at the fork node (its own radius,
     perpendicular to its first edge) so thin branches do not inherit the stem's radius.
-    Tips and tree bases are closed by fans. ``face_ids["tree"]`` and ``["order"]`` label the
-    faces. Metres, same frame as the graph.
+    Tips, tree bases and the start of every branch leaving a fork are closed by fans, so
+    each branch is a closed tube (watertight per branch; branches overlap inside their
+    parent as TreeQSM's cylinders do); vertex normals are area-weighted.
+    ``face_ids["tree"]`` and ``["order"]`` label the faces. Metres, same frame as the graph.
     """
     from biomorph.core.mesh import Mesh
     from biomorph.tree.order import continuation, continuation_from_segments
@@ -108,81 +105,91 @@ def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4,
     f = np.concatenate([np.stack([a0, a1, b1], -1), np.stack([a0, b1, b0], -1)], axis=1)
     faces = [f.reshape(-1, 3)]
     edge_node = [np.repeat(b, 2 * sides)]
-    # caps: tips (fan to the tip point) and bases (fan to the root point)
-    extra = []
+    # caps: tips (fan to a point half a radius beyond the tip), tree bases (fan to the
+    # root) and the start ring of every branch leaving a fork (fan to the fork node), so
+    # every branch is a closed tube
     tips = graph.leaves[par[graph.leaves] >= 0]
     roots = graph.roots
+    caps = ((tips, pos[tips] + axes[tips] * r[tips, None] * 0.5, tips, False),
+            (roots, pos[roots], roots, True),
+            (n + np.arange(branch_start.size), pos[par[branch_start]], branch_start, True))
     base = verts.shape[0]
-    cap_pts = np.vstack([pos[tips] + axes[tips] * r[tips, None] * 0.5, pos[roots]])
-    extra.append(cap_pts)
-    for k, (nodes, flip) in enumerate(((tips, False), (roots, True))):
-        if nodes.size == 0:
+    extra = []
+    for rings, centres, label, flip in caps:
+        if rings.size == 0:
             continue
-        centre = base + (0 if k == 0 else tips.size) + np.arange(nodes.size)
-        r0 = nodes[:, None] * sides + j[None, :]
-        r1 = nodes[:, None] * sides + jn[None, :]
+        centre = base + np.arange(rings.size)
+        base += rings.size
+        extra.append(centres)
+        r0 = rings[:, None] * sides + j[None, :]
+        r1 = rings[:, None] * sides + jn[None, :]
         c = np.broadcast_to(centre[:, None], r0.shape)
         tri = np.stack([r0, r1, c], -1) if not flip else np.stack([r1, r0, c], -1)
         faces.append(tri.reshape(-1, 3))
-        edge_node.append(np.repeat(nodes, sides))
+        edge_node.append(np.repeat(label, sides))
     verts = np.vstack([verts] + extra)
     faces_arr = np.concatenate(faces).astype(np.int64)
     node_of_face = np.concatenate(edge_node)
     ids = {"tree": np.asarray(graph.trees)[node_of_face].astype(np.int64)}
     if graph.depth is not None:
         ids["order"] = graph.depth[node_of_face].astype(np.int64)
-    return Mesh(verts, faces_arr, face_ids=ids)
+    return Mesh(verts, faces_arr, normals=_vertex_normals(verts, faces_arr), face_ids=ids)
 
 
-def cylinder_table(graph: BranchGraph, segment: NDArray[np.int64] | None = None
-                   ) -> dict[str, NDArray]:
-    """QSM-style cylinders, one per edge (see the module doc for the columns)."""
-    from biomorph.tree.order import branch_order, continuation_from_segments, segments
+def _vertex_normals(verts: NDArray, faces: NDArray) -> NDArray:
+    """Area-weighted vertex normals (unit; +Z where a vertex has no area)."""
+    fn = np.cross(verts[faces[:, 1]] - verts[faces[:, 0]], verts[faces[:, 2]] - verts[faces[:, 0]])
+    vn = np.zeros_like(verts)
+    for k in range(3):
+        np.add.at(vn, faces[:, k], fn)
+    ln = np.linalg.norm(vn, axis=1)
+    vn[ln == 0] = (0.0, 0.0, 1.0)
+    ln[ln == 0] = 1.0
+    return vn / ln[:, None]
 
-    par = graph.parent
-    ch = graph.order[par[graph.order] >= 0]          # children in topological order
-    m = ch.size
-    cid = np.zeros(graph.n_nodes, dtype=np.int64)    # 1-based cylinder ending at each node
-    cid[ch] = np.arange(1, m + 1)
-    start = graph.position[par[ch]]
-    vec = graph.position[ch] - start
-    length = np.linalg.norm(vec, axis=1)
-    axis = vec / np.maximum(length, 1e-300)[:, None]
-    radius = graph.radius[ch] if graph.radius is not None else np.zeros(m)
-    seg = segments(graph) if segment is None else np.asarray(segment)
-    depth = graph.depth if graph.depth is not None else branch_order(graph)
-    cont = continuation_from_segments(graph, seg)
-    extension = np.where(cont[ch] >= 0, cid[np.maximum(cont[ch], 0)], 0)
-    # position in branch: count of cylinders from the branch start
-    _, seg_rank = np.unique(seg, return_inverse=True)
-    seg_rank = seg_rank.reshape(-1)
-    pib = np.zeros(m, dtype=np.int64)
-    s = seg_rank[ch]
-    order_in = np.argsort(s, kind="stable")           # topological order kept within a branch
-    counts = np.bincount(s, minlength=seg_rank.max() + 1 if seg_rank.size else 0)
-    first = np.concatenate([[0], np.cumsum(counts)])[:-1]
-    pib[order_in] = np.arange(m) - np.repeat(first, counts)[np.arange(m)] + 1
-    return {"ID": np.arange(1, m + 1), "radius": radius, "length": length,
-            "start_x": start[:, 0], "start_y": start[:, 1], "start_z": start[:, 2],
-            "axis_x": axis[:, 0], "axis_y": axis[:, 1], "axis_z": axis[:, 2],
-            "parent": cid[par[ch]], "extension": extension, "branch": s + 1,
-            "BranchOrder": depth[ch], "PositionInBranch": pib,
-            "tree_id": np.asarray(graph.trees)[ch]}
+
+def cylinder_table(graph: BranchGraph, segment: NDArray[np.int64] | None = None,
+                   quality: dict[str, NDArray] | None = None) -> dict[str, NDArray]:
+    """TreeQSM cylinders, one per edge (:func:`biomorph.tree.qsm.cylinder_table`)."""
+    from biomorph.tree.qsm import cylinder_table as table
+
+    return table(graph, segment, quality)
+
+
+def _write_table(path: PathLike, tab: dict[str, NDArray], columns: tuple[str, ...]) -> Path:
+    from biomorph.tree.qsm import INTEGER_COLUMNS
+
+    buf = io.StringIO()
+    buf.write(",".join(columns) + "\n")
+    cols = [np.asarray(tab[c], dtype=float) for c in columns]
+    fmt = ["%d" if c in INTEGER_COLUMNS else "%.6f" for c in columns]
+    if cols and cols[0].size:
+        data = np.column_stack(cols)
+        data = np.where(np.isfinite(data), data, np.nan)
+        np.savetxt(buf, data, fmt=fmt, delimiter=",")
+    return write_text(path, buf.getvalue().replace("nan", ""))
 
 
 def write_cylinders(path: PathLike, graph: BranchGraph,
-                    segment: NDArray[np.int64] | None = None) -> Path:
-    """Write :func:`cylinder_table` as CSV (header line, metres, 1-based ids)."""
-    tab = cylinder_table(graph, segment)
-    buf = io.StringIO()
-    buf.write(",".join(CYLINDER_COLUMNS) + "\n")
-    cols = [tab[c] for c in CYLINDER_COLUMNS]
-    ints = {"ID", "parent", "extension", "branch", "BranchOrder", "PositionInBranch", "tree_id"}
-    fmt = ["%d" if c in ints else "%.6f" for c in CYLINDER_COLUMNS]
-    if cols[0].size:
-        np.savetxt(buf, np.column_stack([np.asarray(c, dtype=float) for c in cols]),
-                   fmt=fmt, delimiter=",")
-    return write_text(path, buf.getvalue())
+                    segment: NDArray[np.int64] | None = None,
+                    quality: dict[str, NDArray] | None = None) -> Path:
+    """Write :func:`cylinder_table` as CSV (header line, metres, TreeQSM column order)."""
+    return _write_table(path, cylinder_table(graph, segment, quality), CYLINDER_COLUMNS)
+
+
+def write_qsm_tables(out: Path, graph: BranchGraph, segment: NDArray[np.int64] | None,
+                     quality: dict[str, NDArray] | None) -> dict[str, Path]:
+    """``cylinders.csv``, ``branches.csv`` and ``treedata.csv`` (TreeQSM's tables, see
+    :mod:`biomorph.tree.qsm`; an empty field is a value that does not exist, e.g. the DBH
+    of a tree lower than 1.3 m)."""
+    from biomorph.tree.qsm import BRANCH_COLUMNS, TREEDATA_COLUMNS, branch_table, treedata_table
+
+    cyl = cylinder_table(graph, segment, quality)
+    return {"csv": _write_table(out / "cylinders.csv", cyl, CYLINDER_COLUMNS),
+            "branches": _write_table(out / "branches.csv", branch_table(graph, cyl),
+                                     BRANCH_COLUMNS),
+            "treedata": _write_table(out / "treedata.csv", treedata_table(graph, cyl),
+                                     TREEDATA_COLUMNS)}
 
 
 def write_summary(path: PathLike, skel: Any, extra: dict | None = None) -> Path:
@@ -204,6 +211,41 @@ def write_preview(path: PathLike, skel: Any, title: str | None = None) -> Path:
     with atomic_path(path) as tmp:
         render_graph(g, tmp, cloud=cloud, title=title)
     return Path(path)
+
+
+#: the GLB holds the mesh in the frame of the other files when their coordinates stay below
+#: this (m): glTF stores float32, whose 24-bit mantissa resolves 0.06 mm at 1 km but only
+#: 0.5 m at georeferenced easting/northing of ~10⁶–10⁷ m
+GLB_WORLD_LIMIT = 1000.0
+
+
+def write_tube_glb(path: Path, mesh: Any, offset: NDArray) -> tuple[Path, NDArray]:
+    """Write the tube mesh as GLB (Z-up data rotated into glTF's Y-up) in the frame of the
+    other outputs when float32 holds it (:data:`GLB_WORLD_LIMIT`), else centred. Either way
+    the scene's ``extras`` say the frame: ``{"frame": "world" | "centred", "offset": [x, y,
+    z], "up": "Z (source) -> Y (glTF)"}`` (add ``offset`` to a centred GLB's positions,
+    in the source's Z-up axes). Returns the path and the offset the GLB still lacks."""
+    from biomorph.core.mesh import Mesh
+    from biomorph.io import write_mesh
+
+    offset = np.asarray(offset, dtype=float)
+    far = float(np.abs(mesh.vertices + offset).max()) if mesh.n_vertices else 0.0
+    shift = offset if far <= GLB_WORLD_LIMIT else np.zeros(3)
+    lacking = offset - shift
+    m = Mesh(mesh.vertices + shift, mesh.faces, normals=mesh.normals, face_ids=mesh.face_ids)
+    write_mesh(path, m, y_up=False)
+    import pygltflib
+
+    gl = pygltflib.GLTF2().load(str(path))
+    frame = "world" if not lacking.any() else "centred"
+    extras = {"frame": frame, "offset": [float(v) for v in lacking],
+              "up": "Z (source) -> Y (glTF)"}
+    for scene in gl.scenes:
+        scene.extras = extras
+    gl.asset.extras = extras
+    with atomic_path(path) as tmp:
+        gl.save_binary(str(tmp))
+    return Path(path), lacking
 
 
 def export_skeleton(skel: Any, out_dir: PathLike, *, formats: tuple[str, ...] | None = None,
@@ -233,17 +275,18 @@ def export_skeleton(skel: Any, out_dir: PathLike, *, formats: tuple[str, ...] | 
     if "mtg" in formats:
         written["mtg"] = write_graph(out / f"{stem}.mtg", gw)
     if "csv" in formats:
-        written["csv"] = write_cylinders(out / "cylinders.csv", gw, seg)
+        written.update(write_qsm_tables(out, gw, seg, getattr(skel, "quality", None)))
     mesh = None
     if {"glb", "obj", "mesh_ply"} & set(formats):
         mesh = tube_mesh(g, sides=sides, segment=seg)
+    glb_offset = offset if world else np.zeros(3)
     if "glb" in formats:
-        written["glb"] = write_mesh(out / "tube.glb", mesh, y_up=False)  # Z-up data
+        written["glb"], glb_offset = write_tube_glb(out / "tube.glb", mesh, glb_offset)
     if "obj" in formats or "mesh_ply" in formats:
         from biomorph.core.mesh import Mesh
 
         mw = Mesh(mesh.vertices + (offset if world else 0.0), mesh.faces,
-                  face_ids=mesh.face_ids)
+                  normals=mesh.normals, face_ids=mesh.face_ids)
         if "obj" in formats:
             written["obj"] = write_mesh(out / "tube.obj", mw)
         if "mesh_ply" in formats:
@@ -251,7 +294,8 @@ def export_skeleton(skel: Any, out_dir: PathLike, *, formats: tuple[str, ...] | 
     if "json" in formats:
         written["json"] = write_summary(out / "summary.json", skel,
                                         {"files": {k: v.name for k, v in written.items()},
-                                         "world_coordinates": bool(world)})
+                                         "world_coordinates": bool(world),
+                                         "glb_offset": [float(v) for v in glb_offset]})
     if "png" in formats:
         written["png"] = write_preview(out / "preview.png", skel, title)
     return written

@@ -57,6 +57,9 @@ class TreeSkeleton:
     offset : add to positions for original coordinates.
     cloud : the prepared (centred, cleaned, ground-free) cloud; ``ground`` the ground points.
     segment : branch (segment) id per node.
+    quality : per node, the radius fit's quality: ``reliable`` (the radius is the fit's,
+        not the taper model's), ``mad`` (m), ``coverage`` (0–1), ``fitted_radius`` (m, -1 =
+        no fit); None for allometric radii.
     """
 
     graph: BranchGraph
@@ -69,6 +72,7 @@ class TreeSkeleton:
     ground: PointCloud | None = None
     segment: NDArray[np.int64] | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    quality: dict[str, NDArray] | None = None
 
     def world_graph(self) -> BranchGraph:
         """The skeleton in the original coordinates (positions + offset)."""
@@ -156,6 +160,7 @@ class _Run:
     segment: NDArray[np.int64] | None = None
     metrics: dict[str, Any] = field(default_factory=dict)
     fit: Any = None
+    quality: dict[str, NDArray] | None = None
 
     @property
     def source(self) -> str:
@@ -208,7 +213,7 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str | N
                         params=run.params, metrics=run.metrics,
                         offset=np.asarray(run.cloud.offset, dtype=float).copy(),
                         cloud=run.cloud, ground=run.ground, segment=run.segment,
-                        info=run.info)
+                        info=run.info, quality=run.quality)
 
 
 def prepare_phase(run: _Run) -> None:
@@ -371,6 +376,9 @@ def radius_phase(run: _Run) -> None:
                                search_factor=ro.search_factor, allometry_exponent=exponent,
                                taper=ro.taper, min_radius=ro.min_radius, seed=run.opts.seed)
         run.fit = fit
+        run.quality = {"reliable": fit.reliable if fit.reliable is not None else fit.ok,
+                       "mad": fit.mad if fit.mad is not None else np.zeros(fit.ok.size),
+                       "coverage": fit.coverage, "fitted_radius": fit.radius}
         run.info["radius_fit_ok"] = float(fit.ok.mean()) if fit.ok.size else 0.0
         if fit.reliable is not None:
             run.info["radius_reliable"] = float(fit.reliable.mean()) if fit.ok.size else 0.0
