@@ -1,6 +1,15 @@
 """GLB writer throughput: creature skeletons, many small meshes, a 100,000-leaf canopy.
 
 Usage: .venv/bin/python bench/gltf.py [--repeat 7] [--baseline OLD_gltf.py]
+       .venv/bin/python bench/gltf.py --creatures 1000 [--workers 2] [--no-skin]
+       .venv/bin/python bench/gltf.py --blender 20
+
+``--creatures N``: N seeds generated and written as GLB with procedural bone models and the
+skinned body envelope (``biomorph creature generate --skin``), on ``--workers`` processes;
+prints the total wall time, per-creature stage medians and, for the first 20 seeds, the peer
+(trimesh's own GLB export of the same bone and skin meshes, unskinned) beside ours as a
+ratio. ``--blender N``: N seeds exported plain and ``--rigify`` and imported into Debian's
+Blender headless; counts import warnings and Rigify generate failures.
 
 Cases (each written to a temporary ``.glb`` with ``biomorph.io.gltf.write_gltf``):
 
@@ -132,11 +141,141 @@ def cases() -> list[tuple[str, Callable[[ModuleType, str], object]]]:
     ]
 
 
+def _one_creature(args: tuple[int, str, bool]) -> tuple[float, float, float, float, int]:
+    """(generate s, bone models s, skin s, write s, file bytes) for one seed."""
+    seed, out, skin = args
+    import biomorph.creature as bc
+    from biomorph.creature.bones import geometry
+    from biomorph.creature.export import write_glb
+    from biomorph.creature.skin import body
+
+    t0 = time.perf_counter()
+    c = bc.generate(seed=seed)
+    t1 = time.perf_counter()
+    geometry(c)
+    t2 = time.perf_counter()
+    if skin:
+        body(c)
+    t3 = time.perf_counter()
+    path = os.path.join(out, f"c{seed}.glb")
+    write_glb(c, path, skin=skin)
+    t4 = time.perf_counter()
+    # write_glb rebuilds models and skin: its own share is the write time minus both
+    write = max((t4 - t3) - (t2 - t1) - (t3 - t2), 0.0)
+    return t1 - t0, t2 - t1, t3 - t2, write, os.path.getsize(path)
+
+
+def _peer_trimesh(seed: int, out: str, skin: bool) -> tuple[float, float]:
+    """(ours s, trimesh s) writing the same creature's meshes: ours a skinned GLB,
+    trimesh its scene export of the world-space bone (and skin) meshes."""
+    import trimesh
+
+    import biomorph.creature as bc
+    from biomorph.creature.bones import world_mesh
+    from biomorph.creature.export import write_glb
+    from biomorph.creature.skin import body
+
+    c = bc.generate(seed=seed)
+    w = world_mesh(c)
+    meshes = [trimesh.Trimesh(w.vertices, w.faces, vertex_normals=w.normals, process=False)]
+    if skin:
+        e = body(c).envelope
+        meshes.append(trimesh.Trimesh(e.vertices, e.faces, vertex_normals=e.normals,
+                                      process=False))
+    t0 = time.perf_counter()
+    trimesh.Scene(meshes).export(os.path.join(out, "peer.glb"))
+    t_peer = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    write_glb(c, os.path.join(out, "ours.glb"), skin=skin)
+    return time.perf_counter() - t0, t_peer
+
+
+def creatures_bench(n: int, workers: int, skin: bool) -> None:
+    from multiprocessing import get_context
+
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs = [(s, tmp, skin) for s in range(n)]
+        w0 = time.perf_counter()
+        with get_context("spawn").Pool(workers) as pool:
+            res = pool.map(_one_creature, jobs, chunksize=max(1, n // (workers * 8)))
+        wall = time.perf_counter() - w0
+        r = np.array(res, float)
+        peer = np.array([_peer_trimesh(s, tmp, skin) for s in range(min(20, n))])
+    print(f"load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} CPUs, {workers} workers\n")
+    print(f"{n} creatures with bone models{' and skin' if skin else ''} written as GLB: "
+          f"{wall:.1f} s wall ({wall / n * 1e3:.0f} ms per creature; target 1,000 in 60 s)")
+    print("| stage (median per creature) | ms |\n|---|---:|")
+    for k, label in enumerate(("generate", "bone models", "muscles + envelope + weights",
+                               "GLB assembly + write")):
+        print(f"| {label} | {np.median(r[:, k]) * 1e3:.1f} |")
+    print(f"| file size | {np.median(r[:, 4]) / 1e6:.2f} MB |")
+    ratio = peer[:, 0] / peer[:, 1]
+    print(f"\nwhole write_glb (models, skin, skinned GLB) vs trimesh's GLB export of the "
+          f"finished meshes, {len(peer)} seeds: median ours {np.median(peer[:, 0]) * 1e3:.0f} ms,"
+          f" trimesh {np.median(peer[:, 1]) * 1e3:.0f} ms, ratio {np.median(ratio):.2f}")
+
+
+def blender_bench(n: int) -> None:
+    import json
+    import shutil
+    import subprocess
+
+    import biomorph.creature as bc
+    from biomorph.creature.export import export
+    from biomorph.creature.rigify_setup import SCRIPT
+
+    blender = shutil.which("blender")
+    if blender is None:
+        print("blender not installed (apt-get install -y blender python3-numpy)")
+        return
+    from tests.creature.test_blender import DRIVER
+
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs = []
+        for s in range(n):
+            c = bc.generate(seed=s)
+            for rig in (False, True):
+                p = os.path.join(tmp, f"c{s}_{int(rig)}.glb")
+                export(c, p, rigify=rig, skin=True)
+                jobs.append({"path": p, "rigify": rig, "result": os.path.join(tmp, "r.json")})
+        with open(os.path.join(tmp, "jobs.json"), "w") as fh:
+            json.dump(jobs, fh)
+        for name, text in (("driver.py", DRIVER), ("setup.py", SCRIPT)):
+            with open(os.path.join(tmp, name), "w") as fh:
+                fh.write(text)
+        t0 = time.perf_counter()
+        proc = subprocess.run([blender, "-b", "--factory-startup", "--python",
+                               os.path.join(tmp, "driver.py"), "--",
+                               os.path.join(tmp, "jobs.json"), os.path.join(tmp, "setup.py")],
+                              capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        with open(os.path.join(tmp, "r.json")) as fh:
+            res = json.load(fh)
+    chunks = proc.stdout.split("BIOMORPH_IMPORT_START")[1:]
+    warn = sum(sum(1 for ln in ch.split("BIOMORPH_IMPORT_END")[0].splitlines()
+                   if "WARNING" in ln or "ERROR" in ln) for ch in chunks)
+    rigs = [r for r in res if r["path"].endswith("_1.glb")]
+    ok = sum(1 for r in rigs if r["error"] is None and r["generated"])
+    print(f"Blender {n} seeds (plain + --rigify, bone models + skin): {len(chunks)} imports, "
+          f"{warn} warnings; Rigify generate succeeded on {ok}/{len(rigs)}; {wall:.0f} s")
+    for r in rigs:
+        if r["error"]:
+            print("  ", os.path.basename(r["path"]), r["error"][:200])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--baseline", help="path of an older io/gltf.py to compare against")
+    ap.add_argument("--creatures", type=int, help="N creatures with bone models + skin")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--no-skin", action="store_true")
+    ap.add_argument("--blender", type=int, help="N seeds through Blender + Rigify")
     args = ap.parse_args()
+    if args.creatures:
+        return creatures_bench(args.creatures, args.workers, not args.no_skin)
+    if args.blender:
+        return blender_bench(args.blender)
     import biomorph.io.gltf as current
 
     versions = [("after", current)]

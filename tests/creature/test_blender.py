@@ -86,7 +86,7 @@ def blender_run(tmp_path_factory):
         creatures.append(c)
         for rigify in (False, True):
             p = tmp / f"c{k}_{'rig' if rigify else 'plain'}.glb"
-            export(c, p, rigify=rigify, bone_shape="bone")
+            export(c, p, rigify=rigify, skin=k < 2)  # bone models; skin on two seeds
             jobs.append({"path": str(p), "rigify": rigify, "result": str(tmp / "res.json")})
     (tmp / "jobs.json").write_text(json.dumps(jobs))
     (tmp / "driver.py").write_text(DRIVER)
@@ -136,9 +136,20 @@ def test_plain_import_faces_minus_y_with_exact_heads(blender_run):
         d = tails - got
         length = np.linalg.norm(d, axis=1)
         assert length.min() >= 0.004 - 1e-6
+        # (Blender aims a bone at the centroid of its children: only bones whose children
+        # all lie along their +Y can come in exact; the skull with its jaw hinge below does
+        # not -- `biomorph creature rigify-setup` restores those from the node extras)
+        along = np.ones(len(c), bool)
+        for i in range(1, len(c)):
+            off = sk.offset[i]
+            n_off = np.linalg.norm(off)
+            if n_off > 0.004 and off[1] < 0.99 * n_off:
+                along[sk.parent[i]] = False
         has_child = np.bincount(sk.parent[sk.parent >= 0], minlength=len(c)) > 0
         cos = (d * y).sum(axis=1) / length
-        assert np.all(cos[has_child] > 0.99), np.array(c.names)[has_child & (cos < 0.99)]
+        check = has_child & along
+        assert check.sum() > 0.8 * has_child.sum()
+        assert np.all(cos[check] > 0.99), np.array(c.names)[check & (cos < 0.99)]
 
 
 def test_rigify_metarig_generates(blender_run):
@@ -154,7 +165,7 @@ def test_rigify_metarig_generates(blender_run):
         for n in names:
             if n.startswith(("spine.", "neck.", "tail.")):
                 assert by_name[n][2], f"{n} not connected"
-        assert c.kind.count("skull") == 1
+        assert "head" in by_name and c.kind[0] == "spine"
         # limbs: thigh->shin->foot->toe connected, heel unconnected; local X is the bend
         for n in names:
             if n.startswith("shin") or n.startswith("foot."):

@@ -29,7 +29,7 @@ from biomorph.creature.creature import Creature
 #: grid cells along the longest side per level of detail
 RESOLUTION = (40, 64, 96)
 #: finest grid (cells along the longest side) per level of detail
-RES_MAX = (80, 160, 240)
+RES_MAX = (64, 112, 192)
 #: tissue over bone at the bony landmarks, as a share of the bone's half-width
 LANDMARK_TISSUE = 0.35
 #: smoothing of the field (grid cells)
@@ -76,18 +76,22 @@ def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray
             b_s.append(c.mass_center[j])
             ra_s.append(r)
             rb_s.append(r)
-    for m in ms:
-        a_s.extend(m.path[:-1])
-        b_s.extend(m.path[1:])
-        ra_s.extend(m.radius[:-1])
-        rb_s.extend(m.radius[1:])
+    for m in ms:  # every second path point is enough for the smoothed field
+        keep = np.unique(np.r_[np.arange(0, len(m.path), 2), len(m.path) - 1])
+        path, rad = m.path[keep], m.radius[keep]
+        a_s.extend(path[:-1])
+        b_s.extend(path[1:])
+        ra_s.extend(rad[:-1])
+        rb_s.extend(rad[1:])
     return np.array(a_s), np.array(b_s), np.array(ra_s), np.array(rb_s)
 
 
 def _field(caps: tuple[NDArray, NDArray, NDArray, NDArray], lo: NDArray, h: float,
            shape: tuple[int, ...]) -> NDArray:
-    """``max_i (r_i(t) - |p - segment_i(t)|)`` on the grid, each capsule over its box."""
-    grid = np.full(shape, -2.0 * h)
+    """``max_i (r_i(t) - |p - segment_i(t)|)`` on the grid (float32), each capsule over its
+    own box; distances from separable per-axis terms (no per-point coordinate arrays)."""
+    grid = np.full(shape, -2.0 * h, np.float32)
+    axes_all = [(lo[k] + h * np.arange(shape[k])).astype(np.float32) for k in range(3)]
     for a, b, ra, rb in zip(*caps, strict=True):
         r = max(ra, rb)
         a_i = np.maximum(np.floor((np.minimum(a, b) - r - 2 * h - lo) / h).astype(int), 0)
@@ -95,36 +99,57 @@ def _field(caps: tuple[NDArray, NDArray, NDArray, NDArray], lo: NDArray, h: floa
                          shape)
         if np.any(b_i <= a_i):
             continue
-        axes = [lo[k] + h * np.arange(a_i[k], b_i[k]) for k in range(3)]
-        p = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
-        ab = b - a
+        x = axes_all[0][a_i[0]:b_i[0], None, None] - np.float32(a[0])
+        y = axes_all[1][None, a_i[1]:b_i[1], None] - np.float32(a[1])
+        z = axes_all[2][None, None, a_i[2]:b_i[2]] - np.float32(a[2])
+        ab = (b - a).astype(np.float32)
         L2 = float(ab @ ab)
-        t = np.clip(((p - a) @ ab) / L2, 0.0, 1.0) if L2 > 1e-18 else np.zeros(p.shape[:3])
-        d = np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
-        val = ra + (rb - ra) * t - d
+        pa2 = x * x + y * y + z * z
+        if L2 > 1e-18:
+            dot = x * ab[0] + y * ab[1] + z * ab[2]
+            tt = np.clip(dot / L2, 0.0, 1.0)
+            d2 = pa2 - 2 * tt * dot + tt * tt * L2
+            val = (ra + (rb - ra) * tt) - np.sqrt(np.maximum(d2, 0.0))
+        else:
+            val = ra - np.sqrt(pa2)
         sub = grid[a_i[0]:b_i[0], a_i[1]:b_i[1], a_i[2]:b_i[2]]
         np.maximum(sub, val, out=sub)
     return grid
 
 
 def _weights(c: Creature, v: NDArray, h: float) -> tuple[NDArray, NDArray]:
-    """Four nearest bone segments per vertex, inverse-square distance weights."""
+    """Four nearest bone segments per vertex, inverse-square distance weights. Candidate
+    bones come from a k-d tree over points sampled along every bone (12 nearest samples),
+    exact point-to-segment distances are taken only for those."""
+    from scipy.spatial import cKDTree
+
     bones = np.flatnonzero(c.bone_length > 1e-9)
     a = c.joint_positions[bones]
     ab = c.bone_ends[bones] - a
-    L2 = np.maximum((ab ** 2).sum(axis=1), 1e-18)
-    t = np.clip(((v[:, None, :] - a[None]) * ab[None]).sum(axis=2) / L2, 0, 1)
-    d = np.linalg.norm(v[:, None, :] - (a[None] + t[..., None] * ab[None]), axis=2)
-    k = min(4, len(bones))
-    near = np.argpartition(d, k - 1, axis=1)[:, :k]
-    dn = np.take_along_axis(d, near, axis=1)
-    w = 1.0 / (dn + h) ** 2
+    u = np.linspace(0.0, 1.0, 5)
+    samples = (a[:, None, :] + u[None, :, None] * ab[:, None, :]).reshape(-1, 3)
+    owner = np.repeat(np.arange(len(bones)), len(u))
+    kq = min(12, len(samples))
+    _, idx = cKDTree(samples).query(v, k=kq)
+    cand = owner[np.atleast_2d(idx).reshape(len(v), kq)]  # (k, kq) bone numbers
+    ca, cab = a[cand], ab[cand]
+    L2 = np.maximum((cab ** 2).sum(axis=2), 1e-18)
+    tt = np.clip(((v[:, None, :] - ca) * cab).sum(axis=2) / L2, 0, 1)
+    d = np.linalg.norm(v[:, None, :] - (ca + tt[..., None] * cab), axis=2)
+    # the same bone may appear several times among the candidates: keep it once
+    order = np.argsort(d, axis=1, kind="stable")
+    cs = np.take_along_axis(cand, order, axis=1)
+    ds = np.take_along_axis(d, order, axis=1)
+    dup = np.zeros_like(cs, bool)
+    for k in range(1, kq):
+        dup[:, k] = (cs[:, :k] == cs[:, k:k + 1]).any(axis=1)
+    ds = np.where(dup, np.inf, ds)
+    order = np.argsort(ds, axis=1, kind="stable")[:, :4]
+    near = np.take_along_axis(cs, order, axis=1)
+    dn = np.take_along_axis(ds, order, axis=1)
+    w = np.where(np.isfinite(dn), 1.0 / (np.where(np.isfinite(dn), dn, 0) + h) ** 2, 0.0)
     w /= w.sum(axis=1, keepdims=True)
-    joints = np.zeros((len(v), 4), np.int64)
-    weights = np.zeros((len(v), 4))
-    joints[:, :k] = bones[near]
-    weights[:, :k] = w
-    return joints, weights
+    return bones[near], w
 
 
 def envelope(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[Mesh, float]:
