@@ -220,13 +220,13 @@ def open_page(app, browser, url: str | None = None):
     page = ctx.new_page()
     page.goto(url or app.url)
     page.bring_to_front()  # viser's page connects only while it has the focus
-    page.get_by_role("button", name="Files", exact=True).first.wait_for(timeout=30000)
+    page.get_by_role("button", name="Files", exact=True).first.wait_for(timeout=120000)
 
     def built():
         fresh = [s for s in app.sessions.values() if s not in before or s.shared]
         return next((s for s in fresh if s.ready.is_set() and (s.client or s.shared)), None)
 
-    session = wait_for(built, timeout=30, what="the page's session")
+    session = wait_for(built, timeout=120, what="the page's session")
     return ctx, page, session
 
 
