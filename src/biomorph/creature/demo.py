@@ -45,6 +45,12 @@ def run_demo(out_dir: str | Path) -> list[Section]:
                                                        if v),
                      "n/a" if not b.applicable else f"{b.margin_fraction:.3f}", f"{ms_:.0f}"))
     img = side_by_side(out / "creatures.png", creatures, titles)
+    from biomorph.creature.render import render_creature, render_set
+
+    shaded = render_set(creatures, titles, out / "creatures_shaded.png")
+    anatomy = render_creature(creatures[0], out / "quadruped_anatomy.png", skin=True,
+                              title=titles[0])
+    files.append(export(creatures[0], out / "quadruped_skin.glb", skin=True))
     pca_png = pca_plot(out / "pca.png")
     ours = spectrum_summary(fit_dataset(reparam=False))
     spec = Table(["", "first eigenvalue", "total variance", "6 components", "eigenvalues > 0.01"],
@@ -62,6 +68,8 @@ def run_demo(out_dir: str | Path) -> list[Section]:
         "Six creatures sampled from the PCA over 44 species, conditioned on legs/wings/class, "
         "grown step by step (spine with C1 fix, vertebrae by arc length, girdles, limbs with "
         "the seed's ground-contact descent, skull library), sized from their weight by the "
-        "mass model and repaired until statically stable. Each is exported as skinned glTF, "
-        "BVH with a procedural walk cycle, and JSON.",
-        images=[img, pca_png], tables=[table, spec], files=files)]
+        "mass model and repaired until statically stable. Each is exported as skinned glTF "
+        "with procedural bone models, BVH with a procedural walk cycle, and JSON; the "
+        "quadruped also with muscles and its body envelope (shaded renders: skeleton, "
+        "x-ray of muscles under the skin, skin).",
+        images=[shaded, anatomy, img, pca_png], tables=[table, spec], files=files)]

@@ -160,7 +160,8 @@ def render_creature(c: Creature, path: str | os.PathLike[str], *,
 
 def render_set(creatures: Sequence[Creature], titles: Sequence[str],
                path: str | os.PathLike[str], *, view: str = "three_quarter",
-               shape: str = "bone", skin: bool = False, width_in: float = 4.0) -> Path:
+               shape: str = "bone", skin: bool = False, width_in: float = 4.0,
+               lod: int = 0) -> Path:
     """PNG grid: one shaded picture per creature (skeleton, optionally under its skin)."""
     from biomorph.creature.plots import _figure, _save
 
@@ -173,6 +174,7 @@ def render_set(creatures: Sequence[Creature], titles: Sequence[str],
         if i >= n:
             ax.set_axis_off()
             continue
-        draw(ax, creature_layers(creatures[i], shape=shape, skin=skin, muscles=skin), view)
+        draw(ax, creature_layers(creatures[i], shape=shape, lod=lod, skin=skin, muscles=skin),
+             view)
         ax.set_title(titles[i], fontsize=9)
     return _save(fig, path)

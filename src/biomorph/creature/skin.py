@@ -57,9 +57,8 @@ def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray
         bone_hw = 0.5 * max(c.box_size[j, 0], c.box_size[j, 2])
         soft_hw = 0.25 * (c.mass_size[j, 0] + c.mass_size[j, 2])
         end_r = bone_hw * (1 + LANDMARK_TISSUE)
-        if c.kind[j] == "skull":
-            mid_r = end_r
-            end_r = 0.5 * min(c.box_size[j, 0], c.box_size[j, 2]) * (1 + LANDMARK_TISSUE)
+        if c.kind[j] == "skull":  # thin tissue over the skull: its narrower half-width
+            end_r = mid_r = 0.5 * min(c.box_size[j, 0], c.box_size[j, 2]) * (1 + LANDMARK_TISSUE)
         elif c.kind[j] == "spine":
             mid_r = end_r
         else:
