@@ -106,6 +106,7 @@ def test_skeletonize_json_and_outputs(good_xyz, tmp_path, capsys):
     assert data["params"]["min_cylinder_radius"] == 0.01 and "tip_support" not in data["params"]
     assert data2["metrics"]["nob"] == 3
     for name in ("skeleton.ply", "skeleton.mtg", "tube.glb", "tube.obj", "cylinders.csv",
+                 "branches.csv", "treedata.csv", "points.laz",
                  "summary.json", "preview.png"):
         assert (out / name).is_file(), name
 

@@ -72,7 +72,7 @@ def test_cylinder_table_follows_treeqsm_conventions(tmp_path):
 def test_export_all_in_world_coordinates(skel, tmp_path):
     files = export_skeleton(skel, tmp_path / "out", world=True)
     assert set(files) == {"ply", "mtg", "glb", "obj", "mesh_ply", "csv", "branches",
-                          "treedata", "json", "png"}
+                          "treedata", "las", "json", "png"}
     g = read_graph(files["ply"])
     assert g.n_nodes == skel.graph.n_nodes
     assert np.allclose(g.position, skel.graph.position + skel.offset, atol=1e-6)

@@ -92,8 +92,9 @@ def skeletonize(
     seed: Seed = 0,
     options: SkeletonizeOptions | None = None,
 ) -> None:
-    """Skeletonise a tree cloud and write skeleton.ply/.mtg, tube.glb/.obj, cylinders.csv,
-    summary.json and preview.png into OUT.
+    """Skeletonise a tree cloud and write skeleton.ply/.mtg, tube.glb/.obj, the TreeQSM
+    tables (cylinders.csv, branches.csv, treedata.csv), points.laz (tree_id per point),
+    one tree_<id>/ folder per tree of a plot, summary.json and preview.png into OUT.
 
     Every option of the pipeline stages is listed below (biomorph.tree.options).
 
@@ -232,8 +233,9 @@ def batch(
     """Skeletonise many clouds in parallel on dask.distributed (LocalCluster by default),
     with every option of ``skeletonize``.
 
-    Failed inputs are reported without stopping the others; inputs whose summary.json
-    exists are skipped, so a re-run resumes. Exit code 1 if any input failed.
+    Failed inputs are reported without stopping the others; an input counts as done once
+    all its files are written (a completion marker keyed by the options), so a re-run
+    resumes exactly. Exit code 1 if any input failed.
 
     Example: biomorph tree batch plots/*.laz --out results/ --workers 4
     """
@@ -246,7 +248,6 @@ def batch(
         raise ParameterError("input file names must be unique (outputs go to OUT/<name>/)")
     items = [(str(p), str(out / p.stem), options, world) for p in inputs]
     report = run_batch(items, batch_item, out_dir=out, key=lambda it: Path(it[0]).stem,
-                       done=lambda it: (Path(it[1]) / "summary.json").exists(),
                        workers=workers, scheduler=scheduler, description="trees")
     if as_json:
         from biomorph._cli import print_json

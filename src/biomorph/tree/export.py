@@ -10,6 +10,8 @@ file                   content
 ``branches.csv``       TreeQSM branch table (order, parent, diameter, volume L, ...)
 ``treedata.csv``       TreeQSM tree attributes per tree (volumes L, lengths, DBH, crown)
 ``summary.json``       metrics, parameters, timings, counts, offset
+``points.laz``         the prepared cloud with the extra dimension ``tree_id`` per point
+``tree_<id>/``         per tree of a plot: skeleton.ply/.mtg, the QSM tables, points.laz
 ``preview.png``        cloud + skeleton, three orthographic views and a perspective
 =====================  =====================================================================
 
@@ -43,7 +45,7 @@ __all__ = ["tube_mesh", "cylinder_table", "write_cylinders", "write_qsm_tables",
 
 PathLike = str | os.PathLike[str]
 
-FORMATS = ("ply", "mtg", "glb", "obj", "mesh_ply", "csv", "json", "png")
+FORMATS = ("ply", "mtg", "glb", "obj", "mesh_ply", "csv", "las", "trees", "json", "png")
 
 
 def _graph_of(obj: Any) -> BranchGraph:
@@ -202,11 +204,73 @@ def write_summary(path: PathLike, skel: Any, extra: dict | None = None) -> Path:
     return write_text(path, json.dumps(data, indent=2, allow_nan=False) + "\n")
 
 
+def point_tree_labels(skel: Any) -> NDArray[np.int64]:
+    """Tree id of every point of ``skel.cloud``: the tree of its nearest skeleton node."""
+    from scipy.spatial import cKDTree
+
+    g = _graph_of(skel)
+    _, near = cKDTree(g.position).query(skel.cloud.xyz, workers=-1)
+    return np.asarray(g.trees)[near].astype(np.int64)
+
+
+def write_labelled_points(path: PathLike, skel: Any, labels: NDArray | None = None) -> Path:
+    """The prepared cloud (original coordinates) as LAS/LAZ with the extra dimension
+    ``tree_id`` (:func:`point_tree_labels`) beside every attribute it had."""
+    from biomorph.core.pointcloud import PointCloud
+    from biomorph.io import write_points
+
+    pc = skel.cloud
+    lab = point_tree_labels(skel) if labels is None else labels
+    out = PointCloud(pc.xyz, attributes={**pc.attributes, "tree_id": lab.astype(np.int32)},
+                     offset=pc.offset, meta=pc.meta)
+    return write_points(path, out)
+
+
+def write_per_tree(out: Path, skel: Any, world: bool) -> dict[str, Path]:
+    """One folder ``tree_<id>/`` per tree of a plot: ``skeleton.ply``, ``skeleton.mtg``, the
+    QSM tables and ``points.laz`` of its points (only when there are several trees)."""
+    from biomorph.io import write_graph
+
+    g = _graph_of(skel)
+    trees = np.unique(g.trees)
+    if trees.size < 2:
+        return {}
+    offset = np.asarray(getattr(skel, "offset", np.zeros(3)), dtype=float)
+    seg = getattr(skel, "segment", None)
+    quality = getattr(skel, "quality", None)
+    labels = point_tree_labels(skel) if getattr(skel, "cloud", None) is not None else None
+    written: dict[str, Path] = {}
+    for t in trees:
+        keep = np.asarray(g.trees) == t
+        sub = g.subgraph(keep)
+        sub = sub.with_(position=sub.position + offset) if world else sub
+        d = out / f"tree_{int(t)}"
+        d.mkdir(parents=True, exist_ok=True)
+        q = None if quality is None else {k: np.asarray(v)[keep] for k, v in quality.items()}
+        s = None if seg is None else np.asarray(seg)[keep]
+        written[f"tree_{int(t)}"] = write_graph(d / "skeleton.ply", sub)
+        write_graph(d / "skeleton.mtg", sub)
+        write_qsm_tables(d, sub, s, q)
+        if labels is not None:
+            from biomorph.core.pointcloud import PointCloud
+            from biomorph.io import write_points
+
+            pc = skel.cloud.select(labels == t)
+            write_points(d / "points.laz", PointCloud(
+                pc.xyz, attributes={**pc.attributes,
+                                    "tree_id": np.full(pc.n_points, int(t), np.int32)},
+                offset=pc.offset, meta=pc.meta))
+    return written
+
+
 def write_preview(path: PathLike, skel: Any, title: str | None = None) -> Path:
-    """Cloud (grey) + skeleton (coloured by order, width by radius): three views + 3-D."""
+    """Cloud (grey) + skeleton (width by radius; coloured by branch order for one tree, by
+    tree for a plot): three views + 3-D."""
     from biomorph.render import render_graph
 
     g = _graph_of(skel)
+    if np.unique(g.trees).size > 1:
+        g = g.with_(depth=None, tree_id=g.trees)      # render_graph colours by tree then
     cloud = getattr(skel, "cloud", None)
     with atomic_path(path) as tmp:
         render_graph(g, tmp, cloud=cloud, title=title)
@@ -291,6 +355,10 @@ def export_skeleton(skel: Any, out_dir: PathLike, *, formats: tuple[str, ...] | 
             written["obj"] = write_mesh(out / "tube.obj", mw)
         if "mesh_ply" in formats:
             written["mesh_ply"] = write_mesh(out / "tube.ply", mw)
+    if "las" in formats and getattr(skel, "cloud", None) is not None:
+        written["las"] = write_labelled_points(out / "points.laz", skel)
+    if "trees" in formats:
+        written.update(write_per_tree(out, skel, world))
     if "json" in formats:
         written["json"] = write_summary(out / "summary.json", skel,
                                         {"files": {k: v.name for k, v in written.items()},
