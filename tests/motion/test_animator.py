@@ -318,3 +318,51 @@ def test_cli_retarget_and_mirror(tmp_path, capsys):
         assert run(["motion", *argv]) == 2
         assert len(capsys.readouterr().err.strip().splitlines()) <= 2
         assert not never.exists()
+
+
+def test_batch_applies_a_chain_and_reports_failures(tmp_path, capsys):
+    walk = shared_file("motion", "xia_neutral_01_000_walk.bvh")
+    raw = shared_file("motion", "dme_comp_3d_2_raw.bvh")
+    broken = tmp_path / "broken.bvh"
+    broken.write_text("HIERARCHY\nROOT a\n{\n")
+    out = tmp_path / "out"
+    argv = ["motion", "batch", str(walk), str(raw), str(broken), "--op",
+            "equalize:gains=0/0/1/1/1", "--op", "trim:start=2,stop=40", "--out", str(out),
+            "--workers", "0", "--json"]
+    assert run(argv) == 1  # one input failed, the others were written
+    rep = json.loads(capsys.readouterr().out)
+    assert len(rep["ok"]) == 2 and len(rep["failed"]) == 1
+    assert read_bvh(out / "xia_neutral_01_000_walk.bvh").n_frames == 38
+    assert not (out / "broken.bvh").exists()
+    assert run(["motion", "batch", str(walk), "--op", "explode", "--out", str(out)]) == 2
+    assert "unknown operator" in capsys.readouterr().err
+
+
+def test_chain_matches_single_operators(xia):
+    from biomorph.motion.chain import Step, apply_chain
+
+    steps = [Step.parse("equalize:gains=0/0/1/1/1"), Step.parse("mirror")]
+    out = apply_chain(xia, steps, lock_feet=False)
+    from biomorph.motion.retarget import mirror
+
+    ref = mirror(bm.equalize(xia, [0, 0, 1, 1, 1]))
+    assert np.array_equal(out.rotation, ref.rotation)
+    with pytest.raises(ParameterError, match="gains"):
+        apply_chain(xia, [Step.parse("equalize:gains=a/b")])
+    with pytest.raises(ParameterError, match="speed"):
+        apply_chain(xia, [Step.parse("speed:speed=inf")])
+
+
+def test_preview_gif(tmp_path, capsys):
+    from PIL import Image
+
+    walk = str(shared_file("motion", "dme_comp_3d_2_fixed.bvh"))
+    gif = tmp_path / "clip.gif"
+    assert run(["motion", "convert", walk, "-o", str(tmp_path / "c.bvh"), "--preview",
+                str(gif)]) == 0
+    im = Image.open(gif)
+    assert im.n_frames == 64 and im.size == (320, 320)
+    never = tmp_path / "never.bvh"
+    assert run(["motion", "convert", walk, "-o", str(never), "--preview",
+                str(tmp_path / "x.png")]) == 2
+    assert "--preview" in capsys.readouterr().err and not never.exists()

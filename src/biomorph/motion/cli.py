@@ -35,6 +35,9 @@ Feet = Annotated[bool, typer.Option("--lock-feet/--no-lock-feet",
                                          "(contact detection + two-bone IK).")]
 Euler = Annotated[str, typer.Option("--euler", help="BVH angles: wrap (±180°) or "
                                                     "continuous (unwrapped over time).")]
+Preview = Annotated[Path | None, typer.Option("--preview", help="Also write an animated "
+                                                               "preview (.gif, or .mp4 with "
+                                                               "ffmpeg).")]
 
 def _read(path: Path, up: str | None = None, strict: bool | None = None):
     import warnings
@@ -56,15 +59,23 @@ def _read(path: Path, up: str | None = None, strict: bool | None = None):
     return mo
 
 
-def _finish(path: Path, mo, reference=None, lock: bool = True, euler: str = "wrap"):
-    """Lock planted feet (against ``reference`` when it shares the timing), then write."""
+def _finish(path: Path, mo, reference=None, lock: bool = True, euler: str = "wrap",
+            preview: Path | None = None):
+    """Lock planted feet (against ``reference`` when it shares the timing), write, and
+    render the preview (checked before anything is written)."""
+    import shutil
     import warnings
 
-    from biomorph._cli import err_console
+    from biomorph._cli import check_suffix, err_console
     from biomorph.motion.contact import ContactWarning, lock_feet
 
     if euler not in ("wrap", "continuous"):
         raise ParameterError(f"--euler {euler!r}; expected wrap or continuous")
+    if preview is not None:
+        check_suffix(preview, (".gif", ".mp4"), "--preview")
+        if preview.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
+            raise UnsupportedFormatError(f"--preview {preview}: MP4 needs ffmpeg (apt-get "
+                                         "install ffmpeg); write a .gif instead")
     if lock:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ContactWarning)
@@ -72,6 +83,10 @@ def _finish(path: Path, mo, reference=None, lock: bool = True, euler: str = "wra
         for w in caught:
             err_console.print(f"warning: {w.message}", markup=False, highlight=False)
     _write(path, mo, euler)
+    if preview is not None:
+        from biomorph.motion.preview import render_preview
+
+        render_preview(mo, preview)
     return mo
 
 
@@ -173,7 +188,8 @@ def equalize(path: Annotated[Path, typer.Argument(help="Input motion.")], output
              root: Annotated[str, typer.Option(help="Last gain on the root path: trajectory "
                                                     "(kept) | start | world.")] = "trajectory",
              up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-             euler: Euler = "wrap", as_json: Json = False) -> None:
+             euler: Euler = "wrap", preview: Preview = None,
+    as_json: Json = False) -> None:
     """Motion Equalizer: scale frequency bands (à-trous filter bank), feet kept planted.
 
     Example: biomorph motion equalize walk.bvh -o smooth.bvh --gains 0,0,1,1,1
@@ -185,7 +201,7 @@ def equalize(path: Annotated[Path, typer.Argument(help="Input motion.")], output
     t0 = time.perf_counter()
     src = _read(path, up, strict)
     mo = eq(src, g, joint, channels, below, boundary, root)
-    mo = _finish(output, mo, src, lock_feet, euler)
+    mo = _finish(output, mo, src, lock_feet, euler, preview)
     _emit(_summary(mo, output, t0, gains=g), as_json)
 
 
@@ -202,7 +218,8 @@ def edit(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
          tangent: Annotated[str, typer.Option(help="auto (clamped, no overshoot) | spline | "
                                                    "linear | flat")] = "auto",
          up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-         euler: Euler = "wrap", as_json: Json = False) -> None:
+         euler: Euler = "wrap", preview: Preview = None,
+    as_json: Json = False) -> None:
     """Displacement map: add a smooth offset curve through keys to one joint.
 
     Example: biomorph motion edit walk.bvh -o reach.bvh --joint RightArm --key "120:0/0/30"
@@ -218,7 +235,7 @@ def edit(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
         keys = [(f, np.radians(v)) for f, v in keys]
     src = _read(path, up, strict)
     mo = displace(src, joint, keys, kind, fade, tangent=tangent)
-    mo = _finish(output, mo, src, lock_feet, euler)
+    mo = _finish(output, mo, src, lock_feet, euler, preview)
     _emit(_summary(mo, output, t0, keys=len(keys)), as_json)
 
 
@@ -228,7 +245,8 @@ def layers(path: Annotated[Path, typer.Argument(help="Input motion.")], output: 
                help="name:joint:kind:weight:keys, e.g. 'reach:RightArm:rotation:1:120:0/0/30' "
                     "(repeat for more layers; rotation keys in degrees).")],
            up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-           euler: Euler = "wrap", as_json: Json = False) -> None:
+           euler: Euler = "wrap", preview: Preview = None,
+    as_json: Json = False) -> None:
     """Additive animation layers (overAnimate): each layer a displacement map with a weight.
 
     Example: biomorph motion layers walk.bvh -o out.bvh --layer "up:Hips:position:1:60:0/2/0"
@@ -258,7 +276,7 @@ def layers(path: Annotated[Path, typer.Argument(help="Input motion.")], output: 
         made.append(Layer.make(name, joint, k, kind, w))
     src = _read(path, up, strict)
     mo = apply_layers(src, made)
-    mo = _finish(output, mo, src, lock_feet, euler)
+    mo = _finish(output, mo, src, lock_feet, euler, preview)
     _emit(_summary(mo, output, t0, layers=len(made)), as_json)
 
 
@@ -269,7 +287,7 @@ def reorient(path: Annotated[Path, typer.Argument(help="Input motion.")], output
              move: Annotated[str, typer.Option(help="Translation x,y,z (file units).")] =
              "0,0,0",
              up: Up = None, strict: Strict = False, euler: Euler = "wrap",
-             as_json: Json = False) -> None:
+             preview: Preview = None, as_json: Json = False) -> None:
     """Re-orient / re-position the whole motion (root recomputed, the rest untouched).
 
     Example: biomorph motion reorient walk.bvh -o west.bvh --angle 90 --move 0,0,2
@@ -287,7 +305,7 @@ def reorient(path: Annotated[Path, typer.Argument(help="Input motion.")], output
         check_value("--move", v, -1e12, 1e12)
     t0 = time.perf_counter()
     mo = ro(_read(path, up, strict), np.radians(angle), t)
-    _finish(output, mo, None, False, euler)
+    _finish(output, mo, None, False, euler, preview)
     _emit(_summary(mo, output, t0, angle_deg=angle), as_json)
 
 
@@ -314,7 +332,8 @@ def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, s
               help="Blend only this joint and the hierarchy below it (the rest from the "
                    "first clip).")] = None,
           up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-          euler: Euler = "wrap", as_json: Json = False) -> None:
+          euler: Euler = "wrap", preview: Preview = None,
+    as_json: Json = False) -> None:
     """Blend clips with a blend curve, timing offsets/scales and automatic alignment.
 
     Example: biomorph motion blend walk.bvh run.bvh -o walk2run.bvh --transition 40
@@ -343,7 +362,7 @@ def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, s
     if joint is not None:
         mo = merge_below(clips[0], mo, joint)
         ref = clips[0]
-    mo = _finish(output, mo, ref, lock_feet, euler)
+    mo = _finish(output, mo, ref, lock_feet, euler, preview)
     _emit(_summary(mo, output, t0, offsets=mo.meta["blend"]["offsets"]), as_json)
 
 
@@ -355,7 +374,8 @@ def speed(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
               help="Retime only this joint and the hierarchy below it (the rest keeps its "
                    "timing; output keeps the input's length).")] = None,
           up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-          euler: Euler = "wrap", as_json: Json = False) -> None:
+          euler: Euler = "wrap", preview: Preview = None,
+    as_json: Json = False) -> None:
     """Retime with a speed curve (2 = twice as fast), output at the original frame rate.
 
     Example: biomorph motion speed walk.bvh -o fast.bvh --speed "0:1,100:2,200:1"
@@ -383,7 +403,7 @@ def speed(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
     if joint is not None:
         mo = merge_below(src, mo, joint)
         ref = src
-    mo = _finish(output, mo, ref, lock_feet, euler)
+    mo = _finish(output, mo, ref, lock_feet, euler, preview)
     _emit(_summary(mo, output, t0, frames_in=src.n_frames), as_json)
 
 
@@ -407,7 +427,8 @@ def cycle(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
           no_offset: Annotated[bool, typer.Option("--no-offset",
                                                   help="Same as --mode in-place.")] = False,
           up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-          euler: Euler = "wrap", as_json: Json = False) -> None:
+          euler: Euler = "wrap", preview: Preview = None,
+    as_json: Json = False) -> None:
     """Make a seamless loop (cycle with offset, in place, or root motion); never teleports.
 
     Example: biomorph motion cycle walk.bvh -o loop.bvh --auto --transition 12 --cycles 4
@@ -425,7 +446,7 @@ def cycle(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
     up_axis = (up and "y") or mo.meta.get("up_guess") or "y"
     out = make_cycle(mo, s, e, transition, cycles, up=up_axis,
                      mode="in-place" if no_offset else mode)
-    out = _finish(output, out, None, lock_feet and mode != "root-motion", euler)
+    out = _finish(output, out, None, lock_feet and mode != "root-motion", euler, preview)
     _emit(_summary(out, output, t0, start=s, stop=e, period=out.meta["cycle"]["period"],
                    mode=out.meta["cycle"]["mode"], loop_cost=cost), as_json)
 
@@ -439,7 +460,7 @@ def root(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
              "--keep-heading", help="Leave the turns in the body (path translation only).")] =
          False,
          up: Up = None, strict: Strict = False, euler: Euler = "wrap",
-         as_json: Json = False) -> None:
+         preview: Preview = None, as_json: Json = False) -> None:
     """Root motion: extract the path to a ground-level root, make a clip in place, re-apply.
 
     Example: biomorph motion root walk.bvh -o walk_rm.bvh --action extract
@@ -458,7 +479,7 @@ def root(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
         out = rm.apply_root_motion(mo)
     else:
         raise ParameterError(f"--action {action!r}; expected extract, in-place or apply")
-    _finish(output, out, None, False, euler)
+    _finish(output, out, None, False, euler, preview)
     _emit(_summary(out, output, t0, action=action), as_json)
 
 
@@ -470,7 +491,7 @@ def trim(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
                                                        "end).", callback=bounded(1, 1e12))] =
          None,
          up: Up = None, strict: Strict = False, euler: Euler = "wrap",
-         as_json: Json = False) -> None:
+         preview: Preview = None, as_json: Json = False) -> None:
     """Keep frames start..stop-1.
 
     Example: biomorph motion trim take.bvh -o part.bvh --start 120 --stop 480
@@ -479,7 +500,7 @@ def trim(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
     t0 = time.perf_counter()
     mo = _read(path, up, strict)
     out = mo.frames(start, mo.n_frames if stop is None else stop)
-    _finish(output, out, None, False, euler)
+    _finish(output, out, None, False, euler, preview)
     _emit(_summary(out, output, t0, start=start), as_json)
 
 
@@ -489,7 +510,7 @@ def convert(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC.")], 
                                                       callback=bounded(0, 10000,
                                                                        lo_open=True))] = None,
             up: Up = None, strict: Strict = False, euler: Euler = "wrap",
-            as_json: Json = False) -> None:
+            preview: Preview = None, as_json: Json = False) -> None:
     """Convert (and optionally resample / make Y-up) a motion to BVH or glTF.
 
     Example: biomorph motion convert take.htr -o take.bvh --fps 30
@@ -499,14 +520,15 @@ def convert(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC.")], 
     mo = _read(path, up, strict)
     if fps is not None:
         mo = mo.resample(fps)
-    _finish(output, mo, None, False, euler)
+    _finish(output, mo, None, False, euler, preview)
     _emit(_summary(mo, output, t0), as_json)
 
 
 @app.command()
 def mirror(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
            up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-           euler: Euler = "wrap", as_json: Json = False) -> None:
+           euler: Euler = "wrap", preview: Preview = None,
+    as_json: Json = False) -> None:
     """Swap left and right (names Left/Right, .L/.R, _l/_r, L_/R_): a mirror-image clip.
 
     Example: biomorph motion mirror walk.bvh -o walk_mirrored.bvh
@@ -516,7 +538,7 @@ def mirror(path: Annotated[Path, typer.Argument(help="Input motion.")], output: 
     _check_out(output)
     t0 = time.perf_counter()
     out = mi(_read(path, up, strict))
-    out = _finish(output, out, None, lock_feet, euler)
+    out = _finish(output, out, None, lock_feet, euler, preview)
     _emit(_summary(out, output, t0), as_json)
 
 
@@ -534,7 +556,8 @@ def retarget(path: Annotated[Path, typer.Argument(help="Source motion.")], outpu
                  "--map", help="CSV of source,target joint names (instead of presets).")] =
              None,
              up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-             euler: Euler = "wrap", as_json: Json = False) -> None:
+             euler: Euler = "wrap", preview: Preview = None,
+    as_json: Json = False) -> None:
     """Play a clip on another skeleton (other names, proportions, rest pose); feet planted.
 
     Example: biomorph motion retarget cmu_walk.bvh --to mixamo_char.bvh -o walk_on_char.bvh
@@ -546,9 +569,62 @@ def retarget(path: Annotated[Path, typer.Argument(help="Source motion.")], outpu
     src = _read(path, up, strict)
     tgt = _read(to, None, strict)
     out = rt(src, tgt.skeleton, source_names, target_names, map_csv, feet=False)
-    out = _finish(output, out, None, lock_feet, euler)
+    out = _finish(output, out, None, lock_feet, euler, preview)
     _emit(_summary(out, output, t0, mapped=out.meta["retarget"]["joints"],
                    leg_scale=out.meta["retarget"]["leg_scale"]), as_json)
+
+
+@app.command()
+def batch(inputs: Annotated[list[Path], typer.Argument(help="Motion files (BVH/HTR/ASF).")],
+          op: Annotated[list[str], typer.Option(
+              "--op", help="Operator step name[:key=value,…], applied in order (repeat); "
+                           "e.g. equalize:gains=0/0/1/1/1  cycle:auto=1,mode=in-place.")],
+          out: Annotated[Path, typer.Option("--out", help="Output folder (OUT/<name>.bvh).")] =
+          Path("motion-batch"),
+          workers: Annotated[int | None, typer.Option(
+              help="Worker processes (0 = serial; default: CPU count).",
+              callback=bounded(0, 1024))] = None,
+          scheduler: Annotated[str | None, typer.Option(help="Address of a running dask "
+                                                             "scheduler.")] = None,
+          lock_feet: Feet = True, euler: Euler = "wrap", as_json: Json = False) -> None:
+    """Apply a chain of operators to many files in parallel (dask), feet locked after each.
+
+    Failed inputs are reported without stopping the others; re-runs resume. Exit code 1 if
+    any input failed.
+
+    Example: biomorph motion batch takes/*.bvh --op equalize:gains=0/0/1/1/1 --op
+    cycle:auto=1,transition=12,cycles=4,mode=in-place --out loops/
+    """
+    from biomorph.motion.chain import Step, batch_item
+    from biomorph.scale.batch import run_batch
+
+    if not inputs:
+        raise ParameterError("no input files given")
+    if euler not in ("wrap", "continuous"):
+        raise ParameterError(f"--euler {euler!r}; expected wrap or continuous")
+    stems = [p.stem for p in inputs]
+    if len(set(stems)) != len(stems):
+        raise ParameterError("input file names must be unique (outputs go to OUT/<name>.bvh)")
+    steps = [Step.parse(t) for t in op]
+    out.mkdir(parents=True, exist_ok=True)
+    items = [(str(p), str(out / f"{p.stem}.bvh"), steps, lock_feet, euler) for p in inputs]
+    report = run_batch(items, batch_item, out_dir=out, key=lambda it: Path(it[0]).stem,
+                       workers=workers, scheduler=scheduler, description="motions",
+                       options={"ops": op, "lock_feet": lock_feet, "euler": euler})
+    if as_json:
+        from biomorph._cli import print_json
+
+        data = report.to_dict()
+        data["results"] = report.results
+        print_json(data)
+    else:
+        from biomorph._cli import err_console, out_console
+
+        out_console.print(report.summary())
+        for key, msg in report.failed:
+            err_console.print(f"failed: {key}: {msg}")
+    if report.exit_code:
+        raise typer.Exit(report.exit_code)
 
 
 @app.command()
