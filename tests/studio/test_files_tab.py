@@ -60,6 +60,11 @@ def test_files_tab_opens_uploads_and_reports_errors(studio, tmp_path):
              what="the size-limit error")
     studio.expect_text("upload limit")
     assert not (app.sandbox.root / "uploads" / "big.obj").exists()
+    # the refused upload ends in the page: no spinner left, the button works again
+    button = studio.page.get_by_role("button", name="Upload and open", exact=True)
+    wait_for(lambda: button.is_enabled(), what="the upload button to be enabled again")
+    wait_for(lambda: studio.page.locator(".mantine-Notification-loader").count() == 0,
+             what="the upload spinner to stop")
     # still usable: a good upload opens
     v1 = tab.version
     studio.upload(tab.upload, _box_obj(tmp_path / "good.obj"))

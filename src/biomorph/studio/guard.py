@@ -305,6 +305,15 @@ class InputGuard:
         self.gui._websock_interface.queue_message(
             GuiUpdateMessage(handle._impl.uuid, {"value": handle._impl.value}))
 
+    def _release(self, component: str | None, transfer: str) -> None:
+        """Tell the page's upload button the transfer is over (viser's client otherwise
+        spins forever and keeps the button disabled after a refusal)."""
+        from viser._messages import FileTransferPartAck
+
+        self.gui._websock_interface.queue_message(FileTransferPartAck(
+            source_component_uuid=component, transfer_uuid=transfer, transferred_bytes=0,
+            total_bytes=0))
+
     def on_update(self, inner: Callable) -> Callable:
         async def handler(client_id: int, message: Any) -> None:
             handle = self.gui._gui_input_handle_from_uuid.get(message.uuid)
@@ -344,6 +353,7 @@ class InputGuard:
                             f"{message.filename}: {size / 1e6:.1f} MB exceeds the upload "
                             f"limit of {limit / 1e6:.1f} MB" if isinstance(size, int) and
                             size > limit else f"{message.filename}: malformed upload")
+                self._release(message.source_component_uuid, message.transfer_uuid)
                 return  # nothing is buffered: later parts find no transfer and are dropped
             inner(client_id, message)
         return handler
@@ -361,6 +371,7 @@ class InputGuard:
                 self.report(message.source_component_uuid,
                             f"{state['filename']}: the upload sent more than the "
                             f"{state['total_bytes']:,} bytes it declared; dropped")
+                self._release(message.source_component_uuid, message.transfer_uuid)
                 self.close(client_id)
                 return
             inner(client_id, message)
