@@ -309,4 +309,35 @@ def write_graph(path: PathLike, graph: BranchGraph) -> Path:
     return write_text(path, "\n".join(out) + "\n")
 
 
-__all__ = ["read_graph", "write_graph"]
+def write_mtg(path: PathLike, classes: list[tuple[str, int]],
+              rows: list[tuple[int, str, dict[str, float]]], features: list[str],
+              relations: list[tuple[str, str, str]] | None = None) -> Path:
+    """Write a multiscale MTG (FORM-A) from explicit entity rows.
+
+    ``classes``: ``(symbol, scale)`` pairs (scale 0, the scene ``$``, is added);
+    ``rows``: ``(column, code, {feature: value})`` in file order, codes written as given
+    (``/P1``, ``^/A1``, ``^<M2``, ``+A2`` …; see the module docstring for how columns and
+    ``^`` resolve references); ``features``: REAL feature names (missing values are left
+    empty). ``relations``: DESCRIPTION rows ``(left, right, reltype)`` (default: ``<`` and
+    ``+`` between every pair of same-scale classes).
+    """
+    if not rows:
+        raise InputError(f"{os.fspath(path)}: no entities to write")
+    ncol = max(col for col, _, _ in rows) + 1
+    out = ["CODE :\tFORM-A", "", "CLASSES :", "SYMBOL\tSCALE\tDECOMPOSITION\tINDEXATION\t"
+           "DEFINITION", "$\t0\tFREE\tFREE\tIMPLICIT"]
+    out += [f"{sym}\t{scale}\tFREE\tFREE\tEXPLICIT" for sym, scale in classes]
+    out += ["", "DESCRIPTION :", "LEFT\tRIGHT\tRELTYPE\tMAX"]
+    if relations is None:
+        relations = [(a, b, r) for a, sa in classes for b, sb in classes if sa == sb
+                     for r in ("<", "+")]
+    out += [f"{a}\t{b}\t{r}\t?" for a, b, r in relations]
+    out += ["", "FEATURES :", "NAME\tTYPE"] + [f"{f}\tREAL" for f in features] + ["", "MTG :"]
+    out.append("ENTITY-CODE" + "\t" * ncol + "\t".join(features))
+    for col, code, feats in rows:
+        vals = ["" if feats.get(f) is None else repr(float(feats[f])) for f in features]
+        out.append("\t" * col + code + "\t" * (ncol - col) + "\t".join(vals))
+    return write_text(path, "\n".join(out) + "\n")
+
+
+__all__ = ["read_graph", "write_graph", "write_mtg"]

@@ -123,6 +123,7 @@ class Field:
     soil: bool = True
     requested_leaves: int = 0   # leaves per plant asked for
     tile: tuple[float, float, float, float] | None = None   # ground rectangle (x0 y0 x1 y1)
+    width_scale: Array | None = None   # (N,) extra width factor (plant tables: W_blade)
 
     @property
     def n_leaves(self) -> int:
@@ -328,6 +329,8 @@ def _batch_one_shape(fld: Field, shape: LeafShape, idx: NDArray[np.int64], sg: A
         phi = phi + _interp_rows(c.s, rows, smid)
     phi = phi + fld.incline[idx, None]
     seg = np.diff(sg)[None, :] * l_cur[:, None]
+    if fld.width_scale is not None:
+        wscale = wscale * fld.width_scale[idx]
     width = shape.width * wscale[:, None] * np.interp(shat, shape.s_r, shape.r)
     theta = shape.theta_at(shat) if twist else np.zeros_like(shat)
     if undulation and shape.undulation > 0:
@@ -418,7 +421,8 @@ def plant_growth_frames(spec: PlantSpec | FieldSpec, frames: int, seed: int = 0,
                                                       ) * elong
         fr = Field(full.shape, full.plant_pos, stem_h, full.stem_radius, full.plant, full.rank,
                    leaf_age, scale, full.incline, full.azimuth, org, full.ground_area,
-                   full.shapes, full.shape_id, full.soil, full.requested_leaves, full.tile)
+                   full.shapes, full.shape_id, full.soil, full.requested_leaves, full.tile,
+                   full.width_scale)
         out.append(field_mesh(fr, s=sg, drop_degenerate=False))
     return out
 

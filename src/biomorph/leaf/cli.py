@@ -419,3 +419,86 @@ def _coloured(mesh, values):
     rgba = np.concatenate([rgb, np.full((len(values), 1), 255.0)], axis=1).astype(np.uint8)
     return Mesh(mesh.vertices, mesh.faces, normals=mesh.normals, uv=mesh.uv,
                 vertex_colors=rgba, face_ids=mesh.face_ids)
+
+
+@app.command()
+def plant(output: Annotated[Path, typer.Option("-o", "--output",
+                                               help="plant.glb|.obj|.ply|.can")],
+          preset: Preset = "wheat",
+          leaves: Annotated[int, typer.Option(help="Main-stem leaves (default tables).",
+                                              callback=bounded(1, 60))] = 11,
+          thermal_time: Annotated[float, typer.Option(
+              help="Thermal time since emergence (°Cd).", callback=NONNEG)] = 1100.0,
+          phyllochron: Annotated[float | None, typer.Option(
+              help="Phyllochron (°Cd; default per preset).", callback=POS)] = None,
+          tillers: Annotated[int, typer.Option(help="Tillers.",
+                                               callback=bounded(0, 20))] = 0,
+          dims: Annotated[str | None, typer.Option(
+              "--dims", help="Dimension table CSV (dimT-like, metres).")] = None,
+          phen: Annotated[str | None, typer.Option(
+              "--phen", help="Phenology table CSV (phenT-like, Haun stages).")] = None,
+          mtg: Annotated[str | None, typer.Option(help="Also write the plant as MTG.")] = None,
+          triangles: Annotated[int, typer.Option(help="Triangles per leaf (about).",
+                                                 callback=bounded(1))] = 20,
+          seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+          as_json: Json = False) -> None:
+    """One plant as ADEL describes it: tables, thermal time, tubes, tillers, senescence.
+
+    Example: biomorph leaf plant --preset wheat --thermal-time 1100 --tillers 2 -o plant.glb
+    """
+    import warnings
+
+    from biomorph._cli import check_suffix, emit, err_console
+    from biomorph.io.plant_tables import read_dimensions, read_phenology
+    from biomorph.leaf.canopy import LeafCountWarning
+    from biomorph.leaf.files import write_leaf_mesh
+    from biomorph.leaf.plant import PlantOptions, build_plant_architecture, write_plant_mtg
+
+    _check_ext(output, MESH_EXT)
+    if mtg is not None:
+        check_suffix(mtg, (".mtg",), "--mtg")
+    d = read_dimensions(dims) if dims else None
+    p = read_phenology(phen) if phen else None
+    opts = PlantOptions(preset=preset, leaves=leaves if d is None else int(d["rank"].size),
+                        thermal_time=thermal_time, phyllochron=phyllochron, tillers=tillers,
+                        dimensions=d, phenology=p, triangles_per_leaf=triangles)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LeafCountWarning)
+        built = build_plant_architecture(opts, seed=seed)
+    for w in caught:
+        err_console.print(f"warning: {w.message}")
+    write_leaf_mesh(output, built.mesh)
+    summary = {"file": str(output), "preset": preset, **built.summary()}
+    if mtg is not None:
+        summary["mtg"] = str(write_plant_mtg(mtg, built))
+    lv = built.leaves
+    summary["per_leaf"] = [{"axis": int(lv["axis"][i]), "rank": int(lv["rank"][i]),
+                            "length_m": lv["length"][i], "green_length_m": lv["green_length"][i],
+                            "area_m2": lv["area"][i], "green_area_m2": lv["green_area"][i],
+                            "insertion_deg": lv["insertion_deg"][i]}
+                           for i in range(lv["rank"].size)] if as_json else len(lv["rank"])
+    emit(summary, as_json, title="leaf plant")
+
+
+@app.command()
+def tables(dims: Annotated[str, typer.Option("--dims", help="Write the dimension table here.")],
+           phen: Annotated[str, typer.Option("--phen", help="Write the phenology table here.")],
+           preset: Preset = "wheat",
+           leaves: Annotated[int, typer.Option(help="Main-stem leaves.",
+                                               callback=bounded(1, 60))] = 11,
+           as_json: Json = False) -> None:
+    """Write the default dimension and phenology tables of a preset (to edit and pass to
+    ``biomorph leaf plant --dims --phen``).
+
+    Example: biomorph leaf tables --preset maize --leaves 16 --dims dimT.csv --phen phenT.csv
+    """
+    from biomorph._cli import check_suffix, emit
+    from biomorph.io.plant_tables import DIM_COLUMNS, PHEN_COLUMNS, write_table
+    from biomorph.leaf.plant import default_tables
+
+    check_suffix(dims, (".csv",), "--dims")
+    check_suffix(phen, (".csv",), "--phen")
+    d, p = default_tables(preset, leaves)
+    emit({"dims": str(write_table(dims, d, DIM_COLUMNS)),
+          "phen": str(write_table(phen, p, PHEN_COLUMNS)), "ranks": leaves}, as_json,
+         title="leaf tables")
