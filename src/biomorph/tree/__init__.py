@@ -9,7 +9,9 @@ Modules: :mod:`~biomorph.tree.cloud` (preparation), :mod:`~biomorph.tree.ground`
 :mod:`~biomorph.tree.thinning` (voxel method), :mod:`~biomorph.tree.radius`,
 :mod:`~biomorph.tree.order`, :mod:`~biomorph.tree.cleanup`, :mod:`~biomorph.tree.metrics`,
 :mod:`~biomorph.tree.synthetic`, :mod:`~biomorph.tree.export`,
-:mod:`~biomorph.tree.reference`, :mod:`~biomorph.tree.pipeline`. Names are imported lazily.
+:mod:`~biomorph.tree.reference`, :mod:`~biomorph.tree.pipeline`,
+:mod:`~biomorph.tree.options` (one typed options dataclass per stage),
+:mod:`~biomorph.tree.qsm` (TreeQSM tables). Names are imported lazily.
 """
 
 from __future__ import annotations
@@ -20,6 +22,14 @@ from typing import Any
 _EXPORTS = {
     # pipeline
     "skeletonize": "pipeline", "TreeSkeleton": "pipeline", "load_cloud": "pipeline",
+    # one typed options object per stage
+    "SkeletonizeOptions": "options", "PrepareOptions": "options", "GraphOptions": "options",
+    "VoxelOptions": "options", "CleanupOptions": "options", "RadiusOptions": "options",
+    "OrderOptions": "options", "AttributeFilter": "options",
+    # QSM tables and measures
+    "branch_table": "qsm", "treedata_table": "qsm", "taper_radii": "radius",
+    "volume_by_class": "metrics", "volume_by_order": "metrics",
+    "tree_attributes": "metrics", "cylinder_fit": "metrics", "qsm_report": "metrics",
     # graph method and extensions
     "skeletonize_graph": "livny", "LivnyResult": "livny", "allometric_radii": "livny",
     "cleanup_skeleton": "cleanup", "collapse_overlaps": "cleanup",

@@ -1,0 +1,136 @@
+"""QSM measures of the tree pipeline on the real clouds, beside the reference models.
+
+For every cloud in ``../shared/data/trees`` (or ``--data``): total / trunk wood volume,
+volume per diameter class (< 2.5, 2.5–7, 7–20, > 20 cm), trunk length, height, number of
+order-1 branches, max order, share of points farther than 10 cm from every cylinder and the
+median signed residual per class (``tree.metrics.cylinder_fit``), with wall time. Where a
+reference model ships with the cloud (rTwig: TreeQSM ``.mat`` and SimpleForest CSV;
+plantscan3d A3B4: MTG), its numbers are printed in the same table. Volumes in litres.
+
+    .venv/bin/python bench/tree_qsm.py                 # every cloud, graph method
+    .venv/bin/python bench/tree_qsm.py --only rtwig --method voxel
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "trees"
+CLOUDS = {"rtwig": "rtwig_cloud.txt", "a3b4": "plantscan3d_A3B4.asc",
+          "adtree1": "adtree_tree1.xyz", "adtree7": "adtree_tree7.xyz",
+          "archi2": "archi_tree2.las", "spruce": "treels_spruce.laz",
+          "pine_plot": "treels_pine_plot.laz"}
+
+
+def _classes(r: np.ndarray, length: np.ndarray) -> dict[str, float]:
+    from biomorph.tree.metrics import DIAMETER_CLASSES, class_labels
+
+    c = np.searchsorted(DIAMETER_CLASSES, 2 * r, side="right")
+    v = np.pi * r * r * length
+    return {lab: 1000 * float(v[c == i].sum()) for i, lab in enumerate(class_labels())}
+
+
+def references(name: str, data: Path) -> dict[str, dict]:
+    """Reference models' figures (volumes litres)."""
+    out: dict[str, dict] = {}
+    if name == "rtwig":
+        import scipy.io
+
+        m = scipy.io.loadmat(data / "rtwig_QSM_treeqsm.mat", squeeze_me=True,
+                             struct_as_record=False)["OptQSM"]
+        td, cy = m.treedata, m.cylinder
+        out["TreeQSM"] = {"volume": float(td.TotalVolume), "trunk_volume": float(td.TrunkVolume),
+                          "trunk_length": float(td.TrunkLength), "height": float(td.TreeHeight),
+                          "order1": int(np.sum(m.branch.order == 1)),
+                          "max_order": int(td.MaxBranchOrder),
+                          "classes": _classes(cy.radius, cy.length)}
+        from biomorph.tree.reference import _columns
+
+        header, rows = _columns(data / "rtwig_QSM_simpleforest.csv")
+        col = {h.strip(): i for i, h in enumerate(header)}
+        r, ln = rows[:, col["radius"]], rows[:, col["length"]]
+        order = rows[:, col["branchOrder"]]
+        vol = np.pi * r * r * ln
+        out["SimpleForest"] = {"volume": 1000 * float(vol.sum()),
+                               "trunk_volume": 1000 * float(vol[order == 0].sum()),
+                               "trunk_length": float(ln[order == 0].sum()),
+                               "max_order": int(order.max()), "classes": _classes(r, ln)}
+    if name == "a3b4":
+        from biomorph.io import read_graph
+        from biomorph.tree.metrics import tree_attributes, volume_by_class
+        from biomorph.tree.order import with_order
+
+        g = with_order(read_graph(data / "plantscan3d_A3B4.mtg"))
+        a = tree_attributes(g)[0]
+        out["plantscan3d"] = {"volume": 1000 * a["total_volume"],
+                              "trunk_length": a["trunk_length"], "height": a["height"],
+                              "order1": a["branches_order1"], "max_order": a["max_order"],
+                              "classes": {k: 1000 * v["volume"]
+                                          for k, v in volume_by_class(g).items()}}
+    return out
+
+
+def ours(path: Path, method: str) -> dict:
+    from biomorph.tree import skeletonize
+
+    t0 = time.perf_counter()
+    c0 = time.process_time()
+    s = skeletonize(path, method=method)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    m = s.metrics
+    t = max(m["trees"], key=lambda r: r.get("total_volume", 0.0))
+    return {"volume": 1000 * t["total_volume"], "trunk_volume": 1000 * t["trunk_volume"],
+            "trunk_length": t["trunk_length"], "height": t["height"],
+            "order1": t["branches_order1"], "max_order": t["max_order"],
+            "n_trees": m["n_trees"], "tips": m["nob"],
+            "classes": {k: 1000 * v["volume"] for k, v in m["classes"].items()},
+            "far_share": m["fit"]["far_share"],
+            "residual": {k: v["residual"] for k, v in m["fit"]["classes"].items()},
+            "wall": wall, "cpu": cpu}
+
+
+def _fmt(v: object) -> str:
+    if v is None or (isinstance(v, float) and not np.isfinite(v)):
+        return "-"
+    return f"{v:.3g}" if isinstance(v, float) else str(v)
+
+
+def table(name: str, rows: dict[str, dict]) -> None:
+    keys = ["volume", "trunk_volume", "trunk_length", "height", "order1", "max_order",
+            "n_trees", "tips", "far_share", "wall", "cpu"]
+    cols = list(rows)
+    print(f"\n## {name}\n")
+    print("| metric | " + " | ".join(cols) + " |")
+    print("|---|" + "---|" * len(cols))
+    for k in keys:
+        print(f"| {k} | " + " | ".join(_fmt(rows[c].get(k)) for c in cols) + " |")
+    for lab in ("<2.5cm", "2.5-7cm", "7-20cm", ">20cm"):
+        print(f"| volume {lab} (L) | " + " | ".join(
+            _fmt(rows[c].get("classes", {}).get(lab)) for c in cols) + " |")
+    for lab in ("<2.5cm", "2.5-7cm", "7-20cm", ">20cm"):
+        print(f"| residual {lab} | " + " | ".join(
+            _fmt(rows[c].get("residual", {}).get(lab)) for c in cols) + " |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=DATA)
+    ap.add_argument("--only", nargs="*", default=None, choices=sorted(CLOUDS))
+    ap.add_argument("--method", default="graph", choices=("graph", "voxel"))
+    args = ap.parse_args()
+    for name in args.only or CLOUDS:
+        path = args.data / CLOUDS[name]
+        if not path.is_file():
+            print(f"skipped {name}: {path} missing")
+            continue
+        rows = references(name, args.data)
+        rows[f"biomorph {args.method}"] = ours(path, args.method)
+        table(name, rows)
+
+
+if __name__ == "__main__":
+    main()
