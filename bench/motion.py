@@ -4,6 +4,8 @@
 (432,000 frames × 60 joints): BVH read (target ≤ 5 s) and equalize (target ≤ 10 s).
 
 Usage: .venv/bin/python bench/motion.py [--quick]     (--quick skips the 1-hour take)
+       .venv/bin/python bench/motion.py --skate     (foot skate of the shared captures
+                                                     through every operator, with locking)
 
 Prints a markdown table. Every figure is the median of several runs after one warm-up call
 that loads the compiled kernels (operators 7 runs, minute BVH 3, the 100k-frame and 1-hour
@@ -145,5 +147,48 @@ def main() -> None:
         print("| " + " | ".join(r) + " |")
 
 
+WALKS = ("xia_neutral_01_000_walk.bvh", "ad_fair1_zombie_walk.bvh", "xia_angry_13_000_run.bvh",
+         "cmu_01_01.bvh", "dme_comp_3d_2_raw.bvh", "dme_comp_3d_2_fixed.bvh")
+
+
+def skate_table() -> None:
+    """Foot skate (``quality.foot_skate``, body scales per second in the metric's contact
+    frames) of the shared captures: the input, after each operator without and with contact
+    locking (the CLI default), and the input cleaned by ``lock_feet`` alone."""
+    import warnings
+
+    import biomorph.motion as bm
+    from biomorph.io.bvh import read_bvh
+    from biomorph.motion.contact import lock_feet
+    from biomorph.motion.quality import foot_skate
+
+    data = Path(__file__).resolve().parents[2] / "shared" / "data" / "motion"
+    if not data.is_dir():
+        print(f"(skate table skipped: {data} not found)")
+        return
+    warnings.simplefilter("ignore")
+
+    def sk(mo) -> str:
+        return f"{foot_skate(mo)['skate_per_body_scale']:.3f}"
+
+    print("\nFoot skate (body scales / s in contact frames; operator → operator + lock)\n")
+    print("| file | input | cleaned | equalize 0,0.5,1,1,1 | equalize 1,1.5,1.5,1,1 | "
+          "speed ×1.3 | blend with itself |")
+    print("|---|---|---|---|---|---|---|")
+    for name in WALKS:
+        m = read_bvh(data / name)
+        e1 = bm.equalize(m, [0, 0.5, 1, 1, 1])
+        e2 = bm.equalize(m, [1, 1.5, 1.5, 1, 1])
+        sp = bm.change_speed(m, 1.3)
+        bl = bm.blend([m, m[m.n_frames // 3:]], transition=min(30, m.n_frames // 4))
+        cells = [sk(m), sk(lock_feet(m)),
+                 f"{sk(e1)} → {sk(lock_feet(e1, m))}", f"{sk(e2)} → {sk(lock_feet(e2, m))}",
+                 f"{sk(sp)} → {sk(lock_feet(sp))}", f"{sk(bl)} → {sk(lock_feet(bl))}"]
+        print(f"| {name} | " + " | ".join(cells) + " |")
+
+
 if __name__ == "__main__":
-    main()
+    if "--skate" in sys.argv:
+        skate_table()
+    else:
+        main()

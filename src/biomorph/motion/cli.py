@@ -426,6 +426,9 @@ def cycle(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
           "world",
           no_offset: Annotated[bool, typer.Option("--no-offset",
                                                   help="Same as --mode in-place.")] = False,
+          joint: Annotated[str | None, typer.Option(
+              help="Loop only this joint and the hierarchy below it over the input's length "
+                   "(the rest as captured).")] = None,
           up: Up = None, strict: Strict = False, lock_feet: Feet = True,
           euler: Euler = "wrap", preview: Preview = None,
     as_json: Json = False) -> None:
@@ -446,7 +449,15 @@ def cycle(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
     up_axis = (up and "y") or mo.meta.get("up_guess") or "y"
     out = make_cycle(mo, s, e, transition, cycles, up=up_axis,
                      mode="in-place" if no_offset else mode)
-    out = _finish(output, out, None, lock_feet and mode != "root-motion", euler, preview)
+    ref = None
+    if joint is not None:
+        from biomorph.motion.partial import merge_below
+
+        info = out.meta["cycle"]
+        out = merge_below(mo, out, joint)
+        out.meta["cycle"] = info
+        ref = mo
+    out = _finish(output, out, ref, lock_feet and mode != "root-motion", euler, preview)
     _emit(_summary(out, output, t0, start=s, stop=e, period=out.meta["cycle"]["period"],
                    mode=out.meta["cycle"]["mode"], loop_cost=cost), as_json)
 
