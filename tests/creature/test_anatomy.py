@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from biomorph.creature import generate
 from biomorph.creature.anatomy import PARTS, vertebra_parts
@@ -106,3 +107,26 @@ def test_class_coherence_and_extrapolation():
         generate(0, weight=5e6)
     c = generate(0, weight=5e6, allow_extrapolation=True, legs=4)
     assert c.total_mass == pytest.approx(5e6, rel=1e-6)
+
+
+def test_walk_plants_the_feet_and_stays_above_ground():
+    from biomorph.creature.walk import phase_offsets, plan_walk, walk_cycle, walk_quality
+
+    for seed, kw in ((3, {"legs": 4}), (2, {"legs": 2}), (5, {"legs": 6})):
+        c = generate(seed, **kw)
+        plan = plan_walk(c, frames=24, cycles=2, fps=24.0)
+        mo = walk_cycle(c, frames=24, cycles=2, fps=24.0)
+        assert mo.fps == 24.0 and mo.n_frames == 48 and plan.stride > 0
+        q = walk_quality(c, mo, plan)
+        assert q["slide_fraction"] <= 0.02, (seed, q)
+        assert q["penetration_fraction"] <= 0.005, (seed, q)
+        root = mo.world_positions()[:, 0, 0]
+        assert root[-1] - root[0] == pytest.approx(plan.stride / plan.period * 47 / 24,
+                                                   rel=1e-9)
+    legs = [{"tag": t, "side": s} for t in ("shoulder1", "hip1") for s in "lr"]
+    offs, duty = phase_offsets(legs, "trot")
+    assert offs == [0.5, 0.0, 0.0, 0.5] and duty == 0.5   # diagonal pairs together
+    legs6 = [{"tag": t, "side": s} for t in ("shoulder1", "shoulder2", "hip1") for s in "lr"]
+    offs6, _ = phase_offsets(legs6)
+    assert sorted(offs6) == [0, 0, 0, 0.5, 0.5, 0.5]
+    assert offs6[0] != offs6[1] and offs6[0] != offs6[2]   # tripod alternates
