@@ -137,6 +137,8 @@ def test_randomised_session_has_no_uncaught_exceptions(studio_app, browser, unca
         tab.close()
         session.tabs[key]  # still there
     acted = [d for d in done if not d.startswith(("no ", "skipped"))]
+    print(f"\nmonkey: {SECONDS:.0f} s, {len(acted)} actions ({len(done)} tries), "
+          f"{len(seen)} uncaught exceptions, {len(logged)} logged errors")
     assert len(acted) >= 3, done  # a loaded 2-core machine manages a few per 10 s
     assert not seen, f"uncaught exceptions after {len(done)} actions: {seen[:5]}"
     assert not logged, f"errors logged after {len(done)} actions: {logged[:5]}"

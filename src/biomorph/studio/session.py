@@ -302,6 +302,7 @@ class Session:
                     raise SandboxError(f"{name}: unsupported file type; expected one of "
                                        f"{' '.join(exts)}")
                 path = self.sandbox.save_upload(name, upload.content)
+                tab.set_status(f"Reading {plain(name)} ({len(upload.content) / 1e6:.1f} MB) …")
                 return on_file(path)
 
             tab.run("upload", job, timed=False, heavy=True)

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from biomorph.errors import InputError
-from biomorph.studio.base import StudioTab
+from biomorph.studio.base import StudioTab, plain
 
 NO_FILE = "(none in the data folder)"
 
@@ -49,7 +49,9 @@ class FilePicker:
         name = self.dropdown.value
         if name == NO_FILE:
             raise InputError("no file chosen: put one in the data folder or upload it")
-        return self.on_open(self.tab.app.sandbox.resolve(name))
+        path = self.tab.app.sandbox.resolve(name)
+        self.tab.set_status(f"Reading {plain(name)} ({path.stat().st_size / 1e6:.1f} MB) …")
+        return self.on_open(path)
 
     def _uploaded(self, path: Path) -> Any:
         result = self.on_open(path)

@@ -89,6 +89,7 @@ class FilesTab(StudioTab):
             raise FormatError(None, "the data folder holds no readable file; upload one")
         path = self.app.sandbox.resolve(name)
         ext = path.suffix.lower()
+        self.set_status(f"Reading {plain(name)} ({path.stat().st_size / 1e6:.1f} MB) …")
         if ext in io.MOTION_FORMATS:
             obj, kind = io.read_motion(path), "motion"
         elif ext in io.GRAPH_FORMATS:
