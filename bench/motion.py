@@ -6,6 +6,7 @@
 Usage: .venv/bin/python bench/motion.py [--quick]     (--quick skips the 1-hour take)
        .venv/bin/python bench/motion.py --skate     (foot skate of the shared captures
                                                      through every operator, with locking)
+       .venv/bin/python bench/motion.py --blender   (our BVH outputs imported by Blender)
 
 Prints a markdown table. Every figure is the median of several runs after one warm-up call
 that loads the compiled kernels (operators 7 runs, minute BVH 3, the 100k-frame and 1-hour
@@ -187,8 +188,79 @@ def skate_table() -> None:
         print(f"| {name} | " + " | ".join(cells) + " |")
 
 
+BLENDER_SCRIPT = """
+import builtins, json, sys
+_open = builtins.open
+def _o(f, mode="r", *a, **k):  # Debian's Blender BVH importer opens with 'rU' (Python 3.11)
+    return _open(f, mode.replace("U", ""), *a, **k)
+builtins.open = _o
+import bpy
+out = {}
+for f in sys.argv[sys.argv.index("--") + 1:]:
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_anim.bvh(filepath=f, axis_forward="Y", axis_up="Z", rotate_mode="NATIVE")
+    ob = bpy.context.selected_objects[0]
+    out[f] = {}
+    for fr in (1, 50, 100):
+        bpy.context.scene.frame_set(fr)
+        out[f][fr] = {pb.name: list(ob.matrix_world @ pb.head) for pb in ob.pose.bones}
+print("JSON" + json.dumps(out))
+"""
+
+
+def blender_check() -> None:
+    """Write our BVH outputs (wrapped Euler, root motion, retarget, mirror) and import them
+    with Blender's own BVH importer (``blender -b``, axes kept): largest joint-position
+    difference to our FK at frames 1, 50, 100."""
+    import json
+    import shutil
+    import subprocess
+    import warnings
+
+    import biomorph.motion as bm
+    from biomorph.io.bvh import read_bvh, write_bvh
+    from biomorph.motion.retarget import mirror, retarget
+    from biomorph.motion.rootmotion import extract_root_motion
+
+    exe = shutil.which("blender")
+    data = Path(__file__).resolve().parents[2] / "shared" / "data" / "motion"
+    if exe is None or not data.is_dir():
+        print("(Blender check skipped: blender or the shared data not found)")
+        return
+    warnings.simplefilter("ignore")
+    walk = read_bvh(data / "xia_neutral_01_000_walk.bvh")
+    dance = read_bvh(data / "ad_rokoko_jesse_dance.bvh")
+    cases = {"equalize (±180° Euler)": bm.equalize(walk, [1, 1, 1, 1, 0.5]),
+             "root motion (ground root)": extract_root_motion(walk),
+             "retarget onto the Rokoko rig": retarget(walk, dance.skeleton),
+             "mirror": mirror(walk), "Rokoko dance as read": dance}
+    with tempfile.TemporaryDirectory(prefix="bm-blender-") as tmp:
+        paths = {}
+        for i, (name, mo) in enumerate(cases.items()):
+            paths[name] = write_bvh(Path(tmp) / f"c{i}.bvh", mo)
+        script = Path(tmp) / "check.py"
+        script.write_text(BLENDER_SCRIPT)
+        res = subprocess.run([exe, "-b", "--factory-startup", "--python", str(script), "--",
+                              *map(str, paths.values())], capture_output=True, text=True,
+                             timeout=600)
+        line = next(ln for ln in res.stdout.splitlines() if ln.startswith("JSON"))
+        got = json.loads(line[4:])
+        print("\nBlender BVH import vs biomorph FK (max joint-position difference)\n")
+        print("| output | joints | max difference | hip height |")
+        print("|---|---|---|---|")
+        for name, p in paths.items():
+            mo = read_bvh(p)
+            w = mo.world_positions()
+            d = max(abs(a - b) for fr, joints in got[str(p)].items()
+                    for n, xyz in joints.items()
+                    for a, b in zip(xyz, w[int(fr) - 1, mo.names.index(n)], strict=True))
+            print(f"| {name} | {mo.n_joints} | {d:.1e} | {np.median(w[:, 0, 1]):.3g} |")
+
+
 if __name__ == "__main__":
-    if "--skate" in sys.argv:
+    if "--blender" in sys.argv:
+        blender_check()
+    elif "--skate" in sys.argv:
         skate_table()
     else:
         main()
