@@ -934,3 +934,48 @@ def test_same_decoded_data_as_pygltflib_writer(tmp_path):
                 continue
             tol = 1e-6 * max(w[3], 1.0)
             np.testing.assert_allclose(g[2:], w[2:], rtol=1e-7, atol=tol, err_msg=f"{case} {key}")
+
+
+# ----------------------------------------------------------------------------- creature paths
+def test_joint_geometry_skinned_mesh_and_extras(tmp_path):
+    sk = skeleton()
+    n = len(sk)
+    box_v = np.array([[-.1, 0, -.1], [.1, 0, -.1], [.1, 0, .1], [-.1, 0, .1],
+                      [-.1, .2, -.1], [.1, .2, -.1], [.1, .2, .1], [-.1, .2, .1]])
+    box_f = np.array([[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6], [0, 4, 5], [0, 5, 1],
+                      [1, 5, 6], [1, 6, 2], [2, 6, 7], [2, 7, 3], [3, 7, 4], [3, 4, 0]])
+    verts = np.concatenate([box_v] * n)
+    faces = np.concatenate([box_f + 8 * j for j in range(n)])
+    jnt = np.repeat(np.arange(n), 8)
+    nrm = verts / np.linalg.norm(verts + 1e-9, axis=1, keepdims=True)
+    world = sk.world_matrices()
+    skin_v = world[:, :3, 3] + 0.01
+    k = len(skin_v)
+    sv = np.concatenate([skin_v, skin_v + [0, 0.05, 0], skin_v + [0.05, 0, 0]])
+    sf = np.stack([np.arange(k), np.arange(k) + k, np.arange(k) + 2 * k], axis=1)
+    sj = np.tile([0, 1, 2, 3], (3 * k, 1))
+    sw = np.tile([2.0, 1.0, 1.0, 0.0], (3 * k, 1))
+    extras = [{"rigify_type": "basic.super_copy"} if j == 1 else None for j in range(n)]
+    p = write_gltf(tmp_path / "c.glb", sk, bone_shape=None, name="c",
+                   joint_geometry=(verts, nrm, jnt, faces),
+                   skinned_mesh=(sv, np.tile([0, 0, 1.0], (3 * k, 1)), sj, sw, sf),
+                   joint_extras=extras, extras={"biomorph_metarig": 1})
+    assert_valid_glb(p)
+    doc, blob = load(p)
+    assert [m.name for m in doc.meshes] == ["c_bones", "c_skin_mesh"]
+    w = accessor(doc, blob, doc.meshes[1].primitives[0].attributes.WEIGHTS_0)
+    assert np.allclose(w.sum(axis=1), 1.0, atol=1e-6) and np.allclose(w[0], [0.5, .25, .25, 0])
+    # bone geometry moved from joint frames into bind space
+    pos = accessor(doc, blob, doc.meshes[0].primitives[0].attributes.POSITION)
+    assert np.allclose(pos[8:16], box_v @ world[1, :3, :3].T + world[1, :3, 3], atol=1e-6)
+    assert doc.nodes[1].extras == {"rigify_type": "basic.super_copy"}
+    assert next(nd for nd in doc.nodes if nd.name == "c").extras == {"biomorph_metarig": 1}
+    with pytest.raises(ParameterError, match="joint_geometry"):
+        write_gltf(tmp_path / "x.glb", sk, joint_geometry=(verts, nrm, jnt[:-1], faces))
+    with pytest.raises(ParameterError, match="joint index"):
+        write_gltf(tmp_path / "x.glb", sk, joint_geometry=(verts, nrm, jnt + n, faces))
+    with pytest.raises(ParameterError, match="weights sum to 0"):
+        write_gltf(tmp_path / "x.glb", sk, skinned_mesh=(sv, sv, sj, sw * 0, sf))
+    with pytest.raises(ParameterError, match="joint_extras"):
+        write_gltf(tmp_path / "x.glb", sk, joint_extras=[{}])
+    assert not (tmp_path / "x.glb").exists()
