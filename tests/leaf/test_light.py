@@ -77,16 +77,15 @@ def test_analytic_shadow_of_one_horizontal_leaf() -> None:
     d = direction_from(el, az)
     shift = -d[:2] / d[2] * h                          # shadow offset on the ground
     assert 0 < np.linalg.norm(shift) < 0.5
-    from biomorph.leaf.light import _cast
+    from biomorph.leaf.light import _cast, _Embree, _Trimesh
 
     inside = np.array([[0.5, 0.5, 0.0], [0.45, 0.55, 0.0]]) + [*shift, 0]
     outside = np.array([[0.5, 0.5, 0.0]]) - [*shift, 0]
-    import trimesh
-    from trimesh.ray.ray_pyembree import RayMeshIntersector
-
-    eng = RayMeshIntersector(trimesh.Trimesh(leaf.vertices, leaf.faces, process=False))
-    hit = _cast(eng, np.concatenate([inside, outside]), d, 1.0, (0, 0, 1, 1), False)
-    assert hit.tolist()[:2] != [-1, -1] and min(hit[:2]) >= 0 and hit[2] == -1
+    ground = np.concatenate([inside, outside])
+    for engine in (_Embree, _Trimesh):           # both ray engines agree
+        eng = engine(leaf.vertices[leaf.faces])
+        hit = _cast(eng, ground, d, 1.0, (0, 0, 1, 1), False)
+        assert min(hit[:2]) >= 0 and hit[2] == -1
 
 
 def test_sun_position_known_values() -> None:
@@ -164,3 +163,21 @@ def test_light_cli_empty_canopy(tmp_path, capsys) -> None:
     empty.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
     assert run(["leaf", "light", str(empty), "--json"]) == 2
     assert "triangle" in capsys.readouterr().err
+
+
+def test_fallback_engine_warns_and_agrees(monkeypatch) -> None:
+    from biomorph.leaf import light
+
+    m = turbid(1.0, size=0.3, leaf=0.03, seed=2)
+    opts = LightOptions(when=datetime(2026, 6, 21, 12), sky=0, diffuse_fraction=0.0,
+                        ground=(0, 0, 0.3, 0.3), ray_spacing=0.005)
+    fast = intercept(m, opts)
+
+    def missing(tri):
+        raise ImportError("no embreex")
+
+    monkeypatch.setattr(light, "_Embree", missing)
+    with pytest.warns(RuntimeWarning, match="embreex is not installed"):
+        slow = intercept(m, opts)
+    assert slow.engine == "trimesh" and fast.engine == "embree"
+    assert np.abs(slow.gap_by_direction - fast.gap_by_direction).max() < 0.005

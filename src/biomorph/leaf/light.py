@@ -222,17 +222,54 @@ class LightResult:
 
 
 # --------------------------------------------------------------------------- casting
-def _intersector(tm: Any) -> tuple[Any, str]:
+class _Embree:
+    """First hits with Embree (embreex) directly: one scene, float32 rays, ``tfar``."""
+
+    def __init__(self, tri: Array) -> None:
+        from embreex import rtcore_scene as rtcs
+        from embreex.mesh_construction import TriangleMesh
+
+        self.scene = rtcs.EmbreeScene()
+        self._mesh = TriangleMesh(scene=self.scene, vertices=tri.astype(np.float32))
+
+    def first(self, origins: Array, direction: Array) -> tuple[NDArray[np.int64], Array]:
+        d = np.broadcast_to(direction.astype(np.float32), origins.shape)
+        res = self.scene.run(origins.astype(np.float32), np.ascontiguousarray(d), output=1)
+        prim = res["primID"].astype(np.int64)
+        hit = prim >= 0
+        return np.where(hit, prim, -1), np.where(hit, res["tfar"].astype(float), np.inf)
+
+
+class _Trimesh:
+    """trimesh's pure-Python engine (fallback)."""
+
+    def __init__(self, tri: Array) -> None:
+        import trimesh
+        from trimesh.ray.ray_triangle import RayMeshIntersector
+
+        tm = trimesh.Trimesh(tri.reshape(-1, 3), np.arange(tri.shape[0] * 3).reshape(-1, 3),
+                             process=False)
+        self.engine = RayMeshIntersector(tm)
+
+    def first(self, origins: Array, direction: Array) -> tuple[NDArray[np.int64], Array]:
+        tri, ray, loc = self.engine.intersects_id(
+            origins, np.broadcast_to(direction, origins.shape), multiple_hits=False,
+            return_locations=True)
+        prim = np.full(len(origins), -1, np.int64)
+        dist = np.full(len(origins), np.inf)
+        prim[ray] = tri
+        if ray.size:
+            dist[ray] = np.einsum("ij,j->i", loc - origins[ray], direction)
+        return prim, dist
+
+
+def _intersector(tri: Array) -> tuple[Any, str]:
     try:
-        from trimesh.ray.ray_pyembree import RayMeshIntersector
-
-        return RayMeshIntersector(tm), "embree"
-    except (ImportError, ModuleNotFoundError, ValueError):
-        from trimesh.ray.ray_triangle import RayMeshIntersector as Slow
-
+        return _Embree(tri), "embree"
+    except ImportError:
         warnings.warn("embreex is not installed: using trimesh's pure-Python ray engine "
                       "(much slower); pip install embreex", RuntimeWarning, stacklevel=3)
-        return Slow(tm), "trimesh"
+        return _Trimesh(tri), "trimesh"
 
 
 def _ground_rect(mesh: Mesh, opts: LightOptions) -> tuple[float, float, float, float]:
@@ -279,10 +316,7 @@ def _cast(engine: Any, ground: Array, d: Array, top: float, rect, periodic: bool
     direction = -d
     out = np.full(n, -1, np.int64)
     if not periodic:
-        tri, ray, _ = engine.intersects_id(start, np.broadcast_to(direction, start.shape),
-                                           multiple_hits=False, return_locations=True)
-        out[ray] = tri
-        return out
+        return engine.first(start, direction)[0]
     x0, y0, x1, y1 = rect
     w = np.array([x1 - x0, y1 - y0])
     lo = np.array([x0, y0])
@@ -290,7 +324,6 @@ def _cast(engine: Any, ground: Array, d: Array, top: float, rect, periodic: bool
     t = np.zeros(n)
     while active.size:
         p = start[active] + t[active, None] * direction[None, :]
-        shift = np.floor((p[:, :2] - lo) / w)
         # nudge points sitting on a border into the tile the ray is heading to
         q = p[:, :2] + 1e-9 * direction[None, :2]
         shift = np.floor((q - lo) / w)
@@ -304,13 +337,10 @@ def _cast(engine: Any, ground: Array, d: Array, top: float, rect, periodic: bool
                 edge = lo[k] + (shift[:, k] + (1 if v > 0 else 0)) * w[k]
                 t_next = np.minimum(t_next, (edge - p[:, k]) / v)
         seg = np.minimum(t_next, t_end - t[active])
-        tri, ray, loc = engine.intersects_id(local, np.broadcast_to(direction, local.shape),
-                                             multiple_hits=False, return_locations=True)
-        dist = np.einsum("ij,j->i", loc - local[ray], direction) if ray.size else loc[:, 0]
-        ok = dist <= seg[ray] + 1e-9
-        out[active[ray[ok]]] = tri[ok]
-        done = np.zeros(active.size, bool)
-        done[ray[ok]] = True
+        prim, dist = engine.first(local, direction)
+        ok = (prim >= 0) & (dist <= seg + 1e-9)
+        out[active[ok]] = prim[ok]
+        done = ok.copy()
         t[active] += seg
         done |= t[active] >= t_end - 1e-12
         active = active[~done]
@@ -319,8 +349,6 @@ def _cast(engine: Any, ground: Array, d: Array, top: float, rect, periodic: bool
 
 def intercept(mesh: Mesh, options: LightOptions | None = None, progress=None) -> LightResult:
     """Light intercepted by ``mesh`` (Z-up, metres; face ids ``plant``/``leaf`` optional)."""
-    import trimesh
-
     opts = options or LightOptions()
     opts.validate()
     if mesh.n_faces == 0:
@@ -333,9 +361,7 @@ def intercept(mesh: Mesh, options: LightOptions | None = None, progress=None) ->
     top = zmax + 1e-3 + 1e-6 * max(x1 - x0, y1 - y0)
     tri, src = _tiled(mesh, rect) if opts.periodic else (mesh.vertices[mesh.faces],
                                                          np.arange(mesh.n_faces))
-    tm = trimesh.Trimesh(tri.reshape(-1, 3), np.arange(tri.shape[0] * 3).reshape(-1, 3),
-                         process=False)
-    engine, name = _intersector(tm)
+    engine, name = _intersector(tri)
     face_area = mesh.face_areas()
     spacing = opts.ray_spacing or 0.5 * float(np.sqrt(np.median(face_area[face_area > 0])))
     spacing = max(spacing, float(np.sqrt(area / opts.max_rays)))
