@@ -500,8 +500,10 @@ def taper_radii(graph: BranchGraph, fit: RadiusFit, *, min_radius: float = MIN_R
        (slopes 0.19–2.1). The scale ``a`` is fitted robustly on the reliable fits of the
        lower half of the stem (the root's path into the child carrying most length):
        the best-seen sections of every scan; on a needled spruce, fits on branches are
-       needle envelopes and anchoring on all fits made the stem 0.9 m thick. Without
-       three stem fits, all reliable fits of the tree; without those, all trees'.
+       needle envelopes and anchoring on all fits made the stem 0.9 m thick. A tree
+       with fewer than three stem fits (an understorey fragment of a plot) takes the
+       model of all trees' stems (its own fits — stumps, ground bumps — gave a 1.4 m
+       fragment 1.7 m³), then its own reliable fits, then 1 cm at L = 1 m.
     3. **Blend**: reliable fits within 3 model scatters of the model are kept; their
        log-ratio to the model is spread along the graph (:func:`smooth_log_ratio` with a
        pull ``decay`` towards the model, i.e. it fades over about ``1/sqrt(decay)`` ≈ 3
@@ -535,8 +537,9 @@ def taper_radii(graph: BranchGraph, fit: RadiusFit, *, min_radius: float = MIN_R
     stem = _stem_mask(graph, carried)
     uniq = np.unique(trees)
     pooled = None
-    if reliable.any():
-        pooled = _robust_line(x[reliable], y[reliable], 1.0 / exponent)
+    pool = reliable & stem if (reliable & stem).sum() >= 3 else reliable
+    if pool.sum() >= 3:
+        pooled = _robust_line(x[pool], y[pool], 1.0 / exponent)
     for t in uniq:
         m = trees == t
         rm = m & reliable
@@ -544,12 +547,12 @@ def taper_radii(graph: BranchGraph, fit: RadiusFit, *, min_radius: float = MIN_R
         if sm_.sum() >= 3:           # anchored on the stem: its sections are the best seen
             a, b, sc = _robust_line(x[sm_], y[sm_], 1.0 / exponent)
             src = "stem"
+        elif pooled is not None:     # a fragment without a measured stem: the plot's stems
+            a, b, sc = pooled
+            src = "all trees"
         elif rm.sum() >= 3:
             a, b, sc = _robust_line(x[rm], y[rm], 1.0 / exponent)
             src = "tree"
-        elif pooled is not None:
-            a, b, sc = pooled
-            src = "all trees"
         else:
             a, b, sc = np.log(0.01), 1.0 / exponent, 1.0   # no fit at all: 1 cm at L = 1 m
             src = "none"
