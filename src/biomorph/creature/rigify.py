@@ -344,6 +344,40 @@ def _no_zero_bones(c: Creature, bones: list[_Bone]) -> None:
                     k.connect = False
 
 
+#: connected chain lengths each rig type accepts (Rigify 0.6: limbs.leg exactly 4, limbs.arm
+#: exactly 3, basic_spine >= 3, basic_tail / copy_chain >= 2, super_head >= 1)
+_CHAIN = {"limbs.leg": (4, 4), "limbs.arm": (3, 3), "spines.basic_spine": (3, 10**6),
+          "spines.basic_tail": (2, 10**6), "basic.copy_chain": (2, 10**6),
+          "spines.super_head": (1, 10**6)}
+
+
+def _chain_length(bones: list[_Bone], i: int) -> int:
+    """Length of the connected chain from bone ``i`` as Rigify follows it (stops where a
+    bone has no or several connected children)."""
+    kids: dict[int, list[int]] = {}
+    for k, b in enumerate(bones):
+        if b.connect and b.parent >= 0:
+            kids.setdefault(b.parent, []).append(k)
+    n = 1
+    while len(kids.get(i, [])) == 1:
+        i = kids[i][0]
+        n += 1
+    return n
+
+
+def _fit_rig_types(bones: list[_Bone]) -> None:
+    """Downgrade a rig type whose connected chain is too short or long for it."""
+    for i, b in enumerate(bones):
+        if b.rigify_type not in _CHAIN:
+            continue
+        lo, hi = _CHAIN[b.rigify_type]
+        n = _chain_length(bones, i)
+        if lo <= n <= hi:
+            continue
+        b.rigify_type = "basic.copy_chain" if n >= 2 else "basic.super_copy"
+        b.parameters = {}
+
+
 def _frames(bones: list[_Bone]) -> NDArray:
     """World rest matrices (k, 4, 4): Y along the bone, X the bend hint made orthogonal."""
     out = np.tile(np.eye(4), (len(bones), 1, 1))
@@ -370,6 +404,7 @@ def build_metarig(c: Creature) -> Metarig:
     _limb_bones(c, bones, rig_of)
     _other_bones(c, bones, rig_of)
     _no_zero_bones(c, bones)
+    _fit_rig_types(bones)
     world = _frames(bones)
     parent = np.array([b.parent for b in bones], np.int64)
     local = world.copy()
