@@ -211,6 +211,11 @@ def test_cli_new_commands(tmp_path, capsys):
     (["trim", "W", "-o", "OUT", "--start", "400"], "frame range"),
     (["root", "W", "-o", "OUT", "--action", "apply"], "exactly one child"),
     (["equalize", "W", "-o", "OUT", "--euler", "deg"], "--euler"),
+    (["equalize", "W", "-o", "OUT", "--gains", "1,nan,1"], "--gains"),
+    (["blend", "W", "W", "-o", "OUT", "--offsets", "0,1e308"], "--offsets"),
+    (["speed", "W", "-o", "OUT", "--speed", "0"], "--speed"),
+    (["edit", "W", "-o", "OUT", "--joint", "Hips", "--key", "10:0/0/1", "--fade", "inf"],
+     "--fade"),
 ])
 def test_cli_bad_input_exit_2_no_file(tmp_path, capsys, args, needle):
     walk = str(shared_file("motion", "xia_neutral_01_000_walk.bvh"))
@@ -372,3 +377,22 @@ def test_preview_gif(tmp_path, capsys):
     assert run(["motion", "convert", walk, "-o", str(never), "--preview",
                 str(tmp_path / "x.png")]) == 2
     assert "--preview" in capsys.readouterr().err and not never.exists()
+
+
+def test_retarget_a_cmu_walk_onto_a_biomorph_creature_biped(xia):
+    from biomorph.creature.generator import generate
+    from biomorph.motion.names import detect_preset
+    from biomorph.motion.retarget import retarget
+
+    biped = generate(3, legs=2, arms=True).skeleton
+    assert detect_preset(biped.names) == "creature"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ContactWarning)
+        out = retarget(xia, biped)
+    w = out.world_positions()
+    assert np.isfinite(w).all() and out.names == biped.names
+    feet = [biped.index("hip1_distal_l"), biped.index("hip1_distal_r")]
+    # the feet alternate (a walk, not a glide): their forward order swaps during the clip
+    gap = w[:, feet[0], 0] - w[:, feet[1], 0]
+    assert gap.max() > 0.02 and gap.min() < -0.02
+    assert out.meta["retarget"]["joints"] >= 15

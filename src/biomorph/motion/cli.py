@@ -111,6 +111,10 @@ def _floats(text: str, name: str) -> list[float]:
         raise ParameterError(f"--{name} {text!r}: expected comma-separated numbers") from None
     if not vals:
         raise ParameterError(f"--{name} is empty; expected comma-separated numbers")
+    bad = [v for v in vals if not (abs(v) <= 1e12)]  # NaN fails the comparison too
+    if bad:
+        raise ParameterError(f"--{name} {text!r}: value {bad[0]!r}; expected finite numbers "
+                             "with |x| <= 1e12")
     return vals
 
 

@@ -46,6 +46,17 @@ PRESETS: dict[str, dict[str, str]] = {
                **{f"{s}_{b}": f"{b}.{s.upper()}" for s in ("l", "r") for b in _SIDE}},
 }
 PRESETS["rokoko"] = PRESETS["humanik"]
+# biomorph creature's generator names (BVH export): limbs hip1_/shoulder1_ + girdle, upper,
+# lower, distal, digits; the hips are the vertebra the hip girdles hang from (found from the
+# hierarchy by :func:`resolve`), the toe the middle digit's first bone
+PRESETS["creature"] = {
+    "head": "skull",
+    **{f"{s}_{b}": f"{limb}_{part}_{s}" for s in ("l", "r")
+       for b, limb, part in (("shoulder", "shoulder1", "girdle"),
+                             ("upper_arm", "shoulder1", "upper"),
+                             ("forearm", "shoulder1", "lower"), ("hand", "shoulder1", "distal"),
+                             ("thigh", "hip1", "upper"), ("shin", "hip1", "lower"),
+                             ("foot", "hip1", "distal"), ("toe", "hip1", "digit3_1"))}}
 
 
 def bare(name: str) -> str:
@@ -65,14 +76,21 @@ def detect_preset(names: tuple[str, ...] | list[str]) -> str:
     return best
 
 
-def resolve(names: tuple[str, ...] | list[str], preset: str | dict[str, str]) -> dict[str, int]:
-    """Canonical name → joint index in ``names`` under ``preset`` (name or mapping)."""
+def resolve(names: tuple[str, ...] | list[str], preset: str | dict[str, str],
+            parent=None) -> dict[str, int]:
+    """Canonical name → joint index in ``names`` under ``preset`` (name or mapping);
+    ``parent`` (joint parents) lets the ``creature`` preset find its hips vertebra."""
     table = PRESETS.get(preset) if isinstance(preset, str) else preset
     if table is None:
         raise ParameterError(f"name preset {preset!r}; expected one of "
                              f"{', '.join(sorted(PRESETS))} or a CSV file")
     index = {bare(n): i for i, n in enumerate(names)}
-    return {c: index[bare(v)] for c, v in table.items() if bare(v) in index}
+    out = {c: index[bare(v)] for c, v in table.items() if bare(v) in index}
+    if preset == "creature" and parent is not None and "l_thigh" in out:
+        girdle = int(parent[out["l_thigh"]])
+        if girdle >= 0 and parent[girdle] >= 0:
+            out["hips"] = int(parent[girdle])
+    return out
 
 
 def read_map_csv(path: str | os.PathLike[str]) -> dict[str, str]:

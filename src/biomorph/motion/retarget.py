@@ -108,7 +108,8 @@ def _maps(source: JointSkeleton, target: JointSkeleton, source_preset: str | Non
     else:
         sp = source_preset or nm.detect_preset(source.names)
         tp = target_preset or nm.detect_preset(target.names)
-        s_map, t_map = nm.resolve(source.names, sp), nm.resolve(target.names, tp)
+        s_map = nm.resolve(source.names, sp, source.parent)
+        t_map = nm.resolve(target.names, tp, target.parent)
         for side, m, p, sk in (("source", s_map, sp, source), ("target", t_map, tp, target)):
             miss = [c for c in nm.REQUIRED if c not in m]
             if miss:
