@@ -58,3 +58,12 @@ def test_skin_weights_are_smooth_and_normalised(creature, dressed):
     assert np.allclose(w.sum(axis=1), 1.0)
     assert (w > 0.02).sum(axis=1).mean() > 1.5  # most vertices blend several bones
     assert np.all(creature.bone_length[j[w > 0]] > 0)
+
+
+def test_obj_with_skin_has_an_envelope_group(creature, tmp_path):
+    from biomorph.creature.export import export
+
+    plain = export(creature, tmp_path / "a.obj", lod=0).read_text()
+    dressed = export(creature, tmp_path / "b.obj", lod=0, skin=True).read_text()
+    groups = [ln for ln in dressed.splitlines() if ln.startswith("g ")]
+    assert len(groups) == sum(ln.startswith("g ") for ln in plain.splitlines()) + 1

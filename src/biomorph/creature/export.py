@@ -82,8 +82,18 @@ def export(creature: Creature, path: str | os.PathLike[str], bone_shape: str = "
         from biomorph.creature.mesh import world_mesh
         from biomorph.io.obj import write_mesh
 
-        return write_mesh(path, world_mesh(creature, bone_shape, lod=lod),
-                          object_name="creature")
+        mesh = world_mesh(creature, bone_shape, lod=lod)
+        if skin:  # the envelope as one more group (bone id -1)
+            from biomorph.core.mesh import Mesh
+            from biomorph.creature.skin import body
+
+            env = body(creature, lod=lod).envelope
+            mesh = Mesh(np.concatenate([mesh.vertices, env.vertices]),
+                        np.concatenate([mesh.faces, env.faces + mesh.n_vertices]),
+                        normals=np.concatenate([mesh.normals, env.normals]),
+                        face_ids={"bone": np.concatenate([mesh.face_ids["bone"],
+                                                          np.full(env.n_faces, -1)])})
+        return write_mesh(path, mesh, object_name="creature")
     if ext == ".osim":
         from biomorph.io.osim import write_osim
         return write_osim(path, creature)
