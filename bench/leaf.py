@@ -1,8 +1,11 @@
 """Leaf pillar benchmark: reduction speed, 100,000-leaf field to GLB, time vs triangles,
-reduction error on the 450 digitised wheat leaves. Prints markdown tables.
+reduction error on the 450 digitised wheat leaves; fidelity (issue 16): shape classes vs
+the digitised leaves, maize LAI, gap fraction vs Beer–Lambert, 10,000 plants meshed + lit,
+reduced twisted maize. Prints markdown tables.
 
-Usage: .venv/bin/python bench/leaf.py [--quick]
-(``--quick``: 1,000 plants instead of 10,000 for the field.)
+Usage: .venv/bin/python bench/leaf.py [--quick] [--only fidelity|speed] [--plot DIR]
+(``--quick``: 1,000 plants instead of 10,000 for the fields; ``--plot DIR`` writes
+``leaf_classes.png``, data vs fitted class shapes.)
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from biomorph.leaf.canopy import FieldSpec, PlantSpec, build_field, field_mesh, leaf_area_index
-from biomorph.leaf.data import SHARED_LEAVES, wheat_leaves
+from biomorph.leaf.data import shared_leaves, wheat_leaves
 from biomorph.leaf.plots import time_vs_triangles
 from biomorph.leaf.reduction import (
     _err,
@@ -67,6 +70,15 @@ def original_heap_emulation(x, z, s, w) -> np.ndarray:
 
 def main() -> None:
     quick = "--quick" in sys.argv
+    only = sys.argv[sys.argv.index("--only") + 1] if "--only" in sys.argv else None
+    plot = Path(sys.argv[sys.argv.index("--plot") + 1]) if "--plot" in sys.argv else None
+    if only in (None, "fidelity"):
+        fidelity(quick, plot)
+    if only in (None, "speed"):
+        speed(quick)
+
+
+def speed(quick: bool) -> None:
     rows = []
     wheat = LeafShape.from_preset("wheat")
 
@@ -117,8 +129,9 @@ def main() -> None:
         print(f"| {b} | {t * 1e3:.1f} |")
 
     # 4. error at 9 kept points on the 450 digitised wheat leaves
-    if (SHARED_LEAVES / "adel" / "So99.csv").exists():
-        leaves = wheat_leaves()
+    root = shared_leaves(required=False)
+    if root is not None and (root / "adel" / "So99.csv").exists():
+        leaves = wheat_leaves(root)
         ours, emul = [], []
         points = (4, 6, 9, 12, 16, 20)
         by_pts = {p: ([], []) for p in points}
@@ -148,7 +161,222 @@ def main() -> None:
         print("| emulated original | " + " | ".join(f"{np.median(by_pts[p][1]):.4f}"
                                                    for p in points) + " |")
     else:
-        print(f"\n(wheat data absent at {SHARED_LEAVES}: error table skipped)")
+        print("\n(wheat data absent: set BIOMORPH_SHARED_DATA; error table skipped)")
+
+
+# --------------------------------------------------------------------------- fidelity
+def _angle_median_curve(leaves):
+    """The previous preset method (median of tangent angles), kept as the baseline."""
+    from biomorph.leaf.fit import unit_curve
+
+    s = np.linspace(0, 1, 101)
+    phi = np.median([lf.phi_at(s) for lf in leaves], axis=0)
+    return unit_curve(lambda q: np.interp(q, s, phi))
+
+
+def classes_table(root, plot: Path | None) -> None:
+    from biomorph.leaf.data import maize_leaves
+    from biomorph.leaf.fit import curves_of, max_distances, pairwise, unit_curve
+    from biomorph.leaf.shape import class_of_rank, preset_classes
+
+    print("\n### Shape classes vs the digitised leaves (max point distance, units of L)\n")
+    print("Ours: the class medoid (one shape per class); ADEL-like: each leaf's nearest "
+          "member of the class database (what a plant draws from); baseline: median of "
+          "tangent angles (the previous presets' method). Spread: median pairwise distance "
+          "within the class. Target: median <= 0.1 L.\n")
+    print("| preset | class | leaves | ours (medoid) median | p90 | ADEL-like database "
+          "median (members) | angle-median baseline | spread | chord (deg) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    sets = {"wheat": wheat_leaves(root), "maize": maize_leaves(root)}
+    curves_for_plot = {}
+    for preset, leaves in sets.items():
+        classes = preset_classes(preset)
+        for key, c in classes.items():
+            if preset == "wheat":
+                mine = [lf for lf in leaves if lf.name.split()[1] == f"r{key}"]
+            else:
+                mine = [lf for lf in leaves
+                        if int(lf.name.split()[1][1:]) in c["ranks"]]
+            cur = curves_of(mine)
+            ref = unit_curve(LeafShape.from_preset(preset, rank_class=key).phi_at)
+            e = max_distances(cur, ref)
+            members = [unit_curve(LeafShape.from_preset(preset, rank_class=key,
+                                                         member=m).phi_at)
+                       for m in range(c["n_members"])]
+            near = np.min([max_distances(cur, mm) for mm in members], axis=0)
+            base = np.median(max_distances(cur, _angle_median_curve(mine)))
+            d = pairwise(cur)
+            spread = np.median(d[np.triu_indices(len(cur), 1)]) if len(cur) > 1 else 0.0
+            print(f"| {preset} | {key} | {len(mine)} | {np.median(e):.3f} | "
+                  f"{np.percentile(e, 90):.3f} | {np.median(near):.3f} ({c['n_members']}) | "
+                  f"{base:.3f} | {spread:.3f} | {c['chord_deg']:.0f} |")
+            curves_for_plot[(preset, key)] = (cur, ref)
+        allc = curves_of(leaves)
+        single = unit_curve(LeafShape.from_preset(preset).phi_at)
+        per_rank = []
+        for lf, cv in zip(leaves, allc, strict=True):
+            rank = int(lf.name.split()[1][1:])
+            key = (str(rank) if preset == "wheat" else
+                   class_of_rank(preset, rank, 16))
+            cls = unit_curve(LeafShape.from_preset(preset, rank_class=key).phi_at)
+            per_rank.append(float(np.linalg.norm(cv - cls, axis=1).max()))
+        print(f"| {preset} | all, by rank class | {len(leaves)} | "
+              f"{np.median(per_rank):.3f} | {np.percentile(per_rank, 90):.3f} | | "
+              f"{np.median(max_distances(allc, _angle_median_curve(leaves))):.3f} | | |")
+        print(f"| {preset} | all, single mature preset | {len(leaves)} | "
+              f"{np.median(max_distances(allc, single)):.3f} | | | | | |")
+    if plot is not None:
+        _plot_classes(curves_for_plot, plot / "leaf_classes.png")
+        print(f"\n(wrote {plot / 'leaf_classes.png'})")
+
+
+def _plot_classes(curves, path: Path) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    keys = list(curves)
+    cols = 6
+    rows = int(np.ceil(len(keys) / cols))
+    fig = Figure(figsize=(2.6 * cols, 2.6 * rows))
+    FigureCanvasAgg(fig)
+    for k, key in enumerate(keys):
+        ax = fig.add_subplot(rows, cols, k + 1)
+        cur, ref = curves[key]
+        for c in cur:
+            ax.plot(c[:, 0], c[:, 1], color=(0.6, 0.6, 0.6), lw=0.5)
+        ax.plot(ref[:, 0], ref[:, 1], color=(0.1, 0.5, 0.1), lw=2.2)
+        ax.set_title(f"{key[0]} class {key[1]} (n={len(cur)})", fontsize=8)
+        ax.set_aspect("equal")
+        ax.set_xlim(-0.6, 1.05)
+        ax.set_ylim(-0.8, 1.05)
+        ax.tick_params(labelsize=6)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+
+
+def maize_lai_table(quick: bool) -> None:
+    import warnings
+
+    from biomorph.leaf.thermal import ThermalTime
+
+    print("\n### Mature maize fields (16 leaves, last leaf just ligulated; data-derived "
+          "class dimensions)\n")
+    print("| plants/m² | row spacing (m) | plants | LAI | target |\n|---|---|---|---|---|")
+    tt = ThermalTime.for_preset("maize")
+    t16 = float(tt.thermal_time_of(16, tt.full_extension()))
+    for dens in (7.0, 10.0):
+        spec = FieldSpec(plants=200 if quick else 600, rows=10, row_spacing=0.75,
+                         density=dens, plant=PlantSpec(preset="maize", leaves=16,
+                                                       thermal_time=t16))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fld = build_field(spec, seed=1)
+        m = field_mesh(fld, 20, stems=False)
+        print(f"| {dens:g} | 0.75 | {spec.plants} | {leaf_area_index(fld, m):.2f} | 3–5 |")
+
+
+def _turbid(lai, size, leaf, seed, horizontal):
+    from biomorph.core.mesh import Mesh
+
+    rng = np.random.default_rng(seed)
+    n = int(round(lai * size * size / leaf ** 2))
+    c = np.column_stack([rng.uniform(0, size, n), rng.uniform(0, size, n),
+                         rng.uniform(0.2, 1.2, n)])
+    sq = np.array([[-.5, -.5, 0], [.5, -.5, 0], [.5, .5, 0], [-.5, .5, 0]]) * leaf
+    if horizontal:
+        rot = np.broadcast_to(np.eye(3), (n, 3, 3))
+    else:
+        q = rng.standard_normal((n, 4))
+        q /= np.linalg.norm(q, axis=1, keepdims=True)
+        w, x, y, z = q.T
+        rot = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w),
+                                  2 * (x * z + y * w)], -1),
+                        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z),
+                                  2 * (y * z - x * w)], -1),
+                        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w),
+                                  1 - 2 * (x * x + y * y)], -1)], 1)
+    v = (np.einsum("nij,kj->nki", rot, sq) + c[:, None]).reshape(-1, 3)
+    f = (np.array([[0, 1, 2], [0, 2, 3]])[None] + 4 * np.arange(n)[:, None, None]).reshape(-1, 3)
+    return Mesh(v, f)
+
+
+def beer_lambert_table() -> None:
+    from biomorph.leaf.light import LightOptions, intercept
+
+    print("\n### Gap fraction vs Beer–Lambert, random turbid canopies (1 m² periodic tile, "
+          "1.5 cm square leaves, 46 sky directions)\n")
+    print("Expected P(θ) = exp(−G·LAI/cos θ): horizontal leaves G = cos θ, spherical "
+          "G = 0.5. Target: max |difference| <= 0.02 over all directions.\n")
+    print("| LAI | leaves | max abs diff, horizontal | max abs diff, spherical | "
+          "zenith gap (spherical) | exp(−LAI/2) |\n|---|---|---|---|---|---|")
+    for lai in (0.5, 1.0, 2.0, 3.0, 5.0):
+        diffs = []
+        for hz in (True, False):
+            m = _turbid(lai, 1.0, 0.015, int(10 * lai) + hz, hz)
+            r = intercept(m, LightOptions(sky=46, ground=(0, 0, 1, 1), ray_spacing=0.006))
+            cz = r.directions[:, 2]
+            exp = np.exp(-lai) * np.ones_like(cz) if hz else np.exp(-0.5 * lai / cz)
+            diffs.append(np.abs(r.gap_by_direction - exp).max())
+            z = r.gap_by_direction[0]
+        print(f"| {lai:g} | {m.n_faces // 2:,} | {diffs[0]:.4f} | {diffs[1]:.4f} | {z:.4f} | "
+              f"{np.exp(-lai / 2):.4f} |")
+
+
+def big_field_light(quick: bool) -> None:
+    import warnings
+    from datetime import datetime
+
+    from biomorph.leaf.light import LightOptions, intercept
+
+    plants = 1000 if quick else 10000
+    print(f"\n### {plants:,} wheat plants × 10 leaves meshed + light (sun + 46 sky "
+          "directions, periodic tile, Embree)\n")
+    t0 = time.perf_counter()
+    spec = FieldSpec(plants=plants, rows=int(np.sqrt(plants)), row_spacing=0.15,
+                     density=250.0, plant=PlantSpec(preset="wheat", leaves=10, age=1.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fld = build_field(spec, seed=1)
+    mesh = field_mesh(fld, triangles_per_leaf=20, stems=False)
+    t1 = time.perf_counter()
+    opts = LightOptions(when=datetime(2026, 6, 21, 12), sky=46, ground=fld.tile,
+                        max_rays=100_000)
+    r = intercept(mesh, opts)
+    t2 = time.perf_counter()
+    s = r.summary()
+    print("| leaves | triangles | rays | mesh (s) | light (s) | total (s) | target | "
+          "LAI | gap fraction |\n|---|---|---|---|---|---|---|---|---|")
+    print(f"| {fld.n_leaves:,} | {mesh.n_faces:,} | {r.rays:,} | {t1 - t0:.1f} | "
+          f"{t2 - t1:.1f} | {t2 - t0:.1f} | <= 60 s (10,000 plants) | "
+          f"{leaf_area_index(fld, mesh):.2f} | {s['gap_fraction']:.3f} |")
+
+
+def twisted_reduction_table() -> None:
+    from biomorph.leaf.reduction import surface_error
+
+    print("\n### Reduced twisted + undulated maize (30° twist, 4 mm margin waves): largest "
+          "distance of the exact surface to the mesh (mm)\n")
+    print("| triangles | surface error (ours) | paper's 2D error (midrib + width) | "
+          "ratio |\n|---|---|---|---|")
+    maize = LeafShape.from_preset("maize")
+    for b in (50, 200, 400, 800):
+        ours = surface_error(maize, reduced_mesh(maize, b))
+        flat = surface_error(maize, reduced_mesh(maize, b, surface=False))
+        print(f"| {b} | {ours * 1e3:.2f} | {flat * 1e3:.2f} | {flat / ours:.1f}× |")
+    print("\nTarget: <= 0.5 mm at 200 triangles.")
+
+
+def fidelity(quick: bool, plot: Path | None) -> None:
+    print("## Fidelity (issue 16)")
+    root = shared_leaves(required=False)
+    if root is not None:
+        classes_table(root, plot)
+    else:
+        print("(leaf data absent: set BIOMORPH_SHARED_DATA; class table skipped)")
+    maize_lai_table(quick)
+    beer_lambert_table()
+    twisted_reduction_table()
+    big_field_light(quick)
 
 
 if __name__ == "__main__":
