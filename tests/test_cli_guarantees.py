@@ -223,3 +223,54 @@ def test_disk_full_message_names_the_path(tmp_path, capsys, monkeypatch):
     assert "No space left on device" in err and str(out) in err and ".tmp-" not in err
     assert len(err.splitlines()) == 1
     assert [p for p in out.rglob("*") if ".tmp-" in p.name] == []
+
+
+def test_warnings_never_precede_the_error_line(tmp_path, capsys, monkeypatch):
+    import warnings
+
+    import biomorph.inspect
+    from biomorph.errors import FormatError
+
+    def noisy(path):
+        warnings.warn("invalid value encountered in divide", RuntimeWarning, stacklevel=1)
+        raise FormatError(path, "bad face index 0", line=4)
+
+    monkeypatch.setattr(biomorph.inspect, "describe", noisy)
+    assert run(["info", str(tmp_path / "m.obj")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"error: {tmp_path / 'm.obj'}:4: bad face index 0"]
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["tree", "synth", "--points", "2000000000", "--out", "{tmp}/o"], "--points 2000000000"),
+    (["leaf", "mesh", "--triangles", "2147483647", "-o", "{tmp}/l.obj"], "--triangles"),
+])
+def test_sizes_refused_up_front_with_the_estimate(tmp_path, capsys, argv, needle):
+    assert run([a.format(tmp=tmp_path) for a in argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert needle in err and "of memory" in err and "available" in err
+    assert len(err.splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_memory_guard_arithmetic():
+    from biomorph.errors import ParameterError, require_memory
+
+    require_memory("small", 1e6, available=10**9)
+    with pytest.raises(ParameterError, match=r"needs about 900 MB of memory; 1 GB available"):
+        require_memory("big", 9e8, available=10**9)
+    with pytest.raises(ParameterError):
+        require_memory("nan", float("nan"), available=10**9)
+
+
+def test_corrupt_laz_through_the_executable_is_one_line(tmp_path):
+    from biomorph.io import write_points
+    from tests.io.test_las import LAZ_DAMAGE, cloud_with_extras
+
+    good = write_points(tmp_path / "g.laz", cloud_with_extras(500))
+    bad = tmp_path / "bad.laz"
+    bad.write_bytes(LAZ_DAMAGE["chunk-count"][0](good.read_bytes()))
+    res = subprocess.run(CLI + ["info", str(bad)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "chunk" in lines[0] and str(bad) in lines[0]

@@ -1,14 +1,21 @@
-"""Fuzz every reader in biomorph.io with mutated and truncated bytes of valid files.
+"""Fuzz every reader (all formats, incl. SVG annotations, QSM CSV, .can and the glTF
+summary) with mutated and truncated bytes of valid and real files.
 
 A reader may accept a mutated file (many mutations keep it valid) or raise a
 :class:`BiomorphError`; any other exception (a library's ValueError, IndexError, a laspy or
-plyfile error, UnicodeDecodeError …) is a bug. Iterations are bounded (seeded) so the whole
-module runs in a few seconds. Readers of modules that do not exist yet are skipped.
+plyfile error, UnicodeDecodeError …) is a bug. Each case runs in a child process with a
+time limit, so a native abort (a decompressor's panic, a segfault), an allocation that
+kills the process, or a hang counts as a failure too. Iterations are bounded (seeded);
+``BIOMORPH_FUZZ_ITERATIONS=400`` runs a longer campaign. Readers of modules that do not
+exist yet are skipped.
 """
 
 from __future__ import annotations
 
 import importlib
+import os
+import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -21,7 +28,9 @@ from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import BiomorphError
 from tests.conftest import SHARED_DATA
 
-ITERATIONS = 40
+ITERATIONS = int(os.environ.get("BIOMORPH_FUZZ_ITERATIONS", "40"))
+#: seconds one case may take in its child process before it counts as a hang
+CASE_SECONDS = 60 + ITERATIONS
 
 BVH = """HIERARCHY
 ROOT Hips
@@ -77,9 +86,13 @@ def _mesh() -> Mesh:
     return m.with_(face_ids={"leaf": np.arange(m.n_faces) % 3})
 
 
+def _module_name(module: str) -> str:
+    return module if "." in module else f"biomorph.io.{module}"
+
+
 def _written(module: str, func: str, ext: str, obj_factory: Callable, **kw) -> Callable:
     def make(tmp: Path) -> bytes:
-        mod = importlib.import_module(f"biomorph.io.{module}")
+        mod = importlib.import_module(_module_name(module))
         p = tmp / f"sample{ext}"
         getattr(mod, func)(p, obj_factory(), **kw)
         return p.read_bytes()
@@ -146,7 +159,29 @@ CASES = [
     ("asf", "asf", "read_motion", ".asf", _asf_with_amc),
     ("amc", "asf", "read_motion", ".amc", _amc_with_asf),
     ("can", "caribu", "read_can", ".can", _written("caribu", "write_can", ".can", _mesh)),
+    ("can-real", "caribu", "read_can", ".can", lambda tmp: _first_can(tmp)),
+    ("svg", "svg_annotations", "read_annotations", ".svg", lambda tmp: _svg()),
+    ("qsm-csv", "biomorph.tree.reference", "read_qsm_csv", ".csv",
+     _shared("trees", "rtwig_QSM_simpleforest.csv", limit=0)),
+    ("laz-real", "las", "read_points", ".laz", _shared("trees", "treels_spruce.laz", limit=0)),
+    ("las-real", "las", "read_points", ".las", _shared("trees", "archi_tree2.las", limit=0)),
+    ("glb-summary", "gltf", "read_gltf_summary", ".glb",
+     _written("gltf", "write_gltf", ".glb", lambda: _mesh())),
 ]
+
+
+def _first_can(tmp: Path) -> bytes:
+    folder = SHARED_DATA / "leaves" / "caribu"
+    cans = sorted(folder.rglob("*.can")) if folder.exists() else []
+    if not cans:
+        pytest.skip(f"no real .can file under {folder}")
+    return cans[0].read_bytes()[:60_000]
+
+
+def _svg() -> bytes:
+    from tests.creature.test_export_cli import SVG
+
+    return SVG.encode()
 
 
 #: readers with a known non-BiomorphError on fuzzed input, reported to their owners; kept
@@ -209,18 +244,12 @@ def non_finite_fields(result: object) -> list[str]:
     return bad
 
 
-@pytest.mark.parametrize("case", [
-    pytest.param(c, id=c[0], marks=[pytest.mark.xfail(reason=KNOWN_BUGS[c[0]], strict=False)]
-                 if c[0] in KNOWN_BUGS else []) for c in CASES])
-def test_reader_only_raises_biomorph_errors(tmp_path, case):
-    name, module, func, ext, make = case
-    try:
-        mod = importlib.import_module(f"biomorph.io.{module}")
-    except ModuleNotFoundError:
-        pytest.skip(f"biomorph.io.{module} does not exist yet")
-    reader = getattr(mod, func, None)
-    if reader is None:
-        pytest.skip(f"biomorph.io.{module}.{func} does not exist yet")
+def fuzz_case(name: str, folder: str) -> None:
+    """Run the mutations of case ``name`` in this process (the child of the test)."""
+    case = next(c for c in CASES if c[0] == name)
+    _, module, func, ext, make = case
+    tmp_path = Path(folder)
+    reader = getattr(importlib.import_module(_module_name(module)), func)
     data = make(tmp_path)
     reader_input = tmp_path / f"fuzz{ext}"
     reader_input.write_bytes(data)
@@ -230,6 +259,7 @@ def test_reader_only_raises_biomorph_errors(tmp_path, case):
     for it in range(iterations):
         mutated = mutate(data, rng)
         reader_input.write_bytes(mutated)
+        (tmp_path / "current").write_bytes(mutated)  # what was being read if we die
         try:
             result = reader(reader_input)
         except BiomorphError as exc:
@@ -237,12 +267,115 @@ def test_reader_only_raises_biomorph_errors(tmp_path, case):
         except Exception as exc:  # noqa: BLE001 - this is what the test is looking for
             keep = tmp_path / f"crash_{it}{ext}"
             keep.write_bytes(mutated)
-            pytest.fail(f"{module}.{func} raised {type(exc).__name__}: {exc} on mutation {it} "
-                        f"(saved at {keep})")
+            raise AssertionError(f"{module}.{func} raised {type(exc).__name__}: {exc} on "
+                                 f"mutation {it} (saved at {keep})") from None
         else:
             bad = non_finite_fields(result)
             if bad:
                 keep = tmp_path / f"nonfinite_{it}{ext}"
                 keep.write_bytes(mutated)
-                pytest.fail(f"{module}.{func} accepted a file giving NaN/inf in {bad} on "
-                            f"mutation {it} (saved at {keep}); expected a FormatError")
+                raise AssertionError(f"{module}.{func} accepted a file giving NaN/inf in {bad} "
+                                     f"on mutation {it} (saved at {keep}); expected a "
+                                     "FormatError")
+
+
+CHILD = """
+import sys
+import pytest
+from tests.io.test_fuzz import fuzz_case
+print("READY", flush=True)
+for line in sys.stdin:
+    name, folder = line.rstrip("\\n").split("\\t")
+    try:
+        fuzz_case(name, folder)
+    except pytest.skip.Exception as exc:
+        print("SKIP", " ".join(str(exc).split()), flush=True)
+    except AssertionError as exc:
+        print("FAIL", " ".join(str(exc).split()), flush=True)
+    else:
+        print("OK", flush=True)
+"""
+
+
+class FuzzChild:
+    """A long-lived child process that runs fuzz cases on request (imports once); a case
+    that kills or hangs it fails, and the next case gets a fresh child."""
+
+    def __init__(self) -> None:
+        self.proc: subprocess.Popen | None = None
+
+    def _start(self) -> None:
+        root = Path(__file__).resolve().parents[2]
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), *sys.path])}
+        self.proc = subprocess.Popen([sys.executable, "-c", CHILD], env=env, text=True,
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE)
+        assert self._line(120) == "READY", self._died()
+
+    def _line(self, seconds: float) -> str | None:
+        import selectors
+
+        assert self.proc is not None and self.proc.stdout is not None
+        with selectors.DefaultSelector() as sel:
+            sel.register(self.proc.stdout, selectors.EVENT_READ)
+            if not sel.select(seconds):
+                return None
+        line = self.proc.stdout.readline()
+        return line.strip() if line else ""
+
+    def _died(self) -> str:
+        assert self.proc is not None
+        code = self.proc.wait(10)
+        tail = "\n".join((self.proc.stderr.read() if self.proc.stderr else "").strip()
+                         .splitlines()[-6:])
+        self.proc = None
+        how = f"was killed by signal {-code}" if code < 0 else f"exited with {code}"
+        return f"the reading process {how}\n{tail}"
+
+    def run(self, name: str, folder: Path) -> tuple[str, str]:
+        if self.proc is None or self.proc.poll() is not None:
+            self._start()
+        assert self.proc is not None and self.proc.stdin is not None
+        self.proc.stdin.write(f"{name}\t{folder}\n")
+        self.proc.stdin.flush()
+        line = self._line(CASE_SECONDS)
+        if line is None:
+            self.proc.kill()
+            self.proc.wait()
+            self.proc = None
+            return "FAIL", f"hung (> {CASE_SECONDS} s)"
+        if line == "":
+            return "FAIL", self._died()
+        status, _, message = line.partition(" ")
+        return status, message
+
+    def close(self) -> None:
+        if self.proc is not None:
+            self.proc.kill()
+            self.proc.wait()
+
+
+@pytest.fixture(scope="module")
+def child():
+    c = FuzzChild()
+    yield c
+    c.close()
+
+
+@pytest.mark.parametrize("case", [
+    pytest.param(c, id=c[0], marks=[pytest.mark.xfail(reason=KNOWN_BUGS[c[0]], strict=False)]
+                 if c[0] in KNOWN_BUGS else []) for c in CASES])
+def test_reader_only_raises_biomorph_errors(tmp_path, child, case):
+    name, module, func = case[:3]
+    try:
+        mod = importlib.import_module(_module_name(module))
+    except ModuleNotFoundError:
+        pytest.skip(f"{_module_name(module)} does not exist yet")
+    if getattr(mod, func, None) is None:
+        pytest.skip(f"{_module_name(module)}.{func} does not exist yet")
+    status, message = child.run(name, tmp_path)
+    if status == "SKIP":
+        pytest.skip(message)
+    if status != "OK":
+        pytest.fail(f"{module}.{func}: {message}; input being read is saved at "
+                    f"{tmp_path / 'current'}")

@@ -241,3 +241,37 @@ def test_resume_after_sigkill_is_exact(tmp_path, kill_after):
                    timeout=60)
     assert _snapshot(out) == _snapshot(ref)
     assert [p for p in out.rglob("*") if ".tmp-" in p.name or p.name == ".biomorph.lock"] == []
+
+
+def test_tree_batch_redoes_an_item_killed_before_its_last_file(tmp_path):
+    """An item killed after summary.json but before preview.png has no completion marker:
+    the re-run redoes it (it used to count as done once summary.json existed)."""
+    from biomorph.cli import run
+    from biomorph.io import write_points
+    from biomorph.tree.synthetic import generate_tree, simulate_scan
+
+    cloud = write_points(tmp_path / "birch.ply",
+                         simulate_scan(generate_tree("birch", seed=3), n_points=1500, seed=3))
+    out = tmp_path / "out"
+    assert run(["tree", "batch", str(cloud), "--workers", "0", "--out", str(out)]) == 0
+    item = out / "birch"
+    assert (item / "summary.json").exists() and (item / "preview.png").exists()
+    (item / "preview.png").unlink()  # the state a SIGKILL between the two files leaves
+    (out / ".batch_done" / "birch").unlink()
+    assert run(["tree", "batch", str(cloud), "--workers", "0", "--out", str(out)]) == 0
+    assert (item / "preview.png").exists()
+
+
+def test_creature_batch_resume_is_keyed_by_format(tmp_path, capsys):
+    from biomorph.cli import run
+
+    out = tmp_path / "c"
+    base = ["creature", "batch", "--count", "2", "--chunk", "1", "--workers", "0", "--out",
+            str(out)]
+    assert run([*base, "--format", "json"]) == 0
+    assert sorted(p.suffix for p in out.glob("creature_*")) == [".json", ".json"]
+    assert run([*base, "--format", "bvh"]) == 0  # used to write nothing and exit 0
+    assert sorted(p.suffix for p in out.glob("creature_*")) == [".bvh", ".bvh", ".json",
+                                                                 ".json"]
+    assert run([*base, "--format", "bvh"]) == 0
+    assert "0 failed" in capsys.readouterr().out
