@@ -19,7 +19,19 @@ import numpy as np
 from biomorph.creature.generator import Generator, Options, generate
 from biomorph.creature.model import species_model
 from biomorph.creature.pca import SEED_SPECTRUM, spectrum_summary
-from biomorph.creature.quality import CHECKS, check, vendi_score
+from biomorph.creature.quality import (
+    ANATOMY_CHECKS,
+    CHECKS,
+    anatomy_check,
+    anatomy_measures,
+    check,
+    vendi_score,
+)
+from biomorph.creature.stance import RANGES
+from biomorph.creature.walk import plan_walk, walk_cycle, walk_quality
+
+CONDITIONS = {"--legs 4": {"legs": 4}, "--legs 2": {"legs": 2}, "--class bird": {"cls": "bird"},
+              "--weight 600": {"weight": 600.0}, "--legs 6": {"legs": 6}}
 
 
 def main() -> None:
@@ -28,6 +40,7 @@ def main() -> None:
     ap.add_argument("--batch", type=int, default=10000, help="GLB batch size (0 = skip)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--settle", type=int, default=100, help="MuJoCo settle checks")
+    ap.add_argument("--walk", type=int, default=300, help="walk cycles checked")
     args = ap.parse_args()
 
     generate(0)  # JIT compile / load caches outside the timing
@@ -55,11 +68,24 @@ def main() -> None:
     print(f"\nlegs 0/2/4: {(legs == 0).sum()}/{(legs == 2).sum()}/{(legs == 4).sum()}; "
           f"with ground contact {applicable}; balance-repaired {repaired}; "
           f"resampled {resampled}\n")
-    print("## Speed (no export)\n")
-    print("| clock | median ms | p90 ms | mean ms | seed's Java |\n|---|---|---|---|---|")
-    print(f"| wall | {np.median(t):.2f} | {np.percentile(t, 90):.2f} | {t.mean():.2f} | 3.05 ms |")
-    print(f"| CPU (process) | {np.median(tc):.2f} | {np.percentile(tc, 90):.2f} | "
-          f"{tc.mean():.2f} | |\n")
+    anatomy_table(creatures)
+    walk_table(creatures, args.walk)
+    print("## Speed (no export; balance repair included)\n")
+    print("| condition | n | wall median ms | CPU median ms | CPU p90 ms | seed's Java |")
+    print("|---|---|---|---|---|---|")
+    print(f"| none | {len(t)} | {np.median(t):.2f} | {np.median(tc):.2f} | "
+          f"{np.percentile(tc, 90):.2f} | 3.05 ms |")
+    for label, kw in CONDITIONS.items():
+        w, c = [], []
+        for seed in range(max(args.count // 5, 1)):
+            t0, c0 = time.perf_counter(), time.process_time()
+            Generator(Options(seed=seed, **kw)).run()
+            w.append(time.perf_counter() - t0)
+            c.append(time.process_time() - c0)
+        w_, c_ = np.array(w) * 1e3, np.array(c) * 1e3
+        print(f"| {label} | {len(w)} | {np.median(w_):.2f} | {np.median(c_):.2f} | "
+              f"{np.percentile(c_, 90):.2f} | |")
+    print()
     with open("/proc/loadavg") as fh:
         print(f"load average during the run: {fh.read().split()[0]}\n")
     feats = np.array([c.features() for c in creatures])
@@ -99,6 +125,70 @@ def main() -> None:
         print(f"| {files} | {args.workers} | {dt:.1f} | {dt / max(files, 1) * 1e3:.1f} ms | "
               f"{code} |")
         shutil.rmtree(out, ignore_errors=True)
+
+
+def anatomy_table(creatures) -> None:
+    """Issue 14's anatomical rules: passes over the creatures, the measured spread beside the
+    real ranges (biomorph.creature.stance)."""
+    n = len(creatures)
+    res = {k: 0 for k in ANATOMY_CHECKS}
+    meas = []
+    for c in creatures:
+        m = anatomy_measures(c)
+        meas.append((c, m))
+        for k, v in anatomy_check(c, m).items():
+            res[k] += v
+    print(f"## Anatomy over {n} seeded creatures (ranges: biomorph/creature/stance.py)\n")
+    print("| rule | pass | measured (min / median / max) | real range |\n|---|---|---|---|")
+
+    def spread(vals):
+        v = np.array([x for x in vals if x is not None], float)
+        return "–" if not len(v) else f"{v.min():.2f} / {np.median(v):.2f} / {v.max():.2f}"
+
+    quad = [m["trunk_pitch_deg"] for c, m in meas if c.params["legs"] >= 4]
+    bip = [m["trunk_pitch_deg"] for c, m in meas if c.params["legs"] == 2]
+    fem = [a for c, m in meas if c.params["class"] != "bird" for a in m["femur_deg"]]
+    femb = [a for c, m in meas if c.params["class"] == "bird" for a in m["femur_deg"]]
+    rows = {"trunk_pitch": (f"quadrupeds {spread(quad)}°; bipeds {spread(bip)}°",
+                            f"{RANGES['trunk_pitch_quadruped']}° / {RANGES['trunk_pitch_biped']}°"),
+            "head_pitch": (spread([m["head_pitch_deg"] for _, m in meas]) + "°",
+                           f"{RANGES['head_pitch']}°"),
+            "femur_angle": (f"{spread(fem)}°; birds {spread(femb)}°",
+                            f"{RANGES['femur_from_vertical']}° / birds "
+                            f"{RANGES['femur_from_vertical_bird']}°"),
+            "withers_height": (spread([m["withers_ratio"] for _, m in meas]),
+                               f"{RANGES['withers_ratio']} × a·M^(1/3)"),
+            "knee_behind_elbow": ("", "hind knee behind front elbow"),
+            "class_legs": ("", "birds 2 legs, fish 0 (unless asked)"),
+            "weight_in_range": (spread([c.total_mass for c in creatures]) + " kg",
+                                "0.01..120000 kg (dataset)"),
+            "feet_have_digits": ("", "contacts are digit joints / flat feet")}
+    for k in ANATOMY_CHECKS:
+        got, real = rows[k]
+        print(f"| {k} | {res[k]}/{n} ({res[k] / n:.1%}) | {got} | {real} |")
+    from biomorph.creature.quality import standing_height
+    ung = [standing_height(Generator(Options(seed=s, legs=4, weight=600.0, cls="mammal")).run())
+           for s in range(10)]
+    print(f"\n600-kg quadruped mammals (10 seeds): withers {min(ung):.2f}..{max(ung):.2f} m "
+          "(a horse: ≈ 1.1-1.3 m)\n")
+
+
+def walk_table(creatures, limit: int) -> None:
+    """Walk cycles: planted-foot slide and ground penetration per leg count."""
+    print("## Walk (IK-planted feet; targets: slide ≤ 2 % of stride, penetration ≤ 0.5 % of "
+          "height)\n")
+    print("| legs | n | slide max | slide > 2 % | penetration max | penetration > 0.5 % |")
+    print("|---|---|---|---|---|---|")
+    by: dict[int, list] = {}
+    for c in [c for c in creatures if c.params["legs"] > 0][:limit]:
+        plan = plan_walk(c)
+        by.setdefault(c.params["legs"], []).append(walk_quality(c, walk_cycle(c), plan))
+    for legs in sorted(by):
+        sl = np.array([q["slide_fraction"] for q in by[legs]])
+        pe = np.array([q["penetration_fraction"] for q in by[legs]])
+        print(f"| {legs} | {len(sl)} | {sl.max():.2%} | {(sl > 0.02).sum()} | {pe.max():.2%} | "
+              f"{(pe > 0.005).sum()} |")
+    print()
 
 
 if __name__ == "__main__":

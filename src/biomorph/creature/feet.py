@@ -131,18 +131,13 @@ class Digits:
     contact_local: NDArray[np.int64]
 
 
-def _frame(u: NDArray, lateral: NDArray) -> NDArray:
-    y = u / np.linalg.norm(u)
-    z = lateral - (lateral @ y) * y
-    nz = np.linalg.norm(z)
-    z = z / nz if nz > 1e-9 else np.array([0.0, 0.0, 1.0])
-    return np.stack([np.cross(y, z), y, z], axis=1)
-
-
-def _yaw(a: float, back: bool) -> NDArray:
-    a = np.radians(a)
-    d = np.array([np.cos(a), 0.0, np.sin(a)])
-    return -d if back else d
+def _frames(u: NDArray, lateral: NDArray) -> NDArray:
+    """World rotations ``(m, 3, 3)``: +Y along each ``u``, Z towards ``lateral`` (⟂ part)."""
+    y = u / np.linalg.norm(u, axis=1, keepdims=True)
+    z = lateral - np.einsum("ij,ij->i", lateral, y)[:, None] * y
+    nz = np.linalg.norm(z, axis=1, keepdims=True)
+    z = np.where(nz > 1e-9, z / np.where(nz > 1e-9, nz, 1.0), [[0.0, 0.0, 1.0]])
+    return np.stack([np.cross(y, z), y, z], axis=2)
 
 
 def build(plan: tuple[Digit, ...], W_distal: NDArray, tip: NDArray, metapodial: float,
@@ -152,67 +147,72 @@ def build(plan: tuple[Digit, ...], W_distal: NDArray, tip: NDArray, metapodial: 
     ground height for a standing foot (digits laid on the ground) or ``None`` for a free
     hand / wing (digits continue the distal bone ``W_distal[:, 1]``, spread about its
     ``W_distal[:, 0]`` axis). ``heel`` (a plantigrade ankle on the ground) is a contact."""
-    names, parent, Ws, pos, lens, rad, parts, nums = [], [], [], [], [], [], [], []
-    contacts, clocal = [], []
+    tip = np.asarray(tip, float)
     eps = 1e-6 * max(metapodial, 1e-9)
+    n = len(plan)
+    counts = np.array([len(d.fractions) for d in plan], np.int64)
+    m = int(counts.sum())
+    dig = np.repeat(np.arange(n), counts)                    # digit of each joint
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]]) if n else np.zeros(0, np.int64)
+    j_in = np.arange(m) - np.repeat(first, counts)            # index within the digit
+    last = j_in == np.repeat(counts - 1, counts)
+    seg = np.concatenate([np.asarray(d.fractions, float) for d in plan]) * metapodial \
+        if n else np.zeros(0)
+    side = (np.arange(n) - (n - 1) / 2) / max(n - 1, 1)
+    start = tip[None, :] + np.outer(side, [0.0, 0.0, 1.0]) * width   # (n, 3)
+    splay = np.radians([d.splay_deg for d in plan])
+    back = np.array([d.backward for d in plan], bool)
+    if ground is None:
+        axis, u0 = W_distal[:, 0], W_distal[:, 1]
+        c, s_ = np.cos(splay)[:, None], np.sin(splay)[:, None]
+        ud = u0 * c + np.cross(axis, u0) * s_ + axis * (axis @ u0) * (1 - c)   # Rodrigues
+        dirs = ud[dig]
+        lateral = np.broadcast_to(W_distal[:, 2], (m, 3))
+    else:
+        fwd = np.stack([np.cos(splay), np.zeros(n), np.sin(splay)], axis=1)
+        fwd[back] *= -1.0
+        h = np.maximum(start[:, 1] - ground, 0.0)
+        lp = np.array([float(seg[first[k]:first[k] + counts[k] - 1].sum()) for k in range(n)])
+        sin_max = np.sin(np.radians(80.0))
+        incl = (h > eps) & (counts > 1)
+        sin_a = np.where(incl, np.minimum(h / np.maximum(lp, 1e-300), sin_max), 0.0)
+        grow = np.where(incl & (lp * sin_max < h), h / np.maximum(lp * sin_a, 1e-300), 1.0)
+        seg = seg * np.where(last, 1.0, grow[dig])            # too short to reach: lengthen
+        cos_a = np.sqrt(1.0 - sin_a ** 2)
+        down = fwd * cos_a[:, None] - np.outer(sin_a, [0.0, 1.0, 0.0])
+        dirs = np.where(last[:, None], fwd[dig], down[dig])
+        lateral = np.broadcast_to([0.0, 0.0, 1.0], (m, 3))
+    step = dirs / np.linalg.norm(dirs, axis=1, keepdims=True) * seg[:, None] if m else dirs
+    # joint positions: each digit's start plus its earlier steps, added one level at a time
+    pos = np.zeros((m, 3))
+    p = start.copy()
+    for j in range(int(counts.max()) if n else 0):
+        sel = j_in == j
+        pos[sel] = p[dig[sel]]
+        p[dig[sel]] = p[dig[sel]] + step[sel]
+    end_tip = p[dig[last]]
+    parent = np.where(j_in == 0, -1, np.arange(m) - 1)
+    rad = bone_radius * np.where(last, 0.55, 0.7) * (1.0 - 0.1 * j_in)
+    contacts, clocal = [], []
     if heel is not None:
         contacts.append(np.asarray(heel, float))
         clocal.append(-1)
-    if ground is not None and tip[1] - ground <= eps:
-        contacts.append(np.array([tip[0], ground, tip[2]]))
-        clocal.append(-1)
-    n = len(plan)
-    for k, d in enumerate(plan):
-        side = (k - (n - 1) / 2) / max(n - 1, 1)
-        p = np.asarray(tip, float) + np.array([0.0, 0.0, side * width])
-        seg = np.array(d.fractions) * metapodial
-        if ground is None:
-            axis = W_distal[:, 0]
-            u0 = W_distal[:, 1]
-            a = np.radians(d.splay_deg)
-            # rotate the distal direction about the palm normal (Rodrigues)
-            u = (u0 * np.cos(a) + np.cross(axis, u0) * np.sin(a)
-                 + axis * (axis @ u0) * (1 - np.cos(a)))
-            dirs = [u] * len(seg)
-            lateral = W_distal[:, 2]
-        else:
-            h = max(float(p[1] - ground), 0.0)
-            fwd = _yaw(d.splay_deg, d.backward)
-            n_ph = len(seg) - 1
-            lp = float(seg[:-1].sum())
-            if h > eps and n_ph > 0:
-                sin_a = min(h / lp, np.sin(np.radians(80.0))) if lp > 0 else 0.0
-                if lp * np.sin(np.radians(80.0)) < h:   # too short to reach: lengthen
-                    seg[:-1] *= h / (lp * sin_a)
-                cos_a = np.sqrt(1 - sin_a ** 2)
-                down = fwd * cos_a + np.array([0.0, -sin_a, 0.0])
-                dirs = [down] * n_ph + [fwd]
-            else:
-                dirs = [fwd] * len(seg)
-            lateral = np.array([0.0, 0.0, 1.0])
-        prev = -1
-        for j, (L, u) in enumerate(zip(seg, dirs, strict=True)):
-            last = j == len(seg) - 1
-            names.append(f"digit{d.number}_{j + 1}")
-            parent.append(prev)
-            prev = len(names) - 1
-            Ws.append(_frame(np.asarray(u, float), lateral))
-            pos.append(p.copy())
-            lens.append(float(L))
-            rad.append(bone_radius * (0.55 if last else 0.7) * (1.0 - 0.1 * j))
-            parts.append(d.end if last else "phalanx")
-            nums.append(d.number)
-            if ground is not None and j > 0 and p[1] - ground <= eps:
-                contacts.append(np.array([p[0], ground, p[2]]))
-                clocal.append(prev)
-            p = p + np.asarray(u, float) / np.linalg.norm(u) * L
-            if ground is not None and last:
-                p[1] = max(p[1], ground)
-                contacts.append(np.array([p[0], ground, p[2]]))
-                clocal.append(prev)
-    m = len(names)
-    return Digits(tuple(names), np.array(parent, np.int64),
-                  np.array(Ws).reshape(m, 3, 3), np.array(pos).reshape(m, 3),
-                  np.array(lens, float), np.array(rad, float), tuple(parts),
-                  np.array(nums, np.int64), np.array(contacts, float).reshape(-1, 3),
-                  np.array(clocal, np.int64))
+    if ground is not None:
+        if tip[1] - ground <= eps:
+            contacts.append(np.array([tip[0], ground, tip[2]]))
+            clocal.append(-1)
+        on = (j_in > 0) & (pos[:, 1] - ground <= eps)
+        tips = dict(zip(np.flatnonzero(last).tolist(), end_tip, strict=True))
+        for k in range(m):   # per digit: its joints on the ground, then the end bone's tip
+            if on[k]:
+                contacts.append(np.array([pos[k, 0], ground, pos[k, 2]]))
+                clocal.append(k)
+            if last[k]:
+                contacts.append(np.array([tips[k][0], ground, tips[k][2]]))
+                clocal.append(k)
+    names = tuple(f"digit{plan[dig[k]].number}_{j_in[k] + 1}" for k in range(m))
+    parts = tuple(plan[dig[k]].end if last[k] else "phalanx" for k in range(m))
+    return Digits(names, parent.astype(np.int64), _frames(dirs, np.asarray(lateral, float))
+                  if m else np.zeros((0, 3, 3)), pos, seg.astype(float), rad.astype(float),
+                  parts, np.array([plan[dig[k]].number for k in range(m)], np.int64),
+                  np.array(contacts, float).reshape(-1, 3), np.array(clocal, np.int64))

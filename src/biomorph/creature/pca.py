@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -197,9 +197,17 @@ class PCA:
         With ``rng`` the fixed feature values are first jittered uniformly by
         ``± jitter × jitter_halfwidth(dim)``.
         """
-        k = self._k(k)
+        dims, comps, vals, k = self._conditions(fixed, scores, k, rng, jitter)
         lam = temperature * self.eigenvalues[:k]
-        rows, vals = [], []
+        if not vals:
+            return np.zeros(k), np.diag(lam)
+        gain, cov, _, _ = self._factor(dims, comps, k, float(temperature))
+        return gain @ np.array(vals), np.array(cov)
+
+    def _conditions(self, fixed, scores, k, rng, jitter) -> tuple[tuple, tuple, list, int]:
+        """Checked conditioned dims / components and their (jittered) values, in order."""
+        k = self._k(k)
+        dims, comps, vals = [], [], []
         for dim, val in (fixed or {}).items():
             if not 0 <= dim < self.n_dims:
                 raise ParameterError(f"conditioned dim {dim} outside 0..{self.n_dims - 1}")
@@ -207,27 +215,42 @@ class PCA:
             if rng is not None and jitter > 0:
                 h = jitter * jitter_halfwidth(dim)
                 v += rng.uniform(-h, h)
-            rows.append(self.components[dim, :k])
+            dims.append(int(dim))
             vals.append(v - self.mean[dim])
         for comp, val in (scores or {}).items():
             if not 0 <= comp < k:
                 raise ParameterError(f"conditioned component {comp} outside 0..{k - 1}")
-            e = np.zeros(k)
-            e[comp] = 1.0
-            rows.append(e)
+            comps.append(int(comp))
             vals.append(float(val))
+        return tuple(dims), tuple(comps), vals, k
+
+    @lru_cache(maxsize=64)  # noqa: B019 - keyed by the (immutable) model and which dims
+    def _factor(self, dims: tuple, comps: tuple, k: int, temperature: float):
+        """Gain ``Λ Hᵀ S⁻¹``, conditional covariance and its eigen-decomposition for the
+        conditioned dims/components — they do not depend on the conditioned values, so one
+        decomposition serves every sample with the same conditions (the generator's
+        ``--legs``/``--class``/``--weight`` runs)."""
+        lam = temperature * self.eigenvalues[:k]
+        rows = [self.components[d, :k] for d in dims]
+        for c in comps:
+            e = np.zeros(k)
+            e[c] = 1.0
+            rows.append(e)
         if not rows:
-            return np.zeros(k), np.diag(lam)
-        h_mat = np.array(rows)
-        h = np.array(vals)
-        lh = lam[:, None] * h_mat.T                      # Λ Hᵀ  (k, m)
-        s = h_mat @ lh                                   # H Λ Hᵀ (m, m)
-        s = s + np.eye(len(rows)) * (1e-9 * max(float(np.trace(s)) / len(rows), 1e-12))
-        gain = np.linalg.solve(s, lh.T).T                # Λ Hᵀ S⁻¹ (k, m)
-        mean = gain @ h
-        cov = np.diag(lam) - gain @ lh.T
-        cov = 0.5 * (cov + cov.T)
-        return mean, cov
+            cov = np.diag(lam)
+            gain = np.zeros((k, 0))
+        else:
+            h_mat = np.array(rows)
+            lh = lam[:, None] * h_mat.T                      # Λ Hᵀ  (k, m)
+            s = h_mat @ lh                                   # H Λ Hᵀ (m, m)
+            s = s + np.eye(len(rows)) * (1e-9 * max(float(np.trace(s)) / len(rows), 1e-12))
+            gain = np.linalg.solve(s, lh.T).T                # Λ Hᵀ S⁻¹ (k, m)
+            cov = np.diag(lam) - gain @ lh.T
+            cov = 0.5 * (cov + cov.T)
+        ev, vecs = np.linalg.eigh(cov)
+        for a in (gain, cov, ev, vecs):
+            a.flags.writeable = False
+        return gain, cov, ev, vecs
 
     def sample_conditional(self, rng: np.random.Generator,
                            fixed: Mapping[int, float] | None = None,
@@ -235,9 +258,10 @@ class PCA:
                            temperature: float = 1.0, jitter: float = 1.0
                            ) -> NDArray[np.float64]:
         """One feature vector ``(29,)`` from the conditional Gaussian (jittered fixed values)."""
-        mean, cov = self.conditional(fixed, scores, k, temperature, rng, jitter)
-        vals, vecs = np.linalg.eigh(cov)
-        z = mean + vecs @ (np.sqrt(np.clip(vals, 0.0, None)) * rng.standard_normal(len(mean)))
+        dims, comps, vals, k = self._conditions(fixed, scores, k, rng, jitter)
+        gain, _, ev, vecs = self._factor(dims, comps, k, float(temperature))
+        mean = gain @ np.array(vals) if vals else np.zeros(k)
+        z = mean + vecs @ (np.sqrt(np.clip(ev, 0.0, None)) * rng.standard_normal(len(mean)))
         return self.reconstruct(z)
 
 
