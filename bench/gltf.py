@@ -141,53 +141,51 @@ def cases() -> list[tuple[str, Callable[[ModuleType, str], object]]]:
     ]
 
 
-def _one_creature(args: tuple[int, str, bool]) -> tuple[float, float, float, float, int]:
-    """(generate s, bone models s, skin s, write s, file bytes) for one seed."""
+def _one_creature(args: tuple[int, str, bool]) -> tuple[float, int]:
+    """(seconds, file bytes) for one seed: generate + ``write_glb`` (bone models, skin)."""
     seed, out, skin = args
     import biomorph.creature as bc
-    from biomorph.creature.bones import geometry
     from biomorph.creature.export import write_glb
-    from biomorph.creature.skin import body
 
     t0 = time.perf_counter()
-    c = bc.generate(seed=seed)
-    t1 = time.perf_counter()
-    geometry(c)
-    t2 = time.perf_counter()
-    if skin:
-        body(c)
-    t3 = time.perf_counter()
-    path = os.path.join(out, f"c{seed}.glb")
-    write_glb(c, path, skin=skin)
-    t4 = time.perf_counter()
-    # write_glb rebuilds models and skin: its own share is the write time minus both
-    write = max((t4 - t3) - (t2 - t1) - (t3 - t2), 0.0)
-    return t1 - t0, t2 - t1, t3 - t2, write, os.path.getsize(path)
+    path = write_glb(bc.generate(seed=seed), os.path.join(out, f"c{seed}.glb"), skin=skin)
+    return time.perf_counter() - t0, os.path.getsize(path)
 
 
-def _peer_trimesh(seed: int, out: str, skin: bool) -> tuple[float, float]:
-    """(ours s, trimesh s) writing the same creature's meshes: ours a skinned GLB,
-    trimesh its scene export of the world-space bone (and skin) meshes."""
+def _peer_trimesh(seed: int, out: str, skin: bool) -> tuple[float, ...]:
+    """(ours s, trimesh s, generate s, bone models s, skin s). Ours and trimesh write the
+    same finished meshes: ours the skinned GLB (``write_gltf`` with ``joint_geometry`` and
+    ``skinned_mesh``), trimesh its scene export of the world-space bone (and skin) meshes
+    (no armature, no skin)."""
     import trimesh
 
     import biomorph.creature as bc
-    from biomorph.creature.bones import world_mesh
-    from biomorph.creature.export import write_glb
+    from biomorph.creature.bones import geometry, world_mesh
     from biomorph.creature.skin import body
+    from biomorph.io.gltf import write_gltf
 
+    s0 = time.perf_counter()
     c = bc.generate(seed=seed)
+    t1 = time.perf_counter()
+    geo = geometry(c)
+    t2 = time.perf_counter()
+    b = body(c) if skin else None
+    t3 = time.perf_counter()
     w = world_mesh(c)
     meshes = [trimesh.Trimesh(w.vertices, w.faces, vertex_normals=w.normals, process=False)]
-    if skin:
-        e = body(c).envelope
+    skinned = None
+    if b is not None:
+        e = b.envelope
+        skinned = (e.vertices, e.normals, b.joints, b.weights, e.faces)
         meshes.append(trimesh.Trimesh(e.vertices, e.faces, vertex_normals=e.normals,
                                       process=False))
     t0 = time.perf_counter()
     trimesh.Scene(meshes).export(os.path.join(out, "peer.glb"))
     t_peer = time.perf_counter() - t0
     t0 = time.perf_counter()
-    write_glb(c, os.path.join(out, "ours.glb"), skin=skin)
-    return time.perf_counter() - t0, t_peer
+    write_gltf(os.path.join(out, "ours.glb"), c.skeleton, bone_shape=None,
+               joint_geometry=geo, skinned_mesh=skinned)
+    return time.perf_counter() - t0, t_peer, t1 - s0, t2 - t1, t3 - t2
 
 
 def creatures_bench(n: int, workers: int, skin: bool) -> None:
@@ -204,15 +202,16 @@ def creatures_bench(n: int, workers: int, skin: bool) -> None:
     print(f"load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} CPUs, {workers} workers\n")
     print(f"{n} creatures with bone models{' and skin' if skin else ''} written as GLB: "
           f"{wall:.1f} s wall ({wall / n * 1e3:.0f} ms per creature; target 1,000 in 60 s)")
-    print("| stage (median per creature) | ms |\n|---|---:|")
-    for k, label in enumerate(("generate", "bone models", "muscles + envelope + weights",
-                               "GLB assembly + write")):
-        print(f"| {label} | {np.median(r[:, k]) * 1e3:.1f} |")
-    print(f"| file size | {np.median(r[:, 4]) / 1e6:.2f} MB |")
+    print(f"median {np.median(r[:, 0]) * 1e3:.0f} ms per creature on one worker, file "
+          f"{np.median(r[:, 1]) / 1e6:.2f} MB")
+    print(f"\n| stage (median of {len(peer)} seeds, one process) | ms |\n|---|---:|")
+    for k, label in ((2, "generate"), (3, "bone models"), (4, "muscles + envelope + weights"),
+                     (0, "skinned GLB write (finished meshes)")):
+        print(f"| {label} | {np.median(peer[:, k]) * 1e3:.1f} |")
     ratio = peer[:, 0] / peer[:, 1]
-    print(f"\nwhole write_glb (models, skin, skinned GLB) vs trimesh's GLB export of the "
-          f"finished meshes, {len(peer)} seeds: median ours {np.median(peer[:, 0]) * 1e3:.0f} ms,"
-          f" trimesh {np.median(peer[:, 1]) * 1e3:.0f} ms, ratio {np.median(ratio):.2f}")
+    print(f"\nwriting the finished meshes, {len(peer)} seeds: ours (skinned GLB with armature) "
+          f"median {np.median(peer[:, 0]) * 1e3:.1f} ms, trimesh (plain GLB scene) "
+          f"{np.median(peer[:, 1]) * 1e3:.1f} ms, ours / trimesh {np.median(ratio):.2f}")
 
 
 def blender_bench(n: int) -> None:
@@ -228,6 +227,9 @@ def blender_bench(n: int) -> None:
     if blender is None:
         print("blender not installed (apt-get install -y blender python3-numpy)")
         return
+    import sys
+
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     from tests.creature.test_blender import DRIVER
 
     with tempfile.TemporaryDirectory() as tmp:
