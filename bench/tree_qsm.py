@@ -10,6 +10,10 @@ plantscan3d A3B4: MTG), its numbers are printed in the same table. Volumes in li
 
     .venv/bin/python bench/tree_qsm.py                 # every cloud, graph method
     .venv/bin/python bench/tree_qsm.py --only rtwig --method voxel
+    .venv/bin/python bench/tree_qsm.py --synthetic birch conifer --points 60000 --noise 0.008
+
+``--synthetic`` grows the presets (``tree.synthetic``), scans them and prints, with and
+without the taper model, volume per class as a ratio to the truth, trunk length and height.
 """
 
 from __future__ import annotations
@@ -86,6 +90,9 @@ def ours(path: Path, method: str) -> dict:
     t = max(m["trees"], key=lambda r: r.get("height", 0.0))       # the tallest tree
     return {"volume": 1000 * t["total_volume"], "trunk_volume": 1000 * t["trunk_volume"],
             "trunk_length": t["trunk_length"], "height": t["height"],
+            "trunk_top_gap": max(r["trunk_top_gap"] for r in m["trees"]
+                                 if r.get("height", 0.0) > 3.0) if any(
+                r.get("height", 0.0) > 3.0 for r in m["trees"]) else t["trunk_top_gap"],
             "order1": t["branches_order1"], "max_order": t["max_order"],
             "n_trees": m["n_trees"], "tips": m["nob"],
             "trees_over_3m": sum(r.get("height", 0.0) > 3.0 for r in m["trees"]),
@@ -102,7 +109,8 @@ def _fmt(v: object) -> str:
 
 
 def table(name: str, rows: dict[str, dict]) -> None:
-    keys = ["volume", "trunk_volume", "trunk_length", "height", "order1", "max_order",
+    keys = ["volume", "trunk_volume", "trunk_length", "height", "trunk_top_gap", "order1",
+            "max_order",
             "n_trees", "trees_over_3m", "tips", "far_share", "wall", "cpu"]
     cols = list(rows)
     print(f"\n## {name}\n")
@@ -118,12 +126,49 @@ def table(name: str, rows: dict[str, dict]) -> None:
             _fmt(rows[c].get("residual", {}).get(lab)) for c in cols) + " |")
 
 
+def synthetic(presets: list[str], points: int, noise: float, seed: int) -> None:
+    from biomorph.tree import RadiusOptions, SkeletonizeOptions, skeletonize
+    from biomorph.tree.metrics import compare_to_truth, tree_attributes, volume_by_class
+    from biomorph.tree.synthetic import generate_tree, simulate_scan
+
+    print(f"\n## synthetic, {points} points, {1000 * noise:g} mm noise, seed {seed}\n")
+    print("| preset | taper | volume / truth | <2.5cm | 2.5-7cm | 7-20cm | >20cm | F1 | "
+          "trunk length | height | max order | cpu |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for preset in presets:
+        truth = generate_tree(preset, seed=seed)
+        cloud = simulate_scan(truth, n_points=points, noise=noise, scanners=3, ground=True,
+                              seed=seed)
+        tv = volume_by_class(truth)
+        for taper in (False, True):
+            c0 = time.process_time()
+            s = skeletonize(cloud, options=SkeletonizeOptions(radius=RadiusOptions(taper=taper)))
+            cpu = time.process_time() - c0
+            g = s.world_graph()
+            cmp_ = compare_to_truth(g, truth)
+            v = volume_by_class(g)
+            a = max(tree_attributes(s.graph), key=lambda r: r["height"])
+            ratios = [v[k]["volume"] / tv[k]["volume"] if tv[k]["volume"] else float("nan")
+                      for k in tv]
+            print(f"| {preset} | {taper} | {1 + cmp_['volume_error']:.2f} | "
+                  + " | ".join(f"{r:.2f}" for r in ratios)
+                  + f" | {cmp_['f1']:.3f} | {a['trunk_length']:.1f} | {a['height']:.1f} | "
+                  f"{a['max_order']} | {cpu:.1f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DATA)
     ap.add_argument("--only", nargs="*", default=None, choices=sorted(CLOUDS))
     ap.add_argument("--method", default="graph", choices=("graph", "voxel"))
+    ap.add_argument("--synthetic", nargs="*", default=None, metavar="PRESET")
+    ap.add_argument("--points", type=int, default=60_000)
+    ap.add_argument("--noise", type=float, default=0.008)
+    ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
+    if args.synthetic is not None:
+        synthetic(args.synthetic or ["birch", "conifer"], args.points, args.noise, args.seed)
+        return
     for name in args.only or CLOUDS:
         path = args.data / CLOUDS[name]
         if not path.is_file():

@@ -49,6 +49,7 @@ def test_volume_by_class_and_order_sum_to_the_cylinders():
     assert attr["trunk_volume"] == pytest.approx(v_stem)
     assert attr["branch_volume"] == pytest.approx(v_br)
     assert attr["branches_order1"] == 1 and attr["height"] == pytest.approx(4.0)
+    assert attr["trunk_top_gap"] == pytest.approx(0.0)
     assert attr["dbh"] == pytest.approx(0.30)
     assert attr["crown_base_height"] == pytest.approx(2.0)
 

@@ -341,7 +341,8 @@ def volume_by_order(graph: BranchGraph) -> dict[int, dict[str, float]]:
 
 def tree_attributes(graph: BranchGraph, height: float = 1.3) -> list[dict[str, float]]:
     """TreeQSM ``treedata``-style attributes per tree: total / trunk / branch volume (m³)
-    and length (m), number of order-1 branches, height (m, top minus base), DBH (m),
+    and length (m), number of order-1 branches, height (m, top minus base),
+    ``trunk_top_gap`` (m, the tree's top minus the trunk's highest node), DBH (m),
     crown base height (m, lowest order-1 branch start above the base), crown length (m)
     and crown diameter (m, mean of the x/y extents of the non-trunk nodes)."""
     if graph.depth is None or graph.radius is None:
@@ -363,6 +364,8 @@ def tree_attributes(graph: BranchGraph, height: float = 1.3) -> list[dict[str, f
         cbh = float(pos[par[child[first]], 2].min() - z0) if first.any() else float("nan")
         ext = pos[crown, :2].max(axis=0) - pos[crown, :2].min(axis=0) if crown.size else [0, 0]
         top = float(pos[nodes, 2].max() - z0)
+        stem_nodes = nodes[depth[nodes] == 0]
+        trunk_top = float(pos[stem_nodes, 2].max() - z0) if stem_nodes.size else 0.0
         out.append({"tree": int(t), "total_volume": float(vol[e].sum()),
                     "trunk_volume": float(vol[trunk].sum()),
                     "branch_volume": float(vol[e & ~trunk].sum()),
@@ -370,6 +373,7 @@ def tree_attributes(graph: BranchGraph, height: float = 1.3) -> list[dict[str, f
                     "trunk_length": float(length[trunk].sum()),
                     "branch_length": float(length[e & ~trunk].sum()),
                     "branches_order1": int(first.sum()), "height": top,
+                    "trunk_top_gap": top - trunk_top,
                     "dbh": float(dbhs[k]), "crown_base_height": cbh,
                     "crown_length": top - cbh if np.isfinite(cbh) else float("nan"),
                     "crown_diameter": float(np.mean(ext)),
