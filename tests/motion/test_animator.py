@@ -140,10 +140,14 @@ def test_root_edit_keeps_the_feet_on_the_ground(xia):
     c = detect_contacts(xia)
     j = xia.skeleton.index("LeftFoot")
     frames = np.flatnonzero(c[j][130:190]) + 130
-    y0 = xia.world_positions()[frames, j, 1]
-    err_lifted = np.abs(lifted.world_positions()[frames, j, 1] - y0)
-    err_fixed = np.abs(fixed.world_positions()[frames, j, 1] - y0)
-    assert err_fixed.max() < 0.5 * err_lifted.max()
+    y = xia.world_positions()[:, j, 1]
+    frames = np.flatnonzero(c[j])
+    moved = np.abs(lifted.world_positions()[:, j, 1] - y) > 0.3
+    flat = frames[(np.abs(y[frames] - np.median(y[frames])) < 0.1) & moved[frames]]
+    assert flat.size >= 10  # heel down (not rolling) where the edit moved the foot
+    err_lifted = np.abs(lifted.world_positions()[flat, j, 1] - y[flat])
+    err_fixed = np.abs(fixed.world_positions()[flat, j, 1] - y[flat])
+    assert err_fixed.max() < 0.2 * err_lifted.max()
 
 
 def test_auto_clamped_tangents_never_overshoot():

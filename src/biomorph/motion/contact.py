@@ -14,15 +14,19 @@ height above it), so the constants are fractions of the character, not of a file
   rising at heel-off leaves contact, the toe stays;
 * ``speed = 1.0`` body scales per second: a walking body moves about one leg length per
   second (Xia walk 0.9 m/s, hip 0.9 m), a planted foot far less, a swinging foot 2–3×;
-* ``hysteresis = 1.5`` and ``blend_s = 0.1`` s (fade in/out, ≥ 1 frame), ``min_s`` = 0.05 s
-  (shorter contacts are ignored).
+* ``hysteresis = 1.5``; ``min_s`` = 0.05 s (shorter contacts are ignored);
+* ``blend_s = 0.2`` s fade in/out (≥ 1 frame): **chosen on the shared captures** (0.1 / 0.2 /
+  0.3 s compared with ``bench/motion.py --skate``; 0.1 s released a held slide within 3
+  frames at 30 fps and raised the skate metric of the Xia walk above its input), so it is a
+  fitted value to check on other captures.
 
 Locking (:func:`lock_feet`), ``mode="hold"``: during each contact the planted point is held
-where it moved least (its slowest frame) — cleaning a clip that skates;
-``mode="follow"``: the point follows where a *reference* clip had it frame by frame —
-preserving the input's contacts through an operator that keeps timing (equalize, edit,
-layers), so the operator adds no skate and an edit cannot lift the feet or push them
-through the floor. ``"auto"`` (default) follows when a reference is given, else holds.
+at the median position of its slower half of frames — cleaning a clip that skates;
+with a *reference* clip (the input of an operator that keeps timing: equalize, edit,
+layers) the contacts and their held positions come from the reference, so an edit cannot
+lift the feet or push them through the floor. ``mode="follow"``: the point follows where
+the reference had it frame by frame (the input's own slide is kept; measured worse on the
+shared walks than holding, so not the default). ``"auto"`` (default) = ``"hold"``.
 In both modes the leg (hip → knee → ankle) is solved analytically so the
 ankle lands on the target with the knee kept in its plane (the knee's side of the hip–ankle
 line is kept), the foot keeps its world orientation (so the toe follows), and the weight
@@ -59,7 +63,7 @@ class ContactOptions:
     height: float = 0.04
     speed: float = 1.0
     hysteresis: float = 1.5
-    blend_s: float = 0.1
+    blend_s: float = 0.2
     min_s: float = 0.05
     up: str | None = None
     mode: str = "auto"
@@ -160,15 +164,17 @@ def _targets(on: NDArray[np.bool_], pts: Array, blend: int, follow: bool = False
              ) -> tuple[Array, Array]:
     """Per frame the held position of the nearest contact and its weight (1 inside a
     contact, smoothstep fade over ``blend`` frames outside, 0 elsewhere). The held position
-    is where the point moves least during the contact (its slowest frame): a foot still
-    gliding into the contact at its first frame is not frozen mid-glide."""
+    is the median position of the contact's slower half of frames: a foot still gliding in
+    at the first frame is not frozen mid-glide, and a slide is split between the fade in
+    and the fade out instead of released all at once."""
     f = on.size
     tgt = np.array(pts)
     wgt = np.zeros(f)
     dist = np.full(f, np.inf)
     step = np.linalg.norm(np.gradient(pts, axis=0), axis=-1) if f > 1 else np.zeros(f)
     for s, e in _runs(on):
-        p = pts[s + int(np.argmin(step[s:e]))]
+        st = step[s:e]
+        p = np.median(pts[s:e][st <= np.median(st)], axis=0)
         lo, hi = max(0, s - blend), min(f, e + blend)
         k = np.arange(lo, hi)
         d = np.where(k < s, s - k, np.where(k >= e, k - e + 1, 0)).astype(float)
@@ -248,7 +254,7 @@ def lock_feet(motion: Motion, reference: Motion | None = None,
         ref = reference
     opts = o if o.up is not None else replace(o, up=ref.meta.get("up_guess")
                                               or guess_up_axis(ref))
-    follow = o.mode == "follow" or (o.mode == "auto" and ref is not motion)
+    follow = o.mode == "follow"
     pos, wq = motion._fk(None)
     w_ref = pos if ref is motion else ref.world_positions()
     contacts = detect_contacts(ref, opts, w_ref)
