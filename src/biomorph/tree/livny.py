@@ -76,9 +76,11 @@ from biomorph.errors import InputError, ParameterError
 from biomorph.tree.allometry import allometric_radii, skeleton_distance
 from biomorph.tree.foliage import check_not_only_leaves
 from biomorph.tree.neighbours import (
+    GAP_SHORT,
     LEVEL_CELL,
     NODE_SPACING,
     NODE_SPACING_MIN,
+    BridgeRule,
     Contraction,
     bridge_components,
     contract,
@@ -140,7 +142,8 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
                       root_slice: float = 0.5, min_tree_distance: float = 0.6,
                       allometry_exponent: float = 2.5, seed: int = 0,
                       edge_weights: str = "livny", progress=None,
-                      source: str = "point cloud") -> LivnyResult:
+                      source: str = "point cloud", bridge_gap: float | None = None,
+                      ) -> LivnyResult:
     """Livny et al. 2010 steps i–vii on a point cloud (cleanup is :mod:`~biomorph.tree.cleanup`).
 
     Parameters
@@ -161,6 +164,11 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
         (see the module doc).
     progress : optional ``advance(n, description)`` callback.
     source : name of the cloud in error messages.
+    bridge_gap : gaps of the neighbour graph up to this (m) are always bridged; longer ones
+        only where the wood supports it (:class:`~biomorph.tree.neighbours.BridgeRule`:
+        points along the bridge, or a bridge continuing its piece's axis and no longer
+        than that piece). Default ``GAP_SHORT`` (4) node spacings; ``inf`` bridges every
+        gap (the earlier behaviour). Unbridged pieces drop out (``info["unbridged_points"]``).
 
     Raises :class:`~biomorph.errors.InputError` (one line, exit 2 at the CLI) for clouds
     with no tree model to give: foliage only (:func:`~biomorph.tree.foliage.check_not_only_leaves`),
@@ -210,7 +218,11 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     t2s = t0
     p_graph = neighbour_graph(xyz, k=k, radius=search_radius, tree=kd)
     t0 = tick("neighbour_graph", t0)
-    p_graph, n_comp = bridge_components(xyz, p_graph, tree=kd)
+    gap = GAP_SHORT * node_spacing if bridge_gap is None else float(bridge_gap)
+    if not gap >= 0:
+        raise ParameterError(f"bridge_gap must be >= 0 (metres), got {bridge_gap}")
+    rule = None if np.isinf(gap) else BridgeRule(short=gap, spacing=max(spacing_pts, 1e-6))
+    p_graph, n_comp = bridge_components(xyz, p_graph, tree=kd, rule=rule, anchors=roots)
     t0 = tick("bridging", t0)
     # geodesic distance (Euclidean edge lengths) for the contraction levels
     geo = p_graph.copy()
@@ -281,6 +293,7 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
         graph = graph.subgraph(keep)
     info = {"points": n, "point_spacing": spacing_pts, "node_spacing": node_spacing,
             "components": int(n_comp), "trees": int(np.unique(vtree).size),
+            "bridge_gap": gap, "unbridged_points": int((~np.isfinite(plen)).sum()),
             "iterations": iterations, "vertices": graph.n_nodes,
             "edge_weights": edge_weights,
             "mean_point_distance": md.tolist()}

@@ -301,8 +301,54 @@ def _components26(ijk: NDArray[np.int64], shape: tuple[int, ...]) -> NDArray[np.
     return connected_components(g, directed=False)[1]
 
 
+def _attach_fragments(ijk: NDArray[np.int64], lab: NDArray[np.int64], base: float,
+                      gap: float) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                           NDArray[np.float64], NDArray[np.bool_]]:
+    """Join every skeleton component whose lowest voxel is more than ``base`` voxels above
+    the lowest skeleton voxel (a fragment: no tree stands on it) to the nearest voxel of a
+    rooted component, where the gap is supported (:func:`~biomorph.tree.neighbours.
+    bridge_supported`, voxel units, ``gap`` = the always-bridged length). Repeats while
+    fragments join. Returns the added edges ``(rows, cols, weights)`` and the voxels of
+    fragments left unattached (to drop)."""
+    from scipy.spatial import cKDTree
+
+    from biomorph.tree.neighbours import BridgeRule, bridge_supported
+
+    pts = ijk.astype(np.float64)
+    ncomp = int(lab.max()) + 1
+    low = np.full(ncomp, np.inf)
+    np.minimum.at(low, lab, pts[:, 2])
+    rooted = low <= pts[:, 2].min() + base
+    kd_all = cKDTree(pts)
+    rule = BridgeRule(short=gap, spacing=1.0)
+    rows: list[int] = []
+    cols: list[int] = []
+    wts: list[float] = []
+    for _ in range(16):
+        frag = np.flatnonzero(~rooted)
+        if frag.size == 0:
+            break
+        tree_vox = np.flatnonzero(rooted[lab])
+        d, j = cKDTree(pts[tree_vox]).query(pts[np.flatnonzero(~rooted[lab])], k=1)
+        fv = np.flatnonzero(~rooted[lab])
+        # nearest pair per fragment
+        o = np.lexsort((d, lab[fv]))
+        lead = o[np.r_[True, lab[fv][o][1:] != lab[fv][o][:-1]]]
+        a, b = fv[lead], tree_vox[j[lead]]
+        ok, a, b = bridge_supported(pts, a, b, lab, kd_all, rule)
+        if not ok.any():
+            break
+        rows += a[ok].tolist()
+        cols += b[ok].tolist()
+        wts += (3.0 * np.linalg.norm(pts[a[ok]] - pts[b[ok]], axis=1)).tolist()
+        rooted[lab[a[ok]]] = True
+    return (np.asarray(rows, np.int64), np.asarray(cols, np.int64),
+            np.asarray(wts, np.float64), ~rooted[lab])
+
+
 def skeleton_graph(skel: NDArray[np.bool_], *, keep_largest: int | None = None,
-                   min_component_voxels: int = 1, bridge_gap: float = 0.0
+                   min_component_voxels: int = 1, bridge_gap: float = 0.0,
+                   base_height: float | None = None,
                    ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """Shortest-path forest over the 26-adjacent skeleton voxels (step iv, v).
 
@@ -313,6 +359,11 @@ def skeleton_graph(skel: NDArray[np.bool_], *, keep_largest: int | None = None,
     component within that distance, with weight ``3 × distance`` -- this re-connects
     branches split by occlusion gaps that the closing could not fill (an extension; the
     thesis keeps such pieces as separate skeletons).
+
+    With ``base_height`` (voxels), components whose lowest voxel lies higher than that
+    above the lowest skeleton voxel are *fragments*, not trees: each joins the nearest
+    rooted component where the gap is supported (:func:`_attach_fragments`) or is dropped
+    -- one connected skeleton per tree.
     """
     ijk = np.argwhere(skel).astype(np.int64)
     n = ijk.shape[0]
@@ -343,7 +394,19 @@ def skeleton_graph(skel: NDArray[np.bool_], *, keep_largest: int | None = None,
             w = np.concatenate([w, bw])
             g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
             ncomp, lab = connected_components(g, directed=False)
+    if base_height is not None and ncomp > 1:
+        fr, fc, fw, drop = _attach_fragments(ijk, lab, float(base_height),
+                                             max(bridge_gap, 1.0))
+        if fr.size:
+            r, c, w = np.concatenate([r, fr]), np.concatenate([c, fc]), np.concatenate([w, fw])
+            g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
+        ncomp, lab = connected_components(g, directed=False)
+        if drop.any():                         # unattached fragments: below any size limit
+            lab = np.where(drop, ncomp, lab)
+            ncomp += 1
     sizes = np.bincount(lab, minlength=ncomp)
+    if base_height is not None and ncomp > 1 and (lab == ncomp - 1).any():
+        sizes[ncomp - 1] = 0 if drop.any() else sizes[ncomp - 1]
     rank_order = np.argsort(-sizes, kind="stable")
     keep_comp = rank_order[sizes[rank_order] >= max(min_component_voxels, 1)]
     if keep_largest is not None:
@@ -354,7 +417,7 @@ def skeleton_graph(skel: NDArray[np.bool_], *, keep_largest: int | None = None,
     if not keep.any():
         return ijk[:0], np.zeros(0, np.int64), np.zeros(0, np.int64)
     # roots: lowest voxel per component, ties broken by distance to the XY centroid
-    cnt = np.bincount(lab, minlength=ncomp).astype(float)
+    cnt = np.maximum(np.bincount(lab, minlength=ncomp), 1).astype(float)
     cx = np.bincount(lab, weights=ijk[:, 0], minlength=ncomp) / cnt
     cy = np.bincount(lab, weights=ijk[:, 1], minlength=ncomp) / cnt
     d2 = (ijk[:, 0] - cx[lab]) ** 2 + (ijk[:, 1] - cy[lab]) ** 2
@@ -456,6 +519,7 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
                       smooth_iterations: int = 3, radius: bool = True,
                       extend_tips: bool = True,
                       full_symmetry: bool = False, max_disc_radius: float = 0.4,
+                      root_slice: float | None = 0.5,
                       progress: Callable[[str], None] | None = None) -> VoxelSkeleton:
     """Skeletonise a tree point cloud with the voxel method of Gorte & Pfeifer (2004).
 
@@ -484,6 +548,11 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
     extend_tips : move tips outward by their radius (thinning shortens every branch end by
         about its radius); needs ``radius``.
     full_symmetry : thinning template set (see :func:`biomorph.tree.thinning.templates`).
+    root_slice : skeleton components starting more than ``max(root_slice, 10 % of the
+        height)`` m above the lowest skeleton voxel are fragments of a tree, not trees: they
+        join the nearest rooted component where the gap is supported (the graph method's
+        rule, :class:`~biomorph.tree.neighbours.BridgeRule`) or are dropped, so each tree
+        is one connected skeleton. ``None``: every component is its own tree (the thesis).
     progress : called with the name of each phase as it starts.
 
     Returns
@@ -525,9 +594,12 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
 
     note("graph")
     gap = 6 * cell if bridge_gap is None else float(bridge_gap)
+    base = None
+    if root_slice is not None:
+        base = max(float(root_slice), 0.1 * float(np.ptp(cloud.xyz[:, 2]))) / cell
     ijk, parent, comp = skeleton_graph(skel, keep_largest=keep_largest,
                                        min_component_voxels=min_component_voxels,
-                                       bridge_gap=gap / cell)
+                                       bridge_gap=gap / cell, base_height=base)
     if ijk.shape[0] == 0:
         raise InputError(f"{cloud.source or 'point cloud'}: no skeleton component has "
                          f"{min_component_voxels} voxels or more; lower min_component_voxels")
