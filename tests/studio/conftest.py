@@ -80,7 +80,7 @@ class Studio:
 
     def open_tab(self, label: str) -> None:
         """Click the tab's button in the tab bar (it also switches the 3-D view)."""
-        self.page.get_by_role("button", name=label, exact=True).first.click()
+        self.page.get_by_role("button", name=label, exact=True).first.click(no_wait_after=True)
         self.page.wait_for_timeout(150)
 
     def open_folder(self, label: str) -> None:
@@ -218,6 +218,7 @@ def open_page(app, browser, url: str | None = None):
     before = set(app.sessions.values())
     ctx = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
     page = ctx.new_page()
+    page.set_default_timeout(90_000)  # software WebGL on 2 shared cores is slow under load
     page.goto(url or app.url)
     page.bring_to_front()  # viser's page connects only while it has the focus
     page.get_by_role("button", name="Files", exact=True).first.wait_for(timeout=120000)

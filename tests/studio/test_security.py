@@ -324,7 +324,7 @@ def test_two_pages_are_isolated_and_a_reload_restores(studio_app, browser):
         assert a.tabs["files"] is not b.tabs["files"]
         # reload page A (its address again in the same browser): same session, same values
         old = ca.generator
-        page_a.reload(wait_until="commit")
+        page_a.reload(wait_until="commit", timeout=90_000)
         page_a.bring_to_front()  # viser's page connects only while it has the focus
         page_a.get_by_role("button", name="Files", exact=True).first.wait_for(timeout=30000)
         wait_for(lambda: a.ready.is_set() and a.client is not None, what="A to re-attach")
