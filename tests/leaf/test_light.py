@@ -63,13 +63,14 @@ def test_analytic_shadow_of_one_horizontal_leaf() -> None:
                                                                 "leaf": np.ones(2, int)})
     when = datetime(2026, 6, 21, 10, 0)
     opts = LightOptions(when=when, latitude=45.0, longitude=0.0, sky=0, diffuse_fraction=0.0,
-                        par=1000.0, ground=(0, 0, 1, 1), ray_spacing=0.002, periodic=False)
+                        par=1000.0, ground=(0, 0, 1, 1), ray_spacing=0.0025,
+                        periodic=False)
     r = intercept(leaf, opts)
     # a horizontal leaf intercepts the horizontal irradiance times its area, whatever the sun
-    assert r.energy.sum() == pytest.approx(1000.0 * a * a, rel=2e-3)
-    assert r.gap_fraction_sun == pytest.approx(1 - a * a, abs=2e-3)
-    assert r.leaves["fraction"][0] == pytest.approx(a * a, rel=2e-3)
-    assert r.leaves["absorbed"][0] == pytest.approx(0.85 * 1000.0 * a * a, rel=2e-3)
+    assert r.energy.sum() == pytest.approx(1000.0 * a * a, rel=3e-3)
+    assert r.gap_fraction_sun == pytest.approx(1 - a * a, abs=3e-3)
+    assert r.leaves["fraction"][0] == pytest.approx(a * a, rel=3e-3)
+    assert r.leaves["absorbed"][0] == pytest.approx(0.85 * 1000.0 * a * a, rel=3e-3)
     # where the shadow falls: rays from ground points under the offset shadow hit the leaf
     el, az = r.sun
     from biomorph.leaf.light import direction_from
@@ -126,7 +127,7 @@ def test_light_cli_end_to_end(tmp_path, capsys) -> None:
     assert run(["leaf", "canopy", "--plants", "8", "--rows", "2", "-o", str(field)]) == 0
     capsys.readouterr()
     png, lit, csv = tmp_path / "light.png", tmp_path / "lit.glb", tmp_path / "leaves.csv"
-    assert run(["leaf", "light", str(field), "--sun", "2026-06-21T12:00", "--sky", "16",
+    assert run(["leaf", "light", str(field), "--sun", "2026-06-21T12:00", "--sky", "0",
                 "--png", str(png), "-o", str(lit), "--table", str(csv), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert 0 < s["gap_fraction"] < 1 and s["engine"] in ("embree", "trimesh")
@@ -135,6 +136,13 @@ def test_light_cli_end_to_end(tmp_path, capsys) -> None:
     assert "_PAR_ABSORBED" in read_gltf_summary(lit)["attributes"]
     rows = csv.read_text().splitlines()
     assert rows[0].startswith("plant,leaf,area_m2") and len(rows) > 8
+
+
+@pytest.fixture(scope="module")
+def small_field(tmp_path_factory):
+    field = tmp_path_factory.mktemp("light") / "field.glb"
+    assert run(["leaf", "canopy", "--plants", "4", "--rows", "2", "-o", str(field)]) == 0
+    return field
 
 
 @pytest.mark.parametrize("args,match", [
@@ -146,10 +154,8 @@ def test_light_cli_end_to_end(tmp_path, capsys) -> None:
     (["--ground", "1,1,0,0"], "--ground"),
     (["--png", "x.jpg"], ".png"),
 ])
-def test_light_cli_bad_input(tmp_path, capsys, args, match) -> None:
-    field = tmp_path / "field.glb"
-    assert run(["leaf", "canopy", "--plants", "4", "--rows", "2", "-o", str(field)]) == 0
-    capsys.readouterr()
+def test_light_cli_bad_input(small_field, tmp_path, capsys, args, match) -> None:
+    field = small_field
     out = tmp_path / "lit.glb"
     args = [a if not a.endswith(".jpg") else str(tmp_path / a) for a in args]
     assert run(["leaf", "light", str(field), *args, "-o", str(out)]) == 2

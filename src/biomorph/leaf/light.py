@@ -61,7 +61,7 @@ class LightOptions:
     when: datetime | None = None        # UTC date and time of the sun (None: sky only)
     latitude: float = 48.8              # degrees north
     longitude: float = 2.3              # degrees east
-    sky: int = 46                       # 0 (no diffuse), 16 or 46 directions
+    sky: int = 46                       # 16 or 46 directions; 0: sun only (all PAR direct)
     par: float = 1500.0                 # global horizontal PAR above the canopy
     diffuse_fraction: float = 0.3       # part of ``par`` that is diffuse (1 with no sun)
     absorptance: float = 0.85           # leaf PAR absorptance (green leaves absorb ~85 %)
@@ -402,6 +402,8 @@ def _sources(opts: LightOptions):
     sun = None
     dirs, inc = [], []
     fd = opts.diffuse_fraction if opts.when is not None else 1.0
+    if opts.sky == 0:
+        fd = 0.0             # no sky: all of ``par`` comes from the sun
     if opts.when is not None:
         el, az = sun_position(opts.when, opts.latitude, opts.longitude)
         if el <= 0:
