@@ -334,3 +334,33 @@ def test_two_pages_are_isolated_and_a_reload_restores(studio_app, browser):
     finally:
         ctx_a.close()
         ctx_b.close()
+
+
+# ---------------------------------------------------------------------- pictures
+def test_creature_bone_models_are_drawn_shaded(shared_app):
+    tab = shared_app.tabs["creature"]
+    v = tab.version
+    tab.bone_models.value = True  # its callback redraws
+    wait_for(lambda: tab.version > v, what="the redraw with bone models")
+    names = [n for n in tab.scene._handle_from_node_name if n.startswith("/creature/models/")]
+    assert names, "no bone model meshes in the scene"
+    tab.bone_models.value = False
+    assert not [n for n in tab.scene._handle_from_node_name
+                if n.startswith("/creature/models/")]
+
+
+def test_tree_tubes_are_coloured_by_radius_with_a_legend(shared_app):
+    import numpy as np
+
+    tab = shared_app.tabs["tree"]
+    tab.run("synthesise", tab.synthesise)
+    tab.run("run", tab.start)
+    wait_for(lambda: tab.result is not None, timeout=300, what="the skeleton")
+    wait_for(lambda: "Tube radius" in tab.legend_md.content, what="the tubes and legend")
+    colours = {c for _, _, c in tab._tubes}
+    assert len(colours) >= 3, colours  # thin twigs to the trunk span several classes
+    assert "Tube radius" in tab.legend_md.content and "cm" in tab.legend_md.content
+    assert "Branch order" in tab.legend_md.content
+    lo, hi = tab._tube_range
+    assert 0 < lo < hi <= float(np.max(tab.result.graph.radius))
+    assert tab.ticks[0] == "prepared" and tab.ticks[-1] == "metrics"
