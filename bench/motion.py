@@ -100,7 +100,7 @@ def main() -> None:
          lambda: bm.make_cycle(m, 100, 500, 60, cycles=10, mode="in-place")),
         ("foot contacts: detect", lambda: detect_contacts(m)),
         ("foot contacts: lock (hold, two-bone IK)", lambda: lock_feet(m)),
-        ("foot contacts: lock after equalize (follow input)", lambda: lock_feet(eq, m)),
+        ("foot contacts: lock after equalize (input contacts)", lambda: lock_feet(eq, m)),
         ("root motion: extract to ground root", lambda: extract_root_motion(m)),
         ("root motion: in place", lambda: in_place(m)),
         ("mirror left/right", lambda: mirror(m)),
