@@ -123,3 +123,16 @@ def test_plant_cli(tmp_path, capsys) -> None:
     s = json.loads(capsys.readouterr().out)
     assert s["leaves"] == len(s["per_leaf"]) > 5 and s["below_ground_vertices"] == 0
     assert 0.3 < s["height_m"] < 3.5 and mtg.stat().st_size > 0
+
+
+def test_plant_stand_to_light(tmp_path, capsys) -> None:
+    out, mtg = tmp_path / "stand.glb", tmp_path / "stand.mtg"
+    assert run(["leaf", "plant", "--thermal-time", "900", "--plants", "6", "--rows", "2",
+                "--density", "200", "--mtg", str(mtg), "-o", str(out), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["plants"] == 6 and s["lai"] > 0 and len({p["plant"] for p in s["per_leaf"]}) == 6
+    assert mtg.read_text().count("\n/P") == 6
+    assert run(["leaf", "light", str(out), "--sun", "2026-06-21T12:00", "--sky", "0",
+                "--ground", s["ground"], "--json"]) == 0
+    lit = json.loads(capsys.readouterr().out)
+    assert 0 < lit["intercepted_fraction"] < 1 and lit["leaves"] == s["leaves"]

@@ -438,6 +438,14 @@ def plant(output: Annotated[Path, typer.Option("-o", "--output",
           phen: Annotated[str | None, typer.Option(
               "--phen", help="Phenology table CSV (phenT-like, Haun stages).")] = None,
           mtg: Annotated[str | None, typer.Option(help="Also write the plant as MTG.")] = None,
+          plants: Annotated[int, typer.Option(help="Plants in the stand.",
+                                              callback=bounded(1, 100_000))] = 1,
+          rows: Annotated[int, typer.Option(help="Rows of the stand.",
+                                            callback=bounded(1))] = 1,
+          spacing: Annotated[float, typer.Option(help="Row spacing (m).",
+                                                 callback=POS)] = 0.15,
+          density: Annotated[float | None, typer.Option(
+              help="Plants per m² (sets the spacing in rows).", callback=POS)] = None,
           triangles: Annotated[int, typer.Option(help="Triangles per leaf (about).",
                                                  callback=bounded(1))] = 20,
           seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
@@ -452,7 +460,12 @@ def plant(output: Annotated[Path, typer.Option("-o", "--output",
     from biomorph.io.plant_tables import read_dimensions, read_phenology
     from biomorph.leaf.canopy import LeafCountWarning
     from biomorph.leaf.files import write_leaf_mesh
-    from biomorph.leaf.plant import PlantOptions, build_plant_architecture, write_plant_mtg
+    from biomorph.leaf.plant import (
+        PlantOptions,
+        build_plant_architecture,
+        build_plant_stand,
+        write_plant_mtg,
+    )
 
     _check_ext(output, MESH_EXT)
     if mtg is not None:
@@ -462,21 +475,38 @@ def plant(output: Annotated[Path, typer.Option("-o", "--output",
     opts = PlantOptions(preset=preset, leaves=leaves if d is None else int(d["rank"].size),
                         thermal_time=thermal_time, phyllochron=phyllochron, tillers=tillers,
                         dimensions=d, phenology=p, triangles_per_leaf=triangles)
+    if rows > plants:
+        raise ParameterError(f"--rows {rows} exceeds --plants {plants}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LeafCountWarning)
-        built = build_plant_architecture(opts, seed=seed)
-    for w in caught:
+        if plants == 1:
+            built = build_plant_architecture(opts, seed=seed)
+            stand, mesh, tile = [built], built.mesh, None
+        else:
+            mesh, stand, tile = build_plant_stand(opts, plants, rows, spacing, density, seed)
+            built = stand[0]
+    for w in caught[:1]:
         err_console.print(f"warning: {w.message}")
-    write_leaf_mesh(output, built.mesh)
-    summary = {"file": str(output), "preset": preset, **built.summary()}
+    write_leaf_mesh(output, mesh)
+    summary = {"file": str(output), "preset": preset, "plants": plants, **built.summary(),
+               "triangles": mesh.n_faces,
+               "below_ground_vertices": int((mesh.vertices[:, 2] < 0).sum())}
+    sums = [p.summary() for p in stand]
+    for key in ("leaves", "leaf_area_m2", "green_area_m2", "senescent_area_m2"):
+        summary[key] = sum(s[key] for s in sums)          # whole stand
+    summary["height_m"] = max(s["height_m"] for s in sums)
+    if tile is not None:
+        ground = (tile[2] - tile[0]) * (tile[3] - tile[1])
+        summary["ground"] = ",".join(f"{v:.6g}" for v in tile)
+        summary["lai"] = sum(float(p.leaves["area"].sum()) for p in stand) / ground
     if mtg is not None:
-        summary["mtg"] = str(write_plant_mtg(mtg, built))
-    lv = built.leaves
-    summary["per_leaf"] = [{"axis": int(lv["axis"][i]), "rank": int(lv["rank"][i]),
+        summary["mtg"] = str(write_plant_mtg(mtg, stand))
+    summary["per_leaf"] = [{"plant": k, "axis": int(lv["axis"][i]), "rank": int(lv["rank"][i]),
                             "length_m": lv["length"][i], "green_length_m": lv["green_length"][i],
                             "area_m2": lv["area"][i], "green_area_m2": lv["green_area"][i],
                             "insertion_deg": lv["insertion_deg"][i]}
-                           for i in range(lv["rank"].size)] if as_json else len(lv["rank"])
+                           for k, lv in enumerate(p.leaves for p in stand)
+                           for i in range(lv["rank"].size)] if as_json else summary["leaves"]
     emit(summary, as_json, title="leaf plant")
 
 

@@ -369,9 +369,38 @@ def _tubes(tubes, sides: int, plant_id: int) -> Mesh | None:
     return Mesh(verts, faces, normals=normals, vertex_colors=colors, face_ids=ids)
 
 
+def build_plant_stand(opts: PlantOptions, plants: int, rows: int, row_spacing: float,
+                      density: float | None = None, seed: int = 0,
+                      position_jitter: float = 0.01) -> tuple[Mesh, list[Plant],
+                                                            tuple[float, float, float, float]]:
+    """A stand of ADEL-like plants in rows (each with its own seed-derived draws): the merged
+    mesh (``plant`` ids 0..plants-1), the plants, and the ground tile of the planting
+    pattern (for :func:`biomorph.leaf.light.intercept`'s periodic ground)."""
+    if plants < 1 or rows < 1 or rows > plants:
+        raise ParameterError(f"need 1 <= rows <= plants; got plants={plants}, rows={rows}")
+    if not row_spacing > 0 or (density is not None and not density > 0):
+        raise ParameterError("row spacing and density must be > 0")
+    per_row = int(np.ceil(plants / rows))
+    dx = 1.0 / (density * row_spacing) if density else row_spacing / 3.0
+    rng = np.random.default_rng(seed)
+    seeds = rng.integers(0, 2**31 - 1, plants)
+    jit = position_jitter * rng.standard_normal((plants, 2))
+    built = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LeafCountWarning)
+        for k in range(plants):
+            pos = (k % per_row * dx + jit[k, 0], k // per_row * row_spacing + jit[k, 1], 0.0)
+            built.append(build_plant_architecture(opts, seed=int(seeds[k]), origin=pos,
+                                                  plant_id=k))
+    if caught:
+        warnings.warn(str(caught[0].message), LeafCountWarning, stacklevel=2)
+    tile = (-dx / 2, -row_spacing / 2, per_row * dx - dx / 2, rows * row_spacing - row_spacing / 2)
+    return Mesh.merge([b.mesh for b in built]), built, tile
+
+
 # --------------------------------------------------------------------------- MTG
-def write_plant_mtg(path, plant: Plant) -> Any:
-    """The plant as a multiscale MTG: plant (P, scale 1) / axis (A, 2) / metamer (M, 3) /
+def write_plant_mtg(path, plant: Plant | list[Plant]) -> Any:
+    """Plants as a multiscale MTG: plant (P, scale 1) / axis (A, 2) / metamer (M, 3) /
     organs internode I, sheath S, blade L (scale 4), written with :func:`io.mtg.write_mtg`.
 
     Features: ``XX YY ZZ`` (organ top: internode top, collar, blade insertion), ``Length``,
@@ -379,10 +408,18 @@ def write_plant_mtg(path, plant: Plant) -> Any:
     from biomorph.io.mtg import write_mtg
 
     feats = ["XX", "YY", "ZZ", "Length", "Diameter", "Width", "SenescentFraction"]
+    rows: list[tuple[int, str, dict[str, float]]] = []
+    for k, one in enumerate(plant if isinstance(plant, list) else [plant]):
+        rows.append((0, f"/P{k + 1}", {}))
+        _plant_rows(one, rows)
+    classes = [("P", 1), ("A", 2), ("M", 3), ("I", 4), ("S", 4), ("L", 4)]
+    return write_mtg(path, classes, rows, feats)
+
+
+def _plant_rows(plant: Plant, rows: list) -> None:
     by_axis: dict[int, dict[int, list[dict[str, Any]]]] = {}
     for o in plant.organs:
         by_axis.setdefault(o["axis"], {}).setdefault(o["rank"], []).append(o)
-    rows: list[tuple[int, str, dict[str, float]]] = [(0, "/P1", {})]
     symbol = {"internode": "I", "sheath": "S", "blade": "L"}
 
     def organ_feats(o):
@@ -405,9 +442,7 @@ def write_plant_mtg(path, plant: Plant) -> Any:
                 axis_rows(tiller, col + 1, f"+A{tiller + 1}")
 
     axis_rows(0, 0, "^/A1")
-    classes = [("P", 1), ("A", 2), ("M", 3), ("I", 4), ("S", 4), ("L", 4)]
-    return write_mtg(path, classes, rows, feats)
 
 
-__all__ = ["Plant", "PlantOptions", "build_plant_architecture", "default_tables",
-           "write_plant_mtg"]
+__all__ = ["Plant", "PlantOptions", "build_plant_architecture", "build_plant_stand",
+           "default_tables", "write_plant_mtg"]
