@@ -100,6 +100,22 @@ DETECT_FACTOR = 6.0   #: "clearly foliage": thicker than this × the median
 DETECT_SHARE = 0.003  #: foliage present when more than this share of points is
 
 
+#: clouds above this many points are first checked for foliage on a seeded sample of this
+#: size (the share of thick neighbourhoods is a mean: ±0.05 % at 200,000 samples for the
+#: 0.3 % limit); the sample's spacing is coarser, so its neighbourhoods are wider, as in a
+#: sparser scan of the same tree
+DETECT_SAMPLE = 200_000
+
+
+def _detected_share(xyz: NDArray[np.float64], k: int) -> float:
+    """Share of thick neighbourhoods (> ``DETECT_FACTOR`` × median) on a seeded sample."""
+    n = xyz.shape[0]
+    pick = np.sort(np.random.default_rng(0).choice(n, size=min(n, DETECT_SAMPLE),
+                                                   replace=False))
+    th = neighbourhood_thickness(xyz[pick], k)
+    return float(np.mean(th > DETECT_FACTOR * np.median(th)))
+
+
 def separate_foliage(xyz: NDArray[np.float64], factor: float = 3.0, k: int = 12,
                      passes: int = 2, detect: bool = False) -> FoliageSplit:
     """Split a tree cloud into wood and foliage by neighbourhood thickness (module doc).
@@ -124,6 +140,12 @@ def separate_foliage(xyz: NDArray[np.float64], factor: float = 3.0, k: int = 12,
     first = np.zeros(n)
     share = 0.0
     limits: list[float] = []
+    if detect and n > DETECT_SAMPLE:
+        # no foliage on a seeded sample: skip the full feature pass (1M points: ~1/3 of
+        # the pipeline's CPU); clouds up to DETECT_SAMPLE points are judged on every point
+        sampled = _detected_share(xyz, k)
+        if sampled <= DETECT_SHARE:
+            return FoliageSplit(wood, first, (), sampled, False)
     for it in range(passes):
         idx = np.flatnonzero(wood)
         if idx.size <= 4 * k:

@@ -178,10 +178,13 @@ def bridge_components(xyz: NDArray[np.float64], graph: sparse.csr_matrix,
                 break
         add_r.extend(best_r[found].tolist())
         add_c.extend(best_c[found].tolist())
-        r = np.asarray(add_r)
-        c = np.asarray(add_c)
-        extra = sparse.coo_matrix((np.ones(r.size), (r, c)), shape=(n, n))
-        ncomp, cur = connected_components(graph + extra + extra.T, directed=False)
+        # the new pieces: components of the small graph over the original pieces (the
+        # same partition as of graph + bridges, without adding to the n x n matrix)
+        r = lab[np.asarray(add_r, dtype=np.int64)]
+        c = lab[np.asarray(add_c, dtype=np.int64)]
+        small = sparse.coo_matrix((np.ones(r.size), (r, c)), shape=(n0, n0))
+        ncomp, merged = connected_components(small, directed=False)
+        cur = merged[lab]
     r = np.asarray(add_r, dtype=np.int64)
     c = np.asarray(add_c, dtype=np.int64)
     w = np.maximum(np.sum((xyz[r] - xyz[c]) ** 2, axis=1), 1e-18)
