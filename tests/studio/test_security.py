@@ -364,3 +364,17 @@ def test_tree_tubes_are_coloured_by_radius_with_a_legend(shared_app):
     lo, hi = tab._tube_range
     assert 0 < lo < hi <= float(np.max(tab.result.graph.radius))
     assert tab.ticks[0] == "prepared" and tab.ticks[-1] == "metrics"
+
+
+def test_creature_steps_and_limb_edits_before_girdles_are_user_errors(shared_app):
+    """Found by the monkey: a stepwise rebuild drew the spine from a dict (the pillar's
+    step states are typed now) and 'Change limb type' before the girdles step crashed."""
+    tab = shared_app.tabs["creature"]
+    tab.run("all steps", tab.all_steps)
+    tab.run("next step", tab.next_step)  # starts a stepwise rebuild: the spine only
+    assert tab.last_error is None, tab.last_error
+    assert "/creature/spine" in tab.scene._handle_from_node_name
+    tab.run("change limb type", tab.change_limb)
+    assert tab.last_error is not None and "girdles" in tab.last_error
+    tab.run("all steps", tab.all_steps)
+    assert tab.last_error is None and tab.creature is not None

@@ -198,10 +198,9 @@ class CreatureTab(StudioTab):
             self.run("change limb type", self.change_limb)
 
     def _slot(self) -> tuple[str, int]:
-        text = self.limb_slot.value
-        if " " not in text:
+        girdle, _, pair = self.limb_slot.value.rpartition(" ")
+        if not girdle or not pair.isdigit():
             raise InputError("no limb pair chosen: run the girdles step first")
-        girdle, pair = text.rsplit(" ", 1)
         return girdle, int(pair) - 1
 
     def change_limb(self) -> None:
@@ -305,9 +304,10 @@ class CreatureTab(StudioTab):
                                        mesh.vertices[used].astype(np.float32),
                                        inv.reshape(-1, 3).astype(np.int32), color=colour)
 
-    def _draw_spine(self, spine: dict) -> None:
+    def _draw_spine(self, spine: Any) -> None:
         """The sampled spine's control polygon (frame px, shown at 1 px = 2 mm)."""
-        pts = np.asarray(spine.get("points", np.zeros((0, 2))), dtype=float).reshape(-1, 2)
+        pts = spine.get("points") if isinstance(spine, dict) else getattr(spine, "points", None)
+        pts = np.asarray(np.zeros((0, 2)) if pts is None else pts, dtype=float).reshape(-1, 2)
         if len(pts) < 2:
             return
         xyz = np.column_stack([500.0 - pts[:, 0], pts[:, 1], np.zeros(len(pts))]) * 0.002
