@@ -11,7 +11,7 @@ from biomorph.leaf.demo import run_demo
 def test_demo_sections(tmp_path) -> None:
     sections = run_demo(tmp_path / "leaf")
     titles = " ".join(s.title for s in sections)
-    for word in ("growing", "plastic", "levels of detail", "field"):
+    for word in ("growing", "plastic", "levels of detail", "field", "light"):
         assert word in titles
     for sec in sections:
         for f in [*sec.images, *sec.files]:
