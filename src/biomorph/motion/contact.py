@@ -167,26 +167,39 @@ def _targets(on: NDArray[np.bool_], pts: Array, blend: int, follow: bool = False
     is the median position of the contact's slower half of frames: a foot still gliding in
     at the first frame is not frozen mid-glide, and a slide is split between the fade in
     and the fade out instead of released all at once."""
-    f = on.size
+    pts = np.ascontiguousarray(pts, dtype=np.float64)
+    step = np.linalg.norm(np.gradient(pts, axis=0), axis=-1) if on.size > 1 else \
+        np.zeros(on.size)
+    runs = np.asarray(_runs(on), dtype=np.int64).reshape(-1, 2)
     tgt = np.array(pts)
-    wgt = np.zeros(f)
-    dist = np.full(f, np.inf)
-    step = np.linalg.norm(np.gradient(pts, axis=0), axis=-1) if f > 1 else np.zeros(f)
-    for s, e in _runs(on):
-        st = step[s:e]
-        p = np.median(pts[s:e][st <= np.median(st)], axis=0)
-        lo, hi = max(0, s - blend), min(f, e + blend)
-        k = np.arange(lo, hi)
-        d = np.where(k < s, s - k, np.where(k >= e, k - e + 1, 0)).astype(float)
-        closer = d < dist[lo:hi]
-        wk = np.clip(1.0 - d / (blend + 1), 0.0, 1.0)
-        wk = wk * wk * (3 - 2 * wk)
-        upd = closer & (wk > 0)
-        idx = k[upd]
-        tgt[idx] = pts[idx] if follow else p
-        wgt[idx] = wk[upd]
-        dist[k[closer]] = d[closer]
+    wgt = np.zeros(on.size)
+    _targets_kernel(pts, step, runs, int(blend), bool(follow), tgt, wgt)
     return tgt, wgt
+
+
+@njit(cache=True)
+def _targets_kernel(pts, step, runs, blend, follow, tgt, wgt):  # pragma: no cover - compiled
+    f = pts.shape[0]
+    dist = np.full(f, np.inf)
+    for r in range(runs.shape[0]):
+        s, e = runs[r, 0], runs[r, 1]
+        st = step[s:e]
+        cut = np.median(st)
+        sel = pts[s:e][st <= cut]
+        p = np.empty(3)
+        for a in range(3):
+            p[a] = np.median(sel[:, a])
+        for k in range(max(0, s - blend), min(f, e + blend)):
+            d = float(s - k) if k < s else (float(k - e + 1) if k >= e else 0.0)
+            if d >= dist[k]:
+                continue
+            dist[k] = d
+            wk = min(max(1.0 - d / (blend + 1), 0.0), 1.0)
+            wk = wk * wk * (3.0 - 2.0 * wk)
+            if wk > 0:
+                wgt[k] = wk
+                for a in range(3):
+                    tgt[k, a] = pts[k, a] if follow else p[a]
 
 
 def _unit(v: Array) -> Array:
