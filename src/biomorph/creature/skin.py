@@ -30,7 +30,7 @@ from biomorph.creature.creature import Creature
 #: grid cells along the longest side per level of detail
 RESOLUTION = (40, 64, 96)
 #: finest grid (cells along the longest side) per level of detail
-RES_MAX = (64, 112, 192)
+RES_MAX = (56, 96, 160)
 #: tissue over bone at the bony landmarks, as a share of the bone's half-width
 LANDMARK_TISSUE = 0.35
 #: radius classes of the distance-transform field (see :func:`_field`)
@@ -110,19 +110,25 @@ def _field(caps: tuple[NDArray, NDArray, NDArray, NDArray], lo: NDArray, h: floa
     cell = np.clip(np.rint((pts - lo) / h).astype(int), 0, np.array(shape) - 1)
     edges = np.geomspace(rad.min(), rad.max() * 1.0001, RADIUS_CLASSES + 1)
     cls = np.clip(np.searchsorted(edges, rad, side="right") - 1, 0, RADIUS_CLASSES - 1)
-    field = np.full(shape, -np.inf, np.float32)
+    field = np.full(shape, -2.0 * h, np.float32)
+    dims = np.array(shape)
     for k in range(RADIUS_CLASSES):
         sel = cls == k
         if not sel.any():
             continue
-        r_grid = np.zeros(shape, np.float32)
-        idx = tuple(cell[sel].T)
-        np.maximum.at(r_grid, idx, rad[sel].astype(np.float32))
-        marked = r_grid > 0
-        dist, (ix, iy, iz) = distance_transform_edt(~marked, sampling=h,
+        # only the class's own box matters: beyond its largest radius + 2 cells the field
+        # is below the floor of -2 cells anyway
+        reach = int(np.ceil(rad[sel].max() / h)) + 3
+        lo_c = np.maximum(cell[sel].min(axis=0) - reach, 0)
+        hi_c = np.minimum(cell[sel].max(axis=0) + reach + 1, dims)
+        box = tuple(slice(a, b) for a, b in zip(lo_c, hi_c, strict=True))
+        r_grid = np.zeros(tuple(hi_c - lo_c), np.float32)
+        np.maximum.at(r_grid, tuple((cell[sel] - lo_c).T), rad[sel].astype(np.float32))
+        dist, (ix, iy, iz) = distance_transform_edt(r_grid <= 0, sampling=h,
                                                     return_indices=True)
-        np.maximum(field, r_grid[ix, iy, iz] - dist.astype(np.float32), out=field)
-    return np.maximum(field, -2.0 * h)
+        sub = field[box]
+        np.maximum(sub, r_grid[ix, iy, iz] - dist.astype(np.float32), out=sub)
+    return field
 
 
 def _weights(c: Creature, v: NDArray, h: float) -> tuple[NDArray, NDArray]:
