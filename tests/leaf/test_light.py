@@ -187,3 +187,22 @@ def test_fallback_engine_warns_and_agrees(monkeypatch) -> None:
         slow = intercept(m, opts)
     assert slow.engine == "trimesh" and fast.engine == "embree"
     assert np.abs(slow.gap_by_direction - fast.gap_by_direction).max() < 0.005
+
+
+def test_light_reads_every_canopy_format(small_field, tmp_path, capsys) -> None:
+    from biomorph.leaf.files import read_canopy, write_leaf_mesh
+
+    m = read_canopy(small_field)
+    gaps = []
+    for ext in (".can", ".ply", ".obj"):
+        path = write_leaf_mesh(tmp_path / f"f{ext}", m)
+        back = read_canopy(path)
+        assert back.n_faces == m.n_faces
+        # same ids per face (the OBJ writer groups faces by id, so compare counts)
+        assert np.array_equal(np.bincount(back.face_ids["leaf"]),
+                              np.bincount(m.face_ids["leaf"]))
+        assert back.area() == pytest.approx(m.area(), rel=1e-5)
+        assert run(["leaf", "light", str(path), "--sun", "2026-06-21T12:00", "--sky", "0",
+                    "--json"]) == 0
+        gaps.append(json.loads(capsys.readouterr().out)["gap_fraction"])
+    assert max(gaps) - min(gaps) < 0.01

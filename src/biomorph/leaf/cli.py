@@ -277,7 +277,7 @@ def reduce_curve(output: Annotated[Path, typer.Option("-o", "--output", help="cu
 
 @app.command()
 def light(canopy_file: Annotated[Path, typer.Argument(
-              metavar="CANOPY", help="Canopy mesh .glb|.obj|.ply (Z-up, metres).")],
+              metavar="CANOPY", help="Canopy mesh .glb|.obj|.ply|.can (Z-up, metres).")],
           sun: Annotated[str | None, typer.Option(
               help="Sun time, ISO 8601 UTC (e.g. 2026-06-21T12:00). Omit: sky only.")] = None,
           latitude: Annotated[float, typer.Option(

@@ -86,7 +86,8 @@ def _accessor(gltf: Any, blob: bytes, index: int) -> np.ndarray:
 def read_canopy(path: str | Path) -> Any:
     """A Z-up canopy mesh with its ``plant``/``leaf`` face ids, from ``.glb`` (as written by
     :func:`write_leaf_mesh`: glTF Y-up turned back to Z-up, ids from the ``_PLANT_ID`` /
-    ``_LEAF_ID`` vertex attributes), ``.obj`` (face-id groups) or ``.ply``."""
+    ``_LEAF_ID`` vertex attributes), ``.obj`` (face-id groups), ``.ply`` or a CARIBU
+    ``.can`` scene (plant and leaf ids from the labels; metres)."""
     from biomorph.core.mesh import Mesh
 
     path = Path(path)
@@ -97,8 +98,13 @@ def read_canopy(path: str | Path) -> Any:
         from biomorph import io
 
         return io.read_mesh(path)
+    if ext == ".can":
+        from biomorph.io.caribu import read_can
+
+        return read_can(path)
     if ext != ".glb":
-        raise FormatError(path, f"extension {ext or '(none)'!r}: expected .glb, .obj or .ply")
+        raise FormatError(path, f"extension {ext or '(none)'!r}: expected .glb, .obj, .ply "
+                                "or .can")
     import pygltflib
 
     try:
