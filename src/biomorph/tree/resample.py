@@ -72,7 +72,9 @@ def extend_tips(graph: BranchGraph, xyz: NDArray[np.float64], reach: float,
     tips, d = tips[ok], d[ok] / ln[ok, None]
     lists = kd.query_ball_point(pos[tips], reach, return_sorted=False)
     cnt = np.fromiter((len(x) for x in lists), dtype=np.int64, count=tips.size)
-    idx = np.fromiter((i for x in lists for i in x), dtype=np.int64, count=int(cnt.sum()))
+    # one array per tip, joined once (a generator over every index cost ~10 s at 10⁶ points)
+    idx = (np.concatenate([np.asarray(x, dtype=np.int64) for x in lists]) if cnt.sum()
+           else np.zeros(0, dtype=np.int64))
     owner = np.repeat(np.arange(tips.size), cnt)
     rel = xyz[idx] - pos[tips][owner]
     t = np.einsum("ij,ij->i", rel, d[owner])
