@@ -177,7 +177,8 @@ def anatomy_check(c: Creature, m: dict | None = None) -> dict[str, bool]:
                                                                   RANGES["withers_ratio"])
     asked = opts.get("legs") is not None or opts.get("cls") is not None
     out["class_legs"] = asked or not ((cls == "bird" and legs != 2) or (cls == "fish" and legs))
-    out["weight_in_range"] = opts.get("weight") is not None or 0.01 <= c.total_mass <= 120000.0
+    out["weight_in_range"] = (opts.get("weight") is not None
+                              or 0.01 * (1 - 1e-9) <= c.total_mass <= 120000.0 * (1 + 1e-9))
     grounded = set(int(j) for j in c.contact_joint)
     out["feet_have_digits"] = all(
         c.part[j] in ("phalanx", "hoof", "claw", "nail", "metatarsal", "metacarpal")
