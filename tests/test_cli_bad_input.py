@@ -243,3 +243,70 @@ def test_table_covers_every_numeric_option():
                      ("motion convert", "--fps"), ("leaf reduce-curve", "--points")]:
         assert expected in flags
     assert len(OPTIONS) >= 60
+
+
+def _huge_mtg(tmp: Path) -> Path:
+    from biomorph.core.graph import BranchGraph
+    from biomorph.io import write_graph
+
+    g = BranchGraph([[0, 0, 0], [0, 0, 1e200], [1e200, 0, 1e200]], [-1, 0, 1],
+                    radius=[0.1, 0.05, 0.02])
+    return write_graph(tmp / "huge.mtg", g)
+
+
+@pytest.mark.parametrize("argv,needle", [
+    # non-UTF-8 text inputs: one line naming the file, line and byte
+    (["creature", "dataset", "--dataset", "{latin1}"], "latin1.csv:2"),
+    (["creature", "generate", "--dataset", "{latin1}", "-o", "{tmp}/g.json"], "latin1.csv:2"),
+    (["leaf", "mesh", "--midrib", "{latin1}", "-o", "{tmp}/l.obj"], "latin1.csv:2"),
+    # extreme coordinates
+    (["tree", "skeletonize", "{far}", "--out", "{tmp}/o"], "magnitude"),
+    (["render", "{huge_mtg}", "-o", "{tmp}/p.png"], "magnitude"),
+    # silently accepted before
+    (["info", "{empty_can}"], "extension"),
+    (["tree", "evaluate", "{huge_mtg}", "--tolerance", "nan"], "--tolerance"),
+    (["leaf", "mesh", "--width", "1e308", "-o", "{tmp}/l.obj"], "--width"),
+    (["leaf", "canopy", "--density", "inf", "-o", "{tmp}/f.obj"], "--density"),
+])
+def test_issue_reproducers_refused_in_one_line(tmp_path, capsys, argv, needle):
+    import numpy as np
+
+    inputs = tmp_path / "in"
+    inputs.mkdir()
+    latin1 = inputs / "latin1.csv"
+    latin1.write_bytes("name,x\nch\u00e8vre,1\n".encode("latin-1"))
+    far = inputs / "far.xyz"
+    rng = np.random.default_rng(0)
+    np.savetxt(far, rng.uniform(0, 1e300, (50, 3)))
+    empty_can = inputs / "empty.can"
+    empty_can.write_text("")
+    names = {"tmp": tmp_path, "latin1": latin1, "far": far, "empty_can": empty_can,
+             "huge_mtg": _huge_mtg(inputs)}
+    before = sorted(tmp_path.rglob("*"))
+    assert run([a.format(**names) for a in argv]) == 2
+    err = capsys.readouterr().err
+    _check_refusal(err, needle)
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_empty_can_refused_by_its_reader(tmp_path):
+    from biomorph.errors import FormatError
+    from biomorph.io.caribu import read_can
+
+    (tmp_path / "e.can").write_text("# nothing\n")
+    with pytest.raises(FormatError, match="no triangle"):
+        read_can(tmp_path / "e.can")
+
+
+def test_internal_error_is_one_line_exit_1(capsys, monkeypatch):
+    import biomorph.inspect
+
+    def broken(path):
+        raise TypeError("unsupported operand")
+
+    monkeypatch.setattr(biomorph.inspect, "describe", broken)
+    monkeypatch.delenv("BIOMORPH_DEBUG", raising=False)
+    assert run(["info", __file__]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "TypeError: unsupported operand" in err
+    assert "BIOMORPH_DEBUG=1" in err

@@ -317,6 +317,7 @@ def folder_lock(folder: str | os.PathLike[str], option: str = "--out") -> Iterat
     root = Path(folder)
     if root.exists() and not root.is_dir():
         raise ParameterError(f"{option} {os.fspath(folder)}: is a file; expected a folder")
+    created = not root.exists()
     root.mkdir(parents=True, exist_ok=True)
     lock = root / LOCK_NAME
     if os.path.realpath(lock) in _HELD_LOCKS:  # held by this process (CLI, then batch)
@@ -340,3 +341,6 @@ def folder_lock(folder: str | os.PathLike[str], option: str = "--out") -> Iterat
             with contextlib.suppress(OSError):
                 lock.unlink()
         os.close(fd)
+        if locked and created:  # a run that wrote nothing leaves no empty folder either
+            with contextlib.suppress(OSError):
+                root.rmdir()

@@ -299,22 +299,49 @@ def _guarded(cmd_path: tuple[str, ...], command: Any, callback: Callable[..., An
         inputs, folder, append_file = _check_paths(cmd_path, command, params)
         protect(inputs)
         try:
-            if append_file is not None:
-                import hashlib
-                import tempfile
-
-                digest = hashlib.sha1(os.path.realpath(append_file).encode()).hexdigest()
-                lock = Path(tempfile.gettempdir(), "biomorph-locks", f"{digest[:16]}.lock")
-                with file_lock(lock, what=f"{append_file} (appended by another run)"):
-                    return callback(**params)
-            if folder is not None:
-                with folder_lock(folder):
-                    return callback(**params)
-            return callback(**params)
+            return _call(callback, params, append_file, folder)
+        except UnicodeDecodeError as exc:
+            raise _not_utf8(inputs, exc) from None
         finally:
             unprotect(inputs)
 
     return wrapper
+
+
+def _not_utf8(inputs: list[Path], exc: UnicodeDecodeError) -> BiomorphError:
+    """The input a UnicodeDecodeError came from, as a FormatError naming file and byte."""
+    from biomorph.errors import FormatError
+
+    for p in inputs:
+        try:
+            data = p.read_bytes() if p.is_file() and p.stat().st_size < 2**28 else b""
+            data.decode("utf-8")
+        except UnicodeDecodeError as bad:
+            line = data.count(b"\n", 0, bad.start) + 1
+            return FormatError(p, f"byte 0x{data[bad.start]:02x} at offset {bad.start} is not "
+                                  "UTF-8; expected UTF-8 text (re-save the file as UTF-8)",
+                               line=line)
+        except OSError:
+            continue
+    return FormatError(None, f"a text input is not UTF-8 ({exc.reason} at byte {exc.start}); "
+                             "expected UTF-8 text")
+
+
+def _call(callback: Callable[..., Any], params: dict[str, Any], append_file: Path | None,
+          folder: Path | None) -> Any:
+    """Run the command holding the lock of the file it appends to or of its output folder."""
+    if append_file is not None:
+        import hashlib
+        import tempfile
+
+        digest = hashlib.sha1(os.path.realpath(append_file).encode()).hexdigest()
+        lock = Path(tempfile.gettempdir(), "biomorph-locks", f"{digest[:16]}.lock")
+        with file_lock(lock, what=f"{append_file} (appended by another run)"):
+            return callback(**params)
+    if folder is not None:
+        with folder_lock(folder):
+            return callback(**params)
+    return callback(**params)
 
 
 def _wrap_commands(group: Any, path: tuple[str, ...] = ()) -> None:
@@ -400,6 +427,12 @@ def _run(argv: list[str] | None) -> int:
         except MemoryError:
             _error("out of memory; the request is larger than this machine's memory")
             return 2
+        except Exception as exc:  # a bug, not bad input: one line, exit 1, traceback on demand
+            if os.environ.get("BIOMORPH_DEBUG"):
+                raise
+            _error(f"internal error ({type(exc).__name__}: {exc}); this is a bug in biomorph "
+                   "- run again with BIOMORPH_DEBUG=1 for the traceback and report it")
+            return 1
         if result == EXIT_INTERRUPTED and interrupted():
             err_console.print(INTERRUPT_LINE)
     return int(result) if isinstance(result, int) else 0

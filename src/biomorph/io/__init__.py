@@ -27,7 +27,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from biomorph.errors import UnsupportedFormatError, check_regular_file
+from biomorph.errors import FormatError, UnsupportedFormatError, check_regular_file
 
 PathLike = str | os.PathLike[str]
 
@@ -54,11 +54,32 @@ def _check_readable(path: PathLike) -> None:
     check_regular_file(path)
 
 
+#: largest coordinate magnitude accepted (m): georeferenced coordinates stay below 1e7 m
+#: (UTM northings); beyond 1e9 squared distances lose every digit below a metre and
+#: overflow to inf near 1e154
+MAX_COORDINATE = 1e9
+
+
+def _check_extent(path: PathLike, xyz: Any, what: str) -> None:
+    import numpy as np
+
+    arr = np.asarray(xyz)
+    if arr.size == 0 or arr.dtype.kind != "f":
+        return
+    peak = np.abs(arr).max(axis=1) if arr.ndim == 2 else np.abs(arr)
+    if not np.all(peak <= MAX_COORDINATE):
+        row = int(np.flatnonzero(~(peak <= MAX_COORDINATE))[0])
+        raise FormatError(path, f"{what} {row} has a coordinate of magnitude {peak[row]:.3g}; "
+                                f"expected at most {MAX_COORDINATE:g} m")
+
+
 def read_points(path: PathLike, **kwargs: Any):
     """Read a point cloud (float64, attributes kept) from any supported format."""
     mod = _module(POINT_FORMATS, path, "point cloud")
     _check_readable(path)
-    return mod.read_points(path, **kwargs)
+    cloud = mod.read_points(path, **kwargs)
+    _check_extent(path, cloud.world_xyz, "point")
+    return cloud
 
 
 def write_points(path: PathLike, cloud, **kwargs: Any) -> Path:
@@ -70,7 +91,9 @@ def read_graph(path: PathLike, **kwargs: Any):
     """Read a BranchGraph (skeleton PLY with vertex+edge elements, or MTG)."""
     mod = _module(GRAPH_FORMATS, path, "skeleton graph")
     _check_readable(path)
-    return mod.read_graph(path, **kwargs)
+    graph = mod.read_graph(path, **kwargs)
+    _check_extent(path, graph.position, "node")
+    return graph
 
 
 def write_graph(path: PathLike, graph, **kwargs: Any) -> Path:

@@ -96,6 +96,8 @@ def read_can(path: PathLike, scale: float = 1.0) -> Mesh:
                                  f"and {len(vals)} numbers", line=i)
         tris.append(vals)
         labels.append(lab)
+    if not tris:
+        raise FormatError(p, "holds no triangle ('p' line); expected at least one")
     arr = np.array(tris, float).reshape(-1, 3) / scale
     lab = np.array(labels, np.int64).reshape(-1, 4)
     faces = np.arange(arr.shape[0]).reshape(-1, 3)

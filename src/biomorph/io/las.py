@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -243,7 +244,7 @@ def read_points(path: PathLike) -> PointCloud:
                 continue
             attrs[name] = np.array(las[name])
         extra = list(pf.extra_dimension_names)
-        meta = {
+        meta: dict[str, object] = {
             "format": "laz" if p.suffix.lower() == ".laz" else "las",
             "las_version": str(header.version),
             "point_format": int(pf.id),
@@ -337,7 +338,7 @@ def write_points(path: PathLike, cloud: PointCloud, scale: float | None = None,
     xyz = cloud.world_xyz
     if xyz.shape[0] and not np.isfinite(xyz).all():
         raise InputError(f"{os.fspath(path)}: cloud has NaN or inf coordinates; cannot write")
-    meta = cloud.meta or {}
+    meta: dict[str, Any] = dict(cloud.meta or {})
     attrs = {k: np.asarray(v) for k, v in cloud.attributes.items()}
     for k, v in attrs.items():
         if v.ndim != 1 or not (np.issubdtype(v.dtype, np.number) or v.dtype == bool):

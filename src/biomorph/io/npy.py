@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -75,9 +76,9 @@ def write_points(path: PathLike, cloud: PointCloud) -> Path:
     if not np.isfinite(xyz).all():
         raise InputError(f"{os.fspath(path)}: cloud has NaN or inf coordinates; cannot write")
     if not cloud.attributes:
-        out = np.ascontiguousarray(xyz)
+        out: Any = np.ascontiguousarray(xyz)
     else:
-        fields = [("x", np.float64), ("y", np.float64), ("z", np.float64)]
+        fields: list[Any] = [("x", np.float64), ("y", np.float64), ("z", np.float64)]
         for k, v in cloud.attributes.items():
             a = np.asarray(v)
             if a.dtype.kind not in "biuf":

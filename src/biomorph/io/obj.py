@@ -109,7 +109,7 @@ def _numbers(lines: list[bytes], ncols: int) -> np.ndarray | None:
 def _face_ids_from_groups(names: list[str], group_of_face: np.ndarray) -> dict[str, np.ndarray]:
     """Group names written by :func:`write_mesh` (``plant_0__leaf_3``) back to face ids; other
     names give ``face_ids["group"]`` = index of the group in file order."""
-    parsed = []
+    parsed: list[list[tuple[str, int]]] | None = []
     for name in names:
         parts = [_GROUP_NAME.match(x) for x in name.split("__")] if name else [None]
         if not all(parts):
