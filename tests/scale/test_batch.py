@@ -275,3 +275,11 @@ def test_creature_batch_resume_is_keyed_by_format(tmp_path, capsys):
                                                                  ".json"]
     assert run([*base, "--format", "bvh"]) == 0
     assert "0 failed" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("address", ["bogus", "tcp://"])
+def test_malformed_scheduler_address_is_one_error(address):
+    from biomorph.errors import BiomorphError
+
+    with pytest.raises(BiomorphError, match="expected an address like tcp://host:8786"):
+        run_batch(range(3), square_stats, scheduler=address, progress=False)

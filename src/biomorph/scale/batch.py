@@ -188,7 +188,7 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
             if scheduler is not None:
                 try:
                     client = Client(scheduler, timeout="20s")
-                except OSError as exc:
+                except (OSError, ValueError, TypeError) as exc:  # unreachable or malformed
                     raise BiomorphError(f"cannot reach the dask scheduler at {scheduler!r} "
                                         f"({exc}); expected an address like tcp://host:8786"
                                         ) from None
