@@ -236,6 +236,12 @@ def walk_cycle(creature: Creature, frames: int = 32, cycles: int = 2, fps: float
         d2 = (P0[idd] - P0[il]) / l2
         hip = P0[iu] + shift
         knee, _ = two_bone_ik(hip, tgt, l1, l2, pole)
+        for k in (0.5, 1.0, 2.0, 4.0):   # a splayed knee that dips below the ground turns up
+            low = knee[:, 1] < 0.0
+            if not low.any():
+                break
+            up = pole + k * np.array([0.0, 1.0, 0.0])
+            knee[low] = two_bone_ik(hip[low], tgt[low], l1, l2, up / np.linalg.norm(up))[0]
         ankle_dir = tgt - knee
         ankle_dir = ankle_dir / np.maximum(np.linalg.norm(ankle_dir, axis=1), 1e-12)[:, None]
         Wt[:, iu] = _rot_between(d1, (knee - hip) / l1) @ W0[iu]
