@@ -194,3 +194,16 @@ def test_corrupt_laz_is_one_format_error_never_an_abort(tmp_path, damage):
     assert res.returncode == 2, (res.returncode, res.stderr[-2000:])
     msg = res.stdout.strip()
     assert str(bad) in msg and words in msg and len(msg.splitlines()) == 1, msg
+
+
+def test_corrupt_laz_chunk_is_named(tmp_path):
+    """Damage inside the last chunk's compressed bytes: the error names that chunk and its
+    point records (the file has three chunks of 50,000 points)."""
+    good = las.write_points(tmp_path / "g.laz", cloud_with_extras(120_000))
+    data = bytearray(good.read_bytes())
+    at = len(data) - 2000
+    data[at:at + 16] = bytes(16)
+    bad = tmp_path / "bad.laz"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(FormatError, match=r"chunk 2 \(points 100000 to 119999\) is corrupt"):
+        las.read_points(bad)

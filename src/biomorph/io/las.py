@@ -259,9 +259,11 @@ def read_points(path: PathLike) -> PointCloud:
     except (laspy.errors.LaspyException, ValueError, OSError, EOFError, KeyError, IndexError,
             TypeError, AttributeError, RuntimeError, OverflowError, MemoryError,
             UnicodeDecodeError) as exc:
-        raise FormatError(path, f"not a readable LAS/LAZ file ({_short(exc)})") from None
+        raise FormatError(path, f"not a readable LAS/LAZ file ({_short(exc)}){_where(p)}"
+                          ) from None
     except Exception as exc:  # lazrs raises its own (pyo3) exception types
-        raise FormatError(path, f"not a readable LAS/LAZ file ({_short(exc)})") from None
+        raise FormatError(path, f"not a readable LAS/LAZ file ({_short(exc)}){_where(p)}"
+                          ) from None
     if xyz.shape[0] == 0:
         raise FormatError(path, "holds no points; expected at least one")
     if not np.isfinite(xyz).all():
@@ -305,6 +307,46 @@ def read_head(path: PathLike, max_points: int = 1_000_000) -> tuple[PointCloud, 
     if not np.isfinite(xyz).all():
         raise FormatError(path, "a point has a NaN or inf coordinate; expected finite numbers")
     return PointCloud(xyz, attrs, meta=summary, source=os.fspath(path)), summary
+
+
+def _where(p: Path) -> str:
+    """``"; chunk 3 (points 150000 to 199999) is corrupt"`` for a LAZ file whose compressed
+    data fail to decode, found by decoding chunk after chunk; ``""`` when not found."""
+    import struct
+
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(375)
+            fmt_id, record_len, legacy = struct.unpack_from("<BHI", head, 104)
+            if not fmt_id & 0xC0:
+                return ""
+            header_size, = struct.unpack_from("<H", head, 94)
+            offset_points, n_vlrs = struct.unpack_from("<II", head, 96)
+            count = legacy
+            if head[25] >= 4 and len(head) >= 255:
+                count = struct.unpack_from("<Q", head, 247)[0] or legacy
+        laszip = _read_vlrs(p, p, header_size, offset_points, n_vlrs)
+        if laszip is None:
+            return ""
+        import lazrs
+
+        chunk_size, = struct.unpack_from("<I", laszip, 12)
+        step = chunk_size if chunk_size != VARIABLE_CHUNK else count
+        with open(p, "rb") as fh:
+            fh.seek(offset_points)
+            dec = lazrs.LasZipDecompressor(fh, laszip)
+            first = 0
+            while first < count:
+                n = min(step, count - first)
+                try:
+                    dec.decompress_many(bytearray(n * record_len))
+                except Exception:  # noqa: BLE001 - the chunk that fails is the answer
+                    chunk = first // step
+                    return f"; chunk {chunk} (points {first} to {first + n - 1}) is corrupt"
+                first += n
+    except Exception:  # noqa: BLE001 - best effort: the main message stands alone
+        return ""
+    return ""
 
 
 def _short(exc: BaseException) -> str:
