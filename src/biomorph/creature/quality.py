@@ -95,16 +95,11 @@ def _joint(c: Creature, name: str) -> int | None:
 
 
 def trunk_pitch_deg(c: Creature) -> float:
-    """Back chord (hip end → shoulder end of the back vertebrae) above the horizontal (deg,
-    + = shoulders higher)."""
-    back = [j for j, r in enumerate(c.region) if r == "back" and c.kind[j] == "spine"]
-    if len(back) < 2:
-        return 0.0
-    p = c.joint_positions
-    front = min(back, key=lambda j: c.names[j])          # back_01: at the shoulder
-    rear = max(back, key=lambda j: c.names[j])
-    d = p[front] - p[rear]
-    return float(np.degrees(np.arctan2(d[1], max(abs(d[0]), 1e-12) * np.sign(d[0] or 1.0))))
+    """Back line (the spine curve's hip point p6 → shoulder point p3, ``Creature.spine_points``)
+    above the horizontal (deg, + = shoulders higher)."""
+    p = np.asarray(c.spine_points, float)
+    d = p[3] - p[6]
+    return float(np.degrees(np.arctan2(d[1], d[0])))
 
 
 def head_pitch_deg(c: Creature) -> float:
