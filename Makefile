@@ -24,7 +24,7 @@ $(GLTF_VALIDATOR):
 	else echo "npm not found: glTF validator tests will be skipped"; fi
 
 tools: $(STAMP) $(GLTF_VALIDATOR)
-	@bash scripts/ensure_chromium.sh || echo "chromium unavailable: browser tests will be skipped"
+	@bash scripts/ensure_apt.sh || echo "apt unavailable: browser / Blender tests will be skipped"
 
 demo: $(STAMP)
 	$(VENV)/bin/biomorph demo --out $(OUT)
