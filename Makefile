@@ -38,7 +38,14 @@ check: $(STAMP)
 test: tools check
 	$(VENV)/bin/pytest -n 2 --durations=15
 
-bench: $(STAMP)
+# Peers for bench/tree.py: pytlidar pins numba==0.61.2, which would downgrade numba and numpy
+# for the whole venv; it runs on ours, so it is installed without its pins.
+PEERS := $(VENV)/.peers-stamp
+$(PEERS): $(STAMP)
+	$(PY) -m pip install --quiet --no-deps 'pytlidar>=1.1.2' 'plotly>=5'
+	touch $(PEERS)
+
+bench: $(STAMP) $(PEERS)
 	@for f in bench/*.py; do echo "== $$f"; $(PY) $$f || exit 1; done
 
 # ruff (lint + format, both fail the target) and mypy on core/ and io/ (config in pyproject.toml).
