@@ -81,6 +81,24 @@ def _rgba(values: NDArray, cmap: str = "viridis") -> NDArray[np.float64]:
     return matplotlib.colormaps[cmap](np.nan_to_num(t, nan=0.5))
 
 
+def _frame(proj: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """Centre and half-width of a square window framing one view's projected points.
+
+    Each view is framed to its own extent (a 20 m pine fills its side views and its 5 m crown
+    fills the top view). Above 1,000 points the 0.1-99.9 % quantiles are used, so a few stray
+    points (outliers, a far scanner hit) cannot shrink the object to a dot.
+    """
+    uv = proj[:, :2]
+    if uv.shape[0] > 1000:
+        lo, hi = np.quantile(uv, [0.001, 0.999], axis=0)
+    else:
+        lo, hi = uv.min(axis=0), uv.max(axis=0)
+    half = 0.55 * float(np.max(hi - lo))
+    if not np.isfinite(half) or half <= 0:
+        half = 0.55 * (float(np.max(np.abs(uv))) or 1.0)
+    return 0.5 * (lo + hi), half
+
+
 def _draw(scene: _Scene, out_png: PathLike, title: str | None, dpi: int = 100,
           size: float = 10.0) -> Path:
     from matplotlib.collections import LineCollection, PolyCollection
@@ -129,8 +147,7 @@ def _draw(scene: _Scene, out_png: PathLike, title: str | None, dpi: int = 100,
             order = np.argsort(proj[:, 2])
             ax.scatter(proj[order, 0], proj[order, 1], s=size_pt, c=colors[order],
                        linewidths=0, rasterized=True)
-        c2 = rot @ centre
-        half = 0.55 * extent
+        c2, half = _frame(xyz @ rot.T)
         ax.set_xlim(c2[0] - half, c2[0] + half)
         ax.set_ylim(c2[1] - half, c2[1] + half)
     ax3 = fig.add_subplot(2, 2, 4, projection="3d")
@@ -149,11 +166,12 @@ def _draw(scene: _Scene, out_png: PathLike, title: str | None, dpi: int = 100,
             pts, colors = pts[pick], colors[pick]
         ax3.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=size_pt, c=colors, linewidths=0,
                     depthshade=False)
-    half = 0.5 * extent
-    ax3.set_xlim(centre[0] - half, centre[0] + half)
-    ax3.set_ylim(centre[1] - half, centre[1] + half)
-    ax3.set_zlim(centre[2] - half, centre[2] + half)
-    ax3.set_box_aspect((1, 1, 1))
+    # equal scale on all axes, box shaped like the data (a tall tree gets a tall box)
+    half3 = 0.5 * np.maximum(hi - lo, 0.08 * extent) * 1.04
+    ax3.set_xlim(centre[0] - half3[0], centre[0] + half3[0])
+    ax3.set_ylim(centre[1] - half3[1], centre[1] + half3[1])
+    ax3.set_zlim(centre[2] - half3[2], centre[2] + half3[2])
+    ax3.set_box_aspect(tuple(half3 / half3.max()))
     ax3.view_init(elev=20, azim=-60)
     ax3.tick_params(labelsize=6)
     if title:

@@ -1,0 +1,27 @@
+"""Previews are framed to the data: each view to its own extent, stray points ignored."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from biomorph.render import _VIEWS, _frame
+
+
+def test_each_view_frames_its_own_extent_and_ignores_strays():
+    rng = np.random.default_rng(0)
+    # a 20 m tall, 2 m wide "pine" of 20,000 points and five stray points 200 m away
+    pine = np.c_[rng.uniform(-1, 1, 20000), rng.uniform(-1, 1, 20000), rng.uniform(0, 20, 20000)]
+    xyz = np.r_[pine, np.full((5, 3), 200.0)]
+    for name, rot in _VIEWS.items():
+        centre, half = _frame(xyz @ rot.T)
+        vertical = name != "top"
+        want = 0.55 * (20.0 if vertical else 2.0)
+        assert abs(half - want) < 0.05 * want, (name, half)
+        assert np.all(np.abs(centre) < 11.0)
+
+
+def test_small_inputs_use_the_exact_bounds():
+    pts = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 3.0]])
+    rot = next(iter(_VIEWS.values()))
+    _, half = _frame(pts @ rot.T)
+    assert half > 0
