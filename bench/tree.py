@@ -366,7 +366,8 @@ def peers(names: tuple[str, ...], with_pytlidar: bool = True) -> None:
         for k, c in cols.items():
             if "error" in c:
                 print(f"\n{k}: {c['error']}")
-        if "pytlidar" in cols and cols["pytlidar"].get("cpu"):
+        if "pytlidar" in cols and "error" not in cols["pytlidar"] and "error" not in cols[
+                "biomorph graph"]:
             g, p = cols["biomorph graph"], cols["pytlidar"]
             print(f"\nSpeed: pytlidar / biomorph graph = {p['wall'] / g['wall']:.1f}× wall, "
                   f"{p['cpu'] / g['cpu']:.1f}× CPU (same run).")
