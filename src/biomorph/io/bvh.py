@@ -765,7 +765,19 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None, strict: bool =
     data_start = m2.end()
     buf = np.frombuffer(raw, dtype=np.uint8)
     streamed = None
-    if n_frames * n_ch * 8 >= _STREAM_MIN_BYTES:
+    # Each value takes at least one character and one separator: a 'Frames:' count beyond
+    # what the bytes can hold is refused (strict) or read as the rows that are there, never
+    # allocated (a corrupt 'Frames: 99999999999' must not ask for terabytes).
+    capacity = (len(raw) - data_start) // (2 * max(n_ch, 1)) + 1
+    can_stream = True
+    if n_ch > 0 and n_frames > capacity:
+        if strict or _complete_rows(buf, data_start, n_ch)[0] < 1:
+            raise FormatError(path, f"Frames: {n_frames} but the {len(raw) - data_start:,} "
+                                    f"bytes of MOTION data hold at most {capacity:,} frames of "
+                                    f"{n_ch} channels (corrupt header?)",
+                              line=_line_of(raw, m1.start(1)))
+        can_stream = False
+    if can_stream and n_frames * n_ch * 8 >= _STREAM_MIN_BYTES:
         streamed = _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes,
                                   pos_cols, offset)
     tolerated: dict = {}

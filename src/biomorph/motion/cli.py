@@ -23,6 +23,9 @@ app = typer.Typer(name="motion", no_args_is_help=True, add_completion=False,
                   help="MotionLab: equalize, edit, blend, retime and loop motion capture.")
 
 OUT_FORMATS = (".bvh", ".glb")
+# Longest clip a retiming command writes: 10 M frames is a day at 120 fps (about 14 GB of
+# float64 channels for 60 joints), far beyond any capture, and below what runs out of memory.
+MAX_OUTPUT_FRAMES = 10_000_000
 
 Json = Annotated[bool, typer.Option("--json", help="Print a machine-readable summary.")]
 Up = Annotated[str | None, typer.Option("--up", help="Vertical axis of the input (z: convert "
@@ -128,12 +131,9 @@ def _summary(mo, out: Path | None, t0: float, **extra: Any) -> dict[str, Any]:
 
 
 def _emit(summary: dict[str, Any], as_json: bool) -> None:
-    from biomorph._cli import out_console, print_json
+    from biomorph._cli import emit
 
-    if as_json:
-        print_json(summary)
-    else:
-        out_console.print(", ".join(f"{k}={v}" for k, v in summary.items()))
+    emit(summary, as_json)
 
 
 def _deg_keys(text: str, dim: int) -> list[tuple[float, Any]]:
@@ -356,10 +356,14 @@ def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, s
     sc = None if scales is None else _floats(scales, "scales")
     cv: Any = None
     if curve is not None:
+        from biomorph._cli import check_value
+
         try:
             cv = float(curve)
         except ValueError:
             cv = [(f, float(v[0])) for f, v in parse_keys(curve, dim=1)]
+        for w in [cv] if isinstance(cv, float) else [w for _, w in cv]:
+            check_value("--curve", w, 0, 1)  # a weight of clip B (NaN or 2 is no weight)
     mo = bl(clips, off, sc, transition, cv, not no_align_root, align, align_joint,
             align_channel)
     ref = None
@@ -402,6 +406,15 @@ def speed(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
         if bad:
             raise ParameterError(f"speed key at frame {bad[0]:g} is outside the clip; "
                                  f"expected 0..{src.n_frames - 1}")
+        for _, v in sp:
+            check_value("--speed", v, 0, 1e6, lo_open=True)
+    slowest = sp if isinstance(sp, float) else min(v for _, v in sp)
+    out_frames = src.n_frames / slowest
+    if out_frames > MAX_OUTPUT_FRAMES:
+        raise ParameterError(f"--speed {slowest:g} would make {out_frames:.3g} frames from "
+                             f"{src.n_frames}; at most {MAX_OUTPUT_FRAMES:,} frames are "
+                             "written (use a speed of at least "
+                             f"{src.n_frames / MAX_OUTPUT_FRAMES:.3g})")
     mo = change_speed(src, sp)
     ref = None
     if joint is not None:
