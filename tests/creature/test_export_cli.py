@@ -177,3 +177,10 @@ def test_rigify_names(creature, tmp_path):
     import biomorph.io as bio
     mo = bio.read_bvh(export(creature, tmp_path / "r.bvh", rigify=True, walk=True))
     assert set(mo.skeleton.names) == set(names)
+
+
+def test_dataset_plot_with_an_unwritten_extension_is_refused(tmp_path, capsys):
+    out = tmp_path / "p.foo"
+    assert run(["creature", "dataset", "--plot", str(out)]) == 2
+    assert "--plot" in capsys.readouterr().err
+    assert not out.exists()

@@ -226,10 +226,12 @@ def dataset(
 
     Example: biomorph creature dataset --plot pca.png
     """
-    from biomorph._cli import out_console, print_json
+    from biomorph._cli import check_suffix, out_console, print_json
     from biomorph.creature.model import species_model
     from biomorph.creature.pca import SEED_SPECTRUM, spectrum_summary
 
+    if plot is not None:
+        check_suffix(plot, (".png",), "--plot")
     model = species_model(None if path is None else str(path))
     table = model.table
     ours = spectrum_summary(model.pca)  # the PCA the generator samples from
