@@ -162,3 +162,25 @@ def test_no_dynamic_imports(module):
         return  # package __init__ modules may load their submodules lazily
     lines = _dynamic_imports(module)
     assert not lines, f"{module} uses importlib.import_module at lines {lines}"
+
+
+def test_readme_layout_names_every_package_and_pillar_module():
+    readme = (SRC.parent / "README.md").read_text(encoding="utf-8")
+    block = readme[readme.index("## Layout"):]
+    block = block[: block.index("\n## ", 1)]
+    missing = []
+    for path in sorted(PKG.iterdir()):
+        name = path.name
+        if path.is_dir() and (path / "__init__.py").exists():
+            if f"{name}/" not in block:
+                missing.append(f"{name}/")
+        elif path.suffix == ".py" and name not in ("__init__.py", "__main__.py"):
+            if path.stem not in block:
+                missing.append(name)
+    for pillar in PILLARS:
+        for path in sorted((PKG / pillar).glob("*.py")):
+            if path.stem.startswith("_") or path.stem in ("cli", "demo", "plots"):
+                continue
+            if path.stem not in block:
+                missing.append(f"{pillar}/{path.name}")
+    assert not missing, f"README layout does not mention: {', '.join(missing)}"
