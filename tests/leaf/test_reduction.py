@@ -12,10 +12,10 @@ from biomorph.leaf.reduction import (
     reduce_profile,
     reduced_mesh,
     reduction_order,
-    reduction_order_py,
 )
 from biomorph.leaf.shape import LeafShape
 from tests.conftest import shared_file
+from tests.leaf.oracles import reduction_order_py
 
 
 def _brute_force(x, z, s, w):

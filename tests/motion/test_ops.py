@@ -270,7 +270,8 @@ def test_equalizer_kernel_matches_numpy_reference(glast):
 def test_fused_blend_average_equals_reference(scales):
     """The fused sample-and-average kernel of N-clip blends equals sampling every clip on the
     whole timeline, stacking and averaging (the earlier path), to 1e-12."""
-    from biomorph.motion.blend import average_rotations, average_rotations_reference
+    from biomorph.motion.blend import average_rotations
+    from tests.motion.oracles import average_rotations_reference
 
     a = walk(300, 60, n_joints=12, noise_deg=2.0, seed=1)
     b = walk(260, 60, n_joints=12, speed=2.5, noise_deg=2.0, seed=2)

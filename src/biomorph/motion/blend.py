@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from biomorph.core.motion import Motion, frozen, same_skeleton, sample_arrays, sample_linear
 from biomorph.errors import InputError, ParameterError
-from biomorph.motion._kernels import blend_average, blend_average_sampled, blend_slerp, ro, ro_int
+from biomorph.motion._kernels import blend_average_sampled, blend_slerp, ro, ro_int
 from biomorph.motion.align import (
     align_root_to,
     dtw_path,
@@ -234,7 +234,7 @@ def blend(clips: Sequence[Motion], offsets: ArrayLike | None = None,
 def average_rotations(clips: Sequence[Motion], us: Sequence[Array], w: Array) -> Array:
     """Normalised weighted quaternion average of the clips sampled (slerp) at frames
     ``us[i]`` with weights ``w (f, N)``: one fused kernel that samples a clip only where it
-    has weight (equals :func:`average_rotations_reference`, tested to 1e-12)."""
+    has weight (equals the stack-then-average oracle in tests/motion/oracles.py, to 1e-12)."""
     start = np.cumsum([0] + [c.n_frames for c in clips[:-1]])
     length = np.array([c.n_frames for c in clips])
     i0 = np.empty((len(clips), w.shape[0]), dtype=np.int64)
@@ -244,16 +244,6 @@ def average_rotations(clips: Sequence[Motion], us: Sequence[Array], w: Array) ->
     rot = np.empty((w.shape[0],) + clips[0].rotation.shape[1:])
     blend_average_sampled(ro(np.concatenate([c.rotation for c in clips])), ro_int(start),
                           ro_int(length), ro_int(i0), ro(frac), ro(w), rot)
-    return rot
-
-
-def average_rotations_reference(clips: Sequence[Motion], us: Sequence[Array],
-                                w: Array) -> Array:
-    """Reference for :func:`average_rotations`: sample every clip on the whole timeline,
-    stack, average."""
-    rots = [sample_arrays(c, u)[0] for c, u in zip(clips, us, strict=True)]
-    rot = np.empty_like(rots[0])
-    blend_average(ro(np.stack(rots)), ro(w), rot)
     return rot
 
 
