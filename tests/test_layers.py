@@ -34,7 +34,7 @@ def layer_of(module: str) -> int:
         return 0
     if top == "io":
         return 1
-    if top in ("_cli", "render", "report", "inspect", "pillars"):
+    if top in ("_cli", "render", "report", "inspect", "pillars", "plotting"):
         return 2
     if top in PILLARS:
         # a pillar's command group and demo are front ends that live with their pillar

@@ -17,12 +17,10 @@ PathLike = str | os.PathLike[str]
 
 
 def _plt():
-    import matplotlib
+    """Figure-API stand-in for pyplot (no global backend or state): subplots/figure/close."""
+    from biomorph import plotting
 
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
+    return plotting
 
 
 def _save(fig, path: PathLike) -> Path:

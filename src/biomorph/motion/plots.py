@@ -23,12 +23,10 @@ from biomorph.io.atomic import atomic_path
 
 
 def _plt():
-    import matplotlib
+    """Figure-API stand-in for pyplot (no global backend or state): subplots/figure/close."""
+    from biomorph import plotting
 
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
+    return plotting
 
 
 def _save(fig, path: str | os.PathLike[str]) -> Path:
