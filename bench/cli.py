@@ -26,10 +26,17 @@ BIN = Path(sys.executable).parent / "biomorph"
 
 def _bvh(path: Path) -> Path:
     """A small BVH written by biomorph itself (built-in data: no shared files needed)."""
-    subprocess.run([sys.executable, "-c",
-                    "import biomorph.motion.synthetic as s, biomorph.io as bio, sys;"
-                    "bio.write_bvh(sys.argv[1], s.walk())", str(path)],
-                   check=True, capture_output=True)
+    subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import biomorph.motion.synthetic as s, biomorph.io as bio, sys;"
+            "bio.write_bvh(sys.argv[1], s.walk())",
+            str(path),
+        ],
+        check=True,
+        capture_output=True,
+    )
     return path
 
 
@@ -55,15 +62,21 @@ def main() -> None:
         floor = timed([sys.executable, "-c", "pass"], args.repeat)
         numpy_floor = timed([sys.executable, "-c", "import numpy"], args.repeat)
         rows = [("python -c pass", floor, None), ("python -c 'import numpy'", numpy_floor, None)]
-        cmds = [["--help"]] + [[p, "--help"] for p in ("creature", "tree", "motion", "leaf",
-                                                       "studio")]
+        cmds = [["--help"]] + [
+            [p, "--help"] for p in ("creature", "tree", "motion", "leaf", "studio")
+        ]
         targets = {tuple(c): 0.5 for c in cmds}
         if bvh is not None:
             cmds.append(["motion", "info", str(bvh)])
             targets[tuple(cmds[-1])] = 1.0
         for c in cmds:
-            rows.append(("biomorph " + " ".join(c).replace(str(bvh), "walk.bvh"),
-                         timed([str(BIN), *c], args.repeat), targets[tuple(c)]))
+            rows.append(
+                (
+                    "biomorph " + " ".join(c).replace(str(bvh), "walk.bvh"),
+                    timed([str(BIN), *c], args.repeat),
+                    targets[tuple(c)],
+                )
+            )
     print("| command | median wall s | × python | × python+numpy | target s |")
     print("|---|---:|---:|---:|---:|")
     for name, t, target in rows:

@@ -35,8 +35,11 @@ def ours(parent: np.ndarray, values: np.ndarray):
     from biomorph.core import treeops
 
     order = treeops.topological_order(parent)
-    return (treeops.subtree_sum(parent, values, order), treeops.depth(parent, order),
-            treeops.accumulate_down(parent, values, order))
+    return (
+        treeops.subtree_sum(parent, values, order),
+        treeops.depth(parent, order),
+        treeops.accumulate_down(parent, values, order),
+    )
 
 
 def reference(parent: np.ndarray, values: np.ndarray):
@@ -94,8 +97,10 @@ def main(argv: list[str] | None = None) -> int:
             note = f"networkx {rsec:.2f} s, results {'equal' if ok else 'DIFFER'}"
         rows.append([f"{n:,}", f"{sec:.3f}", f"{peak:.0f}", ratio, note])
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs\n")
-    print("| nodes | seconds (order + subtree sum + depth + path sum) | peak MB | vs networkx "
-          "| notes |")
+    print(
+        "| nodes | seconds (order + subtree sum + depth + path sum) | peak MB | vs networkx "
+        "| notes |"
+    )
     print("|---|---|---|---|---|")
     for r in rows:
         print("| " + " | ".join(r) + " |")

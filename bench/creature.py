@@ -30,8 +30,13 @@ from biomorph.creature.quality import (
 from biomorph.creature.stance import RANGES
 from biomorph.creature.walk import plan_walk, walk_cycle, walk_quality
 
-CONDITIONS = {"--legs 4": {"legs": 4}, "--legs 2": {"legs": 2}, "--class bird": {"cls": "bird"},
-              "--weight 600": {"weight": 600.0}, "--legs 6": {"legs": 6}}
+CONDITIONS = {
+    "--legs 4": {"legs": 4},
+    "--legs 2": {"legs": 2},
+    "--class bird": {"cls": "bird"},
+    "--weight 600": {"weight": 600.0},
+    "--legs 6": {"legs": 6},
+}
 
 
 def main() -> None:
@@ -65,16 +70,20 @@ def main() -> None:
     print("| check | pass |\n|---|---|")
     for k in CHECKS:
         print(f"| {k} | {res[k]}/{args.count} ({res[k] / args.count:.1%}) |")
-    print(f"\nlegs 0/2/4: {(legs == 0).sum()}/{(legs == 2).sum()}/{(legs == 4).sum()}; "
-          f"with ground contact {applicable}; balance-repaired {repaired}; "
-          f"resampled {resampled}\n")
+    print(
+        f"\nlegs 0/2/4: {(legs == 0).sum()}/{(legs == 2).sum()}/{(legs == 4).sum()}; "
+        f"with ground contact {applicable}; balance-repaired {repaired}; "
+        f"resampled {resampled}\n"
+    )
     anatomy_table(creatures)
     walk_table(creatures, args.walk)
     print("## Speed (no export; balance repair included)\n")
     print("| condition | n | wall median ms | CPU median ms | CPU p90 ms | seed's Java |")
     print("|---|---|---|---|---|---|")
-    print(f"| none | {len(t)} | {np.median(t):.2f} | {np.median(tc):.2f} | "
-          f"{np.percentile(tc, 90):.2f} | 3.05 ms |")
+    print(
+        f"| none | {len(t)} | {np.median(t):.2f} | {np.median(tc):.2f} | "
+        f"{np.percentile(tc, 90):.2f} | 3.05 ms |"
+    )
     for label, kw in CONDITIONS.items():
         w, c = [], []
         for seed in range(max(args.count // 5, 1)):
@@ -83,14 +92,17 @@ def main() -> None:
             w.append(time.perf_counter() - t0)
             c.append(time.process_time() - c0)
         w_, c_ = np.array(w) * 1e3, np.array(c) * 1e3
-        print(f"| {label} | {len(w)} | {np.median(w_):.2f} | {np.median(c_):.2f} | "
-              f"{np.percentile(c_, 90):.2f} | |")
+        print(
+            f"| {label} | {len(w)} | {np.median(w_):.2f} | {np.median(c_):.2f} | "
+            f"{np.percentile(c_, 90):.2f} | |"
+        )
     print()
     with open("/proc/loadavg") as fh:
         print(f"load average during the run: {fh.read().split()[0]}\n")
     feats = np.array([c.features() for c in creatures])
     from biomorph.creature.dataset import load_species
     from biomorph.creature.pca import encode
+
     tab = load_species()
     ds = encode(tab.points, tab.lengths, tab.wings, tab.legs, tab.weight)
     n = min(len(feats), 1000)
@@ -103,27 +115,47 @@ def main() -> None:
     print("## PCA spectrum (the model the generator samples from)\n")
     print("| | first eigenvalue | total | 6 components | eigenvalues > 0.01 |")
     print("|---|---|---|---|---|")
-    print(f"| seed | {SEED_SPECTRUM['first']} | {SEED_SPECTRUM['total']} | "
-          f"{SEED_SPECTRUM['six_components']:.1%} | {SEED_SPECTRUM['above_0.01']} |")
-    print(f"| ours | {ours['first']:.3f} | {ours['total']:.3f} | {ours['six_components']:.1%} | "
-          f"{ours['above_0.01']} |\n")
+    print(
+        f"| seed | {SEED_SPECTRUM['first']} | {SEED_SPECTRUM['total']} | "
+        f"{SEED_SPECTRUM['six_components']:.1%} | {SEED_SPECTRUM['above_0.01']} |"
+    )
+    print(
+        f"| ours | {ours['first']:.3f} | {ours['total']:.3f} | {ours['six_components']:.1%} | "
+        f"{ours['above_0.01']} |\n"
+    )
     if args.settle:
         from biomorph.io.mjcf import settle
+
         legged = [c for c in creatures if c.balance.applicable][: args.settle]
         up = sum(settle(c)["upright"] for c in legged)
         print(f"MuJoCo settle (rigid, 2 s): {up}/{len(legged)} upright\n")
     if args.batch:
         from biomorph.cli import run
+
         out = Path(tempfile.mkdtemp(prefix="creature_batch_"))
         t0 = time.perf_counter()
-        code = run(["creature", "batch", "--count", str(args.batch), "--out", str(out),
-                    "--workers", str(args.workers), "--format", "glb", "--json"])
+        code = run(
+            [
+                "creature",
+                "batch",
+                "--count",
+                str(args.batch),
+                "--out",
+                str(out),
+                "--workers",
+                str(args.workers),
+                "--format",
+                "glb",
+                "--json",
+            ]
+        )
         dt = time.perf_counter() - t0
         files = len(list(out.glob("*.glb")))
         print("## Batch with GLB export\n")
         print("| creatures | workers | seconds | per creature | exit |\n|---|---|---|---|---|")
-        print(f"| {files} | {args.workers} | {dt:.1f} | {dt / max(files, 1) * 1e3:.1f} ms | "
-              f"{code} |")
+        print(
+            f"| {files} | {args.workers} | {dt:.1f} | {dt / max(files, 1) * 1e3:.1f} ms | {code} |"
+        )
         shutil.rmtree(out, ignore_errors=True)
 
 
@@ -149,34 +181,51 @@ def anatomy_table(creatures) -> None:
     bip = [m["trunk_pitch_deg"] for c, m in meas if c.params["legs"] == 2]
     fem = [a for c, m in meas if c.params["class"] != "bird" for a in m["femur_deg"]]
     femb = [a for c, m in meas if c.params["class"] == "bird" for a in m["femur_deg"]]
-    rows = {"trunk_pitch": (f"quadrupeds {spread(quad)}°; bipeds {spread(bip)}°",
-                            f"{RANGES['trunk_pitch_quadruped']}° / {RANGES['trunk_pitch_biped']}°"),
-            "head_pitch": (spread([m["head_pitch_deg"] for _, m in meas]) + "°",
-                           f"{RANGES['head_pitch']}°"),
-            "femur_angle": (f"{spread(fem)}°; birds {spread(femb)}°",
-                            f"{RANGES['femur_from_vertical']}° / birds "
-                            f"{RANGES['femur_from_vertical_bird']}°"),
-            "withers_height": (spread([m["withers_ratio"] for _, m in meas]),
-                               f"{RANGES['withers_ratio']} × a·M^(1/3)"),
-            "knee_behind_elbow": ("", "hind knee behind front elbow"),
-            "class_legs": ("", "birds 2 legs, fish 0 (unless asked)"),
-            "weight_in_range": (spread([c.total_mass for c in creatures]) + " kg",
-                                "0.01..120000 kg (dataset)"),
-            "feet_have_digits": ("", "contacts are digit joints / flat feet")}
+    rows = {
+        "trunk_pitch": (
+            f"quadrupeds {spread(quad)}°; bipeds {spread(bip)}°",
+            f"{RANGES['trunk_pitch_quadruped']}° / {RANGES['trunk_pitch_biped']}°",
+        ),
+        "head_pitch": (
+            spread([m["head_pitch_deg"] for _, m in meas]) + "°",
+            f"{RANGES['head_pitch']}°",
+        ),
+        "femur_angle": (
+            f"{spread(fem)}°; birds {spread(femb)}°",
+            f"{RANGES['femur_from_vertical']}° / birds {RANGES['femur_from_vertical_bird']}°",
+        ),
+        "withers_height": (
+            spread([m["withers_ratio"] for _, m in meas]),
+            f"{RANGES['withers_ratio']} × a·M^(1/3)",
+        ),
+        "knee_behind_elbow": ("", "hind knee behind front elbow"),
+        "class_legs": ("", "birds 2 legs, fish 0 (unless asked)"),
+        "weight_in_range": (
+            spread([c.total_mass for c in creatures]) + " kg",
+            "0.01..120000 kg (dataset)",
+        ),
+        "feet_have_digits": ("", "contacts are digit joints / flat feet"),
+    }
     for k in ANATOMY_CHECKS:
         got, real = rows[k]
         print(f"| {k} | {res[k]}/{n} ({res[k] / n:.1%}) | {got} | {real} |")
     from biomorph.creature.quality import standing_height
-    ung = [standing_height(Generator(Options(seed=s, legs=4, weight=600.0, cls="mammal")).run())
-           for s in range(10)]
-    print(f"\n600-kg quadruped mammals (10 seeds): withers {min(ung):.2f}..{max(ung):.2f} m "
-          "(a horse: ≈ 1.1-1.3 m)\n")
+
+    ung = [
+        standing_height(Generator(Options(seed=s, legs=4, weight=600.0, cls="mammal")).run())
+        for s in range(10)
+    ]
+    print(
+        f"\n600-kg quadruped mammals (10 seeds): withers {min(ung):.2f}..{max(ung):.2f} m "
+        "(a horse: ≈ 1.1-1.3 m)\n"
+    )
 
 
 def walk_table(creatures, limit: int) -> None:
     """Walk cycles: planted-foot slide and ground penetration per leg count."""
-    print("## Walk (IK-planted feet; targets: slide ≤ 2 % of stride, penetration ≤ 0.5 % of "
-          "height)\n")
+    print(
+        "## Walk (IK-planted feet; targets: slide ≤ 2 % of stride, penetration ≤ 0.5 % of height)\n"
+    )
     print("| legs | n | slide max | slide > 2 % | penetration max | penetration > 0.5 % |")
     print("|---|---|---|---|---|---|")
     by: dict[int, list] = {}
@@ -186,8 +235,10 @@ def walk_table(creatures, limit: int) -> None:
     for legs in sorted(by):
         sl = np.array([q["slide_fraction"] for q in by[legs]])
         pe = np.array([q["penetration_fraction"] for q in by[legs]])
-        print(f"| {legs} | {len(sl)} | {sl.max():.2%} | {(sl > 0.02).sum()} | {pe.max():.2%} | "
-              f"{(pe > 0.005).sum()} |")
+        print(
+            f"| {legs} | {len(sl)} | {sl.max():.2%} | {(sl > 0.02).sum()} | {pe.max():.2%} | "
+            f"{(pe > 0.005).sum()} |"
+        )
     print()
 
 

@@ -79,8 +79,9 @@ def synthetic_skeleton(n: int = 80, seed: int = 0):
     end = np.full((n, 3), np.nan)
     leaves = np.setdiff1d(np.arange(n), parent)
     end[leaves[::2]] = [0, 0.05, 0]
-    return JointSkeleton([f"j{i}" for i in range(n)], parent, offset, rest_rotation=rest,
-                         end_site=end)
+    return JointSkeleton(
+        [f"j{i}" for i in range(n)], parent, offset, rest_rotation=rest, end_site=end
+    )
 
 
 def random_motion(skeleton, frames: int = 60, seed: int = 1) -> SimpleNamespace:
@@ -88,8 +89,7 @@ def random_motion(skeleton, frames: int = 60, seed: int = 1) -> SimpleNamespace:
     rot = rng.normal(size=(frames, len(skeleton), 4))
     rot /= np.linalg.norm(rot, axis=-1, keepdims=True)
     root = np.c_[np.linspace(0, 2, frames), np.ones(frames), np.zeros(frames)]
-    return SimpleNamespace(skeleton=skeleton, rotation=rot, root_position=root,
-                           frame_time=1 / 30)
+    return SimpleNamespace(skeleton=skeleton, rotation=rot, root_position=root, frame_time=1 / 30)
 
 
 def small_meshes(count: int = 1000, seed: int = 2) -> list:
@@ -98,11 +98,13 @@ def small_meshes(count: int = 1000, seed: int = 2) -> list:
     rng = np.random.default_rng(seed)
     cols = 6
     s = np.linspace(0, 1, cols)
-    grid = np.stack([np.r_[s, s], np.r_[np.zeros(cols), np.ones(cols) * 0.2],
-                     np.zeros(2 * cols)], axis=1)
+    grid = np.stack(
+        [np.r_[s, s], np.r_[np.zeros(cols), np.ones(cols) * 0.2], np.zeros(2 * cols)], axis=1
+    )
     a = np.arange(cols - 1)
-    faces = np.concatenate([np.stack([a, a + 1, a + cols], 1),
-                            np.stack([a + 1, a + cols + 1, a + cols], 1)])
+    faces = np.concatenate(
+        [np.stack([a, a + 1, a + cols], 1), np.stack([a + 1, a + cols + 1, a + cols], 1)]
+    )
     out = []
     for i in range(count):
         v = grid * rng.uniform(0.05, 0.2) + rng.uniform(-1, 1, 3)
@@ -128,16 +130,22 @@ def cases() -> list[tuple[str, Callable[[ModuleType, str], object]]]:
     meshes = small_meshes()
     field = leaf_field()
     return [
-        (f"creature ({len(cr.skeleton)} joints, joint meshes)",
-         lambda m, p: m.write_gltf(p, cr.skeleton, bone_shape=None, meshes=jm,
-                                   name="creature")),
-        ("creature + 60-frame animation",
-         lambda m, p: m.write_gltf(p, cr.skeleton, motion=motion, bone_shape=None, meshes=jm,
-                                   name="creature")),
+        (
+            f"creature ({len(cr.skeleton)} joints, joint meshes)",
+            lambda m, p: m.write_gltf(p, cr.skeleton, bone_shape=None, meshes=jm, name="creature"),
+        ),
+        (
+            "creature + 60-frame animation",
+            lambda m, p: m.write_gltf(
+                p, cr.skeleton, motion=motion, bone_shape=None, meshes=jm, name="creature"
+            ),
+        ),
         ("skeleton 80 joints, box bones", lambda m, p: m.write_gltf(p, sk80)),
         ("1,000 small meshes merged", lambda m, p: m.write_gltf(p, meshes)),
-        (f"{field.n_faces // 19:,} leaves ({field.n_faces / 1e6:.2f} M tris, 1 mesh)",
-         lambda m, p: m.write_gltf(p, field, y_up=False)),
+        (
+            f"{field.n_faces // 19:,} leaves ({field.n_faces / 1e6:.2f} M tris, 1 mesh)",
+            lambda m, p: m.write_gltf(p, field, y_up=False),
+        ),
     ]
 
 
@@ -177,14 +185,18 @@ def _peer_trimesh(seed: int, out: str, skin: bool) -> tuple[float, ...]:
     if b is not None:
         e = b.envelope
         skinned = (e.vertices, e.normals, b.joints, b.weights, e.faces)
-        meshes.append(trimesh.Trimesh(e.vertices, e.faces, vertex_normals=e.normals,
-                                      process=False))
+        meshes.append(trimesh.Trimesh(e.vertices, e.faces, vertex_normals=e.normals, process=False))
     t0 = time.perf_counter()
     trimesh.Scene(meshes).export(os.path.join(out, "peer.glb"))
     t_peer = time.perf_counter() - t0
     t0 = time.perf_counter()
-    write_gltf(os.path.join(out, "ours.glb"), c.skeleton, bone_shape=None,
-               joint_geometry=geo, skinned_mesh=skinned)
+    write_gltf(
+        os.path.join(out, "ours.glb"),
+        c.skeleton,
+        bone_shape=None,
+        joint_geometry=geo,
+        skinned_mesh=skinned,
+    )
     return time.perf_counter() - t0, t_peer, t1 - s0, t2 - t1, t3 - t2
 
 
@@ -200,18 +212,28 @@ def creatures_bench(n: int, workers: int, skin: bool) -> None:
         r = np.array(res, float)
         peer = np.array([_peer_trimesh(s, tmp, skin) for s in range(min(20, n))])
     print(f"load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} CPUs, {workers} workers\n")
-    print(f"{n} creatures with bone models{' and skin' if skin else ''} written as GLB: "
-          f"{wall:.1f} s wall ({wall / n * 1e3:.0f} ms per creature; target 1,000 in 60 s)")
-    print(f"median {np.median(r[:, 0]) * 1e3:.0f} ms per creature on one worker, file "
-          f"{np.median(r[:, 1]) / 1e6:.2f} MB")
+    print(
+        f"{n} creatures with bone models{' and skin' if skin else ''} written as GLB: "
+        f"{wall:.1f} s wall ({wall / n * 1e3:.0f} ms per creature; target 1,000 in 60 s)"
+    )
+    print(
+        f"median {np.median(r[:, 0]) * 1e3:.0f} ms per creature on one worker, file "
+        f"{np.median(r[:, 1]) / 1e6:.2f} MB"
+    )
     print(f"\n| stage (median of {len(peer)} seeds, one process) | ms |\n|---|---:|")
-    for k, label in ((2, "generate"), (3, "bone models"), (4, "muscles + envelope + weights"),
-                     (0, "skinned GLB write (finished meshes)")):
+    for k, label in (
+        (2, "generate"),
+        (3, "bone models"),
+        (4, "muscles + envelope + weights"),
+        (0, "skinned GLB write (finished meshes)"),
+    ):
         print(f"| {label} | {np.median(peer[:, k]) * 1e3:.1f} |")
     ratio = peer[:, 0] / peer[:, 1]
-    print(f"\nwriting the finished meshes, {len(peer)} seeds: ours (skinned GLB with armature) "
-          f"median {np.median(peer[:, 0]) * 1e3:.1f} ms, trimesh (plain GLB scene) "
-          f"{np.median(peer[:, 1]) * 1e3:.1f} ms, ours / trimesh {np.median(ratio):.2f}")
+    print(
+        f"\nwriting the finished meshes, {len(peer)} seeds: ours (skinned GLB with armature) "
+        f"median {np.median(peer[:, 0]) * 1e3:.1f} ms, trimesh (plain GLB scene) "
+        f"{np.median(peer[:, 1]) * 1e3:.1f} ms, ours / trimesh {np.median(ratio):.2f}"
+    )
 
 
 def blender_bench(n: int) -> None:
@@ -246,20 +268,38 @@ def blender_bench(n: int) -> None:
             with open(os.path.join(tmp, name), "w") as fh:
                 fh.write(text)
         t0 = time.perf_counter()
-        proc = subprocess.run([blender, "-b", "--factory-startup", "--python",
-                               os.path.join(tmp, "driver.py"), "--",
-                               os.path.join(tmp, "jobs.json"), os.path.join(tmp, "setup.py")],
-                              capture_output=True, text=True)
+        proc = subprocess.run(
+            [
+                blender,
+                "-b",
+                "--factory-startup",
+                "--python",
+                os.path.join(tmp, "driver.py"),
+                "--",
+                os.path.join(tmp, "jobs.json"),
+                os.path.join(tmp, "setup.py"),
+            ],
+            capture_output=True,
+            text=True,
+        )
         wall = time.perf_counter() - t0
         with open(os.path.join(tmp, "r.json")) as fh:
             res = json.load(fh)
     chunks = proc.stdout.split("BIOMORPH_IMPORT_START")[1:]
-    warn = sum(sum(1 for ln in ch.split("BIOMORPH_IMPORT_END")[0].splitlines()
-                   if "WARNING" in ln or "ERROR" in ln) for ch in chunks)
+    warn = sum(
+        sum(
+            1
+            for ln in ch.split("BIOMORPH_IMPORT_END")[0].splitlines()
+            if "WARNING" in ln or "ERROR" in ln
+        )
+        for ch in chunks
+    )
     rigs = [r for r in res if r["path"].endswith("_1.glb")]
     ok = sum(1 for r in rigs if r["error"] is None and r["generated"])
-    print(f"Blender {n} seeds (plain + --rigify, bone models + skin): {len(chunks)} imports, "
-          f"{warn} warnings; Rigify generate succeeded on {ok}/{len(rigs)}; {wall:.0f} s")
+    print(
+        f"Blender {n} seeds (plain + --rigify, bone models + skin): {len(chunks)} imports, "
+        f"{warn} warnings; Rigify generate succeeded on {ok}/{len(rigs)}; {wall:.0f} s"
+    )
     for r in rigs:
         if r["error"]:
             print("  ", os.path.basename(r["path"]), r["error"][:200])
@@ -290,20 +330,25 @@ def main() -> None:
             res = {}
             for vname, mod in versions:
                 big = "leaves" in label
-                res[vname] = measure(lambda fn=fn, mod=mod: fn(mod, path),
-                                     max(1, args.repeat // 3) if big else args.repeat)
+                res[vname] = measure(
+                    lambda fn=fn, mod=mod: fn(mod, path),
+                    max(1, args.repeat // 3) if big else args.repeat,
+                )
                 res[vname] += (os.path.getsize(path) / 1e6,)
             rows.append((label, res))
-    print(f"load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} CPUs, "
-          f"repeat {args.repeat}\n")
+    print(f"load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} CPUs, repeat {args.repeat}\n")
     if args.baseline:
-        print("| case | CPU before | CPU after | speed-up | wall before | wall after | "
-              "peak MB before | peak MB after | file MB |")
+        print(
+            "| case | CPU before | CPU after | speed-up | wall before | wall after | "
+            "peak MB before | peak MB after | file MB |"
+        )
         print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
         for label, r in rows:
             b, a = r["before"], r["after"]
-            print(f"| {label} | {fmt(b[0])} | {fmt(a[0])} | {b[0] / max(a[0], 1e-9):.1f}× | "
-                  f"{fmt(b[1])} | {fmt(a[1])} | {b[2]:.1f} | {a[2]:.1f} | {a[3]:.2f} |")
+            print(
+                f"| {label} | {fmt(b[0])} | {fmt(a[0])} | {b[0] / max(a[0], 1e-9):.1f}× | "
+                f"{fmt(b[1])} | {fmt(a[1])} | {b[2]:.1f} | {a[2]:.1f} | {a[3]:.2f} |"
+            )
     else:
         print("| case | CPU | wall | peak MB | file MB |")
         print("|---|---:|---:|---:|---:|")

@@ -49,8 +49,13 @@ def make_cloud(n: int, seed: int = 0):
 
     rng = np.random.default_rng(seed)
     xyz = rng.uniform(0, 50, (n, 3)) + [400_000.0, 5_500_000.0, 100.0]
-    return PointCloud(xyz, {"intensity": rng.integers(0, 65535, n).astype(np.uint16),
-                            "Deviation": rng.normal(0, 0.01, n).astype(np.float32)})
+    return PointCloud(
+        xyz,
+        {
+            "intensity": rng.integers(0, 65535, n).astype(np.uint16),
+            "Deviation": rng.normal(0, 0.01, n).astype(np.float32),
+        },
+    )
 
 
 def references(path: Path) -> Callable[[], object]:
@@ -61,6 +66,7 @@ def references(path: Path) -> Callable[[], object]:
         def ref():
             las = laspy.read(path)
             return np.stack([las.x, las.y, las.z], axis=1)
+
         return ref
     if ext == ".ply":
         import plyfile
@@ -68,11 +74,14 @@ def references(path: Path) -> Callable[[], object]:
         def ref_ply():
             v = plyfile.PlyData.read(str(path))["vertex"].data
             return np.stack([np.asarray(v[c], dtype=np.float64) for c in "xyz"], axis=1)
+
         return ref_ply
     if ext == ".npy":
+
         def ref_npy():
             a = np.load(path)
             return np.stack([a[c] for c in "xyz"], axis=1)
+
         return ref_npy
     return lambda: np.loadtxt(path, skiprows=1)
 
@@ -93,9 +102,17 @@ def bench_points(sizes: list[int], tmp: Path) -> list[list[str]]:
             assert back.n_points == n
             sec, peak = measure(lambda p=path: read_points(p))
             ref, _ = measure(references(path))
-            rows.append([f"{ext[1:].upper()} read", f"{n:,}", f"{sec:.3f}",
-                         f"{n / sec / 1e6:.2f}", f"{peak:.0f}", f"{sec / ref:.2f}× ref",
-                         f"write {t_write:.2f} s, {path.stat().st_size / 1e6:.1f} MB"])
+            rows.append(
+                [
+                    f"{ext[1:].upper()} read",
+                    f"{n:,}",
+                    f"{sec:.3f}",
+                    f"{n / sec / 1e6:.2f}",
+                    f"{peak:.0f}",
+                    f"{sec / ref:.2f}× ref",
+                    f"write {t_write:.2f} s, {path.stat().st_size / 1e6:.1f} MB",
+                ]
+            )
             path.unlink()
     return rows
 
@@ -122,17 +139,26 @@ def bench_bvh(tmp: Path, frames: int = 100_000, joints: int = 60) -> list[list[s
     big = tmp / "big.bvh"
     copies = frames // block
     with open(big, "wb") as fh:
-        fh.write(head + b"MOTION\nFrames: " + str(block * copies).encode() + b"\n" + lines[2]
-                 + b"\n")
+        fh.write(
+            head + b"MOTION\nFrames: " + str(block * copies).encode() + b"\n" + lines[2] + b"\n"
+        )
         for _ in range(copies):
             fh.write(body)
     read_bvh(small)  # warm-up (compiled kernels)
     sec, peak = measure(lambda: read_bvh(big), repeat=3)
     n_channels = 6 + 3 * (joints - 1)
     size = big.stat().st_size / 1e6
-    return [["BVH parse", f"{block * copies:,} frames × {joints} joints", f"{sec:.3f}",
-             f"{block * copies * n_channels / sec / 1e6:.1f} M values/s", f"{peak:.0f}",
-             f"{sec / 2.0:.2f}× target (2 s)", f"{size:.0f} MB file"]]
+    return [
+        [
+            "BVH parse",
+            f"{block * copies:,} frames × {joints} joints",
+            f"{sec:.3f}",
+            f"{block * copies * n_channels / sec / 1e6:.1f} M values/s",
+            f"{peak:.0f}",
+            f"{sec / 2.0:.2f}× target (2 s)",
+            f"{size:.0f} MB file",
+        ]
+    ]
 
 
 def main(argv: list[str] | None = None) -> int:

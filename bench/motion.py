@@ -52,8 +52,9 @@ def tiled_bvh(src: Path, dst: Path, copies: int) -> int:
     frames = int(lines[1].split(b":")[1])
     body = lines[3]
     with open(dst, "wb") as fh:
-        fh.write(head + b"MOTION\nFrames: " + str(frames * copies).encode() + b"\n" +
-                 lines[2] + b"\n")
+        fh.write(
+            head + b"MOTION\nFrames: " + str(frames * copies).encode() + b"\n" + lines[2] + b"\n"
+        )
         for _ in range(copies):
             fh.write(body)
     return frames * copies
@@ -85,19 +86,30 @@ def main() -> None:
     ops = [
         ("equalize (5 gains, all joints)", lambda: bm.equalize(m, [0, 0.5, 1, 1.3, 1])),
         ("equalize (last gain 0.8)", lambda: bm.equalize(m, [0, 1, 1, 1, 0.8])),
-        ("displacement edit (2 keys, one joint)",
-         lambda: bm.displace(m, "LeftArm", {3000: [0, 0, 0.5], 3100: [0.2, 0, 0]}, fade=60)),
-        ("layers (3 layers)", lambda: bm.apply_layers(m, [
-            bm.Layer.make("a", "LeftArm", {1000: [0, 0, 0.3]}),
-            bm.Layer.make("b", "RightArm", {2000: [0, 0.2, 0]}, weight=0.5),
-            bm.Layer.make("c", "Hips", {3000: [0, 0.05, 0]}, kind="position")])),
+        (
+            "displacement edit (2 keys, one joint)",
+            lambda: bm.displace(m, "LeftArm", {3000: [0, 0, 0.5], 3100: [0.2, 0, 0]}, fade=60),
+        ),
+        (
+            "layers (3 layers)",
+            lambda: bm.apply_layers(
+                m,
+                [
+                    bm.Layer.make("a", "LeftArm", {1000: [0, 0, 0.3]}),
+                    bm.Layer.make("b", "RightArm", {2000: [0, 0.2, 0]}, weight=0.5),
+                    bm.Layer.make("c", "Hips", {3000: [0, 0.05, 0]}, kind="position"),
+                ],
+            ),
+        ),
         ("re-orient", lambda: bm.reorient(m, 0.5, (1, 0, 2))),
         ("blend 2 clips (120-frame transition)", lambda: bm.blend([a, b], transition=120)),
         ("blend 3 clips", lambda: bm.blend([a, b, c], transition=120)),
         ("speed curve (3 keys)", lambda: bm.change_speed(m, {0: 1, 3600: 2, 7199: 1})),
         ("cycle (400-frame range, ×10)", lambda: bm.make_cycle(m, 100, 500, 60, cycles=10)),
-        ("cycle in-place (×10, drift removed)",
-         lambda: bm.make_cycle(m, 100, 500, 60, cycles=10, mode="in-place")),
+        (
+            "cycle in-place (×10, drift removed)",
+            lambda: bm.make_cycle(m, 100, 500, 60, cycles=10, mode="in-place"),
+        ),
         ("foot contacts: detect", lambda: detect_contacts(m)),
         ("foot contacts: lock (hold, two-bone IK)", lambda: lock_feet(m)),
         ("foot contacts: lock after equalize (input contacts)", lambda: lock_feet(eq, m)),
@@ -111,8 +123,13 @@ def main() -> None:
     ]
     for name, fn in ops:
         ms = median_ms(fn)
-        target = "≤ 50 ms" if name.startswith("retarget") else \
-            "≤ 30 ms" if not name.startswith(("resample", "world")) else "—"
+        target = (
+            "≤ 50 ms"
+            if name.startswith("retarget")
+            else "≤ 30 ms"
+            if not name.startswith(("resample", "world"))
+            else "—"
+        )
         rows.append((name, "7,200 f × 60 j", f"{ms:.1f} ms", f"{CPU[-1]:.1f} ms", target))
     with tempfile.TemporaryDirectory(prefix="bm-motion-") as tmp:
         p = Path(tmp) / "minute.bvh"
@@ -123,33 +140,62 @@ def main() -> None:
         big = Path(tmp) / "100k.bvh"
         n100 = tiled_bvh(p, big, 14)  # 100,800 frames
         ms = median_ms(lambda: read_bvh(big), 3)
-        rows.append(("BVH read", f"{n100:,} f × 60 j ({big.stat().st_size / 1e6:.0f} MB)",
-                     f"{ms / 1000:.2f} s", f"{CPU[-1] / 1000:.2f} s", "< 2 s"))
+        rows.append(
+            (
+                "BVH read",
+                f"{n100:,} f × 60 j ({big.stat().st_size / 1e6:.0f} MB)",
+                f"{ms / 1000:.2f} s",
+                f"{CPU[-1] / 1000:.2f} s",
+                "< 2 s",
+            )
+        )
         big.unlink()
         if not quick:
             hour = Path(tmp) / "hour.bvh"
             nh = tiled_bvh(p, hour, 60)  # 432,000 frames = 1 h at 120 fps
             size = hour.stat().st_size
             ms = median_ms(lambda: read_bvh(hour), 3)
-            rows.append(("BVH read (1-hour take)", f"{nh:,} f × 60 j ({size / 1e6:.0f} MB)",
-                         f"{ms / 1000:.2f} s", f"{CPU[-1] / 1000:.2f} s", "≤ 5 s"))
+            rows.append(
+                (
+                    "BVH read (1-hour take)",
+                    f"{nh:,} f × 60 j ({size / 1e6:.0f} MB)",
+                    f"{ms / 1000:.2f} s",
+                    f"{CPU[-1] / 1000:.2f} s",
+                    "≤ 5 s",
+                )
+            )
             mo = read_bvh(hour)
             hour.unlink()
             ms = median_ms(lambda: bm.equalize(mo, [0, 0.5, 1, 1.3, 1]), 3)
-            rows.append(("equalize (1-hour take)", f"{nh:,} f × 60 j", f"{ms / 1000:.2f} s",
-                         f"{CPU[-1] / 1000:.2f} s", "≤ 10 s"))
+            rows.append(
+                (
+                    "equalize (1-hour take)",
+                    f"{nh:,} f × 60 j",
+                    f"{ms / 1000:.2f} s",
+                    f"{CPU[-1] / 1000:.2f} s",
+                    "≤ 10 s",
+                )
+            )
             del mo
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"Motion benchmark (load average {load0:.1f} before, {load:.1f} after, on "
-          f"{os.cpu_count()} cores; median of repeats, wall and process CPU time)\n")
+    print(
+        f"Motion benchmark (load average {load0:.1f} before, {load:.1f} after, on "
+        f"{os.cpu_count()} cores; median of repeats, wall and process CPU time)\n"
+    )
     print("| operation | data | wall | CPU | target |")
     print("|---|---|---|---|---|")
     for r in rows:
         print("| " + " | ".join(r) + " |")
 
 
-WALKS = ("xia_neutral_01_000_walk.bvh", "ad_fair1_zombie_walk.bvh", "xia_angry_13_000_run.bvh",
-         "cmu_01_01.bvh", "dme_comp_3d_2_raw.bvh", "dme_comp_3d_2_fixed.bvh")
+WALKS = (
+    "xia_neutral_01_000_walk.bvh",
+    "ad_fair1_zombie_walk.bvh",
+    "xia_angry_13_000_run.bvh",
+    "cmu_01_01.bvh",
+    "dme_comp_3d_2_raw.bvh",
+    "dme_comp_3d_2_fixed.bvh",
+)
 
 
 def skate_table() -> None:
@@ -173,18 +219,25 @@ def skate_table() -> None:
         return f"{foot_skate(mo)['skate_per_body_scale']:.3f}"
 
     print("\nFoot skate (body scales / s in contact frames; operator → operator + lock)\n")
-    print("| file | input | cleaned | equalize 0,0.5,1,1,1 | equalize 1,1.5,1.5,1,1 | "
-          "speed ×1.3 | blend with itself |")
+    print(
+        "| file | input | cleaned | equalize 0,0.5,1,1,1 | equalize 1,1.5,1.5,1,1 | "
+        "speed ×1.3 | blend with itself |"
+    )
     print("|---|---|---|---|---|---|---|")
     for name in WALKS:
         m = read_bvh(data / name)
         e1 = bm.equalize(m, [0, 0.5, 1, 1, 1])
         e2 = bm.equalize(m, [1, 1.5, 1.5, 1, 1])
         sp = bm.change_speed(m, 1.3)
-        bl = bm.blend([m, m[m.n_frames // 3:]], transition=min(30, m.n_frames // 4))
-        cells = [sk(m), sk(lock_feet(m)),
-                 f"{sk(e1)} → {sk(lock_feet(e1, m))}", f"{sk(e2)} → {sk(lock_feet(e2, m))}",
-                 f"{sk(sp)} → {sk(lock_feet(sp))}", f"{sk(bl)} → {sk(lock_feet(bl))}"]
+        bl = bm.blend([m, m[m.n_frames // 3 :]], transition=min(30, m.n_frames // 4))
+        cells = [
+            sk(m),
+            sk(lock_feet(m)),
+            f"{sk(e1)} → {sk(lock_feet(e1, m))}",
+            f"{sk(e2)} → {sk(lock_feet(e2, m))}",
+            f"{sk(sp)} → {sk(lock_feet(sp))}",
+            f"{sk(bl)} → {sk(lock_feet(bl))}",
+        ]
         print(f"| {name} | " + " | ".join(cells) + " |")
 
 
@@ -230,19 +283,33 @@ def blender_check() -> None:
     warnings.simplefilter("ignore")
     walk = read_bvh(data / "xia_neutral_01_000_walk.bvh")
     dance = read_bvh(data / "ad_rokoko_jesse_dance.bvh")
-    cases = {"equalize (±180° Euler)": bm.equalize(walk, [1, 1, 1, 1, 0.5]),
-             "root motion (ground root)": extract_root_motion(walk),
-             "retarget onto the Rokoko rig": retarget(walk, dance.skeleton),
-             "mirror": mirror(walk), "Rokoko dance as read": dance}
+    cases = {
+        "equalize (±180° Euler)": bm.equalize(walk, [1, 1, 1, 1, 0.5]),
+        "root motion (ground root)": extract_root_motion(walk),
+        "retarget onto the Rokoko rig": retarget(walk, dance.skeleton),
+        "mirror": mirror(walk),
+        "Rokoko dance as read": dance,
+    }
     with tempfile.TemporaryDirectory(prefix="bm-blender-") as tmp:
         paths = {}
         for i, (name, mo) in enumerate(cases.items()):
             paths[name] = write_bvh(Path(tmp) / f"c{i}.bvh", mo)
         script = Path(tmp) / "check.py"
         script.write_text(BLENDER_SCRIPT)
-        res = subprocess.run([exe, "-b", "--factory-startup", "--python", str(script), "--",
-                              *map(str, paths.values())], capture_output=True, text=True,
-                             timeout=600)
+        res = subprocess.run(
+            [
+                exe,
+                "-b",
+                "--factory-startup",
+                "--python",
+                str(script),
+                "--",
+                *map(str, paths.values()),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         line = next(ln for ln in res.stdout.splitlines() if ln.startswith("JSON"))
         got = json.loads(line[4:])
         print("\nBlender BVH import vs biomorph FK (max joint-position difference)\n")
@@ -251,9 +318,12 @@ def blender_check() -> None:
         for name, p in paths.items():
             mo = read_bvh(p)
             w = mo.world_positions()
-            d = max(abs(a - b) for fr, joints in got[str(p)].items()
-                    for n, xyz in joints.items()
-                    for a, b in zip(xyz, w[int(fr) - 1, mo.names.index(n)], strict=True))
+            d = max(
+                abs(a - b)
+                for fr, joints in got[str(p)].items()
+                for n, xyz in joints.items()
+                for a, b in zip(xyz, w[int(fr) - 1, mo.names.index(n)], strict=True)
+            )
             print(f"| {name} | {mo.n_joints} | {d:.1e} | {np.median(w[:, 0, 1]):.3g} |")
 
 

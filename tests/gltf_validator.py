@@ -37,8 +37,10 @@ def validator_missing() -> str | None:
     if shutil.which("node") is None:
         return "node is not installed; the Khronos glTF validator needs Node.js"
     if not (_package_dir() / "package.json").exists():
-        return (f"npm package gltf-validator not found at {_package_dir()}; "
-                "run `make tools` (npm install --prefix .tools gltf-validator)")
+        return (
+            f"npm package gltf-validator not found at {_package_dir()}; "
+            "run `make tools` (npm install --prefix .tools gltf-validator)"
+        )
     return None
 
 
@@ -49,12 +51,18 @@ def validate_many(paths: list[str | os.PathLike[str]]) -> list[dict[str, Any]]:
         pytest.skip(reason)
     if not paths:
         return []
-    proc = subprocess.run(["node", str(SCRIPT), *map(os.fspath, paths)], capture_output=True,
-                          text=True, timeout=300,
-                          env={**os.environ, "GLTF_VALIDATOR_DIR": str(_package_dir())})
+    proc = subprocess.run(
+        ["node", str(SCRIPT), *map(os.fspath, paths)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "GLTF_VALIDATOR_DIR": str(_package_dir())},
+    )
     if proc.returncode not in (0, 1):
-        raise AssertionError(f"glTF validator could not run on {paths[0]} … "
-                             f"(exit {proc.returncode}): {proc.stderr.strip()}")
+        raise AssertionError(
+            f"glTF validator could not run on {paths[0]} … "
+            f"(exit {proc.returncode}): {proc.stderr.strip()}"
+        )
     out = json.loads(proc.stdout)
     return out if len(paths) > 1 else [out]
 
@@ -71,15 +79,19 @@ def validate_glb(path: str | os.PathLike[str]) -> dict[str, Any]:
 
 def _format(messages: list[dict[str, Any]], limit: int = 20) -> str:
     names = {0: "error", 1: "warning", 2: "info", 3: "hint"}
-    lines = [f"  {names.get(m.get('severity'), '?')} {m.get('code')}: {m.get('message')}"
-             f" at {m.get('pointer', '')}" for m in messages[:limit]]
+    lines = [
+        f"  {names.get(m.get('severity'), '?')} {m.get('code')}: {m.get('message')}"
+        f" at {m.get('pointer', '')}"
+        for m in messages[:limit]
+    ]
     if len(messages) > limit:
         lines.append(f"  … {len(messages) - limit} more")
     return "\n".join(lines)
 
 
-def assert_valid_glb(path: str | os.PathLike[str], *,
-                     max_warnings: int | None = None) -> dict[str, Any]:
+def assert_valid_glb(
+    path: str | os.PathLike[str], *, max_warnings: int | None = None
+) -> dict[str, Any]:
     """Assert the Khronos validator reports zero errors for ``path``; return the report.
 
     ``max_warnings`` additionally bounds the number of warnings (``None``: any number).
@@ -87,9 +99,13 @@ def assert_valid_glb(path: str | os.PathLike[str], *,
     report = validate_glb(path)
     issues = report["issues"]
     if issues["numErrors"]:
-        raise AssertionError(f"{path}: glTF validator found {issues['numErrors']} error(s):\n"
-                             + _format(issues["messages"]))
+        raise AssertionError(
+            f"{path}: glTF validator found {issues['numErrors']} error(s):\n"
+            + _format(issues["messages"])
+        )
     if max_warnings is not None and issues["numWarnings"] > max_warnings:
-        raise AssertionError(f"{path}: glTF validator found {issues['numWarnings']} warning(s) "
-                             f"(allowed {max_warnings}):\n" + _format(issues["messages"]))
+        raise AssertionError(
+            f"{path}: glTF validator found {issues['numWarnings']} warning(s) "
+            f"(allowed {max_warnings}):\n" + _format(issues["messages"])
+        )
     return report

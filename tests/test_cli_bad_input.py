@@ -67,15 +67,32 @@ OPTIONS = numeric_options()
 RECIPES = {
     ("studio",): None,  # starts a server: checked at the boundary only
     ("creature", "generate"): lambda f: ["-o", f"{f['out']}/c.json"],
-    ("creature", "batch"): lambda f: ["--count", "2", "--chunk", "1", "--workers", "0",
-                                      "--format", "json", "--out", f["out"]],
+    ("creature", "batch"): lambda f: [
+        "--count",
+        "2",
+        "--chunk",
+        "1",
+        "--workers",
+        "0",
+        "--format",
+        "json",
+        "--out",
+        f["out"],
+    ],
     ("creature", "annotate"): lambda f: [f["svg"], "--dataset", f"{f['out']}/species.csv"],
     ("tree", "skeletonize"): lambda f: [f["cloud"], "--out", f["out"]],
     ("tree", "synth"): lambda f: ["--points", "800", "--out", f["out"]],
     ("tree", "evaluate"): lambda f: [f["skeleton"], "--truth", f["skeleton"]],
     ("tree", "batch"): lambda f: [f["cloud"], "--workers", "0", "--out", f["out"]],
-    ("motion", "edit"): lambda f: [f["bvh"], "-o", f"{f['out']}/m.bvh", "--joint",
-                                   f["joint"], "--key", "5:10/0/0"],
+    ("motion", "edit"): lambda f: [
+        f["bvh"],
+        "-o",
+        f"{f['out']}/m.bvh",
+        "--joint",
+        f["joint"],
+        "--key",
+        "5:10/0/0",
+    ],
     ("motion", "reorient"): lambda f: [f["bvh"], "-o", f"{f['out']}/m.bvh"],
     ("motion", "blend"): lambda f: [f["bvh"], f["bvh"], "-o", f"{f['out']}/m.bvh"],
     ("motion", "cycle"): lambda f: [f["bvh"], "-o", f"{f['out']}/m.bvh"],
@@ -84,26 +101,53 @@ RECIPES = {
     ("motion", "equalize"): lambda f: [f["bvh"], "-o", f"{f['out']}/m.bvh"],
     ("leaf", "mesh"): lambda f: ["-o", f"{f['out']}/leaf.obj"],
     ("leaf", "grow"): lambda f: ["-o", f"{f['out']}/grow.glb", "--frames", "3"],
-    ("leaf", "canopy"): lambda f: ["-o", f"{f['out']}/field.obj", "--plants", "2",
-                                   "--rows", "1", "--leaves", "2"],
-    ("leaf", "reduce-curve"): lambda f: ["-o", f"{f['out']}/curve.png", "--points", "20",
-                                         "--leaves", "5"],
+    ("leaf", "canopy"): lambda f: [
+        "-o",
+        f"{f['out']}/field.obj",
+        "--plants",
+        "2",
+        "--rows",
+        "1",
+        "--leaves",
+        "2",
+    ],
+    ("leaf", "reduce-curve"): lambda f: [
+        "-o",
+        f"{f['out']}/curve.png",
+        "--points",
+        "20",
+        "--leaves",
+        "5",
+    ],
     ("leaf", "light"): lambda f: [f["canopy"], "--json"],
     ("creature", "render"): lambda f: ["-o", f"{f['out']}/c.png"],
     ("motion", "trim"): lambda f: [f["bvh"], "-o", f"{f['out']}/m.bvh"],
-    ("motion", "batch"): lambda f: [f["bvh"], "--op", "reorient", "--workers", "0", "--out",
-                                    f["out"]],
+    ("motion", "batch"): lambda f: [
+        f["bvh"],
+        "--op",
+        "reorient",
+        "--workers",
+        "0",
+        "--out",
+        f["out"],
+    ],
     ("leaf", "plant"): lambda f: ["-o", f"{f['out']}/plant.obj", "--leaves", "3"],
-    ("leaf", "tables"): lambda f: ["--dims", f"{f['out']}/dims.csv", "--phen",
-                                   f"{f['out']}/phen.csv"],
+    ("leaf", "tables"): lambda f: [
+        "--dims",
+        f"{f['out']}/dims.csv",
+        "--phen",
+        f"{f['out']}/phen.csv",
+    ],
 }
 
 #: (command, option, value) whose real run still fails in a pillar (reported to its owner);
 #: xfail, non-strict: they turn into XPASS once fixed
 KNOWN: dict[tuple[str, str, str], str] = {}
 
-ALWAYS_BAD = {"int": ["nan", "inf", "1e308", "99999999999999999999", "-99999999999999999999"],
-              "float": ["nan", "inf", "-inf", "1e308", "-1e308"]}
+ALWAYS_BAD = {
+    "int": ["nan", "inf", "1e308", "99999999999999999999", "-99999999999999999999"],
+    "float": ["nan", "inf", "-inf", "1e308", "-1e308"],
+}
 SECONDS = 60  # per real run
 
 
@@ -119,19 +163,42 @@ def files(tmp_path_factory):
     truth = generate_tree("birch", seed=2)
     cloud = simulate_scan(truth, n_points=1500, seed=2)
     (d / "animal.svg").write_text(SVG)
-    joint = next(ln.split()[1] for ln in BVH.read_text().splitlines()
-                 if ln.strip().startswith("JOINT"))
-    assert run(["leaf", "canopy", "-o", str(d / "field.obj"), "--plants", "2", "--rows", "1",
-                "--leaves", "2"]) == 0
-    return {"cloud": str(write_points(d / "cloud.ply", cloud)), "canopy": str(d / "field.obj"),
-            "skeleton": str(write_graph(d / "truth.ply", truth)),
-            "bvh": str(BVH), "svg": str(d / "animal.svg"), "joint": joint}
+    joint = next(
+        ln.split()[1] for ln in BVH.read_text().splitlines() if ln.strip().startswith("JOINT")
+    )
+    assert (
+        run(
+            [
+                "leaf",
+                "canopy",
+                "-o",
+                str(d / "field.obj"),
+                "--plants",
+                "2",
+                "--rows",
+                "1",
+                "--leaves",
+                "2",
+            ]
+        )
+        == 0
+    )
+    return {
+        "cloud": str(write_points(d / "cloud.ply", cloud)),
+        "canopy": str(d / "field.obj"),
+        "skeleton": str(write_graph(d / "truth.ply", truth)),
+        "bvh": str(BVH),
+        "svg": str(d / "animal.svg"),
+        "joint": joint,
+    }
 
 
 def _argv(path, files, out: Path) -> list[str] | None:
     if path not in RECIPES:  # its non-finite/huge values are still checked (no recipe needed)
-        pytest.skip(f"command {' '.join(path)} has numeric options but no recipe in "
-                    "tests/test_cli_bad_input.py RECIPES: add one")
+        pytest.skip(
+            f"command {' '.join(path)} has numeric options but no recipe in "
+            "tests/test_cli_bad_input.py RECIPES: add one"
+        )
     recipe = RECIPES[path]
     return None if recipe is None else [*path, *recipe({**files, "out": str(out)})]
 
@@ -160,8 +227,9 @@ def _check_refusal(err: str, flag: str | None) -> None:
         assert flag in lines[0], lines[0]
 
 
-@pytest.mark.parametrize("path,flag,kind", OPTIONS, ids=[f"{' '.join(p)} {o}" for p, o, _ in
-                                                          OPTIONS])
+@pytest.mark.parametrize(
+    "path,flag,kind", OPTIONS, ids=[f"{' '.join(p)} {o}" for p, o, _ in OPTIONS]
+)
 def test_non_finite_and_huge_values_refused(tmp_path, capsys, path, flag, kind):
     out = tmp_path / "out"
     base = _minimal_argv(path, COMMANDS[path])
@@ -179,8 +247,13 @@ def _timeout(signum, frame):
 
 #: commands whose real run takes seconds: in ``make test`` one case in four of them runs
 #: (a fixed choice); BIOMORPH_FULL_TABLE=1 runs every case (about 4 min on 2 cores)
-SLOW = {("tree", "skeletonize"), ("tree", "batch"), ("tree", "synth"), ("creature", "render"),
-        ("creature", "generate")}
+SLOW = {
+    ("tree", "skeletonize"),
+    ("tree", "batch"),
+    ("tree", "synth"),
+    ("creature", "render"),
+    ("creature", "generate"),
+}
 FULL = os.environ.get("BIOMORPH_FULL_TABLE") == "1"
 
 
@@ -190,12 +263,20 @@ def _selected(path, flag, value) -> bool:
     return zlib.crc32(f"{' '.join(path)} {flag}={value}".encode()) % 4 == 0
 
 
-ZERO_CASES = [pytest.param(p, o, v, id=f"{' '.join(p)} {o}={v}",
-                           marks=[pytest.mark.xfail(reason=KNOWN[(' '.join(p), o, v)],
-                                                    strict=False)]
-                           if (' '.join(p), o, v) in KNOWN else [])
-              for p, o, _ in OPTIONS for v in ("0", "-1")
-              if RECIPES.get(p, 1) is not None and _selected(p, o, v)]
+ZERO_CASES = [
+    pytest.param(
+        p,
+        o,
+        v,
+        id=f"{' '.join(p)} {o}={v}",
+        marks=[pytest.mark.xfail(reason=KNOWN[(" ".join(p), o, v)], strict=False)]
+        if (" ".join(p), o, v) in KNOWN
+        else [],
+    )
+    for p, o, _ in OPTIONS
+    for v in ("0", "-1")
+    if RECIPES.get(p, 1) is not None and _selected(p, o, v)
+]
 
 
 @pytest.mark.parametrize("path,flag,value", ZERO_CASES)
@@ -218,16 +299,20 @@ def test_zero_and_negative_values_clean(tmp_path, capsys, files, path, flag, val
         assert not [p for p in out.rglob("*") if ".tmp-" in p.name]
 
 
-@pytest.mark.parametrize("argv,needle", [
-    (["tree", "synth", "--points", "1e308"], "--points"),
-    (["tree", "synth", "--seed", "-1"], "--seed"),
-    (["leaf", "canopy", "-o", "{tmp}/f.obj", "--density", "inf"], "--density"),
-    (["tree", "evaluate", "{tmp}/missing.ply", "--tolerance", "nan"], "--tolerance"),
-])
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        (["tree", "synth", "--points", "1e308"], "--points"),
+        (["tree", "synth", "--seed", "-1"], "--seed"),
+        (["leaf", "canopy", "-o", "{tmp}/f.obj", "--density", "inf"], "--density"),
+        (["tree", "evaluate", "{tmp}/missing.ply", "--tolerance", "nan"], "--tolerance"),
+    ],
+)
 def test_real_executable_refuses_in_one_line(tmp_path, argv, needle):
     argv = [a.format(tmp=tmp_path) for a in argv]
-    res = subprocess.run([sys.executable, "-m", "biomorph.cli", *argv], capture_output=True,
-                         text=True, timeout=120)
+    res = subprocess.run(
+        [sys.executable, "-m", "biomorph.cli", *argv], capture_output=True, text=True, timeout=120
+    )
     assert res.returncode == 2
     _check_refusal(res.stderr, needle)
     assert list(tmp_path.iterdir()) == []
@@ -237,10 +322,16 @@ def test_table_covers_every_numeric_option():
     """The introspection sees the options the issue lists (guards against a typer change
     that would silently empty the table)."""
     flags = {(" ".join(p), o) for p, o, _ in OPTIONS}
-    for expected in [("tree skeletonize", "--node-spacing"), ("tree synth", "--points"),
-                     ("leaf canopy", "--plants"), ("leaf mesh", "--triangles"),
-                     ("leaf grow", "--frames"), ("motion cycle", "--cycles"),
-                     ("motion convert", "--fps"), ("leaf reduce-curve", "--points")]:
+    for expected in [
+        ("tree skeletonize", "--node-spacing"),
+        ("tree synth", "--points"),
+        ("leaf canopy", "--plants"),
+        ("leaf mesh", "--triangles"),
+        ("leaf grow", "--frames"),
+        ("motion cycle", "--cycles"),
+        ("motion convert", "--fps"),
+        ("leaf reduce-curve", "--points"),
+    ]:
         assert expected in flags
     assert len(OPTIONS) >= 60
 
@@ -249,25 +340,29 @@ def _huge_mtg(tmp: Path) -> Path:
     from biomorph.core.graph import BranchGraph
     from biomorph.io import write_graph
 
-    g = BranchGraph([[0, 0, 0], [0, 0, 1e200], [1e200, 0, 1e200]], [-1, 0, 1],
-                    radius=[0.1, 0.05, 0.02])
+    g = BranchGraph(
+        [[0, 0, 0], [0, 0, 1e200], [1e200, 0, 1e200]], [-1, 0, 1], radius=[0.1, 0.05, 0.02]
+    )
     return write_graph(tmp / "huge.mtg", g)
 
 
-@pytest.mark.parametrize("argv,needle", [
-    # non-UTF-8 text inputs: one line naming the file, line and byte
-    (["creature", "dataset", "--dataset", "{latin1}"], "latin1.csv:2"),
-    (["creature", "generate", "--dataset", "{latin1}", "-o", "{tmp}/g.json"], "latin1.csv:2"),
-    (["leaf", "mesh", "--midrib", "{latin1}", "-o", "{tmp}/l.obj"], "latin1.csv:2"),
-    # extreme coordinates
-    (["tree", "skeletonize", "{far}", "--out", "{tmp}/o"], "magnitude"),
-    (["render", "{huge_mtg}", "-o", "{tmp}/p.png"], "magnitude"),
-    # silently accepted before
-    (["info", "{empty_can}"], "extension"),
-    (["tree", "evaluate", "{huge_mtg}", "--tolerance", "nan"], "--tolerance"),
-    (["leaf", "mesh", "--width", "1e308", "-o", "{tmp}/l.obj"], "--width"),
-    (["leaf", "canopy", "--density", "inf", "-o", "{tmp}/f.obj"], "--density"),
-])
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        # non-UTF-8 text inputs: one line naming the file, line and byte
+        (["creature", "dataset", "--dataset", "{latin1}"], "latin1.csv:2"),
+        (["creature", "generate", "--dataset", "{latin1}", "-o", "{tmp}/g.json"], "latin1.csv:2"),
+        (["leaf", "mesh", "--midrib", "{latin1}", "-o", "{tmp}/l.obj"], "latin1.csv:2"),
+        # extreme coordinates
+        (["tree", "skeletonize", "{far}", "--out", "{tmp}/o"], "magnitude"),
+        (["render", "{huge_mtg}", "-o", "{tmp}/p.png"], "magnitude"),
+        # silently accepted before
+        (["info", "{empty_can}"], "extension"),
+        (["tree", "evaluate", "{huge_mtg}", "--tolerance", "nan"], "--tolerance"),
+        (["leaf", "mesh", "--width", "1e308", "-o", "{tmp}/l.obj"], "--width"),
+        (["leaf", "canopy", "--density", "inf", "-o", "{tmp}/f.obj"], "--density"),
+    ],
+)
 def test_issue_reproducers_refused_in_one_line(tmp_path, capsys, argv, needle):
     import numpy as np
 
@@ -280,8 +375,13 @@ def test_issue_reproducers_refused_in_one_line(tmp_path, capsys, argv, needle):
     np.savetxt(far, rng.uniform(0, 1e300, (50, 3)))
     empty_can = inputs / "empty.can"
     empty_can.write_text("")
-    names = {"tmp": tmp_path, "latin1": latin1, "far": far, "empty_can": empty_can,
-             "huge_mtg": _huge_mtg(inputs)}
+    names = {
+        "tmp": tmp_path,
+        "latin1": latin1,
+        "far": far,
+        "empty_can": empty_can,
+        "huge_mtg": _huge_mtg(inputs),
+    }
     before = sorted(tmp_path.rglob("*"))
     assert run([a.format(**names) for a in argv]) == 2
     err = capsys.readouterr().err

@@ -9,8 +9,8 @@ import pytest
 
 from biomorph import __version__
 from biomorph.cli import run
-from biomorph.foundation_demo import sample_surface, synthetic_tree
 from biomorph.core.mesh import Mesh
+from biomorph.foundation_demo import sample_surface, synthetic_tree
 from biomorph.io import write_graph, write_mesh, write_points
 from tests.conftest import shared_file
 
@@ -28,13 +28,25 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("cli")
     g = synthetic_tree(seed=1, generations=3)
     c = sample_surface(g, 3000, seed=1)
-    m = Mesh.from_any((np.array([[0, 0, 0], [2, 0, 0], [0, 1, 0], [0, 0, 1.0]]),
-                       np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])))
-    return {"graph": g, "cloud": c, "mesh": m,
-            "laz": write_points(d / "c.laz", c), "xyz": write_points(d / "c.xyz", c),
-            "ply_points": write_points(d / "c.ply", c), "npy": write_points(d / "c.npy", c),
-            "ply_graph": write_graph(d / "g.ply", g), "mtg": write_graph(d / "g.mtg", g),
-            "obj": write_mesh(d / "m.obj", m), "ply_mesh": write_mesh(d / "m.ply", m)}
+    m = Mesh.from_any(
+        (
+            np.array([[0, 0, 0], [2, 0, 0], [0, 1, 0], [0, 0, 1.0]]),
+            np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]),
+        )
+    )
+    return {
+        "graph": g,
+        "cloud": c,
+        "mesh": m,
+        "laz": write_points(d / "c.laz", c),
+        "xyz": write_points(d / "c.xyz", c),
+        "ply_points": write_points(d / "c.ply", c),
+        "npy": write_points(d / "c.npy", c),
+        "ply_graph": write_graph(d / "g.ply", g),
+        "mtg": write_graph(d / "g.mtg", g),
+        "obj": write_mesh(d / "m.obj", m),
+        "ply_mesh": write_mesh(d / "m.ply", m),
+    }
 
 
 def test_version(capsys):
@@ -81,8 +93,9 @@ def test_info_motion(capsys):
     ft = float(text.split("Frame Time:")[1].split()[0])
     assert info["kind"] == "motion" and info["frames"] == frames
     assert info["joints"] == text.count("JOINT") + text.count("ROOT")
-    assert info["channels"] == sum(int(ln.split()[1]) for ln in text.splitlines()
-                                   if ln.strip().startswith("CHANNELS"))
+    assert info["channels"] == sum(
+        int(ln.split()[1]) for ln in text.splitlines() if ln.strip().startswith("CHANNELS")
+    )
     assert info["fps"] == pytest.approx(1 / ft, rel=1e-6)
     assert info["duration"] == pytest.approx((frames - 1) * ft, rel=1e-6)
 
@@ -114,25 +127,29 @@ def test_render_api_objects(tmp_path, files):
     from biomorph.render import render_cloud, render_graph, render_mesh, render_skeleton
 
     sk = JointSkeleton(["a", "b", "c"], [-1, 0, 1], [[0, 1, 0], [0, 0.5, 0], [0.3, 0, 0]])
-    outs = [render_skeleton(sk, tmp_path / "s.png"),
-            render_cloud(files["cloud"], tmp_path / "c.png", color_by="Deviation",
-                         max_points=500),
-            render_graph(files["graph"], tmp_path / "g.png", cloud=files["cloud"]),
-            render_mesh(files["mesh"], tmp_path / "m.png", up="y")]
+    outs = [
+        render_skeleton(sk, tmp_path / "s.png"),
+        render_cloud(files["cloud"], tmp_path / "c.png", color_by="Deviation", max_points=500),
+        render_graph(files["graph"], tmp_path / "g.png", cloud=files["cloud"]),
+        render_mesh(files["mesh"], tmp_path / "m.png", up="y"),
+    ]
     for o in outs:
         assert o.read_bytes().startswith(PNG)
 
 
-@pytest.mark.parametrize("args,message", [
-    (["info", "{tmp}/missing.las"], "does not exist"),
-    (["info", "{tmp}/x.weird"], "extension"),
-    (["info", "{tmp}/bad.xyz"], "bad.xyz:2"),
-    (["info", "{tmp}/bad.mtg"], "MTG"),
-    (["render", "{tmp}/bad.xyz", "-o", "{tmp}/out.png"], "bad.xyz:2"),
-    (["render", "{tmp}/ok.xyz", "-o", "{tmp}/out.jpg"], ".png"),
-    (["render", "{tmp}/ok.xyz", "-o", "{tmp}/out.png", "--up", "q"], "up="),
-    (["render", "{tmp}/missing.ply", "-o", "{tmp}/out.png"], "does not exist"),
-])
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["info", "{tmp}/missing.las"], "does not exist"),
+        (["info", "{tmp}/x.weird"], "extension"),
+        (["info", "{tmp}/bad.xyz"], "bad.xyz:2"),
+        (["info", "{tmp}/bad.mtg"], "MTG"),
+        (["render", "{tmp}/bad.xyz", "-o", "{tmp}/out.png"], "bad.xyz:2"),
+        (["render", "{tmp}/ok.xyz", "-o", "{tmp}/out.jpg"], ".png"),
+        (["render", "{tmp}/ok.xyz", "-o", "{tmp}/out.png", "--up", "q"], "up="),
+        (["render", "{tmp}/missing.ply", "-o", "{tmp}/out.png"], "does not exist"),
+    ],
+)
 def test_errors_exit_2_one_line_nothing_written(tmp_path, capsys, args, message):
     (tmp_path / "x.weird").write_text("?")
     (tmp_path / "bad.xyz").write_text("1 2 3\n4 5\n")
@@ -172,7 +189,6 @@ def test_render_up_axis_mapping_is_a_rotation():
     assert np.allclose(_to_zup(e, "z"), e)
     for rot in _VIEWS.values():
         assert np.isclose(np.linalg.det(rot), 1.0) and np.allclose(rot @ rot.T, e)
-    assert np.allclose(_VIEWS["front"][1], [0, 0, 1]) and np.allclose(_VIEWS["side"][1],
-                                                                       [0, 0, 1])
+    assert np.allclose(_VIEWS["front"][1], [0, 0, 1]) and np.allclose(_VIEWS["side"][1], [0, 0, 1])
     with pytest.raises(ParameterError):
         _to_zup(e, "x")

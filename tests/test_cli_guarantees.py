@@ -26,11 +26,20 @@ def _interrupt(args: list[str], wait_for: Path | None, delay: float) -> tuple[in
     """Start the CLI, wait until ``wait_for`` exists (the command body has begun) plus
     ``delay`` s, send SIGINT to its process group; return (exit code, stderr, seconds to
     stop)."""
-    proc = subprocess.Popen(CLI + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+    proc = subprocess.Popen(
+        CLI + args,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     t0 = time.monotonic()
-    while wait_for is not None and not wait_for.exists() and proc.poll() is None \
-            and time.monotonic() - t0 < 90:
+    while (
+        wait_for is not None
+        and not wait_for.exists()
+        and proc.poll() is None
+        and time.monotonic() - t0 < 90
+    ):
         time.sleep(0.01)
     assert proc.poll() is None, proc.communicate()
     time.sleep(delay)
@@ -60,8 +69,9 @@ def test_ctrl_c_during_imports_one_line_exit_130(tmp_path):
 
 def test_ctrl_c_during_work_one_line_exit_130_no_partial_files(tmp_path):
     out = tmp_path / "o"
-    code, err, took = _interrupt(["tree", "synth", "--points", "3000000", "--out", str(out)],
-                                 out / LOCK_NAME, 0.3)
+    code, err, took = _interrupt(
+        ["tree", "synth", "--points", "3000000", "--out", str(out)], out / LOCK_NAME, 0.3
+    )
     assert code == 130
     _one_interrupt_line(err)
     assert took < 1.0
@@ -80,8 +90,11 @@ def clouds(tmp_path_factory):
 
 def test_ctrl_c_during_batch_worker_start_one_line(tmp_path, clouds):
     out = tmp_path / "batch"
-    code, err, took = _interrupt(["tree", "batch", *map(str, clouds), "--workers", "2",
-                                  "--out", str(out)], out / LOCK_NAME, 0.5)
+    code, err, took = _interrupt(
+        ["tree", "batch", *map(str, clouds), "--workers", "2", "--out", str(out)],
+        out / LOCK_NAME,
+        0.5,
+    )
     assert code == 130
     _one_interrupt_line(err)  # no worker tracebacks, no misleading multiprocessing error
     assert took < 1.5  # the process group is gone (workers killed with the parent)
@@ -90,8 +103,11 @@ def test_ctrl_c_during_batch_worker_start_one_line(tmp_path, clouds):
 def test_named_pipe_and_device_refused_not_read(tmp_path, capsys):
     fifo = tmp_path / "cloud.xyz"
     os.mkfifo(fifo)
-    for argv in (["info", str(fifo)], ["tree", "skeletonize", str(fifo), "--out",
-                                       str(tmp_path / "o")], ["info", "/dev/zero"]):
+    for argv in (
+        ["info", str(fifo)],
+        ["tree", "skeletonize", str(fifo), "--out", str(tmp_path / "o")],
+        ["info", "/dev/zero"],
+    ):
         assert run(argv) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and "Traceback" not in err
@@ -119,11 +135,16 @@ def test_output_that_is_an_input_is_refused(tmp_path, capsys, clouds):
 def test_second_run_into_a_locked_folder_is_refused(tmp_path, capsys):
     out = tmp_path / "o"
     holder = subprocess.Popen(
-        [sys.executable, "-c",
-         "import time; from biomorph._cli import folder_lock\n"
-         f"with folder_lock({str(out)!r}):\n"
-         "    print('locked', flush=True); time.sleep(30)"],
-        stdout=subprocess.PIPE, text=True)
+        [
+            sys.executable,
+            "-c",
+            "import time; from biomorph._cli import folder_lock\n"
+            f"with folder_lock({str(out)!r}):\n"
+            "    print('locked', flush=True); time.sleep(30)",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert holder.stdout.readline().strip() == "locked"
         assert run(["tree", "synth", "--points", "500", "--out", str(out)]) == 2
@@ -157,9 +178,15 @@ def test_concurrent_annotate_loses_no_rows(tmp_path):
     for i in range(3):
         svg = tmp_path / f"animal{i}.svg"
         svg.write_text(SVG)
-        procs.append(subprocess.Popen(CLI + ["creature", "annotate", str(svg), "--weight",
-                                             str(10 + i), "--dataset", str(ds)],
-                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+        procs.append(
+            subprocess.Popen(
+                CLI
+                + ["creature", "annotate", str(svg), "--weight", str(10 + i), "--dataset", str(ds)],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+        )
     for p in procs:
         _, err = p.communicate(timeout=120)
         assert p.returncode == 0, err
@@ -241,10 +268,13 @@ def test_warnings_never_precede_the_error_line(tmp_path, capsys, monkeypatch):
     assert err == [f"error: {tmp_path / 'm.obj'}:4: bad face index 0"]
 
 
-@pytest.mark.parametrize("argv,needle", [
-    (["tree", "synth", "--points", "2000000000", "--out", "{tmp}/o"], "--points 2000000000"),
-    (["leaf", "mesh", "--triangles", "2147483647", "-o", "{tmp}/l.obj"], "--triangles"),
-])
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        (["tree", "synth", "--points", "2000000000", "--out", "{tmp}/o"], "--points 2000000000"),
+        (["leaf", "mesh", "--triangles", "2147483647", "-o", "{tmp}/l.obj"], "--triangles"),
+    ],
+)
 def test_sizes_refused_up_front_with_the_estimate(tmp_path, capsys, argv, needle):
     assert run([a.format(tmp=tmp_path) for a in argv]) == 2
     err = capsys.readouterr().err.strip()

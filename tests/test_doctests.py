@@ -37,6 +37,10 @@ def test_some_modules_have_examples():
 @pytest.mark.parametrize("name", MODULES)
 def test_docstring_examples(name):
     module = importlib.import_module(name)
-    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
-                             report=True, verbose=False)
+    result = doctest.testmod(
+        module,
+        optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
+        report=True,
+        verbose=False,
+    )
     assert result.failed == 0, f"{result.failed} of {result.attempted} doctests failed in {name}"

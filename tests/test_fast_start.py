@@ -12,8 +12,19 @@ import sys
 
 import pytest
 
-HEAVY = ("numpy", "scipy", "numba", "matplotlib", "trimesh", "dask", "distributed", "viser",
-         "laspy", "pygltflib", "mujoco")
+HEAVY = (
+    "numpy",
+    "scipy",
+    "numba",
+    "matplotlib",
+    "trimesh",
+    "dask",
+    "distributed",
+    "viser",
+    "laspy",
+    "pygltflib",
+    "mujoco",
+)
 
 PROBE = """
 import sys
@@ -27,12 +38,25 @@ print('HEAVY=' + ','.join(heavy))
 """
 
 
-@pytest.mark.parametrize("argv", [["--help"], ["creature", "--help"], ["tree", "--help"],
-                                  ["motion", "--help"], ["leaf", "--help"],
-                                  ["studio", "--help"]])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--help"],
+        ["creature", "--help"],
+        ["tree", "--help"],
+        ["motion", "--help"],
+        ["leaf", "--help"],
+        ["studio", "--help"],
+    ],
+)
 def test_help_loads_no_numeric_stack(argv):
-    out = subprocess.run([sys.executable, "-c", PROBE.format(argv=argv, heavy=HEAVY)],
-                         capture_output=True, text=True, timeout=120, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", PROBE.format(argv=argv, heavy=HEAVY)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
     marks = [ln for ln in out.stdout.splitlines() if ln.startswith("HEAVY=")]
     assert marks, out.stdout + out.stderr
     heavy = marks[-1].removeprefix("HEAVY=")

@@ -99,8 +99,11 @@ def imports_of(module: str) -> list[tuple[str, int]]:
 
 def _dynamic_imports(module: str) -> list[int]:
     tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))
-    return [n.lineno for n in ast.walk(tree)
-            if isinstance(n, ast.Attribute) and n.attr == "import_module"]
+    return [
+        n.lineno
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Attribute) and n.attr == "import_module"
+    ]
 
 
 def test_every_module_has_a_layer():
@@ -114,8 +117,10 @@ def test_no_upward_imports():
         mine = layer_of(module)
         for target, line in imports_of(module):
             if layer_of(target) > mine:
-                bad.append(f"{MODULES[module].relative_to(SRC)}:{line}: {module} (layer {mine}) "
-                           f"imports {target} (layer {layer_of(target)})")
+                bad.append(
+                    f"{MODULES[module].relative_to(SRC)}:{line}: {module} (layer {mine}) "
+                    f"imports {target} (layer {layer_of(target)})"
+                )
     assert not bad, "upward imports:\n" + "\n".join(bad)
 
 
@@ -166,7 +171,7 @@ def test_no_dynamic_imports(module):
 
 def test_readme_layout_names_every_package_and_pillar_module():
     readme = (SRC.parent / "README.md").read_text(encoding="utf-8")
-    block = readme[readme.index("## Layout"):]
+    block = readme[readme.index("## Layout") :]
     block = block[: block.index("\n## ", 1)]
     missing = []
     for path in sorted(PKG.iterdir()):

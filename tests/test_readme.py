@@ -26,7 +26,8 @@ def test_readme_block_runs(index, tmp_path):
     finally:
         os.chdir(cwd)
     # every file or folder the block names in a string literal now exists
-    named = re.findall(r"\"([\w./-]+\.(?:glb|laz|las|ply|bvh|obj|csv|png)|[\w-]+/)\"",
-                       BLOCKS[index])
+    named = re.findall(
+        r"\"([\w./-]+\.(?:glb|laz|las|ply|bvh|obj|csv|png)|[\w-]+/)\"", BLOCKS[index]
+    )
     missing = [n for n in named if not (tmp_path / n).exists()]
     assert not missing, f"README block {index} did not write {missing}"

@@ -49,9 +49,21 @@ from biomorph.errors import ParameterError, UnsupportedFormatError, require_memo
 err_console = Console(stderr=True, soft_wrap=True, highlight=False)
 out_console = Console(soft_wrap=True, highlight=False)
 
-__all__ = ["INTERRUPT_LINE", "bounded", "check_memory", "check_suffix", "check_value", "emit",
-           "err_console", "file_lock", "folder_lock", "interrupt_guard", "out_console",
-           "print_json", "to_jsonable"]
+__all__ = [
+    "INTERRUPT_LINE",
+    "bounded",
+    "check_memory",
+    "check_suffix",
+    "check_value",
+    "emit",
+    "err_console",
+    "file_lock",
+    "folder_lock",
+    "interrupt_guard",
+    "out_console",
+    "print_json",
+    "to_jsonable",
+]
 
 INTERRUPT_LINE = "interrupted; no partial output was written"
 EXIT_INTERRUPTED = 130
@@ -126,9 +138,15 @@ def _fmt_range(lo: float | None, hi: float | None, lo_open: bool, hi_open: bool)
     return "a finite number"
 
 
-def check_value(name: str, value: float | int, lo: float | None = None,
-                hi: float | None = None, *, lo_open: bool = False,
-                hi_open: bool = False) -> None:
+def check_value(
+    name: str,
+    value: float | int,
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+) -> None:
     """Raise :class:`ParameterError` unless ``value`` is finite and inside the range.
 
     >>> check_value("--k", 0, lo=1)
@@ -150,8 +168,13 @@ def check_value(name: str, value: float | int, lo: float | None = None,
         raise ParameterError(f"{name}: got {value!r}; expected {expected}")
 
 
-def bounded(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
-            hi_open: bool = False) -> Callable[[Any, Any, Any], Any]:
+def bounded(
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+) -> Callable[[Any, Any, Any], Any]:
     """A typer/click option callback checking each given value with :func:`check_value`.
 
     ``typer.Option(..., callback=bounded(lo=0, lo_open=True))`` refuses 0, negatives, NaN and
@@ -178,7 +201,8 @@ def check_suffix(path: str | os.PathLike[str], allowed: Iterable[str], option: s
     if suffix not in allowed:
         raise UnsupportedFormatError(
             f"{option} {os.fspath(path)}: extension {suffix or '(none)'!r} not written; "
-            f"expected one of {', '.join(allowed)}")
+            f"expected one of {', '.join(allowed)}"
+        )
 
 
 def check_memory(what: str, n_bytes: float) -> None:
@@ -297,9 +321,10 @@ def file_lock(path: str | os.PathLike[str], what: str = "file") -> Iterator[None
                 break
             except BlockingIOError:
                 if time.monotonic() > deadline:
-                    raise ParameterError(f"{os.fspath(path)}: {what} is locked by another "
-                                         "biomorph run; try again when it has finished"
-                                         ) from None
+                    raise ParameterError(
+                        f"{os.fspath(path)}: {what} is locked by another "
+                        "biomorph run; try again when it has finished"
+                    ) from None
                 time.sleep(0.05)
         yield
     finally:
@@ -329,9 +354,11 @@ def folder_lock(folder: str | os.PathLike[str], option: str = "--out") -> Iterat
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise ParameterError(f"{option} {os.fspath(folder)}: another biomorph run is "
-                                 "writing into this folder; wait for it or choose another "
-                                 "folder") from None
+            raise ParameterError(
+                f"{option} {os.fspath(folder)}: another biomorph run is "
+                "writing into this folder; wait for it or choose another "
+                "folder"
+            ) from None
         locked = True
         _HELD_LOCKS.add(os.path.realpath(lock))
         yield clean_stale(root)

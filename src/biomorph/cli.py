@@ -29,8 +29,9 @@ import sys
 def _entry_point() -> bool:
     """True when this process is the ``biomorph`` executable or ``python -m biomorph.cli``."""
     argv0 = sys.argv[0] if sys.argv else ""
-    return os.path.basename(argv0) in ("biomorph", "biomorph.exe") or \
-        argv0.endswith(os.path.join("biomorph", "cli.py"))
+    return os.path.basename(argv0) in ("biomorph", "biomorph.exe") or argv0.endswith(
+        os.path.join("biomorph", "cli.py")
+    )
 
 
 def _interrupted_while_starting(signum: int, frame: object) -> None:
@@ -82,9 +83,13 @@ except ImportError:  # pragma: no cover
     from click.exceptions import ClickException as _ClickException
 
 
-app = typer.Typer(name="biomorph", no_args_is_help=True, add_completion=False,
-                  pretty_exceptions_enable=False,
-                  help="Skeletons of living things: creatures, trees, motion, leaves.")
+app = typer.Typer(
+    name="biomorph",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    help="Skeletons of living things: creatures, trees, motion, leaves.",
+)
 
 
 def _version(value: bool) -> None:
@@ -94,16 +99,19 @@ def _version(value: bool) -> None:
 
 
 @app.callback()
-def _root(version: Annotated[bool, typer.Option("--version", callback=_version,
-                                                is_eager=True, help="Print the version.")] = False
-          ) -> None:
+def _root(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")
+    ] = False,
+) -> None:
     """biomorph: generate creatures, skeletonise trees, edit motion, grow leaves."""
 
 
 @app.command()
-def info(path: Annotated[Path, typer.Argument(help="Any file biomorph reads.")],
-         as_json: Annotated[bool, typer.Option("--json", help="Machine-readable output.")] = False
-         ) -> None:
+def info(
+    path: Annotated[Path, typer.Argument(help="Any file biomorph reads.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Machine-readable output.")] = False,
+) -> None:
     """Say what a file holds: point clouds, BVH/HTR motion, skeleton PLY/MTG, meshes.
 
     Example: biomorph info scan.laz --json
@@ -123,13 +131,19 @@ def info(path: Annotated[Path, typer.Argument(help="Any file biomorph reads.")],
 
 
 @app.command()
-def render(path: Annotated[Path, typer.Argument(help="Cloud, skeleton, motion or mesh file.")],
-           output: Annotated[Path, typer.Option("-o", "--output", help="PNG to write.")] =
-           Path("preview.png"),
-           up: Annotated[str | None, typer.Option(
-               "--up", help="Vertical axis: z (trees, leaves) or y (creatures, motion); "
-                            "default by file type.")] = None,
-           ) -> None:
+def render(
+    path: Annotated[Path, typer.Argument(help="Cloud, skeleton, motion or mesh file.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="PNG to write.")] = Path(
+        "preview.png"
+    ),
+    up: Annotated[
+        str | None,
+        typer.Option(
+            "--up",
+            help="Vertical axis: z (trees, leaves) or y (creatures, motion); default by file type.",
+        ),
+    ] = None,
+) -> None:
     """Render a PNG preview (three orthographic views + perspective).
 
     Example: biomorph render skeleton.ply -o preview.png
@@ -141,10 +155,12 @@ def render(path: Annotated[Path, typer.Argument(help="Cloud, skeleton, motion or
 
 
 @app.command()
-def demo(out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("demo-out"),
-         only: Annotated[list[str] | None, typer.Option("--only",
-                                                        help="Run only these pillars.")] = None
-         ) -> None:
+def demo(
+    out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("demo-out"),
+    only: Annotated[
+        list[str] | None, typer.Option("--only", help="Run only these pillars.")
+    ] = None,
+) -> None:
     """Run every pillar on built-in data and write OUT/report.html with pictures.
 
     Example: biomorph demo --out demo-out
@@ -193,11 +209,15 @@ def _get(params: dict[str, Any], name: str, default: float) -> float:
 #: writer's copy = 200 B; leaf grow: one 60-sample leaf mesh per frame and leaf = 10 kB).
 MEMORY: dict[tuple[str, ...], tuple[str, Callable[[dict[str, Any]], float]]] = {
     ("tree", "synth"): ("points", lambda p: _get(p, "points", 0) * 508),
-    ("leaf", "canopy"): ("plants", lambda p: _get(p, "plants", 20) * _get(p, "leaves", 6)
-                         * _get(p, "triangles", 20) * 1000),
+    ("leaf", "canopy"): (
+        "plants",
+        lambda p: _get(p, "plants", 20) * _get(p, "leaves", 6) * _get(p, "triangles", 20) * 1000,
+    ),
     ("leaf", "mesh"): ("triangles", lambda p: _get(p, "triangles", 0) * 200),
-    ("leaf", "grow"): ("frames", lambda p: _get(p, "frames", 24)
-                       * (_get(p, "leaves", 8) if p.get("plant") else 1) * 10_000),
+    ("leaf", "grow"): (
+        "frames",
+        lambda p: _get(p, "frames", 24) * (_get(p, "leaves", 8) if p.get("plant") else 1) * 10_000,
+    ),
 }
 
 
@@ -263,8 +283,9 @@ def _paths(command: Any, params: dict[str, Any]) -> tuple[list[Path], dict[str, 
     return inputs, outputs
 
 
-def _check_paths(cmd_path: tuple[str, ...], command: Any, params: dict[str, Any]
-                 ) -> tuple[list[Path], Path | None, Path | None]:
+def _check_paths(
+    cmd_path: tuple[str, ...], command: Any, params: dict[str, Any]
+) -> tuple[list[Path], Path | None, Path | None]:
     """Refuse non-regular inputs and outputs that are inputs; return (inputs, output folder
     to lock, appended file to lock)."""
     inputs, outputs = _paths(command, params)
@@ -281,15 +302,18 @@ def _check_paths(cmd_path: tuple[str, ...], command: Any, params: dict[str, Any]
             append_file = out
             continue
         if os.path.realpath(out) in real_inputs:
-            raise ParameterError(f"{opt} {out}: is also an input of this command and would "
-                                 "be overwritten; choose another output")
+            raise ParameterError(
+                f"{opt} {out}: is also an input of this command and would "
+                "be overwritten; choose another output"
+            )
         if name == "out" and (out.is_dir() or not out.suffix):
             folder = out  # an input inside it is protected: atomic writes refuse to replace it
     return inputs, folder, append_file
 
 
-def _guarded(cmd_path: tuple[str, ...], command: Any, callback: Callable[..., Any]
-             ) -> Callable[..., Any]:
+def _guarded(
+    cmd_path: tuple[str, ...], command: Any, callback: Callable[..., Any]
+) -> Callable[..., Any]:
     @functools.wraps(callback)
     def wrapper(**params: Any) -> Any:
         from biomorph.io.atomic import protect, unprotect
@@ -318,17 +342,25 @@ def _not_utf8(inputs: list[Path], exc: UnicodeDecodeError) -> BiomorphError:
             data.decode("utf-8")
         except UnicodeDecodeError as bad:
             line = data.count(b"\n", 0, bad.start) + 1
-            return FormatError(p, f"byte 0x{data[bad.start]:02x} at offset {bad.start} is not "
-                                  "UTF-8; expected UTF-8 text (re-save the file as UTF-8)",
-                               line=line)
+            return FormatError(
+                p,
+                f"byte 0x{data[bad.start]:02x} at offset {bad.start} is not "
+                "UTF-8; expected UTF-8 text (re-save the file as UTF-8)",
+                line=line,
+            )
         except OSError:
             continue
-    return FormatError(None, f"a text input is not UTF-8 ({exc.reason} at byte {exc.start}); "
-                             "expected UTF-8 text")
+    return FormatError(
+        None, f"a text input is not UTF-8 ({exc.reason} at byte {exc.start}); expected UTF-8 text"
+    )
 
 
-def _call(callback: Callable[..., Any], params: dict[str, Any], append_file: Path | None,
-          folder: Path | None) -> Any:
+def _call(
+    callback: Callable[..., Any],
+    params: dict[str, Any],
+    append_file: Path | None,
+    folder: Path | None,
+) -> Any:
     """Run the command holding the lock of the file it appends to or of its output folder."""
     if append_file is not None:
         import hashlib
@@ -373,8 +405,9 @@ def _error(message: str) -> None:
     """Print ``error: message`` on stderr as one line (the message is not rich markup)."""
     from rich.markup import escape
 
-    err_console.print(f"[bold red]error:[/] {escape(' '.join(message.split()))}", markup=True,
-                      highlight=False)
+    err_console.print(
+        f"[bold red]error:[/] {escape(' '.join(message.split()))}", markup=True, highlight=False
+    )
 
 
 def run(argv: list[str] | None = None) -> int:
@@ -430,8 +463,10 @@ def _run(argv: list[str] | None) -> int:
         except Exception as exc:  # a bug, not bad input: one line, exit 1, traceback on demand
             if os.environ.get("BIOMORPH_DEBUG"):
                 raise
-            _error(f"internal error ({type(exc).__name__}: {exc}); this is a bug in biomorph "
-                   "- run again with BIOMORPH_DEBUG=1 for the traceback and report it")
+            _error(
+                f"internal error ({type(exc).__name__}: {exc}); this is a bug in biomorph "
+                "- run again with BIOMORPH_DEBUG=1 for the traceback and report it"
+            )
             return 1
         if result == EXIT_INTERRUPTED and interrupted():
             err_console.print(INTERRUPT_LINE)

@@ -15,8 +15,9 @@ def run_demo(out_dir: str | Path, only: Sequence[str] | None = None) -> Path:
     """Run each available pillar's ``run_demo(out_dir)``; write ``out_dir/report.html``."""
     unknown = sorted(set(only or ()) - set(PILLARS))
     if unknown:
-        raise ParameterError(f"unknown pillar {', '.join(unknown)}; expected some of "
-                             f"{', '.join(PILLARS)}")
+        raise ParameterError(
+            f"unknown pillar {', '.join(unknown)}; expected some of {', '.join(PILLARS)}"
+        )
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     sections: list[Section] = []

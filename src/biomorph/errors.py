@@ -20,8 +20,9 @@ class FormatError(BiomorphError):
     ``walk.bvh:12: expected 6 channels, got 5``.
     """
 
-    def __init__(self, path: str | os.PathLike[str] | None, message: str,
-                 line: int | None = None) -> None:
+    def __init__(
+        self, path: str | os.PathLike[str] | None, message: str, line: int | None = None
+    ) -> None:
         self.path = None if path is None else os.fspath(path)
         self.line = line
         self.detail = message
@@ -79,8 +80,10 @@ def require_memory(what: str, n_bytes: float, available: int | None = None) -> N
     """
     avail = available_memory() if available is None else int(available)
     if not n_bytes <= MEMORY_SHARE * avail:  # also refuses NaN
-        raise ParameterError(f"{what} needs about {_fmt_bytes(float(n_bytes))} of memory; "
-                             f"{_fmt_bytes(avail)} available")
+        raise ParameterError(
+            f"{what} needs about {_fmt_bytes(float(n_bytes))} of memory; "
+            f"{_fmt_bytes(avail)} available"
+        )
 
 
 def check_regular_file(path: str | os.PathLike[str]) -> None:
@@ -98,7 +101,13 @@ def check_regular_file(path: str | os.PathLike[str]) -> None:
     if stat.S_ISDIR(mode):
         raise FormatError(path, "is a directory; expected a file")
     if not stat.S_ISREG(mode):
-        kind = ("a named pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
-                else "a device file" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
-                else "not a regular file")
+        kind = (
+            "a named pipe"
+            if stat.S_ISFIFO(mode)
+            else "a socket"
+            if stat.S_ISSOCK(mode)
+            else "a device file"
+            if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+            else "not a regular file"
+        )
         raise FormatError(path, f"is {kind}; expected a regular file")

@@ -18,23 +18,33 @@ from biomorph.core.pointcloud import PointCloud
 from biomorph.report import Section, Table
 
 FORMATS = [
-    ("LAS / LAZ", ".las .laz", "read, write", "PointCloud (float64, all dims and extra bytes)",
-     "laspy + lazrs"),
+    (
+        "LAS / LAZ",
+        ".las .laz",
+        "read, write",
+        "PointCloud (float64, all dims and extra bytes)",
+        "laspy + lazrs",
+    ),
     ("PLY", ".ply", "read, write", "PointCloud, BranchGraph (vertex+edge), Mesh", "plyfile"),
-    ("XYZ text", ".xyz .txt .csv .asc .pts", "read, write",
-     "PointCloud (delimiter sniffed, header names)", "numpy"),
+    (
+        "XYZ text",
+        ".xyz .txt .csv .asc .pts",
+        "read, write",
+        "PointCloud (delimiter sniffed, header names)",
+        "numpy",
+    ),
     ("NumPy", ".npy", "read, write", "PointCloud (N×3+ or structured)", "numpy"),
     ("MTG", ".mtg", "read, write", "BranchGraph (XX YY ZZ radius, orders)", "own parser"),
-    ("OBJ", ".obj", "read, write", "Mesh (groups per face id, uv, normals)",
-     "own reader/writer"),
+    ("OBJ", ".obj", "read, write", "Mesh (groups per face id, uv, normals)", "own reader/writer"),
     ("BVH", ".bvh", "read, write", "Motion", "own parser (numba)"),
     ("HTR / ASF+AMC", ".htr .asf .amc", "read", "Motion", "own parsers"),
     ("glTF binary", ".glb", "write", "skinned JointSkeleton, Motion, Mesh", "pygltflib"),
 ]
 
 
-def synthetic_tree(seed: int = 0, generations: int = 4, children: int = 3,
-                   segments_per_branch: int = 6) -> BranchGraph:
+def synthetic_tree(
+    seed: int = 0, generations: int = 4, children: int = 3, segments_per_branch: int = 6
+) -> BranchGraph:
     """A small seeded tree skeleton (Z-up, metres): trunk 2 m, each branch spawns
     ``children`` laterals, lengths ×0.6 and radii ×0.55 per order (pipe-model-like)."""
     rng = np.random.default_rng(seed)
@@ -62,14 +72,23 @@ def synthetic_tree(seed: int = 0, generations: int = 4, children: int = 3,
                     lateral = np.cross(d, rng.normal(size=3))
                     lateral /= np.linalg.norm(lateral)
                     new_dir = 0.6 * lateral + 0.5 * d
-                    branches.append((node, new_dir, length * 0.6 * rng.uniform(0.7, 1.1),
-                                     radius[node] * 0.55, o + 1))
-    return BranchGraph(np.array(pos), np.array(parent), radius=np.array(radius),
-                       depth=np.array(order))
+                    branches.append(
+                        (
+                            node,
+                            new_dir,
+                            length * 0.6 * rng.uniform(0.7, 1.1),
+                            radius[node] * 0.55,
+                            o + 1,
+                        )
+                    )
+    return BranchGraph(
+        np.array(pos), np.array(parent), radius=np.array(radius), depth=np.array(order)
+    )
 
 
-def sample_surface(graph: BranchGraph, n_points: int, noise: float = 0.003,
-                   seed: int = 0) -> PointCloud:
+def sample_surface(
+    graph: BranchGraph, n_points: int, noise: float = 0.003, seed: int = 0
+) -> PointCloud:
     """Points on the cylinders around the graph's edges (uniform by lateral area) plus
     Gaussian noise (metres), with a ``Deviation`` attribute like TLS exports carry."""
     rng = np.random.default_rng(seed)
@@ -86,8 +105,13 @@ def sample_surface(graph: BranchGraph, n_points: int, noise: float = 0.003,
     radial /= np.linalg.norm(radial, axis=1, keepdims=True)
     dev = rng.normal(0, noise, n_points)
     xyz = a[pick] + t * (b[pick] - a[pick]) + (r[pick] + dev)[:, None] * radial
-    return PointCloud(xyz, {"Deviation": np.abs(dev).astype(np.float32),
-                            "intensity": rng.integers(200, 4000, n_points).astype(np.uint16)})
+    return PointCloud(
+        xyz,
+        {
+            "Deviation": np.abs(dev).astype(np.float32),
+            "intensity": rng.integers(200, 4000, n_points).astype(np.uint16),
+        },
+    )
 
 
 def run_demo(out_dir: str | Path) -> list[Section]:
@@ -109,9 +133,17 @@ def run_demo(out_dir: str | Path) -> list[Section]:
         back = bio.read_points(path)
         t2 = time.perf_counter()
         err = float(np.abs(back.xyz - cloud.xyz).max())
-        rows.append([path.name, back.n_points, ", ".join(back.attributes) or "-",
-                     f"{err:.1e}", f"{(t1 - t0) * 1e3:.0f}", f"{(t2 - t1) * 1e3:.0f}",
-                     f"{path.stat().st_size / 1e3:.0f}"])
+        rows.append(
+            [
+                path.name,
+                back.n_points,
+                ", ".join(back.attributes) or "-",
+                f"{err:.1e}",
+                f"{(t1 - t0) * 1e3:.0f}",
+                f"{(t2 - t1) * 1e3:.0f}",
+                f"{path.stat().st_size / 1e3:.0f}",
+            ]
+        )
         files.append(path)
     for ext in (".ply", ".mtg"):
         path = out / f"example_skeleton{ext}"
@@ -121,26 +153,60 @@ def run_demo(out_dir: str | Path) -> list[Section]:
         back_g = bio.read_graph(path)
         t2 = time.perf_counter()
         dlen = abs(back_g.total_length - graph.total_length)
-        rows.append([path.name, back_g.n_nodes, f"{back_g.leaves.size} tips, "
-                     f"{back_g.total_length:.2f} m", f"{dlen:.1e}",
-                     f"{(t1 - t0) * 1e3:.0f}", f"{(t2 - t1) * 1e3:.0f}",
-                     f"{path.stat().st_size / 1e3:.0f}"])
+        rows.append(
+            [
+                path.name,
+                back_g.n_nodes,
+                f"{back_g.leaves.size} tips, {back_g.total_length:.2f} m",
+                f"{dlen:.1e}",
+                f"{(t1 - t0) * 1e3:.0f}",
+                f"{(t2 - t1) * 1e3:.0f}",
+                f"{path.stat().st_size / 1e3:.0f}",
+            ]
+        )
         files.append(path)
-    image = render_cloud(cloud, out / "example_tree.png", up="z", graph=graph,
-                         title=f"synthetic tree: {cloud.n_points:,} points, "
-                               f"{graph.n_nodes} skeleton nodes")
-    text = ("Shared file formats and previews used by every pillar. A seeded synthetic tree "
-            f"({graph.n_nodes} nodes, {graph.leaves.size} tips, {graph.total_length:.2f} m of "
-            f"branches) and {cloud.n_points:,} points sampled on its bark were written in each "
-            "format and read back; the table gives the largest coordinate change (LAS/LAZ "
-            "store 0.1 mm integer steps, the others are exact), write/read times and sizes.")
-    return [Section("Foundation: formats and previews", text, images=[image],
-                    tables=[Table(["format", "extensions", "access", "holds", "via"],
-                                  FORMATS, caption="file formats"),
-                            Table(["file", "points / nodes", "attributes", "max |Δ| (m)",
-                                   "write ms", "read ms", "kB"], rows,
-                                  caption="round trip of the example")],
-                    files=files)]
+    image = render_cloud(
+        cloud,
+        out / "example_tree.png",
+        up="z",
+        graph=graph,
+        title=f"synthetic tree: {cloud.n_points:,} points, {graph.n_nodes} skeleton nodes",
+    )
+    text = (
+        "Shared file formats and previews used by every pillar. A seeded synthetic tree "
+        f"({graph.n_nodes} nodes, {graph.leaves.size} tips, {graph.total_length:.2f} m of "
+        f"branches) and {cloud.n_points:,} points sampled on its bark were written in each "
+        "format and read back; the table gives the largest coordinate change (LAS/LAZ "
+        "store 0.1 mm integer steps, the others are exact), write/read times and sizes."
+    )
+    return [
+        Section(
+            "Foundation: formats and previews",
+            text,
+            images=[image],
+            tables=[
+                Table(
+                    ["format", "extensions", "access", "holds", "via"],
+                    FORMATS,
+                    caption="file formats",
+                ),
+                Table(
+                    [
+                        "file",
+                        "points / nodes",
+                        "attributes",
+                        "max |Δ| (m)",
+                        "write ms",
+                        "read ms",
+                        "kB",
+                    ],
+                    rows,
+                    caption="round trip of the example",
+                ),
+            ],
+            files=files,
+        )
+    ]
 
 
 __all__ = ["run_demo", "synthetic_tree", "sample_surface", "FORMATS"]

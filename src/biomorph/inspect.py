@@ -52,8 +52,10 @@ def file_kind(path: PathLike) -> str:
     if ext in POINT_FORMATS:
         return "points"
     known = sorted(set(POINT_FORMATS) | MESH_EXTENSIONS | MOTION_EXTENSIONS | {".mtg"})
-    raise UnsupportedFormatError(f"{os.fspath(path)}: cannot describe files with extension "
-                                 f"{ext or '(none)'!r}; expected one of {' '.join(known)}")
+    raise UnsupportedFormatError(
+        f"{os.fspath(path)}: cannot describe files with extension "
+        f"{ext or '(none)'!r}; expected one of {' '.join(known)}"
+    )
 
 
 def _round(a: Any, digits: int = 6) -> Any:
@@ -72,8 +74,7 @@ def median_spacing(xyz: np.ndarray, sample: int = 20_000, seed: int = 0) -> floa
     rng = np.random.default_rng(seed)
     base = xyz if n <= 2_000_000 else xyz[rng.choice(n, 2_000_000, replace=False)]
     tree = cKDTree(base)
-    q = base if base.shape[0] <= sample else base[rng.choice(base.shape[0], sample,
-                                                              replace=False)]
+    q = base if base.shape[0] <= sample else base[rng.choice(base.shape[0], sample, replace=False)]
     d, _ = tree.query(q, k=2)
     return float(np.median(d[:, 1]))
 
@@ -128,8 +129,7 @@ def describe_motion(motion: Any) -> dict[str, Any]:
     n_frames = int(np.asarray(motion.rotation).shape[0])
     ft = float(motion.frame_time)
     channels = sk.channels
-    n_channels = (sum(len(c) for c in channels) if channels is not None
-                  else 3 * sk.n_joints + 3)
+    n_channels = sum(len(c) for c in channels) if channels is not None else 3 * sk.n_joints + 3
     end_sites = int(np.sum(np.isfinite(sk.end_site).all(axis=1)))
     info: dict[str, Any] = {
         "joints": sk.n_joints,
@@ -208,8 +208,12 @@ def describe_gltf(path: PathLike) -> dict[str, Any]:
 
     info = read_gltf_summary(path)
     p = Path(path)
-    out: dict[str, Any] = {"path": os.fspath(path), "kind": "mesh",
-                           "format": p.suffix.lower().lstrip("."), "bytes": p.stat().st_size}
+    out: dict[str, Any] = {
+        "path": os.fspath(path),
+        "kind": "mesh",
+        "format": p.suffix.lower().lstrip("."),
+        "bytes": p.stat().st_size,
+    }
     bounds = info.pop("bounds")
     info["faces"] = info.pop("triangles")
     out |= info
@@ -231,14 +235,18 @@ def describe_large_las(path: PathLike) -> dict[str, Any]:
     lo, hi = summary["bbox_min"], summary["bbox_max"]
     return {
         "points": summary["point_count"],
-        "bbox_min": _round(lo), "bbox_max": _round(hi), "extent": _round(hi - lo),
+        "bbox_min": _round(lo),
+        "bbox_max": _round(hi),
+        "extent": _round(hi - lo),
         "bbox_source": "header",
         "attributes": {k: str(v.dtype) for k, v in sample.attributes.items()},
         "spacing_median": round(median_spacing(sample.xyz), 6),
         "spacing_source": f"first {sample.n_points:,} points",
-        "las_version": summary["las_version"], "point_format": summary["point_format"],
+        "las_version": summary["las_version"],
+        "point_format": summary["point_format"],
         "extra_dimensions": summary["extra_dimensions"],
-        "scales": summary["scales"].tolist(), "offsets": summary["offsets"].tolist(),
+        "scales": summary["scales"].tolist(),
+        "offsets": summary["offsets"].tolist(),
     }
 
 
@@ -253,11 +261,19 @@ def describe(path: PathLike) -> dict[str, Any]:
         from biomorph.io.las import check_header
 
         if check_header(p)["point_count"] > LARGE_LAS_POINTS:
-            return {"path": os.fspath(path), "kind": "points", "format": ext.lstrip("."),
-                    "bytes": p.stat().st_size} | describe_large_las(p)
+            return {
+                "path": os.fspath(path),
+                "kind": "points",
+                "format": ext.lstrip("."),
+                "bytes": p.stat().st_size,
+            } | describe_large_las(p)
     kind, obj = load(path)
-    head: dict[str, Any] = {"path": os.fspath(path), "kind": kind,
-                            "format": p.suffix.lower().lstrip("."), "bytes": p.stat().st_size}
+    head: dict[str, Any] = {
+        "path": os.fspath(path),
+        "kind": kind,
+        "format": p.suffix.lower().lstrip("."),
+        "bytes": p.stat().st_size,
+    }
     if kind == "points":
         return head | describe_cloud(obj)
     if kind == "graph":
@@ -267,7 +283,17 @@ def describe(path: PathLike) -> dict[str, Any]:
     return head | describe_mesh(obj)
 
 
-__all__ = ["describe", "file_kind", "load", "load_mesh", "load_motion", "describe_cloud",
-           "describe_graph", "describe_motion", "describe_mesh", "describe_gltf",
-           "describe_large_las",
-           "median_spacing"]
+__all__ = [
+    "describe",
+    "file_kind",
+    "load",
+    "load_mesh",
+    "load_motion",
+    "describe_cloud",
+    "describe_graph",
+    "describe_motion",
+    "describe_mesh",
+    "describe_gltf",
+    "describe_large_las",
+    "median_spacing",
+]

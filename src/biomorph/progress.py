@@ -25,14 +25,23 @@ _console = Console(stderr=True)
 
 def _make(enabled: bool | None) -> Progress:
     show = sys.stderr.isatty() if enabled is None else enabled
-    return Progress(SpinnerColumn(), TextColumn("[bold]{task.description}"), BarColumn(),
-                    MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn(),
-                    console=_console, transient=True, disable=not show)
+    return Progress(
+        SpinnerColumn(),
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=_console,
+        transient=True,
+        disable=not show,
+    )
 
 
 @contextlib.contextmanager
-def task(description: str, total: float | None = None,
-         enabled: bool | None = None) -> Iterator[Callable[..., None]]:
+def task(
+    description: str, total: float | None = None, enabled: bool | None = None
+) -> Iterator[Callable[..., None]]:
     """Context manager yielding ``advance(n=1, description=None)`` for a progress bar.
 
     Ctrl-C propagates as ``KeyboardInterrupt``; the CLI turns it into a clean exit (130)
@@ -49,8 +58,9 @@ def task(description: str, total: float | None = None,
         yield advance
 
 
-def track(items: Iterable[T], description: str, total: int | None = None,
-          enabled: bool | None = None) -> Iterator[T]:
+def track(
+    items: Iterable[T], description: str, total: int | None = None, enabled: bool | None = None
+) -> Iterator[T]:
     """Iterate over ``items`` with a progress bar."""
     if total is None and hasattr(items, "__len__"):
         total = len(items)  # type: ignore[arg-type]

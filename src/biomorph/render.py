@@ -99,8 +99,9 @@ def _frame(proj: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
     return 0.5 * (lo + hi), half
 
 
-def _draw(scene: _Scene, out_png: PathLike, title: str | None, dpi: int = 100,
-          size: float = 10.0) -> Path:
+def _draw(
+    scene: _Scene, out_png: PathLike, title: str | None, dpi: int = 100, size: float = 10.0
+) -> Path:
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.figure import Figure
     from mpl_toolkits.mplot3d import Axes3D  # noqa: F401 - registers the 3d projection
@@ -123,8 +124,7 @@ def _draw(scene: _Scene, out_png: PathLike, title: str | None, dpi: int = 100,
         ax.tick_params(labelsize=7)
         for tri, colors in scene.triangles:
             if tri.shape[0] > _MAX_2D_FACES:  # bounded preview time for huge meshes
-                pick = np.random.default_rng(0).choice(tri.shape[0], _MAX_2D_FACES,
-                                                       replace=False)
+                pick = np.random.default_rng(0).choice(tri.shape[0], _MAX_2D_FACES, replace=False)
                 tri, colors = tri[pick], colors[pick]
             proj = tri @ rot.T  # (m, 3, 3): right, up, toward viewer
             depth = proj[:, :, 2].mean(axis=1)
@@ -135,18 +135,36 @@ def _draw(scene: _Scene, out_png: PathLike, title: str | None, dpi: int = 100,
             shade = 0.35 + 0.65 * np.abs(normal @ (rot[2] * 0.6 + light * 0.4))
             fc = colors.copy()
             fc[:, :3] *= np.clip(shade, 0, 1)[:, None]
-            ax.add_collection(PolyCollection(proj[order][:, :, :2], facecolors=fc[order],
-                                             edgecolors="none", antialiased=False))
+            ax.add_collection(
+                PolyCollection(
+                    proj[order][:, :, :2],
+                    facecolors=fc[order],
+                    edgecolors="none",
+                    antialiased=False,
+                )
+            )
         for segs, colors, widths in scene.segments:
             proj = segs @ rot.T
             order = np.argsort(proj[:, :, 2].mean(axis=1))
-            ax.add_collection(LineCollection(proj[order][:, :, :2], colors=colors[order],
-                                             linewidths=widths[order], capstyle="round"))
+            ax.add_collection(
+                LineCollection(
+                    proj[order][:, :, :2],
+                    colors=colors[order],
+                    linewidths=widths[order],
+                    capstyle="round",
+                )
+            )
         for pts, colors, size_pt in scene.points:
             proj = pts @ rot.T
             order = np.argsort(proj[:, 2])
-            ax.scatter(proj[order, 0], proj[order, 1], s=size_pt, c=colors[order],
-                       linewidths=0, rasterized=True)
+            ax.scatter(
+                proj[order, 0],
+                proj[order, 1],
+                s=size_pt,
+                c=colors[order],
+                linewidths=0,
+                rasterized=True,
+            )
         c2, half = _frame(xyz @ rot.T)
         ax.set_xlim(c2[0] - half, c2[0] + half)
         ax.set_ylim(c2[1] - half, c2[1] + half)
@@ -164,8 +182,9 @@ def _draw(scene: _Scene, out_png: PathLike, title: str | None, dpi: int = 100,
         if pts.shape[0] > _MAX_3D_POINTS:
             pick = np.random.default_rng(0).choice(pts.shape[0], _MAX_3D_POINTS, replace=False)
             pts, colors = pts[pick], colors[pick]
-        ax3.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=size_pt, c=colors, linewidths=0,
-                    depthshade=False)
+        ax3.scatter(
+            pts[:, 0], pts[:, 1], pts[:, 2], s=size_pt, c=colors, linewidths=0, depthshade=False
+        )
     # equal scale on all axes, box shaped like the data (a tall tree gets a tall box)
     half3 = 0.5 * np.maximum(hi - lo, 0.08 * extent) * 1.04
     ax3.set_xlim(centre[0] - half3[0], centre[0] + half3[0])
@@ -188,9 +207,16 @@ def _width_pt(radius: NDArray, extent: float, size: float = 10.0) -> NDArray[np.
 
 
 # --------------------------------------------------------------------------- public API
-def render_cloud(cloud: Any, out_png: PathLike, up: str = "z", color_by: str | None = None,
-                 max_points: int = 200_000, seed: int = 0, title: str | None = None,
-                 graph: Any = None) -> Path:
+def render_cloud(
+    cloud: Any,
+    out_png: PathLike,
+    up: str = "z",
+    color_by: str | None = None,
+    max_points: int = 200_000,
+    seed: int = 0,
+    title: str | None = None,
+    graph: Any = None,
+) -> Path:
     """Preview a point cloud (``PointCloud`` or ``(n, 3)`` array), coloured by height or by
     attribute ``color_by`` (RGB when the cloud has ``red green blue``); optionally with a
     BranchGraph drawn on top. At most ``max_points`` points are drawn (seeded subsample)."""
@@ -208,8 +234,10 @@ def render_cloud(cloud: Any, out_png: PathLike, up: str = "z", color_by: str | N
     attrs = cloud.attributes
     if color_by is not None:
         if color_by not in attrs:
-            raise ParameterError(f"color_by={color_by!r} is not an attribute of the cloud; "
-                                 f"attributes: {', '.join(attrs) or 'none'}")
+            raise ParameterError(
+                f"color_by={color_by!r} is not an attribute of the cloud; "
+                f"attributes: {', '.join(attrs) or 'none'}"
+            )
         colors = _rgba(np.asarray(attrs[color_by])[idx])
     elif all(c in attrs for c in ("red", "green", "blue")):
         rgb = np.stack([np.asarray(attrs[c], float)[idx] for c in ("red", "green", "blue")], 1)
@@ -220,15 +248,18 @@ def render_cloud(cloud: Any, out_png: PathLike, up: str = "z", color_by: str | N
     size_pt = float(np.clip(4000.0 / max(pts.shape[0], 1), 0.05, 6.0))
     scene = _Scene(points=[(pts, colors, size_pt)])
     if graph is not None:
-        _add_graph(scene, graph, up, extent=float(np.ptp(pts, axis=0).max()) or 1.0,
-                   color="crimson")
-    label = title or f"{cloud.source or 'point cloud'}: {n:,} points" + \
-        (f" ({pts.shape[0]:,} drawn)" if pts.shape[0] < n else "")
+        _add_graph(
+            scene, graph, up, extent=float(np.ptp(pts, axis=0).max()) or 1.0, color="crimson"
+        )
+    label = title or f"{cloud.source or 'point cloud'}: {n:,} points" + (
+        f" ({pts.shape[0]:,} drawn)" if pts.shape[0] < n else ""
+    )
     return _draw(scene, out_png, label)
 
 
-def _add_graph(scene: _Scene, graph: Any, up: str, extent: float | None = None,
-               color: str | None = None) -> None:
+def _add_graph(
+    scene: _Scene, graph: Any, up: str, extent: float | None = None, color: str | None = None
+) -> None:
     from biomorph.core.graph import BranchGraph
 
     if not isinstance(graph, BranchGraph):
@@ -262,8 +293,9 @@ def _add_graph(scene: _Scene, graph: Any, up: str, extent: float | None = None,
     scene.segments.append((segs, colors, widths))
 
 
-def render_graph(graph: Any, out_png: PathLike, up: str = "z", title: str | None = None,
-                 cloud: Any = None) -> Path:
+def render_graph(
+    graph: Any, out_png: PathLike, up: str = "z", title: str | None = None, cloud: Any = None
+) -> Path:
     """Preview a BranchGraph: line width by radius (true scale), colour by branch order
     (``depth``; else tree, else topological depth); optionally over a point cloud (grey)."""
     scene = _Scene()
@@ -273,12 +305,14 @@ def render_graph(graph: Any, out_png: PathLike, up: str = "z", title: str | None
         xyz = cloud.xyz if isinstance(cloud, PointCloud) else np.asarray(cloud, float)
         if xyz.shape[0] > 100_000:
             xyz = xyz[np.random.default_rng(0).choice(xyz.shape[0], 100_000, replace=False)]
-        scene.points.append((_to_zup(xyz, up), np.tile([0.6, 0.6, 0.6, 0.35],
-                                                       (xyz.shape[0], 1)), 0.3))
+        scene.points.append(
+            (_to_zup(xyz, up), np.tile([0.6, 0.6, 0.6, 0.35], (xyz.shape[0], 1)), 0.3)
+        )
     _add_graph(scene, graph, up)
     g = getattr(graph, "graph", graph)
-    label = title or (f"skeleton graph: {g.n_nodes:,} nodes, {g.leaves.size:,} tips, "
-                      f"{g.total_length:.2f} m")
+    label = title or (
+        f"skeleton graph: {g.n_nodes:,} nodes, {g.leaves.size:,} tips, {g.total_length:.2f} m"
+    )
     return _draw(scene, out_png, label)
 
 
@@ -287,9 +321,14 @@ def _skeleton_segments(parent: NDArray, pos: NDArray) -> NDArray:
     return np.stack([pos[..., parent[child], :], pos[..., child, :]], axis=-2)
 
 
-def render_skeleton(skeleton: Any, out_png: PathLike, rotation: ArrayLike | None = None,
-                    root_position: ArrayLike | None = None, up: str = "y",
-                    title: str | None = None) -> Path:
+def render_skeleton(
+    skeleton: Any,
+    out_png: PathLike,
+    rotation: ArrayLike | None = None,
+    root_position: ArrayLike | None = None,
+    up: str = "y",
+    title: str | None = None,
+) -> Path:
     """Preview a JointSkeleton in rest pose or in the pose ``rotation (n, 4)`` /
     ``root_position (3,)``: bones coloured by hierarchy depth, joints as dots, root red."""
     pos = skeleton.world_positions(rotation, root_position)
@@ -299,8 +338,7 @@ def render_skeleton(skeleton: Any, out_png: PathLike, rotation: ArrayLike | None
     child = np.flatnonzero(skeleton.parent >= 0)
     scene = _Scene()
     if segs.shape[0]:
-        scene.segments.append((segs, _rgba(depth[child], "viridis"),
-                               np.full(segs.shape[0], 2.5)))
+        scene.segments.append((segs, _rgba(depth[child], "viridis"), np.full(segs.shape[0], 2.5)))
     colors = np.tile([0.1, 0.1, 0.1, 1.0], (pos.shape[0], 1))
     colors[skeleton.parent < 0] = [0.85, 0.1, 0.1, 1.0]
     scene.points.append((pos, colors, 10.0))
@@ -308,8 +346,13 @@ def render_skeleton(skeleton: Any, out_png: PathLike, rotation: ArrayLike | None
     return _draw(scene, out_png, label)
 
 
-def render_motion(motion: Any, out_png: PathLike, n_poses: int = 5, up: str | None = None,
-                  title: str | None = None) -> Path:
+def render_motion(
+    motion: Any,
+    out_png: PathLike,
+    n_poses: int = 5,
+    up: str | None = None,
+    title: str | None = None,
+) -> Path:
     """Preview a Motion: ``n_poses`` poses evenly spaced in time, coloured early (dark) to
     late (yellow). ``up`` defaults to the motion's guessed up axis (Y for most files)."""
     if n_poses < 1:
@@ -329,8 +372,9 @@ def render_motion(motion: Any, out_png: PathLike, n_poses: int = 5, up: str | No
     if hasattr(motion, "world_positions"):
         pos = np.asarray(motion.world_positions(frames))
     else:
-        pos = motion.skeleton.world_positions(np.asarray(motion.rotation)[frames],
-                                              np.asarray(motion.root_position)[frames])
+        pos = motion.skeleton.world_positions(
+            np.asarray(motion.rotation)[frames], np.asarray(motion.root_position)[frames]
+        )
     pos = _to_zup(pos, up)
     parent = motion.skeleton.parent
     scene = _Scene()
@@ -338,24 +382,38 @@ def render_motion(motion: Any, out_png: PathLike, n_poses: int = 5, up: str | No
     for k in range(frames.size):
         segs = _skeleton_segments(parent, pos[k])
         if segs.shape[0]:
-            scene.segments.append((segs, np.tile(tcol[k], (segs.shape[0], 1)),
-                                   np.full(segs.shape[0], 2.0)))
+            scene.segments.append(
+                (segs, np.tile(tcol[k], (segs.shape[0], 1)), np.full(segs.shape[0], 2.0))
+            )
         scene.points.append((pos[k], np.tile(tcol[k], (pos.shape[1], 1)), 4.0))
     step = max(1, n_frames // 500)
     root_path = _to_zup(np.asarray(motion.root_position)[::step], up)
     if root_path.shape[0] > 1:
         path_segs = np.stack([root_path[:-1], root_path[1:]], axis=1)
-        scene.segments.append((path_segs, np.tile([0.5, 0.5, 0.5, 0.6], (len(path_segs), 1)),
-                               np.full(len(path_segs), 0.8)))
+        scene.segments.append(
+            (
+                path_segs,
+                np.tile([0.5, 0.5, 0.5, 0.6], (len(path_segs), 1)),
+                np.full(len(path_segs), 0.8),
+            )
+        )
     ft = float(motion.frame_time)
-    label = title or (f"motion: {motion.skeleton.n_joints} joints, {n_frames} frames "
-                      f"({(n_frames - 1) * ft:.2f} s), poses at "
-                      + ", ".join(f"{f * ft:.2f}" for f in frames) + " s")
+    label = title or (
+        f"motion: {motion.skeleton.n_joints} joints, {n_frames} frames "
+        f"({(n_frames - 1) * ft:.2f} s), poses at "
+        + ", ".join(f"{f * ft:.2f}" for f in frames)
+        + " s"
+    )
     return _draw(scene, out_png, label)
 
 
-def render_mesh(mesh: Any, out_png: PathLike, up: str = "z", title: str | None = None,
-                color_by: str | None = None) -> Path:
+def render_mesh(
+    mesh: Any,
+    out_png: PathLike,
+    up: str = "z",
+    title: str | None = None,
+    color_by: str | None = None,
+) -> Path:
     """Preview a mesh (anything ``Mesh.from_any`` accepts), Lambert-shaded, faces coloured
     by ``face_ids[color_by]`` (default: the first face id key), else vertex colours, else
     one colour."""
@@ -368,8 +426,10 @@ def render_mesh(mesh: Any, out_png: PathLike, up: str = "z", title: str | None =
     key = color_by if color_by is not None else next(iter(m.face_ids), None)
     if key is not None:
         if key not in m.face_ids:
-            raise ParameterError(f"color_by={key!r} is not a face id of the mesh; face ids: "
-                                 f"{', '.join(m.face_ids) or 'none'}")
+            raise ParameterError(
+                f"color_by={key!r} is not a face id of the mesh; face ids: "
+                f"{', '.join(m.face_ids) or 'none'}"
+            )
         colors = _rgba(m.face_ids[key] % 20, "tab20")
     elif m.vertex_colors is not None:
         colors = m.vertex_colors[m.faces].astype(float).mean(axis=1) / 255.0
@@ -393,18 +453,26 @@ def render_file(path: PathLike, out_png: PathLike, up: str | None = None) -> Pat
     kind, obj = load(path)
     name = Path(path).name
     if kind == "points":
-        return render_cloud(obj, out, up=up or "z",
-                            title=f"{name}: {obj.n_points:,} points")
+        return render_cloud(obj, out, up=up or "z", title=f"{name}: {obj.n_points:,} points")
     if kind == "graph":
-        return render_graph(obj, out, up=up or "z",
-                            title=f"{name}: {obj.n_nodes:,} nodes, {obj.leaves.size:,} tips, "
-                                  f"{obj.total_length:.2f} m")
+        return render_graph(
+            obj,
+            out,
+            up=up or "z",
+            title=f"{name}: {obj.n_nodes:,} nodes, {obj.leaves.size:,} tips, "
+            f"{obj.total_length:.2f} m",
+        )
     if kind == "motion":
         return render_motion(obj, out, up=up)
     default_up = "y" if Path(path).suffix.lower() in (".glb", ".gltf") else "z"
     return render_mesh(obj, out, up=up or default_up)
 
 
-__all__ = ["render_cloud", "render_graph", "render_skeleton", "render_mesh", "render_motion",
-           "render_file"]
-
+__all__ = [
+    "render_cloud",
+    "render_graph",
+    "render_skeleton",
+    "render_mesh",
+    "render_motion",
+    "render_file",
+]

@@ -54,8 +54,14 @@ def render_html(sections: Sequence[Section], base: Path, title: str = "biomorph 
         f"<h1>{html.escape(title)}</h1>",
     ]
     if sections:
-        parts.append("<ul>" + "".join(f"<li><a href='#s{i}'>{html.escape(s.title)}</a></li>"
-                                      for i, s in enumerate(sections)) + "</ul>")
+        parts.append(
+            "<ul>"
+            + "".join(
+                f"<li><a href='#s{i}'>{html.escape(s.title)}</a></li>"
+                for i, s in enumerate(sections)
+            )
+            + "</ul>"
+        )
     for i, sec in enumerate(sections):
         parts.append(f"<section id='s{i}'><h2>{html.escape(sec.title)}</h2>")
         if sec.text:
@@ -63,28 +69,38 @@ def render_html(sections: Sequence[Section], base: Path, title: str = "biomorph 
         for img in sec.images:
             rel = os.path.relpath(Path(img), base)
             alt = html.escape(Path(img).stem)
-            parts.append(f"<figure><img src='{html.escape(rel)}' alt='{alt}'>"
-                         f"<figcaption>{html.escape(Path(img).name)}</figcaption></figure>")
+            parts.append(
+                f"<figure><img src='{html.escape(rel)}' alt='{alt}'>"
+                f"<figcaption>{html.escape(Path(img).name)}</figcaption></figure>"
+            )
         for tab in sec.tables:
             parts.append("<table>")
             if tab.caption:
                 parts.append(f"<caption>{html.escape(tab.caption)}</caption>")
-            parts.append("<tr>" + "".join(f"<th>{html.escape(str(h))}</th>" for h in tab.header)
-                         + "</tr>")
+            parts.append(
+                "<tr>" + "".join(f"<th>{html.escape(str(h))}</th>" for h in tab.header) + "</tr>"
+            )
             for row in tab.rows:
                 parts.append("<tr>" + "".join(f"<td>{_cell(c)}</td>" for c in row) + "</tr>")
             parts.append("</table>")
         if sec.files:
-            parts.append("<p>Files: " + ", ".join(
-                f"<a href='{html.escape(os.path.relpath(Path(f), base))}'>"
-                f"{html.escape(Path(f).name)}</a>" for f in sec.files) + "</p>")
+            parts.append(
+                "<p>Files: "
+                + ", ".join(
+                    f"<a href='{html.escape(os.path.relpath(Path(f), base))}'>"
+                    f"{html.escape(Path(f).name)}</a>"
+                    for f in sec.files
+                )
+                + "</p>"
+            )
         parts.append("</section>")
     parts.append("</body></html>")
     return "\n".join(parts)
 
 
-def write_report(path: str | os.PathLike[str], sections: Sequence[Section],
-                 title: str = "biomorph report") -> Path:
+def write_report(
+    path: str | os.PathLike[str], sections: Sequence[Section], title: str = "biomorph report"
+) -> Path:
     """Write ``sections`` as an HTML report at ``path`` (atomically)."""
     p = Path(path)
     return write_text(p, render_html(sections, p.parent, title))

@@ -42,8 +42,9 @@ def test_split_reproduces_curve(ctrl: np.ndarray, t: float) -> None:
     left, right = curves.bezier_split(ctrl, t)
     u = np.linspace(0, 1, 7)
     assert np.allclose(curves.bezier_eval(left, u), curves.bezier_eval(ctrl, t * u), atol=1e-9)
-    assert np.allclose(curves.bezier_eval(right, u),
-                       curves.bezier_eval(ctrl, t + (1 - t) * u), atol=1e-9)
+    assert np.allclose(
+        curves.bezier_eval(right, u), curves.bezier_eval(ctrl, t + (1 - t) * u), atol=1e-9
+    )
 
 
 def test_arc_length_matches_dense_polyline() -> None:
@@ -52,8 +53,7 @@ def test_arc_length_matches_dense_polyline() -> None:
 
 
 def test_arclength_params_give_equal_spacing_batched() -> None:
-    ctrl = np.array([[[0, 0], [0, 3], [4, 3], [4, 0]],
-                     [[0, 0], [1, 0], [1, 1], [5, 5]]], float)
+    ctrl = np.array([[[0, 0], [0, 3], [4, 3], [4, 0]], [[0, 0], [1, 0], [1, 1], [5, 5]]], float)
     t = curves.bezier_arclength_params(ctrl, 11, samples=2048)
     assert t.shape == (2, 11)
     for b in range(2):
@@ -77,8 +77,9 @@ def test_resample_polyline_equal_steps() -> None:
     assert np.allclose(curves.polyline_arc_length(out)[-1], 3.0)
 
 
-@pytest.mark.parametrize("cls", [curves.NaturalCubicSpline, curves.MonotoneSpline,
-                                 curves.CatmullRomSpline])
+@pytest.mark.parametrize(
+    "cls", [curves.NaturalCubicSpline, curves.MonotoneSpline, curves.CatmullRomSpline]
+)
 def test_splines_interpolate_keys_and_clamp(cls) -> None:
     x = np.array([0.0, 1.0, 2.5, 4.0])
     y = np.array([0.0, 2.0, 1.0, 3.0])
@@ -114,8 +115,9 @@ def test_catmull_rom_tangent_is_centred_difference() -> None:
     assert float(sp.derivative()(1.0)) == pytest.approx((5.0 - 0.0) / 3.0)
 
 
-@pytest.mark.parametrize("x,y", [([0, 0, 1], [1, 2, 3]), ([0], [1]), ([0, 1], [1, np.nan]),
-                                 ([0, 1, 2], [1, 2])])
+@pytest.mark.parametrize(
+    "x,y", [([0, 0, 1], [1, 2, 3]), ([0], [1]), ([0, 1], [1, np.nan]), ([0, 1, 2], [1, 2])]
+)
 def test_bad_keys_raise(x, y) -> None:
     with pytest.raises(ParameterError):
         curves.NaturalCubicSpline(x, y)

@@ -47,8 +47,7 @@ def test_graph_queries_match_networkx(g):
         assert sub[i] == pytest.approx(vals[list(desc)].sum())
         assert sublen[i] == pytest.approx(sum(g.edge_length[j] for j in desc if j != i))
         root = [r for r in g.roots if i in nx.descendants(d, int(r)) | {int(r)}][0]
-        assert path[i] == pytest.approx(nx.shortest_path_length(d, int(root), i,
-                                                                weight="length"))
+        assert path[i] == pytest.approx(nx.shortest_path_length(d, int(root), i, weight="length"))
         assert g.node_depth[i] == nx.shortest_path_length(d, int(root), i)
         assert g.root_index[i] == root
         assert sorted(g.children(i).tolist()) == sorted(d.successors(i))

@@ -87,8 +87,9 @@ def test_structure_queries_match_naive(data):
 
 
 def test_rest_pose_positions_are_offset_sums():
-    sk = JointSkeleton(["hip", "knee", "ankle"], [-1, 0, 1],
-                       [[0, 1, 0], [0, -0.5, 0], [0, -0.4, 0.1]])
+    sk = JointSkeleton(
+        ["hip", "knee", "ankle"], [-1, 0, 1], [[0, 1, 0], [0, -0.5, 0], [0, -0.4, 0.1]]
+    )
     assert np.allclose(sk.world_positions(), [[0, 1, 0], [0, 0.5, 0], [0, 0.1, 0.1]])
     bent = tf.quat_identity((3,))
     bent[1] = tf.quat_from_axis_angle("x", np.pi / 2)

@@ -15,7 +15,8 @@ from biomorph.errors import ParameterError
 finite = st.floats(-10, 10, allow_nan=False, allow_infinity=False)
 vec3 = arrays(np.float64, 3, elements=finite)
 quat_raw = arrays(np.float64, 4, elements=st.floats(-1, 1, allow_nan=False)).filter(
-    lambda q: np.linalg.norm(q) > 1e-3)
+    lambda q: np.linalg.norm(q) > 1e-3
+)
 angles = arrays(np.float64, 3, elements=st.floats(-np.pi, np.pi, allow_nan=False))
 SETTINGS = settings(max_examples=60, deadline=None)
 pytestmark = pytest.mark.filterwarnings("ignore:Gimbal lock detected:UserWarning")
@@ -143,9 +144,12 @@ def test_slerp_broadcasts_over_time():
 
 
 @SETTINGS
-@given(arrays(np.float64, (20, 4), elements=st.floats(-1, 1, allow_nan=False)).filter(
-    lambda q: (np.linalg.norm(q, axis=1) > 1e-3).all()),
-    arrays(np.bool_, 20))
+@given(
+    arrays(np.float64, (20, 4), elements=st.floats(-1, 1, allow_nan=False)).filter(
+        lambda q: (np.linalg.norm(q, axis=1) > 1e-3).all()
+    ),
+    arrays(np.bool_, 20),
+)
 def test_continuity_fixes_hemisphere_without_changing_rotations(q, flips):
     q = q / np.linalg.norm(q, axis=1, keepdims=True)
     noisy = np.where(flips[:, None], -q, q)

@@ -23,8 +23,12 @@ def random_forest(n: int, n_roots: int, seed: int) -> np.ndarray:
     return out
 
 
-forests = st.builds(lambda n, r, s: random_forest(n, min(r, n), s),
-                    st.integers(1, 60), st.integers(1, 4), st.integers(0, 10**6))
+forests = st.builds(
+    lambda n, r, s: random_forest(n, min(r, n), s),
+    st.integers(1, 60),
+    st.integers(1, 4),
+    st.integers(0, 10**6),
+)
 
 
 def ancestors(parent, i):
@@ -58,7 +62,7 @@ def test_kernels_match_naive(parent):
         assert np.isclose(sub[i], vals[below].sum())
     indptr, indices = treeops.children_csr(parent)
     for i in range(n):
-        assert indices[indptr[i]:indptr[i + 1]].tolist() == np.flatnonzero(parent == i).tolist()
+        assert indices[indptr[i] : indptr[i + 1]].tolist() == np.flatnonzero(parent == i).tolist()
 
 
 def test_cycles_and_bad_indices_are_rejected():

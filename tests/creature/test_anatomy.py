@@ -19,8 +19,9 @@ def test_every_joint_has_a_known_part_and_mirrors_share_it():
         if name.startswith("shoulder") and "_upper_" in name:
             assert c.part[j] == "humerus"
     assert c.part[c.names.index("skull")] == "skull"
-    assert c.digit is not None and np.all(c.digit[[p not in ("phalanx", "hoof", "claw", "nail")
-                                                   for p in c.part]] == 0)
+    assert c.digit is not None and np.all(
+        c.digit[[p not in ("phalanx", "hoof", "claw", "nail") for p in c.part]] == 0
+    )
     assert c.to_dict()["bones"][0]["part"] == c.part[0]
 
 
@@ -67,7 +68,8 @@ def test_digit_counts_follow_class_and_foot_posture():
     assert len(bird) == 4 and sum(d.backward for d in bird) == 1
     assert digit_plan("fin", "fore", "fish", "plantigrade") == ()
     assert {d.end for d in digit_plan("arm", "fore", "mammal", "plantigrade", "primate")} == {
-        "nail"}
+        "nail"
+    }
 
 
 def test_stance_rules_hold_over_seeds():
@@ -80,8 +82,7 @@ def test_stance_rules_hold_over_seeds():
             if not ok:
                 fails[k].append(seed)
     # class coherence, weights, trunk and head pitch, digits: every seed
-    for k in ("class_legs", "weight_in_range", "head_pitch", "feet_have_digits",
-              "withers_height"):
+    for k in ("class_legs", "weight_in_range", "head_pitch", "feet_have_digits", "withers_height"):
         assert not fails[k], (k, fails[k])
     assert sum(map(len, fails.values())) <= 2, fails
 
@@ -102,7 +103,7 @@ def test_class_coherence_and_extrapolation():
     for seed in range(12):
         assert generate(seed, legs=4).params["class"] != "bird"
         assert generate(seed, legs=2).params["class"] != "fish"
-    assert generate(1, cls="bird", legs=4).params["legs"] == 4   # asked for: allowed
+    assert generate(1, cls="bird", legs=4).params["legs"] == 4  # asked for: allowed
     with pytest.raises(ParameterError, match="allow-extrapolation"):
         generate(0, weight=5e6)
     c = generate(0, weight=5e6, allow_extrapolation=True, legs=4)
@@ -121,12 +122,11 @@ def test_walk_plants_the_feet_and_stays_above_ground():
         assert q["slide_fraction"] <= 0.02, (seed, q)
         assert q["penetration_fraction"] <= 0.005, (seed, q)
         root = mo.world_positions()[:, 0, 0]
-        assert root[-1] - root[0] == pytest.approx(plan.stride / plan.period * 47 / 24,
-                                                   rel=1e-9)
+        assert root[-1] - root[0] == pytest.approx(plan.stride / plan.period * 47 / 24, rel=1e-9)
     legs = [{"tag": t, "side": s} for t in ("shoulder1", "hip1") for s in "lr"]
     offs, duty = phase_offsets(legs, "trot")
-    assert offs == [0.5, 0.0, 0.0, 0.5] and duty == 0.5   # diagonal pairs together
+    assert offs == [0.5, 0.0, 0.0, 0.5] and duty == 0.5  # diagonal pairs together
     legs6 = [{"tag": t, "side": s} for t in ("shoulder1", "shoulder2", "hip1") for s in "lr"]
     offs6, _ = phase_offsets(legs6)
     assert sorted(offs6) == [0, 0, 0, 0.5, 0.5, 0.5]
-    assert offs6[0] != offs6[1] and offs6[0] != offs6[2]   # tripod alternates
+    assert offs6[0] != offs6[1] and offs6[0] != offs6[2]  # tripod alternates

@@ -19,8 +19,17 @@ from biomorph.creature.states import LimbsState, SkullState, SpineState
 
 def test_species_model_arrays_are_read_only():
     m = species_model(None)
-    for arr in (m.pca.mean, m.pca.components, m.pca.eigenvalues, m.pca.scores, m.feats,
-                m.region_len, m.table.points, m.table.weight, m.cls_scores["mammal"]):
+    for arr in (
+        m.pca.mean,
+        m.pca.components,
+        m.pca.eigenvalues,
+        m.pca.scores,
+        m.feats,
+        m.region_len,
+        m.table.points,
+        m.table.weight,
+        m.cls_scores["mammal"],
+    ):
         with pytest.raises(ValueError):
             arr[...] = 0.0
     with pytest.raises(TypeError):
@@ -47,12 +56,18 @@ def test_dataset_prints_the_spectrum_the_generator_samples_from(capsys):
 
 
 def test_plots_leave_no_pyplot_or_backend_behind(tmp_path):
-    code = ("import sys, matplotlib; b = matplotlib.get_backend();"
-            "from biomorph.creature.plots import pca_plot;"
-            f"pca_plot({str(tmp_path / 'p.png')!r});"
-            "assert 'matplotlib.pyplot' not in sys.modules, 'pyplot loaded';"
-            "assert matplotlib.get_backend() == b")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                       env={"MPLBACKEND": "svg", "PATH": ""})
+    code = (
+        "import sys, matplotlib; b = matplotlib.get_backend();"
+        "from biomorph.creature.plots import pca_plot;"
+        f"pca_plot({str(tmp_path / 'p.png')!r});"
+        "assert 'matplotlib.pyplot' not in sys.modules, 'pyplot loaded';"
+        "assert matplotlib.get_backend() == b"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        env={"MPLBACKEND": "svg", "PATH": ""},
+    )
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

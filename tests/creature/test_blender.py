@@ -20,14 +20,16 @@ import biomorph.creature as bc
 from biomorph.creature.export import TO_GLTF, export, floor_bone_lengths
 
 BLENDER = shutil.which("blender")
-pytestmark = pytest.mark.skipif(BLENDER is None, reason="Debian's blender is not installed "
-                                "(apt-get install -y blender python3-numpy)")
+pytestmark = pytest.mark.skipif(
+    BLENDER is None,
+    reason="Debian's blender is not installed (apt-get install -y blender python3-numpy)",
+)
 
 # quadruped mammal, winged bird on 4 legs, fish, tiny creature (mm bones); 20 seeds in
 # bench/gltf.py --blender
 CASES = [{"seed": 0}, {"seed": 3}, {"seed": 1, "cls": "fish"}, {"seed": 5, "weight": 0.002}]
 
-DRIVER = r'''
+DRIVER = r"""
 import json, sys, warnings
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")
@@ -62,7 +64,7 @@ for job in jobs:
             res["error"] = repr(exc)
     out.append(res)
 json.dump(out, open(job["result"], "w"))
-'''
+"""
 
 
 def _creature(case):
@@ -91,10 +93,23 @@ def blender_run(tmp_path_factory):
     (tmp / "jobs.json").write_text(json.dumps(jobs))
     (tmp / "driver.py").write_text(DRIVER)
     (tmp / "setup.py").write_text(SCRIPT)
-    proc = subprocess.run([BLENDER, "-b", "--factory-startup", "--python-exit-code", "1",
-                           "--python", str(tmp / "driver.py"), "--", str(tmp / "jobs.json"),
-                           str(tmp / "setup.py")], capture_output=True, text=True,
-                          timeout=600)
+    proc = subprocess.run(
+        [
+            BLENDER,
+            "-b",
+            "--factory-startup",
+            "--python-exit-code",
+            "1",
+            "--python",
+            str(tmp / "driver.py"),
+            "--",
+            str(tmp / "jobs.json"),
+            str(tmp / "setup.py"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     results = json.loads((tmp / "res.json").read_text())
     return creatures, results, proc.stdout
@@ -106,8 +121,11 @@ def test_import_has_no_warnings(blender_run):
     assert len(imports) == len(results) == 2 * len(CASES)
     for chunk in imports:
         text = chunk.split("BIOMORPH_IMPORT_END")[0]
-        bad = [ln for ln in text.splitlines() if "WARNING" in ln or "ERROR" in ln
-               or ln.startswith(("Warning", "Error"))]
+        bad = [
+            ln
+            for ln in text.splitlines()
+            if "WARNING" in ln or "ERROR" in ln or ln.startswith(("Warning", "Error"))
+        ]
         assert not bad, bad
 
 

@@ -63,8 +63,8 @@ def test_vertebrae_vary_by_region():
 
     assert spine_top("thoracic", 0) > spine_top("cervical", 0) + 0.1
     assert spine_top("thoracic", 0) > spine_top("thoracic", ax.BINS - 1)  # withers tallest
-    assert span("lumbar", 2) > span("thoracic", 2)                        # long processes
-    assert spine_top("caudal", ax.BINS - 1) < spine_top("caudal", 0)      # fading out
+    assert span("lumbar", 2) > span("thoracic", 2)  # long processes
+    assert spine_top("caudal", ax.BINS - 1) < spine_top("caudal", 0)  # fading out
     # the caudal vertebrae carry chevrons below the centrum near the tail base
     assert ax.vertebra("caudal", 0, 1)[0][:, 0].min() < ax.vertebra("lumbar", 0, 1)[0][:, 0].min()
 

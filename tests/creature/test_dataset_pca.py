@@ -31,6 +31,7 @@ def test_malformed_csv_names_line_and_column(tmp_path):
     src = load_species()
     rows = src.rows()
     import csv
+
     p = tmp_path / "bad.csv"
     with p.open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))

@@ -22,6 +22,7 @@ def test_json_and_obj(creature, tmp_path):
     assert d["n_joints"] == len(creature) and d["balance"]["stable"]
     assert np.isclose(sum(b["mass"] for b in d["bones"]), creature.total_mass)
     from biomorph.io.obj import read_mesh
+
     m = read_mesh(export(creature, tmp_path / "c.obj", bone_shape="box"))
     assert m.n_faces == 12 * int(np.sum(creature.bone_length > 0))
 
@@ -29,6 +30,7 @@ def test_json_and_obj(creature, tmp_path):
 def test_glb_is_valid_and_skinned(creature, tmp_path):
     from biomorph.io.gltf import read_gltf_summary
     from tests.gltf_validator import assert_valid_glb
+
     p = export(creature, tmp_path / "c.glb")
     assert_valid_glb(p)
     s = read_gltf_summary(p)
@@ -39,6 +41,7 @@ def test_glb_is_valid_and_skinned(creature, tmp_path):
 
 def test_bvh_round_trip_with_walk(creature, tmp_path):
     import biomorph.io as bio
+
     p = export(creature, tmp_path / "c.bvh", walk=True)
     mo = bio.read_bvh(p)
     assert mo.n_joints == len(creature) and mo.n_frames == 64
@@ -46,16 +49,19 @@ def test_bvh_round_trip_with_walk(creature, tmp_path):
     # frame 0 of the rest-pose BVH reproduces the generated pose
     pos = rest.world_positions()[0]
     order = [rest.skeleton.index(n) for n in creature.names]  # BVH is depth-first
-    assert np.allclose(pos[order] - pos[order[0]],
-                       creature.joint_positions - creature.joint_positions[0], atol=1e-5)
+    assert np.allclose(
+        pos[order] - pos[order[0]],
+        creature.joint_positions - creature.joint_positions[0],
+        atol=1e-5,
+    )
 
 
 def test_osim_bodies_and_ranges(creature, tmp_path):
     from biomorph.io.osim import read_osim_summary
+
     s = read_osim_summary(export(creature, tmp_path / "c.osim"))
     assert len(s["bodies"]) == len(creature) and s["joints"] == len(creature)
-    assert np.isclose(sum(b["mass"] for b in s["bodies"].values()), creature.total_mass,
-                      rtol=1e-6)
+    assert np.isclose(sum(b["mass"] for b in s["bodies"].values()), creature.total_mass, rtol=1e-6)
     ranges = np.array(list(s["coordinates"].values()))
     assert np.all(ranges[:, 0] <= 0) and np.all(ranges[:, 1] >= 0)
     assert np.all(np.abs(ranges) <= 2 * np.pi)  # radians
@@ -65,6 +71,7 @@ def test_mjcf_loads_and_settles(creature, tmp_path):
     import mujoco
 
     from biomorph.io.mjcf import settle
+
     p = export(creature, tmp_path / "c.xml")
     model = mujoco.MjModel.from_xml_path(str(p))
     assert model.nbody == len(creature) + 1
@@ -75,25 +82,51 @@ def test_mjcf_loads_and_settles(creature, tmp_path):
 
 def test_cli_generate_json(tmp_path, capsys):
     out = tmp_path / "h.json"
-    assert run(["creature", "generate", "--seed", "7", "--legs", "4", "--no-wings",
-                "-o", str(out), "--json"]) == 0
+    assert (
+        run(
+            [
+                "creature",
+                "generate",
+                "--seed",
+                "7",
+                "--legs",
+                "4",
+                "--no-wings",
+                "-o",
+                str(out),
+                "--json",
+            ]
+        )
+        == 0
+    )
     s = json.loads(capsys.readouterr().out)
     assert s["legs"] == 4 and out.exists() and s["stable"]
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["--legs", "7"], "--legs"), (["--legs", "3"], "legs=3"), (["--weight", "-5"], "weight"),
-    (["--class", "dragon"], "dragon"), (["--class", "fish", "--wings"], "wings"),
-    (["-o", "x.fbx"], "fbx"), (["--class", "fish", "--legs", "2"], "fish"),
-    (["--rigify", "--legs", "0"], "--rigify"), (["--weight", "2e6"], "--allow-extrapolation"),
-    (["--weight", "0.00005"], "dataset's range"), (["--temperature", "-1"], "--temperature"),
-    (["--k", "30"], "--k"), (["--seed", "-3"], "--seed"), (["--neck-length", "2"], "neck")])
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--legs", "7"], "--legs"),
+        (["--legs", "3"], "legs=3"),
+        (["--weight", "-5"], "weight"),
+        (["--class", "dragon"], "dragon"),
+        (["--class", "fish", "--wings"], "wings"),
+        (["-o", "x.fbx"], "fbx"),
+        (["--class", "fish", "--legs", "2"], "fish"),
+        (["--rigify", "--legs", "0"], "--rigify"),
+        (["--weight", "2e6"], "--allow-extrapolation"),
+        (["--weight", "0.00005"], "dataset's range"),
+        (["--temperature", "-1"], "--temperature"),
+        (["--k", "30"], "--k"),
+        (["--seed", "-3"], "--seed"),
+        (["--neck-length", "2"], "neck"),
+    ],
+)
 def test_cli_bad_input_exit_2_nothing_written(tmp_path, capsys, args, needle):
     out = tmp_path / "c.glb"
     argv = ["creature", "generate", "-o", str(out)] + args
     if "-o" in args:
-        argv = ["creature", "generate"] + [a if a != "x.fbx" else str(tmp_path / a)
-                                           for a in args]
+        argv = ["creature", "generate"] + [a if a != "x.fbx" else str(tmp_path / a) for a in args]
     assert run(argv) == 2
     err = capsys.readouterr().err
     assert needle in err and len(err.strip().splitlines()) <= 2
@@ -117,6 +150,7 @@ SVG = """<svg xmlns="http://www.w3.org/2000/svg"
 
 def test_svg_annotations_absolute_relative_and_flip(tmp_path):
     from biomorph.io.svg_annotations import read_annotations
+
     p = tmp_path / "a.svg"
     p.write_text(SVG)
     a = read_annotations(p)
@@ -131,21 +165,50 @@ def test_cli_annotate_appends_and_rejects_malformed(tmp_path):
     p = tmp_path / "okapi.svg"
     p.write_text(SVG)
     ds = tmp_path / "species.csv"
-    assert run(["creature", "annotate", str(p), "--class", "mammal", "--weight", "250",
-                "--dataset", str(ds)]) == 0
+    assert (
+        run(
+            [
+                "creature",
+                "annotate",
+                str(p),
+                "--class",
+                "mammal",
+                "--weight",
+                "250",
+                "--dataset",
+                str(ds),
+            ]
+        )
+        == 0
+    )
     from biomorph.creature.dataset import load_species
+
     t = load_species(ds)
     assert len(t) == 45 and t.name[-1] == "okapi"
     # the extended dataset drives generation
-    assert run(["creature", "generate", "--seed", "1", "--dataset", str(ds), "-o",
-                str(tmp_path / "o.json")]) == 0
+    assert (
+        run(
+            [
+                "creature",
+                "generate",
+                "--seed",
+                "1",
+                "--dataset",
+                str(ds),
+                "-o",
+                str(tmp_path / "o.json"),
+            ]
+        )
+        == 0
+    )
     bad = tmp_path / "bad.svg"
     bad.write_text(SVG.replace('id="back"', 'id="spine"'))
     assert run(["creature", "annotate", str(bad), "--dataset", str(tmp_path / "n.csv")]) == 2
     assert not (tmp_path / "n.csv").exists()
     curvy = tmp_path / "curvy.svg"
-    curvy.write_text(SVG.replace('d="M 200,300 C 250,350 300,400 350,450"',
-                                 'd="M 200,300 L 350,450"'))
+    curvy.write_text(
+        SVG.replace('d="M 200,300 C 250,350 300,400 350,450"', 'd="M 200,300 L 350,450"')
+    )
     assert run(["creature", "annotate", str(curvy), "--dataset", str(tmp_path / "m.csv")]) == 2
     broken = tmp_path / "broken.svg"
     broken.write_text("<svg><path")
@@ -160,21 +223,44 @@ def test_cli_dataset_json(capsys):
 
 def test_cli_batch_serial_resumable(tmp_path, capsys):
     out = tmp_path / "b"
-    assert run(["creature", "batch", "--count", "3", "--chunk", "2", "--out", str(out),
-                "--workers", "0", "--format", "json", "--json"]) == 0
+    assert (
+        run(
+            [
+                "creature",
+                "batch",
+                "--count",
+                "3",
+                "--chunk",
+                "2",
+                "--out",
+                str(out),
+                "--workers",
+                "0",
+                "--format",
+                "json",
+                "--json",
+            ]
+        )
+        == 0
+    )
     s = json.loads(capsys.readouterr().out)
     assert s["count"] == 3 and s["stable"] == 3
     assert sorted(p.name for p in out.glob("*.json") if p.name.startswith("creature_")) == [
-        "creature_000000.json", "creature_000001.json", "creature_000002.json"]
+        "creature_000000.json",
+        "creature_000001.json",
+        "creature_000002.json",
+    ]
     assert run(["creature", "batch", "--count", "3", "--out", str(out), "--format", "fbx"]) == 2
 
 
 def test_rigify_names(creature, tmp_path):
     from biomorph.creature.rigify import rigify_names
+
     names = rigify_names(creature)
     assert len(set(names)) == len(names)
     assert {"spine", "head", "thigh.L", "thigh.R", "upper_arm.L", "foot.R"} <= set(names)
     import biomorph.io as bio
+
     mo = bio.read_bvh(export(creature, tmp_path / "r.bvh", rigify=True, walk=True))
     assert set(mo.skeleton.names) == set(names)
 

@@ -80,6 +80,7 @@ def test_standing_legs_are_monotone_over_100_seeds():
 def test_plausibility_can_be_switched_off():
     """The seed's plain descent (no anatomical preferences) is still available."""
     from biomorph.creature.limbs import DescentParams
+
     c = generate(0, descent=DescentParams(plausible=False, restarts=1))
     assert set(qa.check(c)) == set(qa.CHECKS)
 
@@ -107,9 +108,16 @@ def test_conditions_are_honoured():
     assert c.params["class"] == "fish" and long_bones(c, "leg") == 0
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(legs=7), "legs=7"), (dict(weight=-1.0), "weight"), (dict(cls="dragon"), "dragon"),
-    (dict(cls="fish", wings=True), "wings"), (dict(legs=6, wings=True), "shoulder")])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(legs=7), "legs=7"),
+        (dict(weight=-1.0), "weight"),
+        (dict(cls="dragon"), "dragon"),
+        (dict(cls="fish", wings=True), "wings"),
+        (dict(legs=6, wings=True), "shoulder"),
+    ],
+)
 def test_impossible_requests(kwargs, match):
     with pytest.raises(ParameterError, match=match):
         generate(0, **kwargs)

@@ -11,6 +11,7 @@ from biomorph.creature.render import Layer, _camera, _shade, render_creature
 
 def _png(path):
     from matplotlib.image import imread
+
     return imread(str(path))
 
 
@@ -34,8 +35,7 @@ def test_render_skeleton_and_skin(tmp_path):
     drawn = grey < 0.97
     assert 0.01 < drawn.mean() < 0.6
     assert np.std(grey[drawn]) > 0.03  # shaded, not flat
-    full = _png(render_creature(c, tmp_path / "s.png", skin=True, lod=0,
-                                views=("three_quarter",)))
+    full = _png(render_creature(c, tmp_path / "s.png", skin=True, lod=0, views=("three_quarter",)))
     assert full.shape[0] > 2 * full.shape[1] * 0.9  # three rows: bones, x-ray, skin
     red = (full[..., 0] - full[..., 2]) > 0.2
     assert red.mean() > 0.005  # muscles and skin tones appear
@@ -45,8 +45,9 @@ def test_render_cli(tmp_path, capsys):
     from biomorph.cli import run
 
     out = tmp_path / "c.png"
-    assert run(["creature", "render", "--seed", "1", "--no-skin", "--lod", "0", "-o",
-                str(out)]) == 0
+    assert (
+        run(["creature", "render", "--seed", "1", "--no-skin", "--lod", "0", "-o", str(out)]) == 0
+    )
     assert out.stat().st_size > 10_000
     assert run(["creature", "render", "-o", str(tmp_path / "c.jpg")]) == 2
     assert run(["creature", "render", "--view", "up", "-o", str(tmp_path / "d.png")]) == 2

@@ -45,18 +45,20 @@ def test_legs_have_toe_heel_and_bend_about_x(creature):
     names = rig.skeleton.names
     world = rig.skeleton.world_matrices()
     legs = [i for i, t in enumerate(rig.rigify_type) if t == "limbs.leg"]
-    girdles = [j for j in range(len(creature)) if creature.kind[j] == "girdle"
-               and creature.kind[int(np.flatnonzero(creature.skeleton.parent == j)[0])] == "leg"]
+    girdles = [
+        j
+        for j in range(len(creature))
+        if creature.kind[j] == "girdle"
+        and creature.kind[int(np.flatnonzero(creature.skeleton.parent == j)[0])] == "leg"
+    ]
     assert len(legs) == len(girdles) > 0
     for i in legs:
         chain = [i]
         for _ in range(3):
-            kids = [k for k in np.flatnonzero(rig.skeleton.parent == chain[-1])
-                    if rig.connect[k]]
+            kids = [k for k in np.flatnonzero(rig.skeleton.parent == chain[-1]) if rig.connect[k]]
             assert len(kids) == 1
             chain.append(int(kids[0]))
-        heel = [k for k in np.flatnonzero(rig.skeleton.parent == chain[2])
-                if not rig.connect[k]]
+        heel = [k for k in np.flatnonzero(rig.skeleton.parent == chain[2]) if not rig.connect[k]]
         assert heel and "_heel." in names[heel[0]]
         assert "_toe." in names[chain[3]]
         for k in chain[:2]:
@@ -78,8 +80,10 @@ def test_rigify_glb_carries_rig_types_and_blender_frame(creature, tmp_path):
     doc = pygltflib.GLTF2().load(str(p))
     rig = build_metarig(creature)
     nodes = {n.name: n for n in doc.nodes}
-    assert all(nodes[n].extras.get("rigify_type", "") == t
-               for n, t in zip(rig.skeleton.names, rig.rigify_type, strict=True))
+    assert all(
+        nodes[n].extras.get("rigify_type", "") == t
+        for n, t in zip(rig.skeleton.names, rig.rigify_type, strict=True)
+    )
     # heads in Blender's frame: creature (x, y, z) -> glTF TO_GLTF -> Blender (x, -z, y)
     skull = creature.joint_positions[creature.kind.index("skull")] @ TO_GLTF.T
     want = [skull[0], -skull[2], skull[1]]
@@ -97,7 +101,7 @@ def test_glb_axes_and_bone_floor(tmp_path):
     doc = pygltflib.GLTF2().load(str(p))
     root = next(n for n in doc.nodes if n.name == c.names[0])
     assert np.allclose(root.translation, c.skeleton.offset[0] @ TO_GLTF.T)
-    assert np.allclose(TO_GLTF @ [1, 0, 0], [0, 0, 1])   # forward -> +Z
+    assert np.allclose(TO_GLTF @ [1, 0, 0], [0, 0, 1])  # forward -> +Z
     assert np.allclose(TO_GLTF @ [0, 0, -1], [1, 0, 0])  # the creature's left -> +X
 
 

@@ -59,16 +59,18 @@ def test_two_pc1_scores_differ_along_pc1():
     assert along == pytest.approx(4.0 * math.sqrt(pca.eigenvalues[0]), rel=1e-6)
     # the difference is (almost) all along PC1, and the skeletons differ
     assert abs(along) / np.linalg.norm(d) > 0.999
-    assert (len(lo) != len(hi) or not np.allclose(lo.joint_positions, hi.joint_positions))
+    assert len(lo) != len(hi) or not np.allclose(lo.joint_positions, hi.joint_positions)
 
 
 # reference creatures (issue 14: digits, jaw and contact-based balance): joints, total mass,
 # sum of joint positions. Compared to 1e-9: the last digits follow the numpy/BLAS build; any
 # real change of the generator moves them by far more. With and without scores=None are
 # compared bit for bit below.
-OLD = {0: (114, 3556.944733731625, 151.86571334337503),
-       5: (88, 291.4771990027269, -9.354815545115699),
-       11: (105, 296.6663051709859, 91.15462298552418)}
+OLD = {
+    0: (114, 3556.944733731625, 151.86571334337503),
+    5: (88, 291.4771990027269, -9.354815545115699),
+    11: (105, 296.6663051709859, 91.15462298552418),
+}
 
 
 @pytest.mark.parametrize("seed", sorted(OLD))
@@ -93,15 +95,18 @@ def test_input_not_mutated():
     assert o.scores == {1: 0.5}
 
 
-@pytest.mark.parametrize("scores, match", [
-    ({29: 1.0}, "29.*0..28"),
-    ({-1: 1.0}, "-1.*0..28"),
-    ({0: 4.5}, "0 score 4.5.*-4..4"),
-    ({2: -5.0}, "2 score -5.0.*-4..4"),
-    ({0: float("nan")}, "nan"),
-    ({0: float("inf")}, "inf"),
-    ({"x": 1.0}, "'x'"),
-])
+@pytest.mark.parametrize(
+    "scores, match",
+    [
+        ({29: 1.0}, "29.*0..28"),
+        ({-1: 1.0}, "-1.*0..28"),
+        ({0: 4.5}, "0 score 4.5.*-4..4"),
+        ({2: -5.0}, "2 score -5.0.*-4..4"),
+        ({0: float("nan")}, "nan"),
+        ({0: float("inf")}, "inf"),
+        ({"x": 1.0}, "'x'"),
+    ],
+)
 def test_bad_scores_raise(scores, match):
     with pytest.raises(ParameterError, match=match):
         Options(scores=scores).validate()
@@ -120,8 +125,23 @@ def test_cli_pc_is_one_based(tmp_path, capsys):
     from biomorph.cli import run
 
     out = tmp_path / "c.json"
-    assert run(["creature", "generate", "--seed", "3", "--pc", "1=1.5", "--pc", "2=-0.8",
-                "-o", str(out)]) == 0
+    assert (
+        run(
+            [
+                "creature",
+                "generate",
+                "--seed",
+                "3",
+                "--pc",
+                "1=1.5",
+                "--pc",
+                "2=-0.8",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     params = json.loads(out.read_text())["params"]
     assert params["options"]["scores"] == {"0": 1.5, "1": -0.8}
@@ -129,9 +149,18 @@ def test_cli_pc_is_one_based(tmp_path, capsys):
     np.testing.assert_allclose(params["features"], c.params["features"])
 
 
-@pytest.mark.parametrize("pc, needle", [
-    ("0=1", "outside 1..29"), ("30=1", "outside 1..29"), ("1=5", "-4..4"),
-    ("1=nan", "-4..4"), ("1=abc", "'abc'"), ("1", "N=SCORE"), ("x=1", "N=SCORE")])
+@pytest.mark.parametrize(
+    "pc, needle",
+    [
+        ("0=1", "outside 1..29"),
+        ("30=1", "outside 1..29"),
+        ("1=5", "-4..4"),
+        ("1=nan", "-4..4"),
+        ("1=abc", "'abc'"),
+        ("1", "N=SCORE"),
+        ("x=1", "N=SCORE"),
+    ],
+)
 def test_cli_bad_pc_exit_2_nothing_written(tmp_path, capsys, pc, needle):
     from biomorph.cli import run
 
@@ -145,7 +174,8 @@ def test_cli_bad_pc_exit_2_nothing_written(tmp_path, capsys, pc, needle):
 def test_cli_pc_beyond_k(tmp_path, capsys):
     from biomorph.cli import run
 
-    assert run(["creature", "generate", "--k", "3", "--pc", "4=1", "-o",
-                str(tmp_path / "c.glb")]) == 2
+    assert (
+        run(["creature", "generate", "--k", "3", "--pc", "4=1", "-o", str(tmp_path / "c.glb")]) == 2
+    )
     assert "outside 1..3" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []

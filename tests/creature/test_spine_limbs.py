@@ -16,10 +16,12 @@ def test_c1_fix_makes_joins_smooth_and_keeps_distances():
         q = sp.c1_fix(p)
         assert np.all(np.degrees(sp.join_angles(q)) < 1e-6)
         for before, join, after in ((2, 3, 4), (5, 6, 7)):
-            assert np.isclose(np.linalg.norm(q[before] - q[join]),
-                              np.linalg.norm(p[before] - p[join]))
-            assert np.isclose(np.linalg.norm(q[after] - q[join]),
-                              np.linalg.norm(p[after] - p[join]))
+            assert np.isclose(
+                np.linalg.norm(q[before] - q[join]), np.linalg.norm(p[before] - p[join])
+            )
+            assert np.isclose(
+                np.linalg.norm(q[after] - q[join]), np.linalg.norm(p[after] - p[join])
+            )
         # equal and opposite: the bisector of the two original tangents is kept
         untouched = [0, 1, 3, 6, 8, 9]
         assert np.array_equal(q[untouched], p[untouched])
@@ -71,7 +73,7 @@ def test_descent_poses_plausible_standing_legs():
         ground = -0.8 * lb.max_reach(L, stance, "erect")
         pose = lb.pose_leg(base, L, ground, role, stance, "erect", rng, params)
         n = 2 if pose.foot_flat else 3
-        y = pose.points[:n + 1, 1]
+        y = pose.points[: n + 1, 1]
         assert np.all(np.diff(y) <= 1e-6 * L.sum()), (role, stance, y)
         assert lb.implausibility(pose.points, pose.lengths, n, role, params) <= 0.002 * L.sum()
         dx = np.diff(pose.points[:, 0])
@@ -81,12 +83,23 @@ def test_descent_poses_plausible_standing_legs():
         assert np.all(pose.angles[:n, 0] <= box[:n, 0, 1] + 1e-9)
         if role == "hind":
             assert pose.angles[1, 0] <= 0 and (n == 2 or pose.angles[2, 0] >= 0)
-        relaxed = lb.pose_leg(base, L, ground, role, stance, "erect",
-                              np.random.default_rng(5), lb.DescentParams(relax=(0.5, 0.25)))
-        plain = lb.pose_leg(base, L, ground, role, stance, "erect",
-                            np.random.default_rng(5), params)
-        assert (lb.flexion_from_neutral(relaxed.angles, role, n)
-                <= lb.flexion_from_neutral(plain.angles, role, n) + 1e-9)
+        relaxed = lb.pose_leg(
+            base,
+            L,
+            ground,
+            role,
+            stance,
+            "erect",
+            np.random.default_rng(5),
+            lb.DescentParams(relax=(0.5, 0.25)),
+        )
+        plain = lb.pose_leg(
+            base, L, ground, role, stance, "erect", np.random.default_rng(5), params
+        )
+        assert (
+            lb.flexion_from_neutral(relaxed.angles, role, n)
+            <= lb.flexion_from_neutral(plain.angles, role, n) + 1e-9
+        )
 
 
 def test_descent_constants_are_parameters():

@@ -29,7 +29,8 @@ def test_cmu_asf_amc(tmp_path):
     # left/right femur lengths agree (bone lengths in metres)
     off = m.skeleton.offset
     assert np.linalg.norm(off[m.names.index("ltibia")]) == pytest.approx(
-        np.linalg.norm(off[m.names.index("rtibia")]), rel=0.05)
+        np.linalg.norm(off[m.names.index("rtibia")]), rel=0.05
+    )
     back = read_bvh(write_bvh(tmp_path / "k.bvh", m))
     assert back.names == m.names
     assert np.abs(back.world_positions() - w).max() < 1e-5
@@ -61,28 +62,31 @@ def _line_no(text: str, needle: str) -> int:
     return next(i for i, s in enumerate(text.splitlines(), start=1) if needle in s)
 
 
-@pytest.mark.parametrize("old,new,needle", [
-    # axis letters and angle counts disagree (was a bare ValueError from zip(strict=True))
-    ("axis 0 0 20  XYZ", "axis 0 0 20  XY", "axis order 'XY' for 3 angle(s)"),
-    ("axis 0 0 20  XYZ", "axis 0 20", "axis has 2 value(s); expected 3"),
-    ("axis 0 0 20  XYZ", "axis 0 0 20  XXZ", "distinct letters"),
-    ("axis 0 0 20  XYZ", "axis 0 0 20  XQZ", "expected 3 distinct letters"),
-    ("direction 0.34202 -0.939693 0  ", "direction 0.34202", "direction has 1 value(s)"),
-    ("length 7.33161  ", "length", "length has 0 value(s)"),
-    ("length 7.33161  ", "length 1e999", "non-finite"),
-    ("name lfemur", "name", "bone name without a value"),
-    ("name lfemur", "name lhipjoint", "defined twice"),
-    ("dof rx ry rz", "dof rx rx rz", "repeats a rotation"),
-    ("order TX TY TZ RX RY RZ", "order TX TY TZ RX RQ RZ", "root order"),
-    ("axis XYZ", "axis XY", "root axis order 'XY'"),
-    ("axis XYZ", "axis", "root axis without a value"),
-    ("orientation 0 0 0", "orientation 0 0", "root orientation has 2 value(s)"),
-    ("angle deg", "angle", "units angle without a value"),
-    ("angle deg", "angle grad", "expected 'deg' or 'rad'"),
-    ("length 0.45", "length 0", "expected a positive"),
-    ("lfemur ltibia", "lfemurr ltibia", "unknown parent bone 'lfemurr'"),
-    ("lfemur ltibia", "lfemur ltibiaa", "unknown bone 'ltibiaa'"),
-])
+@pytest.mark.parametrize(
+    "old,new,needle",
+    [
+        # axis letters and angle counts disagree (was a bare ValueError from zip(strict=True))
+        ("axis 0 0 20  XYZ", "axis 0 0 20  XY", "axis order 'XY' for 3 angle(s)"),
+        ("axis 0 0 20  XYZ", "axis 0 20", "axis has 2 value(s); expected 3"),
+        ("axis 0 0 20  XYZ", "axis 0 0 20  XXZ", "distinct letters"),
+        ("axis 0 0 20  XYZ", "axis 0 0 20  XQZ", "expected 3 distinct letters"),
+        ("direction 0.34202 -0.939693 0  ", "direction 0.34202", "direction has 1 value(s)"),
+        ("length 7.33161  ", "length", "length has 0 value(s)"),
+        ("length 7.33161  ", "length 1e999", "non-finite"),
+        ("name lfemur", "name", "bone name without a value"),
+        ("name lfemur", "name lhipjoint", "defined twice"),
+        ("dof rx ry rz", "dof rx rx rz", "repeats a rotation"),
+        ("order TX TY TZ RX RY RZ", "order TX TY TZ RX RQ RZ", "root order"),
+        ("axis XYZ", "axis XY", "root axis order 'XY'"),
+        ("axis XYZ", "axis", "root axis without a value"),
+        ("orientation 0 0 0", "orientation 0 0", "root orientation has 2 value(s)"),
+        ("angle deg", "angle", "units angle without a value"),
+        ("angle deg", "angle grad", "expected 'deg' or 'rad'"),
+        ("length 0.45", "length 0", "expected a positive"),
+        ("lfemur ltibia", "lfemurr ltibia", "unknown parent bone 'lfemurr'"),
+        ("lfemur ltibia", "lfemur ltibiaa", "unknown bone 'ltibiaa'"),
+    ],
+)
 def test_malformed_asf_names_file_and_line(tmp_path, old, new, needle):
     asf = shared_file("motion", "cmu_11.asf").read_text().replace("\r\n", "\n")
     amc = shared_file("motion", "cmu_11_01.amc")
@@ -109,11 +113,11 @@ def test_malformed_amc_names_file_and_line(tmp_path):
     lines = text.splitlines()
     k = next(i for i, s in enumerate(lines) if s.startswith("lfemur "))
     bad = tmp_path / "dup.amc"
-    bad.write_text("\n".join(lines[:k + 1] + [lines[k]] + lines[k + 1:]) + "\n")
+    bad.write_text("\n".join(lines[: k + 1] + [lines[k]] + lines[k + 1 :]) + "\n")
     with pytest.raises(FormatError, match="listed twice") as info:
         read_asf_amc(bad, asf=asf)
     assert info.value.line == k + 2
-    bad.write_text("\n".join(lines[:k] + lines[k + 1:]) + "\n")
+    bad.write_text("\n".join(lines[:k] + lines[k + 1 :]) + "\n")
     with pytest.raises(FormatError, match="lacks bone 'lfemur'") as info:
         read_asf_amc(bad, asf=asf)
     assert info.value.line is not None

@@ -50,10 +50,14 @@ def test_real_file_reads_and_round_trips(tmp_path, name, frames, joints, fps, wr
     assert again.read_bytes() == out.read_bytes()
     # the default writes principal values: every angle within ±180°, same rotations
     wrapped = write_bvh(tmp_path / "wrap.bvh", mo)
-    data = np.loadtxt(wrapped.read_text().split("Frame Time:")[1].split("\n", 1)[1].splitlines(),
-                      ndmin=2)
-    rot_cols = [i for i, c in enumerate(c for j in _dfs(mo) for c in mo.skeleton.channels[j])
-                if c.endswith("rotation")]
+    data = np.loadtxt(
+        wrapped.read_text().split("Frame Time:")[1].split("\n", 1)[1].splitlines(), ndmin=2
+    )
+    rot_cols = [
+        i
+        for i, c in enumerate(c for j in _dfs(mo) for c in mo.skeleton.channels[j])
+        if c.endswith("rotation")
+    ]
     assert np.abs(data[:, rot_cols]).max() <= 180.0 + 1e-6
     w = read_bvh(wrapped)
     assert np.max(tf.quat_angle(w.rotation, mo.rotation)) < 1e-6
@@ -122,8 +126,14 @@ def test_hand_written_dialect(tmp_path):
     p.write_bytes(HAND.encode())
     mo = read_bvh(p)
     assert mo.names == ("root", "mid", "tip")
-    assert mo.skeleton.channels[0] == ("Zrotation", "Xposition", "Yrotation", "Yposition",
-                                       "Xrotation", "Zposition")
+    assert mo.skeleton.channels[0] == (
+        "Zrotation",
+        "Xposition",
+        "Yrotation",
+        "Yposition",
+        "Xrotation",
+        "Zposition",
+    )
     assert mo.rotation_orders == ("ZYX", "YXZ", "YZX")
     assert np.allclose(mo.skeleton.offset[1], [0, 15, 0])
     assert np.allclose(mo.skeleton.end_site[2], [0, 1, 0])
@@ -158,18 +168,21 @@ def _broken(tmp_path, text: str):
 GOOD = HAND.replace("\r", "")
 
 
-@pytest.mark.parametrize("mutate,line,needle", [
-    (lambda s: s.rsplit("\n", 2)[0] + "\n", None, "truncated"),          # last frame missing
-    (lambda s: s.replace("0.1 40 50 60", "0.1 40 50"), 23, "expected 14"),  # short line
-    (lambda s: s.replace("-30 -2", "-30 abc"), 24, "'abc' is not a number"),
-    (lambda s: s.replace("Frames:\t3\n", ""), 21, "Frames"),
-    (lambda s: s.replace("Frame Time: 0.0333333\n", ""), 22, "Frame Time"),
-    (lambda s: s.replace("Frames:\t3", "Frames: 2"), 25, "more data"),
-    (lambda s: s.replace("CHANNELS 5", "CHANNELS 4"), 8, "Zposition"),
-    (lambda s: s.replace("OFFSET 0 2 0", "OFFSET 0 x 0"), 11, "not a number"),
-    (lambda s: s.split("MOTION")[0].rsplit("}", 2)[0], None, "file ends"),
-    (lambda s: s.replace("Frame Time: 0.0333333", "Frame Time: 0"), 22, "Frame Time"),
-])
+@pytest.mark.parametrize(
+    "mutate,line,needle",
+    [
+        (lambda s: s.rsplit("\n", 2)[0] + "\n", None, "truncated"),  # last frame missing
+        (lambda s: s.replace("0.1 40 50 60", "0.1 40 50"), 23, "expected 14"),  # short line
+        (lambda s: s.replace("-30 -2", "-30 abc"), 24, "'abc' is not a number"),
+        (lambda s: s.replace("Frames:\t3\n", ""), 21, "Frames"),
+        (lambda s: s.replace("Frame Time: 0.0333333\n", ""), 22, "Frame Time"),
+        (lambda s: s.replace("Frames:\t3", "Frames: 2"), 25, "more data"),
+        (lambda s: s.replace("CHANNELS 5", "CHANNELS 4"), 8, "Zposition"),
+        (lambda s: s.replace("OFFSET 0 2 0", "OFFSET 0 x 0"), 11, "not a number"),
+        (lambda s: s.split("MOTION")[0].rsplit("}", 2)[0], None, "file ends"),
+        (lambda s: s.replace("Frame Time: 0.0333333", "Frame Time: 0"), 22, "Frame Time"),
+    ],
+)
 def test_malformed_files_name_the_line(tmp_path, mutate, line, needle):
     err = _broken(tmp_path, mutate(GOOD))
     assert needle in str(err)
@@ -178,12 +191,15 @@ def test_malformed_files_name_the_line(tmp_path, mutate, line, needle):
     assert "bad.bvh" in str(err)
 
 
-@pytest.mark.parametrize("mutate,frames,needle", [
-    (lambda s: s.replace("Frames:\t3", "Frames: 2"), 3, "'Frames: 2' but 3 complete"),
-    (lambda s: s.replace("Frames:\t3", "Frames: 7"), 3, "'Frames: 7' but 3 complete"),
-    (lambda s: s.rsplit("\n", 2)[0] + "\n", 2, "'Frames: 3' but 2 complete"),
-    (lambda s: s.rstrip("\n").rsplit(" ", 3)[0] + "\n", 2, "cut-off last line"),
-])
+@pytest.mark.parametrize(
+    "mutate,frames,needle",
+    [
+        (lambda s: s.replace("Frames:\t3", "Frames: 2"), 3, "'Frames: 2' but 3 complete"),
+        (lambda s: s.replace("Frames:\t3", "Frames: 7"), 3, "'Frames: 7' but 3 complete"),
+        (lambda s: s.rsplit("\n", 2)[0] + "\n", 2, "'Frames: 3' but 2 complete"),
+        (lambda s: s.rstrip("\n").rsplit(" ", 3)[0] + "\n", 2, "cut-off last line"),
+    ],
+)
 def test_frame_count_mismatch_is_tolerated_with_a_warning(tmp_path, mutate, frames, needle):
     from biomorph.core.motion import MotionInputWarning
 
@@ -210,17 +226,23 @@ def test_empty_and_non_bvh(tmp_path):
     assert "HIERARCHY" in str(_broken(tmp_path, "hello world\nMOTION\n"))
 
 
-@pytest.mark.parametrize("mutate,line,needle", [
-    # the file ends inside an End Site block (was an IndexError on the End Site marker)
-    (lambda s: s.split("OFFSET 0 1E0 0")[0], None, "file ends inside joint 'tip'"),
-    (lambda s: s.replace("      }\n    }\n  }\n}\nMOTION", "MOTION"), 16,
-     "MOTION inside joint 'tip'"),
-    # overflowing and non-finite numbers (were accepted as inf / nan)
-    (lambda s: s.replace("-30 -2", "-30 1e999"), 24, "overflows"),
-    (lambda s: s.replace("-30 -2", "-30 -2e400"), 24, "overflows"),
-    (lambda s: s.replace("OFFSET 0 2 0", "OFFSET 0 nan 0"), 11, "finite"),
-    (lambda s: s.replace("OFFSET 0 2 0", "OFFSET 0 1e999 0"), 11, "finite"),
-])
+@pytest.mark.parametrize(
+    "mutate,line,needle",
+    [
+        # the file ends inside an End Site block (was an IndexError on the End Site marker)
+        (lambda s: s.split("OFFSET 0 1E0 0")[0], None, "file ends inside joint 'tip'"),
+        (
+            lambda s: s.replace("      }\n    }\n  }\n}\nMOTION", "MOTION"),
+            16,
+            "MOTION inside joint 'tip'",
+        ),
+        # overflowing and non-finite numbers (were accepted as inf / nan)
+        (lambda s: s.replace("-30 -2", "-30 1e999"), 24, "overflows"),
+        (lambda s: s.replace("-30 -2", "-30 -2e400"), 24, "overflows"),
+        (lambda s: s.replace("OFFSET 0 2 0", "OFFSET 0 nan 0"), 11, "finite"),
+        (lambda s: s.replace("OFFSET 0 2 0", "OFFSET 0 1e999 0"), 11, "finite"),
+    ],
+)
 def test_damaged_files_raise_format_errors(tmp_path, mutate, line, needle):
     err = _broken(tmp_path, mutate(GOOD))
     assert needle in str(err), str(err)
@@ -245,20 +267,35 @@ def test_long_take_euler_blocks_equal_sequential_reference(tmp_path):
     f = 2 * _EULER_CHUNK + 808
     t = np.arange(f)
     rng = np.random.default_rng(5)
-    root = np.column_stack([np.sin(t / 50), np.cos(t / 70), 0.01 * t,
-                            (7.3 * t) % 360 - 180, 40 * np.sin(t / 30), (3.1 * t) % 360 - 180])
+    root = np.column_stack(
+        [
+            np.sin(t / 50),
+            np.cos(t / 70),
+            0.01 * t,
+            (7.3 * t) % 360 - 180,
+            40 * np.sin(t / 30),
+            (3.1 * t) % 360 - 180,
+        ]
+    )
     mid = np.column_stack([(11.7 * t) % 360 - 180, 80 * np.sin(t / 9), rng.normal(0, 20, f)])
     data = np.column_stack([root, mid])
-    text = ("HIERARCHY\nROOT r\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition "
-            "Zrotation Xrotation Yrotation\n JOINT m\n {\n  OFFSET 0 1 0\n  CHANNELS 3 "
-            "Yrotation Zrotation Xrotation\n  End Site\n  {\n   OFFSET 0 1 0\n  }\n }\n}\n"
-            f"MOTION\nFrames: {f}\nFrame Time: 0.01\n")
+    text = (
+        "HIERARCHY\nROOT r\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition "
+        "Zrotation Xrotation Yrotation\n JOINT m\n {\n  OFFSET 0 1 0\n  CHANNELS 3 "
+        "Yrotation Zrotation Xrotation\n  End Site\n  {\n   OFFSET 0 1 0\n  }\n }\n}\n"
+        f"MOTION\nFrames: {f}\nFrame Time: 0.01\n"
+    )
     p = tmp_path / "long.bvh"
     p.write_text(text + "\n".join(" ".join(f"{v:.9f}" for v in row) for row in data) + "\n")
     mo = read_bvh(p)
     vals = np.loadtxt(p, skiprows=text.count("\n"))
-    ref = np.stack([tf.euler_to_quat(vals[:, 3:6], "ZXY", degrees=True),
-                    tf.euler_to_quat(vals[:, 6:9], "YZX", degrees=True)], axis=1)
+    ref = np.stack(
+        [
+            tf.euler_to_quat(vals[:, 3:6], "ZXY", degrees=True),
+            tf.euler_to_quat(vals[:, 6:9], "YZX", degrees=True),
+        ],
+        axis=1,
+    )
     ref = tf.quat_continuous(ref, axis=0)
     ref *= np.sign(np.sum(ref[:1] * mo.rotation[:1], axis=-1))[..., None]
     assert np.abs(mo.rotation - ref).max() < 1e-12
@@ -274,11 +311,14 @@ def test_scanner_values_equal_python_float(tmp_path):
     for k, v in enumerate(mags):
         fmt = ("{:.17g}", "{:.6f}", "{:.3e}", "{:.12E}", "{:+.9g}")[k % 5]
         toks.append(fmt.format(v))
-    rows = [toks[i:i + 6] for i in range(0, 600, 6)]
-    text = ("HIERARCHY\nROOT r\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition "
-            "Zrotation Xrotation Yrotation\n End Site\n {\n  OFFSET 0 1 0\n }\n}\n"
-            f"MOTION\nFrames: {len(rows)}\nFrame Time: 0.01\n"
-            + "\n".join(" ".join(r) for r in rows) + "\n")
+    rows = [toks[i : i + 6] for i in range(0, 600, 6)]
+    text = (
+        "HIERARCHY\nROOT r\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition "
+        "Zrotation Xrotation Yrotation\n End Site\n {\n  OFFSET 0 1 0\n }\n}\n"
+        f"MOTION\nFrames: {len(rows)}\nFrame Time: 0.01\n"
+        + "\n".join(" ".join(r) for r in rows)
+        + "\n"
+    )
     p = tmp_path / "nums.bvh"
     p.write_text(text)
     mo = read_bvh(p)
@@ -321,7 +361,7 @@ def test_parallel_scan_equals_the_sequential_one(tmp_path, parallel_scan):
     raw = p.read_bytes()
     buf = np.frombuffer(raw, dtype=np.uint8)
     start = raw.index(b"\n", raw.index(b"Frame Time")) + 1
-    n_ch = len(raw[start:raw.index(b"\n", start)].split())
+    n_ch = len(raw[start : raw.index(b"\n", start)].split())
     a = np.empty(400 * n_ch)
     b = np.empty(400 * n_ch)
     assert bvh_module._scan_floats_parallel(buf, start, a, n_ch)[:2] == (a.size, 0)
@@ -347,16 +387,16 @@ MOTION_DAMAGE = [
 
 
 @pytest.mark.parametrize("mutate,line,needle", MOTION_DAMAGE)
-def test_parallel_scan_keeps_the_exact_diagnostics(tmp_path, parallel_scan, mutate, line,
-                                                   needle):
+def test_parallel_scan_keeps_the_exact_diagnostics(tmp_path, parallel_scan, mutate, line, needle):
     err = _broken(tmp_path, mutate(GOOD))
     assert needle in str(err)
     if line is not None:
         assert err.line == line, str(err)
 
 
-@pytest.mark.parametrize("name", ["ad_fair1_zombie_walk.bvh", "ad_rokoko_jesse_dance.bvh",
-                                  "cmu_01_01.bvh"])
+@pytest.mark.parametrize(
+    "name", ["ad_fair1_zombie_walk.bvh", "ad_rokoko_jesse_dance.bvh", "cmu_01_01.bvh"]
+)
 def test_streamed_read_equals_the_whole_read(monkeypatch, name):
     """Big MOTION sections are read in blocks through one buffer: rotations (with
     hemisphere continuity across blocks), root positions, joint translations and the
@@ -369,8 +409,7 @@ def test_streamed_read_equals_the_whole_read(monkeypatch, name):
     monkeypatch.setattr(bvh_module, "_STREAM_FRAMES", 7)
     calls = []
     real = bvh_module._stream_motion
-    monkeypatch.setattr(bvh_module, "_stream_motion",
-                        lambda *a: calls.append(1) or real(*a))
+    monkeypatch.setattr(bvh_module, "_stream_motion", lambda *a: calls.append(1) or real(*a))
     part = read_bvh(path)
     assert calls and np.array_equal(part.rotation, whole.rotation)
     assert np.array_equal(part.root_position, whole.root_position)
@@ -380,8 +419,7 @@ def test_streamed_read_equals_the_whole_read(monkeypatch, name):
 
 
 @pytest.mark.parametrize("mutate,line,needle", MOTION_DAMAGE)
-def test_streamed_read_keeps_the_exact_diagnostics(tmp_path, monkeypatch, mutate, line,
-                                                   needle):
+def test_streamed_read_keeps_the_exact_diagnostics(tmp_path, monkeypatch, mutate, line, needle):
     import biomorph.io.bvh as bvh_module
 
     monkeypatch.setattr(bvh_module, "_STREAM_MIN_BYTES", 1)

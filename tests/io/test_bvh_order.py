@@ -13,8 +13,7 @@ from biomorph.motion.motion import Motion
 def test_breadth_first_skeleton_round_trips(tmp_path) -> None:
     names = ["root", "a", "b", "a1", "b1", "a2"]
     parent = [-1, 0, 0, 1, 2, 3]  # breadth-first: the file lists root a a1 a2 b b1
-    offset = np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, 1, 0], [0, 0, 1]],
-                      float)
+    offset = np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, 1, 0], [0, 0, 1]], float)
     skeleton = JointSkeleton(names, parent, offset)
     rng = np.random.default_rng(3)
     rotation = tf.quat_from_rotvec(rng.normal(size=(5, 6, 3)) * 0.6)

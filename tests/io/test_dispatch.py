@@ -15,13 +15,15 @@ from biomorph.errors import FormatError, UnsupportedFormatError
 @pytest.mark.parametrize("ext", sorted(bio.POINT_FORMATS))
 def test_every_point_format_round_trips(tmp_path, ext):
     rng = np.random.default_rng(0)
-    c = PointCloud(rng.uniform(0, 10, (50, 3)), {"intensity": rng.integers(0, 999, 50)
-                                                 .astype(np.uint16)})
+    c = PointCloud(
+        rng.uniform(0, 10, (50, 3)), {"intensity": rng.integers(0, 999, 50).astype(np.uint16)}
+    )
     back = bio.read_points(bio.write_points(tmp_path / f"c{ext}", c))
     tol = 1e-4 if ext in (".las", ".laz") else 0.0
     assert np.abs(back.xyz - c.xyz).max() <= tol
-    assert np.array_equal(back.attributes["intensity"].astype(np.int64),
-                          c.attributes["intensity"].astype(np.int64))
+    assert np.array_equal(
+        back.attributes["intensity"].astype(np.int64), c.attributes["intensity"].astype(np.int64)
+    )
 
 
 @pytest.mark.parametrize("ext", sorted(bio.GRAPH_FORMATS))

@@ -67,16 +67,24 @@ Frame Time: 0.033333
 
 def _cloud() -> PointCloud:
     rng = np.random.default_rng(0)
-    return PointCloud(rng.uniform(0, 3, (40, 3)), {
-        "intensity": rng.integers(0, 999, 40).astype(np.uint16),
-        "Deviation": rng.normal(size=40).astype(np.float32)})
+    return PointCloud(
+        rng.uniform(0, 3, (40, 3)),
+        {
+            "intensity": rng.integers(0, 999, 40).astype(np.uint16),
+            "Deviation": rng.normal(size=40).astype(np.float32),
+        },
+    )
 
 
 def _graph() -> BranchGraph:
     rng = np.random.default_rng(1)
     parent = np.array([-1, 0, 1, 1, 3, 4, 2, -1, 7])
-    return BranchGraph(rng.normal(size=(9, 3)), parent, radius=rng.uniform(0.01, 0.1, 9),
-                       depth=[0, 0, 0, 1, 1, 1, 0, 0, 0])
+    return BranchGraph(
+        rng.normal(size=(9, 3)),
+        parent,
+        radius=rng.uniform(0.01, 0.1, 9),
+        depth=[0, 0, 0, 1, 1, 1, 0, 0, 0],
+    )
 
 
 def _mesh() -> Mesh:
@@ -96,6 +104,7 @@ def _written(module: str, func: str, ext: str, obj_factory: Callable, **kw) -> C
         p = tmp / f"sample{ext}"
         getattr(mod, func)(p, obj_factory(), **kw)
         return p.read_bytes()
+
     return make
 
 
@@ -109,6 +118,7 @@ def _shared(*parts: str, limit: int = 60_000) -> Callable:
         if not p.exists():
             pytest.skip(f"real data {p} absent")
         return p.read_bytes()[:limit] if limit else p.read_bytes()
+
     return make
 
 
@@ -137,36 +147,65 @@ def _amc_with_asf(tmp: Path) -> bytes:
 CASES = [
     ("las", "las", "read_points", ".las", _written("las", "write_points", ".las", _cloud)),
     ("laz", "las", "read_points", ".laz", _written("las", "write_points", ".laz", _cloud)),
-    ("ply-points-bin", "ply", "read_points", ".ply",
-     _written("ply", "write_points", ".ply", _cloud)),
-    ("ply-points-ascii", "ply", "read_points", ".ply",
-     _written("ply", "write_points", ".ply", _cloud, text=True)),
-    ("ply-graph", "ply", "read_graph", ".ply",
-     _written("ply", "write_graph", ".ply", _graph, text=True)),
+    (
+        "ply-points-bin",
+        "ply",
+        "read_points",
+        ".ply",
+        _written("ply", "write_points", ".ply", _cloud),
+    ),
+    (
+        "ply-points-ascii",
+        "ply",
+        "read_points",
+        ".ply",
+        _written("ply", "write_points", ".ply", _cloud, text=True),
+    ),
+    (
+        "ply-graph",
+        "ply",
+        "read_graph",
+        ".ply",
+        _written("ply", "write_graph", ".ply", _graph, text=True),
+    ),
     ("ply-graph-bin", "ply", "read_graph", ".ply", _written("ply", "write_graph", ".ply", _graph)),
     ("ply-mesh", "ply", "read_mesh", ".ply", _written("ply", "write_mesh", ".ply", _mesh)),
     ("xyz", "xyz", "read_points", ".xyz", _written("xyz", "write_points", ".xyz", _cloud)),
     ("csv", "xyz", "read_points", ".csv", _written("xyz", "write_points", ".csv", _cloud)),
     ("npy", "npy", "read_points", ".npy", _written("npy", "write_points", ".npy", _cloud)),
     ("mtg", "mtg", "read_graph", ".mtg", _written("mtg", "write_graph", ".mtg", _graph)),
-    ("mtg-real", "mtg", "read_graph", ".mtg", _shared("trees", "plantscan3d_A3B4.mtg",
-                                                      limit=0)),
+    ("mtg-real", "mtg", "read_graph", ".mtg", _shared("trees", "plantscan3d_A3B4.mtg", limit=0)),
     ("obj", "obj", "read_mesh", ".obj", _written("obj", "write_mesh", ".obj", _mesh)),
     ("bvh", "bvh", "read_bvh", ".bvh", _text(BVH)),
     ("bvh-motion", "bvh", "read_motion", ".bvh", _text(BVH)),
-    ("htr", "htr", "read_motion", ".htr", _shared("motion", "animal3d_egnaro_skel_anim.htr",
-                                                  limit=0)),
+    (
+        "htr",
+        "htr",
+        "read_motion",
+        ".htr",
+        _shared("motion", "animal3d_egnaro_skel_anim.htr", limit=0),
+    ),
     ("asf", "asf", "read_motion", ".asf", _asf_with_amc),
     ("amc", "asf", "read_motion", ".amc", _amc_with_asf),
     ("can", "caribu", "read_can", ".can", _written("caribu", "write_can", ".can", _mesh)),
     ("can-real", "caribu", "read_can", ".can", lambda tmp: _first_can(tmp)),
     ("svg", "svg_annotations", "read_annotations", ".svg", lambda tmp: _svg()),
-    ("qsm-csv", "biomorph.tree.reference", "read_qsm_csv", ".csv",
-     _shared("trees", "rtwig_QSM_simpleforest.csv", limit=0)),
+    (
+        "qsm-csv",
+        "biomorph.tree.reference",
+        "read_qsm_csv",
+        ".csv",
+        _shared("trees", "rtwig_QSM_simpleforest.csv", limit=0),
+    ),
     ("laz-real", "las", "read_points", ".laz", _shared("trees", "treels_spruce.laz", limit=0)),
     ("las-real", "las", "read_points", ".las", _shared("trees", "archi_tree2.las", limit=0)),
-    ("glb-summary", "gltf", "read_gltf_summary", ".glb",
-     _written("gltf", "write_gltf", ".glb", lambda: _mesh())),
+    (
+        "glb-summary",
+        "gltf",
+        "read_gltf_summary",
+        ".glb",
+        _written("gltf", "write_gltf", ".glb", lambda: _mesh()),
+    ),
 ]
 
 
@@ -206,13 +245,13 @@ def mutate(data: bytes, rng: np.random.Generator) -> bytes:
         return bytes(b[:pos]) + rng.bytes(int(rng.integers(1, 16))) + bytes(b[pos:])
     if kind == 3:  # delete a chunk
         pos = int(rng.integers(0, max(n, 1)))
-        return bytes(b[:pos] + b[pos + int(rng.integers(1, 64)):])
+        return bytes(b[:pos] + b[pos + int(rng.integers(1, 64)) :])
     if kind == 4:  # damage a digit into a letter or a special value
         digits = [i for i, c in enumerate(b) if 48 <= c <= 57]
         if digits:
             i = digits[int(rng.integers(0, len(digits)))]
             repl = [b"x", b"nan", b"inf", b"-", b".", b"1e999", b""][int(rng.integers(0, 7))]
-            return bytes(b[:i]) + repl + bytes(b[i + 1:])
+            return bytes(b[:i]) + repl + bytes(b[i + 1 :])
         return bytes(b)
     if kind == 5:  # duplicate or drop a line
         lines = bytes(b).split(b"\n")
@@ -226,16 +265,25 @@ def mutate(data: bytes, rng: np.random.Generator) -> bytes:
     # kind 6: overwrite a 4-byte window with extreme integers (binary headers, counts)
     if n >= 4:
         pos = int(rng.integers(0, n - 3))
-        b[pos:pos + 4] = [(0xFF, 0xFF, 0xFF, 0x7F), (0, 0, 0, 0), (0xFF,) * 4][
-            int(rng.integers(0, 3))]
+        b[pos : pos + 4] = [(0xFF, 0xFF, 0xFF, 0x7F), (0, 0, 0, 0), (0xFF,) * 4][
+            int(rng.integers(0, 3))
+        ]
     return bytes(b)
 
 
 def non_finite_fields(result: object) -> list[str]:
     """Names of the numeric fields of a reader's result that hold NaN or inf."""
     bad = []
-    for name in ("xyz", "position", "vertices", "rotation", "root_position", "offset",
-                 "radius", "joint_translation"):
+    for name in (
+        "xyz",
+        "position",
+        "vertices",
+        "rotation",
+        "root_position",
+        "offset",
+        "radius",
+        "joint_translation",
+    ):
         val = getattr(result, name, None)
         if val is None and name == "offset":
             val = getattr(getattr(result, "skeleton", None), "offset", None)
@@ -267,16 +315,20 @@ def fuzz_case(name: str, folder: str) -> None:
         except Exception as exc:  # noqa: BLE001 - this is what the test is looking for
             keep = tmp_path / f"crash_{it}{ext}"
             keep.write_bytes(mutated)
-            raise AssertionError(f"{module}.{func} raised {type(exc).__name__}: {exc} on "
-                                 f"mutation {it} (saved at {keep})") from None
+            raise AssertionError(
+                f"{module}.{func} raised {type(exc).__name__}: {exc} on "
+                f"mutation {it} (saved at {keep})"
+            ) from None
         else:
             bad = non_finite_fields(result)
             if bad:
                 keep = tmp_path / f"nonfinite_{it}{ext}"
                 keep.write_bytes(mutated)
-                raise AssertionError(f"{module}.{func} accepted a file giving NaN/inf in {bad} "
-                                     f"on mutation {it} (saved at {keep}); expected a "
-                                     "FormatError")
+                raise AssertionError(
+                    f"{module}.{func} accepted a file giving NaN/inf in {bad} "
+                    f"on mutation {it} (saved at {keep}); expected a "
+                    "FormatError"
+                )
 
 
 CHILD = """
@@ -307,9 +359,14 @@ class FuzzChild:
     def _start(self) -> None:
         root = Path(__file__).resolve().parents[2]
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), *sys.path])}
-        self.proc = subprocess.Popen([sys.executable, "-c", CHILD], env=env, text=True,
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", CHILD],
+            env=env,
+            text=True,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
         assert self._line(120) == "READY", self._died()
 
     def _line(self, seconds: float) -> str | None:
@@ -326,8 +383,9 @@ class FuzzChild:
     def _died(self) -> str:
         assert self.proc is not None
         code = self.proc.wait(10)
-        tail = "\n".join((self.proc.stderr.read() if self.proc.stderr else "").strip()
-                         .splitlines()[-6:])
+        tail = "\n".join(
+            (self.proc.stderr.read() if self.proc.stderr else "").strip().splitlines()[-6:]
+        )
         self.proc = None
         how = f"was killed by signal {-code}" if code < 0 else f"exited with {code}"
         return f"the reading process {how}\n{tail}"
@@ -362,9 +420,19 @@ def child():
     c.close()
 
 
-@pytest.mark.parametrize("case", [
-    pytest.param(c, id=c[0], marks=[pytest.mark.xfail(reason=KNOWN_BUGS[c[0]], strict=False)]
-                 if c[0] in KNOWN_BUGS else []) for c in CASES])
+@pytest.mark.parametrize(
+    "case",
+    [
+        pytest.param(
+            c,
+            id=c[0],
+            marks=[pytest.mark.xfail(reason=KNOWN_BUGS[c[0]], strict=False)]
+            if c[0] in KNOWN_BUGS
+            else [],
+        )
+        for c in CASES
+    ],
+)
 def test_reader_only_raises_biomorph_errors(tmp_path, child, case):
     name, module, func = case[:3]
     try:
@@ -377,5 +445,6 @@ def test_reader_only_raises_biomorph_errors(tmp_path, child, case):
     if status == "SKIP":
         pytest.skip(message)
     if status != "OK":
-        pytest.fail(f"{module}.{func}: {message}; input being read is saved at "
-                    f"{tmp_path / 'current'}")
+        pytest.fail(
+            f"{module}.{func}: {message}; input being read is saved at {tmp_path / 'current'}"
+        )

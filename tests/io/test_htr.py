@@ -74,23 +74,30 @@ def test_small_written_htr(tmp_path):
     assert np.allclose(m.skeleton.offset[1], [0, 0.5, 0])  # cm -> m
     assert np.allclose(m.root_position[1], [0.1, 1.0, 0])  # base + frame translation
     # arm base rotation Rz(90): rest; frame 1 pose Rx(30) (R = Rz Ry Rx)
-    assert tf.quat_angle(m.skeleton.rest_rotation[1], tf.euler_to_quat([90, 0, 0], "ZYX",
-                                                                       degrees=True)) < 1e-12
+    assert (
+        tf.quat_angle(
+            m.skeleton.rest_rotation[1], tf.euler_to_quat([90, 0, 0], "ZYX", degrees=True)
+        )
+        < 1e-12
+    )
     assert tf.quat_angle(m.rotation[1, 1], tf.quat_from_axis_angle("x", np.radians(30))) < 1e-9
     assert np.allclose(m.skeleton.end_site[2], [0, 0.1, 0])
     w = m.world_positions()
     assert np.allclose(w[0, 2], [-0.3, 1.5, 0])  # arm bone along rotated Y = -X
 
 
-@pytest.mark.parametrize("mutate,needle", [
-    (lambda s: s.replace("[EndOfFile]\r\n", ""), "EndOfFile"),
-    (lambda s: s.replace("1\t0\t0\t0\t30\t0\t0\t1\r\n", ""), "has 1 frames"),
-    (lambda s: s.replace("1\t0\t0\t0\t30", "1\t0\t0\t0\tabc"), "'abc' is not a number"),
-    (lambda s: s.replace("hand\tarm", "hand\tfoot"), "unknown parent"),
-    (lambda s: s.replace("[BasePosition]", "[Base]"), "BasePosition"),
-    (lambda s: s.replace("EulerRotationOrder ZYX", "EulerRotationOrder ABC"), "ABC"),
-    (lambda s: "", "empty"),
-])
+@pytest.mark.parametrize(
+    "mutate,needle",
+    [
+        (lambda s: s.replace("[EndOfFile]\r\n", ""), "EndOfFile"),
+        (lambda s: s.replace("1\t0\t0\t0\t30\t0\t0\t1\r\n", ""), "has 1 frames"),
+        (lambda s: s.replace("1\t0\t0\t0\t30", "1\t0\t0\t0\tabc"), "'abc' is not a number"),
+        (lambda s: s.replace("hand\tarm", "hand\tfoot"), "unknown parent"),
+        (lambda s: s.replace("[BasePosition]", "[Base]"), "BasePosition"),
+        (lambda s: s.replace("EulerRotationOrder ZYX", "EulerRotationOrder ABC"), "ABC"),
+        (lambda s: "", "empty"),
+    ],
+)
 def test_bad_htr(tmp_path, mutate, needle):
     p = tmp_path / "bad.htr"
     p.write_bytes(mutate(SMALL).encode())
@@ -99,15 +106,18 @@ def test_bad_htr(tmp_path, mutate, needle):
     assert needle in str(info.value) and "bad.htr" in str(info.value)
 
 
-@pytest.mark.parametrize("mutate,needle", [
-    (lambda s: s.replace("1\t0\t0\t0\t30", "1\t0\t0\t0\t1e999"), "non-finite"),
-    (lambda s: s.replace("1\t0\t0\t0\t30", "1\t0\t0\t0\tnan"), "non-finite"),
-    (lambda s: s.replace("arm\t0\t50\t0", "arm\t0\tinf\t0"), "non-finite"),
-    (lambda s: s.replace("ScaleFactor 1.0", "ScaleFactor nan"), "ScaleFactor"),
-    (lambda s: s.replace("DataFrameRate 30", "DataFrameRate nan"), "DataFrameRate"),
-    # a damaged NumFrames is reported, not allocated
-    (lambda s: s.replace("NumFrames 2", "NumFrames 2000000000000"), "NumFrames says"),
-])
+@pytest.mark.parametrize(
+    "mutate,needle",
+    [
+        (lambda s: s.replace("1\t0\t0\t0\t30", "1\t0\t0\t0\t1e999"), "non-finite"),
+        (lambda s: s.replace("1\t0\t0\t0\t30", "1\t0\t0\t0\tnan"), "non-finite"),
+        (lambda s: s.replace("arm\t0\t50\t0", "arm\t0\tinf\t0"), "non-finite"),
+        (lambda s: s.replace("ScaleFactor 1.0", "ScaleFactor nan"), "ScaleFactor"),
+        (lambda s: s.replace("DataFrameRate 30", "DataFrameRate nan"), "DataFrameRate"),
+        # a damaged NumFrames is reported, not allocated
+        (lambda s: s.replace("NumFrames 2", "NumFrames 2000000000000"), "NumFrames says"),
+    ],
+)
 def test_damaged_htr_values(tmp_path, mutate, needle):
     p = tmp_path / "bad.htr"
     p.write_bytes(mutate(SMALL).encode())
@@ -116,11 +126,18 @@ def test_damaged_htr_values(tmp_path, mutate, needle):
     assert needle in str(info.value) and "bad.htr" in str(info.value)
 
 
-@pytest.mark.parametrize("mutate,frames,needle", [
-    (lambda s: s.replace("[EndOfFile]\r\n", ""), 2, "no [EndOfFile]"),
-    (lambda s: s.replace("1\t0\t0\t0\t30\t0\t0\t1\r\n", ""), 1, "read the 1 frames"),
-    (lambda s: s.replace("NumFrames 2", "NumFrames 2000000000000"), 2, "NumFrames 2000000000000"),
-])
+@pytest.mark.parametrize(
+    "mutate,frames,needle",
+    [
+        (lambda s: s.replace("[EndOfFile]\r\n", ""), 2, "no [EndOfFile]"),
+        (lambda s: s.replace("1\t0\t0\t0\t30\t0\t0\t1\r\n", ""), 1, "read the 1 frames"),
+        (
+            lambda s: s.replace("NumFrames 2", "NumFrames 2000000000000"),
+            2,
+            "NumFrames 2000000000000",
+        ),
+    ],
+)
 def test_tolerated_htr_reads_with_a_warning(tmp_path, mutate, frames, needle):
     from biomorph.core.motion import MotionInputWarning
 

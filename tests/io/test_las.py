@@ -15,16 +15,19 @@ from tests.conftest import shared_file
 def cloud_with_extras(n=500, seed=0):
     rng = np.random.default_rng(seed)
     xyz = rng.uniform(-5, 5, (n, 3)) + [350_000.0, 5_600_000.0, 120.0]  # UTM-like
-    return PointCloud(xyz, {
-        "intensity": rng.integers(0, 65535, n).astype(np.uint16),
-        "classification": rng.integers(0, 31, n).astype(np.uint8),
-        "red": rng.integers(0, 65535, n).astype(np.uint16),
-        "green": rng.integers(0, 65535, n).astype(np.uint16),
-        "blue": rng.integers(0, 65535, n).astype(np.uint16),
-        "gps_time": rng.uniform(0, 1e5, n),
-        "Deviation": rng.normal(size=n).astype(np.float32),
-        "segment": rng.integers(-100, 100, n).astype(np.int32),
-    })
+    return PointCloud(
+        xyz,
+        {
+            "intensity": rng.integers(0, 65535, n).astype(np.uint16),
+            "classification": rng.integers(0, 31, n).astype(np.uint8),
+            "red": rng.integers(0, 65535, n).astype(np.uint16),
+            "green": rng.integers(0, 65535, n).astype(np.uint16),
+            "blue": rng.integers(0, 65535, n).astype(np.uint16),
+            "gps_time": rng.uniform(0, 1e5, n),
+            "Deviation": rng.normal(size=n).astype(np.float32),
+            "segment": rng.integers(-100, 100, n).astype(np.int32),
+        },
+    )
 
 
 @pytest.mark.parametrize("ext", [".las", ".laz"])
@@ -89,11 +92,14 @@ def test_bad_attribute_leaves_no_file(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("content,match", [
-    (b"", "empty"),
-    (b"LASF" + b"\0" * 50, "LAS/LAZ"),
-    (b"hello world, not a point cloud\n" * 10, "LAS/LAZ"),
-])
+@pytest.mark.parametrize(
+    "content,match",
+    [
+        (b"", "empty"),
+        (b"LASF" + b"\0" * 50, "LAS/LAZ"),
+        (b"hello world, not a point cloud\n" * 10, "LAS/LAZ"),
+    ],
+)
 def test_malformed(tmp_path, content, match):
     p = tmp_path / "bad.las"
     p.write_bytes(content)
@@ -160,7 +166,7 @@ def _laszip_at(data: bytes) -> int:
     import struct
 
     pos = struct.unpack_from("<H", data, 94)[0]
-    while data[pos + 2:pos + 16] != b"laszip encoded":
+    while data[pos + 2 : pos + 16] != b"laszip encoded":
         pos += 54 + struct.unpack_from("<H", data, pos + 20)[0]
     return pos + 54
 
@@ -189,8 +195,9 @@ def test_corrupt_laz_is_one_format_error_never_an_abort(tmp_path, damage):
     good = las.write_points(tmp_path / "g.laz", cloud_with_extras(2000))
     bad = tmp_path / f"{damage}.laz"
     bad.write_bytes(patch(good.read_bytes()))
-    res = subprocess.run([sys.executable, "-c", READ_IN_CHILD, str(bad)], capture_output=True,
-                         text=True, timeout=120)
+    res = subprocess.run(
+        [sys.executable, "-c", READ_IN_CHILD, str(bad)], capture_output=True, text=True, timeout=120
+    )
     assert res.returncode == 2, (res.returncode, res.stderr[-2000:])
     msg = res.stdout.strip()
     assert str(bad) in msg and words in msg and len(msg.splitlines()) == 1, msg
@@ -202,7 +209,7 @@ def test_corrupt_laz_chunk_is_named(tmp_path):
     good = las.write_points(tmp_path / "g.laz", cloud_with_extras(120_000))
     data = bytearray(good.read_bytes())
     at = len(data) - 2000
-    data[at:at + 16] = bytes(16)
+    data[at : at + 16] = bytes(16)
     bad = tmp_path / "bad.laz"
     bad.write_bytes(bytes(data))
     with pytest.raises(FormatError, match=r"chunk 2 \(points 100000 to 119999\) is corrupt"):

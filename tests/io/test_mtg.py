@@ -18,9 +18,14 @@ def canonical(g: BranchGraph):
     rows = []
     for i in range(g.n_nodes):
         p = g.parent[i]
-        rows.append((tuple(g.position[i]), tuple(g.position[p]) if p >= 0 else None,
-                     None if g.radius is None else g.radius[i],
-                     None if g.depth is None else int(g.depth[i])))
+        rows.append(
+            (
+                tuple(g.position[i]),
+                tuple(g.position[p]) if p >= 0 else None,
+                None if g.radius is None else g.radius[i],
+                None if g.depth is None else int(g.depth[i]),
+            )
+        )
     return sorted(rows, key=repr)
 
 
@@ -32,8 +37,9 @@ def test_plantscan3d_file_readme_figures():
     g = mtg.read_graph(path, missing_radius="skip")
     assert g.n_nodes == 589 and g.roots.size == 1 and g.leaves.size == 136
     assert g.total_length == pytest.approx(31.23, abs=0.005)
-    assert g.radius.min() == pytest.approx(0.008) and g.radius.max() == pytest.approx(0.0265,
-                                                                                      abs=1e-4)
+    assert g.radius.min() == pytest.approx(0.008) and g.radius.max() == pytest.approx(
+        0.0265, abs=1e-4
+    )
 
 
 def test_plantscan3d_file_all_rows():
@@ -79,13 +85,15 @@ HEAD = "CODE :\tFORM-A\n\nMTG :\nENTITY-CODE\t\t\tXX\tYY\tZZ\tradius\n"
 
 
 def test_hand_written_multiscale_file(tmp_path):
-    text = HEAD + ("/P1\t\t\t\t\t\t\n"
-                   "^/N1\t\t\t0\t0\t0\t0.1\n"
-                   "^<N2\t\t\t0\t0\t1\t0.09\n"
-                   "\t+N3\t\t1\t0\t1\t0.05\n"
-                   "\t^<N4\t\t2\t0\t1\t0.04\n"
-                   "\t\t+N5\t2\t1\t1\t0.02\n"
-                   "^<N6\t\t\t0\t0\t2\t0.08\n")
+    text = HEAD + (
+        "/P1\t\t\t\t\t\t\n"
+        "^/N1\t\t\t0\t0\t0\t0.1\n"
+        "^<N2\t\t\t0\t0\t1\t0.09\n"
+        "\t+N3\t\t1\t0\t1\t0.05\n"
+        "\t^<N4\t\t2\t0\t1\t0.04\n"
+        "\t\t+N5\t2\t1\t1\t0.02\n"
+        "^<N6\t\t\t0\t0\t2\t0.08\n"
+    )
     p = tmp_path / "h.mtg"
     p.write_text(text)
     g = mtg.read_graph(p)
@@ -94,16 +102,19 @@ def test_hand_written_multiscale_file(tmp_path):
     assert g.total_length == pytest.approx(1 + 1 + 1 + 1 + 1)
 
 
-@pytest.mark.parametrize("body,line,match", [
-    ("/P1\n^/N\t\t\t0\t0\tx\t0.1\n", 6, "ZZ holds 'x'"),
-    ("/P1\n^/N\t\t\t0\t0\n", 6, "only some of XX YY ZZ"),
-    ("/P1\n^/N\t\t\t0\t0\tnan\t0.1\n", 6, "only some"),
-    ("/P1\n^/N\t\t\t0\t0\t0\tinf\n", 6, "radius is inf"),
-    ("^<N\t\t\t0\t0\t0\t0.1\n", 5, "no entity is there yet"),
-    ("/P1\n\t\t+N\t0\t0\t0\t0.1\n", 6, "refers to column 1"),
-    ("/P1\n^/N\t\t\t0\t0\t0\t0.1\n^?N\t\t\t0\t0\t1\t0.1\n", 7, "malformed"),
-    ("/P1\n", None, "no entity carries XX YY ZZ"),
-])
+@pytest.mark.parametrize(
+    "body,line,match",
+    [
+        ("/P1\n^/N\t\t\t0\t0\tx\t0.1\n", 6, "ZZ holds 'x'"),
+        ("/P1\n^/N\t\t\t0\t0\n", 6, "only some of XX YY ZZ"),
+        ("/P1\n^/N\t\t\t0\t0\tnan\t0.1\n", 6, "only some"),
+        ("/P1\n^/N\t\t\t0\t0\t0\tinf\n", 6, "radius is inf"),
+        ("^<N\t\t\t0\t0\t0\t0.1\n", 5, "no entity is there yet"),
+        ("/P1\n\t\t+N\t0\t0\t0\t0.1\n", 6, "refers to column 1"),
+        ("/P1\n^/N\t\t\t0\t0\t0\t0.1\n^?N\t\t\t0\t0\t1\t0.1\n", 7, "malformed"),
+        ("/P1\n", None, "no entity carries XX YY ZZ"),
+    ],
+)
 def test_malformed_rows_name_the_line(tmp_path, body, line, match):
     p = tmp_path / "bad.mtg"
     p.write_text(HEAD + body)
@@ -112,12 +123,15 @@ def test_malformed_rows_name_the_line(tmp_path, body, line, match):
     assert err.value.line == line
 
 
-@pytest.mark.parametrize("text,match", [
-    ("", "empty"),
-    ("CODE : FORM-A\nno section here\n", "no 'MTG :' section"),
-    ("MTG :\nsomething else\n", "ENTITY-CODE"),
-    ("MTG :\nENTITY-CODE\t\tAA\tBB\n/P1\n", "XX, YY, ZZ missing"),
-])
+@pytest.mark.parametrize(
+    "text,match",
+    [
+        ("", "empty"),
+        ("CODE : FORM-A\nno section here\n", "no 'MTG :' section"),
+        ("MTG :\nsomething else\n", "ENTITY-CODE"),
+        ("MTG :\nENTITY-CODE\t\tAA\tBB\n/P1\n", "XX, YY, ZZ missing"),
+    ],
+)
 def test_malformed_structure(tmp_path, text, match):
     p = tmp_path / "bad.mtg"
     p.write_text(text)

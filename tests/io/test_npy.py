@@ -16,8 +16,13 @@ def test_plain_and_structured_round_trip(tmp_path):
     plain = npy.read_points(npy.write_points(tmp_path / "a.npy", PointCloud(xyz)))
     assert np.array_equal(plain.xyz, xyz) and plain.attributes == {}
     assert np.load(tmp_path / "a.npy").shape == (100, 3)
-    c = PointCloud(xyz, {"i": rng.integers(0, 9, 100).astype(np.uint8),
-                         "d": rng.normal(size=100).astype(np.float32)})
+    c = PointCloud(
+        xyz,
+        {
+            "i": rng.integers(0, 9, 100).astype(np.uint8),
+            "d": rng.normal(size=100).astype(np.float32),
+        },
+    )
     back = npy.read_points(npy.write_points(tmp_path / "b.npy", c))
     assert np.array_equal(back.xyz, xyz)
     for k, v in c.attributes.items():
@@ -33,15 +38,18 @@ def test_wide_plain_array_extra_columns(tmp_path):
     assert np.array_equal(c.attributes["column_4"], arr[:, 4])
 
 
-@pytest.mark.parametrize("arr,match", [
-    (np.zeros(5), "shape"),
-    (np.zeros((5, 2)), "shape"),
-    (np.zeros((0, 3)), "no points"),
-    (np.array([[0, 0, np.nan]]), "row 0"),
-    (np.array([[0, 0, 1], [0, np.inf, 0]]), "row 1"),
-    (np.array([["a", "b", "c"]]), "not numeric"),
-    (np.zeros(3, dtype=[("x", float), ("y", float)]), "fields x, y, z"),
-])
+@pytest.mark.parametrize(
+    "arr,match",
+    [
+        (np.zeros(5), "shape"),
+        (np.zeros((5, 2)), "shape"),
+        (np.zeros((0, 3)), "no points"),
+        (np.array([[0, 0, np.nan]]), "row 0"),
+        (np.array([[0, 0, 1], [0, np.inf, 0]]), "row 1"),
+        (np.array([["a", "b", "c"]]), "not numeric"),
+        (np.zeros(3, dtype=[("x", float), ("y", float)]), "fields x, y, z"),
+    ],
+)
 def test_malformed_arrays(tmp_path, arr, match):
     p = tmp_path / "bad.npy"
     np.save(p, arr)

@@ -70,8 +70,9 @@ def test_normals_and_uv_written(tmp_path):
 
 def test_accepts_tuple_dict_trimesh_and_vertex_colors(tmp_path):
     box = trimesh.creation.box()
-    for i, src in enumerate([(box.vertices, box.faces),
-                             {"vertices": box.vertices, "faces": box.faces}, box]):
+    for i, src in enumerate(
+        [(box.vertices, box.faces), {"vertices": box.vertices, "faces": box.faces}, box]
+    ):
         p = obj.write_mesh(tmp_path / f"b{i}.obj", src)
         assert np.isclose(obj.read_mesh(p).area(), box.area)
     colored = Mesh(box.vertices, box.faces, vertex_colors=np.tile([255, 0, 0, 255], (8, 1)))
@@ -86,8 +87,9 @@ def test_bad_mesh_writes_nothing(tmp_path):
 
 
 def faces_with_ids(m, keys):
-    return sorted(zip(map(tuple, m.faces.tolist()),
-                      *[m.face_ids[k].tolist() for k in keys], strict=True))
+    return sorted(
+        zip(map(tuple, m.faces.tolist()), *[m.face_ids[k].tolist() for k in keys], strict=True)
+    )
 
 
 def test_read_back_restores_face_ids_uv_normals(tmp_path):

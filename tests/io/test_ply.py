@@ -17,18 +17,27 @@ from tests.core.test_treeops import random_forest
 def forest(n=40, roots=2, seed=0):
     rng = np.random.default_rng(seed)
     parent = random_forest(n, roots, seed)
-    return BranchGraph(rng.normal(size=(n, 3)), parent, radius=rng.uniform(0.01, 0.1, n),
-                       weight=rng.uniform(0, 5, n), depth=rng.integers(0, 4, n))
+    return BranchGraph(
+        rng.normal(size=(n, 3)),
+        parent,
+        radius=rng.uniform(0.01, 0.1, n),
+        weight=rng.uniform(0, 5, n),
+        depth=rng.integers(0, 4, n),
+    )
 
 
 @pytest.mark.parametrize("text", [False, True])
 def test_points_round_trip_any_properties(tmp_path, text):
     rng = np.random.default_rng(0)
-    c = PointCloud(rng.normal(size=(200, 3)), {
-        "intensity": rng.integers(0, 60000, 200).astype(np.uint16),
-        "nx": rng.normal(size=200).astype(np.float32),
-        "label": rng.integers(-9, 9, 200).astype(np.int8),
-        "big": rng.integers(0, 10**6, 200)})
+    c = PointCloud(
+        rng.normal(size=(200, 3)),
+        {
+            "intensity": rng.integers(0, 60000, 200).astype(np.uint16),
+            "nx": rng.normal(size=200).astype(np.float32),
+            "label": rng.integers(-9, 9, 200).astype(np.int8),
+            "big": rng.integers(0, 10**6, 200),
+        },
+    )
     back = ply.read_points(ply.write_points(tmp_path / "c.ply", c, text=text))
     assert np.array_equal(back.xyz, c.xyz)
     for k in ("intensity", "nx", "label"):
@@ -60,24 +69,30 @@ def test_graph_with_reversed_or_unordered_edges_is_oriented_from_lowest_node(tmp
     dt = [("vertex1", "i4"), ("vertex2", "i4")]
     p = tmp_path / "rev.ply"
     edge = np.array([(0, 1), (2, 1), (2, 3), (4, 5)], dtype=dt)
-    plyfile.PlyData([plyfile.PlyElement.describe(vert, "vertex"),
-                     plyfile.PlyElement.describe(edge, "edge")]).write(str(p))
+    plyfile.PlyData(
+        [plyfile.PlyElement.describe(vert, "vertex"), plyfile.PlyElement.describe(edge, "edge")]
+    ).write(str(p))
     assert ply.read_graph(p).parent.tolist() == [-1, 0, 1, 2, 5, -1]
     # a consistent parent->child forest is taken as written, even if it hangs downwards
     edge = np.array([(1, 0), (2, 1), (3, 2), (4, 5)], dtype=dt)
-    plyfile.PlyData([plyfile.PlyElement.describe(vert, "vertex"),
-                     plyfile.PlyElement.describe(edge, "edge")]).write(str(p))
+    plyfile.PlyData(
+        [plyfile.PlyElement.describe(vert, "vertex"), plyfile.PlyElement.describe(edge, "edge")]
+    ).write(str(p))
     assert ply.read_graph(p).parent.tolist() == [1, 2, 3, -1, -1, 4]
 
 
 def test_graph_cycle_and_bad_edges(tmp_path):
     vert = np.zeros(3, dtype=[("x", "f8"), ("y", "f8"), ("z", "f8")])
-    for edges, match in ([[(0, 1), (1, 2), (2, 0)], "cycle"], [[(0, 7)], "edge 0 joins"],
-                         [[(1, 1)], "edge 0 joins"]):
+    for edges, match in (
+        [[(0, 1), (1, 2), (2, 0)], "cycle"],
+        [[(0, 7)], "edge 0 joins"],
+        [[(1, 1)], "edge 0 joins"],
+    ):
         e = np.array(edges, dtype=[("vertex1", "i4"), ("vertex2", "i4")])
         p = tmp_path / "c.ply"
-        plyfile.PlyData([plyfile.PlyElement.describe(vert, "vertex"),
-                         plyfile.PlyElement.describe(e, "edge")]).write(str(p))
+        plyfile.PlyData(
+            [plyfile.PlyElement.describe(vert, "vertex"), plyfile.PlyElement.describe(e, "edge")]
+        ).write(str(p))
         with pytest.raises(FormatError, match=match):
             ply.read_graph(p)
 
@@ -90,8 +105,13 @@ def test_graph_without_edges_is_all_roots(tmp_path):
 
 def test_mesh_round_trip_with_face_ids(tmp_path):
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
-    m = Mesh(v, [[0, 1, 2], [0, 2, 3]], uv=v[:, :2], vertex_colors=[[255, 0, 0, 255]] * 4,
-             face_ids={"plant": [0, 0], "leaf": [3, 4]}).compute_normals()
+    m = Mesh(
+        v,
+        [[0, 1, 2], [0, 2, 3]],
+        uv=v[:, :2],
+        vertex_colors=[[255, 0, 0, 255]] * 4,
+        face_ids={"plant": [0, 0], "leaf": [3, 4]},
+    ).compute_normals()
     back = ply.read_mesh(ply.write_mesh(tmp_path / "m.ply", m))
     assert np.allclose(back.vertices, m.vertices) and np.array_equal(back.faces, m.faces)
     assert back.face_ids["leaf"].tolist() == [3, 4] and back.face_ids["plant"].tolist() == [0, 0]
@@ -106,30 +126,41 @@ def test_mesh_round_trip_with_face_ids(tmp_path):
 
 def test_mesh_quads_are_triangulated(tmp_path):
     p = tmp_path / "q.ply"
-    p.write_text("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
-                 "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
-                 "end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
+    p.write_text(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+        "end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n"
+    )
     m = ply.read_mesh(p)
     assert m.n_faces == 2 and np.isclose(m.area(), 1.0)
 
 
-HEADER = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n" \
-         "property float z\nend_header\n"
+HEADER = (
+    "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+    "property float z\nend_header\n"
+)
 
 
-@pytest.mark.parametrize("content,match", [
-    (b"", "empty"),
-    (b"not a ply file\n", "malformed"),
-    ((HEADER + "0 0 0\n1 1 nan\n").encode(), "vertex 1 has a NaN"),
-    ((HEADER + "0 0 0\n1 1\n").encode(), "row 1 has 2 values; expected 3"),
-    ((HEADER + "0 0 0\n1 x 1\n").encode(), "'x' is not a number"),
-    ((HEADER + "0 0 0\n").encode(), "truncated"),
-    ((HEADER.replace("vertex 2", "vertex 0")).encode(), "empty"),
-    (b"ply\nformat ascii 1.0\nelement point 1\nproperty float x\nend_header\n1\n",
-     "no 'vertex' element"),
-    (b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
-     "lacks properties y, z"),
-])
+@pytest.mark.parametrize(
+    "content,match",
+    [
+        (b"", "empty"),
+        (b"not a ply file\n", "malformed"),
+        ((HEADER + "0 0 0\n1 1 nan\n").encode(), "vertex 1 has a NaN"),
+        ((HEADER + "0 0 0\n1 1\n").encode(), "row 1 has 2 values; expected 3"),
+        ((HEADER + "0 0 0\n1 x 1\n").encode(), "'x' is not a number"),
+        ((HEADER + "0 0 0\n").encode(), "truncated"),
+        ((HEADER.replace("vertex 2", "vertex 0")).encode(), "empty"),
+        (
+            b"ply\nformat ascii 1.0\nelement point 1\nproperty float x\nend_header\n1\n",
+            "no 'vertex' element",
+        ),
+        (
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
+            "lacks properties y, z",
+        ),
+    ],
+)
 def test_malformed(tmp_path, content, match):
     p = tmp_path / "bad.ply"
     p.write_bytes(content)
@@ -143,10 +174,14 @@ def test_malformed(tmp_path, content, match):
 
 def test_ascii_fast_path_matches_plyfile(tmp_path):
     rng = np.random.default_rng(5)
-    c = PointCloud(rng.normal(size=(500, 3)) * 1e3, {
-        "i8": rng.integers(-100, 100, 500).astype(np.int8),
-        "u16": rng.integers(0, 60000, 500).astype(np.uint16),
-        "f32": rng.normal(size=500).astype(np.float32)})
+    c = PointCloud(
+        rng.normal(size=(500, 3)) * 1e3,
+        {
+            "i8": rng.integers(-100, 100, 500).astype(np.int8),
+            "u16": rng.integers(0, 60000, 500).astype(np.uint16),
+            "f32": rng.normal(size=500).astype(np.float32),
+        },
+    )
     p = ply.write_points(tmp_path / "a.ply", c, text=True)
     ours = ply.read_points(p)
     ref = plyfile.PlyData.read(str(p))["vertex"].data  # the library on our own text
@@ -159,9 +194,11 @@ def test_ascii_fast_path_matches_plyfile(tmp_path):
     back = ply.read_graph(ply.write_graph(tmp_path / "g.ply", g, text=True))
     assert np.array_equal(back.parent, g.parent) and np.array_equal(back.radius, g.radius)
     bad = tmp_path / "range.ply"
-    bad.write_text("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
-                   "property float y\nproperty float z\nproperty uchar c\nend_header\n"
-                   "0 0 0 300\n")
+    bad.write_text(
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+        "property float y\nproperty float z\nproperty uchar c\nend_header\n"
+        "0 0 0 300\n"
+    )
     with pytest.raises(FormatError, match="expected an integer in range") as err:
         ply.read_points(bad)
     assert err.value.line == 9

@@ -20,16 +20,19 @@ def write(tmp_path, text, name="c.xyz"):
     return p
 
 
-@pytest.mark.parametrize("text", [
-    "1 2 3\n4 5 6\n",
-    "1\t2\t3\n4\t5\t6\n",
-    "1,2,3\n4,5,6\n",
-    "1, 2, 3\r\n4 ,5,6\r\n",
-    "1;2;3\n4;5;6\n",
-    "1  2 \t 3\n\n\n4 5 6",
-    "# comment\n1 2 3\n# more\n4 5 6\n",
-    "1.0e0 2E0 +3\n4.0 .5e1 6.\n",
-])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "1 2 3\n4 5 6\n",
+        "1\t2\t3\n4\t5\t6\n",
+        "1,2,3\n4,5,6\n",
+        "1, 2, 3\r\n4 ,5,6\r\n",
+        "1;2;3\n4;5;6\n",
+        "1  2 \t 3\n\n\n4 5 6",
+        "# comment\n1 2 3\n# more\n4 5 6\n",
+        "1.0e0 2E0 +3\n4.0 .5e1 6.\n",
+    ],
+)
 def test_delimiters_and_layouts(tmp_path, text):
     c = xyz.read_points(write(tmp_path, text))
     assert np.allclose(c.xyz, [[1, 2, 3], [4, 5, 6]])
@@ -42,8 +45,9 @@ def test_decimal_comma_with_semicolons(tmp_path):
 
 
 def test_header_names_columns_and_picks_xyz(tmp_path):
-    c = xyz.read_points(write(tmp_path, "intensity,X,Y,Z,Deviation\n7,1,2,3,0.5\n8,4,5,6,0.25\n",
-                              "c.csv"))
+    c = xyz.read_points(
+        write(tmp_path, "intensity,X,Y,Z,Deviation\n7,1,2,3,0.5\n8,4,5,6,0.25\n", "c.csv")
+    )
     assert np.allclose(c.xyz, [[1, 2, 3], [4, 5, 6]])
     assert c.attributes["intensity"].tolist() == [7, 8]
     assert c.attributes["intensity"].dtype == np.int64
@@ -65,15 +69,22 @@ def test_pts_count_line(tmp_path):
     assert c.n_points == 2 and c.attributes["column_3"].tolist() == [-5, 7]
 
 
-@pytest.mark.parametrize("name,count", [("adtree_tree1.xyz", 11855), ("rtwig_cloud.txt", 14667),
-                                        ("plantscan3d_A3B4.asc", 20903),
-                                        ("adtree_tiny_for_debug.xyz", 245)])
+@pytest.mark.parametrize(
+    "name,count",
+    [
+        ("adtree_tree1.xyz", 11855),
+        ("rtwig_cloud.txt", 14667),
+        ("plantscan3d_A3B4.asc", 20903),
+        ("adtree_tiny_for_debug.xyz", 245),
+    ],
+)
 def test_real_files(name, count):
     path = shared_file("trees", name)
     c = xyz.read_points(path)
     assert c.n_points == count
-    ref = np.array([[float(t) for t in ln.split()[:3]] for ln in path.read_text().splitlines()
-                    if ln.strip()])
+    ref = np.array(
+        [[float(t) for t in ln.split()[:3]] for ln in path.read_text().splitlines() if ln.strip()]
+    )
     assert np.array_equal(c.xyz, ref)
 
 
@@ -87,9 +98,14 @@ def test_real_csv_with_spaced_header():
 @pytest.mark.parametrize("ext", [".xyz", ".txt", ".csv", ".asc", ".pts"])
 def test_round_trip_exact(tmp_path, ext):
     rng = np.random.default_rng(1)
-    c = PointCloud(rng.normal(size=(300, 3)) * 1000, {
-        "intensity": rng.integers(0, 5000, 300), "Deviation": rng.normal(size=300),
-        "f32": rng.normal(size=300).astype(np.float32)})
+    c = PointCloud(
+        rng.normal(size=(300, 3)) * 1000,
+        {
+            "intensity": rng.integers(0, 5000, 300),
+            "Deviation": rng.normal(size=300),
+            "f32": rng.normal(size=300).astype(np.float32),
+        },
+    )
     back = xyz.read_points(xyz.write_points(tmp_path / f"c{ext}", c))
     assert np.array_equal(back.xyz, c.xyz)
     assert np.array_equal(back.attributes["intensity"], c.attributes["intensity"])
@@ -104,27 +120,35 @@ def test_precision_option(tmp_path):
 
 
 @settings(max_examples=25, deadline=None)
-@given(arrays(np.float64, st.tuples(st.integers(1, 20), st.just(3)),
-              elements=st.floats(-1e12, 1e12, allow_nan=False, allow_subnormal=False)))
+@given(
+    arrays(
+        np.float64,
+        st.tuples(st.integers(1, 20), st.just(3)),
+        elements=st.floats(-1e12, 1e12, allow_nan=False, allow_subnormal=False),
+    )
+)
 def test_round_trip_property(tmp_path_factory, pts):
     p = tmp_path_factory.mktemp("x") / "r.xyz"
     back = xyz.read_points(xyz.write_points(p, PointCloud(pts)))
     assert np.array_equal(back.xyz, pts)
 
 
-@pytest.mark.parametrize("text,line,match", [
-    ("", None, "empty"),
-    ("   \n\n", None, "empty"),
-    ("1 2 3\n4 5 6\n7 8\n", 3, "2 columns; expected 3"),
-    ("1 2 3\n4 5 6 7\n", 2, "4 columns"),
-    ("1 2 3\n4 five 6\n", 2, "column 2 holds 'five'"),
-    ("1 2 3\n4 5 nan\n", 2, "NaN or inf"),
-    ("x y z\n1 2 3\n1 inf 3\n", 3, "NaN or inf"),
-    ("1 2\n3 4\n", 1, "at least 3"),
-    ("a b c\n", 1, "no numeric data"),
-    ("1,2,3\n4,,6\n", 2, "column 2"),
-    ("x y z w\n1 2 3\n", 1, "header names 4 columns"),
-])
+@pytest.mark.parametrize(
+    "text,line,match",
+    [
+        ("", None, "empty"),
+        ("   \n\n", None, "empty"),
+        ("1 2 3\n4 5 6\n7 8\n", 3, "2 columns; expected 3"),
+        ("1 2 3\n4 5 6 7\n", 2, "4 columns"),
+        ("1 2 3\n4 five 6\n", 2, "column 2 holds 'five'"),
+        ("1 2 3\n4 5 nan\n", 2, "NaN or inf"),
+        ("x y z\n1 2 3\n1 inf 3\n", 3, "NaN or inf"),
+        ("1 2\n3 4\n", 1, "at least 3"),
+        ("a b c\n", 1, "no numeric data"),
+        ("1,2,3\n4,,6\n", 2, "column 2"),
+        ("x y z w\n1 2 3\n", 1, "header names 4 columns"),
+    ],
+)
 def test_malformed_names_line(tmp_path, text, line, match):
     p = write(tmp_path, text)
     with pytest.raises(FormatError, match=match) as err:
@@ -155,10 +179,15 @@ def test_writer_refuses_nan_and_leaves_no_file(tmp_path):
 
 
 @settings(max_examples=40, deadline=None)
-@given(arrays(np.float64, st.tuples(st.integers(1, 30), st.just(4)),
-              elements=st.floats(-1e30, 1e30, allow_nan=False, allow_subnormal=False)),
-       st.sampled_from(["%.3f", "%.6e", "%r", "%g", "%.15g", "%.0f", "%+.2E"]),
-       st.sampled_from([" ", "\t", ",", ";"]))
+@given(
+    arrays(
+        np.float64,
+        st.tuples(st.integers(1, 30), st.just(4)),
+        elements=st.floats(-1e30, 1e30, allow_nan=False, allow_subnormal=False),
+    ),
+    st.sampled_from(["%.3f", "%.6e", "%r", "%g", "%.15g", "%.0f", "%+.2E"]),
+    st.sampled_from([" ", "\t", ",", ";"]),
+)
 def test_compiled_scanner_is_bit_exact(tmp_path_factory, values, fmt, sep):
     """Every token must parse to exactly float(token), whatever the format."""
     lines = [sep.join(fmt % v for v in row.tolist()) for row in values]
@@ -183,9 +212,15 @@ def test_compiled_scanner_special_tokens(tmp_path):
 
 
 @settings(max_examples=30, deadline=None)
-@given(arrays(np.float64, st.tuples(st.integers(1, 40), st.just(3)),
-              elements=st.floats(-1e9, 1e9, allow_nan=False, allow_subnormal=False)),
-       st.integers(0, 6), arrays(np.int64, 40, elements=st.integers(-2**40, 2**40)))
+@given(
+    arrays(
+        np.float64,
+        st.tuples(st.integers(1, 40), st.just(3)),
+        elements=st.floats(-1e9, 1e9, allow_nan=False, allow_subnormal=False),
+    ),
+    st.integers(0, 6),
+    arrays(np.int64, 40, elements=st.integers(-(2**40), 2**40)),
+)
 def test_fixed_precision_writer_matches_printf(tmp_path_factory, pts, precision, ints):
     c = PointCloud(pts, {"i": ints[: len(pts)]})
     p = xyz.write_points(tmp_path_factory.mktemp("w") / "w.csv", c, precision=precision)

@@ -31,9 +31,9 @@ def test_distichous_phyllotaxy_and_ages() -> None:
     spec = PlantSpec(leaves=6, age=1.0, azimuth_jitter_deg=0.0)
     plant = build_plant(spec, seed=1)
     d = np.diff(plant.azimuth)
-    assert np.allclose(np.cos(d), -1.0)             # successive leaves 180° apart
+    assert np.allclose(np.cos(d), -1.0)  # successive leaves 180° apart
     assert np.all(np.diff(plant.origin[:, 2]) > 0)  # insertion heights increase up the stem
-    assert np.all(np.diff(plant.age) <= 0)          # lower leaves are older
+    assert np.all(np.diff(plant.age) <= 0)  # lower leaves are older
     young = build_plant(PlantSpec(leaves=6, age=0.25), seed=1)
     assert young.n_leaves < plant.n_leaves
 
@@ -44,7 +44,7 @@ def test_ids_and_lai() -> None:
     assert set(np.unique(m.face_ids["plant"])) == set(range(12))
     leaf_faces = m.face_ids["leaf"] > 0
     counts = np.bincount(m.face_ids["plant"][leaf_faces] * 10 + m.face_ids["leaf"][leaf_faces])
-    assert set(counts[counts > 0]) == {15}            # every leaf got its LOD budget
+    assert set(counts[counts > 0]) == {15}  # every leaf got its LOD budget
     lai = leaf_area_index(fld, m)
     assert lai == pytest.approx(m.face_areas()[leaf_faces].sum() / (3 * 0.2 * 4 * 0.2 / 3))
     assert 0.05 < lai < 10

@@ -59,7 +59,7 @@ def test_fully_grown_leaf_equals_mature_preset() -> None:
     mature = wheat.mesh(n_s=40)
     assert np.abs(grown.vertices - mature.vertices).max() < 1e-9
     young, old = wheat.midrib(51, age=0.0), wheat.midrib(51, age=1.0)
-    assert old[-1, 2] < wheat.midrib(51)[-1, 2] < young[-1, 2]    # droops with age
+    assert old[-1, 2] < wheat.midrib(51)[-1, 2] < young[-1, 2]  # droops with age
 
 
 def test_thermal_time_axis() -> None:
@@ -71,11 +71,12 @@ def test_thermal_time_axis() -> None:
     assert not tt.emerged(50.0, 3) and tt.emerged(150.0, 3)
     with pytest.raises(ParameterError, match="phyllochron"):
         ThermalTime(phyllochron=0.0)
-    spec = FieldSpec(plants=4, rows=2, plant=PlantSpec(preset="wheat", leaves=8,
-                                                      thermal_time=500.0))
+    spec = FieldSpec(
+        plants=4, rows=2, plant=PlantSpec(preset="wheat", leaves=8, thermal_time=500.0)
+    )
     with pytest.warns(LeafCountWarning, match="thermal time 500"):
         fld = build_field(spec, seed=0)
-    assert fld.n_leaves == 4 * 7            # ranks with HS - rank >= -2: 1..7
+    assert fld.n_leaves == 4 * 7  # ranks with HS - rank >= -2: 1..7
 
 
 def test_leaf_count_warning_instead_of_silence() -> None:
@@ -89,14 +90,22 @@ def test_leaf_count_warning_instead_of_silence() -> None:
 
 
 def test_no_vertex_below_ground_and_leaf_bends_at_soil() -> None:
-    spec = FieldSpec(plants=30, rows=3, plant=PlantSpec(preset="wheat", leaves=9, age=1.0,
-                                                       stem_height=0.05))
+    spec = FieldSpec(
+        plants=30, rows=3, plant=PlantSpec(preset="wheat", leaves=9, age=1.0, stem_height=0.05)
+    )
     fld = build_field(spec, seed=3)
     m = field_mesh(fld, triangles_per_leaf=21)
     assert m.vertices[:, 2].min() >= 0.0
-    free = field_mesh(build_field(FieldSpec(**{**spec.__dict__, "plant": PlantSpec(
-        **{**spec.plant.__dict__, "soil": False})}), seed=3), triangles_per_leaf=21)
-    assert (free.vertices[:, 2] < -1e-3).sum() > 0       # the same leaves went underground
+    free = field_mesh(
+        build_field(
+            FieldSpec(
+                **{**spec.__dict__, "plant": PlantSpec(**{**spec.plant.__dict__, "soil": False})}
+            ),
+            seed=3,
+        ),
+        triangles_per_leaf=21,
+    )
+    assert (free.vertices[:, 2] < -1e-3).sum() > 0  # the same leaves went underground
     # length is kept when a leaf is bent at the soil
     shape = LeafShape.parametric(0.3, 0.02, insertion_deg=-30.0, bending_deg=40.0)
     b = LeafBatch.from_shapes([shape], s=np.linspace(0, 1, 31), origin=[(0, 0, 0.05)])
@@ -104,4 +113,4 @@ def test_no_vertex_below_ground_and_leaf_bends_at_soil() -> None:
     assert rested.seg.sum() == pytest.approx(0.3)
     mesh = mesh_batch(rested, n_u=3)
     assert mesh.vertices[:, 2].min() >= 0.0
-    assert np.isclose(mesh.vertices[:, 2], 0.0).sum() > 10   # the tip part lies on the soil
+    assert np.isclose(mesh.vertices[:, 2], 0.0).sum() > 10  # the tip part lies on the soil

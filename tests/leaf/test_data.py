@@ -18,7 +18,7 @@ def test_data_path_resolved_only_when_asked(tmp_path, monkeypatch) -> None:
     (tmp_path / "leaves").mkdir()
     monkeypatch.setenv("BIOMORPH_SHARED_DATA", str(tmp_path))
     assert data.shared_leaves() == tmp_path / "leaves"
-    assert data.SHARED_LEAVES == tmp_path / "leaves"   # compatibility name, lazy
+    assert data.SHARED_LEAVES == tmp_path / "leaves"  # compatibility name, lazy
 
 
 def test_curve_helpers_live_in_core() -> None:

@@ -18,4 +18,4 @@ def test_demo_sections(tmp_path) -> None:
             assert f.exists() and f.stat().st_size > 0
     lod = next(s for s in sections if "levels of detail" in s.title)
     budgets = [row[0] for row in lod.tables[0].rows]
-    assert budgets == [row[1] for row in lod.tables[0].rows]   # triangle count = budget
+    assert budgets == [row[1] for row in lod.tables[0].rows]  # triangle count = budget

@@ -44,8 +44,7 @@ def test_area_non_decreasing_with_positive_rates() -> None:
 
 def test_collection_interpolates_between_ages() -> None:
     s = np.linspace(0, 1, 5)
-    coll = MidribCollection(np.array([0.0, 10.0]), s, np.array([np.full(5, 1.0),
-                                                                np.full(5, 0.0)]))
+    coll = MidribCollection(np.array([0.0, 10.0]), s, np.array([np.full(5, 1.0), np.full(5, 0.0)]))
     assert np.allclose(coll.phi_at(0.25), 0.75)
     pts = coll.curve_at(0.5, form="curve")
     assert np.linalg.norm(np.diff(pts, axis=0), axis=1).sum() == pytest.approx(1.0)
@@ -56,8 +55,7 @@ def test_collection_interpolates_between_ages() -> None:
 def test_held_out_age_of_real_trajectories() -> None:
     from biomorph.leaf.data import read_trajectories
 
-    path = shared_file("leaves", "adel", "echap_leaf_data",
-                       "median_leaf_trajectories_Tremie12.csv")
+    path = shared_file("leaves", "adel", "echap_leaf_data", "median_leaf_trajectories_Tremie12.csv")
     coll = read_trajectories(path)[1]
     # drop every other stored age and predict the held-out ones by interpolation
     keep = np.arange(0, coll.ages.size, 2)
@@ -86,8 +84,12 @@ def test_timeline_bad_input() -> None:
 def test_collections_by_leaf_class() -> None:
     from biomorph.leaf.data import read_trajectories
 
-    path = shared_file("leaves", "adel", "echap_leaf_data",
-                       "median_leaf_trajectories_Tremie_Boigneville2012_2013_byleafclass.csv")
+    path = shared_file(
+        "leaves",
+        "adel",
+        "echap_leaf_data",
+        "median_leaf_trajectories_Tremie_Boigneville2012_2013_byleafclass.csv",
+    )
     colls = read_trajectories(path)
     assert sorted(colls) == [1, 2]
     for c in colls.values():

@@ -16,27 +16,31 @@ from biomorph.leaf.light import LightOptions, intercept, sky_directions, sun_pos
 from tests.conftest import shared_file
 
 
-def turbid(lai: float, size: float = 1.0, leaf: float = 0.03, seed: int = 0,
-           horizontal: bool = True) -> Mesh:
+def turbid(
+    lai: float, size: float = 1.0, leaf: float = 0.03, seed: int = 0, horizontal: bool = True
+) -> Mesh:
     """Square leaves at uniform random positions (a Poisson turbid medium) between 0.2 and
     1.2 m, horizontal or uniformly (spherically) oriented."""
     rng = np.random.default_rng(seed)
-    n = int(round(lai * size * size / leaf ** 2))
-    c = np.column_stack([rng.uniform(0, size, n), rng.uniform(0, size, n),
-                         rng.uniform(0.2, 1.2, n)])
-    sq = np.array([[-.5, -.5, 0], [.5, -.5, 0], [.5, .5, 0], [-.5, .5, 0]]) * leaf
+    n = int(round(lai * size * size / leaf**2))
+    c = np.column_stack(
+        [rng.uniform(0, size, n), rng.uniform(0, size, n), rng.uniform(0.2, 1.2, n)]
+    )
+    sq = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]]) * leaf
     if horizontal:
         rot = np.broadcast_to(np.eye(3), (n, 3, 3))
     else:
         q = rng.standard_normal((n, 4))
         q /= np.linalg.norm(q, axis=1, keepdims=True)
         w, x, y, z = q.T
-        rot = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w),
-                                  2 * (x * z + y * w)], -1),
-                        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z),
-                                  2 * (y * z - x * w)], -1),
-                        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w),
-                                  1 - 2 * (x * x + y * y)], -1)], 1)
+        rot = np.stack(
+            [
+                np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+                np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+                np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+            ],
+            1,
+        )
     v = (np.einsum("nij,kj->nki", rot, sq) + c[:, None]).reshape(-1, 3)
     f = (np.array([[0, 1, 2], [0, 2, 3]])[None] + 4 * np.arange(n)[:, None, None]).reshape(-1, 3)
     return Mesh(v, f)
@@ -59,12 +63,23 @@ def test_gap_fraction_follows_beer_lambert(lai: float, horizontal: bool) -> None
 def test_analytic_shadow_of_one_horizontal_leaf() -> None:
     a, h = 0.2, 0.5
     v = np.array([[0, 0, h], [a, 0, h], [a, a, h], [0, a, h]]) + [0.4, 0.4, 0]
-    leaf = Mesh(v, np.array([[0, 1, 2], [0, 2, 3]]), face_ids={"plant": np.zeros(2, int),
-                                                                "leaf": np.ones(2, int)})
+    leaf = Mesh(
+        v,
+        np.array([[0, 1, 2], [0, 2, 3]]),
+        face_ids={"plant": np.zeros(2, int), "leaf": np.ones(2, int)},
+    )
     when = datetime(2026, 6, 21, 10, 0)
-    opts = LightOptions(when=when, latitude=45.0, longitude=0.0, sky=0, diffuse_fraction=0.0,
-                        par=1000.0, ground=(0, 0, 1, 1), ray_spacing=0.0025,
-                        periodic=False)
+    opts = LightOptions(
+        when=when,
+        latitude=45.0,
+        longitude=0.0,
+        sky=0,
+        diffuse_fraction=0.0,
+        par=1000.0,
+        ground=(0, 0, 1, 1),
+        ray_spacing=0.0025,
+        periodic=False,
+    )
     r = intercept(leaf, opts)
     # a horizontal leaf intercepts the horizontal irradiance times its area, whatever the sun
     assert r.energy.sum() == pytest.approx(1000.0 * a * a, rel=3e-3)
@@ -76,14 +91,14 @@ def test_analytic_shadow_of_one_horizontal_leaf() -> None:
     from biomorph.leaf.light import direction_from
 
     d = direction_from(el, az)
-    shift = -d[:2] / d[2] * h                          # shadow offset on the ground
+    shift = -d[:2] / d[2] * h  # shadow offset on the ground
     assert 0 < np.linalg.norm(shift) < 0.5
     from biomorph.leaf.light import _cast, _Embree, _Trimesh
 
     inside = np.array([[0.5, 0.5, 0.0], [0.45, 0.55, 0.0]]) + [*shift, 0]
     outside = np.array([[0.5, 0.5, 0.0]]) - [*shift, 0]
     ground = np.concatenate([inside, outside])
-    for engine in (_Embree, _Trimesh):           # both ray engines agree
+    for engine in (_Embree, _Trimesh):  # both ray engines agree
         eng = engine(leaf.vertices[leaf.faces])
         hit = _cast(eng, ground, d, 1.0, (0, 0, 1, 1), False)
         assert min(hit[:2]) >= 0 and hit[2] == -1
@@ -105,7 +120,7 @@ def test_sky_matches_caribu_turtle16() -> None:
     rows = np.loadtxt(shared_file("leaves", "caribu", "Turtle16soc.light"))
     theirs = -rows[:, 1:] / np.linalg.norm(rows[:, 1:], axis=1, keepdims=True)  # travel dir.
     ang = np.degrees(np.arccos(np.clip(d @ theirs.T, -1, 1)))
-    assert ang.min(axis=1).max() < 0.1                 # every direction is one of theirs
+    assert ang.min(axis=1).max() < 0.1  # every direction is one of theirs
     d46, w46 = sky_directions(46)
     assert d46.shape == (46, 3) and np.all(d46[:, 2] > 0) and w46.sum() == pytest.approx(1)
 
@@ -127,8 +142,27 @@ def test_light_cli_end_to_end(tmp_path, capsys) -> None:
     assert run(["leaf", "canopy", "--plants", "8", "--rows", "2", "-o", str(field)]) == 0
     capsys.readouterr()
     png, lit, csv = tmp_path / "light.png", tmp_path / "lit.glb", tmp_path / "leaves.csv"
-    assert run(["leaf", "light", str(field), "--sun", "2026-06-21T12:00", "--sky", "0",
-                "--png", str(png), "-o", str(lit), "--table", str(csv), "--json"]) == 0
+    assert (
+        run(
+            [
+                "leaf",
+                "light",
+                str(field),
+                "--sun",
+                "2026-06-21T12:00",
+                "--sky",
+                "0",
+                "--png",
+                str(png),
+                "-o",
+                str(lit),
+                "--table",
+                str(csv),
+                "--json",
+            ]
+        )
+        == 0
+    )
     s = json.loads(capsys.readouterr().out)
     assert 0 < s["gap_fraction"] < 1 and s["engine"] in ("embree", "trimesh")
     assert s["intercepted_fraction"] == pytest.approx(1 - s["gap_fraction"], abs=1e-9)
@@ -145,15 +179,18 @@ def small_field(tmp_path_factory):
     return field
 
 
-@pytest.mark.parametrize("args,match", [
-    (["--sun", "2026-06-21T23:00"], "below the horizon"),
-    (["--sun", "noon"], "ISO 8601"),
-    (["--sky", "12"], "0, 16 or 46"),
-    (["--latitude", "95"], "--latitude"),
-    (["--par", "-1"], "--par"),
-    (["--ground", "1,1,0,0"], "--ground"),
-    (["--png", "x.jpg"], ".png"),
-])
+@pytest.mark.parametrize(
+    "args,match",
+    [
+        (["--sun", "2026-06-21T23:00"], "below the horizon"),
+        (["--sun", "noon"], "ISO 8601"),
+        (["--sky", "12"], "0, 16 or 46"),
+        (["--latitude", "95"], "--latitude"),
+        (["--par", "-1"], "--par"),
+        (["--ground", "1,1,0,0"], "--ground"),
+        (["--png", "x.jpg"], ".png"),
+    ],
+)
 def test_light_cli_bad_input(small_field, tmp_path, capsys, args, match) -> None:
     field = small_field
     out = tmp_path / "lit.glb"
@@ -175,8 +212,13 @@ def test_fallback_engine_warns_and_agrees(monkeypatch) -> None:
     from biomorph.leaf import light
 
     m = turbid(1.0, size=0.3, leaf=0.03, seed=2)
-    opts = LightOptions(when=datetime(2026, 6, 21, 12), sky=0, diffuse_fraction=0.0,
-                        ground=(0, 0, 0.3, 0.3), ray_spacing=0.005)
+    opts = LightOptions(
+        when=datetime(2026, 6, 21, 12),
+        sky=0,
+        diffuse_fraction=0.0,
+        ground=(0, 0, 0.3, 0.3),
+        ray_spacing=0.005,
+    )
     fast = intercept(m, opts)
 
     def missing(tri):
@@ -199,10 +241,11 @@ def test_light_reads_every_canopy_format(small_field, tmp_path, capsys) -> None:
         back = read_canopy(path)
         assert back.n_faces == m.n_faces
         # same ids per face (the OBJ writer groups faces by id, so compare counts)
-        assert np.array_equal(np.bincount(back.face_ids["leaf"]),
-                              np.bincount(m.face_ids["leaf"]))
+        assert np.array_equal(np.bincount(back.face_ids["leaf"]), np.bincount(m.face_ids["leaf"]))
         assert back.area() == pytest.approx(m.area(), rel=1e-5)
-        assert run(["leaf", "light", str(path), "--sun", "2026-06-21T12:00", "--sky", "0",
-                    "--json"]) == 0
+        assert (
+            run(["leaf", "light", str(path), "--sun", "2026-06-21T12:00", "--sky", "0", "--json"])
+            == 0
+        )
         gaps.append(json.loads(capsys.readouterr().out)["gap_fraction"])
     assert max(gaps) - min(gaps) < 0.01

@@ -13,14 +13,28 @@ def test_batch_equals_single_leaves_and_keeps_ids() -> None:
     shapes = [LeafShape.from_preset(n) for n in ("wheat", "maize", "grass")]
     origin = np.array([[0, 0, 0], [1, 0, 0.2], [0, 2, 0.5]], float)
     az = np.array([0.0, 1.0, 2.5])
-    batch = LeafBatch.from_shapes(shapes, ages=[None, 0.4, 0.9], s=np.linspace(0, 1, 12),
-                                  origin=origin, azimuth=az, plant=[3, 3, 4], leaf=[1, 2, 1])
+    batch = LeafBatch.from_shapes(
+        shapes,
+        ages=[None, 0.4, 0.9],
+        s=np.linspace(0, 1, 12),
+        origin=origin,
+        azimuth=az,
+        plant=[3, 3, 4],
+        leaf=[1, 2, 1],
+    )
     m = mesh_batch(batch, n_u=3)
     assert set(np.unique(m.face_ids["plant"])) == {3, 4}
     for i in range(3):
-        single = mesh_batch(LeafBatch.from_shapes([shapes[i]], ages=[[None, 0.4, 0.9][i]],
-                                                  s=np.linspace(0, 1, 12), origin=origin[i],
-                                                  azimuth=az[i]), n_u=3)
+        single = mesh_batch(
+            LeafBatch.from_shapes(
+                [shapes[i]],
+                ages=[[None, 0.4, 0.9][i]],
+                s=np.linspace(0, 1, 12),
+                origin=origin[i],
+                azimuth=az[i],
+            ),
+            n_u=3,
+        )
         sel = (m.face_ids["plant"] == [3, 3, 4][i]) & (m.face_ids["leaf"] == [1, 2, 1][i])
         assert m.face_areas()[sel].sum() == pytest.approx(single.area(), rel=1e-12)
     assert np.allclose(np.linalg.norm(m.normals, axis=1), 1.0)

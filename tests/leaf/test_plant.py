@@ -34,8 +34,9 @@ def test_default_tables_follow_the_wheat_profiles(tmp_path) -> None:
     d, p = default_tables("wheat", 11)
     assert d["rank"].tolist() == list(range(1, 12))
     # the longest blade of Wheat_dimension_profiles.csv (21.2 cm at xn = 0) is F-1
-    assert np.argmax(d["L_blade"]) + 1 == 10 and d["L_blade"].max() == pytest.approx(0.2116,
-                                                                                    abs=1e-3)
+    assert np.argmax(d["L_blade"]) + 1 == 10 and d["L_blade"].max() == pytest.approx(
+        0.2116, abs=1e-3
+    )
     assert np.all(d["L_internode"] >= 0) and np.all(np.diff(p["col"]) == 1)
     write_table(tmp_path / "d.csv", d, DIM_COLUMNS)
     write_table(tmp_path / "p.csv", p, PHEN_COLUMNS)
@@ -44,16 +45,26 @@ def test_default_tables_follow_the_wheat_profiles(tmp_path) -> None:
     assert np.array_equal(read_phenology(tmp_path / "p.csv")["tip"], p["tip"])
 
 
-@pytest.mark.parametrize("kind,text,match", [
-    ("dims", "rank,L_blade,W_blade,L_sheath,W_sheath,L_internode,W_internode\n"
-             "1,0.1,0.01,0.03,0.004,0,0.004\n3,0.1,0.01,0.03,0.004,0,0.004\n",
-     "missing rank(s) 2"),
-    ("dims", "rank,L_blade,W_blade,L_sheath,W_sheath,L_internode,W_internode\n"
-             "1,0.1,0.01,-0.03,0.004,0,0.004\n", "L_sheath = -0.03"),
-    ("dims", "rank,L_blade,W_blade\n1,0.1,0.01\n", "missing column(s) L_sheath"),
-    ("phen", "rank,tip,col,ssi,disp\n1,-1,1,5,13\n2,3,2,6,14\n", "out of order"),
-    ("phen", "rank,tip,col,ssi,disp\n1,-1,x,5,13\n", "not a number"),
-])
+@pytest.mark.parametrize(
+    "kind,text,match",
+    [
+        (
+            "dims",
+            "rank,L_blade,W_blade,L_sheath,W_sheath,L_internode,W_internode\n"
+            "1,0.1,0.01,0.03,0.004,0,0.004\n3,0.1,0.01,0.03,0.004,0,0.004\n",
+            "missing rank(s) 2",
+        ),
+        (
+            "dims",
+            "rank,L_blade,W_blade,L_sheath,W_sheath,L_internode,W_internode\n"
+            "1,0.1,0.01,-0.03,0.004,0,0.004\n",
+            "L_sheath = -0.03",
+        ),
+        ("dims", "rank,L_blade,W_blade\n1,0.1,0.01\n", "missing column(s) L_sheath"),
+        ("phen", "rank,tip,col,ssi,disp\n1,-1,1,5,13\n2,3,2,6,14\n", "out of order"),
+        ("phen", "rank,tip,col,ssi,disp\n1,-1,x,5,13\n", "not a number"),
+    ],
+)
 def test_bad_tables_one_line_exit_2_no_file(tmp_path, capsys, kind, text, match) -> None:
     f = tmp_path / f"{kind}.csv"
     f.write_text(text)
@@ -67,8 +78,9 @@ def test_bad_tables_one_line_exit_2_no_file(tmp_path, capsys, kind, text, match)
 
 
 def test_plant_organs_tillers_senescence_and_soil() -> None:
-    plant = build_plant_architecture(PlantOptions(preset="wheat", thermal_time=1100.0,
-                                                  tillers=2), seed=3)
+    plant = build_plant_architecture(
+        PlantOptions(preset="wheat", thermal_time=1100.0, tillers=2), seed=3
+    )
     m = plant.mesh
     organs = set(np.unique(m.face_ids["organ"]).tolist())
     assert organs == {ORGAN_BLADE, ORGAN_SHEATH, ORGAN_INTERNODE}
@@ -78,7 +90,7 @@ def test_plant_organs_tillers_senescence_and_soil() -> None:
     assert 0 < s["senescent_area_m2"] < s["leaf_area_m2"]
     lv = plant.leaves
     old = lv["rank"] == 1
-    assert np.all(lv["green_length"][old] < lv["length"][old])      # lowest leaf senescing
+    assert np.all(lv["green_length"][old] < lv["length"][old])  # lowest leaf senescing
     assert (m.vertex_colors == SENESCENT).all(axis=1).any()
     # insertion: collars climb the stem; successive main-stem leaves are 180° apart (±jitter)
     main = [o for o in plant.organs if o["axis"] == 0 and o["organ"] == "sheath"]
@@ -107,19 +119,54 @@ def test_plant_mtg_scales(tmp_path) -> None:
     text = path.read_text()
     for sym, scale in (("P", 1), ("A", 2), ("M", 3), ("I", 4), ("S", 4), ("L", 4)):
         assert f"\n{sym}\t{scale}\t" in text
-    assert "+A2" in text                           # the tiller branches off a metamer
+    assert "+A2" in text  # the tiller branches off a metamer
     g = read_graph(path)
-    assert g.n_nodes == len(plant.organs)          # every organ row carries XX YY ZZ
+    assert g.n_nodes == len(plant.organs)  # every organ row carries XX YY ZZ
 
 
 def test_plant_cli(tmp_path, capsys) -> None:
     d, p = tmp_path / "d.csv", tmp_path / "p.csv"
-    assert run(["leaf", "tables", "--preset", "maize", "--leaves", "16", "--dims", str(d),
-                "--phen", str(p)]) == 0
+    assert (
+        run(
+            [
+                "leaf",
+                "tables",
+                "--preset",
+                "maize",
+                "--leaves",
+                "16",
+                "--dims",
+                str(d),
+                "--phen",
+                str(p),
+            ]
+        )
+        == 0
+    )
     out, mtg = tmp_path / "maize.glb", tmp_path / "maize.mtg"
     capsys.readouterr()
-    assert run(["leaf", "plant", "--preset", "maize", "--dims", str(d), "--phen", str(p),
-                "--thermal-time", "800", "--mtg", str(mtg), "-o", str(out), "--json"]) == 0
+    assert (
+        run(
+            [
+                "leaf",
+                "plant",
+                "--preset",
+                "maize",
+                "--dims",
+                str(d),
+                "--phen",
+                str(p),
+                "--thermal-time",
+                "800",
+                "--mtg",
+                str(mtg),
+                "-o",
+                str(out),
+                "--json",
+            ]
+        )
+        == 0
+    )
     s = json.loads(capsys.readouterr().out)
     assert s["leaves"] == len(s["per_leaf"]) > 5 and s["below_ground_vertices"] == 0
     assert 0.3 < s["height_m"] < 3.5 and mtg.stat().st_size > 0
@@ -127,12 +174,47 @@ def test_plant_cli(tmp_path, capsys) -> None:
 
 def test_plant_stand_to_light(tmp_path, capsys) -> None:
     out, mtg = tmp_path / "stand.glb", tmp_path / "stand.mtg"
-    assert run(["leaf", "plant", "--thermal-time", "900", "--plants", "6", "--rows", "2",
-                "--density", "200", "--mtg", str(mtg), "-o", str(out), "--json"]) == 0
+    assert (
+        run(
+            [
+                "leaf",
+                "plant",
+                "--thermal-time",
+                "900",
+                "--plants",
+                "6",
+                "--rows",
+                "2",
+                "--density",
+                "200",
+                "--mtg",
+                str(mtg),
+                "-o",
+                str(out),
+                "--json",
+            ]
+        )
+        == 0
+    )
     s = json.loads(capsys.readouterr().out)
     assert s["plants"] == 6 and s["lai"] > 0 and len({p["plant"] for p in s["per_leaf"]}) == 6
     assert mtg.read_text().count("\n/P") == 6
-    assert run(["leaf", "light", str(out), "--sun", "2026-06-21T12:00", "--sky", "0",
-                "--ground", s["ground"], "--json"]) == 0
+    assert (
+        run(
+            [
+                "leaf",
+                "light",
+                str(out),
+                "--sun",
+                "2026-06-21T12:00",
+                "--sky",
+                "0",
+                "--ground",
+                s["ground"],
+                "--json",
+            ]
+        )
+        == 0
+    )
     lit = json.loads(capsys.readouterr().out)
     assert 0 < lit["intercepted_fraction"] < 1 and lit["leaves"] == s["leaves"]

@@ -17,8 +17,10 @@ def _curv(shape: LeafShape) -> np.ndarray:
     return np.diff(shape.phi_at(S)) / np.diff(S), mid
 
 
-@pytest.mark.parametrize("op", [bend(0.3, 0.6, 0.8), bend(0.1, 0.2, -0.5),
-                                curvature(0.4, 0.9, 0.0), curvature(0.2, 0.5, 2.5)])
+@pytest.mark.parametrize(
+    "op",
+    [bend(0.3, 0.6, 0.8), bend(0.1, 0.2, -0.5), curvature(0.4, 0.9, 0.0), curvature(0.2, 0.5, 2.5)],
+)
 def test_curvature_changes_only_inside_and_length_is_kept(op) -> None:
     leaf = LeafShape.from_preset("wheat")
     out = apply_ops(leaf, [op])

@@ -33,10 +33,10 @@ def test_wheat_fit_follows_the_digitised_midribs() -> None:
     raw = read_xy(root / "adel" / "So99.csv")
     devs = []
     for leaf, (x, y) in zip(leaves, raw.values(), strict=True):
-        pts = leaf.midrib(400)[:, [0, 2]] / 0.01          # back to cm
+        pts = leaf.midrib(400)[:, [0, 2]] / 0.01  # back to cm
         d = np.hypot(pts[:, None, 0] - x[None], pts[:, None, 1] - y[None]).min(axis=0)
         devs.append(d.max() / (leaf.length / 0.01))
     # every digitised point lies close to the fitted (corner-rounded) midrib
     assert np.median(devs) < 0.01 and np.max(devs) < 0.05
     lengths = np.array([lf.length for lf in leaves])
-    assert 0.03 < lengths.min() and lengths.max() < 0.5       # metres, not cm
+    assert 0.03 < lengths.min() and lengths.max() < 0.5  # metres, not cm

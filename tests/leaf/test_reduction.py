@@ -23,8 +23,10 @@ def _brute_force(x, z, s, w):
     live = list(range(len(x)))
     order = []
     while len(live) > 2:
-        errs = [_err.py_func(live[k], live[k - 1], live[k + 1], x, z, s, w)
-                for k in range(1, len(live) - 1)]
+        errs = [
+            _err.py_func(live[k], live[k - 1], live[k + 1], x, z, s, w)
+            for k in range(1, len(live) - 1)
+        ]
         k = int(np.argmin(errs)) + 1
         order.append(live.pop(k))
     return np.array(order)
@@ -119,7 +121,7 @@ def test_both_ends_closed() -> None:
 def test_twisted_undulated_leaf_converges_on_its_surface() -> None:
     from biomorph.leaf.reduction import point_triangle_distance, surface_error
 
-    maize = LeafShape.from_preset("maize")          # twist 30°, 4 mm margin undulation
+    maize = LeafShape.from_preset("maize")  # twist 30°, 4 mm margin undulation
     meshes = {b: reduced_mesh(maize, b) for b in (50, 300)}
     errs = [surface_error(maize, meshes[b], n_s=150, n_u=5) for b in (50, 300)]
     flat2d = surface_error(maize, reduced_mesh(maize, 300, surface=False), n_s=150, n_u=5)

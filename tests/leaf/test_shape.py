@@ -33,7 +33,8 @@ def test_midrib_length_is_exact_for_any_grid() -> None:
     for n in (2, 7, 50, 333):
         pts = shape.midrib(n)
         assert np.linalg.norm(np.diff(pts, axis=0), axis=1).sum() == pytest.approx(
-            shape.length, rel=1e-12)
+            shape.length, rel=1e-12
+        )
     pts = shape.midrib(40)
     assert np.allclose(pts[:, 1], 0.0) and np.allclose(pts[0], 0.0)
 
@@ -64,13 +65,16 @@ def test_inputs_are_not_mutated() -> None:
         shape.phi[0] = 3.0  # stored arrays are read-only
 
 
-@pytest.mark.parametrize("x,y,s,r,match", [
-    ([0.0], [0.0], [0, 1], [1, 0], "at least 2"),
-    ([0.0, 1.0, 1.0], [0.0, 2.0, 2.0], [0, 1], [1, 0], "duplicates"),
-    ([0.0, 1.0], [0.0, 1.0], [0, 0.5, 0.5, 1], [1, 1, 1, 0], "increase strictly"),
-    ([0.0, 1.0], [0.0, 1.0], [0, 0.5, 1], [1, -0.1, 0], "negative"),
-    ([0.0, np.nan], [0.0, 1.0], [0, 1], [1, 0], "finite"),
-])
+@pytest.mark.parametrize(
+    "x,y,s,r,match",
+    [
+        ([0.0], [0.0], [0, 1], [1, 0], "at least 2"),
+        ([0.0, 1.0, 1.0], [0.0, 2.0, 2.0], [0, 1], [1, 0], "duplicates"),
+        ([0.0, 1.0], [0.0, 1.0], [0, 0.5, 0.5, 1], [1, 1, 1, 0], "increase strictly"),
+        ([0.0, 1.0], [0.0, 1.0], [0, 0.5, 1], [1, -0.1, 0], "negative"),
+        ([0.0, np.nan], [0.0, 1.0], [0, 1], [1, 0], "finite"),
+    ],
+)
 def test_bad_input(x, y, s, r, match) -> None:
     with pytest.raises(InputError, match=match):
         LeafShape.from_points(x, y, s, r)
@@ -108,8 +112,9 @@ def test_surface_grid_matches_mesh_vertices() -> None:
 
 
 def test_parametric_leaf() -> None:
-    leaf = LeafShape.parametric(0.6, 0.05, insertion_deg=70, bending_deg=120, base_width=0.5,
-                                widest_at=0.3, tip_power=1.5)
+    leaf = LeafShape.parametric(
+        0.6, 0.05, insertion_deg=70, bending_deg=120, base_width=0.5, widest_at=0.3, tip_power=1.5
+    )
     assert leaf.r_at(0.0) == pytest.approx(0.5) and leaf.r_at(0.3) == pytest.approx(1.0)
     assert leaf.r_at(1.0) == 0.0
     assert np.degrees(leaf.phi_at(0.0)) == pytest.approx(70)
@@ -125,7 +130,7 @@ def test_twist_profile() -> None:
     assert prof.theta_at(0.25) == 0.0 and prof.theta_at(1.0) == pytest.approx(1.2)
     a = leaf.with_(twist=0.0).surface([0.2, 0.3], [-0.5, 0.5])
     b = prof.surface([0.2, 0.3], [-0.5, 0.5])
-    assert np.allclose(a, b)                     # untwisted where θ = 0
+    assert np.allclose(a, b)  # untwisted where θ = 0
     assert prof.mesh(n_s=300).area() == pytest.approx(prof.area(), rel=5e-3)
     with pytest.raises(InputError, match="twist_profile"):
         leaf.with_(twist_profile=(np.array([0.0, 0.0]), np.array([0.0, 1.0])))

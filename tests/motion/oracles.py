@@ -11,8 +11,7 @@ from biomorph.core.types import Array
 from biomorph.motion._kernels import blend_average, ro
 
 
-def average_rotations_reference(clips: Sequence[Motion], us: Sequence[Array],
-                                w: Array) -> Array:
+def average_rotations_reference(clips: Sequence[Motion], us: Sequence[Array], w: Array) -> Array:
     """Reference for :func:`average_rotations`: sample every clip on the whole timeline,
     stack, average."""
     rots = [sample_arrays(c, u)[0] for c, u in zip(clips, us, strict=True)]

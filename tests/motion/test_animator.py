@@ -74,7 +74,7 @@ def test_root_motion_extract_apply_round_trip(xia, tmp_path):
 def test_cycle_modes_never_teleport(xia, mode):
     s, e, _ = bm.best_loop(xia, 60, None, 12)
     out = bm.make_cycle(xia, s, e, 12, cycles=3, mode=mode)
-    w = out.world_positions()[:, -xia.n_joints:]
+    w = out.world_positions()[:, -xia.n_joints :]
     step = np.linalg.norm(np.diff(w[:, 0], axis=0), axis=1)
     assert step.max() < 4 * np.median(step) + 1e-3 * np.ptp(w[..., 1])
     if mode == "in-place":
@@ -112,8 +112,15 @@ def test_contacts_are_found_on_a_walk(xia):
     assert 0.2 < frac < 0.9
 
 
-@pytest.mark.parametrize("name", ["dme_comp_3d_2_raw.bvh", "xia_angry_13_000_run.bvh",
-                                  "cmu_01_01.bvh", "ad_rokoko_jesse_dance.bvh"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "dme_comp_3d_2_raw.bvh",
+        "xia_angry_13_000_run.bvh",
+        "cmu_01_01.bvh",
+        "ad_rokoko_jesse_dance.bvh",
+    ],
+)
 def test_locking_lowers_foot_skate(name):
     m = _read(name)
     with warnings.catch_warnings():
@@ -188,14 +195,35 @@ def test_cli_tolerant_read_and_strict(tmp_path, capsys):
 def test_cli_new_commands(tmp_path, capsys):
     walk = str(shared_file("motion", "xia_neutral_01_000_walk.bvh"))
     o = tmp_path
-    for args in (["cycle", walk, "-o", str(o / "c.bvh"), "--auto", "--transition", "12",
-                  "--cycles", "2", "--mode", "in-place"],
-                 ["root", walk, "-o", str(o / "r.bvh")],
-                 ["trim", walk, "-o", str(o / "t.bvh"), "--start", "10", "--stop", "50"],
-                 ["speed", walk, "-o", str(o / "s.bvh"), "--speed", "1.5", "--joint",
-                  "LeftUpLeg"],
-                 ["equalize", walk, "-o", str(o / "e.bvh"), "--gains", "1,1,1,1,0.5",
-                  "--euler", "continuous", "--no-lock-feet"]):
+    for args in (
+        [
+            "cycle",
+            walk,
+            "-o",
+            str(o / "c.bvh"),
+            "--auto",
+            "--transition",
+            "12",
+            "--cycles",
+            "2",
+            "--mode",
+            "in-place",
+        ],
+        ["root", walk, "-o", str(o / "r.bvh")],
+        ["trim", walk, "-o", str(o / "t.bvh"), "--start", "10", "--stop", "50"],
+        ["speed", walk, "-o", str(o / "s.bvh"), "--speed", "1.5", "--joint", "LeftUpLeg"],
+        [
+            "equalize",
+            walk,
+            "-o",
+            str(o / "e.bvh"),
+            "--gains",
+            "1,1,1,1,0.5",
+            "--euler",
+            "continuous",
+            "--no-lock-feet",
+        ],
+    ):
         assert run(["motion", *args, "--json"]) == 0, args
         capsys.readouterr()
     assert read_bvh(o / "r.bvh").names[0] == "root"
@@ -203,24 +231,33 @@ def test_cli_new_commands(tmp_path, capsys):
     assert read_bvh(o / "s.bvh").n_frames == 327
 
 
-@pytest.mark.parametrize("args,needle", [
-    (["cycle", "W", "-o", "OUT", "--start", "3", "--stop", "4", "--transition", "1"],
-     "at least 2"),
-    (["cycle", "W", "-o", "OUT", "--mode", "spiral"], "cycle mode"),
-    (["equalize", "W", "-o", "OUT", "--root", "up"], "root"),
-    (["edit", "W", "-o", "OUT", "--joint", "Hips", "--key", "10:0/0/1", "--tangent", "x"],
-     "tangent"),
-    (["convert", "W", "-o", "OUT", "--fps", "nan"], "--fps"),
-    (["cycle", "W", "-o", "OUT", "--cycles", "0"], "--cycles"),
-    (["trim", "W", "-o", "OUT", "--start", "400"], "frame range"),
-    (["root", "W", "-o", "OUT", "--action", "apply"], "exactly one child"),
-    (["equalize", "W", "-o", "OUT", "--euler", "deg"], "--euler"),
-    (["equalize", "W", "-o", "OUT", "--gains", "1,nan,1"], "--gains"),
-    (["blend", "W", "W", "-o", "OUT", "--offsets", "0,1e308"], "--offsets"),
-    (["speed", "W", "-o", "OUT", "--speed", "0"], "--speed"),
-    (["edit", "W", "-o", "OUT", "--joint", "Hips", "--key", "10:0/0/1", "--fade", "inf"],
-     "--fade"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (
+            ["cycle", "W", "-o", "OUT", "--start", "3", "--stop", "4", "--transition", "1"],
+            "at least 2",
+        ),
+        (["cycle", "W", "-o", "OUT", "--mode", "spiral"], "cycle mode"),
+        (["equalize", "W", "-o", "OUT", "--root", "up"], "root"),
+        (
+            ["edit", "W", "-o", "OUT", "--joint", "Hips", "--key", "10:0/0/1", "--tangent", "x"],
+            "tangent",
+        ),
+        (["convert", "W", "-o", "OUT", "--fps", "nan"], "--fps"),
+        (["cycle", "W", "-o", "OUT", "--cycles", "0"], "--cycles"),
+        (["trim", "W", "-o", "OUT", "--start", "400"], "frame range"),
+        (["root", "W", "-o", "OUT", "--action", "apply"], "exactly one child"),
+        (["equalize", "W", "-o", "OUT", "--euler", "deg"], "--euler"),
+        (["equalize", "W", "-o", "OUT", "--gains", "1,nan,1"], "--gains"),
+        (["blend", "W", "W", "-o", "OUT", "--offsets", "0,1e308"], "--offsets"),
+        (["speed", "W", "-o", "OUT", "--speed", "0"], "--speed"),
+        (
+            ["edit", "W", "-o", "OUT", "--joint", "Hips", "--key", "10:0/0/1", "--fade", "inf"],
+            "--fade",
+        ),
+    ],
+)
 def test_cli_bad_input_exit_2_no_file(tmp_path, capsys, args, needle):
     walk = str(shared_file("motion", "xia_neutral_01_000_walk.bvh"))
     out = tmp_path / "never.bvh"
@@ -241,8 +278,10 @@ def test_mirror_twice_is_identity_and_reflects_positions(xia):
     assert mirror_name("hand_r") == "hand_l" and mirror_name("LThumb") == "RThumb"
     assert len(left_right_pairs(xia.names)) >= 10
     w, wm = xia.world_positions(), once.world_positions()
-    other = [xia.names.index(mirror_name(n) or n) if (mirror_name(n) or n) in xia.names else i
-             for i, n in enumerate(xia.names)]
+    other = [
+        xia.names.index(mirror_name(n) or n) if (mirror_name(n) or n) in xia.names else i
+        for i, n in enumerate(xia.names)
+    ]
     ref = w[:, other].copy()
     ref[..., 0] *= -1  # the CMU skeleton's lateral axis is x
     # the captured skeleton is not exactly symmetric (offsets differ by up to 0.26 units)
@@ -253,8 +292,15 @@ def _renamed(m, prefix, scale):
     from biomorph.core.skeleton import JointSkeleton
 
     sk = m.skeleton
-    return JointSkeleton([prefix + n for n in sk.names], sk.parent, sk.offset * scale,
-                         sk.rest_rotation, sk.limits, sk.channels, sk.end_site * scale)
+    return JointSkeleton(
+        [prefix + n for n in sk.names],
+        sk.parent,
+        sk.offset * scale,
+        sk.rest_rotation,
+        sk.limits,
+        sk.channels,
+        sk.end_site * scale,
+    )
 
 
 def test_retarget_onto_a_mixamo_named_smaller_skeleton(xia):
@@ -322,8 +368,10 @@ def test_cli_retarget_and_mirror(tmp_path, capsys):
     assert read_bvh(out).n_joints == 60
     assert run(["motion", "mirror", walk, "-o", str(tmp_path / "m.bvh")]) == 0
     never = tmp_path / "never.bvh"
-    for argv in (["retarget", walk, "--to", sine, "-o", str(never)],
-                 ["mirror", sine, "-o", str(never)]):
+    for argv in (
+        ["retarget", walk, "--to", sine, "-o", str(never)],
+        ["mirror", sine, "-o", str(never)],
+    ):
         assert run(["motion", *argv]) == 2
         assert len(capsys.readouterr().err.strip().splitlines()) <= 2
         assert not never.exists()
@@ -335,9 +383,22 @@ def test_batch_applies_a_chain_and_reports_failures(tmp_path, capsys):
     broken = tmp_path / "broken.bvh"
     broken.write_text("HIERARCHY\nROOT a\n{\n")
     out = tmp_path / "out"
-    argv = ["motion", "batch", str(walk), str(raw), str(broken), "--op",
-            "equalize:gains=0/0/1/1/1", "--op", "trim:start=2,stop=40", "--out", str(out),
-            "--workers", "0", "--json"]
+    argv = [
+        "motion",
+        "batch",
+        str(walk),
+        str(raw),
+        str(broken),
+        "--op",
+        "equalize:gains=0/0/1/1/1",
+        "--op",
+        "trim:start=2,stop=40",
+        "--out",
+        str(out),
+        "--workers",
+        "0",
+        "--json",
+    ]
     assert run(argv) == 1  # one input failed, the others were written
     rep = json.loads(capsys.readouterr().out)
     assert len(rep["ok"]) == 2 and len(rep["failed"]) == 1
@@ -368,8 +429,9 @@ def test_preview_gif(tmp_path, capsys):
     from biomorph.motion.preview import render_preview
 
     walk = str(shared_file("motion", "dme_comp_3d_2_fixed.bvh"))
-    gif = render_preview(_read("dme_comp_3d_2_fixed.bvh"), tmp_path / "clip.gif",
-                         max_frames=8, size_px=96)
+    gif = render_preview(
+        _read("dme_comp_3d_2_fixed.bvh"), tmp_path / "clip.gif", max_frames=8, size_px=96
+    )
     im = Image.open(gif)
     assert im.n_frames == 8 and im.size == (96, 96)
     frames = set()
@@ -378,8 +440,10 @@ def test_preview_gif(tmp_path, capsys):
         frames.add(im.convert("L").tobytes())
     assert len(frames) == 8
     never = tmp_path / "never.bvh"
-    assert run(["motion", "convert", walk, "-o", str(never), "--preview",
-                str(tmp_path / "x.png")]) == 2
+    assert (
+        run(["motion", "convert", walk, "-o", str(never), "--preview", str(tmp_path / "x.png")])
+        == 2
+    )
     assert "--preview" in capsys.readouterr().err and not never.exists()
 
 

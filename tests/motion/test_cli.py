@@ -21,7 +21,7 @@ def walk_bvh(tmp_path):
 
 def _json(capsys):
     out = capsys.readouterr().out
-    return json.loads(out[out.index("{"):])
+    return json.loads(out[out.index("{") :])
 
 
 def test_info_json_real_and_skate_pair(capsys):
@@ -50,22 +50,77 @@ def test_every_command_writes(tmp_path, walk_bvh, capsys):
     o = tmp_path / "out"
     cmds = [
         ["equalize", str(walk_bvh), "-o", str(o / "eq.bvh"), "--gains", "0,0,1,1,1"],
-        ["equalize", str(walk_bvh), "-o", str(o / "eq2.bvh"), "--joint", "LeftUpLeg",
-         "--below", "--channels", "rotation"],
-        ["edit", str(walk_bvh), "-o", str(o / "ed.bvh"), "--joint", "RightArm",
-         "--key", "100:0/0/30;140:0/20/0", "--fade", "15"],
-        ["reorient", str(walk_bvh), "-o", str(o / "ro.bvh"), "--angle", "90",
-         "--move", "1,0,0"],
-        ["blend", str(walk_bvh), str(walk_bvh), "-o", str(o / "bl.bvh"), "--transition", "20",
-         "--align", "peaks", "--align-joint", "LeftUpLeg"],
-        ["blend", str(walk_bvh), str(walk_bvh), "-o", str(o / "bl2.bvh"), "--offsets", "0,100",
-         "--curve", "110:0,130:1"],
+        [
+            "equalize",
+            str(walk_bvh),
+            "-o",
+            str(o / "eq2.bvh"),
+            "--joint",
+            "LeftUpLeg",
+            "--below",
+            "--channels",
+            "rotation",
+        ],
+        [
+            "edit",
+            str(walk_bvh),
+            "-o",
+            str(o / "ed.bvh"),
+            "--joint",
+            "RightArm",
+            "--key",
+            "100:0/0/30;140:0/20/0",
+            "--fade",
+            "15",
+        ],
+        ["reorient", str(walk_bvh), "-o", str(o / "ro.bvh"), "--angle", "90", "--move", "1,0,0"],
+        [
+            "blend",
+            str(walk_bvh),
+            str(walk_bvh),
+            "-o",
+            str(o / "bl.bvh"),
+            "--transition",
+            "20",
+            "--align",
+            "peaks",
+            "--align-joint",
+            "LeftUpLeg",
+        ],
+        [
+            "blend",
+            str(walk_bvh),
+            str(walk_bvh),
+            "-o",
+            str(o / "bl2.bvh"),
+            "--offsets",
+            "0,100",
+            "--curve",
+            "110:0,130:1",
+        ],
         ["speed", str(walk_bvh), "-o", str(o / "sp.bvh"), "--speed", "0:1,120:2,239:1"],
-        ["cycle", str(walk_bvh), "-o", str(o / "cy.bvh"), "--auto", "--transition", "10",
-         "--cycles", "3"],
+        [
+            "cycle",
+            str(walk_bvh),
+            "-o",
+            str(o / "cy.bvh"),
+            "--auto",
+            "--transition",
+            "10",
+            "--cycles",
+            "3",
+        ],
         ["convert", str(walk_bvh), "-o", str(o / "cv.bvh"), "--fps", "30"],
-        ["plot", str(walk_bvh), "-o", str(o / "p.png"), "--joint", "LeftUpLeg",
-         "--gains", "0,0,1,1,1"],
+        [
+            "plot",
+            str(walk_bvh),
+            "-o",
+            str(o / "p.png"),
+            "--joint",
+            "LeftUpLeg",
+            "--gains",
+            "0,0,1,1,1",
+        ],
         ["plot", str(walk_bvh), "-o", str(o / "q.png"), "--kind", "poses"],
     ]
     for c in cmds:
@@ -121,13 +176,14 @@ def test_bad_inputs_exit_2_and_write_nothing(tmp_path, walk_bvh, capsys):
         (["convert", str(badhtr), "-o", "OUT"], "missing section"),
         (["blend", w, str(other), "-o", "OUT"], "do not share a skeleton"),
         (["cycle", w, "-o", "OUT", "--start", "50", "--stop", "50"], "empty"),
-        (["cycle", w, "-o", "OUT", "--start", "0", "--stop", "40", "--transition", "60"],
-         "transition"),
+        (
+            ["cycle", w, "-o", "OUT", "--start", "0", "--stop", "40", "--transition", "60"],
+            "transition",
+        ),
         (["blend", w, w, "-o", "OUT", "--transition", "500"], "longer than"),
         (["speed", w, "-o", "OUT", "--speed", "0"], "speed"),
         (["speed", w, "-o", "OUT", "--speed", "0:1,100:-1"], "speed"),
-        (["edit", w, "-o", "OUT", "--joint", "LeftArm", "--key", "900:0/0/10"],
-         "outside the clip"),
+        (["edit", w, "-o", "OUT", "--joint", "LeftArm", "--key", "900:0/0/10"], "outside the clip"),
         (["speed", w, "-o", "OUT", "--speed", "0:1,5000:2"], "outside the clip"),
         (["edit", w, "-o", "OUT", "--joint", "Tail", "--key", "10:0/0/10"], "no joint"),
         (["equalize", w, "-o", "OUT", "--gains", "1,a"], "gains"),
@@ -142,7 +198,6 @@ def test_bad_inputs_exit_2_and_write_nothing(tmp_path, walk_bvh, capsys):
 def test_glb_output_if_available(tmp_path, walk_bvh):
     pytest.importorskip("biomorph.io.gltf")
     out = tmp_path / "w.glb"
-    assert run(["motion", "equalize", str(walk_bvh), "-o", str(out), "--gains",
-                "0,1,1,1,1"]) == 0
+    assert run(["motion", "equalize", str(walk_bvh), "-o", str(out), "--gains", "0,1,1,1,1"]) == 0
     assert out.stat().st_size > 1000
     assert np.frombuffer(out.read_bytes()[:4], np.uint8).tobytes() == b"glTF"

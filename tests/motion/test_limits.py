@@ -26,8 +26,10 @@ def test_speed_that_would_explode_the_clip_is_refused(walk_bvh, tmp_path, capsys
 @pytest.mark.parametrize("curve", ["nan", "1.5", "0:0,60:nan"])
 def test_blend_weight_outside_0_1_is_refused(walk_bvh, tmp_path, capsys, curve):
     out = tmp_path / "o.bvh"
-    assert run(["motion", "blend", str(walk_bvh), str(walk_bvh), "-o", str(out),
-                "--curve", curve]) == 2
+    assert (
+        run(["motion", "blend", str(walk_bvh), str(walk_bvh), "-o", str(out), "--curve", curve])
+        == 2
+    )
     assert "--curve" in capsys.readouterr().err
     assert not out.exists()
 
@@ -35,7 +37,7 @@ def test_blend_weight_outside_0_1_is_refused(walk_bvh, tmp_path, capsys, curve):
 def test_frames_header_beyond_the_file_is_never_allocated(walk_bvh, capsys):
     text = walk_bvh.read_text()
     head, _, rest = text.partition("Frames:")
-    walk_bvh.write_text(head + "Frames: 99999999999" + rest[rest.index("\n"):])
+    walk_bvh.write_text(head + "Frames: 99999999999" + rest[rest.index("\n") :])
     with pytest.warns(Warning):
         mo = read_bvh(walk_bvh)  # tolerant: the rows that are there
     assert mo.n_frames == 120

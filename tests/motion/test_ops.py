@@ -77,9 +77,17 @@ def test_blend_scales_offsets_and_alignment():
     a = read_bvh(shared_file("motion", "xia_neutral_01_000_walk.bvh"))
     b = read_bvh(shared_file("motion", "xia_angry_13_000_run.bvh"))
     pa, pb = peak_offset(a, b, "LeftUpLeg")
-    assert pa in local_maxima(np.convolve(np.pad(a.channel("LeftUpLeg", "Xrotation"), 2,
-                                                 mode="edge"),
-                                          [1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16], "valid")) or pa
+    assert (
+        pa
+        in local_maxima(
+            np.convolve(
+                np.pad(a.channel("LeftUpLeg", "Xrotation"), 2, mode="edge"),
+                [1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16],
+                "valid",
+            )
+        )
+        or pa
+    )
     out = bm.blend([a, b], transition=30, align="peaks", align_joint="LeftUpLeg")
     off = out.meta["blend"]["offsets"][1]
     assert off == pytest.approx(pa - pb)
@@ -103,7 +111,7 @@ def test_blend_scales_offsets_and_alignment():
 def test_dtw_path_recovers_a_shift():
     t = np.linspace(0, 1, 80)
     x = np.sin(6 * t)
-    y = np.sin(6 * t ** 1.5)  # the same signal, time-warped
+    y = np.sin(6 * t**1.5)  # the same signal, time-warped
     path, cost = dtw_path(np.abs(x[:, None] - y[None, :]))
     assert tuple(path[0]) == (0, 0) and tuple(path[-1]) == (79, 79)
     assert np.all(np.diff(path, axis=0) >= 0)
@@ -118,8 +126,9 @@ def test_layers_sum_and_remove():
     l3 = bm.Layer.make("bob", "Hips", {50: [0, 0.1, 0]}, kind="position", fade=10)
     out = bm.apply_layers(m, [l1, l2, l3])
     j = m.skeleton.index("LeftArm")
-    d = tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(m.rotation[100, j]),
-                                           out.rotation[100, j]))
+    d = tf.quat_to_rotvec(
+        tf.quat_multiply(tf.quat_conjugate(m.rotation[100, j]), out.rotation[100, j])
+    )
     assert np.allclose(d, [0, 0.1, 0.4], atol=1e-9)
     assert np.allclose(out.root_position[50] - m.root_position[50], [0, 0.1, 0])
     stack = bm.remove_layer([l1, l2, l3], "bob")
@@ -184,8 +193,13 @@ def test_keys_parsing(tmp_path):
 
 def test_every_real_file_through_every_operator():
     """Each real capture survives the whole chain with finite, unit quaternions."""
-    names = ["cmu_01_01.bvh", "ad_fair1_zombie_walk.bvh", "ad_rokoko_jesse_dance.bvh",
-             "animal3d_egnaro_skel_anim.htr", "cmu_11.asf"]
+    names = [
+        "cmu_01_01.bvh",
+        "ad_fair1_zombie_walk.bvh",
+        "ad_rokoko_jesse_dance.bvh",
+        "animal3d_egnaro_skel_anim.htr",
+        "cmu_11.asf",
+    ]
     from biomorph.io import read_motion
 
     for name in names:
@@ -227,8 +241,9 @@ def _numpy_equalize(q: np.ndarray, gains: list[float]) -> tuple[np.ndarray, np.n
     s = q.sum(axis=0)
     norm = np.linalg.norm(s, axis=-1)
     mean = s / norm[:, None]
-    mean_log = (norm > 0.5 * f) & (np.abs(np.einsum("fji,ji->fj", q, mean)).min(axis=0)
-                                   >= np.cos(np.pi / 4))
+    mean_log = (norm > 0.5 * f) & (
+        np.abs(np.einsum("fji,ji->fj", q, mean)).min(axis=0) >= np.cos(np.pi / 4)
+    )
     out = np.empty_like(q)
     m = mean_log
     x = tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(mean[m])[None], q[:, m]))
@@ -241,8 +256,7 @@ def _numpy_equalize(q: np.ndarray, gains: list[float]) -> tuple[np.ndarray, np.n
     if gains[-1] != 1:
         mr = ref.sum(axis=0)
         mr /= np.linalg.norm(mr, axis=-1, keepdims=True)
-        u = _unwrap_rotvec(tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(mr)[None],
-                                                               ref)))
+        u = _unwrap_rotvec(tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(mr)[None], ref)))
         ref = tf.quat_multiply(mr[None], tf.quat_from_rotvec(gains[-1] * u))
     out[:, r] = tf.quat_multiply(ref, tf.quat_from_rotvec(x2))
     return out, mean_log
@@ -279,8 +293,9 @@ def test_fused_blend_average_equals_reference(scales):
     clips = [a, b, c]
     p = plan(clips, None, np.asarray(scales), 40, None)
     t = np.arange(p.n_frames, dtype=float)
-    us = [np.clip((t - p.offsets[i]) / p.scales[i], 0.0, m.n_frames - 1)
-          for i, m in enumerate(clips)]
+    us = [
+        np.clip((t - p.offsets[i]) / p.scales[i], 0.0, m.n_frames - 1) for i, m in enumerate(clips)
+    ]
     fast = average_rotations(clips, us, p.weights)
     ref = average_rotations_reference(clips, us, p.weights)
     assert np.abs(fast - ref).max() < 1e-12
@@ -303,8 +318,14 @@ def test_kernels_compile_once_for_read_only_and_writable_input():
         mm.world_positions()
         bm.blend([mm, mm], transition=10)
         bm.blend([mm, mm, mm], transition=10)
-    for kern in (k.equalize_rotations, k.fk_positions, k.blend_slerp, k.sample_slerp,
-                 k.blend_average_sampled, k.lowpass_into):
+    for kern in (
+        k.equalize_rotations,
+        k.fk_positions,
+        k.blend_slerp,
+        k.sample_slerp,
+        k.blend_average_sampled,
+        k.lowpass_into,
+    ):
         assert len(kern.signatures) == 1, (kern, kern.signatures)
 
 
@@ -328,9 +349,14 @@ def test_lowpass_kernel_equals_per_index_reference(f, mode):
     for step in (1, 2, 4, 8, 16):
         got = np.empty(f)
         lowpass_into(x, got, step, mode)
-        ref = np.array([0.375 * x[i] + 0.25 * (x[idx(i - step)] + x[idx(i + step)])
-                        + 0.0625 * (x[idx(i - 2 * step)] + x[idx(i + 2 * step)])
-                        for i in range(f)])
+        ref = np.array(
+            [
+                0.375 * x[i]
+                + 0.25 * (x[idx(i - step)] + x[idx(i + step)])
+                + 0.0625 * (x[idx(i - 2 * step)] + x[idx(i + 2 * step)])
+                for i in range(f)
+            ]
+        )
         assert np.abs(got - ref).max() <= 1e-12
         assert np.array_equal(got, ref)
 

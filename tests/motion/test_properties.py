@@ -20,11 +20,15 @@ def _mean_acc(m: bm.Motion) -> float:
 
 
 # 1 ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("source", ["synthetic", "ad_fair1_zombie_walk.bvh",
-                                    "ad_rokoko_jesse_dance.bvh"])
+@pytest.mark.parametrize(
+    "source", ["synthetic", "ad_fair1_zombie_walk.bvh", "ad_rokoko_jesse_dance.bvh"]
+)
 def test_unity_gains_reproduce_input(source):
-    m = walk(300, 60, noise_deg=1.0) if source == "synthetic" else \
-        read_bvh(shared_file("motion", source))
+    m = (
+        walk(300, 60, noise_deg=1.0)
+        if source == "synthetic"
+        else read_bvh(shared_file("motion", source))
+    )
     for gains in ([1, 1, 1, 1, 1], [1, 1, 1], np.ones(n_max := bm.n_bands(m.n_frames) + 1)):
         out = bm.equalize(m, gains)
         assert np.abs(out.rotation - m.rotation).max() < 1e-9, (gains, n_max)
@@ -34,8 +38,11 @@ def test_unity_gains_reproduce_input(source):
 # 2 ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("source", ["synthetic", "cmu_01_01.bvh"])
 def test_removing_high_bands_lowers_acceleration(source):
-    m = walk(400, 120, noise_deg=1.5) if source == "synthetic" else \
-        read_bvh(shared_file("motion", source))[100:700]
+    m = (
+        walk(400, 120, noise_deg=1.5)
+        if source == "synthetic"
+        else read_bvh(shared_file("motion", source))[100:700]
+    )
     before = _mean_acc(m)
     after = _mean_acc(bm.equalize(m, [0, 0, 1, 1, 1]))
     assert after < 0.8 * before
@@ -88,8 +95,9 @@ def test_displacement_hits_keys_and_is_zero_outside_support():
     out = bm.displace(m, "LeftArm", keys, fade=20)
     j = m.skeleton.index("LeftArm")
     for f, v in keys.items():
-        got = tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(m.rotation[f, j]),
-                                                 out.rotation[f, j]))
+        got = tf.quat_to_rotvec(
+            tf.quat_multiply(tf.quat_conjugate(m.rotation[f, j]), out.rotation[f, j])
+        )
         assert np.abs(got - v).max() < 1e-9
     same = np.r_[0:40, 111:200]
     assert np.array_equal(out.rotation[same], m.rotation[same])
@@ -97,8 +105,9 @@ def test_displacement_hits_keys_and_is_zero_outside_support():
     assert np.array_equal(out.rotation[:, others], m.rotation[:, others])
     # high-frequency detail is kept: the change is smooth (its second difference is tiny;
     # auto-clamped keys are C1, the former C2 spline reached 0.0096 here, these 0.0139)
-    diff = tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(m.rotation[:, j]),
-                                              out.rotation[:, j]))
+    diff = tf.quat_to_rotvec(
+        tf.quat_multiply(tf.quat_conjugate(m.rotation[:, j]), out.rotation[:, j])
+    )
     assert np.abs(np.diff(diff, 2, axis=0)).max() < 0.015
 
 
@@ -162,8 +171,7 @@ def _ops():
         "equalize": lambda m: bm.equalize(m, [0, 1, 1.2, 1, 1]),
         "displace": lambda m: bm.displace(m, m.names[2], {m.n_frames // 2: [0, 0.2, 0]}),
         "reorient": lambda m: bm.reorient(m, 0.7, translate=(1, 0, 2)),
-        "layers": lambda m: bm.apply_layers(m, [bm.Layer.make("a", m.names[1],
-                                                              {5: [0.1, 0, 0]})]),
+        "layers": lambda m: bm.apply_layers(m, [bm.Layer.make("a", m.names[1], {5: [0.1, 0, 0]})]),
         "blend": lambda m: bm.blend([m, m[10:]], transition=10),
         "speed": lambda m: bm.change_speed(m, {0: 1, m.n_frames - 1: 2}),
         "cycle": lambda m: bm.make_cycle(m, 0, m.n_frames, 10, cycles=2),

@@ -25,8 +25,13 @@ def scheduler():
     import dask
 
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
-        cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                           dashboard_address=":0", silence_logs=logging.ERROR)
+        cluster = distributed.LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
+            silence_logs=logging.ERROR,
+        )
     yield cluster.scheduler_address
     cluster.close()
 
@@ -45,8 +50,7 @@ def test_local_cluster_matches_serial():
 
 def test_failing_item_is_reported_and_others_finish(scheduler):
     for kwargs in ({"workers": 0}, {"scheduler": scheduler}):
-        rep = run_batch(range(6), fail_on_three, key=lambda s: f"seed{s}", progress=False,
-                        **kwargs)
+        rep = run_batch(range(6), fail_on_three, key=lambda s: f"seed{s}", progress=False, **kwargs)
         assert rep.failed == [("seed3", "ValueError: item 3 is cursed")]
         assert rep.ok == ["seed0", "seed1", "seed2", "seed4", "seed5"]
         assert rep.results == {"seed0": 0, "seed1": 1, "seed2": 4, "seed4": 16, "seed5": 25}
@@ -56,8 +60,14 @@ def test_failing_item_is_reported_and_others_finish(scheduler):
 
 
 def test_rerun_skips_done_items_with_markers(tmp_path, scheduler):
-    first = run_batch(range(6), fail_on_three, out_dir=tmp_path, scheduler=scheduler,
-                      progress=False, description="seeds")
+    first = run_batch(
+        range(6),
+        fail_on_three,
+        out_dir=tmp_path,
+        scheduler=scheduler,
+        progress=False,
+        description="seeds",
+    )
     assert first.skipped == [] and len(first.ok) == 5
     saved = json.loads((tmp_path / "batch_report.json").read_text())
     assert saved["n_ok"] == 5 and saved["failed"][0]["key"] == "3"
@@ -66,14 +76,12 @@ def test_rerun_skips_done_items_with_markers(tmp_path, scheduler):
     second = run_batch(range(6), square_stats, out_dir=tmp_path, progress=False)
     assert second.skipped == ["0", "1", "2", "4", "5"]
     assert second.ok == ["3"] and second.scheduler == "serial"
-    third = run_batch(range(6), square_stats, out_dir=tmp_path, scheduler=scheduler,
-                      progress=False)
+    third = run_batch(range(6), square_stats, out_dir=tmp_path, scheduler=scheduler, progress=False)
     assert len(third.skipped) == 6 and third.ok == []
 
 
 def test_done_callable_decides_what_to_skip():
-    rep = run_batch(range(5), square_stats, done=lambda s: s % 2 == 0, workers=0,
-                    progress=False)
+    rep = run_batch(range(5), square_stats, done=lambda s: s % 2 == 0, workers=0, progress=False)
     assert rep.skipped == ["0", "2", "4"] and rep.ok == ["1", "3"]
     assert rep.to_dict()["n_skipped"] == 3
 
@@ -174,28 +182,53 @@ def test_local_cluster_listens_on_loopback_only(tmp_path):
 
     script = tmp_path / "probe.py"
     script.write_text(LOOPBACK_PROBE)
-    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                         timeout=120, check=True).stdout.split()
+    out = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=120, check=True
+    ).stdout.split()
     assert out[0].startswith("tcp://127.0.0.1:")
     assert len(out[1:]) >= 4  # scheduler + dashboard + two workers at least
     assert set(out[1:]) == {"127.0.0.1"}, out
 
 
 def test_markers_keyed_by_item_and_options(tmp_path):
-    first = run_batch(range(3), square_stats, out_dir=tmp_path, workers=0, progress=False,
-                      options={"format": "glb"})
+    first = run_batch(
+        range(3),
+        square_stats,
+        out_dir=tmp_path,
+        workers=0,
+        progress=False,
+        options={"format": "glb"},
+    )
     assert first.ok == ["0", "1", "2"]
-    same = run_batch(range(3), square_stats, out_dir=tmp_path, workers=0, progress=False,
-                     options={"format": "glb"})
+    same = run_batch(
+        range(3),
+        square_stats,
+        out_dir=tmp_path,
+        workers=0,
+        progress=False,
+        options={"format": "glb"},
+    )
     assert same.skipped == ["0", "1", "2"]
-    other = run_batch(range(3), square_stats, out_dir=tmp_path, workers=0, progress=False,
-                      options={"format": "bvh"})
+    other = run_batch(
+        range(3),
+        square_stats,
+        out_dir=tmp_path,
+        workers=0,
+        progress=False,
+        options={"format": "bvh"},
+    )
     assert other.ok == ["0", "1", "2"] and other.skipped == []
     # an empty (half-written, legacy) marker never counts as done
     marker = tmp_path / ".batch_done" / "1"
     marker.write_text("")
-    again = run_batch(range(3), square_stats, out_dir=tmp_path, workers=0, progress=False,
-                      options={"format": "bvh"})
+    again = run_batch(
+        range(3),
+        square_stats,
+        out_dir=tmp_path,
+        workers=0,
+        progress=False,
+        options={"format": "bvh"},
+    )
     assert again.ok == ["1"]
 
 
@@ -211,9 +244,11 @@ run_batch([(out, i) for i in range(4)], staged_outputs, out_dir=out, key=lambda 
 
 def _snapshot(folder):
     """Every file's bytes (markers: existence only, their digest includes the folder)."""
-    return {p.relative_to(folder).as_posix(): b"" if p.parent.name == ".batch_done" else
-            p.read_bytes() for p in sorted(folder.rglob("*"))
-            if p.is_file() and p.name != "batch_report.json"}
+    return {
+        p.relative_to(folder).as_posix(): b"" if p.parent.name == ".batch_done" else p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and p.name != "batch_report.json"
+    }
 
 
 @pytest.mark.parametrize("kill_after", [0.35, 0.75, 1.15, 1.55])
@@ -228,8 +263,7 @@ def test_resume_after_sigkill_is_exact(tmp_path, kill_after):
 
     ref, out = tmp_path / "ref", tmp_path / "out"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
-    subprocess.run([sys.executable, "-c", KILL_SCRIPT, str(ref)], check=True, env=env,
-                   timeout=60)
+    subprocess.run([sys.executable, "-c", KILL_SCRIPT, str(ref)], check=True, env=env, timeout=60)
     proc = subprocess.Popen([sys.executable, "-c", KILL_SCRIPT, str(out)], env=env)
     t0 = time.monotonic()
     while not (out / "0.first").exists() and time.monotonic() - t0 < 30:
@@ -237,8 +271,7 @@ def test_resume_after_sigkill_is_exact(tmp_path, kill_after):
     time.sleep(kill_after)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    subprocess.run([sys.executable, "-c", KILL_SCRIPT, str(out)], check=True, env=env,
-                   timeout=60)
+    subprocess.run([sys.executable, "-c", KILL_SCRIPT, str(out)], check=True, env=env, timeout=60)
     assert _snapshot(out) == _snapshot(ref)
     assert [p for p in out.rglob("*") if ".tmp-" in p.name or p.name == ".biomorph.lock"] == []
 
@@ -250,8 +283,9 @@ def test_tree_batch_redoes_an_item_killed_before_its_last_file(tmp_path):
     from biomorph.io import write_points
     from biomorph.tree.synthetic import generate_tree, simulate_scan
 
-    cloud = write_points(tmp_path / "birch.ply",
-                         simulate_scan(generate_tree("birch", seed=3), n_points=1500, seed=3))
+    cloud = write_points(
+        tmp_path / "birch.ply", simulate_scan(generate_tree("birch", seed=3), n_points=1500, seed=3)
+    )
     out = tmp_path / "out"
     assert run(["tree", "batch", str(cloud), "--workers", "0", "--out", str(out)]) == 0
     item = out / "birch"
@@ -266,13 +300,22 @@ def test_creature_batch_resume_is_keyed_by_format(tmp_path, capsys):
     from biomorph.cli import run
 
     out = tmp_path / "c"
-    base = ["creature", "batch", "--count", "2", "--chunk", "1", "--workers", "0", "--out",
-            str(out)]
+    base = [
+        "creature",
+        "batch",
+        "--count",
+        "2",
+        "--chunk",
+        "1",
+        "--workers",
+        "0",
+        "--out",
+        str(out),
+    ]
     assert run([*base, "--format", "json"]) == 0
     assert sorted(p.suffix for p in out.glob("creature_*")) == [".json", ".json"]
     assert run([*base, "--format", "bvh"]) == 0  # used to write nothing and exit 0
-    assert sorted(p.suffix for p in out.glob("creature_*")) == [".bvh", ".bvh", ".json",
-                                                                 ".json"]
+    assert sorted(p.suffix for p in out.glob("creature_*")) == [".bvh", ".bvh", ".json", ".json"]
     assert run([*base, "--format", "bvh"]) == 0
     assert "0 failed" in capsys.readouterr().out
 

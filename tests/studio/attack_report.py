@@ -27,13 +27,30 @@ from websockets.sync.client import connect
 import biomorph.studio.server as studio_server
 from biomorph.studio import StudioApp
 
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync",
-        "--host-resolver-rules=MAP evil.test 127.0.0.1"]
+ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--host-resolver-rules=MAP evil.test 127.0.0.1",
+]
 XSS = '<img src=x onerror="window.__xss=1">'
-CAMERA = {"type": "ViewerCameraMessage", "wxyz": (1.0, 0, 0, 0), "position": (3.0, 3, 3),
-          "fov": 1.0, "near": 0.01, "far": 100.0, "image_height": 100, "image_width": 100,
-          "look_at": (0.0, 0, 0), "up_direction": (0.0, 0, 1)}
+CAMERA = {
+    "type": "ViewerCameraMessage",
+    "wxyz": (1.0, 0, 0, 0),
+    "position": (3.0, 3, 3),
+    "fov": 1.0,
+    "near": 0.01,
+    "far": 100.0,
+    "image_height": 100,
+    "image_width": 100,
+    "look_at": (0.0, 0, 0),
+    "up_direction": (0.0, 0, 1),
+}
 
 
 def encode(**msg) -> bytes:
@@ -43,19 +60,25 @@ def encode(**msg) -> bytes:
 def raw(port: int, origin: str | None = "own"):
     """A websocket client speaking viser's protocol, announced by a camera message."""
     headers = {"Origin": f"http://127.0.0.1:{port}" if origin == "own" else origin}
-    ws = connect(f"ws://127.0.0.1:{port}/", subprotocols=[f"viser-v{viser.__version__}"],
-                 additional_headers={k: v for k, v in headers.items() if v}, max_size=None,
-                 open_timeout=10)
+    ws = connect(
+        f"ws://127.0.0.1:{port}/",
+        subprotocols=[f"viser-v{viser.__version__}"],
+        additional_headers={k: v for k, v in headers.items() if v},
+        max_size=None,
+        open_timeout=10,
+    )
     ws.send(msgspec.msgpack.encode(CAMERA))
     return ws
 
 
 def evil_page(port: int) -> bytes:
-    return (f'<script>window.r={{bytes:0,closed:false}};'
-            f'const ws=new WebSocket("ws://127.0.0.1:{port}/",["viser-v{viser.__version__}"]);'
-            'ws.binaryType="arraybuffer";ws.onmessage=e=>{window.r.bytes+=e.data.byteLength};'
-            'ws.onclose=()=>{window.r.closed=true};'
-            'setTimeout(()=>{window.r.closed=true},6000);</script>').encode()
+    return (
+        f"<script>window.r={{bytes:0,closed:false}};"
+        f'const ws=new WebSocket("ws://127.0.0.1:{port}/",["viser-v{viser.__version__}"]);'
+        'ws.binaryType="arraybuffer";ws.onmessage=e=>{window.r.bytes+=e.data.byteLength};'
+        "ws.onclose=()=>{window.r.closed=true};"
+        "setTimeout(()=>{window.r.closed=true},6000);</script>"
+    ).encode()
 
 
 def browser_attacks(port: int, res: dict) -> None:
@@ -106,12 +129,27 @@ def protocol_attacks(app, res: dict) -> None:
     button, tid = tree.picker.upload._impl.uuid, str(uuid.uuid4())
     try:
         with raw(port) as ws:
-            ws.send(encode(type="FileTransferStartUpload", source_component_uuid=button,
-                           transfer_uuid=tid, filename="big.xyz", mime_type="text/plain",
-                           part_count=100000, size_bytes=1000))
+            ws.send(
+                encode(
+                    type="FileTransferStartUpload",
+                    source_component_uuid=button,
+                    transfer_uuid=tid,
+                    filename="big.xyz",
+                    mime_type="text/plain",
+                    part_count=100000,
+                    size_bytes=1000,
+                )
+            )
             for i in range(40):
-                ws.send(encode(type="FileTransferPart", source_component_uuid=button,
-                               transfer_uuid=tid, part_index=i, content=b"1" * 500_000))
+                ws.send(
+                    encode(
+                        type="FileTransferPart",
+                        source_component_uuid=button,
+                        transfer_uuid=tid,
+                        part_index=i,
+                        content=b"1" * 500_000,
+                    )
+                )
             time.sleep(3)  # measured while the client is still connected
             held = buffered(app)
     except Exception as exc:  # noqa: BLE001 - a closed connection is the defence
@@ -130,8 +168,13 @@ def main() -> None:
     data = Path(tempfile.mkdtemp())
     (data / f"{XSS}.xyz").write_text("not numbers\n")
     shared = "shared" in inspect.signature(StudioApp).parameters
-    app = StudioApp(data, port=0, max_upload_bytes=1_000_000, tabs=["files", "tree"],
-                    **({"shared": True} if shared else {}))
+    app = StudioApp(
+        data,
+        port=0,
+        max_upload_bytes=1_000_000,
+        tabs=["files", "tree"],
+        **({"shared": True} if shared else {}),
+    )
     app.start()
     res: dict = {}
     try:

@@ -18,16 +18,22 @@ import numpy as np
 import pytest
 
 CHROMIUM = Path(os.environ.get("BIOMORPH_CHROMIUM", "/usr/bin/chromium"))
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-                 "--no-first-run", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync",
-                 # a stand-in for a rebinding DNS: evil.test resolves to this machine
-                 "--host-resolver-rules=MAP evil.test 127.0.0.1"]
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    # a stand-in for a rebinding DNS: evil.test resolves to this machine
+    "--host-resolver-rules=MAP evil.test 127.0.0.1",
+]
 VIEWPORT = {"width": 880, "height": 600}
 
 
-def wait_for(cond: Callable[[], object], timeout: float = 20.0, what: str = "condition"
-             ) -> object:
+def wait_for(cond: Callable[[], object], timeout: float = 20.0, what: str = "condition") -> object:
     """Poll ``cond`` until truthy; fail the test naming ``what`` after ``timeout`` seconds."""
     end = time.monotonic() + timeout
     while True:
@@ -52,10 +58,13 @@ def png_stats(png: bytes) -> tuple[float, int]:
 def browser() -> Iterator[object]:
     """A headless Debian chromium driven by Playwright (session-wide)."""
     if not CHROMIUM.exists():
-        pytest.skip(f"{CHROMIUM} is absent: run `bash scripts/ensure_chromium.sh` "
-                    "(apt install chromium) to enable the studio browser tests")
-    sync_api = pytest.importorskip("playwright.sync_api",
-                                   reason="the playwright package is not installed")
+        pytest.skip(
+            f"{CHROMIUM} is absent: run `bash scripts/ensure_chromium.sh` "
+            "(apt install chromium) to enable the studio browser tests"
+        )
+    sync_api = pytest.importorskip(
+        "playwright.sync_api", reason="the playwright package is not installed"
+    )
     os.environ.setdefault("PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD", "1")
     with sync_api.sync_playwright() as pw:
         b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
@@ -140,8 +149,10 @@ class Studio:
                 return
             self.page.wait_for_timeout(100)
         found = [(el.is_visible(), el.inner_text()[:80]) for el in loc.all()]
-        pytest.fail(f"{text!r} not visible in the page after {timeout:.0f} s; "
-                    f"matches (visible, text): {found}")
+        pytest.fail(
+            f"{text!r} not visible in the page after {timeout:.0f} s; "
+            f"matches (visible, text): {found}"
+        )
 
     # -------------------------------------------------------------- checks
     def canvas_png(self) -> bytes:
@@ -149,14 +160,19 @@ class Studio:
         self.page.wait_for_timeout(250)  # let three.js draw the latest messages
         box = self.page.locator("canvas").first.bounding_box()
         assert box is not None, "no WebGL canvas in the page"
-        clip = {"x": box["x"] + 20, "y": box["y"] + 170,
-                "width": max(box["width"] * 0.7 - 40, 10), "height": box["height"] - 260}
+        clip = {
+            "x": box["x"] + 20,
+            "y": box["y"] + 170,
+            "width": max(box["width"] * 0.7 - 40, 10),
+            "height": box["height"] - 260,
+        }
         return self.page.screenshot(clip=clip)
 
     def assert_scene_not_blank(self, png: bytes | None = None) -> None:
         var, colours = png_stats(self.canvas_png() if png is None else png)
-        assert var > 20.0 and colours > 8, (f"3-D view looks blank (variance {var:.1f}, "
-                                            f"{colours} colours)")
+        assert var > 20.0 and colours > 8, (
+            f"3-D view looks blank (variance {var:.1f}, {colours} colours)"
+        )
 
     def assert_scene_changed(self, before: bytes, min_pixels: int = 300) -> bytes:
         """The 3-D view is not blank and differs from ``before`` in at least ``min_pixels``
@@ -171,8 +187,10 @@ class Studio:
         assert changed >= min_pixels, f"3-D view barely changed ({changed} pixels)"
         rgb = np.asarray(Image.open(io.BytesIO(after)).convert("RGB"), dtype=np.int16)
         coloured = int((rgb.max(axis=2) - rgb.min(axis=2) > 40).sum())
-        assert coloured >= min_pixels, (f"3-D view shows no coloured content, only "
-                                        f"{coloured} coloured pixels (grey grid alone?)")
+        assert coloured >= min_pixels, (
+            f"3-D view shows no coloured content, only "
+            f"{coloured} coloured pixels (grey grid alone?)"
+        )
         self.assert_scene_not_blank(after)
         return after
 

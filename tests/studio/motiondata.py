@@ -8,14 +8,22 @@ import numpy as np
 
 # name, parent index, offset (cm)
 JOINTS = [
-    ("Hips", -1, (0, 90, 0)), ("Spine", 0, (0, 10, 0)), ("Chest", 1, (0, 20, 0)),
-    ("Neck", 2, (0, 20, 0)), ("Head", 3, (0, 10, 0)),
-    ("LeftShoulder", 2, (15, 15, 0)), ("LeftElbow", 5, (0, -28, 0)),
+    ("Hips", -1, (0, 90, 0)),
+    ("Spine", 0, (0, 10, 0)),
+    ("Chest", 1, (0, 20, 0)),
+    ("Neck", 2, (0, 20, 0)),
+    ("Head", 3, (0, 10, 0)),
+    ("LeftShoulder", 2, (15, 15, 0)),
+    ("LeftElbow", 5, (0, -28, 0)),
     ("LeftHand", 6, (0, -25, 0)),
-    ("RightShoulder", 2, (-15, 15, 0)), ("RightElbow", 8, (0, -28, 0)),
+    ("RightShoulder", 2, (-15, 15, 0)),
+    ("RightElbow", 8, (0, -28, 0)),
     ("RightHand", 9, (0, -25, 0)),
-    ("LeftHip", 0, (9, -5, 0)), ("LeftKnee", 11, (0, -42, 0)), ("LeftAnkle", 12, (0, -40, 0)),
-    ("RightHip", 0, (-9, -5, 0)), ("RightKnee", 14, (0, -42, 0)),
+    ("LeftHip", 0, (9, -5, 0)),
+    ("LeftKnee", 11, (0, -42, 0)),
+    ("LeftAnkle", 12, (0, -40, 0)),
+    ("RightHip", 0, (-9, -5, 0)),
+    ("RightKnee", 14, (0, -42, 0)),
     ("RightAnkle", 15, (0, -40, 0)),
 ]
 
@@ -36,8 +44,9 @@ def write_walk_bvh(path: Path, seconds: float = 4.0, fps: float = 60.0, seed: in
         lines.append(f"{pad}{{")
         lines.append(f"{pad}  OFFSET {off[0]} {off[1]} {off[2]}")
         if parent < 0:
-            lines.append(f"{pad}  CHANNELS 6 Xposition Yposition Zposition "
-                         "Zrotation Xrotation Yrotation")
+            lines.append(
+                f"{pad}  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation"
+            )
         else:
             lines.append(f"{pad}  CHANNELS 3 Zrotation Xrotation Yrotation")
         if children[i]:
@@ -51,8 +60,14 @@ def write_walk_bvh(path: Path, seconds: float = 4.0, fps: float = 60.0, seed: in
         lines.append(f"{pad}}}")
 
     emit(0, 0)
-    cols = [np.zeros(n), 90 + 2 * np.sin(2 * w * t), 80 * t,
-            np.zeros(n), np.zeros(n), 5 * np.sin(w * t)]
+    cols = [
+        np.zeros(n),
+        90 + 2 * np.sin(2 * w * t),
+        80 * t,
+        np.zeros(n),
+        np.zeros(n),
+        5 * np.sin(w * t),
+    ]
     swing = {"LeftHip": 1, "RightHip": -1, "LeftShoulder": -1, "RightShoulder": 1}
     for name, _, _ in JOINTS[1:]:
         x = np.zeros(n)

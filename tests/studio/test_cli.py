@@ -13,8 +13,16 @@ from biomorph.studio.server import free_port
 
 def test_studio_command_serves_and_stops_cleanly(tmp_path):
     port = free_port()
-    cmd = [sys.executable, "-c", "from biomorph.cli import main; main()", "studio",
-           "--port", str(port), "--data", str(tmp_path)]
+    cmd = [
+        sys.executable,
+        "-c",
+        "from biomorph.cli import main; main()",
+        "studio",
+        "--port",
+        str(port),
+        "--data",
+        str(tmp_path),
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         url = None
@@ -32,8 +40,9 @@ def test_studio_command_serves_and_stops_cleanly(tmp_path):
         # loopback only: the port is not reachable on another local address of the host
         import socket
 
-        addrs = {a[4][0] for a in socket.getaddrinfo(socket.gethostname(), None,
-                                                     socket.AF_INET)} - {"127.0.0.1"}
+        addrs = {
+            a[4][0] for a in socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET)
+        } - {"127.0.0.1"}
         for addr in list(addrs)[:1]:
             with socket.socket() as s:
                 s.settimeout(2)

@@ -58,13 +58,16 @@ def test_creature_tab(studio, tmp_path):
     before_kinds = tab.creature.kind
     studio.select(tab.limb_kind, "wing")
     studio.click("Add limb pair")
-    wait_for(lambda: tab.creature is not None and (tab.creature.kind != before_kinds
-                                                   or tab.last_error), what="the limb edit")
+    wait_for(
+        lambda: tab.creature is not None and (tab.creature.kind != before_kinds or tab.last_error),
+        what="the limb edit",
+    )
     if tab.last_error is None:
         assert "wing" in " ".join(tab.creature.kind)
     studio.click("Re-roll this part")
-    wait_for(lambda: "creature/re-roll" in app.latency.summary() or tab.last_error,
-             what="the re-roll")
+    wait_for(
+        lambda: "creature/re-roll" in app.latency.summary() or tab.last_error, what="the re-roll"
+    )
     studio.assert_scene_changed(before)
     studio.screenshot("creature")
 
@@ -73,8 +76,10 @@ def test_creature_tab(studio, tmp_path):
     for fmt in ("GLB", "BVH", "OSIM"):
         studio.click(fmt)
     stem = f"creature_{int(tab.seed.value)}"
-    wait_for(lambda: all((out / f"{stem}.{e}").is_file() for e in ("glb", "bvh", "osim")),
-             what="the three exports")
+    wait_for(
+        lambda: all((out / f"{stem}.{e}").is_file() for e in ("glb", "bvh", "osim")),
+        what="the three exports",
+    )
     from biomorph import io
 
     assert (out / f"{stem}.glb").read_bytes()[:4] == b"glTF"

@@ -11,11 +11,24 @@ pytestmark = pytest.mark.browser
 
 
 def _box_obj(path):
-    v = np.array([[x, y, z] for x in (-.5, .5) for y in (-.5, .5) for z in (0, 1)])
-    f = [[1, 2, 4], [2, 4, 3], [5, 6, 8], [6, 8, 7], [1, 2, 6], [1, 6, 5],
-         [3, 4, 8], [3, 8, 7], [1, 3, 7], [1, 7, 5], [2, 4, 8], [2, 8, 6]]
-    path.write_text("".join(f"v {a} {b} {c}\n" for a, b, c in v)
-                    + "".join(f"f {a} {b} {c}\n" for a, b, c in f))
+    v = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (0, 1)])
+    f = [
+        [1, 2, 4],
+        [2, 4, 3],
+        [5, 6, 8],
+        [6, 8, 7],
+        [1, 2, 6],
+        [1, 6, 5],
+        [3, 4, 8],
+        [3, 8, 7],
+        [1, 3, 7],
+        [1, 7, 5],
+        [2, 4, 8],
+        [2, 8, 6],
+    ]
+    path.write_text(
+        "".join(f"v {a} {b} {c}\n" for a, b, c in v) + "".join(f"f {a} {b} {c}\n" for a, b, c in f)
+    )
     return path
 
 
@@ -56,15 +69,18 @@ def test_files_tab_opens_uploads_and_reports_errors(studio, tmp_path):
     big = tmp_path / "big.obj"
     big.write_bytes(b"#" * 1_500_000)
     studio.upload(tab.upload, big)
-    wait_for(lambda: tab.last_error and "upload limit" in tab.last_error,
-             what="the size-limit error")
+    wait_for(
+        lambda: tab.last_error and "upload limit" in tab.last_error, what="the size-limit error"
+    )
     studio.expect_text("upload limit")
     assert not (app.sandbox.root / "uploads" / "big.obj").exists()
     # the refused upload ends in the page: no spinner left, the button works again
     button = studio.page.get_by_role("button", name="Upload and open", exact=True)
     wait_for(lambda: button.is_enabled(), what="the upload button to be enabled again")
-    wait_for(lambda: studio.page.locator(".mantine-Notification-loader").count() == 0,
-             what="the upload spinner to stop")
+    wait_for(
+        lambda: studio.page.locator(".mantine-Notification-loader").count() == 0,
+        what="the upload spinner to stop",
+    )
     # still usable: a good upload opens
     v1 = tab.version
     studio.upload(tab.upload, _box_obj(tmp_path / "good.obj"))

@@ -30,16 +30,20 @@ def test_leaf_tab(studio, tmp_path):
     # shape and growth: a younger leaf is shorter
     full = float(tab.mesh.vertices[:, 2].max())
     studio.set_slider(tab.age, 0.3)
-    wait_for(lambda: abs(tab.age.value - 0.3) < 1e-9 and
-             float(tab.mesh.vertices[:, 2].max()) < full, what="the younger leaf")
+    wait_for(
+        lambda: abs(tab.age.value - 0.3) < 1e-9 and float(tab.mesh.vertices[:, 2].max()) < full,
+        what="the younger leaf",
+    )
     studio.set_slider(tab.twist, 90)
     wait_for(lambda: abs(tab.shape.twist - 1.5707963) < 1e-3, what="the twist")
     studio.assert_scene_changed(before)
 
     # canopy
     studio.set_checkbox(tab.canopy, True)
-    wait_for(lambda: "leaf" in tab.mesh.face_ids and tab.mesh.face_ids["plant"].max() == 8,
-             what="the canopy")
+    wait_for(
+        lambda: "leaf" in tab.mesh.face_ids and tab.mesh.face_ids["plant"].max() == 8,
+        what="the canopy",
+    )
     studio.screenshot("leaf")
     stats = app.latency.summary()
     assert "leaf/lod" in stats and "leaf/age" in stats
@@ -67,8 +71,18 @@ def test_leaf_tab(studio, tmp_path):
     import json
 
     good = tmp_path / "my_leaf.json"
-    good.write_text(json.dumps({"s": [0, 0.5, 1], "phi": [1.2, 0.6, -0.3], "s_r": [0, 0.3, 1],
-                                "r": [0.5, 1, 0.1], "length": 0.4, "width": 0.03}))
+    good.write_text(
+        json.dumps(
+            {
+                "s": [0, 0.5, 1],
+                "phi": [1.2, 0.6, -0.3],
+                "s_r": [0, 0.3, 1],
+                "r": [0.5, 1, 0.1],
+                "length": 0.4,
+                "width": 0.03,
+            }
+        )
+    )
     studio.upload(tab.shape_picker.upload, good)
     wait_for(lambda: tab.custom is not None and tab.last_error is None, what="the good shape")
     assert abs(tab.shape.length - 0.4) < 1e-9

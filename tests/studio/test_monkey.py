@@ -47,8 +47,10 @@ def uncaught(monkeypatch):
 
     def record(*args, **kw):
         exc = args[0] if args else kw.get("exc")
-        seen.append(f"{type(exc).__name__ if isinstance(exc, BaseException) else exc}: "
-                    f"{args[1] if len(args) > 1 else exc}"[:300])
+        seen.append(
+            f"{type(exc).__name__ if isinstance(exc, BaseException) else exc}: "
+            f"{args[1] if len(args) > 1 else exc}"[:300]
+        )
         return original(*args, **kw)
 
     monkeypatch.setattr(traceback, "print_exception", record)
@@ -72,8 +74,12 @@ def _pick(page, selector: str, rng):
 
 def _act(page, rng) -> str:
     """One random user action; returns what it did."""
-    kind = str(rng.choice(["tab", "button", "number", "text", "check", "select", "key"],
-                          p=[0.15, 0.3, 0.2, 0.08, 0.1, 0.1, 0.07]))
+    kind = str(
+        rng.choice(
+            ["tab", "button", "number", "text", "check", "select", "key"],
+            p=[0.15, 0.3, 0.2, 0.08, 0.1, 0.1, 0.07],
+        )
+    )
     if kind == "tab":
         label = str(rng.choice(["Files", "Creature", "Motion", "Tree", "Leaf"]))
         page.get_by_role("button", name=label, exact=True).first.click(timeout=T)
@@ -105,8 +111,11 @@ def _act(page, rng) -> str:
         else:
             page.keyboard.press("Escape")
         return "select"
-    selector = ("input[inputmode=decimal]:visible, input[inputmode=numeric]:visible"
-                if kind == "number" else "input[type=text]:visible:not([readonly])")
+    selector = (
+        "input[inputmode=decimal]:visible, input[inputmode=numeric]:visible"
+        if kind == "number"
+        else "input[type=text]:visible:not([readonly])"
+    )
     box = _pick(page, selector, rng)
     if box is None:
         return f"no {kind} input"
@@ -137,8 +146,10 @@ def test_randomised_session_has_no_uncaught_exceptions(studio_app, browser, unca
         tab.close()
         session.tabs[key]  # still there
     acted = [d for d in done if not d.startswith(("no ", "skipped"))]
-    print(f"\nmonkey: {SECONDS:.0f} s, {len(acted)} actions ({len(done)} tries), "
-          f"{len(seen)} uncaught exceptions, {len(logged)} logged errors")
+    print(
+        f"\nmonkey: {SECONDS:.0f} s, {len(acted)} actions ({len(done)} tries), "
+        f"{len(seen)} uncaught exceptions, {len(logged)} logged errors"
+    )
     assert len(acted) >= 3, done  # a loaded 2-core machine manages a few per 10 s
     assert not seen, f"uncaught exceptions after {len(done)} actions: {seen[:5]}"
     assert not logged, f"errors logged after {len(done)} actions: {logged[:5]}"

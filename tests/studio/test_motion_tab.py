@@ -21,8 +21,7 @@ def test_motion_tab(studio, tmp_path):
     wait_for(lambda: "walk.bvh" in tab.picker.dropdown.options, what="walk.bvh listed")
     studio.select(tab.picker.dropdown, "walk.bvh")
     studio.click("Open")
-    wait_for(lambda: tab.edited is not None or tab.last_error, timeout=30,
-             what="the clip to load")
+    wait_for(lambda: tab.edited is not None or tab.last_error, timeout=30, what="the clip to load")
     assert tab.last_error is None, tab.last_error
     assert tab.source.n_frames == 1200
     studio.expect_text("1200 frames")
@@ -44,8 +43,7 @@ def test_motion_tab(studio, tmp_path):
     if tab.gains:
         v0 = tab.version
         studio.set_slider(tab.gains[0], 0)
-        wait_for(lambda: tab.gains[0].value == 0.0 and tab.version > v0,
-                 what="the equalizer edit")
+        wait_for(lambda: tab.gains[0].value == 0.0 and tab.version > v0, what="the equalizer edit")
         wait_for(lambda: tab.edited is not tab.source, what="an edited clip")
         stats = app.latency.summary()
         assert "motion/equalizer" in stats
@@ -89,8 +87,9 @@ def test_motion_tab(studio, tmp_path):
     from biomorph import io
 
     studio.click("BVH")
-    wait_for(lambda: (app.sandbox.root / "exports" / "walk_edited.bvh").is_file(),
-             what="the BVH export")
+    wait_for(
+        lambda: (app.sandbox.root / "exports" / "walk_edited.bvh").is_file(), what="the BVH export"
+    )
     back = io.read_motion(app.sandbox.root / "exports" / "walk_edited.bvh")
     assert back.n_frames == tab.edited.n_frames and back.n_joints == 17
     studio.click("GLB")

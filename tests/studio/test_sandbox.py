@@ -21,8 +21,19 @@ def box(tmp_path):
     return Sandbox(tmp_path / "data", max_upload_bytes=100)
 
 
-@pytest.mark.parametrize("name", ["../secret.txt", "sub/../../secret.txt", "/etc/passwd",
-                                  "..", "", "a\x00b", "C:\\Windows\\x", "..\\secret.txt"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "../secret.txt",
+        "sub/../../secret.txt",
+        "/etc/passwd",
+        "..",
+        "",
+        "a\x00b",
+        "C:\\Windows\\x",
+        "..\\secret.txt",
+    ],
+)
 def test_escaping_names_are_rejected(box, name):
     with pytest.raises(SandboxError):
         box.resolve(name)

@@ -30,9 +30,13 @@ def raw_client(app, origin: str | None = "own", path: str = "/"):
         origin = f"http://127.0.0.1:{app.port}"
     if origin is not None:
         headers["Origin"] = origin
-    return connect(f"ws://127.0.0.1:{app.port}{path}", additional_headers=headers,
-                   subprotocols=[f"viser-v{viser.__version__}"], max_size=None,
-                   open_timeout=10)
+    return connect(
+        f"ws://127.0.0.1:{app.port}{path}",
+        additional_headers=headers,
+        subprotocols=[f"viser-v{viser.__version__}"],
+        max_size=None,
+        open_timeout=10,
+    )
 
 
 def send(ws, type_: str, **fields) -> None:
@@ -51,8 +55,13 @@ def shared_app(tmp_path_factory):
     them exactly as the page's own (devtools-modified) client would."""
     from biomorph.studio import StudioApp
 
-    app = StudioApp(tmp_path_factory.mktemp("shared"), port=0, max_upload_bytes=1_000_000,
-                    tabs=["files", "tree", "creature"], shared=True)
+    app = StudioApp(
+        tmp_path_factory.mktemp("shared"),
+        port=0,
+        max_upload_bytes=1_000_000,
+        tabs=["files", "tree", "creature"],
+        shared=True,
+    )
     app.start()
     yield app
     app.stop()
@@ -183,22 +192,42 @@ def test_file_names_and_typed_text_are_shown_as_text(studio, browser):
 def test_escaping_helper():
     from biomorph.studio.base import plain
 
-    assert plain("<b>*x*</b> [a](javascript:1)") == \
-        "&lt;b&gt;\\*x\\*&lt;/b&gt; \\[a\\]\\(javascript:1\\)"
+    assert (
+        plain("<b>*x*</b> [a](javascript:1)")
+        == "&lt;b&gt;\\*x\\*&lt;/b&gt; \\[a\\]\\(javascript:1\\)"
+    )
 
 
 # ---------------------------------------------------------------------- values out of range
 def _connected(app):
     ws = raw_client(app)
-    send(ws, "ViewerCameraMessage", wxyz=(1.0, 0.0, 0.0, 0.0), position=(3.0, 3.0, 3.0),
-         fov=1.0, near=0.01, far=100.0, image_height=100, image_width=100,
-         look_at=(0.0, 0.0, 0.0), up_direction=(0.0, 0.0, 1.0))
+    send(
+        ws,
+        "ViewerCameraMessage",
+        wxyz=(1.0, 0.0, 0.0, 0.0),
+        position=(3.0, 3.0, 3.0),
+        fov=1.0,
+        near=0.01,
+        far=100.0,
+        image_height=100,
+        image_width=100,
+        look_at=(0.0, 0.0, 0.0),
+        up_direction=(0.0, 0.0, 1.0),
+    )
     return ws
 
 
-@pytest.mark.parametrize("field,value", [("n_points", 300_000), ("n_points", float("nan")),
-                                         ("seed", float("nan")), ("seed", -5),
-                                         ("seed", 1.5), ("n_points", "many")])
+@pytest.mark.parametrize(
+    "field,value",
+    [
+        ("n_points", 300_000),
+        ("n_points", float("nan")),
+        ("seed", float("nan")),
+        ("seed", -5),
+        ("seed", 1.5),
+        ("n_points", "many"),
+    ],
+)
 def test_values_outside_the_ui_ranges_are_refused(shared_app, field, value):
     tab = shared_app.tabs["tree"]
     handle = getattr(tab, field)
@@ -223,8 +252,10 @@ def test_accepted_changes_still_work_and_undo(shared_app):
     seed = int(tab.seed.value)
     with _connected(shared_app) as ws:
         send(ws, "GuiUpdateMessage", uuid=tab.seed._impl.uuid, updates={"value": seed + 1})
-        wait_for(lambda: tab.generator is not None and tab.generator.options.seed == seed + 1,
-                 what="the new seed to be generated")
+        wait_for(
+            lambda: tab.generator is not None and tab.generator.options.seed == seed + 1,
+            what="the new seed to be generated",
+        )
     tab.run("undo", tab.undo_parameter)
     wait_for(lambda: tab.generator.options.seed == seed, what="undo to regenerate")
     assert int(tab.seed.value) == seed
@@ -246,13 +277,26 @@ def test_an_upload_streaming_more_than_it_declared_is_cut_off(shared_app):
     chunk = b"0" * 500_000
     closed = False
     with _connected(shared_app) as ws:
-        send(ws, "FileTransferStartUpload", source_component_uuid=button._impl.uuid,
-             transfer_uuid=tid, filename="big.xyz", mime_type="text/plain", part_count=1,
-             size_bytes=1000)
+        send(
+            ws,
+            "FileTransferStartUpload",
+            source_component_uuid=button._impl.uuid,
+            transfer_uuid=tid,
+            filename="big.xyz",
+            mime_type="text/plain",
+            part_count=1,
+            size_bytes=1000,
+        )
         try:
             for i in range(8):
-                send(ws, "FileTransferPart", source_component_uuid=button._impl.uuid,
-                     transfer_uuid=tid, part_index=i % 1, content=chunk)
+                send(
+                    ws,
+                    "FileTransferPart",
+                    source_component_uuid=button._impl.uuid,
+                    transfer_uuid=tid,
+                    part_index=i % 1,
+                    content=chunk,
+                )
                 time.sleep(0.05)
             settle()
             ws.recv(timeout=2)
@@ -269,12 +313,25 @@ def test_an_upload_declaring_too_many_parts_is_refused_at_its_start(shared_app):
     button = shared_app.tabs["tree"].picker.upload
     tid = str(uuid.uuid4())
     with _connected(shared_app) as ws:
-        send(ws, "FileTransferStartUpload", source_component_uuid=button._impl.uuid,
-             transfer_uuid=tid, filename="big.xyz", mime_type="text/plain",
-             part_count=100_000, size_bytes=1000)
+        send(
+            ws,
+            "FileTransferStartUpload",
+            source_component_uuid=button._impl.uuid,
+            transfer_uuid=tid,
+            filename="big.xyz",
+            mime_type="text/plain",
+            part_count=100_000,
+            size_bytes=1000,
+        )
         for i in range(6):
-            send(ws, "FileTransferPart", source_component_uuid=button._impl.uuid,
-                 transfer_uuid=tid, part_index=i, content=b"1" * 400_000)
+            send(
+                ws,
+                "FileTransferPart",
+                source_component_uuid=button._impl.uuid,
+                transfer_uuid=tid,
+                part_index=i,
+                content=b"1" * 400_000,
+            )
         settle(1.5)
         held = _buffered(shared_app)  # while the client is still connected
     assert held == 0
@@ -345,8 +402,7 @@ def test_creature_bone_models_are_drawn_shaded(shared_app):
     names = [n for n in tab.scene._handle_from_node_name if n.startswith("/creature/models/")]
     assert names, "no bone model meshes in the scene"
     tab.bone_models.value = False
-    assert not [n for n in tab.scene._handle_from_node_name
-                if n.startswith("/creature/models/")]
+    assert not [n for n in tab.scene._handle_from_node_name if n.startswith("/creature/models/")]
 
 
 def test_tree_tubes_are_coloured_by_radius_with_a_legend(shared_app):

@@ -19,16 +19,14 @@ def test_tree_tab(studio, tmp_path):
     before = studio.canvas_png()
 
     studio.click("Synthesise and scan")
-    wait_for(lambda: tab.cloud is not None or tab.last_error, timeout=60,
-             what="the synthetic scan")
+    wait_for(lambda: tab.cloud is not None or tab.last_error, timeout=60, what="the synthetic scan")
     assert tab.last_error is None, tab.last_error
     assert tab.cloud.n_points == 8000
     studio.expect_text("8,000 points")
 
     # run: progress reaches 100 and the result is drawn
     studio.click("Run")
-    wait_for(lambda: tab.result is not None or tab.last_error, timeout=90,
-             what="the skeleton")
+    wait_for(lambda: tab.result is not None or tab.last_error, timeout=90, what="the skeleton")
     assert tab.last_error is None, tab.last_error
     wait_for(lambda: tab.progress.value == 100.0, what="the progress bar to finish")
     assert len(tab.ticks) >= 3
@@ -46,8 +44,10 @@ def test_tree_tab(studio, tmp_path):
         studio.click(fmt)
     out = app.sandbox.root / "exports"
     stem = tab.cloud_name + "_skeleton"
-    wait_for(lambda: all((out / f"{stem}.{e}").is_file() for e in ("ply", "glb", "csv")),
-             what="the three exports")
+    wait_for(
+        lambda: all((out / f"{stem}.{e}").is_file() for e in ("ply", "glb", "csv")),
+        what="the three exports",
+    )
     g = io.read_graph(out / f"{stem}.ply")
     assert g.n_nodes == tab.result.graph.n_nodes
     assert (out / f"{stem}.glb").read_bytes()[:4] == b"glTF"
@@ -59,8 +59,9 @@ def test_tree_tab(studio, tmp_path):
     tab._cancel.clear()
     studio.click("Run")
     studio.click("Cancel")
-    wait_for(lambda: tab.job is not None and not tab.job.is_alive(), timeout=90,
-             what="the job to stop")
+    wait_for(
+        lambda: tab.job is not None and not tab.job.is_alive(), timeout=90, what="the job to stop"
+    )
     if tab.result is first:  # cancelled before it finished (the usual case)
         studio.expect_text("Cancelled")
 

@@ -34,8 +34,9 @@ def _bernstein(t: Array) -> Array:
 def _check_ctrl(ctrl: ArrayLike) -> Array:
     c = np.asarray(ctrl, dtype=float)
     if c.ndim < 2 or c.shape[-2] != 4:
-        raise ParameterError(f"cubic Bézier control points have shape {c.shape}; "
-                             "expected (..., 4, d)")
+        raise ParameterError(
+            f"cubic Bézier control points have shape {c.shape}; expected (..., 4, d)"
+        )
     return c
 
 
@@ -86,8 +87,9 @@ def bezier_split(ctrl: ArrayLike, t: float) -> tuple[Array, Array]:
     return left, right
 
 
-def bezier_arc_length(ctrl: ArrayLike, t0: float = 0.0, t1: float = 1.0,
-                      segments: int = 8) -> Array:
+def bezier_arc_length(
+    ctrl: ArrayLike, t0: float = 0.0, t1: float = 1.0, segments: int = 8
+) -> Array:
     """Arc length of cubic Béziers between ``t0`` and ``t1`` (Gauss–Legendre, piecewise).
 
     Returns shape ``(...)``. Accurate to ~1e-10 relative for well-behaved curves.
@@ -111,9 +113,13 @@ def bezier_arclength_params(ctrl: ArrayLike, n: int, samples: int = 256) -> Arra
     c = _check_ctrl(ctrl)
     tt = np.linspace(0.0, 1.0, samples)
     speed = np.linalg.norm(bezier_derivative(c, tt), axis=-1)  # (..., samples)
-    cum = np.concatenate([np.zeros(speed.shape[:-1] + (1,)),
-                          np.cumsum(0.5 * (speed[..., 1:] + speed[..., :-1]) * np.diff(tt),
-                                    axis=-1)], axis=-1)
+    cum = np.concatenate(
+        [
+            np.zeros(speed.shape[:-1] + (1,)),
+            np.cumsum(0.5 * (speed[..., 1:] + speed[..., :-1]) * np.diff(tt), axis=-1),
+        ],
+        axis=-1,
+    )
     total = cum[..., -1:]
     flat = cum.reshape(-1, samples)
     tot = flat[:, -1:]
@@ -124,8 +130,9 @@ def bezier_arclength_params(ctrl: ArrayLike, n: int, samples: int = 256) -> Arra
     table = (u + rows).ravel()
     query = (np.linspace(0.0, 1.0, n)[None, :] + rows).ravel()
     j = np.clip(np.searchsorted(table, query, side="right") - 1, 0, table.size - 2)
-    j = np.minimum(j, (np.arange(flat.shape[0])[:, None] * samples + samples - 2)
-                   .repeat(n, axis=1).ravel())
+    j = np.minimum(
+        j, (np.arange(flat.shape[0])[:, None] * samples + samples - 2).repeat(n, axis=1).ravel()
+    )
     t_all = np.tile(tt, flat.shape[0])
     du = table[j + 1] - table[j]
     frac = np.where(du > 0, (query - table[j]) / np.where(du > 0, du, 1.0), 0.0)
@@ -144,8 +151,7 @@ def polyline_arc_length(points: ArrayLike) -> Array:
     return np.concatenate([np.zeros(seg.shape[:-1] + (1,)), np.cumsum(seg, axis=-1)], axis=-1)
 
 
-def resample_polyline(points: ArrayLike, n: int | None = None,
-                      s: ArrayLike | None = None) -> Array:
+def resample_polyline(points: ArrayLike, n: int | None = None, s: ArrayLike | None = None) -> Array:
     """Points along a polyline ``(n_in, d)`` at ``n`` equal arc-length steps or at arc
     lengths ``s`` (metres from the start, clamped to the length)."""
     p = np.asarray(points, dtype=float)
@@ -164,8 +170,7 @@ def resample_polyline(points: ArrayLike, n: int | None = None,
     keep = np.concatenate([[True], np.diff(cum) > 0])
     if keep.sum() < 2:
         return np.repeat(p[:1], len(s_new), axis=0)
-    return np.stack([np.interp(s_new, cum[keep], p[keep, k]) for k in range(p.shape[1])],
-                    axis=-1)
+    return np.stack([np.interp(s_new, cum[keep], p[keep, k]) for k in range(p.shape[1])], axis=-1)
 
 
 # --------------------------------------------------------------------------- splines
@@ -183,8 +188,10 @@ def _check_knots(x: ArrayLike, y: ArrayLike, name: str, minimum: int = 2) -> tup
         raise ParameterError(f"{name}: keys hold NaN or inf")
     if np.any(np.diff(xa) <= 0):
         i = int(np.flatnonzero(np.diff(xa) <= 0)[0])
-        raise ParameterError(f"{name}: key positions must increase strictly; "
-                             f"x[{i}]={xa[i]:g} then x[{i + 1}]={xa[i + 1]:g}")
+        raise ParameterError(
+            f"{name}: key positions must increase strictly; "
+            f"x[{i}]={xa[i]:g} then x[{i + 1}]={xa[i + 1]:g}"
+        )
     return xa, ya
 
 
@@ -193,8 +200,9 @@ class _Spline:
 
     def __init__(self, x: Array, impl, extrapolate: Extrapolate) -> None:
         if extrapolate not in ("clamp", "extrapolate"):
-            raise ParameterError(f"extrapolate must be 'clamp' or 'extrapolate', "
-                                 f"got {extrapolate!r}")
+            raise ParameterError(
+                f"extrapolate must be 'clamp' or 'extrapolate', got {extrapolate!r}"
+            )
         self.x = x
         self._impl = impl
         self.extrapolate = extrapolate
@@ -215,8 +223,9 @@ class _Spline:
             out = d(np.clip(t, x0, x1) if clamp else t)
             if clamp:
                 outside = (t < x0) | (t > x1)
-                out = np.where(outside.reshape(outside.shape + (1,) * (out.ndim - t.ndim)),
-                               0.0, out)
+                out = np.where(
+                    outside.reshape(outside.shape + (1,) * (out.ndim - t.ndim)), 0.0, out
+                )
             return out
 
         return f
@@ -287,13 +296,16 @@ def midrib_arc_length(x: ArrayLike, y: ArrayLike) -> Array:
     seg = np.hypot(np.diff(xa), np.diff(ya))
     if np.any(seg <= 0):
         i = int(np.flatnonzero(seg <= 0)[0])
-        raise InputError(f"midrib points {i} and {i + 1} are duplicates ({xa[i]:g}, {ya[i]:g});"
-                         " expected strictly increasing arc length")
+        raise InputError(
+            f"midrib points {i} and {i + 1} are duplicates ({xa[i]:g}, {ya[i]:g});"
+            " expected strictly increasing arc length"
+        )
     return np.concatenate([[0.0], np.cumsum(seg)])
 
 
-def angles_from_points(x: ArrayLike, y: ArrayLike, rounding: float = 0.25
-                       ) -> tuple[Array, Array, float]:
+def angles_from_points(
+    x: ArrayLike, y: ArrayLike, rounding: float = 0.25
+) -> tuple[Array, Array, float]:
     """Angle form of a digitised plane curve.
 
     Returns ``(s, phi, length)``: knots ``s`` in [0, 1] and the unwrapped tangent angle
@@ -312,11 +324,12 @@ def angles_from_points(x: ArrayLike, y: ArrayLike, rounding: float = 0.25
     si = cum / total
     if seg_phi.size == 1:
         return np.array([0.0, 1.0]), np.array([seg_phi[0], seg_phi[0]]), total
-    w = np.clip(rounding, 1e-6, 0.49) * np.minimum(seg_len[:-1], seg_len[1:])   # per corner
+    w = np.clip(rounding, 1e-6, 0.49) * np.minimum(seg_len[:-1], seg_len[1:])  # per corner
     corner = si[1:-1]
     s = np.concatenate([[0.0], np.ravel(np.column_stack([corner - w, corner + w])), [1.0]])
-    phi = np.concatenate([[seg_phi[0]], np.ravel(np.column_stack([seg_phi[:-1], seg_phi[1:]])),
-                          [seg_phi[-1]]])
+    phi = np.concatenate(
+        [[seg_phi[0]], np.ravel(np.column_stack([seg_phi[:-1], seg_phi[1:]])), [seg_phi[-1]]]
+    )
     keep = np.concatenate([[True], np.diff(s) > 0])
     return s[keep], phi[keep], total
 
@@ -352,7 +365,19 @@ def solve_arc_length(points: ArrayLike, target: float, s: ArrayLike) -> Array:
     return (out - out[0]) * (target / cum[-1])
 
 
-__all__ = ["bezier_eval", "bezier_derivative", "bezier_split", "bezier_arc_length",
-           "bezier_arclength_params", "polyline_arc_length", "resample_polyline",
-           "NaturalCubicSpline", "MonotoneSpline", "CatmullRomSpline",
-           "angles_from_points", "integrate_angles", "midrib_arc_length", "solve_arc_length"]
+__all__ = [
+    "bezier_eval",
+    "bezier_derivative",
+    "bezier_split",
+    "bezier_arc_length",
+    "bezier_arclength_params",
+    "polyline_arc_length",
+    "resample_polyline",
+    "NaturalCubicSpline",
+    "MonotoneSpline",
+    "CatmullRomSpline",
+    "angles_from_points",
+    "integrate_angles",
+    "midrib_arc_length",
+    "solve_arc_length",
+]

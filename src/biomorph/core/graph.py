@@ -44,14 +44,20 @@ class BranchGraph:
         if parent.shape != (n,):
             raise InputError(f"BranchGraph has {n} positions but {parent.size} parents")
         if n and (parent.max() >= n or parent.min() < -1 or np.any(parent == np.arange(n))):
-            raise InputError(f"BranchGraph parent indices must lie in [-1, {n - 1}] and not "
-                             "point to the node itself")
+            raise InputError(
+                f"BranchGraph parent indices must lie in [-1, {n - 1}] and not "
+                "point to the node itself"
+            )
         if not np.isfinite(pos).all():
             raise InputError("BranchGraph positions hold NaN or inf")
         object.__setattr__(self, "position", pos)
         object.__setattr__(self, "parent", parent)
-        for name, dtype in (("radius", float), ("weight", float), ("depth", np.int64),
-                            ("tree_id", np.int64)):
+        for name, dtype in (
+            ("radius", float),
+            ("weight", float),
+            ("depth", np.int64),
+            ("tree_id", np.int64),
+        ):
             val = getattr(self, name)
             if val is not None:
                 arr = np.asarray(val, dtype=dtype).reshape(-1)
@@ -88,7 +94,7 @@ class BranchGraph:
 
     def children(self, i: int) -> NDArray[np.int64]:
         indptr, indices = self.children_csr
-        return indices[indptr[i]:indptr[i + 1]]
+        return indices[indptr[i] : indptr[i + 1]]
 
     @cached_property
     def n_children(self) -> NDArray[np.int64]:
@@ -110,8 +116,9 @@ class BranchGraph:
         """Length of the edge from each node to its parent (0 at roots)."""
         out = np.zeros(self.n_nodes)
         child = np.flatnonzero(self.parent >= 0)
-        out[child] = np.linalg.norm(self.position[child] - self.position[self.parent[child]],
-                                    axis=1)
+        out[child] = np.linalg.norm(
+            self.position[child] - self.position[self.parent[child]], axis=1
+        )
         return out
 
     @property
@@ -159,8 +166,10 @@ class BranchGraph:
         new_index[keep] = np.arange(int(keep.sum()))
         par = self.parent[keep]
         par = np.where(par >= 0, new_index[np.maximum(par, 0)], -1)
-        fields = {k: (None if getattr(self, k) is None else getattr(self, k)[keep])
-                  for k in ("radius", "weight", "depth", "tree_id")}
+        fields = {
+            k: (None if getattr(self, k) is None else getattr(self, k)[keep])
+            for k in ("radius", "weight", "depth", "tree_id")
+        }
         return BranchGraph(self.position[keep], par, **fields)
 
     def to_networkx(self):  # pragma: no cover - thin conversion for users and tests

@@ -72,12 +72,16 @@ class Mesh:
             raise InputError(f"mesh faces have shape {f.shape}; expected (m, 3) triangles")
         n, m = v.shape[0], f.shape[0]
         if m and (f.min() < 0 or f.max() >= n):
-            raise InputError(f"mesh face index out of range [0, {n - 1}] "
-                             f"(found {int(f.min())}..{int(f.max())})")
+            raise InputError(
+                f"mesh face index out of range [0, {n - 1}] (found {int(f.min())}..{int(f.max())})"
+            )
         object.__setattr__(self, "vertices", _readonly(v))
         object.__setattr__(self, "faces", _readonly(f))
-        for name, width, dtype in (("normals", 3, np.float64), ("uv", 2, np.float64),
-                                   ("vertex_colors", 4, np.uint8)):
+        for name, width, dtype in (
+            ("normals", 3, np.float64),
+            ("uv", 2, np.float64),
+            ("vertex_colors", 4, np.uint8),
+        ):
             val = getattr(self, name)
             if val is None:
                 continue
@@ -94,8 +98,9 @@ class Mesh:
         for key, val in dict(self.face_ids or {}).items():
             arr = np.array(val, dtype=np.int64, copy=True).reshape(-1)
             if arr.shape != (m,):
-                raise InputError(f"mesh face_ids[{key!r}] has {arr.size} values; "
-                                 f"expected one per face ({m})")
+                raise InputError(
+                    f"mesh face_ids[{key!r}] has {arr.size} values; expected one per face ({m})"
+                )
             ids[str(key)] = _readonly(arr)
         object.__setattr__(self, "face_ids", ids)
 
@@ -142,8 +147,14 @@ class Mesh:
         c = self.face_normals_unnormalised()  # length 2·area: area weighting for free
         n = self.n_vertices
         idx = self.faces.reshape(-1)  # corner -> vertex; each face's cross product per corner
-        acc = np.stack([np.bincount(idx, weights=np.repeat(c[:, k], 3), minlength=n)
-                        for k in range(3)], axis=1) if idx.size else np.zeros((n, 3))
+        acc = (
+            np.stack(
+                [np.bincount(idx, weights=np.repeat(c[:, k], 3), minlength=n) for k in range(3)],
+                axis=1,
+            )
+            if idx.size
+            else np.zeros((n, 3))
+        )
         norm = np.linalg.norm(acc, axis=1, keepdims=True)
         normals = np.divide(acc, norm, out=np.zeros_like(acc), where=norm > 0)
         return replace(self, normals=normals)
@@ -165,12 +176,14 @@ class Mesh:
         extra: dict[str, NDArray | None] = {}
         for name in ("normals", "uv", "vertex_colors"):
             vals = [getattr(p, name) for p in parts]
-            extra[name] = (np.concatenate(vals) if all(v is not None for v in vals) else None)
+            extra[name] = np.concatenate(vals) if all(v is not None for v in vals) else None
         keys: list[str] = []
         for p in parts:
             keys.extend(k for k in p.face_ids if k not in keys)
-        face_ids = {k: np.concatenate([p.face_ids.get(k, np.full(p.n_faces, -1, np.int64))
-                                       for p in parts]) for k in keys}
+        face_ids = {
+            k: np.concatenate([p.face_ids.get(k, np.full(p.n_faces, -1, np.int64)) for p in parts])
+            for k in keys
+        }
         return Mesh(vertices, faces, face_ids=face_ids, **extra)
 
     def with_(self, **changes: Any) -> Mesh:
@@ -187,8 +200,9 @@ class Mesh:
             kwargs["vertex_normals"] = self.normals
         if self.vertex_colors is not None:
             kwargs["vertex_colors"] = self.vertex_colors
-        tm = trimesh.Trimesh(vertices=np.array(self.vertices), faces=np.array(self.faces),
-                             process=False, **kwargs)
+        tm = trimesh.Trimesh(
+            vertices=np.array(self.vertices), faces=np.array(self.faces), process=False, **kwargs
+        )
         if self.uv is not None:
             tm.visual = trimesh.visual.TextureVisuals(uv=np.array(self.uv))
         for key, val in self.face_ids.items():
@@ -207,8 +221,10 @@ class Mesh:
             return obj
         if isinstance(obj, Mapping):
             if "vertices" not in obj or "faces" not in obj:
-                raise InputError("mesh dict needs keys 'vertices' and 'faces'; got "
-                                 f"{', '.join(map(str, obj)) or 'none'}")
+                raise InputError(
+                    "mesh dict needs keys 'vertices' and 'faces'; got "
+                    f"{', '.join(map(str, obj)) or 'none'}"
+                )
             allowed = {"vertices", "faces", "normals", "uv", "vertex_colors", "face_ids"}
             return cls(**{k: v for k, v in obj.items() if k in allowed})
         if isinstance(obj, tuple | list) and len(obj) == 2:
@@ -222,16 +238,21 @@ class Mesh:
         inner = getattr(obj, "mesh", None)
         if inner is not None and inner is not obj:
             return cls.from_any(inner)
-        raise InputError(f"cannot make a mesh from {type(obj).__name__}; expected Mesh, "
-                         "(vertices, faces), a dict with those keys or trimesh.Trimesh")
+        raise InputError(
+            f"cannot make a mesh from {type(obj).__name__}; expected Mesh, "
+            "(vertices, faces), a dict with those keys or trimesh.Trimesh"
+        )
 
 
 def _from_trimesh(obj: Any) -> Mesh:
     import trimesh
 
     if isinstance(obj, trimesh.Scene):
-        geoms = [g for g in obj.dump() if isinstance(g, trimesh.Trimesh)] \
-            if hasattr(obj, "dump") else []
+        geoms = (
+            [g for g in obj.dump() if isinstance(g, trimesh.Trimesh)]
+            if hasattr(obj, "dump")
+            else []
+        )
         return Mesh.merge(geoms)
     if not isinstance(obj, trimesh.Trimesh):
         raise InputError(f"cannot make a triangle mesh from {type(obj).__name__}")
@@ -248,11 +269,20 @@ def _from_trimesh(obj: Any) -> Mesh:
             uv = np.asarray(vis.uv)
     elif getattr(vis, "kind", None) == "vertex":
         colors = np.asarray(vis.vertex_colors)
-    face_ids = {k: np.asarray(v) for k, v in getattr(obj, "face_attributes", {}).items()
-                if np.asarray(v).shape == (len(obj.faces),)
-                and np.issubdtype(np.asarray(v).dtype, np.integer)}
-    return Mesh(np.asarray(obj.vertices), np.asarray(obj.faces), normals=normals, uv=uv,
-                vertex_colors=colors, face_ids=face_ids)
+    face_ids = {
+        k: np.asarray(v)
+        for k, v in getattr(obj, "face_attributes", {}).items()
+        if np.asarray(v).shape == (len(obj.faces),)
+        and np.issubdtype(np.asarray(v).dtype, np.integer)
+    }
+    return Mesh(
+        np.asarray(obj.vertices),
+        np.asarray(obj.faces),
+        normals=normals,
+        uv=uv,
+        vertex_colors=colors,
+        face_ids=face_ids,
+    )
 
 
 __all__ = ["Mesh"]

@@ -76,8 +76,10 @@ def frozen(a: Array | None) -> Array | None:
 def _readonly(a: ArrayLike, shape_tail: tuple[int, ...], name: str) -> Array:
     arr = np.asarray(a, dtype=np.float64)
     if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != shape_tail:
-        raise InputError(f"Motion.{name} has shape {arr.shape}; expected (frames, "
-                         f"{', '.join(map(str, shape_tail))})")
+        raise InputError(
+            f"Motion.{name} has shape {arr.shape}; expected (frames, "
+            f"{', '.join(map(str, shape_tail))})"
+        )
     if arr.flags.writeable:
         arr = np.array(arr, dtype=np.float64, order="C", copy=True)
         arr.setflags(write=False)
@@ -108,20 +110,24 @@ class Motion:
         rot = _readonly(self.rotation, (n, 4), "rotation")
         pos = _readonly(self.root_position, (3,), "root_position")
         if pos.shape[0] != rot.shape[0]:
-            raise InputError(f"Motion has {rot.shape[0]} rotation frames but {pos.shape[0]} "
-                             "root positions; expected the same number")
+            raise InputError(
+                f"Motion has {rot.shape[0]} rotation frames but {pos.shape[0]} "
+                "root positions; expected the same number"
+            )
         ft = float(self.frame_time)
         if not np.isfinite(ft) or ft <= 0:
-            raise InputError(f"frame time {self.frame_time!r} s is not positive; "
-                             "expected seconds per frame > 0")
+            raise InputError(
+                f"frame time {self.frame_time!r} s is not positive; expected seconds per frame > 0"
+            )
         object.__setattr__(self, "rotation", rot)
         object.__setattr__(self, "root_position", pos)
         object.__setattr__(self, "frame_time", ft)
         if self.joint_translation is not None:
             jt = _readonly(self.joint_translation, (n, 3), "joint_translation")
             if jt.shape[0] != rot.shape[0]:
-                raise InputError(f"joint_translation has {jt.shape[0]} frames; expected "
-                                 f"{rot.shape[0]}")
+                raise InputError(
+                    f"joint_translation has {jt.shape[0]} frames; expected {rot.shape[0]}"
+                )
             object.__setattr__(self, "joint_translation", jt)
         object.__setattr__(self, "meta", dict(self.meta))
 
@@ -152,8 +158,10 @@ class Motion:
         return self.n_frames
 
     def __repr__(self) -> str:
-        return (f"Motion({self.n_frames} frames @ {self.fps:.6g} fps, {self.n_joints} joints, "
-                f"root {self.skeleton.names[0]!r})")
+        return (
+            f"Motion({self.n_frames} frames @ {self.fps:.6g} fps, {self.n_joints} joints, "
+            f"root {self.skeleton.names[0]!r})"
+        )
 
     def with_(self, **changes: Any) -> Motion:
         """A copy with some fields replaced (the motion itself is immutable)."""
@@ -172,8 +180,11 @@ class Motion:
             if chans is not None:
                 axes = "".join(c[0].upper() for c in chans[j] if c.lower().endswith("rotation"))
             if len(axes) < 3:
-                axes = axes + "".join(a for a in DEFAULT_ORDER if a not in axes) if axes \
+                axes = (
+                    axes + "".join(a for a in DEFAULT_ORDER if a not in axes)
+                    if axes
                     else DEFAULT_ORDER
+                )
             out.append(axes)
         return tuple(out)
 
@@ -186,11 +197,11 @@ class Motion:
             index = np.asarray(index, dtype=np.int64)
         rot = self.rotation[index]
         if rot.shape[0] == 0:
-            raise InputError(f"frame selection {index!r} is empty; the motion has "
-                             f"{self.n_frames} frames")
+            raise InputError(
+                f"frame selection {index!r} is empty; the motion has {self.n_frames} frames"
+            )
         jt = None if self.joint_translation is None else self.joint_translation[index]
-        return Motion(self.skeleton, rot, self.root_position[index], self.frame_time, jt,
-                      self.meta)
+        return Motion(self.skeleton, rot, self.root_position[index], self.frame_time, jt, self.meta)
 
     def frames(self, start: int, stop: int) -> Motion:
         """Frames ``start <= i < stop`` with a clear error if the range is empty or outside."""
@@ -248,8 +259,14 @@ class Motion:
         trans = np.ascontiguousarray(self.local_translations(sel)).reshape(-1, self.n_joints, 3)
         pos = np.empty(trans.shape)
         quat = np.empty(rot.shape)
-        fk_positions(ro(self.skeleton.rest_rotation), ro(rot), ro(trans),
-                     ro_int(self.skeleton.parent), pos, quat)
+        fk_positions(
+            ro(self.skeleton.rest_rotation),
+            ro(rot),
+            ro(trans),
+            ro_int(self.skeleton.parent),
+            pos,
+            quat,
+        )
         return pos.reshape(lead + pos.shape[1:]), quat.reshape(lead + quat.shape[1:])
 
     def world_positions(self, frames: ArrayLike | slice | None = None) -> Array:
@@ -262,8 +279,13 @@ class Motion:
         return self._fk(frames)[1]
 
     # ------------------------------------------------------------------ Euler views
-    def euler(self, joint: int | str, degrees: bool = False, order: str | None = None,
-              include_rest: bool = False) -> Array:
+    def euler(
+        self,
+        joint: int | str,
+        degrees: bool = False,
+        order: str | None = None,
+        include_rest: bool = False,
+    ) -> Array:
         """Euler angles ``float[f, 3]`` of ``joint`` in its channel order (or ``order``),
         unwrapped over time (no ±360° jumps). ``include_rest`` composes the rest rotation
         (what a BVH file stores when the skeleton has non-identity rest rotations)."""
@@ -299,22 +321,32 @@ def _transforms(q: Array, t: Array) -> Array:
 
 def _channel_key(name: str) -> str:
     s = name.strip().lower()
-    table = {"rx": "Xrotation", "ry": "Yrotation", "rz": "Zrotation",
-             "tx": "Xposition", "ty": "Yposition", "tz": "Zposition"}
+    table = {
+        "rx": "Xrotation",
+        "ry": "Yrotation",
+        "rz": "Zrotation",
+        "tx": "Xposition",
+        "ty": "Yposition",
+        "tz": "Zposition",
+    }
     if s in table:
         return table[s]
     for c in ROTATION_CHANNELS + POSITION_CHANNELS:
         if s == c.lower():
             return c
-    raise ParameterError(f"channel {name!r} is not one of Xrotation Yrotation Zrotation "
-                         "Xposition Yposition Zposition (or rx ry rz tx ty tz)")
+    raise ParameterError(
+        f"channel {name!r} is not one of Xrotation Yrotation Zrotation "
+        "Xposition Yposition Zposition (or rx ry rz tx ty tz)"
+    )
 
 
 def check_range(motion: Motion, start: int, stop: int, what: str = "frame range") -> None:
     """Raise :class:`ParameterError` unless ``0 <= start < stop <= n_frames``."""
     if not (0 <= start < stop <= motion.n_frames):
-        raise ParameterError(f"{what} {start}:{stop} is empty or outside the clip; expected "
-                             f"0 <= start < stop <= {motion.n_frames}")
+        raise ParameterError(
+            f"{what} {start}:{stop} is empty or outside the clip; expected "
+            f"0 <= start < stop <= {motion.n_frames}"
+        )
 
 
 def sample_arrays(motion: Motion, t: Array) -> tuple[Array, Array, Array | None]:
@@ -351,10 +383,15 @@ def same_skeleton(a: JointSkeleton, b: JointSkeleton, what: str = "motions") -> 
     """Raise :class:`InputError` unless both skeletons have the same joint names in order."""
     if a.names != b.names:
         extra = sorted(set(a.names) ^ set(b.names))
-        detail = (f"joints only in one of them: {', '.join(extra[:6])}" if extra
-                  else "same joints in a different order")
-        raise InputError(f"{what} do not share a skeleton ({a.n_joints} vs {b.n_joints} "
-                         f"joints; {detail}); expected identical joint names")
+        detail = (
+            f"joints only in one of them: {', '.join(extra[:6])}"
+            if extra
+            else "same joints in a different order"
+        )
+        raise InputError(
+            f"{what} do not share a skeleton ({a.n_joints} vs {b.n_joints} "
+            f"joints; {detail}); expected identical joint names"
+        )
 
 
 def concatenate(motions: Sequence[Motion]) -> Motion:
@@ -390,8 +427,9 @@ def dfs_preorder(parent: ArrayLike) -> NDArray[np.int64]:
     return np.asarray(out, dtype=np.int64)
 
 
-def reorder_joints(skeleton: JointSkeleton, order: ArrayLike) -> tuple[JointSkeleton,
-                                                                          NDArray[np.int64]]:
+def reorder_joints(
+    skeleton: JointSkeleton, order: ArrayLike
+) -> tuple[JointSkeleton, NDArray[np.int64]]:
     """The skeleton with joints permuted to ``order`` (new index -> old index), parents
     remapped; returns it and ``order`` for permuting per-joint arrays (``arr[:, order]``)."""
     order = np.asarray(order, dtype=np.int64)
@@ -399,10 +437,15 @@ def reorder_joints(skeleton: JointSkeleton, order: ArrayLike) -> tuple[JointSkel
     inv[order] = np.arange(order.size)
     par = skeleton.parent[order]
     par = np.where(par >= 0, inv[np.maximum(par, 0)], -1)
-    sk = JointSkeleton([skeleton.names[i] for i in order], par, skeleton.offset[order],
-                       skeleton.rest_rotation[order], skeleton.limits[order],
-                       None if skeleton.channels is None else
-                       [skeleton.channels[i] for i in order], skeleton.end_site[order])
+    sk = JointSkeleton(
+        [skeleton.names[i] for i in order],
+        par,
+        skeleton.offset[order],
+        skeleton.rest_rotation[order],
+        skeleton.limits[order],
+        None if skeleton.channels is None else [skeleton.channels[i] for i in order],
+        skeleton.end_site[order],
+    )
     return sk, order
 
 
@@ -432,24 +475,29 @@ def preview_positions(motion: Motion, frame: int) -> tuple[Array, Array]:
     return w[:, :3, 3], motion.skeleton.bone_segments(w)
 
 
-
-def transform_root(motion: Motion, rotation: ArrayLike, translation: ArrayLike = (0, 0, 0),
-                   pivot: ArrayLike = (0, 0, 0)) -> Motion:
+def transform_root(
+    motion: Motion,
+    rotation: ArrayLike,
+    translation: ArrayLike = (0, 0, 0),
+    pivot: ArrayLike = (0, 0, 0),
+) -> Motion:
     """Apply the world transform ``p -> R (p - pivot) + pivot + translation`` to the motion.
 
     ``rotation`` is one quaternion ``(4,)`` or one per frame ``(f, 4)``; the root's
     orientation becomes ``R · orientation`` (pose rotation ``rest⁻¹ · R · rest · pose``)."""
     q = np.asarray(rotation, dtype=float)
     if q.shape not in ((4,), (motion.n_frames, 4)):
-        raise ParameterError(f"root rotation has shape {q.shape}; expected (4,) or "
-                             f"({motion.n_frames}, 4)")
+        raise ParameterError(
+            f"root rotation has shape {q.shape}; expected (4,) or ({motion.n_frames}, 4)"
+        )
     q = tf.quat_normalize(q)
     pivot = np.asarray(pivot, dtype=float)
     pos = tf.quat_rotate(q, motion.root_position - pivot) + pivot + np.asarray(translation, float)
     rest = motion.skeleton.rest_rotation[0]
     rot = np.array(motion.rotation)
-    root = tf.quat_multiply(tf.quat_conjugate(rest),
-                            tf.quat_multiply(q, tf.quat_multiply(rest, rot[:, 0])))
+    root = tf.quat_multiply(
+        tf.quat_conjugate(rest), tf.quat_multiply(q, tf.quat_multiply(rest, rot[:, 0]))
+    )
     rot[:, 0] = tf.quat_continuous(root, axis=0)
     jt = None
     if motion.joint_translation is not None:
@@ -500,10 +548,12 @@ def ro_int(a: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, inline="always")
 def _qmul(ax, ay, az, aw, bx, by, bz, bw):  # pragma: no cover - compiled
-    return (aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz)
+    return (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
 
 
 @njit(cache=True, inline="always")
@@ -535,8 +585,16 @@ def _slerp(ax, ay, az, aw, bx, by, bz, bw, t):  # pragma: no cover - compiled
 def _store_continuous(out, k, j, x, y, z, w):  # pragma: no cover - compiled
     """``out[k, j] = ±(x, y, z, w)``, the sign that keeps joint ``j`` in the hemisphere of
     frame ``k - 1`` (continuity along k)."""
-    if k > 0 and (x * out[k - 1, j, 0] + y * out[k - 1, j, 1] + z * out[k - 1, j, 2]
-                  + w * out[k - 1, j, 3]) < 0:
+    if (
+        k > 0
+        and (
+            x * out[k - 1, j, 0]
+            + y * out[k - 1, j, 1]
+            + z * out[k - 1, j, 2]
+            + w * out[k - 1, j, 3]
+        )
+        < 0
+    ):
         x, y, z, w = -x, -y, -z, -w
     out[k, j, 0] = x
     out[k, j, 1] = y
@@ -554,8 +612,17 @@ def sample_slerp(rot, i0, frac, out):  # pragma: no cover - compiled
         b = min(a + 1, f - 1)
         t = frac[k]
         for j in range(rot.shape[1]):
-            x, y, z, w = _slerp(rot[a, j, 0], rot[a, j, 1], rot[a, j, 2], rot[a, j, 3],
-                                rot[b, j, 0], rot[b, j, 1], rot[b, j, 2], rot[b, j, 3], t)
+            x, y, z, w = _slerp(
+                rot[a, j, 0],
+                rot[a, j, 1],
+                rot[a, j, 2],
+                rot[a, j, 3],
+                rot[b, j, 0],
+                rot[b, j, 1],
+                rot[b, j, 2],
+                rot[b, j, 3],
+                t,
+            )
             _store_continuous(out, k, j, x, y, z, w)
 
 
@@ -567,8 +634,16 @@ def fk_positions(rest, rot, trans, parent, pos_out, quat_out):  # pragma: no cov
     f, n = rot.shape[0], rot.shape[1]
     for t in range(f):
         for j in range(n):
-            lx, ly, lz, lw = _qmul(rest[j, 0], rest[j, 1], rest[j, 2], rest[j, 3],
-                                   rot[t, j, 0], rot[t, j, 1], rot[t, j, 2], rot[t, j, 3])
+            lx, ly, lz, lw = _qmul(
+                rest[j, 0],
+                rest[j, 1],
+                rest[j, 2],
+                rest[j, 3],
+                rot[t, j, 0],
+                rot[t, j, 1],
+                rot[t, j, 2],
+                rot[t, j, 3],
+            )
             p = parent[j]
             if p < 0:
                 quat_out[t, j, 0] = lx
@@ -579,8 +654,12 @@ def fk_positions(rest, rot, trans, parent, pos_out, quat_out):  # pragma: no cov
                 pos_out[t, j, 1] = trans[t, j, 1]
                 pos_out[t, j, 2] = trans[t, j, 2]
                 continue
-            px, py, pz, pw = quat_out[t, p, 0], quat_out[t, p, 1], quat_out[t, p, 2], \
-                quat_out[t, p, 3]
+            px, py, pz, pw = (
+                quat_out[t, p, 0],
+                quat_out[t, p, 1],
+                quat_out[t, p, 2],
+                quat_out[t, p, 3],
+            )
             wx, wy, wz, ww = _qmul(px, py, pz, pw, lx, ly, lz, lw)
             quat_out[t, j, 0] = wx
             quat_out[t, j, 1] = wy
@@ -599,8 +678,23 @@ def fk_positions(rest, rot, trans, parent, pos_out, quat_out):  # pragma: no cov
             pos_out[t, j, 2] = pos_out[t, p, 2] + rz
 
 
-__all__ = ["Motion", "MotionInputWarning", "tolerate", "concatenate", "dfs_preorder",
-           "reorder_joints", "check_range",
-           "same_skeleton", "guess_up_axis", "frozen", "preview_positions", "sample_arrays",
-           "sample_linear", "transform_root", "to_y_up",
-           "ROTATION_CHANNELS", "POSITION_CHANNELS", "DEFAULT_ORDER"]
+__all__ = [
+    "Motion",
+    "MotionInputWarning",
+    "tolerate",
+    "concatenate",
+    "dfs_preorder",
+    "reorder_joints",
+    "check_range",
+    "same_skeleton",
+    "guess_up_axis",
+    "frozen",
+    "preview_positions",
+    "sample_arrays",
+    "sample_linear",
+    "transform_root",
+    "to_y_up",
+    "ROTATION_CHANNELS",
+    "POSITION_CHANNELS",
+    "DEFAULT_ORDER",
+]

@@ -34,16 +34,19 @@ class PointCloud:
     def __post_init__(self) -> None:
         xyz = np.asarray(self.xyz, dtype=np.float64)
         if xyz.ndim != 2 or xyz.shape[1] != 3:
-            raise InputError(f"{self.source or 'point cloud'}: coordinates have shape "
-                             f"{xyz.shape}; expected (n, 3)")
+            raise InputError(
+                f"{self.source or 'point cloud'}: coordinates have shape "
+                f"{xyz.shape}; expected (n, 3)"
+            )
         object.__setattr__(self, "xyz", xyz)
         object.__setattr__(self, "offset", np.asarray(self.offset, dtype=np.float64).reshape(3))
         attrs = {}
         for k, v in self.attributes.items():
             a = np.asarray(v)
             if a.shape[0] != xyz.shape[0]:
-                raise InputError(f"attribute {k!r} has {a.shape[0]} values for "
-                                 f"{xyz.shape[0]} points")
+                raise InputError(
+                    f"attribute {k!r} has {a.shape[0]} values for {xyz.shape[0]} points"
+                )
             attrs[k] = a
         object.__setattr__(self, "attributes", attrs)
 
@@ -68,8 +71,9 @@ class PointCloud:
     def select(self, mask_or_index: ArrayLike) -> PointCloud:
         """Subset of points (boolean mask or index array), attributes kept."""
         sel = np.asarray(mask_or_index)
-        return replace(self, xyz=self.xyz[sel],
-                       attributes={k: v[sel] for k, v in self.attributes.items()})
+        return replace(
+            self, xyz=self.xyz[sel], attributes={k: v[sel] for k, v in self.attributes.items()}
+        )
 
     def with_(self, **changes: object) -> PointCloud:
         return replace(self, **changes)  # type: ignore[arg-type]

@@ -52,8 +52,10 @@ class JointSkeleton:
         parent = np.asarray(self.parent, dtype=np.int64).reshape(-1)
         offset = np.asarray(self.offset, dtype=float).reshape(-1, 3)
         if parent.shape != (n,) or offset.shape != (n, 3):
-            raise InputError(f"skeleton with {n} names needs parent[{n}] and offset[{n},3]; "
-                             f"got {parent.shape} and {offset.shape}")
+            raise InputError(
+                f"skeleton with {n} names needs parent[{n}] and offset[{n},3]; "
+                f"got {parent.shape} and {offset.shape}"
+            )
         if n == 0:
             raise InputError("skeleton has no joints; expected at least one")
         if parent[0] != -1 or np.any(parent[1:] >= np.arange(1, n)) or np.any(parent < -1):
@@ -61,18 +63,29 @@ class JointSkeleton:
         if len(set(self.names)) != n:
             dup = [s for s in self.names if self.names.count(s) > 1][0]
             raise InputError(f"joint name {dup!r} occurs more than once; names must be unique")
-        rest = (tf.quat_identity((n,)) if self.rest_rotation is None
-                else np.asarray(self.rest_rotation, dtype=float).reshape(n, 4))
+        rest = (
+            tf.quat_identity((n,))
+            if self.rest_rotation is None
+            else np.asarray(self.rest_rotation, dtype=float).reshape(n, 4)
+        )
         limits = self.limits
         if limits is None:
             limits = np.tile(np.array([-np.pi, np.pi]), (n, 3, 1))
         limits = np.asarray(limits, dtype=float).reshape(n, 3, 2)
-        end = (np.full((n, 3), np.nan) if self.end_site is None
-               else np.asarray(self.end_site, dtype=float).reshape(n, 3))
+        end = (
+            np.full((n, 3), np.nan)
+            if self.end_site is None
+            else np.asarray(self.end_site, dtype=float).reshape(n, 3)
+        )
         if self.channels is not None and len(self.channels) != n:
             raise InputError(f"channels given for {len(self.channels)} joints, expected {n}")
-        for name, arr in (("parent", parent), ("offset", offset), ("rest_rotation", rest),
-                          ("limits", limits), ("end_site", end)):
+        for name, arr in (
+            ("parent", parent),
+            ("offset", offset),
+            ("rest_rotation", rest),
+            ("limits", limits),
+            ("end_site", end),
+        ):
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
         if self.channels is not None:
@@ -91,9 +104,10 @@ class JointSkeleton:
         try:
             return self._name_index[name]
         except KeyError:
-            raise InputError(f"no joint named {name!r}; joints are "
-                             f"{', '.join(self.names[:8])}{' …' if len(self) > 8 else ''}"
-                             ) from None
+            raise InputError(
+                f"no joint named {name!r}; joints are "
+                f"{', '.join(self.names[:8])}{' …' if len(self) > 8 else ''}"
+            ) from None
 
     @cached_property
     def _name_index(self) -> dict[str, int]:
@@ -122,8 +136,7 @@ class JointSkeleton:
         j = self.index(joint) if isinstance(joint, str) else int(joint)
         mark = np.zeros(len(self))
         mark[j] = 1.0
-        mask = treeops.accumulate_down(self.parent, mark,
-                                       np.arange(len(self), dtype=np.int64)) > 0
+        mask = treeops.accumulate_down(self.parent, mark, np.arange(len(self), dtype=np.int64)) > 0
         if not include_self:
             mask[j] = False
         return np.flatnonzero(mask)
@@ -133,8 +146,9 @@ class JointSkeleton:
         return replace(self, **changes)  # type: ignore[arg-type]
 
     # ------------------------------------------------------------------ kinematics
-    def local_matrices(self, rotation: ArrayLike | None = None,
-                       root_position: ArrayLike | None = None) -> NDArray[np.float64]:
+    def local_matrices(
+        self, rotation: ArrayLike | None = None, root_position: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
         """Local 4x4 transforms ``(..., n, 4, 4)``.
 
         ``rotation`` ``(..., n, 4)`` are pose quaternions applied after the rest rotation;
@@ -172,8 +186,9 @@ class JointSkeleton:
             world[..., level, :, :] = world[..., self.parent[level], :, :] @ loc[..., level, :, :]
         return world
 
-    def world_positions(self, rotation: ArrayLike | None = None,
-                        root_position: ArrayLike | None = None) -> NDArray[np.float64]:
+    def world_positions(
+        self, rotation: ArrayLike | None = None, root_position: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
         """Joint positions in world space ``(..., n, 3)`` for a pose (default: rest pose)."""
         return self.world_matrices(self.local_matrices(rotation, root_position))[..., :3, 3]
 

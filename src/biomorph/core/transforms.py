@@ -35,8 +35,9 @@ def identity(shape: tuple[int, ...] = ()) -> Array:
     return out
 
 
-def make_transform(rotation: ArrayLike | None = None,
-                   translation: ArrayLike | None = None) -> Array:
+def make_transform(
+    rotation: ArrayLike | None = None, translation: ArrayLike | None = None
+) -> Array:
     """Build ``(..., 4, 4)`` transforms from a rotation and a translation (metres).
 
     ``rotation`` is either 3x3 matrices ``(..., 3, 3)`` or quaternions ``(..., 4)``;
@@ -48,8 +49,10 @@ def make_transform(rotation: ArrayLike | None = None,
     # quaternions even when n == 4)
     if r is not None and r.shape[-2:] != (3, 3):
         if r.shape[-1] != 4:
-            raise ParameterError(f"rotation of shape {r.shape}: expected (..., 3, 3) matrices "
-                                 "or (..., 4) quaternions")
+            raise ParameterError(
+                f"rotation of shape {r.shape}: expected (..., 3, 3) matrices "
+                "or (..., 4) quaternions"
+            )
         r = quat_to_matrix(r)
     lead: tuple[int, ...] = ()
     if r is not None:
@@ -208,8 +211,9 @@ def quat_from_axis_angle(axis: str | ArrayLike, angle: ArrayLike) -> Array:
     half = 0.5 * angle[..., None]
     xyz, w = vec * np.sin(half), np.cos(half)
     lead = np.broadcast_shapes(xyz.shape[:-1], w.shape[:-1])
-    return np.concatenate([np.broadcast_to(xyz, lead + (3,)), np.broadcast_to(w, lead + (1,))],
-                          axis=-1)
+    return np.concatenate(
+        [np.broadcast_to(xyz, lead + (3,)), np.broadcast_to(w, lead + (1,))], axis=-1
+    )
 
 
 def quat_to_rotvec(q: ArrayLike) -> Array:
@@ -231,8 +235,9 @@ def quat_from_rotvec(r: ArrayLike) -> Array:
     angle = np.linalg.norm(r, axis=-1, keepdims=True)
     half = 0.5 * angle
     with np.errstate(invalid="ignore", divide="ignore"):
-        k = np.where(angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0),
-                     0.5 - angle**2 / 48.0)
+        k = np.where(
+            angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0), 0.5 - angle**2 / 48.0
+        )
     return np.concatenate([r * k, np.cos(half)], axis=-1)
 
 

@@ -72,16 +72,18 @@ def _accumulate_down(parent: np.ndarray, order: np.ndarray, values: np.ndarray) 
     return acc
 
 
-def subtree_sum(parent: ArrayLike, values: ArrayLike,
-                order: ArrayLike | None = None) -> NDArray[np.float64]:
+def subtree_sum(
+    parent: ArrayLike, values: ArrayLike, order: ArrayLike | None = None
+) -> NDArray[np.float64]:
     """For every node, the sum of ``values`` over its subtree (itself included)."""
     parent = np.asarray(parent, dtype=np.int64)
     order = topological_order(parent) if order is None else np.asarray(order, dtype=np.int64)
     return _subtree_sum(parent, order, np.asarray(values, dtype=np.float64))
 
 
-def accumulate_down(parent: ArrayLike, values: ArrayLike,
-                    order: ArrayLike | None = None) -> NDArray[np.float64]:
+def accumulate_down(
+    parent: ArrayLike, values: ArrayLike, order: ArrayLike | None = None
+) -> NDArray[np.float64]:
     """For every node, the sum of ``values`` over the path root..node (both included)."""
     parent = np.asarray(parent, dtype=np.int64)
     order = topological_order(parent) if order is None else np.asarray(order, dtype=np.int64)

@@ -22,10 +22,19 @@ from typing import Any
 
 # lazy: ``biomorph creature --help`` loads none of the numeric stack (tests/test_fast_start.py)
 _LAZY = {
-    "Creature": "creature", "SpeciesTable": "dataset", "load_species": "dataset",
-    "export": "export", "STEPS": "options", "Options": "options", "Generator": "generator",
-    "generate": "generator", "DescentParams": "limbs", "PCA": "pca", "fit_dataset": "pca",
-    "species_model": "model", "PARTS": "anatomy",
+    "Creature": "creature",
+    "SpeciesTable": "dataset",
+    "load_species": "dataset",
+    "export": "export",
+    "STEPS": "options",
+    "Options": "options",
+    "Generator": "generator",
+    "generate": "generator",
+    "DescentParams": "limbs",
+    "PCA": "pca",
+    "fit_dataset": "pca",
+    "species_model": "model",
+    "PARTS": "anatomy",
 }
 
 

@@ -25,21 +25,44 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-PARTS = ("skull", "mandible", "cervical", "thoracic", "lumbar", "sacral", "caudal",
-         "scapula", "pelvis", "humerus", "radius", "metacarpal", "carpometacarpus", "femur",
-         "tibia", "metatarsal", "fin_base", "fin_ray", "phalanx", "hoof", "claw", "nail")
+PARTS = (
+    "skull",
+    "mandible",
+    "cervical",
+    "thoracic",
+    "lumbar",
+    "sacral",
+    "caudal",
+    "scapula",
+    "pelvis",
+    "humerus",
+    "radius",
+    "metacarpal",
+    "carpometacarpus",
+    "femur",
+    "tibia",
+    "metatarsal",
+    "fin_base",
+    "fin_ray",
+    "phalanx",
+    "hoof",
+    "claw",
+    "nail",
+)
 
 #: Fractions of the back (trunk) vertebrae that are lumbar (mammals only) and sacral.
 LUMBAR_FRACTION = 0.25
 SACRAL_FRACTION = 0.15
 
 #: Limb segment (girdle, upper, lower, distal) → part, by limb kind and girdle.
-LIMB_PARTS = {("leg", "fore"): ("scapula", "humerus", "radius", "metacarpal"),
-              ("leg", "hind"): ("pelvis", "femur", "tibia", "metatarsal"),
-              ("arm", "fore"): ("scapula", "humerus", "radius", "metacarpal"),
-              ("wing", "fore"): ("scapula", "humerus", "radius", "carpometacarpus"),
-              ("fin", "fore"): ("scapula", "fin_base", "fin_ray", "fin_ray"),
-              ("fin", "hind"): ("pelvis", "fin_base", "fin_ray", "fin_ray")}
+LIMB_PARTS = {
+    ("leg", "fore"): ("scapula", "humerus", "radius", "metacarpal"),
+    ("leg", "hind"): ("pelvis", "femur", "tibia", "metatarsal"),
+    ("arm", "fore"): ("scapula", "humerus", "radius", "metacarpal"),
+    ("wing", "fore"): ("scapula", "humerus", "radius", "carpometacarpus"),
+    ("fin", "fore"): ("scapula", "fin_base", "fin_ray", "fin_ray"),
+    ("fin", "hind"): ("pelvis", "fin_base", "fin_ray", "fin_ray"),
+}
 
 
 def vertebra_parts(vreg: NDArray, cls: str) -> list[str]:
@@ -51,9 +74,9 @@ def vertebra_parts(vreg: NDArray, cls: str) -> list[str]:
     if n >= 3:
         n_s = max(1, int(round(SACRAL_FRACTION * n)))
         n_l = int(round(LUMBAR_FRACTION * n)) if cls == "mammal" else 0
-        for i in back[n - n_s:]:
+        for i in back[n - n_s :]:
             out[i] = "sacral"
-        for i in back[max(n - n_s - n_l, 1):n - n_s]:
+        for i in back[max(n - n_s - n_l, 1) : n - n_s]:
             out[i] = "lumbar"
     return out
 

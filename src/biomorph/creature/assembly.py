@@ -36,9 +36,15 @@ _M = np.diag([1.0, 1.0, -1.0])
 DIGIT_MASS_SHARE = 0.3
 
 #: Relative joint ranges (degrees, about local x, y, z) for spine/skull/girdle bones.
-SPINE_RANGE = {"neck": (20, 15, 30), "back": (5, 5, 8), "tail": (15, 12, 20),
-               "head": (25, 20, 40), "girdle": (5, 5, 10), "jaw": (3, 5, 35),
-               "digit": (10, 5, 60)}
+SPINE_RANGE = {
+    "neck": (20, 15, 30),
+    "back": (5, 5, 8),
+    "tail": (15, 12, 20),
+    "head": (25, 20, 40),
+    "girdle": (5, 5, 10),
+    "jaw": (3, 5, 35),
+    "digit": (10, 5, 60),
+}
 
 
 def _frames_from_dirs(d: NDArray) -> NDArray:
@@ -50,11 +56,15 @@ def _frames_from_dirs(d: NDArray) -> NDArray:
     z[:, 2] = 1.0
     z = z - (y[:, 2:3]) * y
     z = z / np.linalg.norm(z, axis=1, keepdims=True)
-    x = np.stack([y[:, 1] * z[:, 2] - y[:, 2] * z[:, 1], y[:, 2] * z[:, 0] - y[:, 0] * z[:, 2],
-                  y[:, 0] * z[:, 1] - y[:, 1] * z[:, 0]], axis=1)
+    x = np.stack(
+        [
+            y[:, 1] * z[:, 2] - y[:, 2] * z[:, 1],
+            y[:, 2] * z[:, 0] - y[:, 0] * z[:, 2],
+            y[:, 0] * z[:, 1] - y[:, 1] * z[:, 0],
+        ],
+        axis=1,
+    )
     return np.stack([x, y, z], axis=2)
-
-
 
 
 _RZ_PI = np.diag([-1.0, -1.0, 1.0])
@@ -80,7 +90,7 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
     root = int(back_idx[min(int(round(0.65 * (len(back_idx) - 1))), len(back_idx) - 1)])
     order = np.concatenate([[root], np.arange(root - 1, -1, -1), np.arange(root + 1, m)])
     slot = np.empty(m, np.int64)
-    slot[order] = np.arange(m)           # joint index of vertebra i
+    slot[order] = np.arange(m)  # joint index of vertebra i
     rname = ("neck", "back", "tail")
     within = np.zeros(m, np.int64)
     for r in range(3):
@@ -99,8 +109,12 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
     cen2 = 0.5 * (xy[1:] + xy[:-1]) - nrm * 0.5 * (off[1:] + off[:-1])[:, None]
     owner = np.clip(np.searchsorted(edges, smid, side="right") - 1, 0, m - 1)
     vmass = np.bincount(owner, weights=vol, minlength=m)
-    vcen = np.stack([np.bincount(owner, weights=vol * cen2[:, k], minlength=m)
-                     for k in range(2)], axis=1) / np.maximum(vmass, 1e-30)[:, None]
+    vcen = (
+        np.stack(
+            [np.bincount(owner, weights=vol * cen2[:, k], minlength=m) for k in range(2)], axis=1
+        )
+        / np.maximum(vmass, 1e-30)[:, None]
+    )
     emid = 0.5 * (edges[1:] + edges[:-1])
     vh = np.interp(emid, s, h)
     vb = np.interp(emid, s, b)
@@ -109,34 +123,76 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
     vi = order
     a = np.where(ant[:, None], P[vi + 1], P[vi])
     e = np.where(ant[:, None], P[vi], P[vi + 1])
-    par_v = np.where(vi == root, -1, np.where(ant, slot[np.minimum(vi + 1, m - 1)],
-                                              slot[np.maximum(vi - 1, 0)]))
+    par_v = np.where(
+        vi == root, -1, np.where(ant, slot[np.minimum(vi + 1, m - 1)], slot[np.maximum(vi - 1, 0)])
+    )
     d3 = np.concatenate([e - a, np.zeros((m, 1))], axis=1)
     Lv = np.linalg.norm(d3, axis=1)
     blocks = {
-        "names": vnames, "parent": [par_v], "kind": ["spine"] * m,
-        "part": [vparts[i] for i in vi], "digit": [np.zeros(m, np.int64)],
-        "region": [rname[r] for r in vreg[vi]], "side": [np.zeros(m, np.int64)],
-        "W": [_frames_from_dirs(d3)], "pos": [np.concatenate([a, np.zeros((m, 1))], axis=1)],
-        "blen": [Lv], "box": [np.stack([0.35 * vh[vi], Lv, 0.3 * vb[vi]], axis=1)],
-        "vol": [vmass[vi]], "mass_c": [np.concatenate([vcen[vi], np.zeros((m, 1))], axis=1)],
+        "names": vnames,
+        "parent": [par_v],
+        "kind": ["spine"] * m,
+        "part": [vparts[i] for i in vi],
+        "digit": [np.zeros(m, np.int64)],
+        "region": [rname[r] for r in vreg[vi]],
+        "side": [np.zeros(m, np.int64)],
+        "W": [_frames_from_dirs(d3)],
+        "pos": [np.concatenate([a, np.zeros((m, 1))], axis=1)],
+        "blen": [Lv],
+        "box": [np.stack([0.35 * vh[vi], Lv, 0.3 * vb[vi]], axis=1)],
+        "vol": [vmass[vi]],
+        "mass_c": [np.concatenate([vcen[vi], np.zeros((m, 1))], axis=1)],
         "mass_sz": [np.stack([vh[vi], np.maximum(Lv, 1e-9), vb[vi]], axis=1)],
         "lim": [np.stack([_RANGES[rname[r]] for r in vreg[vi]])],
-        "anat_a": [np.zeros((m, 3))], "anat_l": [np.zeros((m, 3, 2))]}
+        "anat_a": [np.zeros((m, 3))],
+        "anat_l": [np.zeros((m, 3, 2))],
+    }
 
-    def put(names, parent, kind, region, side, W, pos, blen, box, volv, mc, msz, lim, aa, al,
-            part, digit=None):
+    def put(
+        names,
+        parent,
+        kind,
+        region,
+        side,
+        W,
+        pos,
+        blen,
+        box,
+        volv,
+        mc,
+        msz,
+        lim,
+        aa,
+        al,
+        part,
+        digit=None,
+    ):
         blocks["names"] += names
         blocks["kind"] += kind
         blocks["region"] += region
         blocks["part"] += list(part)
-        blocks["digit"].append(np.zeros(len(names), np.int64) if digit is None
-                               else np.asarray(digit, np.int64))
-        for key, val in (("parent", parent), ("side", side), ("W", W), ("pos", pos),
-                         ("blen", blen), ("box", box), ("vol", volv), ("mass_c", mc),
-                         ("mass_sz", msz), ("lim", lim), ("anat_a", aa), ("anat_l", al)):
-            blocks[key].append(np.asarray(val, float) if key not in ("parent", "side")
-                               else np.asarray(val, np.int64))
+        blocks["digit"].append(
+            np.zeros(len(names), np.int64) if digit is None else np.asarray(digit, np.int64)
+        )
+        for key, val in (
+            ("parent", parent),
+            ("side", side),
+            ("W", W),
+            ("pos", pos),
+            ("blen", blen),
+            ("box", box),
+            ("vol", volv),
+            ("mass_c", mc),
+            ("mass_sz", msz),
+            ("lim", lim),
+            ("anat_a", aa),
+            ("anat_l", al),
+        ):
+            blocks[key].append(
+                np.asarray(val, float)
+                if key not in ("parent", "side")
+                else np.asarray(val, np.int64)
+            )
 
     # skull
     ang = skull.angle
@@ -146,17 +202,30 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
     Wsk = _frames_from_dirs(d[None])
     jaw = sk.jaw(shape, skull.length, Wsk[0], org)
     vsk = ms.ellipsoid_volume(sbox)
-    put(["skull", "jaw"], [slot[0], m], ["skull"] * 2, ["head"] * 2, [0, 0],
-        np.concatenate([Wsk, jaw.W[None]]), [org, jaw.pos], [skull.length, jaw.length],
-        [sbox, jaw.box], [(1 - sk.JAW_MASS_FRACTION) * vsk, sk.JAW_MASS_FRACTION * vsk],
-        [org + d * skull.length / 2, jaw.pos + jaw.W[:, 1] * jaw.length / 2], [sbox, jaw.box],
-        [_RANGES["head"], _RANGES["jaw"]], np.zeros((2, 3)), np.zeros((2, 3, 2)),
-        ["skull", "mandible"])
+    put(
+        ["skull", "jaw"],
+        [slot[0], m],
+        ["skull"] * 2,
+        ["head"] * 2,
+        [0, 0],
+        np.concatenate([Wsk, jaw.W[None]]),
+        [org, jaw.pos],
+        [skull.length, jaw.length],
+        [sbox, jaw.box],
+        [(1 - sk.JAW_MASS_FRACTION) * vsk, sk.JAW_MASS_FRACTION * vsk],
+        [org + d * skull.length / 2, jaw.pos + jaw.W[:, 1] * jaw.length / 2],
+        [sbox, jaw.box],
+        [_RANGES["head"], _RANGES["jaw"]],
+        np.zeros((2, 3)),
+        np.zeros((2, 3, 2)),
+        ["skull", "mandible"],
+    )
     n_now = m + 2
     contacts, contact_joint = [], []
     seg_names = ("girdle", "upper", "lower", "distal")
     for (gname, k, spec, at), (gpt, apt), pose, L3 in zip(
-            limbs.places, limbs.attach, limbs.poses, limbs.lengths, strict=True):
+        limbs.places, limbs.attach, limbs.poses, limbs.lengths, strict=True
+    ):
         vidx = int(np.clip(np.searchsorted(edges, at, side="right") - 1, 0, m - 1))
         tag = f"{gname}{k + 1}"
         gvec = apt - gpt
@@ -165,22 +234,30 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
         rb = ms.BONE_FRACTION * radius
         vols = ms.limb_volume(L3, spec.kind)
         # right side (4 joints: girdle, upper, lower, distal)
-        Wr = np.concatenate([_frames_from_dirs(gvec[None]) if gl > 1e-9 else np.eye(3)[None],
-                             pose.rotations @ _RZ_PI])
+        Wr = np.concatenate(
+            [
+                _frames_from_dirs(gvec[None]) if gl > 1e-9 else np.eye(3)[None],
+                pose.rotations @ _RZ_PI,
+            ]
+        )
         pr = np.concatenate([gpt[None], pose.points[:3]])
         bl = np.concatenate([[gl], L3])
-        bx = np.concatenate([[[0.3 * gl, gl, 0.06 * gl]],
-                             np.stack([2 * rb, L3, 2 * rb], axis=1)])
+        bx = np.concatenate([[[0.3 * gl, gl, 0.06 * gl]], np.stack([2 * rb, L3, 2 * rb], axis=1)])
         vv = np.concatenate([[0.0], vols])
         mc = np.concatenate([[0.5 * (gpt + apt)], 0.5 * (pose.points[:3] + pose.points[1:])])
-        msz = np.concatenate([[[0.3 * gl, max(gl, 1e-9), 0.06 * gl]],
-                              np.stack([2 * radius, np.maximum(L3, 1e-9), 2 * radius], axis=1)])
+        msz = np.concatenate(
+            [
+                [[0.3 * gl, max(gl, 1e-9), 0.06 * gl]],
+                np.stack([2 * radius, np.maximum(L3, 1e-9), 2 * radius], axis=1),
+            ]
+        )
         lim = np.stack([_RANGES["girdle"]] * 4)
         aa = np.concatenate([np.zeros((1, 3)), pose.angles])
         al = np.concatenate([np.zeros((1, 3, 2)), pose.limits])
         kinds = ["girdle"] + [spec.kind] * 3
-        dg = limb_digits(pose, L3, spec.kind, gname, spine,
-                         limbs.ground if pose.contact is not None else None)
+        dg = limb_digits(
+            pose, L3, spec.kind, gname, spine, limbs.ground if pose.contact is not None else None
+        )
         nd = len(dg.name)
         dbox = np.stack([2 * dg.radius, np.maximum(dg.length, 1e-9), 2 * dg.radius], axis=1)
         dmc = dg.pos + dg.W[:, :, 1] * (0.5 * dg.length)[:, None]
@@ -201,18 +278,48 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
                 aas = aa * [1, -1, -1]
                 als = al.copy()
                 als[:, 1:] = -al[:, 1:, ::-1]
-            put([f"{tag}_{sn}_{sd}" for sn in seg_names], par, kinds, [gname] * 4,
-                [sgn] * 4, Ws, ps, bl, bx, vv, mcs, msz, lim, aas, als,
-                an.limb_parts(spec.kind, gname))
+            put(
+                [f"{tag}_{sn}_{sd}" for sn in seg_names],
+                par,
+                kinds,
+                [gname] * 4,
+                [sgn] * 4,
+                Ws,
+                ps,
+                bl,
+                bx,
+                vv,
+                mcs,
+                msz,
+                lim,
+                aas,
+                als,
+                an.limb_parts(spec.kind, gname),
+            )
             n_now += 4
             if nd:
                 M = np.array([1.0, 1.0, float(sgn)])
                 dW = dg.W if sgn > 0 else _M @ dg.W @ _M
                 dpar = np.where(dg.parent < 0, n_now - 1, n_now + dg.parent)
-                put([f"{tag}_{nm}_{sd}" for nm in dg.name], dpar, [spec.kind] * nd,
-                    [gname] * nd, [sgn] * nd, dW, dg.pos * M, dg.length, dbox, dvol,
-                    dmc * M, dbox, dlim, np.zeros((nd, 3)), np.zeros((nd, 3, 2)), dg.part,
-                    dg.digit)
+                put(
+                    [f"{tag}_{nm}_{sd}" for nm in dg.name],
+                    dpar,
+                    [spec.kind] * nd,
+                    [gname] * nd,
+                    [sgn] * nd,
+                    dW,
+                    dg.pos * M,
+                    dg.length,
+                    dbox,
+                    dvol,
+                    dmc * M,
+                    dbox,
+                    dlim,
+                    np.zeros((nd, 3)),
+                    np.zeros((nd, 3, 2)),
+                    dg.part,
+                    dg.digit,
+                )
             for cp, cl in zip(dg.contacts, dg.contact_local, strict=True):
                 contacts.append(cp * [1.0, 1.0, float(sgn)])
                 contact_joint.append(n_now - 1 if cl < 0 else n_now + int(cl))
@@ -220,44 +327,88 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
     names = blocks["names"]
     side = np.concatenate(blocks["side"])
     idx_of = {nm: i for i, nm in enumerate(names)}
-    mirror = np.array([idx_of[nm[:-1] + ("l" if nm.endswith("r") else "r")] if side[i] != 0
-                       else i for i, nm in enumerate(names)], dtype=np.int64)
-    cat = {k: np.concatenate(blocks[k]) for k in ("parent", "W", "pos", "blen", "box", "vol",
-                                                   "mass_c", "mass_sz", "lim", "anat_a",
-                                                   "anat_l")}
-    return dict(names=names, parent=cat["parent"], kind=blocks["kind"],
-                region=blocks["region"], part=blocks["part"],
-                digit=np.concatenate(blocks["digit"]), side=side, W=cat["W"], pos=cat["pos"],
-                blen=cat["blen"], box=cat["box"], vol=cat["vol"], mass_c=cat["mass_c"],
-                mass_sz=cat["mass_sz"], lim=cat["lim"], anat_a=cat["anat_a"],
-                anat_l=cat["anat_l"], mirror=mirror, n=len(names),
-                contacts=np.array(contacts).reshape(-1, 3),
-                contact_joint=np.array(contact_joint, dtype=np.int64),
-                patches=np.array(contacts).reshape(-1, 3)[:, [0, 2]], density=ms.density(cls),
-                ground=limbs.ground)
+    mirror = np.array(
+        [
+            idx_of[nm[:-1] + ("l" if nm.endswith("r") else "r")] if side[i] != 0 else i
+            for i, nm in enumerate(names)
+        ],
+        dtype=np.int64,
+    )
+    cat = {
+        k: np.concatenate(blocks[k])
+        for k in (
+            "parent",
+            "W",
+            "pos",
+            "blen",
+            "box",
+            "vol",
+            "mass_c",
+            "mass_sz",
+            "lim",
+            "anat_a",
+            "anat_l",
+        )
+    }
+    return dict(
+        names=names,
+        parent=cat["parent"],
+        kind=blocks["kind"],
+        region=blocks["region"],
+        part=blocks["part"],
+        digit=np.concatenate(blocks["digit"]),
+        side=side,
+        W=cat["W"],
+        pos=cat["pos"],
+        blen=cat["blen"],
+        box=cat["box"],
+        vol=cat["vol"],
+        mass_c=cat["mass_c"],
+        mass_sz=cat["mass_sz"],
+        lim=cat["lim"],
+        anat_a=cat["anat_a"],
+        anat_l=cat["anat_l"],
+        mirror=mirror,
+        n=len(names),
+        contacts=np.array(contacts).reshape(-1, 3),
+        contact_joint=np.array(contact_joint, dtype=np.int64),
+        patches=np.array(contacts).reshape(-1, 3)[:, [0, 2]],
+        density=ms.density(cls),
+        ground=limbs.ground,
+    )
 
 
 def balance_px(asm: dict, opts: Options) -> bal.BalanceReport:
     vol = asm["vol"]
     com = (vol[:, None] * asm["mass_c"]).sum(axis=0) / max(vol.sum(), 1e-30)
     p = np.concatenate([asm["pos"], asm["pos"] + asm["W"][:, :, 1] * asm["blen"][:, None]])
-    return bal.evaluate(com, float(vol.sum()), asm["patches"], float(np.ptp(p[:, 0])),
-                        opts.min_margin_fraction)
+    return bal.evaluate(
+        com, float(vol.sum()), asm["patches"], float(np.ptp(p[:, 0])), opts.min_margin_fraction
+    )
 
 
-def limb_digits(pose: lb.LimbPose, L3: NDArray, kind: str, girdle: str, spine: SpineState,
-                ground: float | None) -> feet.Digits:
+def limb_digits(
+    pose: lb.LimbPose, L3: NDArray, kind: str, girdle: str, spine: SpineState, ground: float | None
+) -> feet.Digits:
     """Digit joints (right side, creature px) of one limb; a standing leg's digits lie on
     ``ground`` and carry its contact points (:mod:`biomorph.creature.feet`)."""
     role = "hind" if girdle == "hip" else "fore"
     plan = feet.digit_plan(kind, role, spine.cls, foot_posture(spine, pose), spine.skull)
     if L3[2] <= 1e-6 * max(float(np.sum(L3)), 1e-30):
-        plan = ()   # no hand / foot bone to carry digits
+        plan = ()  # no hand / foot bone to carry digits
     rb = ms.BONE_FRACTION * ms.LIMB_RADIUS[kind] * np.asarray(L3, float)
     width = max(1.5 * rb[2], 0.02 * float(np.sum(L3)))
     heel = pose.points[2] if pose.foot_flat and ground is not None else None
-    return feet.build(plan, pose.rotations[2] @ _RZ_PI, pose.points[3], float(L3[2]),
-                      float(rb[2]), width, ground, heel)
+    return feet.build(
+        plan,
+        pose.rotations[2] @ _RZ_PI,
+        pose.points[3],
+        float(L3[2]),
+        float(rb[2]),
+        width,
+        ground,
+        heel,
+    )
 
 
 def foot_posture(spine: SpineState, pose: lb.LimbPose) -> str:
@@ -287,16 +438,29 @@ def depth_first(asm: dict) -> dict:
     inv = np.empty(n, np.int64)
     inv[perm] = np.arange(n)
     out = dict(asm)
-    for k in ("W", "pos", "blen", "box", "vol", "mass_c", "mass_sz", "lim", "anat_a", "anat_l",
-              "side", "digit"):
+    for k in (
+        "W",
+        "pos",
+        "blen",
+        "box",
+        "vol",
+        "mass_c",
+        "mass_sz",
+        "lim",
+        "anat_a",
+        "anat_l",
+        "side",
+        "digit",
+    ):
         out[k] = asm[k][perm]
     for k in ("names", "kind", "region", "part"):
         out[k] = [asm[k][i] for i in perm]
     p = par[perm]
     out["parent"] = np.where(p >= 0, inv[np.maximum(p, 0)], -1)
     out["mirror"] = inv[asm["mirror"][perm]]
-    out["contact_joint"] = inv[asm["contact_joint"]] if len(asm["contact_joint"]) else \
-        asm["contact_joint"]
+    out["contact_joint"] = (
+        inv[asm["contact_joint"]] if len(asm["contact_joint"]) else asm["contact_joint"]
+    )
     return out
 
 
@@ -308,9 +472,17 @@ def below_ground(asm: dict) -> bool:
     return bool(low < asm["ground"] - 0.002 * ext)
 
 
-def to_creature(asm: dict, spine: SpineState, girdles, limbs: LimbsState, skull: SkullState,
-                report: bal.BalanceReport, repairs: int, opts: Options,
-                attempt_info: dict | None = None) -> Creature:
+def to_creature(
+    asm: dict,
+    spine: SpineState,
+    girdles,
+    limbs: LimbsState,
+    skull: SkullState,
+    report: bal.BalanceReport,
+    repairs: int,
+    opts: Options,
+    attempt_info: dict | None = None,
+) -> Creature:
     """Joint arrays (creature px) → a :class:`Creature` in metres, sized from the weight,
     with the ground at ``y = 0`` and the first joint at ``x = 0``."""
     asm = depth_first(asm)
@@ -334,7 +506,7 @@ def to_creature(asm: dict, spine: SpineState, girdles, limbs: LimbsState, skull:
     # stored limits: anatomical range minus the rest angle, in the joint's local axes
     lim = asm["lim"].copy()
     limb = np.isin(np.array(asm["kind"]), ("leg", "arm", "wing", "fin"))
-    rel = asm["anat_l"] - asm["anat_a"][:, :, None]   # (n, 3[z,x,y], 2)
+    rel = asm["anat_l"] - asm["anat_a"][:, :, None]  # (n, 3[z,x,y], 2)
     # limb frame -> joint frame flips x and y (rotation by pi about z)
     lz, lx, ly = rel[:, 0], -rel[:, 1, ::-1], -rel[:, 2, ::-1]
     lim[limb] = np.stack([lx, ly, lz], axis=1)[limb]
@@ -343,47 +515,89 @@ def to_creature(asm: dict, spine: SpineState, girdles, limbs: LimbsState, skull:
     end_site[leaf] = np.array([[0.0, 1.0, 0.0]]) * (asm["blen"][leaf, None] * scale)
     skel = JointSkeleton(asm["names"], par, offset, quat, lim, end_site=end_site)
     dens = asm["density"]
-    mass = asm["vol"] * dens * scale ** 3
+    mass = asm["vol"] * dens * scale**3
     mass_c = (asm["mass_c"] - shift) * scale - shift_m
     contacts = (asm["contacts"] - shift) * scale - shift_m
     rep = report
     # the balance report in metres is the px report scaled (mass ∝ volume, lengths ∝ s)
     com = (np.asarray(rep.com) - shift) * scale - shift_m
     total = float(mass.sum())
-    final = replace(rep, margin=rep.margin * scale, sagittal_margin=rep.sagittal_margin * scale,
-                    tipping_torque=total * bal.G * rep.margin * scale,
-                    com=tuple(float(v) for v in com), mass=total,
-                    support=tuple((float(a * scale - x0), float(b * scale))
-                                  for a, b in rep.support))
+    final = replace(
+        rep,
+        margin=rep.margin * scale,
+        sagittal_margin=rep.sagittal_margin * scale,
+        tipping_torque=total * bal.G * rep.margin * scale,
+        com=tuple(float(v) for v in com),
+        mass=total,
+        support=tuple((float(a * scale - x0), float(b * scale)) for a, b in rep.support),
+    )
     info = attempt_info or {}
     final = replace(final, repairs=repairs, resamples=int(info.get("resamples", 0)))
     if not rep.applicable:
         final = replace(final, reason="no legs with ground contact: swims or rests on its body")
     pts_m = (limbs.points - np.array([0.0, asm["ground"]])) * scale - np.array([x0, 0.0])
-    params = dict(seed=opts.seed, options=_options_dict(opts), **{"class": spine.cls},
-                  legs=spine.legs, wings="wing" in asm["kind"], weight_kg=spine.weight,
-                  stance=spine.stance, posture=spine.posture, skull=skull.shape,
-                  vertebrae=spine.counts.tolist(), nearest_species=spine.neighbours,
-                  metres_per_px=scale, wings_value=spine.wings_value,
-                  legs_value=spine.legs_value, features=spine.features.tolist(),
-                  girdles=[{"name": g.name, "pairs": [p.kind for p in g.pairs]}
-                           for g in girdles],
-                  descent_residual_px=[float(p.residual) for p in limbs.poses
-                                       if p.kind == "leg"], below_ground=below)
-    return Creature(skeleton=skel, kind=tuple(asm["kind"]), region=tuple(asm["region"]),
-                    side=asm["side"].astype(np.int64), mirror=asm["mirror"].astype(np.int64),
-                    bone_length=asm["blen"] * scale, box_size=asm["box"] * scale, mass=mass,
-                    mass_center=mass_c, mass_size=asm["mass_sz"] * scale,
-                    anatomical_angles=asm["anat_a"], anatomical_limits=asm["anat_l"],
-                    contacts=contacts.reshape(-1, 3), contact_joint=asm["contact_joint"],
-                    spine_points=pts_m, params=params, balance=final,
-                    part=tuple(asm["part"]), digit=asm["digit"].astype(np.int64))
+    params = dict(
+        seed=opts.seed,
+        options=_options_dict(opts),
+        **{"class": spine.cls},
+        legs=spine.legs,
+        wings="wing" in asm["kind"],
+        weight_kg=spine.weight,
+        stance=spine.stance,
+        posture=spine.posture,
+        skull=skull.shape,
+        vertebrae=spine.counts.tolist(),
+        nearest_species=spine.neighbours,
+        metres_per_px=scale,
+        wings_value=spine.wings_value,
+        legs_value=spine.legs_value,
+        features=spine.features.tolist(),
+        girdles=[{"name": g.name, "pairs": [p.kind for p in g.pairs]} for g in girdles],
+        descent_residual_px=[float(p.residual) for p in limbs.poses if p.kind == "leg"],
+        below_ground=below,
+    )
+    return Creature(
+        skeleton=skel,
+        kind=tuple(asm["kind"]),
+        region=tuple(asm["region"]),
+        side=asm["side"].astype(np.int64),
+        mirror=asm["mirror"].astype(np.int64),
+        bone_length=asm["blen"] * scale,
+        box_size=asm["box"] * scale,
+        mass=mass,
+        mass_center=mass_c,
+        mass_size=asm["mass_sz"] * scale,
+        anatomical_angles=asm["anat_a"],
+        anatomical_limits=asm["anat_l"],
+        contacts=contacts.reshape(-1, 3),
+        contact_joint=asm["contact_joint"],
+        spine_points=pts_m,
+        params=params,
+        balance=final,
+        part=tuple(asm["part"]),
+        digit=asm["digit"].astype(np.int64),
+    )
 
 
 def _options_dict(opts: Options) -> dict[str, Any]:
-    d = {k: getattr(opts, k) for k in ("legs", "wings", "arms", "centaur", "weight",
-                                       "neck_length", "tail_length", "cls", "k", "temperature",
-                                       "jitter", "stand_fraction", "require_stable")}
+    d = {
+        k: getattr(opts, k)
+        for k in (
+            "legs",
+            "wings",
+            "arms",
+            "centaur",
+            "weight",
+            "neck_length",
+            "tail_length",
+            "cls",
+            "k",
+            "temperature",
+            "jitter",
+            "stand_fraction",
+            "require_stable",
+        )
+    }
     if opts.scores is not None:
         d["scores"] = {str(i): float(v) for i, v in sorted(opts.scores.items())}
     d["descent"] = dict(vars(opts.descent))

@@ -22,12 +22,12 @@ G = 9.81
 class BalanceReport:
     """Result of the balance check (metres, kg, N·m)."""
 
-    applicable: bool               # False without legs on the ground (swims / rests on body)
+    applicable: bool  # False without legs on the ground (swims / rests on body)
     stable: bool
-    margin: float                  # signed distance of the COM to the polygon boundary (m)
-    margin_fraction: float         # margin / body length
-    sagittal_margin: float         # the seed's 2-D view: COM x inside the contacts' x-range
-    tipping_torque: float          # smallest restoring torque about a support edge (N·m)
+    margin: float  # signed distance of the COM to the polygon boundary (m)
+    margin_fraction: float  # margin / body length
+    sagittal_margin: float  # the seed's 2-D view: COM x inside the contacts' x-range
+    tipping_torque: float  # smallest restoring torque about a support edge (N·m)
     com: tuple[float, float, float]
     support: tuple[tuple[float, float], ...]  # polygon (x, z), counter-clockwise
     mass: float
@@ -72,14 +72,29 @@ def edge_distances(poly: NDArray, q: NDArray) -> NDArray[np.float64]:
     return cr / np.where(n > 0, n, 1.0)
 
 
-def evaluate(com: NDArray, mass: float, patches: NDArray, body_length: float,
-             min_margin_fraction: float = 0.01) -> BalanceReport:
+def evaluate(
+    com: NDArray,
+    mass: float,
+    patches: NDArray,
+    body_length: float,
+    min_margin_fraction: float = 0.01,
+) -> BalanceReport:
     """Balance of a creature with centre of mass ``com (3,)`` (world, Y up) standing on
     contact patches ``patches (k, 2)`` (x, z corner points on the ground)."""
     c = np.asarray(com, float)
     if patches is None or len(patches) == 0:
-        return BalanceReport(False, True, 0.0, 0.0, 0.0, 0.0, tuple(map(float, c)), (),
-                             float(mass), reason="no legs with ground contact")
+        return BalanceReport(
+            False,
+            True,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            tuple(map(float, c)),
+            (),
+            float(mass),
+            reason="no legs with ground contact",
+        )
     q = np.array([c[0], c[2]])
     poly = convex_hull(patches)
     x0, x1 = float(np.min(patches[:, 0])), float(np.max(patches[:, 0]))
@@ -93,6 +108,14 @@ def evaluate(com: NDArray, mass: float, patches: NDArray, body_length: float,
         torque = float(mass * G * margin)
     frac = margin / max(body_length, 1e-12)
     stable = frac >= min_margin_fraction
-    return BalanceReport(True, bool(stable), margin, float(frac), float(sag), float(torque),
-                         tuple(map(float, c)), tuple((float(a), float(b)) for a, b in poly),
-                         float(mass))
+    return BalanceReport(
+        True,
+        bool(stable),
+        margin,
+        float(frac),
+        float(sag),
+        float(torque),
+        tuple(map(float, c)),
+        tuple((float(a), float(b)) for a, b in poly),
+        float(mass),
+    )

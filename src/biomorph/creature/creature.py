@@ -67,7 +67,7 @@ class Creature:
     anatomical_limits: NDArray[np.float64]
     contacts: NDArray[np.float64]
     contact_joint: NDArray[np.int64]
-    spine_points: NDArray[np.float64]      # (10, 2) control points in the sagittal plane (m)
+    spine_points: NDArray[np.float64]  # (10, 2) control points in the sagittal plane (m)
     params: dict[str, Any] = field(default_factory=dict)
     balance: BalanceReport | None = None
     part: tuple[str, ...] = ()
@@ -122,15 +122,20 @@ class Creature:
     def inertia(self) -> NDArray[np.float64]:
         """Principal moments (n, 3) of each bone's mass box about its centre (kg m²)."""
         from biomorph.creature.mass import box_inertia
+
         return box_inertia(self.mass, self.mass_size)
 
     def features(self) -> NDArray[np.float64]:
         """A fixed-length descriptor for diversity measures (PCA features + counts + size)."""
         f = np.asarray(self.params.get("features", np.zeros(29)), float)
         kinds = [self.kind.count(k) for k in ("leg", "arm", "wing", "fin")]
-        return np.concatenate([f, np.array(kinds, float) / 12.0,
-                               [np.log(self.total_mass + 1.0) / 12.0,
-                                len(self) / 200.0]])
+        return np.concatenate(
+            [
+                f,
+                np.array(kinds, float) / 12.0,
+                [np.log(self.total_mass + 1.0) / 12.0, len(self) / 200.0],
+            ]
+        )
 
     # ------------------------------------------------------------------ export
     def to_dict(self) -> dict[str, Any]:
@@ -138,33 +143,55 @@ class Creature:
         sk = self.skeleton
         bones = []
         for i, name in enumerate(sk.names):
-            bones.append({
-                "name": name, "parent": sk.names[sk.parent[i]] if sk.parent[i] >= 0 else None,
-                "kind": self.kind[i], "region": self.region[i], "side": int(self.side[i]),
-                "part": self.part[i] if self.part else None,
-                "digit": int(self.digit[i]) if self.digit is not None else 0,
-                "offset": sk.offset[i].tolist(), "rest_rotation": sk.rest_rotation[i].tolist(),
-                "limits_rad": sk.limits[i].tolist(), "length": float(self.bone_length[i]),
-                "box": self.box_size[i].tolist(), "mass": float(self.mass[i]),
-                "mass_center": self.mass_center[i].tolist(),
-                "world_position": self.joint_positions[i].tolist()})
-        return {"format": "biomorph-creature", "version": 1, "params": _jsonable(self.params),
-                "n_joints": len(sk), "height_m": self.height, "length_m": self.length,
-                "mass_kg": self.total_mass, "center_of_mass": self.center_of_mass.tolist(),
-                "contacts": self.contacts.tolist(),
-                "balance": None if self.balance is None else self.balance.to_dict(),
-                "bones": bones}
+            bones.append(
+                {
+                    "name": name,
+                    "parent": sk.names[sk.parent[i]] if sk.parent[i] >= 0 else None,
+                    "kind": self.kind[i],
+                    "region": self.region[i],
+                    "side": int(self.side[i]),
+                    "part": self.part[i] if self.part else None,
+                    "digit": int(self.digit[i]) if self.digit is not None else 0,
+                    "offset": sk.offset[i].tolist(),
+                    "rest_rotation": sk.rest_rotation[i].tolist(),
+                    "limits_rad": sk.limits[i].tolist(),
+                    "length": float(self.bone_length[i]),
+                    "box": self.box_size[i].tolist(),
+                    "mass": float(self.mass[i]),
+                    "mass_center": self.mass_center[i].tolist(),
+                    "world_position": self.joint_positions[i].tolist(),
+                }
+            )
+        return {
+            "format": "biomorph-creature",
+            "version": 1,
+            "params": _jsonable(self.params),
+            "n_joints": len(sk),
+            "height_m": self.height,
+            "length_m": self.length,
+            "mass_kg": self.total_mass,
+            "center_of_mass": self.center_of_mass.tolist(),
+            "contacts": self.contacts.tolist(),
+            "balance": None if self.balance is None else self.balance.to_dict(),
+            "bones": bones,
+        }
 
     def summary(self) -> dict[str, Any]:
         """Short machine-readable summary (for ``--json``)."""
         b = self.balance
-        return {"seed": self.params.get("seed"), "class": self.params.get("class"),
-                "legs": self.params.get("legs"), "wings": self.params.get("wings"),
-                "limbs": {k: self.kind.count(k) for k in ("leg", "arm", "wing", "fin")},
-                "joints": len(self), "mass_kg": round(self.total_mass, 4),
-                "height_m": round(self.height, 4), "length_m": round(self.length, 4),
-                "stable": None if b is None else b.stable,
-                "stability_margin_m": None if b is None else round(b.margin, 5)}
+        return {
+            "seed": self.params.get("seed"),
+            "class": self.params.get("class"),
+            "legs": self.params.get("legs"),
+            "wings": self.params.get("wings"),
+            "limbs": {k: self.kind.count(k) for k in ("leg", "arm", "wing", "fin")},
+            "joints": len(self),
+            "mass_kg": round(self.total_mass, 4),
+            "height_m": round(self.height, 4),
+            "length_m": round(self.length, 4),
+            "stable": None if b is None else b.stable,
+            "stability_margin_m": None if b is None else round(b.margin, 5),
+        }
 
 
 def _jsonable(o: Any) -> Any:
@@ -182,4 +209,5 @@ def _jsonable(o: Any) -> Any:
 def write_json(path, creature: Creature):
     """Write ``creature.to_dict()`` as JSON (atomically)."""
     from biomorph.io.atomic import write_text
+
     return write_text(path, json.dumps(creature.to_dict(), indent=1))

@@ -27,9 +27,11 @@ def check_extension(path: str | os.PathLike[str]) -> str:
     """The lower-case extension of ``path`` if it is a creature format, else raise."""
     ext = Path(path).suffix.lower()
     if ext not in FORMATS:
-        raise UnsupportedFormatError(f"{os.fspath(path)}: cannot write a creature as "
-                                     f"{ext or '(no extension)'!r}; expected one of "
-                                     f"{' '.join(FORMATS)}")
+        raise UnsupportedFormatError(
+            f"{os.fspath(path)}: cannot write a creature as "
+            f"{ext or '(no extension)'!r}; expected one of "
+            f"{' '.join(FORMATS)}"
+        )
     return ext
 
 
@@ -43,8 +45,15 @@ TO_GLTF = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
 BONE_FLOOR_M = 0.0045
 
 
-def export(creature: Creature, path: str | os.PathLike[str], bone_shape: str = "bone",
-           walk: bool = False, rigify: bool = False, lod: int = 1, skin: bool = False) -> Path:
+def export(
+    creature: Creature,
+    path: str | os.PathLike[str],
+    bone_shape: str = "bone",
+    walk: bool = False,
+    rigify: bool = False,
+    lod: int = 1,
+    skin: bool = False,
+) -> Path:
     """Write ``creature`` to ``path`` (format by extension); atomic; returns the path.
 
     ``walk`` adds a procedural walk cycle (glb, bvh). ``rigify``: for ``.glb`` a real
@@ -57,17 +66,21 @@ def export(creature: Creature, path: str | os.PathLike[str], bone_shape: str = "
     ext = check_extension(path)
     if rigify and not any(k == "spine" for k in creature.kind):
         from biomorph.errors import ParameterError
+
         raise ParameterError("--rigify needs a creature with a spine")
     if ext == ".glb":
-        return write_glb(creature, path, bone_shape=bone_shape, walk=walk, rigify=rigify,
-                         lod=lod, skin=skin)
+        return write_glb(
+            creature, path, bone_shape=bone_shape, walk=walk, rigify=rigify, lod=lod, skin=skin
+        )
     original = creature
     if rigify:
         from biomorph.creature.rigify import with_rigify_names
+
         creature = with_rigify_names(creature)
 
     def walk_motion():
         from biomorph.creature.walk import walk_cycle
+
         return walk_cycle(original).with_(skeleton=creature.skeleton)
 
     if ext == ".json":
@@ -88,16 +101,21 @@ def export(creature: Creature, path: str | os.PathLike[str], bone_shape: str = "
             from biomorph.creature.skin import body
 
             env = body(creature, lod=lod).envelope
-            mesh = Mesh(np.concatenate([mesh.vertices, env.vertices]),
-                        np.concatenate([mesh.faces, env.faces + mesh.n_vertices]),
-                        normals=np.concatenate([mesh.normals, env.normals]),
-                        face_ids={"bone": np.concatenate([mesh.face_ids["bone"],
-                                                          np.full(env.n_faces, -1)])})
+            mesh = Mesh(
+                np.concatenate([mesh.vertices, env.vertices]),
+                np.concatenate([mesh.faces, env.faces + mesh.n_vertices]),
+                normals=np.concatenate([mesh.normals, env.normals]),
+                face_ids={
+                    "bone": np.concatenate([mesh.face_ids["bone"], np.full(env.n_faces, -1)])
+                },
+            )
         return write_mesh(path, mesh, object_name="creature")
     if ext == ".osim":
         from biomorph.io.osim import write_osim
+
         return write_osim(path, creature)
     from biomorph.io.mjcf import write_mjcf
+
     return write_mjcf(path, creature)
 
 
@@ -113,8 +131,7 @@ def _to_gltf_axes(skeleton, motion):
     sk = skeleton.with_(offset=off, rest_rotation=rest)
     if motion is None:
         return sk, None
-    return sk, motion.with_(skeleton=sk, root_position=np.asarray(motion.root_position)
-                            @ TO_GLTF.T)
+    return sk, motion.with_(skeleton=sk, root_position=np.asarray(motion.root_position) @ TO_GLTF.T)
 
 
 def floor_bone_lengths(skeleton, floor: float = BONE_FLOOR_M):
@@ -127,9 +144,16 @@ def floor_bone_lengths(skeleton, floor: float = BONE_FLOOR_M):
     return skeleton.with_(offset=off), int(short.sum())
 
 
-def write_glb(creature: Creature, path: str | os.PathLike[str], *, bone_shape: str = "bone",
-              walk: bool = False, rigify: bool = False, lod: int = 1,
-              skin: bool = False) -> Path:
+def write_glb(
+    creature: Creature,
+    path: str | os.PathLike[str],
+    *,
+    bone_shape: str = "bone",
+    walk: bool = False,
+    rigify: bool = False,
+    lod: int = 1,
+    skin: bool = False,
+) -> Path:
     """Skinned GLB of ``creature`` in glTF's axes: bone models rigidly skinned to their
     joints, optionally the body envelope with smooth weights (``skin``), a walk cycle and/or
     a Rigify metarig (see :func:`export`)."""
@@ -140,6 +164,7 @@ def write_glb(creature: Creature, path: str | os.PathLike[str], *, bone_shape: s
     motion = None
     if walk:
         from biomorph.creature.walk import walk_cycle
+
         motion = walk_cycle(creature)
     extras: list | None = None
     owner_of = None
@@ -160,9 +185,17 @@ def write_glb(creature: Creature, path: str | os.PathLike[str], *, bone_shape: s
     if skinned is not None:
         skinned = (skinned[0] @ TO_GLTF.T, skinned[1] @ TO_GLTF.T, *skinned[2:])
     arm_extras = {"biomorph_metarig": 1} if rigify else None
-    return write_gltf(path, skeleton, motion=motion, bone_shape=None, joint_geometry=geo,
-                      name="creature", joint_extras=extras, extras=arm_extras,
-                      skinned_mesh=skinned)
+    return write_gltf(
+        path,
+        skeleton,
+        motion=motion,
+        bone_shape=None,
+        joint_geometry=geo,
+        name="creature",
+        joint_extras=extras,
+        extras=arm_extras,
+        skinned_mesh=skinned,
+    )
 
 
 def _skin_arrays(creature: Creature, skeleton, lod: int, owner_of):

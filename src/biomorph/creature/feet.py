@@ -61,12 +61,13 @@ class Digit:
 def _spread(numbers, fracs, end, spread_deg, short=()) -> tuple[Digit, ...]:
     n = len(numbers)
     ang = np.linspace(-spread_deg, spread_deg, n) if n > 1 else np.zeros(1)
-    return tuple(Digit(k, tuple(f * (0.7 if k in short else 1.0) for f in fracs), end,
-                       float(a)) for k, a in zip(numbers, ang, strict=True))
+    return tuple(
+        Digit(k, tuple(f * (0.7 if k in short else 1.0) for f in fracs), end, float(a))
+        for k, a in zip(numbers, ang, strict=True)
+    )
 
 
-def digit_plan(kind: str, role: str, cls: str, stance: str, skull: str = ""
-               ) -> tuple[Digit, ...]:
+def digit_plan(kind: str, role: str, cls: str, stance: str, skull: str = "") -> tuple[Digit, ...]:
     """The digits of a limb (see the module table); ``()`` for fins."""
     if kind == "fin":
         return ()
@@ -74,7 +75,8 @@ def digit_plan(kind: str, role: str, cls: str, stance: str, skull: str = ""
         if cls == "mammal":
             return (Digit(1, (0.15, 0.08), "claw", -35.0),) + tuple(
                 Digit(k, (0.9, 0.7, 0.5), "phalanx", a)
-                for k, a in zip((2, 3, 4, 5), (-8.0, 5.0, 22.0, 40.0), strict=True))
+                for k, a in zip((2, 3, 4, 5), (-8.0, 5.0, 22.0, 40.0), strict=True)
+            )
         return (Digit(1, (0.25,), "phalanx", -20.0), Digit(2, (0.45, 0.25), "phalanx", 0.0))
     if kind == "arm":
         end = "nail" if skull == "primate" else "claw"
@@ -86,10 +88,12 @@ def digit_plan(kind: str, role: str, cls: str, stance: str, skull: str = ""
     # standing legs
     if cls == "bird":
         claws = (0.12,)
-        return (Digit(1, (0.2,) + claws, "claw", 0.0, backward=True),
-                Digit(2, (0.25, 0.2) + claws, "claw", -25.0),
-                Digit(3, (0.3, 0.25) + claws, "claw", 0.0),
-                Digit(4, (0.25, 0.2) + claws, "claw", 25.0))
+        return (
+            Digit(1, (0.2,) + claws, "claw", 0.0, backward=True),
+            Digit(2, (0.25, 0.2) + claws, "claw", -25.0),
+            Digit(3, (0.3, 0.25) + claws, "claw", 0.0),
+            Digit(4, (0.25, 0.2) + claws, "claw", 25.0),
+        )
     if cls in ("reptile", "amphibian"):
         end = "phalanx" if cls == "amphibian" else "claw"
         numbers = (2, 3, 4, 5) if (cls == "amphibian" and role == "fore") else (1, 2, 3, 4, 5)
@@ -121,13 +125,13 @@ class Digits:
 
     name: tuple[str, ...]
     parent: NDArray[np.int64]
-    W: NDArray[np.float64]          # (m, 3, 3) world rotations, bone along +Y, Z lateral
-    pos: NDArray[np.float64]        # (m, 3)
-    length: NDArray[np.float64]     # (m,)
-    radius: NDArray[np.float64]     # (m,) bone radius for the box
+    W: NDArray[np.float64]  # (m, 3, 3) world rotations, bone along +Y, Z lateral
+    pos: NDArray[np.float64]  # (m, 3)
+    length: NDArray[np.float64]  # (m,)
+    radius: NDArray[np.float64]  # (m,) bone radius for the box
     part: tuple[str, ...]
     digit: NDArray[np.int64]
-    contacts: NDArray[np.float64]   # (k, 3)
+    contacts: NDArray[np.float64]  # (k, 3)
     contact_local: NDArray[np.int64]
 
 
@@ -140,9 +144,16 @@ def _frames(u: NDArray, lateral: NDArray) -> NDArray:
     return np.stack([np.cross(y, z), y, z], axis=2)
 
 
-def build(plan: tuple[Digit, ...], W_distal: NDArray, tip: NDArray, metapodial: float,
-          bone_radius: float, width: float, ground: float | None,
-          heel: NDArray | None = None) -> Digits:
+def build(
+    plan: tuple[Digit, ...],
+    W_distal: NDArray,
+    tip: NDArray,
+    metapodial: float,
+    bone_radius: float,
+    width: float,
+    ground: float | None,
+    heel: NDArray | None = None,
+) -> Digits:
     """Digit joints for a limb whose metapodial ends at ``tip`` (px). ``ground`` is the
     ground height for a standing foot (digits laid on the ground) or ``None`` for a free
     hand / wing (digits continue the distal bone ``W_distal[:, 1]``, spread about its
@@ -152,33 +163,36 @@ def build(plan: tuple[Digit, ...], W_distal: NDArray, tip: NDArray, metapodial: 
     n = len(plan)
     counts = np.array([len(d.fractions) for d in plan], np.int64)
     m = int(counts.sum())
-    dig = np.repeat(np.arange(n), counts)                    # digit of each joint
+    dig = np.repeat(np.arange(n), counts)  # digit of each joint
     first = np.concatenate([[0], np.cumsum(counts)[:-1]]) if n else np.zeros(0, np.int64)
-    j_in = np.arange(m) - np.repeat(first, counts)            # index within the digit
+    j_in = np.arange(m) - np.repeat(first, counts)  # index within the digit
     last = j_in == np.repeat(counts - 1, counts)
-    seg = np.concatenate([np.asarray(d.fractions, float) for d in plan]) * metapodial \
-        if n else np.zeros(0)
+    seg = (
+        np.concatenate([np.asarray(d.fractions, float) for d in plan]) * metapodial
+        if n
+        else np.zeros(0)
+    )
     side = (np.arange(n) - (n - 1) / 2) / max(n - 1, 1)
-    start = tip[None, :] + np.outer(side, [0.0, 0.0, 1.0]) * width   # (n, 3)
+    start = tip[None, :] + np.outer(side, [0.0, 0.0, 1.0]) * width  # (n, 3)
     splay = np.radians([d.splay_deg for d in plan])
     back = np.array([d.backward for d in plan], bool)
     if ground is None:
         axis, u0 = W_distal[:, 0], W_distal[:, 1]
         c, s_ = np.cos(splay)[:, None], np.sin(splay)[:, None]
-        ud = u0 * c + np.cross(axis, u0) * s_ + axis * (axis @ u0) * (1 - c)   # Rodrigues
+        ud = u0 * c + np.cross(axis, u0) * s_ + axis * (axis @ u0) * (1 - c)  # Rodrigues
         dirs = ud[dig]
         lateral = np.broadcast_to(W_distal[:, 2], (m, 3))
     else:
         fwd = np.stack([np.cos(splay), np.zeros(n), np.sin(splay)], axis=1)
         fwd[back] *= -1.0
         h = np.maximum(start[:, 1] - ground, 0.0)
-        lp = np.array([float(seg[first[k]:first[k] + counts[k] - 1].sum()) for k in range(n)])
+        lp = np.array([float(seg[first[k] : first[k] + counts[k] - 1].sum()) for k in range(n)])
         sin_max = np.sin(np.radians(80.0))
         incl = (h > eps) & (counts > 1)
         sin_a = np.where(incl, np.minimum(h / np.maximum(lp, 1e-300), sin_max), 0.0)
         grow = np.where(incl & (lp * sin_max < h), h / np.maximum(lp * sin_a, 1e-300), 1.0)
-        seg = seg * np.where(last, 1.0, grow[dig])            # too short to reach: lengthen
-        cos_a = np.sqrt(1.0 - sin_a ** 2)
+        seg = seg * np.where(last, 1.0, grow[dig])  # too short to reach: lengthen
+        cos_a = np.sqrt(1.0 - sin_a**2)
         down = fwd * cos_a[:, None] - np.outer(sin_a, [0.0, 1.0, 0.0])
         dirs = np.where(last[:, None], fwd[dig], down[dig])
         lateral = np.broadcast_to([0.0, 0.0, 1.0], (m, 3))
@@ -203,7 +217,7 @@ def build(plan: tuple[Digit, ...], W_distal: NDArray, tip: NDArray, metapodial: 
             clocal.append(-1)
         on = (j_in > 0) & (pos[:, 1] - ground <= eps)
         tips = dict(zip(np.flatnonzero(last).tolist(), end_tip, strict=True))
-        for k in range(m):   # per digit: its joints on the ground, then the end bone's tip
+        for k in range(m):  # per digit: its joints on the ground, then the end bone's tip
             if on[k]:
                 contacts.append(np.array([pos[k, 0], ground, pos[k, 2]]))
                 clocal.append(k)
@@ -212,7 +226,15 @@ def build(plan: tuple[Digit, ...], W_distal: NDArray, tip: NDArray, metapodial: 
                 clocal.append(k)
     names = tuple(f"digit{plan[dig[k]].number}_{j_in[k] + 1}" for k in range(m))
     parts = tuple(plan[dig[k]].end if last[k] else "phalanx" for k in range(m))
-    return Digits(names, parent.astype(np.int64), _frames(dirs, np.asarray(lateral, float))
-                  if m else np.zeros((0, 3, 3)), pos, seg.astype(float), rad.astype(float),
-                  parts, np.array([plan[dig[k]].number for k in range(m)], np.int64),
-                  np.array(contacts, float).reshape(-1, 3), np.array(clocal, np.int64))
+    return Digits(
+        names,
+        parent.astype(np.int64),
+        _frames(dirs, np.asarray(lateral, float)) if m else np.zeros((0, 3, 3)),
+        pos,
+        seg.astype(float),
+        rad.astype(float),
+        parts,
+        np.array([plan[dig[k]].number for k in range(m)], np.int64),
+        np.array(contacts, float).reshape(-1, 3),
+        np.array(clocal, np.int64),
+    )

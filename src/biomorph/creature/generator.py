@@ -38,8 +38,16 @@ from biomorph.creature.states import SpineState, step_rng
 from biomorph.creature.steps import step_girdles, step_limbs, step_skull, step_spine
 from biomorph.errors import InputError, ParameterError
 
-__all__ = ["Generator", "Options", "generate", "STEPS", "LEG_COUNTS", "MAX_SCORE", "CLASSES",
-           "species_model"]
+__all__ = [
+    "Generator",
+    "Options",
+    "generate",
+    "STEPS",
+    "LEG_COUNTS",
+    "MAX_SCORE",
+    "CLASSES",
+    "species_model",
+]
 
 
 def _model(dataset: str | None) -> MappingProxyType:
@@ -118,13 +126,27 @@ class Generator:
         elif step == "skull":
             st["skull"] = step_skull(st["spine"], st["limbs"], o, self._seed_rng("skull"))
         else:
-            st["finish"] = finish(st["spine"], st["girdles"], st["limbs"], st["skull"], o,
-                                  self._seed_rng("finish"), {"resamples": self._attempt})
+            st["finish"] = finish(
+                st["spine"],
+                st["girdles"],
+                st["limbs"],
+                st["skull"],
+                o,
+                self._seed_rng("finish"),
+                {"resamples": self._attempt},
+            )
 
     def _snapshot(self) -> None:
-        self._history.append((dict(self._states), {"rolls": dict(self._rolls),
-                                                   "edits": _copy_edits(self._edits),
-                                                   "attempt": self._attempt}))
+        self._history.append(
+            (
+                dict(self._states),
+                {
+                    "rolls": dict(self._rolls),
+                    "edits": _copy_edits(self._edits),
+                    "attempt": self._attempt,
+                },
+            )
+        )
 
     def step(self) -> str:
         """Run the next step; return its name."""
@@ -141,20 +163,30 @@ class Generator:
             self.step()
         c = self.creature
         o = self.options
-        while (o.require_stable and self._attempt < o.max_resamples
-               and (c.params.get("below_ground") or (c.balance is not None
-                                                     and c.balance.applicable
-                                                     and not c.balance.stable))):
+        while (
+            o.require_stable
+            and self._attempt < o.max_resamples
+            and (
+                c.params.get("below_ground")
+                or (c.balance is not None and c.balance.applicable and not c.balance.stable)
+            )
+        ):
             self._attempt += 1
             self._states.clear()
             while self.next_step is not None:
                 self._run(self.next_step)
             c = self.creature
-        if o.require_stable and c.balance is not None and c.balance.applicable \
-                and not c.balance.stable:
-            raise InputError(f"no statically stable creature found for seed {o.seed} after "
-                             f"{o.max_resamples} resamples; relax the conditions or pass "
-                             "require_stable=False")
+        if (
+            o.require_stable
+            and c.balance is not None
+            and c.balance.applicable
+            and not c.balance.stable
+        ):
+            raise InputError(
+                f"no statically stable creature found for seed {o.seed} after "
+                f"{o.max_resamples} resamples; relax the conditions or pass "
+                "require_stable=False"
+            )
         return c
 
     def undo(self) -> str:
@@ -207,13 +239,21 @@ class Generator:
         """Change the type of limb pair ``pair`` (0-based) at ``girdle``."""
         self._check_girdle_pair(girdle, pair)
         gd.check_pair(girdle, kind, pair + 1)
-        if kind == "leg" and girdle == "shoulder" and not any(
-                p.kind == "leg" for g in self.state("girdles") if g.name == "hip"
-                for p in g.pairs):
-            raise ParameterError("legs at the shoulder need legs at the hip too: a creature "
-                                 "cannot stand on its front legs alone")
-        self._edit("girdles", lambda: self._edits.setdefault("girdles", []).append(
-            ("set", girdle, pair, kind)))
+        if (
+            kind == "leg"
+            and girdle == "shoulder"
+            and not any(
+                p.kind == "leg" for g in self.state("girdles") if g.name == "hip" for p in g.pairs
+            )
+        ):
+            raise ParameterError(
+                "legs at the shoulder need legs at the hip too: a creature "
+                "cannot stand on its front legs alone"
+            )
+        self._edit(
+            "girdles",
+            lambda: self._edits.setdefault("girdles", []).append(("set", girdle, pair, kind)),
+        )
 
     def add_limb_pair(self, girdle: str, kind: str) -> None:
         """Add a limb pair of ``kind`` at ``girdle`` (at most two pairs per girdle)."""
@@ -222,37 +262,50 @@ class Generator:
             xy, s, region = sp.sample(sp_.points)
             rl = sp.region_lengths(s, region)
             if rl[0] < gd.CENTAUR_MIN_NECK * rl[1]:
-                raise ParameterError(f"a centaur girdle needs a neck of at least "
-                                     f"{gd.CENTAUR_MIN_NECK:.2f} × the back; lengthen the neck "
-                                     "first (set_neck_length)")
+                raise ParameterError(
+                    f"a centaur girdle needs a neck of at least "
+                    f"{gd.CENTAUR_MIN_NECK:.2f} × the back; lengthen the neck "
+                    "first (set_neck_length)"
+                )
         existing = [g for g in self.state("girdles") if g.name == girdle]
         n = len(existing[0].pairs) if existing else 0
         gd.check_pair(girdle, kind, n + 1)
-        self._edit("girdles", lambda: self._edits.setdefault("girdles", []).append(
-            ("add", girdle, None, kind)))
+        self._edit(
+            "girdles",
+            lambda: self._edits.setdefault("girdles", []).append(("add", girdle, None, kind)),
+        )
 
     def set_neck_length(self, factor: float) -> None:
         """Scale the neck chord by ``factor`` (0 < factor <= 4); later steps re-run."""
         if not (np.isfinite(factor) and 0 < factor <= 4):
             raise ParameterError(f"neck factor {factor}: expected 0 < factor <= 4")
-        self._edit("spine", lambda: self._edits.setdefault("spine", {}).__setitem__(
-            "neck", self._edits.get("spine", {}).get("neck", 1.0) * factor))
+        self._edit(
+            "spine",
+            lambda: self._edits.setdefault("spine", {}).__setitem__(
+                "neck", self._edits.get("spine", {}).get("neck", 1.0) * factor
+            ),
+        )
 
     def set_tail_length(self, factor: float) -> None:
         """Scale the tail chord by ``factor`` (0 < factor <= 4)."""
         if not (np.isfinite(factor) and 0 < factor <= 4):
             raise ParameterError(f"tail factor {factor}: expected 0 < factor <= 4")
-        self._edit("spine", lambda: self._edits.setdefault("spine", {}).__setitem__(
-            "tail", self._edits.get("spine", {}).get("tail", 1.0) * factor))
+        self._edit(
+            "spine",
+            lambda: self._edits.setdefault("spine", {}).__setitem__(
+                "tail", self._edits.get("spine", {}).get("tail", 1.0) * factor
+            ),
+        )
 
     def _check_girdle_pair(self, girdle: str, pair: int) -> None:
         gs = {g.name: g for g in self.state("girdles")}
         if girdle not in gs:
-            raise ParameterError(f"no {girdle} girdle on this creature; girdles: "
-                                 f"{', '.join(gs)}")
+            raise ParameterError(f"no {girdle} girdle on this creature; girdles: {', '.join(gs)}")
         if not 0 <= pair < len(gs[girdle].pairs):
-            raise ParameterError(f"the {girdle} girdle has {len(gs[girdle].pairs)} limb "
-                                 f"pair(s); pair {pair} does not exist")
+            raise ParameterError(
+                f"the {girdle} girdle has {len(gs[girdle].pairs)} limb "
+                f"pair(s); pair {pair} does not exist"
+            )
 
 
 def _copy_edits(e: dict) -> dict:

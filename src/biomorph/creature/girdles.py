@@ -16,8 +16,11 @@ import numpy as np
 from biomorph.errors import ParameterError
 
 GIRDLES = ("shoulder", "hip", "centaur")
-ALLOWED = {"shoulder": ("leg", "arm", "wing", "fin"), "hip": ("leg", "fin"),
-           "centaur": ("arm", "wing", "fin")}
+ALLOWED = {
+    "shoulder": ("leg", "arm", "wing", "fin"),
+    "hip": ("leg", "fin"),
+    "centaur": ("arm", "wing", "fin"),
+}
 MAX_PAIRS = 2
 #: A centaur girdle needs a neck at least this long relative to the back chord.
 CENTAUR_MIN_NECK = 0.55
@@ -49,15 +52,27 @@ def check_pair(girdle: str, kind: str, n_pairs: int) -> None:
     if girdle not in ALLOWED:
         raise ParameterError(f"girdle {girdle!r} unknown; expected one of {', '.join(GIRDLES)}")
     if kind not in ALLOWED[girdle]:
-        raise ParameterError(f"a {kind} cannot attach at the {girdle} girdle; allowed there: "
-                             f"{', '.join(ALLOWED[girdle])}")
+        raise ParameterError(
+            f"a {kind} cannot attach at the {girdle} girdle; allowed there: "
+            f"{', '.join(ALLOWED[girdle])}"
+        )
     if n_pairs > MAX_PAIRS:
-        raise ParameterError(f"the {girdle} girdle already holds {MAX_PAIRS} limb pairs; "
-                             f"no room for another {kind} pair")
+        raise ParameterError(
+            f"the {girdle} girdle already holds {MAX_PAIRS} limb pairs; "
+            f"no room for another {kind} pair"
+        )
 
 
-def plan(cls: str, legs: int, wings: bool, arms: bool, centaur: bool,
-         fore: np.ndarray, hind: np.ndarray, region_len: np.ndarray) -> tuple[Girdle, ...]:
+def plan(
+    cls: str,
+    legs: int,
+    wings: bool,
+    arms: bool,
+    centaur: bool,
+    fore: np.ndarray,
+    hind: np.ndarray,
+    region_len: np.ndarray,
+) -> tuple[Girdle, ...]:
     """Decide girdles and limb pairs from the discrete choices (lengths in frame px).
 
     ``legs`` in 0/2/4/6; ``fore``/``hind`` are the sampled (upper, lower, distal) lengths.
@@ -91,8 +106,11 @@ def plan(cls: str, legs: int, wings: bool, arms: bool, centaur: bool,
     out = [Girdle("shoulder", s_sh, tuple(shoulder)), Girdle("hip", s_hip, tuple(hip))]
     if centaur:
         if neck < CENTAUR_MIN_NECK * max(back, 1e-9):
-            raise ParameterError(f"a centaur girdle needs a neck at least {CENTAUR_MIN_NECK:.2f}"
-                                 f" × the back length; this neck is {neck / max(back, 1e-9):.2f}")
-        out.append(Girdle("centaur", 0.22 * neck, (LimbSpec("arm", tuple(0.9 * v
-                                                                        for v in fore_t)),)))
+            raise ParameterError(
+                f"a centaur girdle needs a neck at least {CENTAUR_MIN_NECK:.2f}"
+                f" × the back length; this neck is {neck / max(back, 1e-9):.2f}"
+            )
+        out.append(
+            Girdle("centaur", 0.22 * neck, (LimbSpec("arm", tuple(0.9 * v for v in fore_t)),))
+        )
     return tuple(g for g in out if g.pairs)

@@ -47,49 +47,79 @@ class DescentParams:
     converts them with the creature's scale.
     """
 
-    step_deg: float = 30.0          # first step
-    shrink: float = 0.8             # ×4/5 per iteration
-    stall: float = 0.1              # px: less progress than this halves the step
-    min_step_deg: float = 0.05      # steps never get smaller ("bis zu einer Minimalgröße")
-    tolerance: float = 0.5          # px: contact counts as reached
+    step_deg: float = 30.0  # first step
+    shrink: float = 0.8  # ×4/5 per iteration
+    stall: float = 0.1  # px: less progress than this halves the step
+    min_step_deg: float = 0.05  # steps never get smaller ("bis zu einer Minimalgröße")
+    tolerance: float = 0.5  # px: contact counts as reached
     max_iter: int = 120
-    p_flex: float = 0.9             # probability a flexion DOF is changed in an iteration
-    p_abduct: float = 0.05          # abduction kept rare so legs are not splayed (seed)
-    p_twist: float = 0.0            # twist does not move the contact point
+    p_flex: float = 0.9  # probability a flexion DOF is changed in an iteration
+    p_abduct: float = 0.05  # abduction kept rare so legs are not splayed (seed)
+    p_twist: float = 0.0  # twist does not move the contact point
     # anatomical preferences of standing legs (new beyond the seed)
-    plausible: bool = True          # reject moves that raise a distal joint / turn a bone
+    plausible: bool = True  # reject moves that raise a distal joint / turn a bone
     direction_slack_deg: float = 15.0  # how far a bone may lean against its anatomical side
     max_tilt_deg: tuple[float, float, float] = (85.0, 70.0, 70.0)  # bones' tilt from vertical
-    restarts: int = 2               # descents from the same start, different random streams;
+    restarts: int = 2  # descents from the same start, different random streams;
     #                                 the plausible one closest to the neutral pose is kept
-    relax: tuple[float, ...] = ()   # optionally blend towards neutral by these fractions,
+    relax: tuple[float, ...] = ()  # optionally blend towards neutral by these fractions,
     #                                 re-grounding by bisection, while flexion decreases
 
 
 #: Anatomical limits (degrees) per limb role and joint: rows joint 0..2, columns z, x, y.
 #: Hind legs fold zig-zag (thigh forward, shank back, foot forward); fore legs the other way.
 LIMITS_DEG = {
-    "hind": np.array([[[-40, 100], [-60, 25], [-20, 20]],
-                      [[-150, 0], [-10, 10], [-15, 15]],
-                      [[0, 150], [-15, 15], [-15, 15]]], dtype=float),
-    "fore": np.array([[[-100, 40], [-60, 25], [-20, 20]],
-                      [[0, 150], [-10, 10], [-15, 15]],
-                      [[-150, 100], [-15, 15], [-15, 15]]], dtype=float),
-    "wing": np.array([[[-45, 45], [-120, -50], [-30, 30]],
-                      [[-60, 60], [-20, 20], [-30, 30]],
-                      [[-60, 60], [-20, 20], [-30, 30]]], dtype=float),
-    "fin": np.array([[[-120, -60], [-45, 45], [-30, 30]],
-                     [[-30, 30], [-20, 20], [-20, 20]],
-                     [[-30, 30], [-20, 20], [-20, 20]]], dtype=float),
-    "arm": np.array([[[-60, 120], [-60, 25], [-60, 60]],
-                     [[0, 150], [-10, 10], [-60, 60]],
-                     [[-60, 60], [-30, 30], [-20, 20]]], dtype=float),
+    "hind": np.array(
+        [
+            [[-40, 100], [-60, 25], [-20, 20]],
+            [[-150, 0], [-10, 10], [-15, 15]],
+            [[0, 150], [-15, 15], [-15, 15]],
+        ],
+        dtype=float,
+    ),
+    "fore": np.array(
+        [
+            [[-100, 40], [-60, 25], [-20, 20]],
+            [[0, 150], [-10, 10], [-15, 15]],
+            [[-150, 100], [-15, 15], [-15, 15]],
+        ],
+        dtype=float,
+    ),
+    "wing": np.array(
+        [
+            [[-45, 45], [-120, -50], [-30, 30]],
+            [[-60, 60], [-20, 20], [-30, 30]],
+            [[-60, 60], [-20, 20], [-30, 30]],
+        ],
+        dtype=float,
+    ),
+    "fin": np.array(
+        [
+            [[-120, -60], [-45, 45], [-30, 30]],
+            [[-30, 30], [-20, 20], [-20, 20]],
+            [[-30, 30], [-20, 20], [-20, 20]],
+        ],
+        dtype=float,
+    ),
+    "arm": np.array(
+        [
+            [[-60, 120], [-60, 25], [-60, 60]],
+            [[0, 150], [-10, 10], [-60, 60]],
+            [[-60, 60], [-30, 30], [-20, 20]],
+        ],
+        dtype=float,
+    ),
 }
 
 #: Per-joint random intervals (degrees) of wing angles (z, x, y): a spread, slightly swept wing.
-WING_INTERVALS_DEG = np.array([[[-25, 15], [-105, -75], [-10, 10]],
-                               [[-35, 10], [-10, 10], [-10, 10]],
-                               [[-10, 35], [-10, 10], [-10, 10]]], dtype=float)
+WING_INTERVALS_DEG = np.array(
+    [
+        [[-25, 15], [-105, -75], [-10, 10]],
+        [[-35, 10], [-10, 10], [-10, 10]],
+        [[-10, 35], [-10, 10], [-10, 10]],
+    ],
+    dtype=float,
+)
 
 SPRAWL_DEG = {"erect": 0.0, "crouched": -8.0, "sprawling": -25.0}
 
@@ -99,12 +129,22 @@ SPRAWL_DEG = {"erect": 0.0, "crouched": -8.0, "sprawling": -25.0}
 #: of a standing leg is extended (the hand folded back under the forearm is a resting pose).
 #: The descent starts at the most bent of these limits.
 STAND_LIMITS_DEG = {
-    "hind": np.array([[[-30, 85], [-60, 25], [-20, 20]],
-                      [[-150, 0], [-10, 10], [-15, 15]],
-                      [[0, 150], [-15, 15], [-15, 15]]], dtype=float),
-    "fore": np.array([[[-85, 30], [-60, 25], [-20, 20]],
-                      [[0, 150], [-10, 10], [-15, 15]],
-                      [[-30, 100], [-15, 15], [-15, 15]]], dtype=float),
+    "hind": np.array(
+        [
+            [[-30, 85], [-60, 25], [-20, 20]],
+            [[-150, 0], [-10, 10], [-15, 15]],
+            [[0, 150], [-15, 15], [-15, 15]],
+        ],
+        dtype=float,
+    ),
+    "fore": np.array(
+        [
+            [[-85, 30], [-60, 25], [-20, 20]],
+            [[0, 150], [-10, 10], [-15, 15]],
+            [[-30, 100], [-15, 15], [-15, 15]],
+        ],
+        dtype=float,
+    ),
 }
 
 #: Side (world +x forward = +1, backward = -1) each bone of a standing leg leans to, from
@@ -157,8 +197,9 @@ def _matmul_into(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:  # prag
 
 
 @numba.njit(cache=True)
-def _fk(base: np.ndarray, lengths: np.ndarray, ang: np.ndarray, rot_out: np.ndarray,
-        pts_out: np.ndarray) -> None:  # pragma: no cover - compiled
+def _fk(
+    base: np.ndarray, lengths: np.ndarray, ang: np.ndarray, rot_out: np.ndarray, pts_out: np.ndarray
+) -> None:  # pragma: no cover - compiled
     """Cumulative rotations (3,3,3) and joint points (4,3) of a 3-bone chain."""
     e = np.empty((3, 3))
     for k in range(3):
@@ -193,9 +234,28 @@ def _implausible(pts, lengths, contact, side, slack, drop):  # pragma: no cover 
 
 
 @numba.njit(cache=True)
-def _descend_kernel(base, lengths, ang0, lo, hi, prob, n_active, contact, ground, step0,
-                    shrink, stall, min_step, tol, max_iter, rand, plausible, side,
-                    slack, drop):  # pragma: no cover
+def _descend_kernel(
+    base,
+    lengths,
+    ang0,
+    lo,
+    hi,
+    prob,
+    n_active,
+    contact,
+    ground,
+    step0,
+    shrink,
+    stall,
+    min_step,
+    tol,
+    max_iter,
+    rand,
+    plausible,
+    side,
+    slack,
+    drop,
+):  # pragma: no cover
     ang = ang0.copy()
     rot = np.zeros((3, 3, 3))
     pts = np.zeros((4, 3))
@@ -269,23 +329,44 @@ def _descend_kernel(base, lengths, ang0, lo, hi, prob, n_active, contact, ground
     return ang, dist, it
 
 
-def implausibility(points: NDArray, lengths: NDArray, contact: int, role: str,
-                   params: DescentParams = DescentParams()) -> float:
+def implausibility(
+    points: NDArray,
+    lengths: NDArray,
+    contact: int,
+    role: str,
+    params: DescentParams = DescentParams(),
+) -> float:
     """Rise of distal joints plus lean against the anatomical side (see :data:`LEAN_SIDE`)
     of a posed chain ``points (4, 3)``, in length units; 0 for a plausible standing leg."""
-    return float(_implausible(np.asarray(points, float), np.asarray(lengths, float),
-                              int(contact), LEAN_SIDE[role],
-                              np.sin(params.direction_slack_deg * DEG), _drop(params)))
+    return float(
+        _implausible(
+            np.asarray(points, float),
+            np.asarray(lengths, float),
+            int(contact),
+            LEAN_SIDE[role],
+            np.sin(params.direction_slack_deg * DEG),
+            _drop(params),
+        )
+    )
 
 
 def _drop(params: DescentParams) -> NDArray[np.float64]:
     return np.cos(np.asarray(params.max_tilt_deg, float) * DEG)
 
 
-def descend(base: NDArray, lengths: NDArray, start: NDArray, limits: NDArray, prob: NDArray,
-            ground: float, contact: int, rng: np.random.Generator,
-            params: DescentParams = DescentParams(), n_active: int = 3,
-            role: str = "hind") -> tuple[NDArray[np.float64], float, int]:
+def descend(
+    base: NDArray,
+    lengths: NDArray,
+    start: NDArray,
+    limits: NDArray,
+    prob: NDArray,
+    ground: float,
+    contact: int,
+    rng: np.random.Generator,
+    params: DescentParams = DescentParams(),
+    n_active: int = 3,
+    role: str = "hind",
+) -> tuple[NDArray[np.float64], float, int]:
     """Run the seed's ground-contact descent for one 3-bone chain.
 
     ``base (3,)`` attachment point, ``lengths (3,)``, ``start (3,3)`` angles (rad), ``limits
@@ -299,17 +380,33 @@ def descend(base: NDArray, lengths: NDArray, start: NDArray, limits: NDArray, pr
     """
     rand = rng.random((params.max_iter, 3, 3))
     ang, dist, it = _descend_kernel(
-        np.asarray(base, float), np.asarray(lengths, float), np.asarray(start, float),
-        np.ascontiguousarray(limits[..., 0]), np.ascontiguousarray(limits[..., 1]),
-        np.asarray(prob, float), int(n_active), int(contact), float(ground),
-        params.step_deg * DEG, params.shrink, params.stall, params.min_step_deg * DEG,
-        params.tolerance, int(params.max_iter), rand, bool(params.plausible), LEAN_SIDE[role],
-        float(np.sin(params.direction_slack_deg * DEG)), _drop(params))
+        np.asarray(base, float),
+        np.asarray(lengths, float),
+        np.asarray(start, float),
+        np.ascontiguousarray(limits[..., 0]),
+        np.ascontiguousarray(limits[..., 1]),
+        np.asarray(prob, float),
+        int(n_active),
+        int(contact),
+        float(ground),
+        params.step_deg * DEG,
+        params.shrink,
+        params.stall,
+        params.min_step_deg * DEG,
+        params.tolerance,
+        int(params.max_iter),
+        rand,
+        bool(params.plausible),
+        LEAN_SIDE[role],
+        float(np.sin(params.direction_slack_deg * DEG)),
+        _drop(params),
+    )
     return ang, float(dist), int(it)
 
 
-def forward(base: NDArray, lengths: NDArray, angles: NDArray
-            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def forward(
+    base: NDArray, lengths: NDArray, angles: NDArray
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Cumulative bone rotations ``(3,3,3)`` (world, bone along −y) and points ``(4,3)``."""
     rot = np.zeros((3, 3, 3))
     pts = np.zeros((4, 3))
@@ -323,7 +420,7 @@ def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None):
     ``accept(points)``, the result accepted). Works from above or below the ground. Returns
     new angles or ``None``."""
     scale = max(float(np.sum(lengths)), 1e-9)
-    for j in ([1, 0, 2] if n_active == 3 else [1, 0]):
+    for j in [1, 0, 2] if n_active == 3 else [1, 0]:
         lo, hi = limits[j, 0]
         a0 = ang[j, 0]
 
@@ -351,23 +448,36 @@ def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None):
                 t = ang.copy()
                 t[j, 0] = a if fa >= 0 else b
                 _, p = forward(base, lengths, t)
-                if (np.all(p[1:contact + 1, 1] >= ground - 1e-6 * scale)
-                        and (accept is None or accept(p))):
+                if np.all(p[1 : contact + 1, 1] >= ground - 1e-6 * scale) and (
+                    accept is None or accept(p)
+                ):
                     return t
     return None
 
 
-def reground(pose: LimbPose, base: NDArray, lengths: NDArray, ground: float,
-             params: DescentParams = DescentParams()) -> LimbPose | None:
+def reground(
+    pose: LimbPose,
+    base: NDArray,
+    lengths: NDArray,
+    ground: float,
+    params: DescentParams = DescentParams(),
+) -> LimbPose | None:
     """Move a posed leg to a new attachment ``base`` keeping its joint angles, then close the
     (small) vertical gap by bisection — a continuous re-grounding used by balance repair.
     Returns ``None`` if the leg cannot reach."""
     plant = pose.foot_flat
     contact, n_active = (2, 2) if plant else (3, 3)
     box = STAND_LIMITS_DEG[pose.role] * DEG if params.plausible else pose.limits
-    ang = _snap(np.asarray(base, float), np.asarray(lengths, float), pose.angles.copy(),
-                box, ground, contact, n_active,
-                _plausible_test(lengths, contact, pose.role, params))
+    ang = _snap(
+        np.asarray(base, float),
+        np.asarray(lengths, float),
+        pose.angles.copy(),
+        box,
+        ground,
+        contact,
+        n_active,
+        _plausible_test(lengths, contact, pose.role, params),
+    )
     if ang is None:
         return None
     if plant:
@@ -377,8 +487,19 @@ def reground(pose: LimbPose, base: NDArray, lengths: NDArray, ground: float,
     if np.any(pts[1:, 1] < ground - 1e-6 * float(np.sum(lengths))):
         return None
     c = pts[2 if plant else 3].copy()
-    return LimbPose("leg", pose.role, ang, pose.limits, rot, pts, c, plant,
-                    float(c[1] - ground), 0, np.asarray(lengths, float))
+    return LimbPose(
+        "leg",
+        pose.role,
+        ang,
+        pose.limits,
+        rot,
+        pts,
+        c,
+        plant,
+        float(c[1] - ground),
+        0,
+        np.asarray(lengths, float),
+    )
 
 
 def _relax(base, lengths, ang, box, ground, contact, n_active, role, accept, fractions):
@@ -393,8 +514,11 @@ def _relax(base, lengths, ang, box, ground, contact, n_active, role, accept, fra
     cur, cost = ang, flex(ang)
     for lam in fractions:
         t = cur.copy()
-        t[:n_active, 0] = np.clip(cur[:n_active, 0] + lam * (neutral - cur[:n_active, 0]),
-                                  box[:n_active, 0, 0], box[:n_active, 0, 1])
+        t[:n_active, 0] = np.clip(
+            cur[:n_active, 0] + lam * (neutral - cur[:n_active, 0]),
+            box[:n_active, 0, 0],
+            box[:n_active, 0, 1],
+        )
         t = _snap(base, lengths, t, box, ground, contact, n_active, accept)
         if t is not None and flex(t) < cost:
             cur, cost = t, flex(t)
@@ -413,22 +537,31 @@ def _plausible_test(lengths, contact, role, params):
 class LimbPose:
     """Result of posing one (right) limb: angles, limits and the chain geometry."""
 
-    kind: str                      # leg | arm | wing | fin
-    role: str                      # fore | hind (which limit table)
-    angles: NDArray[np.float64]    # (3, 3) z, x, y per joint, rad
-    limits: NDArray[np.float64]    # (3, 3, 2) rad
+    kind: str  # leg | arm | wing | fin
+    role: str  # fore | hind (which limit table)
+    angles: NDArray[np.float64]  # (3, 3) z, x, y per joint, rad
+    limits: NDArray[np.float64]  # (3, 3, 2) rad
     rotations: NDArray[np.float64]  # (3, 3, 3) cumulative world rotations (bone along -y)
-    points: NDArray[np.float64]    # (4, 3) attach, two joints, tip
+    points: NDArray[np.float64]  # (4, 3) attach, two joints, tip
     contact: NDArray[np.float64] | None  # contact point (3,) for legs
-    foot_flat: bool                # plantigrade: distal bone lies on the ground
-    residual: float                # remaining contact distance (same units as input)
+    foot_flat: bool  # plantigrade: distal bone lies on the ground
+    residual: float  # remaining contact distance (same units as input)
     iterations: int
     lengths: NDArray[np.float64] | None = None  # final segment lengths (if stretched)
 
 
-def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: str,
-             posture: str, rng: np.random.Generator, params: DescentParams = DescentParams(),
-             foot_clearance: float = 0.0, hip_max_deg: float | None = None) -> LimbPose:
+def pose_leg(
+    base: NDArray,
+    lengths: NDArray,
+    ground: float,
+    role: str,
+    stance: str,
+    posture: str,
+    rng: np.random.Generator,
+    params: DescentParams = DescentParams(),
+    foot_clearance: float = 0.0,
+    hip_max_deg: float | None = None,
+) -> LimbPose:
     """Pose a leg with ground contact by the seed's descent.
 
     Digitigrade/unguligrade: the tip of the distal bone comes down to ``ground +
@@ -460,31 +593,51 @@ def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: 
     vtol = 0.002 * float(np.sum(lengths))
     best, best_key = None, None
     for _ in range(max(1, params.restarts)):
-        ang, dist, it = descend(base, lengths, start, box, prob, g, contact, rng, params,
-                                n_active, role)
+        ang, dist, it = descend(
+            base, lengths, start, box, prob, g, contact, rng, params, n_active, role
+        )
         if dist > params.tolerance:
-            snapped = _snap(np.asarray(base, float), np.asarray(lengths, float), ang, box,
-                            g, contact, n_active, accept)
+            snapped = _snap(
+                np.asarray(base, float),
+                np.asarray(lengths, float),
+                ang,
+                box,
+                g,
+                contact,
+                n_active,
+                accept,
+            )
             if snapped is not None:
                 ang = snapped
         _, p = forward(base, lengths, ang)
         gap = max(float(p[contact, 1] - g), 0.0)
-        bad = (implausibility(p, lengths, contact, role, params) > vtol
-               if params.plausible else False)
+        bad = (
+            implausibility(p, lengths, contact, role, params) > vtol if params.plausible else False
+        )
         # plausible first, then on the ground, then least flexion away from neutral
         key = (bad, gap > params.tolerance, flexion_from_neutral(ang, role, n_active))
         if best_key is None or key < best_key:
             best, best_key = (ang, it), key
     ang, it = best
     if params.plausible and not best_key[0] and not best_key[1]:
-        ang = _relax(np.asarray(base, float), np.asarray(lengths, float), ang, box, g,
-                     contact, n_active, role, accept, params.relax)
+        ang = _relax(
+            np.asarray(base, float),
+            np.asarray(lengths, float),
+            ang,
+            box,
+            g,
+            contact,
+            n_active,
+            role,
+            accept,
+            params.relax,
+        )
     rot, pts = forward(base, lengths, ang)
     resid0 = pts[contact, 1] - g
     if resid0 > params.tolerance and base[1] - pts[contact, 1] > 1e-9:
         # last resort: scale the chain about the attachment so the contact touches exactly
         f = (base[1] - g) / (base[1] - pts[contact, 1])
-        if np.all(base[1] + f * (pts[1:contact + 1, 1] - base[1]) >= g - 1e-9):
+        if np.all(base[1] + f * (pts[1 : contact + 1, 1] - base[1]) >= g - 1e-9):
             lengths = np.asarray(lengths, float) * f
             rot, pts = forward(base, lengths, ang)
     if plant:
@@ -492,30 +645,42 @@ def pose_leg(base: NDArray, lengths: NDArray, ground: float, role: str, stance: 
         cum_z = ang[0, 0] + ang[1, 0]
         ang[2] = [np.clip(np.pi / 2 - cum_z, *limits[2, 0]), 0.0, 0.0]
         rot, pts = forward(base, lengths, ang)
-        if (pts[3, 1] < g - 1e-6 * float(np.sum(lengths))
-                or pts[3, 1] > g + 0.003 * float(np.sum(lengths))):
+        if pts[3, 1] < g - 1e-6 * float(np.sum(lengths)) or pts[3, 1] > g + 0.003 * float(
+            np.sum(lengths)
+        ):
             # the foot cannot lie flat within the ankle's limits: stand on the toes instead
-            return pose_leg(base, lengths, ground, role, "digitigrade", posture, rng, params,
-                            hip_max_deg=hip_max_deg)
+            return pose_leg(
+                base,
+                lengths,
+                ground,
+                role,
+                "digitigrade",
+                posture,
+                rng,
+                params,
+                hip_max_deg=hip_max_deg,
+            )
         contact_pt = pts[2].copy()
     else:
         contact_pt = pts[3].copy()
     resid = float(contact_pt[1] - g)
-    return LimbPose("leg", role, ang, limits, rot, pts, contact_pt, plant, resid, it,
-                    np.asarray(lengths, float))
+    return LimbPose(
+        "leg", role, ang, limits, rot, pts, contact_pt, plant, resid, it, np.asarray(lengths, float)
+    )
 
 
-def pose_free(kind: str, base: NDArray, lengths: NDArray, rng: np.random.Generator,
-              splay_deg: float = 12.0) -> LimbPose:
+def pose_free(
+    kind: str, base: NDArray, lengths: NDArray, rng: np.random.Generator, splay_deg: float = 12.0
+) -> LimbPose:
     """Pose a limb without ground contact: ``fin``, ``arm`` or ``wing`` (seed §5.1)."""
     role = {"fin": "fin", "arm": "arm", "wing": "wing"}[kind]
     limits = LIMITS_DEG[role] * DEG
     ang = np.zeros((3, 3))
     if kind == "fin":
-        ang[0, 0] = -np.pi / 2                # straight back (world -x)
-        ang[0, 1] = -splay_deg * DEG          # a little outwards
+        ang[0, 0] = -np.pi / 2  # straight back (world -x)
+        ang[0, 1] = -splay_deg * DEG  # a little outwards
     elif kind == "arm":
-        ang[1, 0] = np.pi / 2                 # upper arm down, forearm 90° forward, hand on
+        ang[1, 0] = np.pi / 2  # upper arm down, forearm 90° forward, hand on
     else:
         iv = WING_INTERVALS_DEG * DEG
         ang = rng.uniform(iv[..., 0], iv[..., 1])
@@ -524,8 +689,9 @@ def pose_free(kind: str, base: NDArray, lengths: NDArray, rng: np.random.Generat
     return LimbPose(kind, role, ang, limits, rot, pts, None, False, 0.0, 0)
 
 
-def lift_clear(pose: LimbPose, base: NDArray, lengths: NDArray, ground: float,
-               clearance: float) -> LimbPose:
+def lift_clear(
+    pose: LimbPose, base: NDArray, lengths: NDArray, ground: float, clearance: float
+) -> LimbPose:
     """Swing a free limb backwards/up in 15° steps until no bone end is below the ground."""
     ang = pose.angles.copy()
     lim = pose.limits
@@ -549,8 +715,11 @@ def start_pose(role: str, posture: str, standing: bool = True) -> NDArray[np.flo
     :data:`STAND_LIMITS_DEG` unless ``standing=False``), posture abduction."""
     limits = (STAND_LIMITS_DEG if standing else LIMITS_DEG)[role] * DEG
     start = np.zeros((3, 3))
-    start[:, 0] = ([limits[0, 0, 1], limits[1, 0, 0], limits[2, 0, 1]] if role == "hind"
-                   else [limits[0, 0, 0], limits[1, 0, 1], limits[2, 0, 0]])
+    start[:, 0] = (
+        [limits[0, 0, 1], limits[1, 0, 0], limits[2, 0, 1]]
+        if role == "hind"
+        else [limits[0, 0, 0], limits[1, 0, 1], limits[2, 0, 0]]
+    )
     start[0, 1] = np.clip(SPRAWL_DEG.get(posture, 0.0) * DEG, limits[0, 1, 0], limits[0, 1, 1])
     return start
 

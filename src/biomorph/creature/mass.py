@@ -24,8 +24,9 @@ def density(cls: str) -> float:
     return DENSITY.get(cls, 1000.0)
 
 
-def profile(s: NDArray, region_len: NDArray, girth: float, cls: str, skull_h: float,
-            legless: bool) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray]:
+def profile(
+    s: NDArray, region_len: NDArray, girth: float, cls: str, skull_h: float, legless: bool
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray]:
     """Body height ``h``, width ``b`` and centre offset below the spine at arc lengths ``s``
     (frame px, from the head end)."""
     neck, back, tail = region_len
@@ -40,9 +41,15 @@ def profile(s: NDArray, region_len: NDArray, girth: float, cls: str, skull_h: fl
     fishy = cls == "fish" or legless
     # continuous at the joins (the back ends at 0.75 h_back at both girdles)
     tail0, tail1 = (0.75, 0.25) if fishy else (0.75, 0.06)
-    h = np.where(s < neck, head_h + (0.75 * h_back - head_h) * u_neck,
-                 np.where(s <= neck + back, h_back * (0.75 + 0.25 * np.sin(np.pi * u_back)),
-                          h_back * (tail0 + (tail1 - tail0) * u_tail)))
+    h = np.where(
+        s < neck,
+        head_h + (0.75 * h_back - head_h) * u_neck,
+        np.where(
+            s <= neck + back,
+            h_back * (0.75 + 0.25 * np.sin(np.pi * u_back)),
+            h_back * (tail0 + (tail1 - tail0) * u_tail),
+        ),
+    )
     b = h * (0.5 if cls == "fish" else 0.8)
     off = h * (0.12 if fishy else 0.35)
     return h, b, off
@@ -78,5 +85,6 @@ def box_inertia(mass: NDArray, size: NDArray) -> NDArray[np.float64]:
     centres, in the box axes."""
     s2 = np.asarray(size, float) ** 2
     m = np.asarray(mass, float)[:, None]
-    return m / 12.0 * np.stack([s2[:, 1] + s2[:, 2], s2[:, 0] + s2[:, 2],
-                                s2[:, 0] + s2[:, 1]], axis=1)
+    return (
+        m / 12.0 * np.stack([s2[:, 1] + s2[:, 2], s2[:, 0] + s2[:, 2], s2[:, 0] + s2[:, 1]], axis=1)
+    )

@@ -30,8 +30,7 @@ from biomorph.creature.creature import Creature
 #: tendon radius as a share of the belly radius
 TENDON = 0.1
 #: belly radius as a share of the soft-tissue half-width of the bone it lies along
-BELLY = {"girdle": 0.55, "front": 0.45, "back": 0.5, "distal": 0.4, "epaxial": 0.22,
-         "neck": 0.3}
+BELLY = {"girdle": 0.55, "front": 0.45, "back": 0.5, "distal": 0.4, "epaxial": 0.22, "neck": 0.3}
 
 
 @dataclass(frozen=True)
@@ -54,8 +53,7 @@ def attachment(c: Creature, j: int, unit: tuple[float, float, float]) -> NDArray
     return c.world[j, :3, :3] @ (np.asarray(unit, float) * s) + c.world[j, :3, 3]
 
 
-def _sweep(a: NDArray, b: NDArray, bulge: NDArray, belly: float, k: int
-           ) -> tuple[NDArray, NDArray]:
+def _sweep(a: NDArray, b: NDArray, bulge: NDArray, belly: float, k: int) -> tuple[NDArray, NDArray]:
     u = np.linspace(0.0, 1.0, k)[:, None]
     path = a + (b - a) * u + np.sin(np.pi * u) * bulge
     r = belly * (TENDON + (1 - TENDON) * np.sin(np.pi * u[:, 0]) ** 0.8)
@@ -72,8 +70,9 @@ def _limb_chains(c: Creature) -> list[list[int]]:
     for g in (j for j in range(len(c)) if c.kind[j] == "girdle"):
         chain = [g]
         while len(chain) < 4:
-            kids = [int(k) for k in np.flatnonzero(par == chain[-1])
-                    if c.kind[k] not in ("girdle",)]
+            kids = [
+                int(k) for k in np.flatnonzero(par == chain[-1]) if c.kind[k] not in ("girdle",)
+            ]
             if not kids:
                 break
             chain.append(kids[0])
@@ -114,8 +113,11 @@ def _axial(c: Creature, k: int) -> list[Muscle]:
     out = []
     par = c.skeleton.parent
     for region, role in (("back", "epaxial"), ("tail", "epaxial"), ("neck", "neck")):
-        idx = [j for j in range(len(c)) if c.kind[j] == "spine" and c.region[j] == region
-               and c.bone_length[j] > 1e-9]
+        idx = [
+            j
+            for j in range(len(c))
+            if c.kind[j] == "spine" and c.region[j] == region and c.bone_length[j] > 1e-9
+        ]
         if len(idx) < 2:
             continue
         # order along the chain (parents first), keep one side of a branching root
@@ -135,8 +137,17 @@ def _axial(c: Creature, k: int) -> list[Muscle]:
             belly = BELLY[role] * hw
             u = np.linspace(0, 1, len(run))
             taper = TENDON + (1 - TENDON) * np.sin(np.pi * (0.1 + 0.8 * u)) ** 0.5
-            out.append(Muscle(f"{region}_{role}_{n_run}", run[0], run[-1], path[0], path[-1],
-                              path, belly * taper))
+            out.append(
+                Muscle(
+                    f"{region}_{role}_{n_run}",
+                    run[0],
+                    run[-1],
+                    path[0],
+                    path[-1],
+                    path,
+                    belly * taper,
+                )
+            )
     return out
 
 

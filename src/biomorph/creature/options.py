@@ -75,21 +75,29 @@ class Options:
         if self.scores is not None:
             n = pc.N_DIMS if self.k is None else int(self.k)
             for idx, val in self.scores.items():
-                if isinstance(idx, bool) or not isinstance(idx, (int, np.integer)) \
-                        or not 0 <= idx < n:
-                    raise ParameterError(f"PCA component {idx!r}: expected an index 0..{n - 1} "
-                                         f"(the model's {n} sampled components)")
+                if (
+                    isinstance(idx, bool)
+                    or not isinstance(idx, (int, np.integer))
+                    or not 0 <= idx < n
+                ):
+                    raise ParameterError(
+                        f"PCA component {idx!r}: expected an index 0..{n - 1} "
+                        f"(the model's {n} sampled components)"
+                    )
                 try:
                     v = float(val)
                 except (TypeError, ValueError):
                     v = float("nan")
                 if not (np.isfinite(v) and abs(v) <= MAX_SCORE):
-                    raise ParameterError(f"PCA component {idx} score {val!r}: expected a finite "
-                                         f"score in -{MAX_SCORE:g}..{MAX_SCORE:g} standard "
-                                         "deviations")
+                    raise ParameterError(
+                        f"PCA component {idx} score {val!r}: expected a finite "
+                        f"score in -{MAX_SCORE:g}..{MAX_SCORE:g} standard "
+                        "deviations"
+                    )
         if self.legs is not None and self.legs not in LEG_COUNTS:
-            raise ParameterError(f"legs={self.legs}: legs come in pairs with ground contact; "
-                                 "expected 0, 2, 4 or 6")
+            raise ParameterError(
+                f"legs={self.legs}: legs come in pairs with ground contact; expected 0, 2, 4 or 6"
+            )
         if self.weight is not None and not (np.isfinite(self.weight) and self.weight > 0):
             raise ParameterError(f"weight={self.weight} kg: expected a positive weight in kg")
         if self.weight is not None and not self.allow_extrapolation:
@@ -101,31 +109,43 @@ class Options:
                 raise ParameterError(
                     f"weight={self.weight:g} kg is more than {EXTRAPOLATION:g}× outside the "
                     f"dataset's range {w.min():g}..{w.max():g} kg; expected {lo:g}..{hi:g} kg "
-                    "or --allow-extrapolation")
+                    "or --allow-extrapolation"
+                )
         if self.cls is not None and self.cls not in CLASSES:
-            raise ParameterError(f"class {self.cls!r} unknown; expected one of "
-                                 f"{', '.join(CLASSES)}")
+            raise ParameterError(
+                f"class {self.cls!r} unknown; expected one of {', '.join(CLASSES)}"
+            )
         for name in ("neck_length", "tail_length"):
             v = getattr(self, name)
             if v is not None and not (np.isfinite(v) and 0 <= v <= 1.5):
-                raise ParameterError(f"{name.replace('_', '-')}={v}: expected 0..1.5 frame "
-                                     "units (1 = the skeleton's largest extent)")
+                raise ParameterError(
+                    f"{name.replace('_', '-')}={v}: expected 0..1.5 frame "
+                    "units (1 = the skeleton's largest extent)"
+                )
         if self.cls == "fish":
             if self.wings:
-                raise ParameterError("wings need a shoulder joint (scapula with a wing socket); "
-                                     "class fish has only fin girdles")
+                raise ParameterError(
+                    "wings need a shoulder joint (scapula with a wing socket); "
+                    "class fish has only fin girdles"
+                )
             if self.legs:
-                raise ParameterError(f"legs={self.legs} with class fish: fish have fins, no "
-                                     "legs with ground contact")
+                raise ParameterError(
+                    f"legs={self.legs} with class fish: fish have fins, no legs with ground contact"
+                )
             if self.arms or self.centaur:
-                raise ParameterError("arms/centaur need a tetrapod shoulder; class fish has "
-                                     "only fin girdles")
+                raise ParameterError(
+                    "arms/centaur need a tetrapod shoulder; class fish has only fin girdles"
+                )
         if self.legs == 6 and self.wings and self.arms:
-            raise ParameterError("six legs, wings and arms need three shoulder limb pairs; a "
-                                 "girdle holds at most two")
+            raise ParameterError(
+                "six legs, wings and arms need three shoulder limb pairs; a "
+                "girdle holds at most two"
+            )
         if self.legs == 6 and (self.wings or self.arms) and not self.centaur:
-            raise ParameterError("six legs fill the shoulder girdle (two leg pairs); wings or "
-                                 "arms need a free shoulder slot (use --centaur for arms)")
+            raise ParameterError(
+                "six legs fill the shoulder girdle (two leg pairs); wings or "
+                "arms need a free shoulder slot (use --centaur for arms)"
+            )
         if not 0 < self.stand_fraction <= 1:
             raise ParameterError(f"stand_fraction={self.stand_fraction}: expected 0 < f <= 1")
         if self.temperature < 0 or self.jitter < 0:

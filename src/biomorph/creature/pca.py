@@ -37,15 +37,22 @@ from biomorph.errors import ParameterError
 
 N_DIMS = 29
 MAX_WEIGHT = 120000.0  # kg, blue whale (seed)
-SMALL = 100.0          # extra divisor of weight, wings and legs (seed)
+SMALL = 100.0  # extra divisor of weight, wings and legs (seed)
 LOG_MAX = float(np.log(MAX_WEIGHT + 1.0))
 
-DIM_NAMES: tuple[str, ...] = (
-    tuple(f"p{i}{c}" for i in range(10) for c in "xy")
-    + ("upper_arm", "lower_arm", "hand", "upper_leg", "lower_leg", "foot", "wings", "legs",
-       "weight"))
+DIM_NAMES: tuple[str, ...] = tuple(f"p{i}{c}" for i in range(10) for c in "xy") + (
+    "upper_arm",
+    "lower_arm",
+    "hand",
+    "upper_leg",
+    "lower_leg",
+    "foot",
+    "wings",
+    "legs",
+    "weight",
+)
 DIM = {n: i for i, n in enumerate(DIM_NAMES)}
-NECK_OFFSET = (0, 1)   # p0 - p3 when reparametrised
+NECK_OFFSET = (0, 1)  # p0 - p3 when reparametrised
 TAIL_OFFSET = (18, 19)  # p9 - p6 when reparametrised
 
 #: Half-widths of the uniform jitter on conditioned values, in raw units
@@ -53,8 +60,14 @@ TAIL_OFFSET = (18, 19)  # p9 - p6 when reparametrised
 JITTER = {"px": 10.0, "wings": 0.2, "legs": 0.4, "weight": 0.15}
 
 
-def encode(points: ArrayLike, lengths: ArrayLike, wings: ArrayLike, legs: ArrayLike,
-           weight: ArrayLike, reparam: bool = False) -> NDArray[np.float64]:
+def encode(
+    points: ArrayLike,
+    lengths: ArrayLike,
+    wings: ArrayLike,
+    legs: ArrayLike,
+    weight: ArrayLike,
+    reparam: bool = False,
+) -> NDArray[np.float64]:
     """Scaled feature vectors ``(n, 29)`` from raw annotations (px, 0/1, count, kg)."""
     pts = np.array(points, dtype=float).reshape(-1, 10, 2)
     if reparam:
@@ -82,9 +95,13 @@ def decode(x: ArrayLike, reparam: bool = False) -> dict[str, NDArray[np.float64]
     if reparam:
         pts[:, 0] += pts[:, 3]
         pts[:, 9] += pts[:, 6]
-    return {"points": pts, "lengths": x[:, 20:26] * 1000.0, "wings": x[:, 26] * SMALL,
-            "legs": x[:, 27] * SMALL * 4.0,
-            "weight": np.expm1(np.clip(x[:, 28] * SMALL, -1.0, 2.0) * LOG_MAX)}
+    return {
+        "points": pts,
+        "lengths": x[:, 20:26] * 1000.0,
+        "wings": x[:, 26] * SMALL,
+        "legs": x[:, 27] * SMALL * 4.0,
+        "weight": np.expm1(np.clip(x[:, 28] * SMALL, -1.0, 2.0) * LOG_MAX),
+    }
 
 
 def weight_to_feature(weight: float) -> float:
@@ -163,8 +180,9 @@ class PCA:
         k = z.shape[-1]
         return self.mean + z @ self.components[:, :k].T
 
-    def sample(self, rng: np.random.Generator, n: int = 1, k: int | None = None,
-               temperature: float = 1.0) -> NDArray[np.float64]:
+    def sample(
+        self, rng: np.random.Generator, n: int = 1, k: int | None = None, temperature: float = 1.0
+    ) -> NDArray[np.float64]:
         """``n`` feature vectors from the Gaussian on the top ``k`` components."""
         k = self._k(k)
         if not temperature >= 0:
@@ -176,8 +194,9 @@ class PCA:
     def _score_std(self) -> NDArray[np.float64]:
         return np.sqrt(np.maximum(self.eigenvalues, 1e-12))
 
-    def nearest(self, x: ArrayLike, n_neighbours: int = 3, k: int = 6
-                ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    def nearest(
+        self, x: ArrayLike, n_neighbours: int = 3, k: int = 6
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         """Indices and inverse-distance weights of the training samples nearest to ``x`` in
         whitened top-``k`` score space (used to inherit class, stance, skull, counts)."""
         k = min(self._k(k), self.n_dims)
@@ -187,10 +206,15 @@ class PCA:
         w = 1.0 / (d[idx] + 1e-6)
         return idx, w / w.sum()
 
-    def conditional(self, fixed: Mapping[int, float] | None = None,
-                    scores: Mapping[int, float] | None = None, k: int | None = None,
-                    temperature: float = 1.0, rng: np.random.Generator | None = None,
-                    jitter: float = 1.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def conditional(
+        self,
+        fixed: Mapping[int, float] | None = None,
+        scores: Mapping[int, float] | None = None,
+        k: int | None = None,
+        temperature: float = 1.0,
+        rng: np.random.Generator | None = None,
+        jitter: float = 1.0,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Mean and covariance of the latent scores ``z (k,)`` given fixed feature dims
         (``{dim: scaled value}``) and/or fixed PC scores (``{component: score}``).
 
@@ -241,10 +265,10 @@ class PCA:
             gain = np.zeros((k, 0))
         else:
             h_mat = np.array(rows)
-            lh = lam[:, None] * h_mat.T                      # Λ Hᵀ  (k, m)
-            s = h_mat @ lh                                   # H Λ Hᵀ (m, m)
+            lh = lam[:, None] * h_mat.T  # Λ Hᵀ  (k, m)
+            s = h_mat @ lh  # H Λ Hᵀ (m, m)
             s = s + np.eye(len(rows)) * (1e-9 * max(float(np.trace(s)) / len(rows), 1e-12))
-            gain = np.linalg.solve(s, lh.T).T                # Λ Hᵀ S⁻¹ (k, m)
+            gain = np.linalg.solve(s, lh.T).T  # Λ Hᵀ S⁻¹ (k, m)
             cov = np.diag(lam) - gain @ lh.T
             cov = 0.5 * (cov + cov.T)
         ev, vecs = np.linalg.eigh(cov)
@@ -252,11 +276,15 @@ class PCA:
             a.flags.writeable = False
         return gain, cov, ev, vecs
 
-    def sample_conditional(self, rng: np.random.Generator,
-                           fixed: Mapping[int, float] | None = None,
-                           scores: Mapping[int, float] | None = None, k: int | None = None,
-                           temperature: float = 1.0, jitter: float = 1.0
-                           ) -> NDArray[np.float64]:
+    def sample_conditional(
+        self,
+        rng: np.random.Generator,
+        fixed: Mapping[int, float] | None = None,
+        scores: Mapping[int, float] | None = None,
+        k: int | None = None,
+        temperature: float = 1.0,
+        jitter: float = 1.0,
+    ) -> NDArray[np.float64]:
         """One feature vector ``(29,)`` from the conditional Gaussian (jittered fixed values)."""
         dims, comps, vals, k = self._conditions(fixed, scores, k, rng, jitter)
         gain, _, ev, vecs = self._factor(dims, comps, k, float(temperature))
@@ -274,13 +302,22 @@ def fit_dataset(table=None, reparam: bool = True) -> PCA:
 
 
 #: The seed's reported spectrum (thesis §4.4 / issue): first eigenvalue, total, 6-comp share.
-SEED_SPECTRUM = {"first": 0.349, "total": 0.583, "six_components": 0.922,
-                 "above_0.01": 7, "smallest": 0.000024}
+SEED_SPECTRUM = {
+    "first": 0.349,
+    "total": 0.583,
+    "six_components": 0.922,
+    "above_0.01": 7,
+    "smallest": 0.000024,
+}
 
 
 def spectrum_summary(pca: PCA) -> dict[str, float]:
     """Our spectrum in the seed's terms (to print beside :data:`SEED_SPECTRUM`)."""
     ev = pca.eigenvalues
-    return {"first": float(ev[0]), "total": float(ev.sum()),
-            "six_components": float(pca.explained()[5]),
-            "above_0.01": int((ev > 0.01).sum()), "smallest": float(ev[-1])}
+    return {
+        "first": float(ev[0]),
+        "total": float(ev.sum()),
+        "six_components": float(pca.explained()[5]),
+        "above_0.01": int((ev > 0.01).sum()),
+        "smallest": float(ev[-1]),
+    }

@@ -14,10 +14,22 @@ import numpy as np
 
 from biomorph.io.atomic import atomic_path
 
-CLASS_COLOURS = {"fish": "#1f77b4", "amphibian": "#2ca02c", "reptile": "#8c564b",
-                 "bird": "#d62728", "mammal": "#9467bd"}
-KIND_COLOURS = {"spine": "#555555", "skull": "#222222", "girdle": "#999999", "leg": "#8c564b",
-                "arm": "#1f77b4", "wing": "#d62728", "fin": "#17becf"}
+CLASS_COLOURS = {
+    "fish": "#1f77b4",
+    "amphibian": "#2ca02c",
+    "reptile": "#8c564b",
+    "bird": "#d62728",
+    "mammal": "#9467bd",
+}
+KIND_COLOURS = {
+    "spine": "#555555",
+    "skull": "#222222",
+    "girdle": "#999999",
+    "leg": "#8c564b",
+    "arm": "#1f77b4",
+    "wing": "#d62728",
+    "fin": "#17becf",
+}
 
 
 def _figure(nrows: int, ncols: int, figsize: tuple[float, float], **kwargs):
@@ -40,7 +52,7 @@ def pca_plot(path: str | os.PathLike[str], table=None) -> Path:
     from biomorph.creature.pca import fit_dataset
 
     t = load_species() if table is None else table
-    p = fit_dataset(t, reparam=True)   # the PCA the generator samples from
+    p = fit_dataset(t, reparam=True)  # the PCA the generator samples from
     z = p.scores[:, :2]
     fig, axes = _figure(1, 3, figsize=(15, 4.6))
     cls = np.array(t.cls)
@@ -74,9 +86,14 @@ def draw_creature(ax, creature, title: str = "") -> None:
         if creature.bone_length[j] <= 0:
             continue
         near = creature.side[j] >= 0
-        ax.plot([start[j, 0], end[j, 0]], [start[j, 1], end[j, 1]],
-                color=KIND_COLOURS.get(creature.kind[j], "k"),
-                lw=1.0 + 1.8 * near, alpha=1.0 if near else 0.35, solid_capstyle="round")
+        ax.plot(
+            [start[j, 0], end[j, 0]],
+            [start[j, 1], end[j, 1]],
+            color=KIND_COLOURS.get(creature.kind[j], "k"),
+            lw=1.0 + 1.8 * near,
+            alpha=1.0 if near else 0.35,
+            solid_capstyle="round",
+        )
     com = creature.center_of_mass
     ax.plot(com[0], com[1], "o", color="orange", ms=5)
     ax.axhline(0.0, color="#6b8e23", lw=1)
@@ -87,8 +104,7 @@ def draw_creature(ax, creature, title: str = "") -> None:
     ax.tick_params(labelsize=6)
 
 
-def side_by_side(path: str | os.PathLike[str], creatures: Sequence, titles: Sequence[str]
-                 ) -> Path:
+def side_by_side(path: str | os.PathLike[str], creatures: Sequence, titles: Sequence[str]) -> Path:
     """PNG with one side view per creature."""
     n = len(creatures)
     cols = min(n, 3)

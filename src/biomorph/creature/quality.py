@@ -10,8 +10,15 @@ from biomorph.creature.creature import Creature
 from biomorph.creature.stance import RANGES
 from biomorph.creature.stance import allometric_height as _allometric
 
-CHECKS = ("ground_contact", "above_ground", "within_limits", "symmetric", "spine_c1",
-          "stable", "monotone_leg_heights")
+CHECKS = (
+    "ground_contact",
+    "above_ground",
+    "within_limits",
+    "symmetric",
+    "spine_c1",
+    "stable",
+    "monotone_leg_heights",
+)
 
 
 def leg_height_steps(c: Creature) -> list[NDArray[np.float64]]:
@@ -51,19 +58,24 @@ def check(c: Creature, contact_tol: float = 0.01, c1_deg: float = 1.0) -> dict[s
     """
     h = max(c.height, 1e-12)
     out = {}
-    out["ground_contact"] = bool(len(c.contacts) == 0 or np.all(np.abs(c.contacts[:, 1])
-                                                                 <= contact_tol * h))
+    out["ground_contact"] = bool(
+        len(c.contacts) == 0 or np.all(np.abs(c.contacts[:, 1]) <= contact_tol * h)
+    )
     low = min(c.joint_positions[:, 1].min(), c.bone_ends[:, 1].min())
     out["above_ground"] = bool(low >= -0.002 * h)
     lim = c.skeleton.limits
     a, al = c.anatomical_angles, c.anatomical_limits
-    out["within_limits"] = bool(np.all(lim[..., 0] <= 1e-12) and np.all(lim[..., 1] >= -1e-12)
-                                and np.all(a >= al[..., 0] - 1e-9)
-                                and np.all(a <= al[..., 1] + 1e-9))
+    out["within_limits"] = bool(
+        np.all(lim[..., 0] <= 1e-12)
+        and np.all(lim[..., 1] >= -1e-12)
+        and np.all(a >= al[..., 0] - 1e-9)
+        and np.all(a <= al[..., 1] + 1e-9)
+    )
     m = c.mirror
-    out["symmetric"] = bool(np.array_equal(c.joint_positions[m] * [1, 1, -1], c.joint_positions)
-                            and np.array_equal(c.skeleton.rest_rotation[m] * [-1, -1, 1, 1],
-                                               c.skeleton.rest_rotation))
+    out["symmetric"] = bool(
+        np.array_equal(c.joint_positions[m] * [1, 1, -1], c.joint_positions)
+        and np.array_equal(c.skeleton.rest_rotation[m] * [-1, -1, 1, 1], c.skeleton.rest_rotation)
+    )
     ang = np.degrees(sp.join_angles(c.spine_points))
     out["spine_c1"] = bool(np.all(np.nan_to_num(ang) <= c1_deg))
     b = c.balance
@@ -144,14 +156,27 @@ def allometric_height(c: Creature) -> float | None:
 def anatomy_measures(c: Creature) -> dict[str, float | bool | None]:
     """The measured values behind :func:`anatomy_check`."""
     h, pred = standing_height(c), allometric_height(c)
-    return {"trunk_pitch_deg": trunk_pitch_deg(c), "head_pitch_deg": head_pitch_deg(c),
-            "femur_deg": femur_angles_deg(c), "knee_behind_elbow": knee_behind_elbow(c),
-            "height_m": h, "allometric_m": pred,
-            "withers_ratio": None if (h is None or not pred) else h / pred}
+    return {
+        "trunk_pitch_deg": trunk_pitch_deg(c),
+        "head_pitch_deg": head_pitch_deg(c),
+        "femur_deg": femur_angles_deg(c),
+        "knee_behind_elbow": knee_behind_elbow(c),
+        "height_m": h,
+        "allometric_m": pred,
+        "withers_ratio": None if (h is None or not pred) else h / pred,
+    }
 
 
-ANATOMY_CHECKS = ("trunk_pitch", "head_pitch", "femur_angle", "knee_behind_elbow",
-                  "withers_height", "class_legs", "weight_in_range", "feet_have_digits")
+ANATOMY_CHECKS = (
+    "trunk_pitch",
+    "head_pitch",
+    "femur_angle",
+    "knee_behind_elbow",
+    "withers_height",
+    "class_legs",
+    "weight_in_range",
+    "feet_have_digits",
+)
 
 
 def anatomy_check(c: Creature, m: dict | None = None) -> dict[str, bool]:
@@ -168,16 +193,17 @@ def anatomy_check(c: Creature, m: dict | None = None) -> dict[str, bool]:
     fr = RANGES["femur_from_vertical_bird" if cls == "bird" else "femur_from_vertical"]
     out["femur_angle"] = all(inside(a, fr) for a in m["femur_deg"])
     out["knee_behind_elbow"] = bool(m["knee_behind_elbow"])
-    out["withers_height"] = m["withers_ratio"] is None or inside(m["withers_ratio"],
-                                                                  RANGES["withers_ratio"])
+    out["withers_height"] = m["withers_ratio"] is None or inside(
+        m["withers_ratio"], RANGES["withers_ratio"]
+    )
     asked = opts.get("legs") is not None or opts.get("cls") is not None
     out["class_legs"] = asked or not ((cls == "bird" and legs != 2) or (cls == "fish" and legs))
-    out["weight_in_range"] = (opts.get("weight") is not None
-                              or 0.01 * (1 - 1e-9) <= c.total_mass <= 120000.0 * (1 + 1e-9))
+    out["weight_in_range"] = opts.get("weight") is not None or 0.01 * (
+        1 - 1e-9
+    ) <= c.total_mass <= 120000.0 * (1 + 1e-9)
     grounded = set(int(j) for j in c.contact_joint)
     out["feet_have_digits"] = all(
         c.part[j] in ("phalanx", "hoof", "claw", "nail", "metatarsal", "metacarpal")
-        for j in grounded) and (not grounded or any(c.part[j] in ("hoof", "claw", "nail",
-                                                                  "phalanx")
-                                                    for j in grounded))
+        for j in grounded
+    ) and (not grounded or any(c.part[j] in ("hoof", "claw", "nail", "phalanx") for j in grounded))
     return out

@@ -23,8 +23,12 @@ from biomorph.creature.creature import Creature
 from biomorph.errors import ParameterError
 
 #: (azimuth about +Y from the side view towards the head, elevation) in degrees
-VIEWS = {"side": (0.0, 0.0), "three_quarter": (35.0, 20.0), "front": (90.0, 10.0),
-         "top": (0.0, 89.0)}
+VIEWS = {
+    "side": (0.0, 0.0),
+    "three_quarter": (35.0, 20.0),
+    "front": (90.0, 10.0),
+    "top": (0.0, 89.0),
+}
 BONE_RGB = np.array([0.90, 0.86, 0.78])
 SKIN_RGB = np.array([0.80, 0.56, 0.46])
 MUSCLE_RGB = np.array([0.72, 0.26, 0.24])
@@ -89,8 +93,9 @@ def draw(ax, layers: Sequence[Layer], view: str, ground: bool = True) -> None:
     rgba = np.concatenate([p[1] for p in parts]) if parts else np.zeros((0, 4))
     depth = np.concatenate([p[2] for p in parts]) if parts else np.zeros(0)
     order = np.argsort(depth, kind="stable")  # far first
-    ax.add_collection(PolyCollection(xy[order], facecolors=rgba[order],
-                                     edgecolors=rgba[order], linewidths=0.15))
+    ax.add_collection(
+        PolyCollection(xy[order], facecolors=rgba[order], edgecolors=rgba[order], linewidths=0.15)
+    )
     if len(xy):
         lo, hi = xy.reshape(-1, 2).min(axis=0), xy.reshape(-1, 2).max(axis=0)
         pad = 0.05 * max(hi - lo)
@@ -101,18 +106,32 @@ def draw(ax, layers: Sequence[Layer], view: str, ground: bool = True) -> None:
             a, b = allv.min(axis=0), allv.max(axis=0)
             ext = 0.6 * (b - a)
             c = 0.5 * (a + b)
-            ring = np.array([[c[0] - ext[0], 0, c[2] - ext[2]], [c[0] + ext[0], 0, c[2] - ext[2]],
-                             [c[0] + ext[0], 0, c[2] + ext[2]], [c[0] - ext[0], 0, c[2] + ext[2]],
-                             [c[0] - ext[0], 0, c[2] - ext[2]]])
+            ring = np.array(
+                [
+                    [c[0] - ext[0], 0, c[2] - ext[2]],
+                    [c[0] + ext[0], 0, c[2] - ext[2]],
+                    [c[0] + ext[0], 0, c[2] + ext[2]],
+                    [c[0] - ext[0], 0, c[2] + ext[2]],
+                    [c[0] - ext[0], 0, c[2] - ext[2]],
+                ]
+            )
             seg = np.stack([ring @ right, ring @ up], axis=-1)
-            ax.add_collection(LineCollection([seg], colors=[(0.5, 0.5, 0.5, 0.6)],
-                                             linewidths=0.8, zorder=0))
+            ax.add_collection(
+                LineCollection([seg], colors=[(0.5, 0.5, 0.5, 0.6)], linewidths=0.8, zorder=0)
+            )
     ax.set_aspect("equal")
     ax.set_axis_off()
 
 
-def creature_layers(c: Creature, *, shape: str = "bone", lod: int = 1, skin: bool = False,
-                    muscles: bool = False, skeleton: bool = True) -> list[Layer]:
+def creature_layers(
+    c: Creature,
+    *,
+    shape: str = "bone",
+    lod: int = 1,
+    skin: bool = False,
+    muscles: bool = False,
+    skeleton: bool = True,
+) -> list[Layer]:
     """Layers for ``c``: bone models, optionally muscles and the body envelope."""
     layers = []
     if skeleton:
@@ -125,18 +144,27 @@ def creature_layers(c: Creature, *, shape: str = "bone", lod: int = 1, skin: boo
 
         b = body(c, lod=lod)
         if muscles and b.muscles is not None:
-            layers.append(Layer(b.muscles.vertices, b.muscles.faces, MUSCLE_RGB,
-                                0.85 if skeleton else 1.0))
+            layers.append(
+                Layer(b.muscles.vertices, b.muscles.faces, MUSCLE_RGB, 0.85 if skeleton else 1.0)
+            )
         if skin:
-            layers.append(Layer(b.envelope.vertices, b.envelope.faces, SKIN_RGB,
-                                0.38 if skeleton else 1.0))
+            layers.append(
+                Layer(b.envelope.vertices, b.envelope.faces, SKIN_RGB, 0.38 if skeleton else 1.0)
+            )
     return layers
 
 
-def render_creature(c: Creature, path: str | os.PathLike[str], *,
-                    views: Sequence[str] = ("side", "three_quarter"), shape: str = "bone",
-                    lod: int = 1, skin: bool = True, title: str | None = None,
-                    width_in: float = 5.0) -> Path:
+def render_creature(
+    c: Creature,
+    path: str | os.PathLike[str],
+    *,
+    views: Sequence[str] = ("side", "three_quarter"),
+    shape: str = "bone",
+    lod: int = 1,
+    skin: bool = True,
+    title: str | None = None,
+    width_in: float = 5.0,
+) -> Path:
     """PNG with one row per picture (skeleton; skeleton + muscles under a translucent
     envelope; the envelope alone when ``skin``) and one column per view."""
     from biomorph.creature.plots import _figure, _save
@@ -147,8 +175,9 @@ def render_creature(c: Creature, path: str | os.PathLike[str], *,
         rows.append(creature_layers(c, shape=shape, lod=lod, skin=True, muscles=True))
         rows.append(creature_layers(c, shape=shape, lod=lod, skin=True, skeleton=False))
         labels += ["skeleton, muscles, skin", "skin"]
-    fig, axes = _figure(len(rows), len(views), (width_in * len(views), 3.6 * len(rows)),
-                        squeeze=False)
+    fig, axes = _figure(
+        len(rows), len(views), (width_in * len(views), 3.6 * len(rows)), squeeze=False
+    )
     for r, layers in enumerate(rows):
         for k, view in enumerate(views):
             draw(axes[r][k], layers, view)
@@ -158,10 +187,17 @@ def render_creature(c: Creature, path: str | os.PathLike[str], *,
     return _save(fig, path)
 
 
-def render_set(creatures: Sequence[Creature], titles: Sequence[str],
-               path: str | os.PathLike[str], *, view: str = "three_quarter",
-               shape: str = "bone", skin: bool = False, width_in: float = 4.0,
-               lod: int = 0) -> Path:
+def render_set(
+    creatures: Sequence[Creature],
+    titles: Sequence[str],
+    path: str | os.PathLike[str],
+    *,
+    view: str = "three_quarter",
+    shape: str = "bone",
+    skin: bool = False,
+    width_in: float = 4.0,
+    lod: int = 0,
+) -> Path:
     """PNG grid: one shaded picture per creature (skeleton, optionally under its skin)."""
     from biomorph.creature.plots import _figure, _save
 
@@ -174,7 +210,6 @@ def render_set(creatures: Sequence[Creature], titles: Sequence[str],
         if i >= n:
             ax.set_axis_off()
             continue
-        draw(ax, creature_layers(creatures[i], shape=shape, lod=lod, skin=skin, muscles=skin),
-             view)
+        draw(ax, creature_layers(creatures[i], shape=shape, lod=lod, skin=skin, muscles=skin), view)
         ax.set_title(titles[i], fontsize=9)
     return _save(fig, path)

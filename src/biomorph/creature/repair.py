@@ -30,8 +30,9 @@ from biomorph.creature.steps import DEG, step_limbs, step_skull, to_creature_px,
 from biomorph.errors import ParameterError
 
 
-def repair_shift(asm: dict, report: bal.BalanceReport, limbs: dict,
-                  min_margin: float = 0.02) -> dict[str, float] | None:
+def repair_shift(
+    asm: dict, report: bal.BalanceReport, limbs: dict, min_margin: float = 0.02
+) -> dict[str, float] | None:
     """Girdle shifts (arc length, px) that move the feet under the centre of mass."""
     if not report.applicable:
         return None
@@ -43,11 +44,11 @@ def repair_shift(asm: dict, report: bal.BalanceReport, limbs: dict,
     target_margin = min(0.45 * span, max(1.5 * min_margin * body, 0.08 * span))
     leg_girdles = sorted({p[0] for p in limbs.places if p[2].kind == "leg"})
     shifts = dict(limbs.shifts)
-    if com_x > x1 - target_margin:      # too far forward: move the front-most legs forward
+    if com_x > x1 - target_margin:  # too far forward: move the front-most legs forward
         delta = com_x - (x1 - target_margin)
         g = "shoulder" if "shoulder" in leg_girdles and len(leg_girdles) > 1 else leg_girdles[0]
-        shifts[g] = shifts.get(g, 0.0) - 1.2 * delta   # arc length grows tailwards
-    elif com_x < x0 + target_margin:    # too far back: move the hind-most legs back
+        shifts[g] = shifts.get(g, 0.0) - 1.2 * delta  # arc length grows tailwards
+    elif com_x < x0 + target_margin:  # too far back: move the hind-most legs back
         delta = (x0 + target_margin) - com_x
         g = "hip" if "hip" in leg_girdles else leg_girdles[-1]
         shifts[g] = shifts.get(g, 0.0) + 1.2 * delta
@@ -63,8 +64,9 @@ def repair_shift(asm: dict, report: bal.BalanceReport, limbs: dict,
 PITCH_ITERATIONS = 3
 
 
-def pitch_body(spine: dict, limbs: dict, asm: dict, report: bal.BalanceReport,
-                max_deg: float = 40.0) -> dict | None:
+def pitch_body(
+    spine: dict, limbs: dict, asm: dict, report: bal.BalanceReport, max_deg: float = 40.0
+) -> dict | None:
     """Spine rotated rigidly (sagittal plane) about the leg attachment so that the centre of
     mass moves over the middle of the feet; ``None`` if no rotation within ``max_deg`` helps.
     Rigid rotation keeps the C1 joins; legs keep their attachment (the pivot)."""
@@ -82,7 +84,7 @@ def pitch_body(spine: dict, limbs: dict, asm: dict, report: bal.BalanceReport,
     xl = (vol[is_leg] * asm["mass_c"][is_leg, 0]).sum() / max(ml, 1e-30)
     pts_x = asm["patches"][:, 0]
     target = 0.5 * (pts_x.min() + pts_x.max())
-    want = ((mb + ml) * target - ml * xl) / mb        # body COM x needed
+    want = ((mb + ml) * target - ml * xl) / mb  # body COM x needed
     r = xb - pivot
     R = float(np.hypot(*r))
     if R < 1e-9:
@@ -105,13 +107,11 @@ def pitch_body(spine: dict, limbs: dict, asm: dict, report: bal.BalanceReport,
     return replace(spine, points=to_creature_px(rot + pivot))
 
 
-def limb_mass_and_patches(limbs: LimbsState, spine: SpineState
-                          ) -> tuple[float, NDArray, NDArray]:
+def limb_mass_and_patches(limbs: LimbsState, spine: SpineState) -> tuple[float, NDArray, NDArray]:
     """Volume, volume-weighted centre sum and ground contact points (x, z) of all limbs (both
     sides) straight from the poses — the cheap part of a balance re-check."""
     vol, mom, patches = 0.0, np.zeros(3), []
-    for (g, _k, spec, _at), pose, L3 in zip(limbs.places, limbs.poses, limbs.lengths,
-                                            strict=True):
+    for (g, _k, spec, _at), pose, L3 in zip(limbs.places, limbs.poses, limbs.lengths, strict=True):
         v = ms.limb_volume(L3, spec.kind)
         mid = 0.5 * (pose.points[:3] + pose.points[1:])
         vol += 2 * v.sum()
@@ -122,8 +122,15 @@ def limb_mass_and_patches(limbs: LimbsState, spine: SpineState
     return vol, mom, (np.concatenate(patches) if patches else np.zeros((0, 2)))
 
 
-def finish(spine: SpineState, girdles, limbs: LimbsState, skull: SkullState, opts: Options,
-           rng: np.random.Generator, attempt_info: dict | None = None) -> Creature:
+def finish(
+    spine: SpineState,
+    girdles,
+    limbs: LimbsState,
+    skull: SkullState,
+    opts: Options,
+    rng: np.random.Generator,
+    attempt_info: dict | None = None,
+) -> Creature:
     """Assemble bones, repair balance, size from weight and return a :class:`Creature`.
 
     Repair (new beyond the seed): while the centre of mass is not inside the support polygon
@@ -141,8 +148,14 @@ def finish(spine: SpineState, girdles, limbs: LimbsState, skull: SkullState, opt
             spine2 = pitch_body(spine, limbs, asm, report)
             if spine2 is None:
                 break
-            limbs2 = step_limbs(spine2, girdles, opts, step_rng(opts.seed, "limbs", 100),
-                                ground=limbs.ground, previous=limbs)
+            limbs2 = step_limbs(
+                spine2,
+                girdles,
+                opts,
+                step_rng(opts.seed, "limbs", 100),
+                ground=limbs.ground,
+                previous=limbs,
+            )
             skull2 = step_skull(spine2, limbs2, opts, step_rng(opts.seed, "skull", 100))
             asm2 = assemble(spine2, limbs2, skull2)
             rep2 = balance_px(asm2, opts)
@@ -165,8 +178,15 @@ def finish(spine: SpineState, girdles, limbs: LimbsState, skull: SkullState, opt
             if shifts is None:
                 break
             try:
-                limbs = step_limbs(spine, girdles, opts, step_rng(opts.seed, "limbs", 100),
-                                   shifts, ground=limbs0.ground, previous=limbs0)
+                limbs = step_limbs(
+                    spine,
+                    girdles,
+                    opts,
+                    step_rng(opts.seed, "limbs", 100),
+                    shifts,
+                    ground=limbs0.ground,
+                    previous=limbs0,
+                )
             except ParameterError:
                 break
             lvol, lmom, patches = limb_mass_and_patches(limbs, spine)

@@ -37,12 +37,14 @@ from biomorph.core.skeleton import JointSkeleton
 from biomorph.creature.creature import Creature
 from biomorph.errors import ParameterError
 
-_LIMB = {("shoulder", "leg"): ("shoulder", "upper_arm", "forearm", "hand"),
-         ("shoulder", "arm"): ("shoulder", "upper_arm", "forearm", "hand"),
-         ("centaur", "arm"): ("shoulder", "upper_arm", "forearm", "hand"),
-         ("hip", "leg"): ("pelvis", "thigh", "shin", "foot"),
-         ("shoulder", "wing"): ("wing_root", "wing", "wing.001", "wing.002"),
-         ("centaur", "wing"): ("wing_root", "wing", "wing.001", "wing.002")}
+_LIMB = {
+    ("shoulder", "leg"): ("shoulder", "upper_arm", "forearm", "hand"),
+    ("shoulder", "arm"): ("shoulder", "upper_arm", "forearm", "hand"),
+    ("centaur", "arm"): ("shoulder", "upper_arm", "forearm", "hand"),
+    ("hip", "leg"): ("pelvis", "thigh", "shin", "foot"),
+    ("shoulder", "wing"): ("wing_root", "wing", "wing.001", "wing.002"),
+    ("centaur", "wing"): ("wing_root", "wing", "wing.001", "wing.002"),
+}
 _SEG = {"girdle": 0, "upper": 1, "lower": 2, "distal": 3}
 
 #: toe length as a share of the foot (distal) bone; heel width as a share of the foot length
@@ -59,8 +61,10 @@ def rigify_names(c: Creature) -> tuple[str, ...]:
     """Rigify-style names for every joint of ``c`` (same order)."""
     names = list(c.names)
     out = list(names)
-    spine_idx = {r: [i for i, n in enumerate(names) if n.startswith(f"{r}_")]
-                 for r in ("neck", "back", "tail")}
+    spine_idx = {
+        r: [i for i, n in enumerate(names) if n.startswith(f"{r}_")]
+        for r in ("neck", "back", "tail")
+    }
     # vertebra numbers in the source names run head -> tail
     back = sorted(spine_idx["back"], key=lambda i: -int(names[i].split("_")[1]))
     for k, i in enumerate(back):
@@ -87,7 +91,7 @@ def rigify_names(c: Creature) -> tuple[str, ...]:
 
 def _limb_name(c: Creature, i: int) -> str:
     tag, seg, side = c.names[i].rsplit("_", 2)
-    girdle, pair = tag.rstrip("0123456789"), tag[len(tag.rstrip("0123456789")):] or "1"
+    girdle, pair = tag.rstrip("0123456789"), tag[len(tag.rstrip("0123456789")) :] or "1"
     kind = _limb_kind(c, i)
     stems = _LIMB.get((girdle, kind), (f"{kind}_root", kind, f"{kind}.001", f"{kind}.002"))
     stem = stems[_SEG.get(seg, 3)]
@@ -157,8 +161,8 @@ def _torso_path(c: Creature, hips: int, skull: int) -> list[int]:
     par = c.skeleton.parent
     up_h, up_s = _path_up(par, hips), _path_up(par, skull)
     common = next(j for j in up_h if j in set(up_s))
-    a = up_h[:up_h.index(common) + 1]
-    b = up_s[:up_s.index(common)]
+    a = up_h[: up_h.index(common) + 1]
+    b = up_s[: up_s.index(common)]
     return a + b[::-1]
 
 
@@ -175,8 +179,15 @@ def _spine_bones(c: Creature, bones: list[_Bone], rig_of: dict[int, int]) -> int
     """Torso chain pelvis -> head and the tail; returns the pelvis bone index."""
     par, pos, world = c.skeleton.parent, c.joint_positions, c.world
     left = _left(c)
-    skull = c.kind.index("skull") if "skull" in c.kind else int(np.argmax(
-        [len(_path_up(par, j)) if c.kind[j] == "spine" else -1 for j in range(len(c))]))
+    skull = (
+        c.kind.index("skull")
+        if "skull" in c.kind
+        else int(
+            np.argmax(
+                [len(_path_up(par, j)) if c.kind[j] == "spine" else -1 for j in range(len(c))]
+            )
+        )
+    )
     hip_girdles = [j for j in range(len(c)) if c.kind[j] == "girdle" and c.region[j] == "hip"]
     hips = int(par[hip_girdles[0]]) if hip_girdles else int(np.flatnonzero(par < 0)[0])
     path = _torso_path(c, hips, skull)
@@ -192,12 +203,30 @@ def _spine_bones(c: Creature, bones: list[_Bone], rig_of: dict[int, int]) -> int
         count = sum(1 for x in bones if x.name.split(".")[0] == stem)
         n_back += stem == "spine"
         first_neck = stem == "neck" and count == 0
-        bones.append(_Bone(_numbered(stem, count), pos[a], pos[b], left, len(bones) - 1
-                           if bones else -1, owner, connect=bool(bones) and not first_neck))
+        bones.append(
+            _Bone(
+                _numbered(stem, count),
+                pos[a],
+                pos[b],
+                left,
+                len(bones) - 1 if bones else -1,
+                owner,
+                connect=bool(bones) and not first_neck,
+            )
+        )
         rig_of.setdefault(owner, len(bones) - 1)
     head_end = pos[skull] + world[skull, :3, 1] * c.bone_length[skull]
-    bones.append(_Bone("head", pos[skull], head_end, left, len(bones) - 1, skull,
-                       connect=any(b.name.startswith("neck") for b in bones)))
+    bones.append(
+        _Bone(
+            "head",
+            pos[skull],
+            head_end,
+            left,
+            len(bones) - 1,
+            skull,
+            connect=any(b.name.startswith("neck") for b in bones),
+        )
+    )
     rig_of[skull] = len(bones) - 1
     # rig types along the chain
     neck = [i for i, b in enumerate(bones) if b.name.startswith("neck")]
@@ -218,19 +247,26 @@ def _spine_bones(c: Creature, bones: list[_Bone], rig_of: dict[int, int]) -> int
     return 0
 
 
-def _tail_bones(c: Creature, bones: list[_Bone], rig_of: dict[int, int], hips: int,
-                on_path: set[int]) -> None:
+def _tail_bones(
+    c: Creature, bones: list[_Bone], rig_of: dict[int, int], hips: int, on_path: set[int]
+) -> None:
     par, pos, world = c.skeleton.parent, c.joint_positions, c.world
     left = _left(c)
-    kids = [int(k) for k in np.flatnonzero(par == hips) if c.kind[k] == "spine"
-            and int(k) not in on_path]
+    kids = [
+        int(k)
+        for k in np.flatnonzero(par == hips)
+        if c.kind[k] == "spine" and int(k) not in on_path
+    ]
     start = hips if kids else None
     chain: list[int] = []
     j = start
     while j is not None:
         chain.append(j)
-        nxt = [int(k) for k in np.flatnonzero(par == j) if c.kind[k] == "spine"
-               and int(k) not in on_path]
+        nxt = [
+            int(k)
+            for k in np.flatnonzero(par == j)
+            if c.kind[k] == "spine" and int(k) not in on_path
+        ]
         j = nxt[0] if nxt else None
     first = len(bones)
     for k, j in enumerate(chain):
@@ -238,8 +274,17 @@ def _tail_bones(c: Creature, bones: list[_Bone], rig_of: dict[int, int], hips: i
         tail = pos[nxt] if nxt is not None else pos[j] + world[j, :3, 1] * c.bone_length[j]
         if np.linalg.norm(tail - pos[j]) <= 1e-9:
             break
-        bones.append(_Bone(_numbered("tail", k), pos[j], tail, left,
-                           0 if k == 0 else len(bones) - 1, j, connect=k > 0))
+        bones.append(
+            _Bone(
+                _numbered("tail", k),
+                pos[j],
+                tail,
+                left,
+                0 if k == 0 else len(bones) - 1,
+                j,
+                connect=k > 0,
+            )
+        )
         rig_of.setdefault(j, len(bones) - 1)
     n = len(bones) - first
     if n >= 2:
@@ -264,8 +309,11 @@ def _limb_bones(c: Creature, bones: list[_Bone], rig_of: dict[int, int]) -> None
         start = len(bones)
         chain = chain[:4]  # girdle + three limb segments; digits are added as extras
         for k, j in enumerate(chain):
-            tail = pos[chain[k + 1]] if k + 1 < len(chain) else \
-                pos[j] + world[j, :3, 1] * max(c.bone_length[j], 1e-6)
+            tail = (
+                pos[chain[k + 1]]
+                if k + 1 < len(chain)
+                else pos[j] + world[j, :3, 1] * max(c.bone_length[j], 1e-6)
+            )
             flex = _pointing_left(world[j, :3, 2], left)
             parent = rig_of.get(int(par[j]), 0) if k == 0 else len(bones) - 1
             bones.append(_Bone(names[j], pos[j], tail, flex, parent, j, connect=k > 1))
@@ -293,8 +341,9 @@ def _foot_bones(c: Creature, bones: list[_Bone], foot: int) -> None:
     fwd = np.array([1.0, 0.0, 0.0])
     left = _left(c)
     toe_tail = bones[fb].tail + fwd * TOE_SHARE * L
-    bones.append(_Bone(f"{base}_toe.{side}", bones[fb].tail, toe_tail, left, fb, foot,
-                       connect=True))
+    bones.append(
+        _Bone(f"{base}_toe.{side}", bones[fb].tail, toe_tail, left, fb, foot, connect=True)
+    )
     w = HEEL_SHARE * L
     ground = bones[fb].tail.copy()
     ground[1] = min(ground[1], bones[fb].head[1])
@@ -324,8 +373,16 @@ def _other_bones(c: Creature, bones: list[_Bone], rig_of: dict[int, int]) -> Non
         taken.add(name)
         parent = rig_of.get(p, 0)
         chained = bones[parent].owner == p and p not in (b.owner for b in bones[:parent])
-        bones.append(_Bone(name, pos[j], pos[j] + world[j, :3, 1] * L,
-                           _pointing_left(world[j, :3, 2], left), parent, j))
+        bones.append(
+            _Bone(
+                name,
+                pos[j],
+                pos[j] + world[j, :3, 1] * L,
+                _pointing_left(world[j, :3, 2], left),
+                parent,
+                j,
+            )
+        )
         rig_of[j] = len(bones) - 1
         if not bones[parent].rigify_type and not chained:
             bones[-1].rigify_type = "basic.super_copy"
@@ -346,9 +403,14 @@ def _no_zero_bones(c: Creature, bones: list[_Bone]) -> None:
 
 #: connected chain lengths each rig type accepts (Rigify 0.6: limbs.leg exactly 4, limbs.arm
 #: exactly 3, basic_spine >= 3, basic_tail / copy_chain >= 2, super_head >= 1)
-_CHAIN = {"limbs.leg": (4, 4), "limbs.arm": (3, 3), "spines.basic_spine": (3, 10**6),
-          "spines.basic_tail": (2, 10**6), "basic.copy_chain": (2, 10**6),
-          "spines.super_head": (1, 10**6)}
+_CHAIN = {
+    "limbs.leg": (4, 4),
+    "limbs.arm": (3, 3),
+    "spines.basic_spine": (3, 10**6),
+    "spines.basic_tail": (2, 10**6),
+    "basic.copy_chain": (2, 10**6),
+    "spines.super_head": (1, 10**6),
+}
 
 
 def _chain_length(bones: list[_Bone], i: int) -> int:
@@ -410,14 +472,24 @@ def build_metarig(c: Creature) -> Metarig:
     local = world.copy()
     inner = parent >= 0
     local[inner] = tf.invert_rigid(world[parent[inner]]) @ world[inner]
-    sk = JointSkeleton([b.name for b in bones], parent, local[:, :3, 3],
-                       rest_rotation=tf.quat_normalize(tf.matrix_to_quat(local[:, :3, :3])))
+    sk = JointSkeleton(
+        [b.name for b in bones],
+        parent,
+        local[:, :3, 3],
+        rest_rotation=tf.quat_normalize(tf.matrix_to_quat(local[:, :3, :3])),
+    )
     owner = np.array([b.owner for b in bones], np.int64)
     carry = tf.invert_rigid(c.world[owner]) @ world
     length = np.array([np.linalg.norm(b.tail - b.head) for b in bones])
-    return Metarig(sk, owner, carry, length, np.array([b.connect for b in bones]),
-                   tuple(b.rigify_type for b in bones),
-                   tuple(dict(b.parameters or {}) for b in bones))
+    return Metarig(
+        sk,
+        owner,
+        carry,
+        length,
+        np.array([b.connect for b in bones]),
+        tuple(b.rigify_type for b in bones),
+        tuple(dict(b.parameters or {}) for b in bones),
+    )
 
 
 def retarget(motion: Any, rig: Metarig) -> Any:
@@ -453,10 +525,12 @@ def joint_extras(rig: Metarig, to_target: NDArray) -> list[dict[str, Any]]:
     zs = world[:, :3, 2] @ to_blender.T
     out = []
     for i in range(len(rig)):
-        ex: dict[str, Any] = {"biomorph_head": np.round(heads[i], 9).tolist(),
-                              "biomorph_tail": np.round(tails[i], 9).tolist(),
-                              "biomorph_z": np.round(zs[i], 9).tolist(),
-                              "biomorph_connect": int(rig.connect[i])}
+        ex: dict[str, Any] = {
+            "biomorph_head": np.round(heads[i], 9).tolist(),
+            "biomorph_tail": np.round(tails[i], 9).tolist(),
+            "biomorph_z": np.round(zs[i], 9).tolist(),
+            "biomorph_connect": int(rig.connect[i]),
+        }
         if rig.rigify_type[i]:
             ex["rigify_type"] = rig.rigify_type[i]
         if rig.parameters[i]:

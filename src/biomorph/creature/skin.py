@@ -88,8 +88,9 @@ def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray
     return np.array(a_s), np.array(b_s), np.array(ra_s), np.array(rb_s)
 
 
-def _field(caps: tuple[NDArray, NDArray, NDArray, NDArray], lo: NDArray, h: float,
-           shape: tuple[int, ...]) -> NDArray:
+def _field(
+    caps: tuple[NDArray, NDArray, NDArray, NDArray], lo: NDArray, h: float, shape: tuple[int, ...]
+) -> NDArray:
     """``max_i (r_i(t) - |p - segment_i(t)|)`` on the grid, by Euclidean distance transforms:
     every capsule axis is sampled every half cell and marked in its grid cell with its
     radius; one ``distance_transform_edt`` per radius class (``RADIUS_CLASSES`` geometric
@@ -124,8 +125,7 @@ def _field(caps: tuple[NDArray, NDArray, NDArray, NDArray], lo: NDArray, h: floa
         box = tuple(slice(a, b) for a, b in zip(lo_c, hi_c, strict=True))
         r_grid = np.zeros(tuple(hi_c - lo_c), np.float32)
         np.maximum.at(r_grid, tuple((cell[sel] - lo_c).T), rad[sel].astype(np.float32))
-        dist, (ix, iy, iz) = distance_transform_edt(r_grid <= 0, sampling=h,
-                                                    return_indices=True)
+        dist, (ix, iy, iz) = distance_transform_edt(r_grid <= 0, sampling=h, return_indices=True)
         sub = field[box]
         np.maximum(sub, r_grid[ix, iy, iz] - dist.astype(np.float32), out=sub)
     return field
@@ -147,7 +147,7 @@ def _weights(c: Creature, v: NDArray, h: float) -> tuple[NDArray, NDArray]:
     _, idx = cKDTree(samples).query(v, k=kq)
     cand = owner[np.atleast_2d(idx).reshape(len(v), kq)]  # (k, kq) bone numbers
     ca, cab = a[cand], ab[cand]
-    L2 = np.maximum((cab ** 2).sum(axis=2), 1e-18)
+    L2 = np.maximum((cab**2).sum(axis=2), 1e-18)
     tt = np.clip(((v[:, None, :] - ca) * cab).sum(axis=2) / L2, 0, 1)
     d = np.linalg.norm(v[:, None, :] - (ca + tt[..., None] * cab), axis=2)
     # the same bone may appear several times among the candidates: keep it once
@@ -156,7 +156,7 @@ def _weights(c: Creature, v: NDArray, h: float) -> tuple[NDArray, NDArray]:
     ds = np.take_along_axis(d, order, axis=1)
     dup = np.zeros_like(cs, bool)
     for k in range(1, kq):
-        dup[:, k] = (cs[:, :k] == cs[:, k:k + 1]).any(axis=1)
+        dup[:, k] = (cs[:, :k] == cs[:, k : k + 1]).any(axis=1)
     ds = np.where(dup, np.inf, ds)
     order = np.argsort(ds, axis=1, kind="stable")[:, :4]
     near = np.take_along_axis(cs, order, axis=1)

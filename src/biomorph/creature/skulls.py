@@ -19,30 +19,38 @@ class SkullShape:
     """Proportions of one skull type (all relative to skull length)."""
 
     name: str
-    height: float       # cranium height / length
-    width: float        # cranium width / length
-    taper: float        # snout size / cranium size at the front end
-    pitch_deg: float    # skull axis below world horizontal (forward), degrees
+    height: float  # cranium height / length
+    width: float  # cranium width / length
+    taper: float  # snout size / cranium size at the front end
+    pitch_deg: float  # skull axis below world horizontal (forward), degrees
     follow_spine: bool = False
 
 
-SKULLS: dict[str, SkullShape] = {s.name: s for s in (
-    SkullShape("mammal_long", 0.42, 0.38, 0.45, 35.0),
-    SkullShape("mammal_short", 0.70, 0.60, 0.60, 25.0),
-    SkullShape("primate", 0.85, 0.75, 0.55, 10.0),
-    SkullShape("bird", 0.45, 0.45, 0.15, 15.0),
-    SkullShape("reptile_long", 0.25, 0.35, 0.40, 5.0),
-    SkullShape("reptile_short", 0.45, 0.55, 0.55, 10.0),
-    SkullShape("dinosaur", 0.55, 0.40, 0.55, 15.0),
-    SkullShape("amphibian", 0.30, 0.85, 0.60, 0.0),
-    SkullShape("fish", 0.75, 0.40, 0.45, 0.0, follow_spine=True),
-    SkullShape("whale", 0.40, 0.45, 0.60, 0.0, follow_spine=True),
-    SkullShape("snake", 0.40, 0.55, 0.60, 0.0, follow_spine=True),
-)}
+SKULLS: dict[str, SkullShape] = {
+    s.name: s
+    for s in (
+        SkullShape("mammal_long", 0.42, 0.38, 0.45, 35.0),
+        SkullShape("mammal_short", 0.70, 0.60, 0.60, 25.0),
+        SkullShape("primate", 0.85, 0.75, 0.55, 10.0),
+        SkullShape("bird", 0.45, 0.45, 0.15, 15.0),
+        SkullShape("reptile_long", 0.25, 0.35, 0.40, 5.0),
+        SkullShape("reptile_short", 0.45, 0.55, 0.55, 10.0),
+        SkullShape("dinosaur", 0.55, 0.40, 0.55, 15.0),
+        SkullShape("amphibian", 0.30, 0.85, 0.60, 0.0),
+        SkullShape("fish", 0.75, 0.40, 0.45, 0.0, follow_spine=True),
+        SkullShape("whale", 0.40, 0.45, 0.60, 0.0, follow_spine=True),
+        SkullShape("snake", 0.40, 0.55, 0.60, 0.0, follow_spine=True),
+    )
+}
 
 #: Fallback skull per class.
-CLASS_SKULL = {"fish": "fish", "amphibian": "amphibian", "reptile": "reptile_long",
-               "bird": "bird", "mammal": "mammal_long"}
+CLASS_SKULL = {
+    "fish": "fish",
+    "amphibian": "amphibian",
+    "reptile": "reptile_long",
+    "bird": "bird",
+    "mammal": "mammal_long",
+}
 
 
 def get(name: str) -> SkullShape:
@@ -59,12 +67,27 @@ def mesh(shape: SkullShape, length: float) -> tuple[NDArray[np.float64], NDArray
     """Tapered-box skull mesh in the joint frame: cranium at y=0, snout tip at y=length."""
     h, w = shape.height * length, shape.width * length
     t = shape.taper
-    back = np.array([[-h / 2, 0, -w / 2], [h / 2, 0, -w / 2], [h / 2, 0, w / 2],
-                     [-h / 2, 0, w / 2]])
+    back = np.array(
+        [[-h / 2, 0, -w / 2], [h / 2, 0, -w / 2], [h / 2, 0, w / 2], [-h / 2, 0, w / 2]]
+    )
     front = back * np.array([t, 0, t]) + np.array([-(1 - t) * h / 2, length, 0])
     v = np.concatenate([back, front])
-    f = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
-                  [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    f = np.array(
+        [
+            [0, 2, 1],
+            [0, 3, 2],
+            [4, 5, 6],
+            [4, 6, 7],
+            [0, 1, 5],
+            [0, 5, 4],
+            [1, 2, 6],
+            [1, 6, 5],
+            [2, 3, 7],
+            [2, 7, 6],
+            [3, 0, 4],
+            [3, 4, 7],
+        ]
+    )
     return v, f
 
 
@@ -88,7 +111,7 @@ def jaw(shape: SkullShape, length: float, W: NDArray, origin: NDArray) -> Jaw:
     cranium's back (the jaw joint sits ventral and a little rostral of the occiput), running
     along the skull's ventral edge to just behind the snout's lower tip."""
     h, w, t = shape.height * length, shape.width * length, shape.taper
-    start = np.array([0.32 * h, 0.12 * length])               # (ventral x, along y)
+    start = np.array([0.32 * h, 0.12 * length])  # (ventral x, along y)
     end = np.array([(2 * t - 1) * h / 2 + 0.08 * h, 0.95 * length])
     v = end - start
     L = float(np.hypot(*v))

@@ -70,8 +70,9 @@ def join_angles(points: ArrayLike) -> NDArray[np.float64]:
 _CACHE: dict[bytes, tuple] = {}
 
 
-def sample(points: ArrayLike, per_curve: int = 24
-           ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+def sample(
+    points: ArrayLike, per_curve: int = 24
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
     """Dense polyline along the whole spine, head end to tail tip.
 
     Returns ``(xy (m, 2), s (m,) cumulative arc length, region (m,) 0/1/2)``; degenerate
@@ -97,8 +98,13 @@ def _sample(points: NDArray, per_curve: int) -> tuple:
     t = np.linspace(0.0, 1.0, per_curve + 1)
     pts = bezier_eval(c, t)  # (3, per_curve+1, 2)
     xy = np.concatenate([pts[0], pts[1, 1:], pts[2, 1:]])
-    region = np.concatenate([np.zeros(per_curve + 1, np.int64), np.ones(per_curve, np.int64),
-                             np.full(per_curve, 2, np.int64)])
+    region = np.concatenate(
+        [
+            np.zeros(per_curve + 1, np.int64),
+            np.ones(per_curve, np.int64),
+            np.full(per_curve, 2, np.int64),
+        ]
+    )
     seg = np.hypot(*np.diff(xy, axis=0).T)
     s = np.concatenate([[0.0], np.cumsum(seg)])
     return xy, s, region
@@ -117,8 +123,9 @@ def point_at(xy: NDArray, s: NDArray, at: ArrayLike) -> NDArray[np.float64]:
     return np.stack([np.interp(a, s, xy[:, 0]), np.interp(a, s, xy[:, 1])], axis=-1)
 
 
-def tangent_at(xy: NDArray, s: NDArray, at: ArrayLike, h: float | None = None
-               ) -> NDArray[np.float64]:
+def tangent_at(
+    xy: NDArray, s: NDArray, at: ArrayLike, h: float | None = None
+) -> NDArray[np.float64]:
     """Unit tangents (head→tail direction) at arc lengths ``at`` by central differences."""
     h = max(s[-1] * 1e-3, 1e-9) if h is None else h
     a = np.asarray(at, dtype=float)

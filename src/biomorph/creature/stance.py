@@ -31,8 +31,12 @@ RANGES = {
 
 #: What the generator aims for inside those ranges (the checks keep a margin for the
 #: balance repair's lean and the descent's search).
-TARGET = {"trunk_pitch_quadruped": (-8.0, 20.0), "trunk_pitch_biped": (0.0, 50.0),
-          "head_pitch": (-60.0, 25.0), "femur_max": 58.0}
+TARGET = {
+    "trunk_pitch_quadruped": (-8.0, 20.0),
+    "trunk_pitch_biped": (0.0, 50.0),
+    "head_pitch": (-60.0, 25.0),
+    "femur_max": 58.0,
+}
 
 #: ``(a, b)`` of the standing-height allometry ``h = a · M^b`` (m, kg) per class.
 ALLOMETRY = {"mammal": (0.142, 1 / 3), "reptile": (0.142, 1 / 3), "bird": (0.2, 1 / 3)}

@@ -22,21 +22,21 @@ class SpineState:
     """The sampled body plan: spine Bézier control points (frame px, head on the left),
     limb lengths, weight, discrete choices and what is inherited from the nearest species."""
 
-    points: NDArray[np.float64]        # (10, 2) control points, frame px
-    lengths: NDArray[np.float64]       # (6,) upper arm, lower arm, hand, thigh, shank, foot
-    weight: float                      # kg
+    points: NDArray[np.float64]  # (10, 2) control points, frame px
+    lengths: NDArray[np.float64]  # (6,) upper arm, lower arm, hand, thigh, shank, foot
+    weight: float  # kg
     wings: bool
     legs: int
     cls: str
-    stance: str                        # plantigrade | digitigrade | unguligrade
-    posture: str                       # erect | crouched | sprawling
-    skull: str                         # skull library entry
-    skull_length: float                # px
+    stance: str  # plantigrade | digitigrade | unguligrade
+    posture: str  # erect | crouched | sprawling
+    skull: str  # skull library entry
+    skull_length: float  # px
     girth: float
-    counts: NDArray[np.int64]          # vertebrae per region (neck, back, tail)
+    counts: NDArray[np.int64]  # vertebrae per region (neck, back, tail)
     neighbours: list[str]
-    features: NDArray[np.float64]      # the sampled 29-dim feature vector
-    wings_value: float                 # decoded (continuous) wings and legs values
+    features: NDArray[np.float64]  # the sampled 29-dim feature vector
+    wings_value: float  # decoded (continuous) wings and legs values
     legs_value: float
     nearest: str
 
@@ -45,13 +45,13 @@ class SpineState:
 class LimbsState:
     """Grounded legs and posed free limbs (creature px: x forward, y up, z right)."""
 
-    points: NDArray[np.float64]        # (10, 2) spine control points, creature px
-    ground: float                      # ground height (px)
-    places: list[tuple[str, int, Any, float]]   # (girdle, pair index, LimbSpec, arc length)
-    attach: list[tuple[NDArray, NDArray]]       # (spine point, limb attachment) per pair
-    lengths: list[NDArray[np.float64]]          # (3,) segment lengths per pair
-    poses: list[Any]                            # limbs.LimbPose per pair (right side)
-    shifts: dict[str, float]                    # balance-repair girdle shifts
+    points: NDArray[np.float64]  # (10, 2) spine control points, creature px
+    ground: float  # ground height (px)
+    places: list[tuple[str, int, Any, float]]  # (girdle, pair index, LimbSpec, arc length)
+    attach: list[tuple[NDArray, NDArray]]  # (spine point, limb attachment) per pair
+    lengths: list[NDArray[np.float64]]  # (3,) segment lengths per pair
+    poses: list[Any]  # limbs.LimbPose per pair (right side)
+    shifts: dict[str, float]  # balance-repair girdle shifts
 
 
 @dataclass(frozen=True, eq=False)

@@ -77,8 +77,10 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> Spi
             if opts.legs is None:
                 fixed[pc.DIM["legs"]] = float(table.legs[row]) / 4.0 / pc.SMALL
                 class_pick["legs"] = int(table.legs[row])
-    user = {int(i): float(v) * float(np.sqrt(model.eigenvalues[int(i)]))
-            for i, v in (opts.scores or {}).items()}
+    user = {
+        int(i): float(v) * float(np.sqrt(model.eigenvalues[int(i)]))
+        for i, v in (opts.scores or {}).items()
+    }
     if fixed or scores:
         scores.update(user)  # the user's component scores win over the class target
         x = model.sample_conditional(rng, fixed, scores, opts.k, opts.temperature, opts.jitter)
@@ -115,10 +117,13 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> Spi
         legs = int(opts.legs if opts.legs is not None else class_pick["legs"])
     else:
         lv = float(np.clip(legs_v, 0.0, 4.0))
-        legs = (2 if rng.random() < lv / 2 else 0) if lv <= 2 else (
-            4 if rng.random() < (lv - 2) / 2 else 2)
+        legs = (
+            (2 if rng.random() < lv / 2 else 0)
+            if lv <= 2
+            else (4 if rng.random() < (lv - 2) / 2 else 2)
+        )
     if opts.legs is None and "legs" not in class_pick:
-        legs = CLASS_LEGS.get(cls, legs)   # class coherence: birds stand on two, fish swim
+        legs = CLASS_LEGS.get(cls, legs)  # class coherence: birds stand on two, fish swim
     if cls == "fish":  # fish: the shoulder girdle sits right behind the head (no neck)
         pts[0:3] = pts[3]
     pts = sp.c1_fix(level_trunk(pts, legs))
@@ -140,15 +145,34 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> Spi
     posture = table.posture[same[0]]
     skull_name = table.skull[same[0]] if table.cls[same[0]] == cls else sk.CLASS_SKULL[cls]
     back_chord = float(np.linalg.norm(pts[6] - pts[3]))
-    ratio = float(ws @ (table.skull_length[same] / np.maximum(
-        np.linalg.norm(table.points[same, 6] - table.points[same, 3], axis=1), 1.0)))
+    ratio = float(
+        ws
+        @ (
+            table.skull_length[same]
+            / np.maximum(np.linalg.norm(table.points[same, 6] - table.points[same, 3], axis=1), 1.0)
+        )
+    )
     girth = float(ws @ table.girth[same])
     counts = vt.region_counts(cls, table.counts[same], ws, rl, m.region_len[same])
-    return SpineState(points=pts, lengths=lengths, weight=weight, wings=wings, legs=legs,
-                      cls=cls, stance=stance, posture=posture, skull=skull_name,
-                      skull_length=max(ratio * max(back_chord, 0.05 * s[-1]), 0.03 * s[-1]),
-                      girth=girth, counts=counts, neighbours=near, features=feat,
-                      wings_value=wings_v, legs_value=legs_v, nearest=table.name[pick])
+    return SpineState(
+        points=pts,
+        lengths=lengths,
+        weight=weight,
+        wings=wings,
+        legs=legs,
+        cls=cls,
+        stance=stance,
+        posture=posture,
+        skull=skull_name,
+        skull_length=max(ratio * max(back_chord, 0.05 * s[-1]), 0.03 * s[-1]),
+        girth=girth,
+        counts=counts,
+        neighbours=near,
+        features=feat,
+        wings_value=wings_v,
+        legs_value=legs_v,
+        nearest=table.name[pick],
+    )
 
 
 #: Leg counts a class always has when the user does not ask for others.
@@ -166,14 +190,16 @@ def _compatible(cls: str, opts: Options) -> bool:
     return not (opts.wings and cls == "fish")
 
 
-def _neighbours(model: pc.PCA, x: NDArray, table, opts: Options
-                ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+def _neighbours(
+    model: pc.PCA, x: NDArray, table, opts: Options
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """The three nearest species (inverse-distance weights) among those whose class is
     compatible with the request; with ``--class`` the nearest of any class (the class is
     fixed, only stance/skull/counts are inherited from them)."""
     idx, w = model.nearest(x, n_neighbours=len(table.name))
-    keep = [k for k, i in enumerate(idx)
-            if opts.cls is not None or _compatible(table.cls[i], opts)][:3] or [0, 1, 2]
+    keep = [
+        k for k, i in enumerate(idx) if opts.cls is not None or _compatible(table.cls[i], opts)
+    ][:3] or [0, 1, 2]
     ww = w[keep] / w[keep].sum()
     return idx[keep], ww
 
@@ -196,7 +222,7 @@ def level_trunk(points: NDArray, legs: int) -> NDArray:
     want = float(np.clip(a, lo * DEG, hi * DEG))
     if abs(want - a) < 1e-12:
         return points
-    phi = a - want          # CCW rotation in the frame (head on the left) lowers the front
+    phi = a - want  # CCW rotation in the frame (head on the left) lowers the front
     c, s_ = np.cos(phi), np.sin(phi)
     p = np.asarray(points, float)
     q = p - p[6]
@@ -210,8 +236,9 @@ def _scale_neck(points: NDArray, factor: float) -> NDArray:
 
 
 # --------------------------------------------------------------------------- step: girdles
-def step_girdles(spine: SpineState, opts: Options, rng: np.random.Generator
-                 ) -> tuple[gd.Girdle, ...]:
+def step_girdles(
+    spine: SpineState, opts: Options, rng: np.random.Generator
+) -> tuple[gd.Girdle, ...]:
     """Girdles and limb pairs from the discrete choices (rules in :mod:`girdles`)."""
     xy, s, region = sp.sample(spine.points)
     rl = sp.region_lengths(s, region)
@@ -221,8 +248,11 @@ def step_girdles(spine: SpineState, opts: Options, rng: np.random.Generator
     legs = spine.legs
     wings = spine.wings
     # sampled (not requested) wings yield when the shoulder girdle is already full
-    shoulder = (1 if legs >= 4 else 0) + (1 if legs == 6 else 0) + \
-        (1 if opts.arms and not opts.centaur else 0)
+    shoulder = (
+        (1 if legs >= 4 else 0)
+        + (1 if legs == 6 else 0)
+        + (1 if opts.arms and not opts.centaur else 0)
+    )
     if wings and opts.wings is None and shoulder >= gd.MAX_PAIRS:
         wings = False
     # a limb that must carry the body gets at least a minimal length per segment
@@ -244,8 +274,20 @@ def _frame_at(xy: NDArray, s: NDArray, at: float) -> tuple[NDArray, NDArray, NDA
     return g, t, n
 
 
-def _attach(xy, s, rl, girth, cls, skull_h, legless, girdle: str, at: float, kind: str,
-            posture: str, width: float = 1.0) -> tuple[NDArray, NDArray]:
+def _attach(
+    xy,
+    s,
+    rl,
+    girth,
+    cls,
+    skull_h,
+    legless,
+    girdle: str,
+    at: float,
+    kind: str,
+    posture: str,
+    width: float = 1.0,
+) -> tuple[NDArray, NDArray]:
     """Spine point (3,) and limb attachment point (3,) of the right limb of a pair."""
     g, t, n = _frame_at(xy, s, at)
     h, b, _ = ms.profile(np.array([at]), rl, girth, cls, skull_h, legless)
@@ -273,8 +315,9 @@ def _flatten(points: NDArray, which: str, floor: float) -> NDArray:
     return p_last
 
 
-def _allometric_ground(spine: SpineState, places, attach, lengths, legs, s, rl, skull_h,
-                       stand_fraction: float) -> float | None:
+def _allometric_ground(
+    spine: SpineState, places, attach, lengths, legs, s, rl, skull_h, stand_fraction: float
+) -> float | None:
     """Ground height (creature px) at which the withers (quadrupeds) or hip (bipeds) stand at
     the allometric height of :mod:`biomorph.creature.stance`, or ``None`` where none applies.
     The metres-per-px scale is the one ``finish`` will use (weight / density / volume),
@@ -289,25 +332,40 @@ def _allometric_ground(spine: SpineState, places, attach, lengths, legs, s, rl, 
         return None
     h, b, _ = ms.profile(s, rl, spine.girth, cls, skull_h, spine.legs == 0)
     body = float(ms.slice_volumes(s, h, b).sum()) + ms.ellipsoid_volume(
-        sk.box_size(sk.get(spine.skull), spine.skull_length))
-    free = sum(2 * float(ms.limb_volume(lengths[i], p[2].kind).sum())
-               for i, p in enumerate(places) if i not in legs)
+        sk.box_size(sk.get(spine.skull), spine.skull_length)
+    )
+    free = sum(
+        2 * float(ms.limb_volume(lengths[i], p[2].kind).sum())
+        for i, p in enumerate(places)
+        if i not in legs
+    )
     legv = sum(2 * float(ms.limb_volume(lengths[i], "leg").sum()) for i in legs)
     ground = None
     for _ in range(3):
         scale = ms.size_scale(spine.weight, body + free + legv, cls)
         ground = float(top[0]) - h_m / scale
         # leg volume ∝ length³: resize by the stand height the legs will get
-        grow = [max(attach[i][1][1] - ground, 1e-6) / (stand_fraction * lb.max_reach(
-            lengths[i], spine.stance, spine.posture)) for i in legs]
-        legv = sum(2 * float(ms.limb_volume(lengths[i] * g, "leg").sum())
-                   for i, g in zip(legs, grow, strict=True))
+        grow = [
+            max(attach[i][1][1] - ground, 1e-6)
+            / (stand_fraction * lb.max_reach(lengths[i], spine.stance, spine.posture))
+            for i in legs
+        ]
+        legv = sum(
+            2 * float(ms.limb_volume(lengths[i] * g, "leg").sum())
+            for i, g in zip(legs, grow, strict=True)
+        )
     return ground
 
 
-def step_limbs(spine: SpineState, girdles: tuple[gd.Girdle, ...], opts: Options,
-               rng: np.random.Generator, shifts: dict[str, float] | None = None,
-               ground: float | None = None, previous: LimbsState | None = None) -> LimbsState:
+def step_limbs(
+    spine: SpineState,
+    girdles: tuple[gd.Girdle, ...],
+    opts: Options,
+    rng: np.random.Generator,
+    shifts: dict[str, float] | None = None,
+    ground: float | None = None,
+    previous: LimbsState | None = None,
+) -> LimbsState:
     """Ground height, grounded legs by the seed's descent, free limbs by rule (frame px)."""
     pts = to_creature_px(spine.points)
     cls, posture, stance = spine.cls, spine.posture, spine.stance
@@ -326,9 +384,23 @@ def step_limbs(spine: SpineState, girdles: tuple[gd.Girdle, ...], opts: Options,
                 at = at + step if g.name in ("shoulder", "centaur") else at - step
             at = float(np.clip(at, 0.0, s[-1]))
             places.append((g.name, k, spec, at))
-    attach = [_attach(xy, s, rl, spine.girth, cls, skull_h, legless, gname, at, spec.kind,
-                      posture, shifts.get("width", 1.0) if spec.kind == "leg" else 1.0)
-              for gname, k, spec, at in places]
+    attach = [
+        _attach(
+            xy,
+            s,
+            rl,
+            spine.girth,
+            cls,
+            skull_h,
+            legless,
+            gname,
+            at,
+            spec.kind,
+            posture,
+            shifts.get("width", 1.0) if spec.kind == "leg" else 1.0,
+        )
+        for gname, k, spec, at in places
+    ]
     legs = [i for i, p in enumerate(places) if p[2].kind == "leg"]
     lengths = [np.array(p[2].lengths, float) for p in places]
     h_all, _, off_all = ms.profile(s, rl, spine.girth, cls, skull_h, legless)
@@ -336,19 +408,23 @@ def step_limbs(spine: SpineState, girdles: tuple[gd.Girdle, ...], opts: Options,
     if legs:
         reach = [lb.max_reach(lengths[i], stance, posture) for i in legs]
         if ground is None:
-            target = _allometric_ground(spine, places, attach, lengths, legs, s, rl, skull_h,
-                                        opts.stand_fraction)
-            if target is not None:   # legs sized so the body stands at its allometric height
+            target = _allometric_ground(
+                spine, places, attach, lengths, legs, s, rl, skull_h, opts.stand_fraction
+            )
+            if target is not None:  # legs sized so the body stands at its allometric height
                 for i, r in zip(legs, reach, strict=True):
-                    lengths[i] = lengths[i] * max(attach[i][1][1] - target, 1e-6) / (
-                        opts.stand_fraction * r)
+                    lengths[i] = (
+                        lengths[i] * max(attach[i][1][1] - target, 1e-6) / (opts.stand_fraction * r)
+                    )
                 reach = [lb.max_reach(lengths[i], stance, posture) for i in legs]
-            ground = max(attach[i][1][1] - opts.stand_fraction * r
-                         for i, r in zip(legs, reach, strict=True))
+            ground = max(
+                attach[i][1][1] - opts.stand_fraction * r for i, r in zip(legs, reach, strict=True)
+            )
             # every leg must reach down at least a quarter of its length (a low hip under a
             # high shoulder): lower the ground; the legs that then fall short are stretched
-            ground = min([ground] + [attach[i][1][1] - 0.25 * r
-                                     for i, r in zip(legs, reach, strict=True)])
+            ground = min(
+                [ground] + [attach[i][1][1] - 0.25 * r for i, r in zip(legs, reach, strict=True)]
+            )
         trunk = region == 1
         lowest_trunk = float(body_bottom[trunk].min()) if trunk.any() else ground
         if lowest_trunk < ground:
@@ -386,14 +462,22 @@ def step_limbs(spine: SpineState, girdles: tuple[gd.Girdle, ...], opts: Options,
             if previous is not None:  # balance repair: keep the pose, re-ground continuously
                 prev = previous.poses[i]
                 lift = feet.clearance(plan, float(previous.lengths[i][2]))
-                pose = lb.reground(prev, base, previous.lengths[i], ground + lift,
-                                   opts.descent)
+                pose = lb.reground(prev, base, previous.lengths[i], ground + lift, opts.descent)
                 if pose is not None:
                     lengths[i] = previous.lengths[i]
             if pose is None:
-                pose = lb.pose_leg(base, lengths[i], ground, role, stance, posture, rng,
-                                   opts.descent, feet.clearance(plan, float(lengths[i][2])),
-                                   None if cls == "bird" else TARGET["femur_max"])
+                pose = lb.pose_leg(
+                    base,
+                    lengths[i],
+                    ground,
+                    role,
+                    stance,
+                    posture,
+                    rng,
+                    opts.descent,
+                    feet.clearance(plan, float(lengths[i][2])),
+                    None if cls == "bird" else TARGET["femur_max"],
+                )
             lengths[i] = pose.lengths
         else:
             pose = lb.pose_free(spec.kind, base, lengths[i], rng)
@@ -404,15 +488,25 @@ def step_limbs(spine: SpineState, girdles: tuple[gd.Girdle, ...], opts: Options,
         ground = float(min(lows))
     else:
         clear = ground + 0.01 * max(s[-1], 1.0)
-        poses = [lb.lift_clear(p, attach[i][1], lengths[i], ground, clear)
-                 if p.kind != "leg" else p for i, p in enumerate(poses)]
-    return LimbsState(points=pts, ground=float(ground), places=places, attach=attach,
-                      lengths=lengths, poses=poses, shifts=dict(shifts))
+        poses = [
+            lb.lift_clear(p, attach[i][1], lengths[i], ground, clear) if p.kind != "leg" else p
+            for i, p in enumerate(poses)
+        ]
+    return LimbsState(
+        points=pts,
+        ground=float(ground),
+        places=places,
+        attach=attach,
+        lengths=lengths,
+        poses=poses,
+        shifts=dict(shifts),
+    )
 
 
 # --------------------------------------------------------------------------- step: skull
-def step_skull(spine: SpineState, limbs: LimbsState, opts: Options,
-               rng: np.random.Generator) -> SkullState:
+def step_skull(
+    spine: SpineState, limbs: LimbsState, opts: Options, rng: np.random.Generator
+) -> SkullState:
     """Pick the skull from the library, size and orient it, keep it above the ground."""
     shape = sk.get(spine.skull)
     length = float(spine.skull_length)

@@ -21,9 +21,14 @@ COUNT_RANGES = {
 }
 
 
-def region_counts(cls: str, neighbour_counts: ArrayLike, weights: ArrayLike,
-                  lengths: ArrayLike, neighbour_lengths: ArrayLike,
-                  max_total: int = 160) -> NDArray[np.int64]:
+def region_counts(
+    cls: str,
+    neighbour_counts: ArrayLike,
+    weights: ArrayLike,
+    lengths: ArrayLike,
+    neighbour_lengths: ArrayLike,
+    max_total: int = 160,
+) -> NDArray[np.int64]:
     """Vertebra counts ``(3,)`` for a sample.
 
     ``neighbour_counts (k, 3)`` and ``neighbour_lengths (k, 3)`` are the counts and region arc
@@ -36,8 +41,14 @@ def region_counts(cls: str, neighbour_counts: ArrayLike, weights: ArrayLike,
     L = np.asarray(lengths, dtype=float)
     # vertebra length per region from the neighbours, then count = length / vertebra length
     per = np.where(nc > 0, nl / np.maximum(nc, 1), np.nan)
-    seg = np.array([np.nansum(w * per[:, r]) / max(np.sum(w[~np.isnan(per[:, r])]), 1e-12)
-                    if np.any(~np.isnan(per[:, r])) else np.nan for r in range(3)])
+    seg = np.array(
+        [
+            np.nansum(w * per[:, r]) / max(np.sum(w[~np.isnan(per[:, r])]), 1e-12)
+            if np.any(~np.isnan(per[:, r]))
+            else np.nan
+            for r in range(3)
+        ]
+    )
     base = w @ nc
     counts = np.where(np.isfinite(seg) & (seg > 0), L / np.where(seg > 0, seg, 1), base)
     # blend ratio-based and neighbour counts so counts stay near the vertebral formula

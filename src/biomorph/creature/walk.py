@@ -67,7 +67,7 @@ def _drop(creature: Creature, legs: list[dict], h: float) -> float:
     for g in legs:
         hip, knee, ank = P0[g["upper"]], P0[g["lower"]], P0[g["distal"]]
         l1, l2 = np.linalg.norm(knee - hip), np.linalg.norm(ank - knee)
-        slack.append((hip[1] - ank[1]) - 1.05 * abs(l1 - l2))   # the foot passes under
+        slack.append((hip[1] - ank[1]) - 1.05 * abs(l1 - l2))  # the foot passes under
     return float(max(0.0, min(WALK_DROP * h, 0.8 * clear, 0.8 * min(slack))))
 
 
@@ -81,35 +81,58 @@ def _reach_stride(creature: Creature, legs: list[dict], duty: float, drop: float
         reach = 0.995 * (np.linalg.norm(knee - hip) + np.linalg.norm(ank - knee))
         dy = hip[1] - drop - ank[1]
         dz2 = (hip[2] - ank[2]) ** 2
-        e = np.sqrt(max(reach ** 2 - dy ** 2 - dz2, 0.0))
+        e = np.sqrt(max(reach**2 - dy**2 - dz2, 0.0))
         dx = abs(ank[0] - hip[0])
         best = min(best, 2.0 * max(e - dx, 0.0) / duty)
         lo = 1.06 * abs(np.linalg.norm(knee - hip) - np.linalg.norm(ank - knee))
-        if dy ** 2 + dz2 < lo ** 2:   # the foot cannot pass under the hip: stop short of it
-            best = min(best, 2.0 * max(dx - np.sqrt(lo ** 2 - dy ** 2 - dz2), 0.0) / duty)
+        if dy**2 + dz2 < lo**2:  # the foot cannot pass under the hip: stop short of it
+            best = min(best, 2.0 * max(dx - np.sqrt(lo**2 - dy**2 - dz2), 0.0) / duty)
     return float(best)
 
 
-def plan_walk(creature: Creature, frames: int = 32, cycles: int = 2, fps: float = 30.0,
-              gait: str = "walk", stride_factor: float = 0.9, lift: float = 0.12) -> WalkPlan:
+def plan_walk(
+    creature: Creature,
+    frames: int = 32,
+    cycles: int = 2,
+    fps: float = 30.0,
+    gait: str = "walk",
+    stride_factor: float = 0.9,
+    lift: float = 0.12,
+) -> WalkPlan:
     """Check the walk options and derive the gait timing (see the module docstring)."""
     if frames < 4 or cycles < 1 or not np.isfinite(fps) or fps <= 0:
-        raise ParameterError(f"walk needs frames >= 4, cycles >= 1, fps > 0; got {frames}, "
-                             f"{cycles}, {fps}")
+        raise ParameterError(
+            f"walk needs frames >= 4, cycles >= 1, fps > 0; got {frames}, {cycles}, {fps}"
+        )
     if gait not in GAITS:
         raise ParameterError(f"gait {gait!r}; expected one of {', '.join(GAITS)}")
     if not (0 < stride_factor <= 2 and 0 <= lift <= 0.5):
-        raise ParameterError(f"stride_factor {stride_factor} / lift {lift}: expected "
-                             "0 < stride_factor <= 2 and 0 <= lift <= 0.5")
+        raise ParameterError(
+            f"stride_factor {stride_factor} / lift {lift}: expected "
+            "0 < stride_factor <= 2 and 0 <= lift <= 0.5"
+        )
     legs = _legs(creature)
     P0 = creature.joint_positions
     h = float(np.mean([P0[g["upper"], 1] for g in legs])) if legs else 0.1 * creature.length
     offs, duty = phase_offsets(legs, gait) if legs else ([], 0.6)
     drop = _drop(creature, legs, h) if legs else 0.0
-    stride = min(stride_factor * h, 0.95 * _reach_stride(creature, legs, duty, drop)) \
-        if legs else 0.0
-    return WalkPlan(tuple(legs), tuple(offs), duty, frames / fps, stride, h, lift * h,
-                    float(fps), frames * cycles, drop)
+    stride = (
+        min(stride_factor * h, 0.95 * _reach_stride(creature, legs, duty, drop)) if legs else 0.0
+    )
+    return WalkPlan(
+        tuple(legs),
+        tuple(offs),
+        duty,
+        frames / fps,
+        stride,
+        h,
+        lift * h,
+        float(fps),
+        frames * cycles,
+        drop,
+    )
+
+
 DUTY = {2: 0.6, 4: 0.65, 6: 0.55, "trot": 0.5}
 
 
@@ -121,8 +144,15 @@ def _legs(c: Creature) -> list[dict]:
         parts = n.split("_")
         if c.kind[j] == "leg" and len(parts) == 3 and parts[1] == "upper":
             tag, sd = parts[0], parts[2]
-            out.append({"tag": tag, "side": sd, "upper": j,
-                        "lower": idx[f"{tag}_lower_{sd}"], "distal": idx[f"{tag}_distal_{sd}"]})
+            out.append(
+                {
+                    "tag": tag,
+                    "side": sd,
+                    "upper": j,
+                    "lower": idx[f"{tag}_lower_{sd}"],
+                    "distal": idx[f"{tag}_distal_{sd}"],
+                }
+            )
     return out
 
 
@@ -131,12 +161,20 @@ def phase_offsets(legs: list[dict], gait: str = "walk") -> tuple[list[float], fl
     n = len(legs)
     tags = sorted({g["tag"] for g in legs}, key=lambda t: (not t.startswith("shoulder"), t))
     if n == 4 and gait == "trot":
-        off = {("hip1", "l"): 0.0, ("shoulder1", "r"): 0.0, ("hip1", "r"): 0.5,
-               ("shoulder1", "l"): 0.5}
+        off = {
+            ("hip1", "l"): 0.0,
+            ("shoulder1", "r"): 0.0,
+            ("hip1", "r"): 0.5,
+            ("shoulder1", "l"): 0.5,
+        }
         return [off.get((g["tag"], g["side"]), 0.0) for g in legs], DUTY["trot"]
     if n == 4:
-        off = {("hip1", "l"): 0.0, ("shoulder1", "l"): 0.25, ("hip1", "r"): 0.5,
-               ("shoulder1", "r"): 0.75}
+        off = {
+            ("hip1", "l"): 0.0,
+            ("shoulder1", "l"): 0.25,
+            ("hip1", "r"): 0.5,
+            ("shoulder1", "r"): 0.75,
+        }
         return [off.get((g["tag"], g["side"]), 0.0) for g in legs], DUTY[4]
     if n == 6:  # tripod: alternate sides along the body
         rank = {t: k for k, t in enumerate(tags)}
@@ -160,8 +198,9 @@ def _rot_between(a: NDArray, b: NDArray) -> NDArray:
     return R
 
 
-def two_bone_ik(hip: NDArray, target: NDArray, l1: float, l2: float, pole: NDArray
-                ) -> tuple[NDArray, NDArray]:
+def two_bone_ik(
+    hip: NDArray, target: NDArray, l1: float, l2: float, pole: NDArray
+) -> tuple[NDArray, NDArray]:
     """Knee positions ``(f, 3)`` and the (clamped) ankle positions of a two-bone chain from
     ``hip (f, 3)`` reaching for ``target (f, 3)``, bending towards ``pole`` (unit vector,
     made ⟂ to each hip→target line). Targets out of reach are approached along the line."""
@@ -172,14 +211,15 @@ def two_bone_ik(hip: NDArray, target: NDArray, l1: float, l2: float, pole: NDArr
     u = d / np.maximum(dist, 1e-12)[:, None]
     p = pole[None, :] - (u @ pole)[:, None] * u
     p = p / np.maximum(np.linalg.norm(p, axis=1), 1e-12)[:, None]
-    cos_a = (l1 ** 2 + dist_c ** 2 - l2 ** 2) / (2 * l1 * dist_c)
+    cos_a = (l1**2 + dist_c**2 - l2**2) / (2 * l1 * dist_c)
     a = np.arccos(np.clip(cos_a, -1.0, 1.0))
     knee = hip + l1 * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * p)
     return knee, hip + dist_c[:, None] * u
 
 
-def foot_targets(rest: NDArray, t: NDArray, period: float, stride: float, offset: float,
-                 duty: float, lift: float) -> tuple[NDArray, NDArray]:
+def foot_targets(
+    rest: NDArray, t: NDArray, period: float, stride: float, offset: float, duty: float, lift: float
+) -> tuple[NDArray, NDArray]:
     """World ankle targets ``(frames, 3)`` for a foot resting at ``rest`` (body at x = 0 at
     t = 0) and a stance mask. Planted feet do not move; the mid-stance foot sits at its rest
     position relative to the body."""
@@ -197,9 +237,16 @@ def foot_targets(rest: NDArray, t: NDArray, period: float, stride: float, offset
     return out, ~swing
 
 
-def walk_cycle(creature: Creature, frames: int = 32, cycles: int = 2, fps: float = 30.0,
-               amplitude_deg: float = 18.0, gait: str = "walk", stride_factor: float = 0.9,
-               lift: float = 0.12):
+def walk_cycle(
+    creature: Creature,
+    frames: int = 32,
+    cycles: int = 2,
+    fps: float = 30.0,
+    amplitude_deg: float = 18.0,
+    gait: str = "walk",
+    stride_factor: float = 0.9,
+    lift: float = 0.12,
+):
     """A :class:`~biomorph.core.motion.Motion` of ``cycles`` walk cycles of ``frames``
     frames at ``fps`` (keys at the clip's fps) with IK-planted feet."""
     from biomorph.core.motion import Motion
@@ -213,7 +260,7 @@ def walk_cycle(creature: Creature, frames: int = 32, cycles: int = 2, fps: float
     ph = 2 * np.pi * t / period
     W0 = creature.world[:, :3, :3]
     P0 = creature.joint_positions
-    Wt = np.broadcast_to(W0, (total, n, 3, 3)).copy()   # world rotations per frame
+    Wt = np.broadcast_to(W0, (total, n, 3, 3)).copy()  # world rotations per frame
     shift = np.zeros((total, 3))
     shift[:, 0] = stride / period * t
     shift[:, 1] = -plan.drop
@@ -225,7 +272,7 @@ def walk_cycle(creature: Creature, frames: int = 32, cycles: int = 2, fps: float
             continue
         # a leg with a short femur under a long shank cannot fold its foot close to the hip:
         # its swing lift stays inside that (else IK would push the foot into the ground)
-        dy = float(P0[iu, 1] - plan.drop - P0[idd, 1])   # the foot may pass under the hip
+        dy = float(P0[iu, 1] - plan.drop - P0[idd, 1])  # the foot may pass under the hip
         lift_i = float(np.clip(0.9 * (dy - 1.05 * abs(l1 - l2)), 0.0, plan.lift))
         tgt, _ = foot_targets(P0[idd], t, period, stride, off, duty, lift_i)
         u0 = (P0[idd] - P0[iu]) / max(np.linalg.norm(P0[idd] - P0[iu]), 1e-12)
@@ -236,7 +283,7 @@ def walk_cycle(creature: Creature, frames: int = 32, cycles: int = 2, fps: float
         d2 = (P0[idd] - P0[il]) / l2
         hip = P0[iu] + shift
         knee, _ = two_bone_ik(hip, tgt, l1, l2, pole)
-        for k in (0.5, 1.0, 2.0, 4.0):   # a splayed knee that dips below the ground turns up
+        for k in (0.5, 1.0, 2.0, 4.0):  # a splayed knee that dips below the ground turns up
             low = knee[:, 1] < 0.0
             if not low.any():
                 break
@@ -255,10 +302,14 @@ def walk_cycle(creature: Creature, frames: int = 32, cycles: int = 2, fps: float
     pose = np.einsum("nji,njk->nik", W0, Wp0)[None] @ np.swapaxes(Wp, -1, -2) @ Wt
     q_ik = tf.matrix_to_quat(pose)
     root = np.tile(sk.offset[0], (total, 1)) + shift
-    free = np.array([k in ("arm", "wing", "fin") or (k == "spine" and r == "tail")
-                     for k, r in zip(creature.kind, creature.region, strict=True)])
+    free = np.array(
+        [
+            k in ("arm", "wing", "fin") or (k == "spine" and r == "tail")
+            for k, r in zip(creature.kind, creature.region, strict=True)
+        ]
+    )
     amp = np.radians(amplitude_deg)
-    for _ in range(5):   # free limbs and tail swing less until they clear the ground
+    for _ in range(5):  # free limbs and tail swing less until they clear the ground
         mo = Motion(sk, tf.quat_multiply(q_ik, _free_limbs(creature, ph, amp)), root, 1.0 / fps)
         if not free.any() or amp == 0.0:
             return mo
@@ -273,9 +324,9 @@ def walk_cycle(creature: Creature, frames: int = 32, cycles: int = 2, fps: float
 def _free_limbs(creature: Creature, t: NDArray, amp: float) -> NDArray:
     """Pose quaternions of the limbs without ground contact and the tail (local sines)."""
     n = len(creature)
-    angle = np.zeros((len(t), n, 3))                         # about local x, y, z
+    angle = np.zeros((len(t), n, 3))  # about local x, y, z
     par = creature.skeleton.parent
-    carries = set()          # vertebrae carrying a leg girdle do not sway (planted feet)
+    carries = set()  # vertebrae carrying a leg girdle do not sway (planted feet)
     for j in range(n):
         if creature.kind[j] == "leg":
             k = int(par[j])
@@ -290,15 +341,18 @@ def _free_limbs(creature: Creature, t: NDArray, amp: float) -> NDArray:
             side = 0.0 if creature.side[j] > 0 else np.pi
             ph = t + side + 0.5 * np.pi
             if k == "wing":
-                angle[:, j, 0] = (1.2 * amp if seg == "upper" else 0.3 * amp) * np.sin(t) * (
-                    seg in ("upper", "lower"))
+                angle[:, j, 0] = (
+                    (1.2 * amp if seg == "upper" else 0.3 * amp)
+                    * np.sin(t)
+                    * (seg in ("upper", "lower"))
+                )
             elif k == "fin":
                 angle[:, j, 2] = 0.5 * amp * np.sin(ph) if seg == "upper" else 0.0
             elif seg == "upper":
                 angle[:, j, 2] = 0.4 * amp * np.sin(ph)
         elif k == "spine" and creature.region[j] == "tail" and j not in carries:
             angle[:, j, 0] = 0.15 * amp * np.sin(t)
-    return tf.euler_to_quat(angle[..., [2, 0, 1]], "ZXY")      # R = Rz Rx Ry
+    return tf.euler_to_quat(angle[..., [2, 0, 1]], "ZXY")  # R = Rz Rx Ry
 
 
 def walk_quality(creature: Creature, motion, plan: WalkPlan) -> dict[str, float]:
@@ -307,7 +361,7 @@ def walk_quality(creature: Creature, motion, plan: WalkPlan) -> dict[str, float]
     ground, as a fraction of the body height) of a walk clip made with ``plan``."""
     if not plan.legs:
         return {"slide_fraction": 0.0, "penetration_fraction": 0.0, "stride_m": 0.0}
-    M = motion.world_matrices()                                   # (frames, n, 4, 4)
+    M = motion.world_matrices()  # (frames, n, 4, 4)
     P = M[..., :3, 3]
     ends = P + M[..., :3, 1] * creature.bone_length[None, :, None]
     low = float(min(P[..., 1].min(), ends[..., 1].min()))
@@ -327,6 +381,8 @@ def walk_quality(creature: Creature, motion, plan: WalkPlan) -> dict[str, float]
             sel = (cyc == cnum) & (u < plan.duty)
             if sel.sum() >= 2:
                 worst = max(worst, float(np.ptp(P[sel, j][:, [0, 2]], axis=0).max()))
-    return {"slide_fraction": worst / max(plan.stride, 1e-12),
-            "penetration_fraction": max(0.0, -low) / max(creature.height, 1e-12),
-            "stride_m": plan.stride}
+    return {
+        "slide_fraction": worst / max(plan.stride, 1e-12),
+        "penetration_fraction": max(0.0, -low) / max(creature.height, 1e-12),
+        "stride_m": plan.stride,
+    }

@@ -31,8 +31,17 @@ from biomorph.errors import FormatError, UnsupportedFormatError, check_regular_f
 
 PathLike = str | os.PathLike[str]
 
-POINT_FORMATS = {".las": "las", ".laz": "las", ".ply": "ply", ".xyz": "xyz", ".txt": "xyz",
-                 ".csv": "xyz", ".asc": "xyz", ".pts": "xyz", ".npy": "npy"}
+POINT_FORMATS = {
+    ".las": "las",
+    ".laz": "las",
+    ".ply": "ply",
+    ".xyz": "xyz",
+    ".txt": "xyz",
+    ".csv": "xyz",
+    ".asc": "xyz",
+    ".pts": "xyz",
+    ".npy": "npy",
+}
 GRAPH_FORMATS = {".ply": "ply", ".mtg": "mtg"}
 MESH_FORMATS = {".obj": "obj", ".ply": "ply", ".glb": "gltf", ".gltf": "gltf"}
 MOTION_FORMATS = {".bvh": "bvh", ".htr": "htr", ".asf": "asf", ".amc": "asf"}
@@ -43,8 +52,10 @@ def _module(table: dict[str, str], path: PathLike, what: str) -> Any:
     name = table.get(ext)
     if name is None:
         known = " ".join(sorted(table))
-        raise UnsupportedFormatError(f"{os.fspath(path)}: cannot handle {what} files with "
-                                     f"extension {ext or '(none)'!r}; expected one of {known}")
+        raise UnsupportedFormatError(
+            f"{os.fspath(path)}: cannot handle {what} files with "
+            f"extension {ext or '(none)'!r}; expected one of {known}"
+        )
     return importlib.import_module(f"biomorph.io.{name}")
 
 
@@ -69,8 +80,11 @@ def _check_extent(path: PathLike, xyz: Any, what: str) -> None:
     peak = np.abs(arr).max(axis=1) if arr.ndim == 2 else np.abs(arr)
     if not np.all(peak <= MAX_COORDINATE):
         row = int(np.flatnonzero(~(peak <= MAX_COORDINATE))[0])
-        raise FormatError(path, f"{what} {row} has a coordinate of magnitude {peak[row]:.3g}; "
-                                f"expected at most {MAX_COORDINATE:g} m")
+        raise FormatError(
+            path,
+            f"{what} {row} has a coordinate of magnitude {peak[row]:.3g}; "
+            f"expected at most {MAX_COORDINATE:g} m",
+        )
 
 
 def read_points(path: PathLike, **kwargs: Any):
@@ -124,9 +138,11 @@ def read_mesh(path: PathLike, **kwargs: Any):
     reader (face-id groups restored), other formats (.glb .gltf .stl .off) through trimesh."""
     ext = Path(path).suffix.lower()
     if ext not in (".ply", ".obj", ".glb", ".gltf", ".stl", ".off"):
-        raise UnsupportedFormatError(f"{os.fspath(path)}: cannot read meshes with extension "
-                                     f"{ext or '(none)'!r}; expected one of .glb .gltf .obj "
-                                     ".off .ply .stl")
+        raise UnsupportedFormatError(
+            f"{os.fspath(path)}: cannot read meshes with extension "
+            f"{ext or '(none)'!r}; expected one of .glb .gltf .obj "
+            ".off .ply .stl"
+        )
     _check_readable(path)
     name = "ply" if ext == ".ply" else "obj"
     return importlib.import_module(f"biomorph.io.{name}").read_mesh(path, **kwargs)
@@ -142,5 +158,15 @@ def write_gltf(path: PathLike, obj, **kwargs: Any) -> Path:
     return importlib.import_module("biomorph.io.gltf").write_gltf(path, obj, **kwargs)
 
 
-__all__ = ["read_points", "write_points", "read_graph", "write_graph", "read_bvh",
-           "write_bvh", "read_motion", "read_mesh", "write_mesh", "write_gltf"]
+__all__ = [
+    "read_points",
+    "write_points",
+    "read_graph",
+    "write_graph",
+    "read_bvh",
+    "write_bvh",
+    "read_motion",
+    "read_mesh",
+    "write_mesh",
+    "write_gltf",
+]

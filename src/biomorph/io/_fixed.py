@@ -37,4 +37,3 @@ def emit_fixed(out, pos, neg, ip, fp, frac_digits, digits):  # pragma: no cover 
             out[pos] = digits[k]
             pos += 1
     return pos
-

@@ -41,19 +41,26 @@ def _lines(path: Path) -> list[tuple[int, str]]:
         text = path.read_text(encoding="utf-8", errors="replace")
     except FileNotFoundError:
         raise FormatError(path, "file does not exist") from None
-    return [(i, s.strip()) for i, s in enumerate(text.splitlines(), start=1)
-            if s.strip() and not s.lstrip().startswith("#")]
+    return [
+        (i, s.strip())
+        for i, s in enumerate(text.splitlines(), start=1)
+        if s.strip() and not s.lstrip().startswith("#")
+    ]
 
 
 def _floats(path: Path, ln: int, toks: list[str], what: str) -> list[float]:
     try:
         vals = [float(t) for t in toks]
     except ValueError:
-        raise FormatError(path, f"{what}: non-numeric value in {' '.join(toks)!r}",
-                          line=ln) from None
+        raise FormatError(
+            path, f"{what}: non-numeric value in {' '.join(toks)!r}", line=ln
+        ) from None
     if not all(np.isfinite(v) for v in vals):
-        raise FormatError(path, f"{what}: non-finite value in {' '.join(toks)!r}; expected "
-                                "finite numbers", line=ln)
+        raise FormatError(
+            path,
+            f"{what}: non-finite value in {' '.join(toks)!r}; expected finite numbers",
+            line=ln,
+        )
     return vals
 
 
@@ -61,13 +68,12 @@ def _numbers(path: Path, ln: int, toks: list[str], n: int, what: str) -> list[fl
     """Exactly ``n`` numbers after the keyword ``toks[0]`` (more tokens are left to callers)."""
     if len(toks) < n + 1:
         raise FormatError(path, f"{what} has {len(toks) - 1} value(s); expected {n}", line=ln)
-    return _floats(path, ln, toks[1:n + 1], what)
+    return _floats(path, ln, toks[1 : n + 1], what)
 
 
 def _word(path: Path, ln: int, toks: list[str], what: str) -> str:
     if len(toks) < 2:
-        raise FormatError(path, f"{what} without a value; expected '{toks[0]} <value>'",
-                          line=ln)
+        raise FormatError(path, f"{what} without a value; expected '{toks[0]} <value>'", line=ln)
     return toks[1]
 
 
@@ -75,8 +81,12 @@ def _axis_order(path: Path, ln: int, order: str, n: int, what: str) -> str:
     """Axis letters of an ``axis`` line: ``n`` distinct letters out of X, Y, Z."""
     o = order.upper()
     if len(o) != n or any(c not in "XYZ" for c in o) or len(set(o)) != len(o):
-        raise FormatError(path, f"{what} axis order {order!r} for {n} angle(s); expected "
-                                f"{n} distinct letters of X, Y, Z (e.g. 'XYZ')", line=ln)
+        raise FormatError(
+            path,
+            f"{what} axis order {order!r} for {n} angle(s); expected "
+            f"{n} distinct letters of X, Y, Z (e.g. 'XYZ')",
+            line=ln,
+        )
     return o
 
 
@@ -87,8 +97,12 @@ def read_asf(path: str | os.PathLike[str]) -> dict:
     if not lines:
         raise FormatError(p, "file is empty; expected an ASF skeleton", line=1)
     units = {"length": 1.0, "angle": "deg", "mass": 1.0}
-    root = {"order": ["TX", "TY", "TZ", "RX", "RY", "RZ"], "axis": "XYZ",
-            "position": [0.0, 0.0, 0.0], "orientation": [0.0, 0.0, 0.0]}
+    root = {
+        "order": ["TX", "TY", "TZ", "RX", "RY", "RZ"],
+        "axis": "XYZ",
+        "position": [0.0, 0.0, 0.0],
+        "orientation": [0.0, 0.0, 0.0],
+    }
     bones: dict[str, dict] = {}
     bone_order: list[str] = []
     hierarchy: list[tuple[str, list[str], int]] = []
@@ -104,20 +118,26 @@ def read_asf(path: str | os.PathLike[str]) -> dict:
             if key in ("length", "mass"):
                 units[key] = _numbers(p, ln, toks, 1, key)[0]
                 if units[key] <= 0:
-                    raise FormatError(p, f"units {key} {units[key]}; expected a positive "
-                                         "number", line=ln)
+                    raise FormatError(
+                        p, f"units {key} {units[key]}; expected a positive number", line=ln
+                    )
             elif key == "angle":
                 units["angle"] = _word(p, ln, toks, "units angle").lower()
                 if not units["angle"].startswith(("deg", "rad")):
-                    raise FormatError(p, f"units angle {toks[1]!r}; expected 'deg' or 'rad'",
-                                      line=ln)
+                    raise FormatError(
+                        p, f"units angle {toks[1]!r}; expected 'deg' or 'rad'", line=ln
+                    )
         elif section == "root":
             if key == "order":
                 order = [t.upper() for t in toks[1:]]
                 legal = ("TX", "TY", "TZ", "RX", "RY", "RZ")
                 if any(t not in legal for t in order) or len(set(order)) != len(order):
-                    raise FormatError(p, f"root order {' '.join(toks[1:])!r}; expected "
-                                         "distinct channels of TX TY TZ RX RY RZ", line=ln)
+                    raise FormatError(
+                        p,
+                        f"root order {' '.join(toks[1:])!r}; expected "
+                        "distinct channels of TX TY TZ RX RY RZ",
+                        line=ln,
+                    )
                 root["order"] = order
             elif key == "axis":
                 root["axis"] = _axis_order(p, ln, _word(p, ln, toks, "root axis"), 3, "root")
@@ -125,8 +145,14 @@ def read_asf(path: str | os.PathLike[str]) -> dict:
                 root[key] = _numbers(p, ln, toks, 3, f"root {key}")
         elif section == "bonedata":
             if key == "begin":
-                cur = {"dof": [], "axis": [0.0, 0.0, 0.0], "axis_order": "XYZ",
-                       "direction": [0.0, 0.0, 0.0], "length": 0.0, "line": ln}
+                cur = {
+                    "dof": [],
+                    "axis": [0.0, 0.0, 0.0],
+                    "axis_order": "XYZ",
+                    "direction": [0.0, 0.0, 0.0],
+                    "length": 0.0,
+                    "line": ln,
+                }
             elif key == "end":
                 if cur is None or "name" not in cur:
                     raise FormatError(p, "bone block without a name", line=ln)
@@ -140,22 +166,30 @@ def read_asf(path: str | os.PathLike[str]) -> dict:
             elif key == "name":
                 cur["name"] = _word(p, ln, toks, "bone name")
                 if cur["name"] in bones or cur["name"] == "root":
-                    raise FormatError(p, f"bone {cur['name']!r} defined twice; expected "
-                                         "unique bone names", line=ln)
+                    raise FormatError(
+                        p,
+                        f"bone {cur['name']!r} defined twice; expected unique bone names",
+                        line=ln,
+                    )
             elif key == "direction":
                 cur["direction"] = _numbers(p, ln, toks, 3, "direction")
             elif key == "length":
                 cur["length"] = _numbers(p, ln, toks, 1, "length")[0]
             elif key == "axis":
                 cur["axis"] = _numbers(p, ln, toks, 3, "axis")
-                cur["axis_order"] = _axis_order(p, ln, toks[4] if len(toks) > 4 else "XYZ", 3,
-                                                "bone")
+                cur["axis_order"] = _axis_order(
+                    p, ln, toks[4] if len(toks) > 4 else "XYZ", 3, "bone"
+                )
             elif key == "dof":
                 dof = [t.lower() for t in toks[1:]]
                 rots = [d for d in dof if d in _AXES]
                 if len(set(rots)) != len(rots):
-                    raise FormatError(p, f"dof {' '.join(toks[1:])!r} repeats a rotation; "
-                                         "expected each of rx ry rz at most once", line=ln)
+                    raise FormatError(
+                        p,
+                        f"dof {' '.join(toks[1:])!r} repeats a rotation; "
+                        "expected each of rx ry rz at most once",
+                        line=ln,
+                    )
                 cur["dof"] = dof
         elif section == "hierarchy":
             if key in ("begin", "end"):
@@ -165,30 +199,38 @@ def read_asf(path: str | os.PathLike[str]) -> dict:
         raise FormatError(p, "file ends inside a bone block (truncated?)", line=lines[-1][0])
     if not bones or not hierarchy:
         raise FormatError(p, "no :bonedata or :hierarchy; expected an ASF skeleton file")
-    return {"units": units, "root": root, "bones": bones, "order": bone_order,
-            "hierarchy": hierarchy, "path": p}
+    return {
+        "units": units,
+        "root": root,
+        "bones": bones,
+        "order": bone_order,
+        "hierarchy": hierarchy,
+        "path": p,
+    }
 
 
-def _rot(angles: list[float], axes: str, degrees: bool, path: Path | None = None,
-         line: int | None = None) -> np.ndarray:
+def _rot(
+    angles: list[float], axes: str, degrees: bool, path: Path | None = None, line: int | None = None
+) -> np.ndarray:
     """Rotation applying ``axes[0]`` first (fixed axes): BVH order = reversed string."""
     if len(angles) != len(axes):
-        raise FormatError(path, f"axis line holds {len(angles)} angle(s) for the {len(axes)} "
-                                f"axis letter(s) {axes!r}; expected one angle per letter",
-                          line=line)
+        raise FormatError(
+            path,
+            f"axis line holds {len(angles)} angle(s) for the {len(axes)} "
+            f"axis letter(s) {axes!r}; expected one angle per letter",
+            line=line,
+        )
     if not axes:
         return tf.quat_identity()
     vals = list(angles)[::-1]
     order = axes[::-1]
     q = tf.quat_identity()
     for a, v in zip(order, vals, strict=True):
-        q = tf.quat_multiply(q, tf.quat_from_axis_angle(a.lower(), np.radians(v) if degrees
-                                                       else v))
+        q = tf.quat_multiply(q, tf.quat_from_axis_angle(a.lower(), np.radians(v) if degrees else v))
     return q
 
 
-def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0,
-             strict: bool = False):
+def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0, strict: bool = False):
     """Read AMC frames against a parsed ASF (:func:`read_asf`) into a Motion.
 
     A last frame that lists only some bones (a file cut off while writing) is dropped with a
@@ -205,8 +247,12 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0,
     kids: dict[str, list[str]] = {}
     for par, ch, ln in asf["hierarchy"]:
         if par != "root" and par not in asf["bones"]:
-            raise FormatError(asf["path"], f"hierarchy names unknown parent bone {par!r}; "
-                                           "expected 'root' or a bone of :bonedata", line=ln)
+            raise FormatError(
+                asf["path"],
+                f"hierarchy names unknown parent bone {par!r}; "
+                "expected 'root' or a bone of :bonedata",
+                line=ln,
+            )
         for c in ch:
             if c not in asf["bones"]:
                 raise FormatError(asf["path"], f"hierarchy names unknown bone {c!r}", line=ln)
@@ -218,8 +264,11 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0,
         for c in kids.get(names[i], []):
             if c in names:
                 lns = [ln for par, ch, ln in asf["hierarchy"] if c in ch]
-                raise FormatError(asf["path"], f"bone {c!r} has two parents; expected a tree",
-                                  line=lns[-1] if lns else None)
+                raise FormatError(
+                    asf["path"],
+                    f"bone {c!r} has two parents; expected a tree",
+                    line=lns[-1] if lns else None,
+                )
             names.append(c)
             parent.append(i)
         i += 1
@@ -266,20 +315,30 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0,
             raise FormatError(p, f"unknown bone {name!r}; the ASF has no such bone", line=ln)
         vals = _floats(p, ln, toks[1:], name)
         if len(vals) != width[name]:
-            raise FormatError(p, f"bone {name} has {len(vals)} values; the ASF declares "
-                                 f"{width[name]} dof", line=ln)
+            raise FormatError(
+                p,
+                f"bone {name} has {len(vals)} values; the ASF declares {width[name]} dof",
+                line=ln,
+            )
         if name in frames[-1]:
-            raise FormatError(p, f"bone {name} listed twice in frame {len(frames)}; expected "
-                                 "one line per bone and frame", line=ln)
+            raise FormatError(
+                p,
+                f"bone {name} listed twice in frame {len(frames)}; expected "
+                "one line per bone and frame",
+                line=ln,
+            )
         frames[-1][name] = (ln, vals)
     if not frames:
         raise FormatError(p, "no frames; expected frame numbers followed by bone values")
     tolerated: dict = {}
     needed = [nm for j, nm in enumerate(names) if j == 0 or asf["bones"][nm]["dof"]]
     if not strict and len(frames) > 1 and any(nm not in frames[-1] for nm in needed):
-        tolerate(tolerated, f"{os.fspath(p)}: last frame (line {frame_line[-1]}) lists "
-                            f"{len(frames[-1])} of {len(needed)} bones; dropped it and read "
-                            f"{len(frames) - 1} frames (--strict refuses)")
+        tolerate(
+            tolerated,
+            f"{os.fspath(p)}: last frame (line {frame_line[-1]}) lists "
+            f"{len(frames[-1])} of {len(needed)} bones; dropped it and read "
+            f"{len(frames) - 1} frames (--strict refuses)",
+        )
         frames.pop()
         frame_line.pop()
     f = len(frames)
@@ -293,8 +352,12 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0,
             vals = np.array([fr[name][1] for fr in frames])
         except KeyError:
             bad = next(k for k, fr in enumerate(frames) if name not in fr)
-            raise FormatError(p, f"frame {bad + 1} lacks bone {name!r}; expected every frame to "
-                                 "list every bone with dof", line=frame_line[bad]) from None
+            raise FormatError(
+                p,
+                f"frame {bad + 1} lacks bone {name!r}; expected every frame to "
+                "list every bone with dof",
+                line=frame_line[bad],
+            ) from None
         if j == 0:
             order = root["order"]
             for a, ax in enumerate("XYZ"):
@@ -324,18 +387,28 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0,
     rot = tf.quat_continuous(rot, axis=0)
     chans = []
     for j in range(n):
-        axes = "".join(t[1] for t in root["order"] if t.startswith("R")) if j == 0 else \
-            "".join(_AXES[d] for d in dofs[j])
+        axes = (
+            "".join(t[1] for t in root["order"] if t.startswith("R"))
+            if j == 0
+            else "".join(_AXES[d] for d in dofs[j])
+        )
         full = axes[::-1] + "".join(x for x in "ZYX" if x not in axes)
         rc = tuple(f"{x}rotation" for x in full)
         chans.append(("Xposition", "Yposition", "Zposition") + rc if j == 0 else rc)
     try:
-        skel = JointSkeleton(names, parent, offset, rest_rotation=rest, channels=chans,
-                             end_site=end)
+        skel = JointSkeleton(
+            names, parent, offset, rest_rotation=rest, channels=chans, end_site=end
+        )
     except InputError as exc:
         raise FormatError(p, str(exc)) from None
-    meta = {"source": os.fspath(p), "format": "asf/amc", "units": "m",
-            "asf": os.fspath(asf["path"]), "euler_wraps_in_file": 0, **tolerated}
+    meta = {
+        "source": os.fspath(p),
+        "format": "asf/amc",
+        "units": "m",
+        "asf": os.fspath(asf["path"]),
+        "euler_wraps_in_file": 0,
+        **tolerated,
+    }
     skel, perm = reorder_joints(skel, dfs_preorder(skel.parent))  # BVH joint order
     mo = Motion(skel, rot[:, perm], root_pos, 1.0 / fps, None, meta)
     mo.meta["up_guess"] = guess_up_axis(mo)
@@ -349,8 +422,10 @@ def _sibling_amc(asf: Path) -> Path:
     found = sorted(asf.parent.glob(f"{asf.stem}_*.amc"))
     if found:
         return found[0]
-    raise FormatError(asf, f"no motion beside the skeleton: expected {cand.name} or "
-                           f"{asf.stem}_*.amc (or pass amc=)")
+    raise FormatError(
+        asf,
+        f"no motion beside the skeleton: expected {cand.name} or {asf.stem}_*.amc (or pass amc=)",
+    )
 
 
 def _sibling_asf(amc: Path) -> Path:
@@ -362,13 +437,20 @@ def _sibling_asf(amc: Path) -> Path:
         if "_" not in stem:
             break
         stem = stem.rsplit("_", 1)[0]
-    raise FormatError(amc, f"no skeleton beside the motion: expected {amc.stem}.asf or a "
-                           "shorter prefix .asf (or pass asf=)")
+    raise FormatError(
+        amc,
+        f"no skeleton beside the motion: expected {amc.stem}.asf or a "
+        "shorter prefix .asf (or pass asf=)",
+    )
 
 
-def read_motion(path: str | os.PathLike[str], amc: str | os.PathLike[str] | None = None,
-                asf: str | os.PathLike[str] | None = None, fps: float = 120.0,
-                strict: bool = False):
+def read_motion(
+    path: str | os.PathLike[str],
+    amc: str | os.PathLike[str] | None = None,
+    asf: str | os.PathLike[str] | None = None,
+    fps: float = 120.0,
+    strict: bool = False,
+):
     """Read ASF+AMC into a :class:`biomorph.motion.Motion` given either file (``strict``: see
     :func:`read_amc`)."""
     p = Path(path)

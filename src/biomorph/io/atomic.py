@@ -72,12 +72,17 @@ def atomic_path(path: str | os.PathLike[str], suffix: str | None = None) -> Iter
     """
     target = Path(path)
     if _PROTECTED and _key(target) in _PROTECTED:
-        raise InputError(f"{os.fspath(target)}: is an input of this command and would be "
-                         "overwritten; choose another output path or folder")
+        raise InputError(
+            f"{os.fspath(target)}: is an input of this command and would be "
+            "overwritten; choose another output path or folder"
+        )
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}{TMP_MARK}",
-                                   suffix=suffix or target.suffix or ".tmp", dir=target.parent)
+        fd, tmp = tempfile.mkstemp(
+            prefix=f".{target.name}{TMP_MARK}",
+            suffix=suffix or target.suffix or ".tmp",
+            dir=target.parent,
+        )
     except OSError as exc:
         raise _renamed(exc, Path(exc.filename or ""), target) from None
     os.close(fd)

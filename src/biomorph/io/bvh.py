@@ -47,8 +47,10 @@ from biomorph.errors import FormatError, InputError, ParameterError
 from biomorph.io._fixed import emit_fixed
 from biomorph.io.atomic import atomic_path
 
-_CHANNELS = {c.lower(): c for c in ("Xposition", "Yposition", "Zposition",
-                                    "Xrotation", "Yrotation", "Zrotation")}
+_CHANNELS = {
+    c.lower(): c
+    for c in ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
+}
 _TOKEN = re.compile(r"[{}]|[^\s{}]+")
 _DEFAULT_ROOT = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
 _DEFAULT_JOINT = ("Zrotation", "Xrotation", "Yrotation")
@@ -155,7 +157,7 @@ def _scan_floats(buf, start, out, n_per_line):  # pragma: no cover - compiled
         # powers of ten up to 1e22 are exact doubles: a table lookup gives the same value as
         # 10.0 ** k without a pow() call per number (most of the scan's time before)
         if exp10 > 0:
-            v = v * (pow10[exp10] if exp10 <= 22 else 10.0 ** exp10)
+            v = v * (pow10[exp10] if exp10 <= 22 else 10.0**exp10)
         elif exp10 < 0:
             if exp10 >= -22:
                 v = v / pow10[-exp10]
@@ -207,8 +209,9 @@ def _scan_floats_chunks(buf, bounds, out, n_per_line):  # pragma: no cover - com
         offs[i + 1] = offs[i] + counts[i]
     good = np.ones(nc, dtype=np.bool_)
     for i in prange(nc):
-        k, status, _e, bad_line, _b = _scan_floats(buf[:bounds[i + 1]], bounds[i],
-                                                   out[offs[i]:offs[i + 1]], n_per_line)
+        k, status, _e, bad_line, _b = _scan_floats(
+            buf[: bounds[i + 1]], bounds[i], out[offs[i] : offs[i + 1]], n_per_line
+        )
         good[i] = status == 0 and bad_line < 0 and k == counts[i]
     return good.all()
 
@@ -225,12 +228,13 @@ def _scan_floats_parallel(buf: np.ndarray, start: int, out: np.ndarray, n_per_li
         cuts = [start]
         for i in range(1, nc):
             pos = start + (size - start) * i // nc
-            nl = int(np.argmax(buf[pos:pos + (1 << 20)] == 10)) if pos < size else 0
+            nl = int(np.argmax(buf[pos : pos + (1 << 20)] == 10)) if pos < size else 0
             if pos < size and buf[pos + nl] == 10 and pos + nl + 1 > cuts[-1]:
                 cuts.append(pos + nl + 1)
         cuts.append(size)
-        if len(cuts) > 2 and _scan_floats_chunks(buf, np.asarray(cuts, dtype=np.int64), out,
-                                                 n_per_line):
+        if len(cuts) > 2 and _scan_floats_chunks(
+            buf, np.asarray(cuts, dtype=np.int64), out, n_per_line
+        ):
             return out.size, 0, -1, -1, 0
     return _scan_floats(buf, start, out, n_per_line)
 
@@ -290,8 +294,12 @@ def _euler_kernel(data, rot_cols, rot_axes, out):  # pragma: no cover - compiled
             for j in range(n):
                 x, y, z, w = _euler_quat(data, t, j, rot_cols, rot_axes, d2r)
                 if t > t0:
-                    dot = (x * out[t - 1, j, 0] + y * out[t - 1, j, 1]
-                           + z * out[t - 1, j, 2] + w * out[t - 1, j, 3])
+                    dot = (
+                        x * out[t - 1, j, 0]
+                        + y * out[t - 1, j, 1]
+                        + z * out[t - 1, j, 2]
+                        + w * out[t - 1, j, 3]
+                    )
                     if dot < 0:
                         x, y, z, w = -x, -y, -z, -w
                 out[t, j, 0] = x
@@ -304,10 +312,12 @@ def _euler_kernel(data, rot_cols, rot_axes, out):  # pragma: no cover - compiled
     for b in range(1, nb):
         t0 = b * ch
         for j in range(n):
-            dot = sign[b - 1, j] * (out[t0 - 1, j, 0] * out[t0, j, 0]
-                                    + out[t0 - 1, j, 1] * out[t0, j, 1]
-                                    + out[t0 - 1, j, 2] * out[t0, j, 2]
-                                    + out[t0 - 1, j, 3] * out[t0, j, 3])
+            dot = sign[b - 1, j] * (
+                out[t0 - 1, j, 0] * out[t0, j, 0]
+                + out[t0 - 1, j, 1] * out[t0, j, 1]
+                + out[t0 - 1, j, 2] * out[t0, j, 2]
+                + out[t0 - 1, j, 3] * out[t0, j, 3]
+            )
             sign[b, j] = -1.0 if dot < 0 else 1.0
     for b in prange(1, nb):
         t0 = b * ch
@@ -335,7 +345,7 @@ def _format_fixed(values, precision, out):  # pragma: no cover - compiled
     """Write ``values (f, c)`` as fixed-point text rows into byte buffer ``out``; return the
     number of bytes used (-1 if a value is too large)."""
     f, c = values.shape
-    scale = 10.0 ** precision
+    scale = 10.0**precision
     p10 = np.int64(1)
     for _ in range(precision):
         p10 *= 10
@@ -393,8 +403,9 @@ class _Tokens:
 
     def next(self, expect: str) -> tuple[str, int]:
         if self.i >= len(self.items):
-            raise FormatError(self.path, f"file ends inside HIERARCHY; expected {expect}",
-                              line=self.last_line)
+            raise FormatError(
+                self.path, f"file ends inside HIERARCHY; expected {expect}", line=self.last_line
+            )
         tok = self.items[self.i]
         self.i += 1
         return tok
@@ -420,8 +431,11 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
     toks = _Tokens(text, path)
     first = toks.next("HIERARCHY")
     if first[0].upper() != "HIERARCHY":
-        raise FormatError(path, f"file starts with {first[0]!r}; expected HIERARCHY (not a BVH "
-                                "file?)", line=first[1])
+        raise FormatError(
+            path,
+            f"file starts with {first[0]!r}; expected HIERARCHY (not a BVH file?)",
+            line=first[1],
+        )
     names: list[str] = []
     parent: list[int] = []
     offset: list[list[float]] = []
@@ -432,10 +446,17 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
         tok = toks.peek()
         if tok is None:
             if stack:
-                raise FormatError(path, f"file ends inside joint {names[_owner(stack)]!r}; "
-                                        "expected '}' and a MOTION section", line=toks.last_line)
-            raise FormatError(path, "no MOTION section; expected 'MOTION' after the hierarchy",
-                              line=toks.last_line)
+                raise FormatError(
+                    path,
+                    f"file ends inside joint {names[_owner(stack)]!r}; "
+                    "expected '}' and a MOTION section",
+                    line=toks.last_line,
+                )
+            raise FormatError(
+                path,
+                "no MOTION section; expected 'MOTION' after the hierarchy",
+                line=toks.last_line,
+            )
         word, ln = toks.next("a keyword")
         key = word.upper()
         if key in ("ROOT", "JOINT"):
@@ -448,12 +469,14 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
             if not name:
                 raise FormatError(path, f"{key} without a name; expected '{key} <name>'", line=ln)
             if name in names:
-                raise FormatError(path, f"joint name {name!r} occurs twice; expected unique names",
-                                  line=ln)
+                raise FormatError(
+                    path, f"joint name {name!r} occurs twice; expected unique names", line=ln
+                )
             brace, bl = toks.next("'{'")
             if brace != "{":
-                raise FormatError(path, f"found {brace!r} after {key} {name}; expected '{{'",
-                                  line=bl)
+                raise FormatError(
+                    path, f"found {brace!r} after {key} {name}; expected '{{'", line=bl
+                )
             names.append(name)
             parent.append(stack[-1] if stack else -1)
             offset.append([np.nan] * 3)
@@ -463,8 +486,9 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
             site, sl = toks.next("'Site'")
             brace, bl = toks.next("'{'")
             if site.upper() != "SITE" or brace != "{":
-                raise FormatError(path, f"malformed End Site ({site} {brace}); expected "
-                                        "'End Site {'", line=ln)
+                raise FormatError(
+                    path, f"malformed End Site ({site} {brace}); expected 'End Site {{'", line=ln
+                )
             if not stack or stack[-1] < 0:
                 raise FormatError(path, "End Site outside a joint", line=ln)
             stack.append(-2 - stack[-1])  # encode owner joint
@@ -484,8 +508,9 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
             try:
                 cnt = int(cnt_tok)
             except ValueError:
-                raise FormatError(path, f"channel count {cnt_tok!r} is not an integer",
-                                  line=cl) from None
+                raise FormatError(
+                    path, f"channel count {cnt_tok!r} is not an integer", line=cl
+                ) from None
             if not 0 <= cnt <= 6:
                 raise FormatError(path, f"CHANNELS {cnt}; expected 0 to 6 channels", line=cl)
             chans = []
@@ -493,9 +518,13 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
                 c, cl2 = toks.next("a channel name")
                 canon = _CHANNELS.get(c.lower())
                 if canon is None:
-                    raise FormatError(path, f"channel {c!r} unknown (or fewer channels than "
-                                            f"CHANNELS {cnt} announces); expected "
-                                            "Xposition..Zrotation", line=cl2)
+                    raise FormatError(
+                        path,
+                        f"channel {c!r} unknown (or fewer channels than "
+                        f"CHANNELS {cnt} announces); expected "
+                        "Xposition..Zrotation",
+                        line=cl2,
+                    )
                 if canon in chans:
                     raise FormatError(path, f"channel {canon} listed twice", line=cl2)
                 chans.append(canon)
@@ -508,12 +537,19 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
                 raise FormatError(path, f"joint {names[top]!r} has no OFFSET", line=ln)
         elif key == "MOTION":
             if stack:
-                raise FormatError(path, f"MOTION inside joint {names[_owner(stack)]!r}; a '}}' is "
-                                        "missing", line=ln)
+                raise FormatError(
+                    path,
+                    f"MOTION inside joint {names[_owner(stack)]!r}; a '}}' is missing",
+                    line=ln,
+                )
             break
         else:
-            raise FormatError(path, f"unexpected {word!r} in HIERARCHY; expected ROOT, JOINT, "
-                                    "End Site, OFFSET, CHANNELS, '}' or MOTION", line=ln)
+            raise FormatError(
+                path,
+                f"unexpected {word!r} in HIERARCHY; expected ROOT, JOINT, "
+                "End Site, OFFSET, CHANNELS, '}' or MOTION",
+                line=ln,
+            )
     if not names:
         raise FormatError(path, "no ROOT joint in HIERARCHY", line=1)
     end = np.full((len(names), 3), np.nan)
@@ -545,8 +581,20 @@ def _complete_rows(buf: np.ndarray, data_start: int, n_ch: int) -> tuple[int, in
     return head // n_ch, end, True
 
 
-def _parse_motion(path, raw, buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols,
-                  offset, strict=True, meta=None):
+def _parse_motion(
+    path,
+    raw,
+    buf,
+    data_start,
+    n_frames,
+    n_ch,
+    rot_cols,
+    rot_axes,
+    pos_cols,
+    offset,
+    strict=True,
+    meta=None,
+):
     """The MOTION section in one piece (exact diagnostics): values, then rotations, root
     positions, joint translations and the Euler wrap count.
 
@@ -560,46 +608,82 @@ def _parse_motion(path, raw, buf, data_start, n_frames, n_ch, rot_cols, rot_axes
         if rows >= 1 and (rows != n_frames or partial):
             from biomorph.core.motion import tolerate
 
-            got = _parse_motion(path, raw[:end], buf[:end], data_start, rows, n_ch, rot_cols,
-                                rot_axes, pos_cols, offset)
+            got = _parse_motion(
+                path,
+                raw[:end],
+                buf[:end],
+                data_start,
+                rows,
+                n_ch,
+                rot_cols,
+                rot_axes,
+                pos_cols,
+                offset,
+            )
             what = f"'Frames: {n_frames}' but {rows} complete data rows"
             if partial:
                 what += f"; the cut-off last line (line {_line_of(raw, end)}) was dropped"
-            tolerate(meta if meta is not None else {},
-                     f"{os.fspath(path)}: {what}; read {rows} frames (--strict refuses)")
+            tolerate(
+                meta if meta is not None else {},
+                f"{os.fspath(path)}: {what}; read {rows} frames (--strict refuses)",
+            )
             return got
     out = _empty((n_frames * n_ch,))
-    count, status, err, bad_line, bad_count = _scan_floats_parallel(buf, data_start, out,
-                                                                    max(n_ch, 1))
+    count, status, err, bad_line, bad_count = _scan_floats_parallel(
+        buf, data_start, out, max(n_ch, 1)
+    )
     first_data_line = _line_of(raw, data_start)
     if status == 3:
-        tok = raw[err:err + 40].split()[0].decode(errors="replace")
-        raise FormatError(path, f"MOTION value {tok!r} overflows (frame {count // max(n_ch, 1)}, "
-                                f"channel {count % max(n_ch, 1)}); expected a finite number",
-                          line=_line_of(raw, err))
+        tok = raw[err : err + 40].split()[0].decode(errors="replace")
+        raise FormatError(
+            path,
+            f"MOTION value {tok!r} overflows (frame {count // max(n_ch, 1)}, "
+            f"channel {count % max(n_ch, 1)}); expected a finite number",
+            line=_line_of(raw, err),
+        )
     if status == 2:
-        tok = raw[err:err + 40].split()[0].decode(errors="replace")
-        raise FormatError(path, f"MOTION value {tok!r} is not a number (frame "
-                                f"{count // max(n_ch, 1)}, channel {count % max(n_ch, 1)})",
-                          line=_line_of(raw, err))
-    if (status == 0 and count < n_frames * n_ch and bad_line >= 0
-            and _line_of(raw, bad_line) == (last_line := _line_of(raw, len(raw.rstrip())))):
-        raise FormatError(path, f"file ends inside frame {count // n_ch} (its line holds "
-                                f"{bad_count} of {n_ch} values); 'Frames: {n_frames}' announces "
-                                f"{n_frames} frames (truncated file?)", line=last_line)
+        tok = raw[err : err + 40].split()[0].decode(errors="replace")
+        raise FormatError(
+            path,
+            f"MOTION value {tok!r} is not a number (frame "
+            f"{count // max(n_ch, 1)}, channel {count % max(n_ch, 1)})",
+            line=_line_of(raw, err),
+        )
+    if (
+        status == 0
+        and count < n_frames * n_ch
+        and bad_line >= 0
+        and _line_of(raw, bad_line) == (last_line := _line_of(raw, len(raw.rstrip())))
+    ):
+        raise FormatError(
+            path,
+            f"file ends inside frame {count // n_ch} (its line holds "
+            f"{bad_count} of {n_ch} values); 'Frames: {n_frames}' announces "
+            f"{n_frames} frames (truncated file?)",
+            line=last_line,
+        )
     if bad_line >= 0 and n_ch > 0:
         ln = _line_of(raw, bad_line)
-        raise FormatError(path, f"frame line holds {bad_count} values; expected {n_ch} "
-                                "(the CHANNELS of the hierarchy)", line=ln)
+        raise FormatError(
+            path,
+            f"frame line holds {bad_count} values; expected {n_ch} (the CHANNELS of the hierarchy)",
+            line=ln,
+        )
     if status == 1:
         ln = _line_of(raw, err)
-        raise FormatError(path, f"more data than 'Frames: {n_frames}' announces (frame line "
-                                f"{ln - first_data_line + 1}); expected {n_frames} frames",
-                          line=ln)
+        raise FormatError(
+            path,
+            f"more data than 'Frames: {n_frames}' announces (frame line "
+            f"{ln - first_data_line + 1}); expected {n_frames} frames",
+            line=ln,
+        )
     if count < n_frames * n_ch:
-        raise FormatError(path, f"file ends after {count // n_ch} complete frames; 'Frames: "
-                                f"{n_frames}' announces {n_frames} (truncated file?)",
-                          line=_line_of(raw, len(raw)))
+        raise FormatError(
+            path,
+            f"file ends after {count // n_ch} complete frames; 'Frames: "
+            f"{n_frames}' announces {n_frames} (truncated file?)",
+            line=_line_of(raw, len(raw)),
+        )
     conv = _MotionRows(n_frames, rot_cols, rot_axes, pos_cols, offset)
     conv.add(out.reshape(n_frames, n_ch))
     return conv.result()
@@ -612,13 +696,16 @@ class _MotionRows:
 
     def __init__(self, n_frames, rot_cols, rot_axes, pos_cols, offset):
         n = rot_cols.shape[0]
-        self.rot_cols, self.rot_axes, self.pos_cols, self.offset = (rot_cols, rot_axes,
-                                                                    pos_cols, offset)
+        self.rot_cols, self.rot_axes, self.pos_cols, self.offset = (
+            rot_cols,
+            rot_axes,
+            pos_cols,
+            offset,
+        )
         self.rotation = _empty((n_frames, n, 4))
         self.root_pos = np.empty((n_frames, 3))
         self.inner = [j for j in range(1, n) if (pos_cols[j] >= 0).any()]
-        self.translation = (np.broadcast_to(offset, (n_frames, n, 3)).copy() if self.inner
-                            else None)
+        self.translation = np.broadcast_to(offset, (n_frames, n, 3)).copy() if self.inner else None
         self.rc = rot_cols[rot_cols >= 0]
         self.t = 0
         self.wraps = 0
@@ -639,8 +726,9 @@ class _MotionRows:
         if self.rc.size:
             self.wraps += int(_count_wraps(vals, self.rc))
             if self.last is not None:
-                self.wraps += int(np.count_nonzero(np.abs(vals[0, self.rc]
-                                                          - self.last[self.rc]) > 180.0))
+                self.wraps += int(
+                    np.count_nonzero(np.abs(vals[0, self.rc] - self.last[self.rc]) > 180.0)
+                )
             self.last = vals[-1].copy()
         self.t = t1
 
@@ -651,7 +739,7 @@ class _MotionRows:
 
 
 _STREAM_MIN_BYTES = 64 << 20  #: MOTION sections with more values than this are streamed
-_STREAM_FRAMES = 16384         #: frames per streamed block
+_STREAM_FRAMES = 16384  #: frames per streamed block
 
 
 @njit(cache=True)
@@ -681,7 +769,7 @@ def _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols
     pos = data_start
     while conv.t < n_frames:
         t1 = min(conv.t + _STREAM_FRAMES, n_frames)
-        vals = block[:t1 - conv.t]
+        vals = block[: t1 - conv.t]
         flat = vals.reshape(-1)
         k, status, nxt, bad_line, _ = _scan_floats(buf, pos, flat, n_ch)
         if k != flat.size or bad_line >= 0 or status != (0 if t1 == n_frames else 1):
@@ -716,7 +804,7 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None, strict: bool =
         raw_text = raw.decode("utf-8", errors="replace")
         _parse_hierarchy(raw_text, path)  # raises the precise hierarchy error
         raise FormatError(path, "no MOTION section", line=_line_of(raw, len(raw)))
-    header = raw[:m.end()].decode("utf-8", errors="replace")
+    header = raw[: m.end()].decode("utf-8", errors="replace")
     names, parent, offset, channels, end = _parse_hierarchy(header, path)
     # Frames: / Frame Time:
     pos = m.end()
@@ -729,22 +817,32 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None, strict: bool =
     try:
         n_frames = int(m1.group(1))
     except ValueError:
-        raise FormatError(path, f"Frames: {m1.group(1).decode(errors='replace')!r} is not an "
-                                "integer", line=_line_of(raw, m1.start(1))) from None
+        raise FormatError(
+            path,
+            f"Frames: {m1.group(1).decode(errors='replace')!r} is not an integer",
+            line=_line_of(raw, m1.start(1)),
+        ) from None
     m2 = ft.match(raw, m1.end())
     if m2 is None:
-        raise FormatError(path, "missing 'Frame Time: <seconds>' after Frames:",
-                          line=_line_of(raw, m1.end()))
+        raise FormatError(
+            path, "missing 'Frame Time: <seconds>' after Frames:", line=_line_of(raw, m1.end())
+        )
     try:
         frame_time = float(m2.group(1))
     except ValueError:
         frame_time = float("nan")
     if not np.isfinite(frame_time) or frame_time <= 0:
-        raise FormatError(path, f"Frame Time {m2.group(1).decode(errors='replace')!r}; expected "
-                                "seconds per frame > 0", line=_line_of(raw, m2.start(1)))
+        raise FormatError(
+            path,
+            f"Frame Time {m2.group(1).decode(errors='replace')!r}; expected seconds per frame > 0",
+            line=_line_of(raw, m2.start(1)),
+        )
     if n_frames < 1:
-        raise FormatError(path, f"Frames: {n_frames}; expected at least one frame",
-                          line=_line_of(raw, m1.start(1)))
+        raise FormatError(
+            path,
+            f"Frames: {n_frames}; expected at least one frame",
+            line=_line_of(raw, m1.start(1)),
+        )
     n = len(names)
     n_ch = sum(len(c) for c in channels)
     rot_cols = np.full((n, 3), -1, dtype=np.int64)
@@ -772,27 +870,47 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None, strict: bool =
     can_stream = True
     if n_ch > 0 and n_frames > capacity:
         if strict or _complete_rows(buf, data_start, n_ch)[0] < 1:
-            raise FormatError(path, f"Frames: {n_frames} but the {len(raw) - data_start:,} "
-                                    f"bytes of MOTION data hold at most {capacity:,} frames of "
-                                    f"{n_ch} channels (corrupt header?)",
-                              line=_line_of(raw, m1.start(1)))
+            raise FormatError(
+                path,
+                f"Frames: {n_frames} but the {len(raw) - data_start:,} "
+                f"bytes of MOTION data hold at most {capacity:,} frames of "
+                f"{n_ch} channels (corrupt header?)",
+                line=_line_of(raw, m1.start(1)),
+            )
         can_stream = False
     if can_stream and n_frames * n_ch * 8 >= _STREAM_MIN_BYTES:
-        streamed = _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes,
-                                  pos_cols, offset)
+        streamed = _stream_motion(
+            buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols, offset
+        )
     tolerated: dict = {}
     if streamed is not None:
         rotation, root_pos, translation, wraps = streamed
     else:
         rotation, root_pos, translation, wraps = _parse_motion(
-            path, raw, buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols, offset,
-            strict, tolerated)
+            path,
+            raw,
+            buf,
+            data_start,
+            n_frames,
+            n_ch,
+            rot_cols,
+            rot_axes,
+            pos_cols,
+            offset,
+            strict,
+            tolerated,
+        )
     try:
         skel = JointSkeleton(names, parent, offset, channels=channels, end_site=end)
     except InputError as exc:
         raise FormatError(path, str(exc)) from None
-    meta = {"source": os.fspath(path), "format": "bvh", "units": "file units",
-            "euler_wraps_in_file": wraps, **tolerated}
+    meta = {
+        "source": os.fspath(path),
+        "format": "bvh",
+        "units": "file units",
+        "euler_wraps_in_file": wraps,
+        **tolerated,
+    }
     for arr in (rotation, root_pos, translation):  # fresh arrays: hand them over, no copy
         if arr is not None:
             arr.setflags(write=False)
@@ -822,8 +940,9 @@ def _fmt(v: float, precision: int) -> str:
     return s[1:] if s.startswith("-") and float(s) == 0 else s
 
 
-def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int = 6,
-              euler: str = "wrap") -> Path:
+def write_bvh(
+    path: str | os.PathLike[str], motion_or_skeleton, precision: int = 6, euler: str = "wrap"
+) -> Path:
     """Write a Motion (or a JointSkeleton as a one-frame rest pose) as BVH; atomic.
 
     Rotations are written as Euler angles (degrees) in each joint's channel order, composed
@@ -843,8 +962,10 @@ def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int =
     elif isinstance(motion_or_skeleton, Motion):
         mo = motion_or_skeleton
     else:
-        raise ParameterError(f"cannot write {type(motion_or_skeleton).__name__} as BVH; "
-                             "expected a Motion or a JointSkeleton")
+        raise ParameterError(
+            f"cannot write {type(motion_or_skeleton).__name__} as BVH; "
+            "expected a Motion or a JointSkeleton"
+        )
     sk = mo.skeleton
     n = sk.n_joints
     if sk.channels is not None:
@@ -869,8 +990,7 @@ def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int =
             with warnings.catch_warnings():  # gimbal lock: scipy picks a valid solution
                 warnings.simplefilter("ignore", UserWarning)
                 e = tf.quat_to_euler(q, order)
-            euler = np.degrees(tf.unwrap_euler(e, axis=0) if euler_mode == "continuous"
-                               else e)
+            euler = np.degrees(tf.unwrap_euler(e, axis=0) if euler_mode == "continuous" else e)
         for c in chans[j]:
             a = "XYZ".index(c[0])
             if c.endswith("rotation"):
@@ -894,15 +1014,15 @@ def write_bvh(path: str | os.PathLike[str], motion_or_skeleton, precision: int =
         lines.append(f"{ind}{{")
         off = sk.offset[j]
         lines.append(f"{ind}\tOFFSET " + " ".join(_fmt(v, precision) for v in off))
-        lines.append(f"{ind}\tCHANNELS {len(chans[j])}" +
-                     ("" if not chans[j] else " " + " ".join(chans[j])))
+        lines.append(
+            f"{ind}\tCHANNELS {len(chans[j])}" + ("" if not chans[j] else " " + " ".join(chans[j]))
+        )
         for k in kids[j]:
             emit(k, depth + 1)
         if not kids[j] and np.all(np.isfinite(sk.end_site[j])):
             lines.append(f"{ind}\tEnd Site")
             lines.append(f"{ind}\t{{")
-            lines.append(f"{ind}\t\tOFFSET " + " ".join(_fmt(v, precision)
-                                                        for v in sk.end_site[j]))
+            lines.append(f"{ind}\t\tOFFSET " + " ".join(_fmt(v, precision) for v in sk.end_site[j]))
             lines.append(f"{ind}\t}}")
         lines.append(f"{ind}}}")
 

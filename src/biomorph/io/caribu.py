@@ -33,13 +33,16 @@ PathLike = str | os.PathLike[str]
 _LIMITS = {"plant": 99999, "leaf": 999, "element": 999}
 
 
-def encode_labels(optical: np.ndarray, plant: np.ndarray, leaf: np.ndarray,
-                  element: np.ndarray) -> np.ndarray:
+def encode_labels(
+    optical: np.ndarray, plant: np.ndarray, leaf: np.ndarray, element: np.ndarray
+) -> np.ndarray:
     """Canestra labels (strings) from id arrays; raises if an id does not fit its digits."""
     for name, arr in (("plant", plant), ("leaf", leaf), ("element", element)):
         if arr.size and (arr.min() < 0 or arr.max() > _LIMITS[name]):
-            raise ParameterError(f"CARIBU {name} ids must lie in 0..{_LIMITS[name]}; got "
-                                 f"{int(arr.min())}..{int(arr.max())}")
+            raise ParameterError(
+                f"CARIBU {name} ids must lie in 0..{_LIMITS[name]}; got "
+                f"{int(arr.min())}..{int(arr.max())}"
+            )
     if optical.size and optical.min() < 1:
         raise ParameterError(f"CARIBU optical ids must be >= 1; got {int(optical.min())}")
     code = ((optical.astype(np.int64) * 100000 + plant) * 1000 + leaf) * 1000 + element
@@ -57,8 +60,10 @@ def write_can(path: PathLike, mesh: Any, scale: float = 1.0, precision: int = 6)
     """Write ``mesh`` as a Canestra ``.can`` scene (atomically)."""
     m = Mesh.from_any(mesh)
     f = m.n_faces
-    ids = {k: np.asarray(m.face_ids.get(k, np.zeros(f, np.int64)), np.int64)
-           for k in ("plant", "leaf", "element")}
+    ids = {
+        k: np.asarray(m.face_ids.get(k, np.zeros(f, np.int64)), np.int64)
+        for k in ("plant", "leaf", "element")
+    }
     optical = np.asarray(m.face_ids.get("optical", np.ones(f, np.int64)), np.int64)
     labels = encode_labels(optical, ids["plant"], ids["leaf"], ids["element"])
     tri = (np.asarray(m.vertices)[np.asarray(m.faces)] * scale).reshape(f, 9)
@@ -92,8 +97,12 @@ def read_can(path: PathLike, scale: float = 1.0) -> Mesh:
         except ValueError as exc:
             raise FormatError(p, f"bad primitive: {exc}", line=i) from None
         if n != 3 or len(vals) != 9:
-            raise FormatError(p, f"expected a triangle (3 points, 9 numbers); got {n} points "
-                                 f"and {len(vals)} numbers", line=i)
+            raise FormatError(
+                p,
+                f"expected a triangle (3 points, 9 numbers); got {n} points "
+                f"and {len(vals)} numbers",
+                line=i,
+            )
         tris.append(vals)
         labels.append(lab)
     if not tris:
@@ -101,8 +110,16 @@ def read_can(path: PathLike, scale: float = 1.0) -> Mesh:
     arr = np.array(tris, float).reshape(-1, 3) / scale
     lab = np.array(labels, np.int64).reshape(-1, 4)
     faces = np.arange(arr.shape[0]).reshape(-1, 3)
-    return Mesh(arr, faces, face_ids={"optical": lab[:, 0], "plant": lab[:, 1],
-                                      "leaf": lab[:, 2], "element": lab[:, 3]})
+    return Mesh(
+        arr,
+        faces,
+        face_ids={
+            "optical": lab[:, 0],
+            "plant": lab[:, 1],
+            "leaf": lab[:, 2],
+            "element": lab[:, 3],
+        },
+    )
 
 
 __all__ = ["decode_label", "encode_labels", "read_can", "write_can"]

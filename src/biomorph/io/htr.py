@@ -39,8 +39,16 @@ from biomorph.core import transforms as tf
 from biomorph.core.skeleton import JointSkeleton
 from biomorph.errors import FormatError, InputError
 
-UNITS = {"mm": 0.001, "millimeters": 0.001, "cm": 0.01, "centimeters": 0.01, "m": 1.0,
-         "meters": 1.0, "in": 0.0254, "inches": 0.0254}
+UNITS = {
+    "mm": 0.001,
+    "millimeters": 0.001,
+    "cm": 0.01,
+    "centimeters": 0.01,
+    "m": 1.0,
+    "meters": 1.0,
+    "in": 0.0254,
+    "inches": 0.0254,
+}
 
 
 def _sections(path: str | os.PathLike[str]) -> dict[str, list[tuple[int, list[str]]]]:
@@ -61,12 +69,12 @@ def _sections(path: str | os.PathLike[str]) -> dict[str, list[tuple[int, list[st
             secs[cur] = []
             continue
         if cur is None:
-            raise FormatError(path, f"data {line[:30]!r} before the first [section]; expected "
-                                    "[Header]", line=ln)
+            raise FormatError(
+                path, f"data {line[:30]!r} before the first [section]; expected [Header]", line=ln
+            )
         secs[cur].append((ln, line.split()))
     if not secs:
-        raise FormatError(path, "file is empty or has no [sections]; expected an HTR file",
-                          line=1)
+        raise FormatError(path, "file is empty or has no [sections]; expected an HTR file", line=1)
     return secs
 
 
@@ -83,8 +91,11 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False, strict: 
     secs = _sections(path)
     for need in ("Header", "SegmentNames&Hierarchy", "BasePosition"):
         if need not in secs:
-            raise FormatError(path, f"missing section [{need}]; expected an HTR file with "
-                                    "[Header], [SegmentNames&Hierarchy], [BasePosition]")
+            raise FormatError(
+                path,
+                f"missing section [{need}]; expected an HTR file with "
+                "[Header], [SegmentNames&Hierarchy], [BasePosition]",
+            )
     header: dict[str, str] = {}
     for ln, toks in secs["Header"]:
         if len(toks) < 2:
@@ -105,34 +116,39 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False, strict: 
     n_frames = num("NumFrames", int)
     rate = num("DataFrameRate", float)
     if not math.isfinite(rate) or rate <= 0 or n_frames < 1:
-        raise FormatError(path, f"DataFrameRate {rate} / NumFrames {n_frames}; expected "
-                                "positive values")
+        raise FormatError(
+            path, f"DataFrameRate {rate} / NumFrames {n_frames}; expected positive values"
+        )
     order = header.get("eulerrotationorder", "ZYX").upper()
     if order not in tf.EULER_ORDERS:
-        raise FormatError(path, f"EulerRotationOrder {order!r}; expected one of "
-                                f"{' '.join(tf.EULER_ORDERS)}")
+        raise FormatError(
+            path, f"EulerRotationOrder {order!r}; expected one of {' '.join(tf.EULER_ORDERS)}"
+        )
     bvh_order = order[::-1] if reverse_order else order
     unit_name = header.get("calibrationunits", "mm").lower()
     scale = UNITS.get(unit_name, 1.0) * num("ScaleFactor", float, 1.0)
     if not math.isfinite(scale) or scale <= 0:
-        raise FormatError(path, f"ScaleFactor {header.get('scalefactor')!r}; expected a positive "
-                                "finite number")
+        raise FormatError(
+            path, f"ScaleFactor {header.get('scalefactor')!r}; expected a positive finite number"
+        )
     degrees = header.get("rotationunits", "degrees").lower().startswith("deg")
     # hierarchy
     parent_name: dict[str, str] = {}
     order_names: list[str] = []
     for ln, toks in secs["SegmentNames&Hierarchy"]:
         if len(toks) != 2:
-            raise FormatError(path, f"hierarchy line has {len(toks)} fields; expected 'child "
-                                    "parent'", line=ln)
+            raise FormatError(
+                path, f"hierarchy line has {len(toks)} fields; expected 'child parent'", line=ln
+            )
         child, par = toks
         if child in parent_name:
             raise FormatError(path, f"segment {child!r} listed twice", line=ln)
         parent_name[child] = par
         order_names.append(child)
     if len(order_names) != n_seg:
-        raise FormatError(path, f"NumSegments {n_seg} but {len(order_names)} segments in "
-                                "[SegmentNames&Hierarchy]")
+        raise FormatError(
+            path, f"NumSegments {n_seg} but {len(order_names)} segments in [SegmentNames&Hierarchy]"
+        )
     for child, par in parent_name.items():
         if par.upper() != "GLOBAL" and par not in parent_name:
             raise FormatError(path, f"segment {child!r} has unknown parent {par!r}")
@@ -157,39 +173,53 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False, strict: 
     base = np.full((len(names), 7), np.nan)
     for ln, toks in secs["BasePosition"]:
         if len(toks) < 7:
-            raise FormatError(path, f"[BasePosition] line has {len(toks)} fields; expected name "
-                                    "Tx Ty Tz Rx Ry Rz [BoneLength]", line=ln)
+            raise FormatError(
+                path,
+                f"[BasePosition] line has {len(toks)} fields; expected name "
+                "Tx Ty Tz Rx Ry Rz [BoneLength]",
+                line=ln,
+            )
         if toks[0] not in idx:
             raise FormatError(path, f"[BasePosition] names unknown segment {toks[0]!r}", line=ln)
         try:
             vals = [float(v) for v in toks[1:8]]
         except ValueError:
-            raise FormatError(path, f"[BasePosition] {toks[0]}: non-numeric value", line=ln
-                              ) from None
+            raise FormatError(
+                path, f"[BasePosition] {toks[0]}: non-numeric value", line=ln
+            ) from None
         if not all(math.isfinite(v) for v in vals):
-            raise FormatError(path, f"[BasePosition] {toks[0]}: non-finite value; expected "
-                                    "finite numbers", line=ln)
-        base[idx[toks[0]], :len(vals)] = vals
+            raise FormatError(
+                path,
+                f"[BasePosition] {toks[0]}: non-finite value; expected finite numbers",
+                line=ln,
+            )
+        base[idx[toks[0]], : len(vals)] = vals
     missing = [names[i] for i in range(len(names)) if np.isnan(base[i, 0])]
     if missing:
         raise FormatError(path, f"[BasePosition] lacks segment {missing[0]!r}")
     # frames (counts checked before allocating: a damaged NumFrames must not allocate)
     counts = {s: len(secs[s]) for s in names if s in secs}
-    if not strict and counts and min(counts.values()) >= 1 and (
-            set(counts.values()) != {n_frames}):
+    if not strict and counts and min(counts.values()) >= 1 and (set(counts.values()) != {n_frames}):
         have = min(counts.values())
         odd = next(s for s in names if counts.get(s) != n_frames)
-        tolerate(tolerated, f"{os.fspath(path)}: NumFrames {n_frames} but segment [{odd}] has "
-                            f"{counts[odd]} frames; read the {have} frames every segment has "
-                            "(--strict refuses)")
+        tolerate(
+            tolerated,
+            f"{os.fspath(path)}: NumFrames {n_frames} but segment [{odd}] has "
+            f"{counts[odd]} frames; read the {have} frames every segment has "
+            "(--strict refuses)",
+        )
         n_frames = have
         secs = {k: (v[:have] if k in counts else v) for k, v in secs.items()}
     for s in names:
         rows = secs.get(s)
         if rows is not None and len(rows) != n_frames:
             ln = rows[-1][0] if rows else None
-            raise FormatError(path, f"segment [{s}] has {len(rows)} frames; NumFrames says "
-                                    f"{n_frames} (truncated file?)", line=ln)
+            raise FormatError(
+                path,
+                f"segment [{s}] has {len(rows)} frames; NumFrames says "
+                f"{n_frames} (truncated file?)",
+                line=ln,
+            )
     n = len(names)
     tr = np.zeros((n_frames, n, 3))
     rot = np.zeros((n_frames, n, 3))
@@ -200,29 +230,39 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False, strict: 
         rows = secs[s]
         if len(rows) != n_frames:
             ln = rows[-1][0] if rows else None
-            raise FormatError(path, f"segment [{s}] has {len(rows)} frames; NumFrames says "
-                                    f"{n_frames} (truncated file?)", line=ln)
+            raise FormatError(
+                path,
+                f"segment [{s}] has {len(rows)} frames; NumFrames says "
+                f"{n_frames} (truncated file?)",
+                line=ln,
+            )
         try:
             block = np.array([r[1:8] for _, r in rows], dtype=float)
         except ValueError:
             for ln, r in rows:
                 if len(r) < 7:
-                    raise FormatError(path, f"[{s}] row has {len(r)} fields; expected frame "
-                                            "Tx Ty Tz Rx Ry Rz [SF]", line=ln) from None
+                    raise FormatError(
+                        path,
+                        f"[{s}] row has {len(r)} fields; expected frame Tx Ty Tz Rx Ry Rz [SF]",
+                        line=ln,
+                    ) from None
                 for tok in r:
                     try:
                         float(tok)
                     except ValueError:
-                        raise FormatError(path, f"[{s}] value {tok!r} is not a number",
-                                          line=ln) from None
+                        raise FormatError(
+                            path, f"[{s}] value {tok!r} is not a number", line=ln
+                        ) from None
             raise FormatError(path, f"[{s}] rows have different field counts") from None
         if not np.isfinite(block).all():
             r = int(np.argwhere(~np.isfinite(block))[0][0])
-            raise FormatError(path, f"[{s}] non-finite value; expected finite numbers",
-                              line=rows[r][0])
+            raise FormatError(
+                path, f"[{s}] non-finite value; expected finite numbers", line=rows[r][0]
+            )
         if block.shape[1] < 6:
-            raise FormatError(path, f"[{s}] rows have {block.shape[1] + 1} fields; expected 8",
-                              line=rows[0][0])
+            raise FormatError(
+                path, f"[{s}] rows have {block.shape[1] + 1} fields; expected 8", line=rows[0][0]
+            )
         j = idx[s]
         tr[:, j] = block[:, 0:3]
         rot[:, j] = block[:, 3:6]
@@ -231,8 +271,10 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False, strict: 
     if "EndOfFile" not in secs:
         if strict:
             raise FormatError(path, "no [EndOfFile] marker (truncated file?)")
-        tolerate(tolerated, f"{os.fspath(path)}: no [EndOfFile] marker; read the frames present "
-                            "(--strict refuses)")
+        tolerate(
+            tolerated,
+            f"{os.fspath(path)}: no [EndOfFile] marker; read the frames present (--strict refuses)",
+        )
     ang = rot if degrees else np.degrees(rot)
     base_r = base[:, 3:6] if degrees else np.degrees(base[:, 3:6])
     cols = ["XYZ".index(a) for a in bvh_order]  # file columns are Rx Ry Rz
@@ -248,25 +290,37 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False, strict: 
             end[j] = 0.0
             end[j, bone_axis] = base[j, 6] * scale
     rot_ch = tuple(f"{a}rotation" for a in bvh_order)
-    chans = [(("Xposition", "Yposition", "Zposition") + rot_ch) if parent[j] < 0 or
-             np.any(tr[:, j] != 0) else rot_ch for j in range(n)]
+    chans = [
+        (("Xposition", "Yposition", "Zposition") + rot_ch)
+        if parent[j] < 0 or np.any(tr[:, j] != 0)
+        else rot_ch
+        for j in range(n)
+    ]
     try:
-        skel = JointSkeleton(names, parent, offset, rest_rotation=rest, channels=chans,
-                             end_site=end)
+        skel = JointSkeleton(
+            names, parent, offset, rest_rotation=rest, channels=chans, end_site=end
+        )
     except InputError as exc:
         raise FormatError(path, str(exc)) from None
     inner = np.any(tr[:, 1:] != 0)
-    meta = {"source": os.fspath(path), "format": "htr", "units": "m",
-            "htr_units": unit_name, "htr_order": order, "bvh_order": bvh_order,
-            "gravity_axis": header.get("globalaxisofgravity", "Y"),
-            "bone_scale_max_deviation": sf_dev, "euler_wraps_in_file":
-                int(np.count_nonzero(np.abs(np.diff(ang, axis=0)) > 180)), **tolerated}
+    meta = {
+        "source": os.fspath(path),
+        "format": "htr",
+        "units": "m",
+        "htr_units": unit_name,
+        "htr_order": order,
+        "bvh_order": bvh_order,
+        "gravity_axis": header.get("globalaxisofgravity", "Y"),
+        "bone_scale_max_deviation": sf_dev,
+        "euler_wraps_in_file": int(np.count_nonzero(np.abs(np.diff(ang, axis=0)) > 180)),
+        **tolerated,
+    }
     skel, perm = reorder_joints(skel, dfs_preorder(skel.parent))  # BVH joint order
     local_t = local_t[:, perm]
-    mo = Motion(skel, pose[:, perm], local_t[:, 0], 1.0 / rate, local_t if inner else None,
-                meta)
-    mo.meta["up_guess"] = meta["gravity_axis"].lower() if meta["gravity_axis"].lower() in "xyz" \
-        else guess_up_axis(mo)
+    mo = Motion(skel, pose[:, perm], local_t[:, 0], 1.0 / rate, local_t if inner else None, meta)
+    mo.meta["up_guess"] = (
+        meta["gravity_axis"].lower() if meta["gravity_axis"].lower() in "xyz" else guess_up_axis(mo)
+    )
     return mo
 
 

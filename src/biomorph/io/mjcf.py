@@ -26,8 +26,13 @@ def _vec(v) -> str:
     return " ".join(f"{float(x):.9g}" for x in np.ravel(v))
 
 
-def creature_to_mjcf(creature, name: str = "creature", rigid: bool = False,
-                     drop: float = 0.0, support_spheres: bool = False) -> str:
+def creature_to_mjcf(
+    creature,
+    name: str = "creature",
+    rigid: bool = False,
+    drop: float = 0.0,
+    support_spheres: bool = False,
+) -> str:
     """MJCF XML text; ``drop`` lifts the creature (m) above the floor.
 
     ``support_spheres`` (with ``rigid``) makes only small spheres at the corners of the
@@ -45,41 +50,68 @@ def creature_to_mjcf(creature, name: str = "creature", rigid: bool = False,
     ET.SubElement(default, "geom", friction="1.0 0.01 0.001", condim="3")
     world = ET.SubElement(root, "worldbody")
     size = max(creature.length, creature.height, 0.1) * 4
-    ET.SubElement(world, "geom", name="floor", type="plane", size=f"{size} {size} 0.1",
-                  zaxis="0 1 0", pos="0 0 0")
+    ET.SubElement(
+        world,
+        "geom",
+        name="floor",
+        type="plane",
+        size=f"{size} {size} 0.1",
+        zaxis="0 1 0",
+        pos="0 0 0",
+    )
     elems: dict[int, ET.Element] = {}
     for i in range(n):
         p = sk.parent[i]
         q = sk.rest_rotation[i]
         parent_el = world if p < 0 else elems[p]
         pos = sk.offset[i] + (np.array([0.0, drop, 0.0]) if p < 0 else 0.0)
-        b = ET.SubElement(parent_el, "body", name=sk.names[i], pos=_vec(pos),
-                          quat=_vec([q[3], q[0], q[1], q[2]]))
+        b = ET.SubElement(
+            parent_el, "body", name=sk.names[i], pos=_vec(pos), quat=_vec([q[3], q[0], q[1], q[2]])
+        )
         elems[i] = b
         w = creature.world[i]
         com_local = w[:3, :3].T @ (creature.mass_center[i] - w[:3, 3])
         I = np.maximum(inertia[i], 1e-10)
-        ET.SubElement(b, "inertial", pos=_vec(com_local),
-                      mass=f"{max(float(creature.mass[i]), 1e-6):.9g}", diaginertia=_vec(I))
+        ET.SubElement(
+            b,
+            "inertial",
+            pos=_vec(com_local),
+            mass=f"{max(float(creature.mass[i]), 1e-6):.9g}",
+            diaginertia=_vec(I),
+        )
         if p < 0:
             ET.SubElement(b, "freejoint", name=f"{sk.names[i]}_free")
         elif not rigid:
             for k, ax in enumerate(("1 0 0", "0 1 0", "0 0 1")):
                 lo, hi = sk.limits[i, k]
-                ET.SubElement(b, "joint", name=f"{sk.names[i]}_r{'xyz'[k]}", type="hinge",
-                              axis=ax, range=_vec([lo, hi]), damping="1")
+                ET.SubElement(
+                    b,
+                    "joint",
+                    name=f"{sk.names[i]}_r{'xyz'[k]}",
+                    type="hinge",
+                    axis=ax,
+                    range=_vec([lo, hi]),
+                    damping="1",
+                )
         L = float(creature.bone_length[i])
         if L > 1e-9:
             half = np.maximum(creature.box_size[i] / 2, 1e-5)
             col = "0" if support_spheres else "1"
-            ET.SubElement(b, "geom", type="box", size=_vec(half), pos=_vec([0, L / 2, 0]),
-                          mass="0", contype=col, conaffinity=col)
+            ET.SubElement(
+                b,
+                "geom",
+                type="box",
+                size=_vec(half),
+                pos=_vec([0, L / 2, 0]),
+                mass="0",
+                contype=col,
+                conaffinity=col,
+            )
         if p < 0 and support_spheres and creature.balance is not None:
             r = 0.004 * max(creature.height, 0.01)
             for x, z in creature.balance.support:
                 local = w[:3, :3].T @ (np.array([x, r, z]) - w[:3, 3])
-                ET.SubElement(b, "geom", type="sphere", size=f"{r:.9g}", pos=_vec(local),
-                              mass="0")
+                ET.SubElement(b, "geom", type="sphere", size=f"{r:.9g}", pos=_vec(local), mass="0")
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="unicode")
 
@@ -99,10 +131,16 @@ def settle(creature, seconds: float = 2.0, max_tilt_deg: float = 20.0) -> dict:
     import mujoco
 
     if creature.balance is None or not creature.balance.support:
-        return {"upright": True, "tilt_deg": 0.0, "root_height_m": float(creature.skeleton.
-                offset[0, 1]), "seconds": 0.0, "note": "no ground contact"}
-    xml = creature_to_mjcf(creature, rigid=True, drop=0.001 * max(creature.height, 0.01),
-                           support_spheres=True)
+        return {
+            "upright": True,
+            "tilt_deg": 0.0,
+            "root_height_m": float(creature.skeleton.offset[0, 1]),
+            "seconds": 0.0,
+            "note": "no ground contact",
+        }
+    xml = creature_to_mjcf(
+        creature, rigid=True, drop=0.001 * max(creature.height, 0.01), support_spheres=True
+    )
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
@@ -113,5 +151,9 @@ def settle(creature, seconds: float = 2.0, max_tilt_deg: float = 20.0) -> dict:
     q1 = data.qpos[3:7]
     dot = abs(float(np.dot(q0, q1)) / (np.linalg.norm(q0) * np.linalg.norm(q1)))
     tilt = float(np.degrees(2 * np.arccos(min(dot, 1.0))))
-    return {"upright": bool(tilt <= max_tilt_deg), "tilt_deg": tilt,
-            "root_height_m": float(data.qpos[1]), "seconds": seconds}
+    return {
+        "upright": bool(tilt <= max_tilt_deg),
+        "tilt_deg": tilt,
+        "root_height_m": float(data.qpos[1]),
+        "seconds": seconds,
+    }

@@ -84,27 +84,34 @@ def read_graph(path: PathLike, missing_radius: str = "inherit") -> BranchGraph:
     while hdr_idx < len(lines) and not lines[hdr_idx].strip():
         hdr_idx += 1
     if hdr_idx >= len(lines) or not lines[hdr_idx].strip().startswith("ENTITY-CODE"):
-        raise _fail(path, "expected the 'ENTITY-CODE' header row after 'MTG :'",
-                    line=min(hdr_idx, len(lines)) + 1)
+        raise _fail(
+            path,
+            "expected the 'ENTITY-CODE' header row after 'MTG :'",
+            line=min(hdr_idx, len(lines)) + 1,
+        )
     header = lines[hdr_idx].rstrip("\r\n").split("\t")
     feat_cols = {name.strip(): j for j, name in enumerate(header) if j > 0 and name.strip()}
     if not feat_cols:
-        raise _fail(path, "header row names no features; expected XX YY ZZ [radius]",
-                    line=hdr_idx + 1)
+        raise _fail(
+            path, "header row names no features; expected XX YY ZZ [radius]", line=hdr_idx + 1
+        )
     first_feat = min(feat_cols.values())
     missing = [c for c in ("XX", "YY", "ZZ") if c not in feat_cols]
     if missing:
-        raise _fail(path, f"features {', '.join(missing)} missing; expected XX YY ZZ columns",
-                    line=hdr_idx + 1)
+        raise _fail(
+            path,
+            f"features {', '.join(missing)} missing; expected XX YY ZZ columns",
+            line=hdr_idx + 1,
+        )
 
     xx_col = feat_cols["XX"]
     r_col = feat_cols.get("radius", -1)
     skip_rows = missing_radius == "skip" and r_col >= 0
     # entity tables (python loop: MTG files are small; 10^5 rows parse in ~0.3 s)
     sym: list[str] = []
-    ent_parent: list[int] = []       # entity referred to by the step
+    ent_parent: list[int] = []  # entity referred to by the step
     ent_rel: list[str] = []
-    ent_complex: list[int] = []      # complex (for '/' steps): the decomposed entity
+    ent_complex: list[int] = []  # complex (for '/' steps): the decomposed entity
     feats: list[list[str]] = []
     ent_line: list[int] = []
     last_in_col: dict[int, int] = {}
@@ -113,32 +120,44 @@ def read_graph(path: PathLike, missing_radius: str = "inherit") -> BranchGraph:
         if not raw.strip() or raw.lstrip().startswith("#"):
             continue
         cells = raw.rstrip("\r\n").split("\t")
-        if skip_rows and len(cells) > xx_col and cells[xx_col].strip() and \
-                (len(cells) <= r_col or not cells[r_col].strip()):
+        if (
+            skip_rows
+            and len(cells) > xx_col
+            and cells[xx_col].strip()
+            and (len(cells) <= r_col or not cells[r_col].strip())
+        ):
             continue
         col = len(raw) - len(raw.lstrip("\t"))
         code = cells[col].strip() if col < len(cells) else ""
         if not code:
             raise _fail(path, "row has no entity code", line=k + 1)
         if col >= first_feat:
-            raise _fail(path, f"entity code in column {col}, past the first feature column "
-                              f"{first_feat}", line=k + 1)
+            raise _fail(
+                path,
+                f"entity code in column {col}, past the first feature column {first_feat}",
+                line=k + 1,
+            )
         pos = 0
         if code.startswith("^"):
             ref = last_in_col.get(col)
             if ref is None:
-                raise _fail(path, f"'{code}' continues column {col} but no entity is there yet",
-                            line=k + 1)
+                raise _fail(
+                    path, f"'{code}' continues column {col} but no entity is there yet", line=k + 1
+                )
             pos = 1
         else:
             ref = -1 if col == 0 else last_in_col.get(col - 1)
             if ref is None:
-                raise _fail(path, f"'{code}' refers to column {col - 1} but no entity is there",
-                            line=k + 1)
+                raise _fail(
+                    path, f"'{code}' refers to column {col - 1} but no entity is there", line=k + 1
+                )
         steps = _STEP.findall(code[pos:])
         if not steps or "".join(a + b + c for a, b, c in steps) != code[pos:]:
-            raise _fail(path, f"entity code {code!r} is malformed; expected e.g. '^<N', '+N', "
-                              "'/P1'", line=k + 1)
+            raise _fail(
+                path,
+                f"entity code {code!r} is malformed; expected e.g. '^<N', '+N', '/P1'",
+                line=k + 1,
+            )
         for rel, symbol, _idx in steps:
             sym.append(symbol)
             ent_parent.append(ref)
@@ -162,8 +181,9 @@ def read_graph(path: PathLike, missing_radius: str = "inherit") -> BranchGraph:
         try:
             return float(tok)
         except ValueError:
-            raise _fail(path, f"feature {name} holds {tok[:30]!r}; expected a number",
-                        line=line) from None
+            raise _fail(
+                path, f"feature {name} holds {tok[:30]!r}; expected a number", line=line
+            ) from None
 
     xyzr = np.full((n_ent, 4), np.nan)
     for e in range(n_ent):
@@ -174,14 +194,20 @@ def read_graph(path: PathLike, missing_radius: str = "inherit") -> BranchGraph:
     partial = has_xyz & ~np.isfinite(xyzr[:, :3]).all(axis=1)
     if partial.any():
         e = int(np.flatnonzero(partial)[0])
-        raise _fail(path, "node has only some of XX YY ZZ or a NaN/inf; expected all three "
-                          "finite", line=ent_line[e])
+        raise _fail(
+            path,
+            "node has only some of XX YY ZZ or a NaN/inf; expected all three finite",
+            line=ent_line[e],
+        )
     if not has_xyz.any():
         raise _fail(path, "no entity carries XX YY ZZ coordinates; expected skeleton nodes")
     bad_r = has_xyz & np.isinf(xyzr[:, 3])
     if bad_r.any():
-        raise _fail(path, "radius is inf; expected a finite number",
-                    line=ent_line[int(np.flatnonzero(bad_r)[0])])
+        raise _fail(
+            path,
+            "radius is inf; expected a finite number",
+            line=ent_line[int(np.flatnonzero(bad_r)[0])],
+        )
 
     # topology at node level
     node_of = np.full(n_ent, -1, dtype=np.int64)
@@ -210,8 +236,9 @@ def read_graph(path: PathLike, missing_radius: str = "inherit") -> BranchGraph:
             if pc >= 0 and pc in last_node_component:
                 parent[i] = last_node_component[pc]
         elif ref >= 0 and not has_xyz[ref]:
-            raise _fail(path, f"node refers by '{rel}' to an entity without coordinates",
-                        line=ent_line[e])
+            raise _fail(
+                path, f"node refers by '{rel}' to an entity without coordinates", line=ent_line[e]
+            )
         order[i] = ent_order[e]
         c = complex_of[e]
         if c >= 0:
@@ -224,8 +251,9 @@ def read_graph(path: PathLike, missing_radius: str = "inherit") -> BranchGraph:
         raise _fail(path, str(exc)) from None
 
 
-def _fill_missing_radius(parent: NDArray[np.int64], radius: NDArray[np.float64]
-                         ) -> NDArray[np.float64]:
+def _fill_missing_radius(
+    parent: NDArray[np.int64], radius: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Empty radius cells take the nearest ancestor's radius (roots: the smallest known)."""
     missing = np.isnan(radius)
     if not missing.any():
@@ -267,13 +295,12 @@ def write_graph(path: PathLike, graph: BranchGraph) -> Path:
     if not isinstance(graph, BranchGraph):
         graph = getattr(graph, "graph", graph)
     if not isinstance(graph, BranchGraph):
-        raise InputError(f"{os.fspath(path)}: expected a BranchGraph, got "
-                         f"{type(graph).__name__}")
+        raise InputError(f"{os.fspath(path)}: expected a BranchGraph, got {type(graph).__name__}")
     if graph.n_nodes == 0:
         raise InputError(f"{os.fspath(path)}: graph has no nodes; nothing to write")
     cont = _continuation_child(graph)
     indptr, indices = graph.children_csr
-    rows: list[tuple[int, str, int]] = []   # (column, code, node or -1)
+    rows: list[tuple[int, str, int]] = []  # (column, code, node or -1)
     for t, root in enumerate(graph.roots):
         rows.append((0, f"/P{t + 1}", -1))
         stack: list[tuple[int, int, str]] = [(int(root), 0, "^/N")]
@@ -283,17 +310,35 @@ def write_graph(path: PathLike, graph: BranchGraph) -> Path:
             c = int(cont[node])
             if c >= 0:
                 stack.append((c, col, "^<N"))
-            kids = indices[indptr[node]:indptr[node + 1]]
+            kids = indices[indptr[node] : indptr[node + 1]]
             for k in kids[::-1]:
                 if k != c:
                     stack.append((int(k), col + 1, "+N"))
     ncol = max(col for col, _, _ in rows) + 1
     feats = ["XX", "YY", "ZZ"] + (["radius"] if graph.radius is not None else [])
-    out = ["CODE :\tFORM-A", "", "CLASSES :", "SYMBOL\tSCALE\tDECOMPOSITION\tINDEXATION\t"
-           "DEFINITION", "$\t0\tFREE\tFREE\tIMPLICIT", "P\t1\tFREE\tFREE\tEXPLICIT",
-           "N\t2\tFREE\tFREE\tEXPLICIT", "", "DESCRIPTION :", "LEFT\tRIGHT\tRELTYPE\tMAX",
-           "P\tP\t<\t?", "P\tP\t+\t?", "N\tN\t<\t?", "N\tN\t+\t?", "", "FEATURES :",
-           "NAME\tTYPE"] + [f"{f}\tREAL" for f in feats] + ["", "MTG :"]
+    out = (
+        [
+            "CODE :\tFORM-A",
+            "",
+            "CLASSES :",
+            "SYMBOL\tSCALE\tDECOMPOSITION\tINDEXATION\tDEFINITION",
+            "$\t0\tFREE\tFREE\tIMPLICIT",
+            "P\t1\tFREE\tFREE\tEXPLICIT",
+            "N\t2\tFREE\tFREE\tEXPLICIT",
+            "",
+            "DESCRIPTION :",
+            "LEFT\tRIGHT\tRELTYPE\tMAX",
+            "P\tP\t<\t?",
+            "P\tP\t+\t?",
+            "N\tN\t<\t?",
+            "N\tN\t+\t?",
+            "",
+            "FEATURES :",
+            "NAME\tTYPE",
+        ]
+        + [f"{f}\tREAL" for f in feats]
+        + ["", "MTG :"]
+    )
     out.append("ENTITY-CODE" + "\t" * ncol + "\t".join(feats))
     pos = graph.position
     rad = graph.radius
@@ -309,9 +354,13 @@ def write_graph(path: PathLike, graph: BranchGraph) -> Path:
     return write_text(path, "\n".join(out) + "\n")
 
 
-def write_mtg(path: PathLike, classes: list[tuple[str, int]],
-              rows: list[tuple[int, str, dict[str, float]]], features: list[str],
-              relations: list[tuple[str, str, str]] | None = None) -> Path:
+def write_mtg(
+    path: PathLike,
+    classes: list[tuple[str, int]],
+    rows: list[tuple[int, str, dict[str, float]]],
+    features: list[str],
+    relations: list[tuple[str, str, str]] | None = None,
+) -> Path:
     """Write a multiscale MTG (FORM-A) from explicit entity rows.
 
     ``classes``: ``(symbol, scale)`` pairs (scale 0, the scene ``$``, is added);
@@ -324,13 +373,19 @@ def write_mtg(path: PathLike, classes: list[tuple[str, int]],
     if not rows:
         raise InputError(f"{os.fspath(path)}: no entities to write")
     ncol = max(col for col, _, _ in rows) + 1
-    out = ["CODE :\tFORM-A", "", "CLASSES :", "SYMBOL\tSCALE\tDECOMPOSITION\tINDEXATION\t"
-           "DEFINITION", "$\t0\tFREE\tFREE\tIMPLICIT"]
+    out = [
+        "CODE :\tFORM-A",
+        "",
+        "CLASSES :",
+        "SYMBOL\tSCALE\tDECOMPOSITION\tINDEXATION\tDEFINITION",
+        "$\t0\tFREE\tFREE\tIMPLICIT",
+    ]
     out += [f"{sym}\t{scale}\tFREE\tFREE\tEXPLICIT" for sym, scale in classes]
     out += ["", "DESCRIPTION :", "LEFT\tRIGHT\tRELTYPE\tMAX"]
     if relations is None:
-        relations = [(a, b, r) for a, sa in classes for b, sb in classes if sa == sb
-                     for r in ("<", "+")]
+        relations = [
+            (a, b, r) for a, sa in classes for b, sb in classes if sa == sb for r in ("<", "+")
+        ]
     out += [f"{a}\t{b}\t{r}\t?" for a, b, r in relations]
     out += ["", "FEATURES :", "NAME\tTYPE"] + [f"{f}\tREAL" for f in features] + ["", "MTG :"]
     out.append("ENTITY-CODE" + "\t" * ncol + "\t".join(features))

@@ -41,8 +41,11 @@ def read_points(path: PathLike) -> PointCloud:
         names = arr.dtype.names
         missing = [c for c in "xyz" if c not in names]
         if missing or arr.ndim != 1:
-            raise FormatError(path, f"structured array with fields {', '.join(names)} and shape "
-                                    f"{arr.shape}; expected 1-D with fields x, y, z")
+            raise FormatError(
+                path,
+                f"structured array with fields {', '.join(names)} and shape "
+                f"{arr.shape}; expected 1-D with fields x, y, z",
+            )
         try:
             xyz = np.stack([arr[c].astype(np.float64) for c in "xyz"], axis=1)
         except (TypeError, ValueError) as exc:
@@ -62,10 +65,14 @@ def read_points(path: PathLike) -> PointCloud:
         raise FormatError(path, "array holds no points; expected at least one row")
     bad = ~np.isfinite(xyz).all(axis=1)
     if bad.any():
-        raise FormatError(path, f"row {int(np.flatnonzero(bad)[0])} has a NaN or inf "
-                                "coordinate; expected finite numbers")
-    return PointCloud(np.ascontiguousarray(xyz), attrs, meta={"format": "npy"},
-                      source=os.fspath(path))
+        raise FormatError(
+            path,
+            f"row {int(np.flatnonzero(bad)[0])} has a NaN or inf "
+            "coordinate; expected finite numbers",
+        )
+    return PointCloud(
+        np.ascontiguousarray(xyz), attrs, meta={"format": "npy"}, source=os.fspath(path)
+    )
 
 
 def write_points(path: PathLike, cloud: PointCloud) -> Path:
@@ -82,8 +89,9 @@ def write_points(path: PathLike, cloud: PointCloud) -> Path:
         for k, v in cloud.attributes.items():
             a = np.asarray(v)
             if a.dtype.kind not in "biuf":
-                raise InputError(f"{os.fspath(path)}: attribute {k!r} has dtype {a.dtype}; "
-                                 "expected numbers")
+                raise InputError(
+                    f"{os.fspath(path)}: attribute {k!r} has dtype {a.dtype}; expected numbers"
+                )
             fields.append((str(k), a.dtype, a.shape[1:]) if a.ndim > 1 else (str(k), a.dtype))
         out = np.empty(xyz.shape[0], dtype=fields)
         for i, c in enumerate("xyz"):

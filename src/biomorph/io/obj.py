@@ -56,8 +56,12 @@ def write_mesh(path: PathLike, mesh: Any, object_name: str | None = None) -> Pat
     v = m.vertices
     if m.vertex_colors is not None:
         rgb = m.vertex_colors[:, :3].astype(np.float64) / 255.0
-        parts.append(_rows("v %r %r %r %.6g %.6g %.6g",
-                           [v[:, 0], v[:, 1], v[:, 2], rgb[:, 0], rgb[:, 1], rgb[:, 2]]))
+        parts.append(
+            _rows(
+                "v %r %r %r %.6g %.6g %.6g",
+                [v[:, 0], v[:, 1], v[:, 2], rgb[:, 0], rgb[:, 1], rgb[:, 2]],
+            )
+        )
     else:
         parts.append(_rows("v %r %r %r", [v[:, 0], v[:, 1], v[:, 2]]))
     if m.uv is not None:
@@ -81,7 +85,7 @@ def write_mesh(path: PathLike, mesh: Any, object_name: str | None = None) -> Pat
     order = np.argsort(labels, kind="stable")
     bounds = np.searchsorted(labels[order], np.arange(len(names) + 1))
     for g, name in enumerate(names):
-        sel = order[bounds[g]:bounds[g + 1]]
+        sel = order[bounds[g] : bounds[g + 1]]
         if sel.size == 0:
             continue
         parts.append(f"g {name}\n")
@@ -148,8 +152,7 @@ def _read_obj(path: PathLike, data: bytes) -> Mesh | None:
     per_ref = first[0].count(b"/") + 1
     if b"//" in first[0]:
         per_ref = 2
-    flat = _numbers([ln.replace(b"//", b" ").replace(b"/", b" ") for ln in f_lines],
-                    3 * per_ref)
+    flat = _numbers([ln.replace(b"//", b" ").replace(b"/", b" ") for ln in f_lines], 3 * per_ref)
     if flat is None:
         return None
     if not np.isfinite(flat).all() or np.any(flat != np.round(flat)) or np.any(flat < 1):
@@ -159,7 +162,7 @@ def _read_obj(path: PathLike, data: bytes) -> Mesh | None:
     same_index = per_ref == 1 or bool(np.all(idx == idx[:, :, :1]))
     colors = None
     if ncol_v in (6, 7):
-        rgb = verts[:, ncol_v - 3:]
+        rgb = verts[:, ncol_v - 3 :]
         colors = np.clip(np.round(rgb * (255.0 if rgb.max(initial=0) <= 1 else 1.0)), 0, 255)
         colors = np.concatenate([colors, np.full((len(verts), 1), 255.0)], axis=1)
     uv = normals = None
@@ -180,12 +183,18 @@ def _read_obj(path: PathLike, data: bytes) -> Mesh | None:
     if counts[0] == 0:
         names, counts = names[1:], counts[1:]
     group_of_face = np.repeat(np.arange(len(counts)), counts)
-    face_ids = _face_ids_from_groups(names, group_of_face) \
-        if group_of_face.size == len(faces) else {}
+    face_ids = (
+        _face_ids_from_groups(names, group_of_face) if group_of_face.size == len(faces) else {}
+    )
     try:
-        return Mesh(verts[:, :3], faces, normals=normals, uv=uv,
-                    vertex_colors=None if colors is None else colors.astype(np.uint8),
-                    face_ids=face_ids)
+        return Mesh(
+            verts[:, :3],
+            faces,
+            normals=normals,
+            uv=uv,
+            vertex_colors=None if colors is None else colors.astype(np.uint8),
+            face_ids=face_ids,
+        )
     except InputError as exc:
         raise FormatError(path, str(exc)) from None
 
@@ -210,8 +219,14 @@ def read_mesh(path: PathLike) -> Mesh:
                 raise FormatError(path, "vertex coordinates hold NaN or inf")
             return own
     try:
-        loaded = trimesh.load(p, process=False, maintain_order=True, force=None,
-                              group_material=False, skip_materials=True)
+        loaded = trimesh.load(
+            p,
+            process=False,
+            maintain_order=True,
+            force=None,
+            group_material=False,
+            skip_materials=True,
+        )
     except BiomorphError:
         raise
     except Exception as exc:  # noqa: BLE001 - trimesh raises many types for bad files
@@ -222,8 +237,10 @@ def read_mesh(path: PathLike) -> Mesh:
             geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
             if not geoms:
                 raise FormatError(path, "holds no triangle meshes")
-            parts = [Mesh.from_any(g).with_(face_ids={"group": np.full(len(g.faces), i)})
-                     for i, g in enumerate(geoms)]
+            parts = [
+                Mesh.from_any(g).with_(face_ids={"group": np.full(len(g.faces), i)})
+                for i, g in enumerate(geoms)
+            ]
             mesh = Mesh.merge(parts)
         else:
             mesh = Mesh.from_any(loaded)

@@ -135,10 +135,19 @@ def read_osim_summary(path: PathLike) -> dict:
         root = ET.parse(path).getroot()
     except (ET.ParseError, OSError) as exc:
         raise FormatError(path, f"not a readable OpenSim XML file ({exc})") from None
-    bodies = {b.get("name"): {"mass": float(b.findtext("mass")),
-                              "inertia": [float(x) for x in b.findtext("inertia").split()]}
-              for b in root.iter("Body")}
-    coords = {c.get("name"): [float(x) for x in c.findtext("range").split()]
-              for c in root.iter("Coordinate")}
-    return {"bodies": bodies, "coordinates": coords,
-            "joints": len(list(root.iter("CustomJoint"))) + len(list(root.iter("FreeJoint")))}
+    bodies = {
+        b.get("name"): {
+            "mass": float(b.findtext("mass")),
+            "inertia": [float(x) for x in b.findtext("inertia").split()],
+        }
+        for b in root.iter("Body")
+    }
+    coords = {
+        c.get("name"): [float(x) for x in c.findtext("range").split()]
+        for c in root.iter("Coordinate")
+    }
+    return {
+        "bodies": bodies,
+        "coordinates": coords,
+        "joints": len(list(root.iter("CustomJoint"))) + len(list(root.iter("FreeJoint"))),
+    }

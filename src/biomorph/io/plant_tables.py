@@ -50,8 +50,7 @@ from biomorph.io.atomic import write_text
 PathLike = str | os.PathLike[str]
 Table = dict[str, NDArray[np.float64]]
 
-DIM_COLUMNS = ("rank", "L_blade", "W_blade", "L_sheath", "W_sheath", "L_internode",
-               "W_internode")
+DIM_COLUMNS = ("rank", "L_blade", "W_blade", "L_sheath", "W_sheath", "L_internode", "W_internode")
 PHEN_COLUMNS = ("rank", "tip", "col", "ssi", "disp")
 _POSITIVE = ("L_blade", "W_blade")
 
@@ -65,8 +64,9 @@ def _read(path: PathLike, columns: tuple[str, ...]) -> tuple[Table, list[int]]:
         names = [n.strip() for n in (reader.fieldnames or [])]
         missing = [c for c in columns if c not in names]
         if missing:
-            raise FormatError(p, f"missing column(s) {', '.join(missing)}; expected "
-                                 f"{','.join(columns)}", line=1)
+            raise FormatError(
+                p, f"missing column(s) {', '.join(missing)}; expected {','.join(columns)}", line=1
+            )
         rows, lines = [], []
         for i, row in enumerate(reader, start=2):
             row = {k.strip(): v for k, v in row.items() if k is not None}
@@ -75,8 +75,9 @@ def _read(path: PathLike, columns: tuple[str, ...]) -> tuple[Table, list[int]]:
                 try:
                     v = float(row[c])
                 except (TypeError, ValueError):
-                    raise FormatError(p, f"column {c}: {row.get(c)!r} is not a number",
-                                      line=i) from None
+                    raise FormatError(
+                        p, f"column {c}: {row.get(c)!r} is not a number", line=i
+                    ) from None
                 if not np.isfinite(v):
                     raise FormatError(p, f"column {c}: {v} is not finite", line=i)
                 vals.append(v)
@@ -101,8 +102,11 @@ def _check_ranks(p: Path, rank: NDArray[np.float64], lines: list[int]) -> None:
         seen[r] = ln
     gaps = sorted(set(range(1, max(seen) + 1)) - set(seen))
     if gaps:
-        raise FormatError(p, f"missing rank(s) {', '.join(map(str, gaps))}; expected every "
-                             f"rank 1..{max(seen)}", line=lines[0])
+        raise FormatError(
+            p,
+            f"missing rank(s) {', '.join(map(str, gaps))}; expected every rank 1..{max(seen)}",
+            line=lines[0],
+        )
 
 
 def _sorted(table: Table) -> Table:
@@ -124,8 +128,9 @@ def read_phenology(path: PathLike) -> Table:
     return _sorted(table)
 
 
-def check_dimensions(table: Table, path: PathLike | None = None,
-                     lines: list[int] | None = None) -> None:
+def check_dimensions(
+    table: Table, path: PathLike | None = None, lines: list[int] | None = None
+) -> None:
     """Refuse negative (or, for blades, zero) lengths and widths."""
     n = len(table["rank"])
     for c in DIM_COLUMNS[1:]:
@@ -134,8 +139,10 @@ def check_dimensions(table: Table, path: PathLike | None = None,
         if bad.size:
             i = int(bad[0])
             what = "> 0" if c in _POSITIVE else ">= 0"
-            msg = (f"rank {int(table['rank'][i])}: {c} = {v[i]:g} m; expected {what} "
-                   "(lengths in metres)")
+            msg = (
+                f"rank {int(table['rank'][i])}: {c} = {v[i]:g} m; expected {what} "
+                "(lengths in metres)"
+            )
             if path is not None:
                 raise FormatError(path, msg, line=None if lines is None else lines[i])
             raise InputError(msg)
@@ -143,15 +150,18 @@ def check_dimensions(table: Table, path: PathLike | None = None,
         raise InputError("dimension table has no ranks")
 
 
-def check_phenology(table: Table, path: PathLike | None = None,
-                    lines: list[int] | None = None) -> None:
+def check_phenology(
+    table: Table, path: PathLike | None = None, lines: list[int] | None = None
+) -> None:
     """Refuse rows whose stages are out of order (``tip < col <= ssi < disp``)."""
     t, c, s, d = (np.asarray(table[k], float) for k in ("tip", "col", "ssi", "disp"))
     bad = np.flatnonzero(~((t < c) & (c <= s) & (s < d)))
     if bad.size:
         i = int(bad[0])
-        msg = (f"rank {int(table['rank'][i])}: phenology out of order (tip {t[i]:g}, col "
-               f"{c[i]:g}, ssi {s[i]:g}, disp {d[i]:g}); expected tip < col <= ssi < disp")
+        msg = (
+            f"rank {int(table['rank'][i])}: phenology out of order (tip {t[i]:g}, col "
+            f"{c[i]:g}, ssi {s[i]:g}, disp {d[i]:g}); expected tip < col <= ssi < disp"
+        )
         if path is not None:
             raise FormatError(path, msg, line=None if lines is None else lines[i])
         raise InputError(msg)
@@ -161,10 +171,20 @@ def write_table(path: PathLike, table: Table, columns: tuple[str, ...]) -> Path:
     """Write a dimension or phenology table as CSV (atomically)."""
     lines = [",".join(columns)]
     for i in range(len(table["rank"])):
-        lines.append(",".join(str(int(table[c][i])) if c == "rank" else f"{table[c][i]:.6g}"
-                              for c in columns))
+        lines.append(
+            ",".join(
+                str(int(table[c][i])) if c == "rank" else f"{table[c][i]:.6g}" for c in columns
+            )
+        )
     return write_text(path, "\n".join(lines) + "\n")
 
 
-__all__ = ["DIM_COLUMNS", "PHEN_COLUMNS", "check_dimensions", "check_phenology",
-           "read_dimensions", "read_phenology", "write_table"]
+__all__ = [
+    "DIM_COLUMNS",
+    "PHEN_COLUMNS",
+    "check_dimensions",
+    "check_phenology",
+    "read_dimensions",
+    "read_phenology",
+    "write_table",
+]

@@ -61,26 +61,59 @@ def read_ply(path: PathLike) -> Any:
                 _ = el.data
     except PlyParseError as exc:
         line = getattr(exc, "line", None)
-        raise FormatError(path, f"malformed PLY ({_short(exc)})",
-                          line=line if isinstance(line, int) else None) from None
-    except (ValueError, EOFError, IndexError, KeyError, TypeError, OverflowError, MemoryError,
-            UnicodeDecodeError, AttributeError, AssertionError, StopIteration) as exc:
+        raise FormatError(
+            path, f"malformed PLY ({_short(exc)})", line=line if isinstance(line, int) else None
+        ) from None
+    except (
+        ValueError,
+        EOFError,
+        IndexError,
+        KeyError,
+        TypeError,
+        OverflowError,
+        MemoryError,
+        UnicodeDecodeError,
+        AttributeError,
+        AssertionError,
+        StopIteration,
+    ) as exc:
         raise FormatError(path, f"malformed or truncated PLY ({_short(exc)})") from None
     except BiomorphError:
         raise
     except Exception as exc:  # noqa: BLE001 - any other parser failure is a format error
-        raise FormatError(path, f"unreadable PLY ({type(exc).__name__}: {_short(exc)})") \
-            from None
+        raise FormatError(path, f"unreadable PLY ({type(exc).__name__}: {_short(exc)})") from None
     return ply
 
 
 # --------------------------------------------------------------------------- ASCII fast path
-_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2",
-              "int16": "i2", "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4",
-              "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
-              "float64": "f8"}
-_TYPE_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int",
-               "u4": "uint", "f4": "float", "f8": "double"}
+_PLY_TYPES = {
+    "char": "i1",
+    "int8": "i1",
+    "uchar": "u1",
+    "uint8": "u1",
+    "short": "i2",
+    "int16": "i2",
+    "ushort": "u2",
+    "uint16": "u2",
+    "int": "i4",
+    "int32": "i4",
+    "uint": "u4",
+    "uint32": "u4",
+    "float": "f4",
+    "float32": "f4",
+    "double": "f8",
+    "float64": "f8",
+}
+_TYPE_NAMES = {
+    "i1": "char",
+    "u1": "uchar",
+    "i2": "short",
+    "u2": "ushort",
+    "i4": "int",
+    "u4": "uint",
+    "f4": "float",
+    "f8": "double",
+}
 
 
 class _Element:
@@ -150,15 +183,20 @@ def _read_ascii_scalar(path: PathLike) -> _Ply | None:
     row = 0
     for name, count, props in elements:
         if row + count > available:
-            raise FormatError(path, f"element '{name}' announces {count} rows but the file ends "
-                                    "first; truncated PLY")
+            raise FormatError(
+                path,
+                f"element '{name}' announces {count} rows but the file ends first; truncated PLY",
+            )
         a = body_start if row == 0 else int(line_ends[row - 1]) + 1
         b = int(line_ends[row + count - 1]) + 1 if count else a
         chunk = data[a:b]
         if count and chunk.count(b"\n") + (0 if chunk.endswith(b"\n") else 1) != count:
             return None  # blank lines or other oddities: let plyfile decide
-        values, status = _fast_table_status(chunk, 0, len(props), None) if count else \
-            (np.zeros((0, len(props))), 0)
+        values, status = (
+            _fast_table_status(chunk, 0, len(props), None)
+            if count
+            else (np.zeros((0, len(props))), 0)
+        )
         if status == 2:  # long (17-digit) tokens everywhere: numpy's exact conversion
             try:
                 values = np.array(chunk.split()).astype(np.float64).reshape(count, len(props))
@@ -169,29 +207,37 @@ def _read_ascii_scalar(path: PathLike) -> _Ply | None:
             for k, line in enumerate(chunk.split(b"\n")[:count]):
                 toks = line.split()
                 if len(toks) != len(props):
-                    raise FormatError(path, f"element '{name}' row {k} has {len(toks)} values; "
-                                            f"expected {len(props)}",
-                                      line=header_line_count + row + k + 1)
+                    raise FormatError(
+                        path,
+                        f"element '{name}' row {k} has {len(toks)} values; expected {len(props)}",
+                        line=header_line_count + row + k + 1,
+                    )
                 for t in toks:
                     try:
                         float(t)
                     except ValueError:
-                        raise FormatError(path, f"value {t[:30].decode('latin-1')!r} is not a "
-                                                "number", line=header_line_count + row + k + 1
-                                          ) from None
+                        raise FormatError(
+                            path,
+                            f"value {t[:30].decode('latin-1')!r} is not a number",
+                            line=header_line_count + row + k + 1,
+                        ) from None
             return None
         rec = np.empty(count, dtype=[(pn, np.dtype(pt)) for pn, pt in props])
         for j, (pn, pt) in enumerate(props):
             col = values[:, j]
             if pt[0] in "iu":
                 info = np.iinfo(np.dtype(pt))
-                bad = ~np.isfinite(col) | (col != np.round(col)) | (col < info.min) | \
-                    (col > info.max)
+                bad = (
+                    ~np.isfinite(col) | (col != np.round(col)) | (col < info.min) | (col > info.max)
+                )
                 if bad.any():
                     k = int(np.flatnonzero(bad)[0])
-                    raise FormatError(path, f"property {pn!r} ({_TYPE_NAMES[pt]}) holds {col[k]!r}"
-                                            "; expected an integer in range",
-                                      line=header_line_count + row + k + 1)
+                    raise FormatError(
+                        path,
+                        f"property {pn!r} ({_TYPE_NAMES[pt]}) holds {col[k]!r}"
+                        "; expected an integer in range",
+                        line=header_line_count + row + k + 1,
+                    )
             rec[pn] = col
         out.append(_Element(name, rec))
         row += count
@@ -237,8 +283,9 @@ def _element(path: PathLike, ply: Any, name: str, required: bool = True) -> Any:
     except KeyError:
         if required:
             names = ", ".join(e.name for e in ply.elements) or "none"
-            raise FormatError(path, f"has no '{name}' element (elements: {names}); "
-                                    f"expected one") from None
+            raise FormatError(
+                path, f"has no '{name}' element (elements: {names}); expected one"
+            ) from None
         return None
 
 
@@ -247,19 +294,22 @@ def _vertex_xyz(path: PathLike, vertex: Any) -> NDArray[np.float64]:
     names = data.dtype.names or ()
     missing = [c for c in ("x", "y", "z") if c not in names]
     if missing:
-        raise FormatError(path, f"vertex element lacks properties {', '.join(missing)}; "
-                                "expected x y z")
+        raise FormatError(
+            path, f"vertex element lacks properties {', '.join(missing)}; expected x y z"
+        )
     try:
         xyz = np.stack([np.asarray(data[c], dtype=np.float64) for c in "xyz"], axis=1)
     except (TypeError, ValueError) as exc:
-        raise FormatError(path, f"vertex x/y/z are not scalar numbers ({_short(exc)})") \
-            from None
+        raise FormatError(path, f"vertex x/y/z are not scalar numbers ({_short(exc)})") from None
     if xyz.shape[0] == 0:
         raise FormatError(path, "vertex element is empty; expected at least one vertex")
     bad = ~np.isfinite(xyz).all(axis=1)
     if bad.any():
-        raise FormatError(path, f"vertex {int(np.flatnonzero(bad)[0])} has a NaN or inf "
-                                "coordinate; expected finite numbers")
+        raise FormatError(
+            path,
+            f"vertex {int(np.flatnonzero(bad)[0])} has a NaN or inf "
+            "coordinate; expected finite numbers",
+        )
     return xyz
 
 
@@ -282,13 +332,13 @@ def read_points(path: PathLike) -> PointCloud:
     vertex = _element(path, ply, "vertex")
     xyz = _vertex_xyz(path, vertex)
     attrs = _scalar_props(vertex, {"x", "y", "z"})
-    meta = {"format": "ply", "ply_text": bool(ply.text),
-            "elements": [e.name for e in ply.elements]}
+    meta = {"format": "ply", "ply_text": bool(ply.text), "elements": [e.name for e in ply.elements]}
     return PointCloud(xyz, attrs, meta=meta, source=os.fspath(path))
 
 
-def _orient_edges(path: PathLike, n: int, a: NDArray[np.int64], b: NDArray[np.int64],
-                  z: NDArray[np.float64]) -> NDArray[np.int64]:
+def _orient_edges(
+    path: PathLike, n: int, a: NDArray[np.int64], b: NDArray[np.int64], z: NDArray[np.float64]
+) -> NDArray[np.int64]:
     """Parent array from undirected edges: BFS from the lowest node of each component."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, connected_components
@@ -297,13 +347,17 @@ def _orient_edges(path: PathLike, n: int, a: NDArray[np.int64], b: NDArray[np.in
     adj = ((adj + adj.T) > 0).astype(np.int8)
     n_comp, labels = connected_components(adj, directed=False)
     if adj.nnz // 2 > n - n_comp:
-        raise FormatError(path, f"edges form a cycle ({adj.nnz // 2} edges for {n} vertices "
-                                f"in {n_comp} components); expected a forest")
+        raise FormatError(
+            path,
+            f"edges form a cycle ({adj.nnz // 2} edges for {n} vertices "
+            f"in {n_comp} components); expected a forest",
+        )
     order = np.lexsort((z, labels))  # lowest z first within each component
     roots = order[np.r_[True, labels[order][1:] != labels[order][:-1]]]
     # a virtual node n joined to every root: one BFS orients the whole forest
-    ext = coo_matrix((np.ones(roots.size), (np.full(roots.size, n), roots)),
-                     shape=(n + 1, n + 1)).tocsr()
+    ext = coo_matrix(
+        (np.ones(roots.size), (np.full(roots.size, n), roots)), shape=(n + 1, n + 1)
+    ).tocsr()
     big = (adj.tocoo(), ext)
     rows = np.concatenate([big[0].row, ext.tocoo().row, ext.tocoo().col])
     cols = np.concatenate([big[0].col, ext.tocoo().col, ext.tocoo().row])
@@ -327,8 +381,9 @@ def read_graph(path: PathLike) -> BranchGraph:
     else:
         en = edge.data.dtype.names or ()
         if not {"vertex1", "vertex2"} <= set(en):
-            raise FormatError(path, f"edge element has properties {', '.join(en)}; "
-                                    "expected vertex1 vertex2")
+            raise FormatError(
+                path, f"edge element has properties {', '.join(en)}; expected vertex1 vertex2"
+            )
         try:
             a = np.asarray(edge.data["vertex1"]).astype(np.int64)
             b = np.asarray(edge.data["vertex2"]).astype(np.int64)
@@ -337,8 +392,11 @@ def read_graph(path: PathLike) -> BranchGraph:
         bad = (a < 0) | (a >= n) | (b < 0) | (b >= n) | (a == b)
         if bad.any():
             k = int(np.flatnonzero(bad)[0])
-            raise FormatError(path, f"edge {k} joins vertices {a[k]} and {b[k]}; expected two "
-                                    f"different indices in [0, {n - 1}]")
+            raise FormatError(
+                path,
+                f"edge {k} joins vertices {a[k]} and {b[k]}; expected two "
+                f"different indices in [0, {n - 1}]",
+            )
         counts = np.bincount(b, minlength=n)
         parent = np.full(n, -1, dtype=np.int64)
         if counts.max() <= 1:
@@ -359,8 +417,11 @@ def read_graph(path: PathLike) -> BranchGraph:
                 raise FormatError(path, f"vertex property {src!r} is a list; expected a scalar")
             vals = col.astype(np.float64)
             if not np.isfinite(vals).all():
-                raise FormatError(path, f"vertex property {src!r} holds NaN or inf at vertex "
-                                        f"{int(np.flatnonzero(~np.isfinite(vals))[0])}")
+                raise FormatError(
+                    path,
+                    f"vertex property {src!r} holds NaN or inf at vertex "
+                    f"{int(np.flatnonzero(~np.isfinite(vals))[0])}",
+                )
             fields[key] = vals
     try:
         return BranchGraph(xyz, parent, **fields)
@@ -379,21 +440,31 @@ def read_mesh(path: PathLike) -> Mesh:
     face_ids: dict[str, NDArray] = {}
     if face is not None and len(face.data):
         fn = face.data.dtype.names or ()
-        key = "vertex_indices" if "vertex_indices" in fn else \
-            ("vertex_index" if "vertex_index" in fn else None)
+        key = (
+            "vertex_indices"
+            if "vertex_indices" in fn
+            else ("vertex_index" if "vertex_index" in fn else None)
+        )
         if key is None:
-            raise FormatError(path, "face element lacks 'vertex_indices'; expected a list "
-                                    "property of vertex indices")
+            raise FormatError(
+                path,
+                "face element lacks 'vertex_indices'; expected a list property of vertex indices",
+            )
         polys = face.data[key]
         try:
             lens = np.fromiter((len(p) for p in polys), dtype=np.int64, count=len(polys))
         except TypeError:
             raise FormatError(path, "face vertex_indices is not a list property") from None
         if lens.size and lens.min() < 3:
-            raise FormatError(path, f"face {int(np.argmin(lens))} has {int(lens.min())} "
-                                    "vertices; expected at least 3")
-        flat = np.concatenate([np.asarray(p, dtype=np.int64) for p in polys]) \
-            if lens.size else np.zeros(0, np.int64)
+            raise FormatError(
+                path,
+                f"face {int(np.argmin(lens))} has {int(lens.min())} vertices; expected at least 3",
+            )
+        flat = (
+            np.concatenate([np.asarray(p, dtype=np.int64) for p in polys])
+            if lens.size
+            else np.zeros(0, np.int64)
+        )
         starts = np.cumsum(np.r_[0, lens[:-1]])
         ntri = lens - 2
         owner = np.repeat(np.arange(lens.size), ntri)
@@ -408,19 +479,21 @@ def read_mesh(path: PathLike) -> Mesh:
                 face_ids[name] = col.astype(np.int64)[owner]
     normals = None
     if {"nx", "ny", "nz"} <= names:
-        normals = np.stack([np.asarray(vertex.data[c], np.float64) for c in
-                            ("nx", "ny", "nz")], axis=1)
+        normals = np.stack(
+            [np.asarray(vertex.data[c], np.float64) for c in ("nx", "ny", "nz")], axis=1
+        )
     uv = None
     for u, v in (("s", "t"), ("u", "v"), ("texture_u", "texture_v")):
         if {u, v} <= names:
-            uv = np.stack([np.asarray(vertex.data[u], np.float64),
-                           np.asarray(vertex.data[v], np.float64)], axis=1)
+            uv = np.stack(
+                [np.asarray(vertex.data[u], np.float64), np.asarray(vertex.data[v], np.float64)],
+                axis=1,
+            )
             break
     colors = None
     if {"red", "green", "blue"} <= names:
         cols = [np.asarray(vertex.data[c]) for c in ("red", "green", "blue")]
-        alpha = np.asarray(vertex.data["alpha"]) if "alpha" in names else \
-            np.full(xyz.shape[0], 255)
+        alpha = np.asarray(vertex.data["alpha"]) if "alpha" in names else np.full(xyz.shape[0], 255)
         colors = np.clip(np.stack(cols + [alpha], axis=1), 0, 255).astype(np.uint8)
     try:
         return Mesh(xyz, faces, normals=normals, uv=uv, vertex_colors=colors, face_ids=face_ids)
@@ -462,11 +535,14 @@ def write_points(path: PathLike, cloud: PointCloud, text: bool = False) -> Path:
         if arr.dtype == bool:
             arr = arr.astype(np.uint8)
         if arr.dtype.kind not in "iuf" or arr.dtype.itemsize > 8:
-            raise InputError(f"{os.fspath(path)}: attribute {k!r} has dtype {arr.dtype}; "
-                             "PLY properties must be integers or floats")
+            raise InputError(
+                f"{os.fspath(path)}: attribute {k!r} has dtype {arr.dtype}; "
+                "PLY properties must be integers or floats"
+            )
         if arr.dtype == np.int64 or arr.dtype == np.uint64:
-            if arr.size and (arr.min() < np.iinfo(np.int32).min or
-                             arr.max() > np.iinfo(np.int32).max):
+            if arr.size and (
+                arr.min() < np.iinfo(np.int32).min or arr.max() > np.iinfo(np.int32).max
+            ):
                 arr = arr.astype(np.float64)
             else:
                 arr = arr.astype(np.int32)
@@ -488,8 +564,7 @@ def write_graph(path: PathLike, graph: BranchGraph, text: bool = False) -> Path:
     if not isinstance(graph, BranchGraph):
         graph = getattr(graph, "graph", graph)
     if not isinstance(graph, BranchGraph):
-        raise InputError(f"{os.fspath(path)}: expected a BranchGraph, got "
-                         f"{type(graph).__name__}")
+        raise InputError(f"{os.fspath(path)}: expected a BranchGraph, got {type(graph).__name__}")
     pos = graph.position
     cols: list[tuple[str, NDArray]] = [("x", pos[:, 0]), ("y", pos[:, 1]), ("z", pos[:, 2])]
     if graph.radius is not None:
@@ -506,8 +581,9 @@ def write_graph(path: PathLike, graph: BranchGraph, text: bool = False) -> Path:
     edge = np.empty(e.shape[0], dtype=[("vertex1", np.int32), ("vertex2", np.int32)])
     edge["vertex1"] = e[:, 0]
     edge["vertex2"] = e[:, 1]
-    return _write(path, [PlyElement.describe(vert, "vertex"),
-                         PlyElement.describe(edge, "edge")], text)
+    return _write(
+        path, [PlyElement.describe(vert, "vertex"), PlyElement.describe(edge, "edge")], text
+    )
 
 
 def write_mesh(path: PathLike, mesh: Any, text: bool = False) -> Path:
@@ -515,15 +591,17 @@ def write_mesh(path: PathLike, mesh: Any, text: bool = False) -> Path:
     from plyfile import PlyElement
 
     m = Mesh.from_any(mesh)
-    cols: list[tuple[str, NDArray]] = [(c, m.vertices[:, i].astype(np.float32))
-                                       for i, c in enumerate("xyz")]
+    cols: list[tuple[str, NDArray]] = [
+        (c, m.vertices[:, i].astype(np.float32)) for i, c in enumerate("xyz")
+    ]
     if m.normals is not None:
         cols += [(c, m.normals[:, i].astype(np.float32)) for i, c in enumerate(("nx", "ny", "nz"))]
     if m.uv is not None:
         cols += [("s", m.uv[:, 0].astype(np.float32)), ("t", m.uv[:, 1].astype(np.float32))]
     if m.vertex_colors is not None:
-        cols += [(c, m.vertex_colors[:, i]) for i, c in
-                 enumerate(("red", "green", "blue", "alpha"))]
+        cols += [
+            (c, m.vertex_colors[:, i]) for i, c in enumerate(("red", "green", "blue", "alpha"))
+        ]
     if np.abs(m.vertices).max(initial=0) > 1e4:  # large coordinates keep float64 precision
         cols[:3] = [(c, m.vertices[:, i]) for i, c in enumerate("xyz")]
     vert = np.empty(m.n_vertices, dtype=[(k, a.dtype) for k, a in cols])
@@ -535,8 +613,9 @@ def write_mesh(path: PathLike, mesh: Any, text: bool = False) -> Path:
     face["vertex_indices"] = m.faces
     for k, v in m.face_ids.items():
         face[_safe_name(k)] = v
-    return _write(path, [PlyElement.describe(vert, "vertex"),
-                         PlyElement.describe(face, "face")], text)
+    return _write(
+        path, [PlyElement.describe(vert, "vertex"), PlyElement.describe(face, "face")], text
+    )
 
 
 def ply_kind(path: PathLike) -> str:
@@ -558,5 +637,12 @@ def ply_kind(path: PathLike) -> str:
     return "points"
 
 
-__all__ = ["read_points", "write_points", "read_graph", "write_graph", "read_mesh",
-           "write_mesh", "ply_kind"]
+__all__ = [
+    "read_points",
+    "write_points",
+    "read_graph",
+    "write_graph",
+    "read_mesh",
+    "write_mesh",
+    "ply_kind",
+]

@@ -88,8 +88,11 @@ def parse_path(d: str, path: PathLike, name: str) -> list[tuple[str, np.ndarray]
             out.append(("L", start.copy()))
             cur = start
         else:
-            raise FormatError(path, f"path {name!r}: SVG command {cmd!r} is not supported; "
-                                    "use straight lines and cubic Béziers (M, L, H, V, C)")
+            raise FormatError(
+                path,
+                f"path {name!r}: SVG command {cmd!r} is not supported; "
+                "use straight lines and cubic Béziers (M, L, H, V, C)",
+            )
     return out
 
 
@@ -101,9 +104,12 @@ def _translate(elem_chain: list[ET.Element], path: PathLike, name: str) -> np.nd
             continue
         m = re.fullmatch(r"translate\(\s*([-+.\deE]+)(?:[\s,]+([-+.\deE]+))?\s*\)", t)
         if not m:
-            raise FormatError(path, f"path {name!r} (or a group around it) has transform "
-                                    f"{t!r}; only translate() is supported — do not move, "
-                                    "scale or rotate annotation layers")
+            raise FormatError(
+                path,
+                f"path {name!r} (or a group around it) has transform "
+                f"{t!r}; only translate() is supported — do not move, "
+                "scale or rotate annotation layers",
+            )
         off += [float(m.group(1)), float(m.group(2) or 0.0)]
     return off
 
@@ -121,8 +127,11 @@ def read_annotations(path: PathLike) -> dict[str, object]:
         raise FormatError(p, f"root element is <{root.tag}>; expected <svg>")
     vb = (root.get("viewBox") or "").replace(",", " ").split()
     try:
-        height = float(vb[3]) if len(vb) == 4 else float(re.sub(r"[a-z]+$", "",
-                                                                 root.get("height", "1000")))
+        height = (
+            float(vb[3])
+            if len(vb) == 4
+            else float(re.sub(r"[a-z]+$", "", root.get("height", "1000")))
+        )
     except ValueError:
         raise FormatError(p, "cannot read the frame height (viewBox/height)") from None
     parents = {c: par for par in root.iter() for c in par}
@@ -143,8 +152,11 @@ def read_annotations(path: PathLike) -> dict[str, object]:
         found[label] = (segs, _translate(chain, p, label))
     if "back" not in found:
         labels = sorted(found) or ["none"]
-        raise FormatError(p, f"no path labelled 'back' (found: {', '.join(labels)}); label the "
-                             "spine paths neck, back and tail")
+        raise FormatError(
+            p,
+            f"no path labelled 'back' (found: {', '.join(labels)}); label the "
+            "spine paths neck, back and tail",
+        )
 
     def flip(q: np.ndarray, off: np.ndarray) -> np.ndarray:
         q = np.asarray(q, float) + off
@@ -157,8 +169,10 @@ def read_annotations(path: PathLike) -> dict[str, object]:
         segs, off = found[name]
         kinds = [k for k, _ in segs]
         if kinds != ["M", "C"]:
-            raise FormatError(p, f"path {name!r} must be one cubic Bézier (M then C); got "
-                                 f"commands {''.join(kinds)}")
+            raise FormatError(
+                p,
+                f"path {name!r} must be one cubic Bézier (M then C); got commands {''.join(kinds)}",
+            )
         curves[name] = flip(np.concatenate([segs[0][1][None], segs[1][1]]), off)
     back = curves["back"]
     neck = curves.get("neck", np.repeat(back[:1], 4, axis=0))
@@ -175,6 +189,4 @@ def read_annotations(path: PathLike) -> dict[str, object]:
         if len(pts) < 2:
             raise FormatError(p, f"limb path {name!r} has a single point; draw a line")
         lengths[k] = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
-    return {"points": points, "lengths": lengths, "height": height,
-            "found": sorted(found)}
-
+    return {"points": points, "lengths": lengths, "height": height, "found": sorted(found)}

@@ -48,8 +48,9 @@ from biomorph.io.atomic import write_bytes
 
 PathLike = str | os.PathLike[str]
 
-_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$",
-                     re.IGNORECASE)
+_NUMBER = re.compile(
+    r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$", re.IGNORECASE
+)
 
 
 def _is_number(token: str) -> bool:
@@ -75,9 +76,12 @@ def _decode(path: PathLike, data: bytes) -> str:
     either way); NUL bytes mean a binary file and are an error naming the line."""
     nul = data.find(b"\x00")
     if nul >= 0:
-        raise FormatError(path, "holds a NUL byte: a binary file, not text; expected numbers "
-                                "separated by spaces, tabs, commas or semicolons",
-                          line=data.count(b"\n", 0, nul) + 1)
+        raise FormatError(
+            path,
+            "holds a NUL byte: a binary file, not text; expected numbers "
+            "separated by spaces, tabs, commas or semicolons",
+            line=data.count(b"\n", 0, nul) + 1,
+        )
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError:
@@ -99,8 +103,9 @@ def _first_lines(text: str, limit: int = 64) -> list[tuple[int, str]]:
         size *= 4
 
 
-def _scan_for_error(path: PathLike, text: str, delimiter: str | None, skip: int,
-                    ncols: int) -> FormatError:
+def _scan_for_error(
+    path: PathLike, text: str, delimiter: str | None, skip: int, ncols: int
+) -> FormatError:
     """Slow path (errors only): find the first line that is not ``ncols`` numbers."""
     for k, raw in enumerate(io.StringIO(text)):
         if k < skip:
@@ -110,14 +115,18 @@ def _scan_for_error(path: PathLike, text: str, delimiter: str | None, skip: int,
             continue
         tokens = _split(s, delimiter)
         if len(tokens) != ncols:
-            return FormatError(path, f"has {len(tokens)} columns; expected {ncols} like the "
-                                     "first data line", line=k + 1)
+            return FormatError(
+                path,
+                f"has {len(tokens)} columns; expected {ncols} like the first data line",
+                line=k + 1,
+            )
         for j, tok in enumerate(tokens):
             try:
                 float(tok)
             except ValueError:
-                return FormatError(path, f"column {j + 1} holds {tok[:40]!r}; expected a number",
-                                   line=k + 1)
+                return FormatError(
+                    path, f"column {j + 1} holds {tok[:40]!r}; expected a number", line=k + 1
+                )
     return FormatError(path, f"could not be parsed as {ncols} numeric columns")
 
 
@@ -158,8 +167,9 @@ def read_table(path: PathLike) -> tuple[NDArray[np.float64], list[str] | None, d
     skip = 0
     idx = 0
     delimiter: str | None = None
-    head = [(k, ln if ln.startswith(("#", "//")) else ln.split("#", 1)[0].strip())
-            for k, ln in head]  # inline comments after data
+    head = [
+        (k, ln if ln.startswith(("#", "//")) else ln.split("#", 1)[0].strip()) for k, ln in head
+    ]  # inline comments after data
     head = [(k, ln) for k, ln in head if ln]
     if not head:
         raise FormatError(path, "file holds no data lines; expected lines of x y z numbers")
@@ -185,8 +195,9 @@ def read_table(path: PathLike) -> tuple[NDArray[np.float64], list[str] | None, d
                 continue
         break
     if idx >= len(head):
-        raise FormatError(path, "holds no numeric data lines; expected lines of x y z numbers",
-                          line=head[-1][0])
+        raise FormatError(
+            path, "holds no numeric data lines; expected lines of x y z numbers", line=head[-1][0]
+        )
     first_line_no, first = head[idx]
     delimiter = _sniff_delimiter(first)
     decimal_comma = delimiter == ";" and "," in first
@@ -204,8 +215,14 @@ def read_table(path: PathLike) -> tuple[NDArray[np.float64], list[str] | None, d
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                values = np.loadtxt(io.StringIO(body), dtype=np.float64, delimiter=delimiter,
-                                    comments="#", skiprows=skip, ndmin=2)
+                values = np.loadtxt(
+                    io.StringIO(body),
+                    dtype=np.float64,
+                    delimiter=delimiter,
+                    comments="#",
+                    skiprows=skip,
+                    ndmin=2,
+                )
         except ValueError:
             raise _scan_for_error(path, body, delimiter, skip, ncols) from None
     if values.shape[0] == 0:
@@ -214,13 +231,18 @@ def read_table(path: PathLike) -> tuple[NDArray[np.float64], list[str] | None, d
         names = None  # a comment, not a header
     if names is not None and len(names) != values.shape[1]:
         # a header that does not match the columns is not a header we can use
-        raise FormatError(path, f"header names {len(names)} columns but the data has "
-                                f"{values.shape[1]}", line=skip)
-    meta = {"format": "xyz", "delimiter": {None: "whitespace", ",": "comma",
-                                           ";": "semicolon"}[delimiter],
-            "decimal_comma": decimal_comma, "header": names, "parser": parser,
-            "first_data_line": first_line_no,
-            "skip_lines": skip}
+        raise FormatError(
+            path, f"header names {len(names)} columns but the data has {values.shape[1]}", line=skip
+        )
+    meta = {
+        "format": "xyz",
+        "delimiter": {None: "whitespace", ",": "comma", ";": "semicolon"}[delimiter],
+        "decimal_comma": decimal_comma,
+        "header": names,
+        "parser": parser,
+        "first_data_line": first_line_no,
+        "skip_lines": skip,
+    }
     return values, names, meta
 
 
@@ -373,16 +395,18 @@ def _scan_table(buf, start, ncols, delim, max_rows, slow_pos):  # pragma: no cov
     return out, row, 0, n_slow
 
 
-def _fast_table(data: bytes, start: int, ncols: int, delimiter: str | None
-                ) -> NDArray[np.float64] | None:
+def _fast_table(
+    data: bytes, start: int, ncols: int, delimiter: str | None
+) -> NDArray[np.float64] | None:
     """Compiled parse of the data lines; ``None`` when the text needs the general parser
     (malformed lines are then reported by the line-by-line scan, exotic numbers parsed by
     numpy)."""
     return _fast_table_status(data, start, ncols, delimiter)[0]
 
 
-def _fast_table_status(data: bytes, start: int, ncols: int, delimiter: str | None
-                       ) -> tuple[NDArray[np.float64] | None, int]:
+def _fast_table_status(
+    data: bytes, start: int, ncols: int, delimiter: str | None
+) -> tuple[NDArray[np.float64] | None, int]:
     """``(values or None, status)``: status 0 parsed, 1 malformed (a line with another
     column count or a bad token), 2 too many long tokens for the exact fast path."""
     buf = np.frombuffer(data, dtype=np.uint8)
@@ -409,8 +433,12 @@ def _pick_xyz(names: list[str] | None, ncols: int) -> list[int]:
 
 def _attribute_dtype(values: NDArray[np.float64]) -> NDArray:
     """Integer columns (all whole numbers within int64) become int64, others stay float64."""
-    if values.size and np.all(np.isfinite(values)) and np.all(values == np.round(values)) \
-            and np.abs(values).max() < 2**53:
+    if (
+        values.size
+        and np.all(np.isfinite(values))
+        and np.all(values == np.round(values))
+        and np.abs(values).max() < 2**53
+    ):
         return values.astype(np.int64)
     return values
 
@@ -420,15 +448,19 @@ def read_points(path: PathLike) -> PointCloud:
     values, names, meta = read_table(path)
     ncols = values.shape[1]
     if ncols < 3:
-        raise FormatError(path, f"has {ncols} column(s); expected at least 3 (x y z)",
-                          line=meta["first_data_line"])
+        raise FormatError(
+            path,
+            f"has {ncols} column(s); expected at least 3 (x y z)",
+            line=meta["first_data_line"],
+        )
     cols = _pick_xyz(names, ncols)
     xyz = values[:, cols]
     bad = ~np.isfinite(xyz).all(axis=1)
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
-        line = _data_line_number(Path(path).read_text("utf-8", errors="replace"),
-                                 meta["skip_lines"], row)
+        line = _data_line_number(
+            Path(path).read_text("utf-8", errors="replace"), meta["skip_lines"], row
+        )
         raise FormatError(path, "coordinate is NaN or inf; expected finite numbers", line=line)
     attrs: dict[str, NDArray] = {}
     for j in range(ncols):
@@ -506,7 +538,7 @@ def _fixed_kernel(floats, ints, kinds, precision, sep):  # pragma: no cover - co
     ncol = kinds.shape[0]
     n = floats.shape[1] if floats.shape[0] > 0 else ints.shape[1]
     out = np.empty(n * ncol * (23 + precision) + 1, dtype=np.uint8)
-    scale = 10.0 ** precision
+    scale = 10.0**precision
     p10 = np.int64(1)
     for _ in range(precision):
         p10 *= 10

@@ -22,14 +22,30 @@ import importlib
 from typing import Any
 
 _LAZY = {
-    "LeafShape": "shape", "MidribCollection": "shape", "load_presets": "shape",
-    "LeafState": "growth", "GrowthRates": "growth", "LeafTimeline": "growth",
+    "LeafShape": "shape",
+    "MidribCollection": "shape",
+    "load_presets": "shape",
+    "LeafState": "growth",
+    "GrowthRates": "growth",
+    "LeafTimeline": "growth",
     "state_at_age": "growth",
-    "LeafBatch": "mesh", "mesh_batch": "mesh", "mesh_leaf": "reduction", "leaf_areas": "mesh",
-    "Reduction": "reduction", "reduce_leaf": "reduction", "reduced_mesh": "reduction",
-    "bend": "plastic", "scale_width": "plastic", "PlasticOp": "plastic", "apply_ops": "plastic",
-    "PlantSpec": "canopy", "FieldSpec": "canopy", "build_plant": "canopy",
-    "build_field": "canopy", "field_mesh": "canopy", "plant_growth_frames": "canopy",
+    "LeafBatch": "mesh",
+    "mesh_batch": "mesh",
+    "mesh_leaf": "reduction",
+    "leaf_areas": "mesh",
+    "Reduction": "reduction",
+    "reduce_leaf": "reduction",
+    "reduced_mesh": "reduction",
+    "bend": "plastic",
+    "scale_width": "plastic",
+    "PlasticOp": "plastic",
+    "apply_ops": "plastic",
+    "PlantSpec": "canopy",
+    "FieldSpec": "canopy",
+    "build_plant": "canopy",
+    "build_field": "canopy",
+    "field_mesh": "canopy",
+    "plant_growth_frames": "canopy",
 }
 
 

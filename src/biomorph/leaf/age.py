@@ -32,8 +32,10 @@ def check_age(age: float) -> float:
     """Return ``age`` as float if it lies in [0, 1] (normalised physiological age)."""
     a = float(age)
     if not np.isfinite(a) or a < 0.0 or a > 1.0:
-        raise ParameterError(f"age {age!r} is outside [0, 1]; the leaf age is normalised "
-                             "(0 = just initiated, 1 = mature and senescent)")
+        raise ParameterError(
+            f"age {age!r} is outside [0, 1]; the leaf age is normalised "
+            "(0 = just initiated, 1 = mature and senescent)"
+        )
     return a
 
 
@@ -61,9 +63,14 @@ def relative_length(age: float, extension_end: float = EXTENSION_END) -> float:
     return MIN_RELATIVE_LENGTH + (1.0 - MIN_RELATIVE_LENGTH) * frac
 
 
-def state_at_age(shape: ShapeLike, age: float, extension_end: float | None = None,
-                 hidden: float = 0.0, width_factor: float = 1.0, bend: float = 0.0
-                 ) -> LeafState:
+def state_at_age(
+    shape: ShapeLike,
+    age: float,
+    extension_end: float | None = None,
+    hidden: float = 0.0,
+    width_factor: float = 1.0,
+    bend: float = 0.0,
+) -> LeafState:
     """Default state of ``shape`` at ``age`` (length from :func:`relative_length`; the
     extension ends at ``extension_end``, default the shape's own ``extension_end``)."""
     if extension_end is None:
@@ -81,12 +88,20 @@ def visible_area(shape: ShapeLike, state: LeafState | None = None) -> float:
     lo, hi = state.length - state.visible, state.length
     if hi <= lo:
         return 0.0
-    knots = shape.s_r * L - (L - state.length)            # width knots in current-leaf metres
+    knots = shape.s_r * L - (L - state.length)  # width knots in current-leaf metres
     sigma = np.unique(np.concatenate([[lo, hi], knots[(knots > lo) & (knots < hi)]]))
     shat = np.clip(1.0 - (state.length - sigma) / L, 0, 1)
     w = shape.width * state.width_factor * shape.r_at(shat)
     return float(np.trapezoid(w, sigma))
 
 
-__all__ = ["EXTENSION_END", "MIN_RELATIVE_LENGTH", "LeafState", "ShapeLike", "check_age",
-           "relative_length", "state_at_age", "visible_area"]
+__all__ = [
+    "EXTENSION_END",
+    "MIN_RELATIVE_LENGTH",
+    "LeafState",
+    "ShapeLike",
+    "check_age",
+    "relative_length",
+    "state_at_age",
+    "visible_area",
+]

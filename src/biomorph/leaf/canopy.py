@@ -45,19 +45,19 @@ class PlantSpec:
     preset: str = "wheat"
     leaves: int = 6
     age: float = 0.8
-    stem_height: float | None = None       # default: 2.5 × the preset leaf length
+    stem_height: float | None = None  # default: 2.5 × the preset leaf length
     stem_radius: float = 0.002
-    appearance: float = 0.1                # plant-age interval between two leaves
-    lifespan: float = 0.5                  # leaf life as a fraction of the plant's life
+    appearance: float = 0.1  # plant-age interval between two leaves
+    lifespan: float = 0.5  # leaf life as a fraction of the plant's life
     azimuth_jitter_deg: float = 15.0
     insertion_jitter_deg: float = 8.0
-    length_jitter: float = 0.08            # relative standard deviation
+    length_jitter: float = 0.08  # relative standard deviation
     shape_overrides: dict = field(default_factory=dict)
-    shape_classes: bool = True             # per-rank shape classes of the preset (if any)
-    draw_members: bool = False             # draw each leaf from its class database (ADEL)
-    soil: bool = True                      # bend leaves at the soil plane z = 0
-    thermal_time: float | None = None      # °Cd since emergence: leaf ages from phyllochrons
-    phyllochron: float | None = None       # °Cd per leaf (default per preset, see thermal)
+    shape_classes: bool = True  # per-rank shape classes of the preset (if any)
+    draw_members: bool = False  # draw each leaf from its class database (ADEL)
+    soil: bool = True  # bend leaves at the soil plane z = 0
+    thermal_time: float | None = None  # °Cd since emergence: leaf ages from phyllochrons
+    phyllochron: float | None = None  # °Cd per leaf (default per preset, see thermal)
 
     def validate(self) -> None:
         check_age(self.age)
@@ -81,19 +81,19 @@ class FieldSpec:
     plants: int = 20
     rows: int = 4
     row_spacing: float = 0.15
-    plant_spacing: float | None = None     # default: from density, else row_spacing / 3
+    plant_spacing: float | None = None  # default: from density, else row_spacing / 3
     position_jitter: float = 0.01
-    density: float | None = None           # plants per m²; sets plant_spacing
+    density: float | None = None  # plants per m²; sets plant_spacing
     plant: PlantSpec = field(default_factory=PlantSpec)
 
     def validate(self) -> None:
         if self.plants < 1 or self.rows < 1:
-            raise ParameterError(f"need at least 1 plant and 1 row; got plants={self.plants}, "
-                                 f"rows={self.rows}")
+            raise ParameterError(
+                f"need at least 1 plant and 1 row; got plants={self.plants}, rows={self.rows}"
+            )
         if self.rows > self.plants:
             raise ParameterError(f"rows={self.rows} exceeds plants={self.plants}")
-        if self.row_spacing <= 0 or (self.plant_spacing is not None and
-                                     self.plant_spacing <= 0):
+        if self.row_spacing <= 0 or (self.plant_spacing is not None and self.plant_spacing <= 0):
             raise ParameterError(f"spacing must be > 0 m; got row spacing {self.row_spacing}")
         if self.density is not None and self.density <= 0:
             raise ParameterError(f"density {self.density!r} must be > 0 plants/m²")
@@ -107,23 +107,23 @@ class Field:
     """Leaves of a field as arrays (one row per leaf) plus plant positions."""
 
     shape: LeafShape
-    plant_pos: Array            # (P, 3) stem base positions
-    stem_height: Array          # (P,) current stem height
+    plant_pos: Array  # (P, 3) stem base positions
+    stem_height: Array  # (P,) current stem height
     stem_radius: float
-    plant: NDArray[np.int64]    # (N,) plant index per leaf
-    rank: NDArray[np.int64]     # (N,) 1-based leaf rank
-    age: Array                  # (N,) leaf age in [0, 1]
-    length_scale: Array         # (N,) final length / preset length
-    incline: Array              # (N,) insertion-angle offset (radians, + = more erect)
-    azimuth: Array              # (N,)
-    origin: Array               # (N, 3) insertion point
+    plant: NDArray[np.int64]  # (N,) plant index per leaf
+    rank: NDArray[np.int64]  # (N,) 1-based leaf rank
+    age: Array  # (N,) leaf age in [0, 1]
+    length_scale: Array  # (N,) final length / preset length
+    incline: Array  # (N,) insertion-angle offset (radians, + = more erect)
+    azimuth: Array  # (N,)
+    origin: Array  # (N, 3) insertion point
     ground_area: float
-    shapes: tuple = ()          # per-leaf shapes by ``shape_id`` (empty: ``shape`` for all)
+    shapes: tuple = ()  # per-leaf shapes by ``shape_id`` (empty: ``shape`` for all)
     shape_id: NDArray[np.int64] | None = None
     soil: bool = True
-    requested_leaves: int = 0   # leaves per plant asked for
-    tile: tuple[float, float, float, float] | None = None   # ground rectangle (x0 y0 x1 y1)
-    width_scale: Array | None = None   # (N,) extra width factor (plant tables: W_blade)
+    requested_leaves: int = 0  # leaves per plant asked for
+    tile: tuple[float, float, float, float] | None = None  # ground rectangle (x0 y0 x1 y1)
+    width_scale: Array | None = None  # (N,) extra width factor (plant tables: W_blade)
 
     @property
     def n_leaves(self) -> int:
@@ -157,29 +157,37 @@ def _plant_leaves(spec: PlantSpec, plant_age: float, plants: int, rng: np.random
     else:
         emerge = i * spec.appearance
         present = np.broadcast_to(plant_age >= emerge, (plants, n))
-        age = np.broadcast_to(np.clip((plant_age - emerge) / spec.lifespan, 0.0, 1.0),
-                              (plants, n))
+        age = np.broadcast_to(np.clip((plant_age - emerge) / spec.lifespan, 0.0, 1.0), (plants, n))
     x = i / max(n - 1, 1)
     profile = 0.55 + 0.45 * np.sin(np.pi * (0.15 + 0.7 * x))
-    lscale = profile * np.clip(1 + spec.length_jitter * rng.standard_normal((plants, n)),
-                               0.5, 1.5)
+    lscale = profile * np.clip(1 + spec.length_jitter * rng.standard_normal((plants, n)), 0.5, 1.5)
     base_az = rng.uniform(0, 2 * np.pi, size=(plants, 1))
-    az = base_az + np.pi * i + np.radians(spec.azimuth_jitter_deg) * rng.standard_normal(
-        (plants, n))
+    az = (
+        base_az + np.pi * i + np.radians(spec.azimuth_jitter_deg) * rng.standard_normal((plants, n))
+    )
     incl = np.radians(spec.insertion_jitter_deg) * rng.standard_normal((plants, n))
     return present, age, lscale, az, incl
 
 
-def build_plant(spec: PlantSpec, seed: int | np.random.Generator = 0,
-                origin=(0.0, 0.0, 0.0), age: float | None = None) -> Field:
+def build_plant(
+    spec: PlantSpec,
+    seed: int | np.random.Generator = 0,
+    origin=(0.0, 0.0, 0.0),
+    age: float | None = None,
+) -> Field:
     """One plant (a one-plant :class:`Field`)."""
-    fs = FieldSpec(plants=1, rows=1, row_spacing=1.0, plant_spacing=1.0, position_jitter=0.0,
-                   plant=spec)
+    fs = FieldSpec(
+        plants=1, rows=1, row_spacing=1.0, plant_spacing=1.0, position_jitter=0.0, plant=spec
+    )
     return build_field(fs, seed=seed, origin=origin, age=age)
 
 
-def build_field(spec: FieldSpec, seed: int | np.random.Generator = 0, origin=(0.0, 0.0, 0.0),
-                age: float | None = None) -> Field:
+def build_field(
+    spec: FieldSpec,
+    seed: int | np.random.Generator = 0,
+    origin=(0.0, 0.0, 0.0),
+    age: float | None = None,
+) -> Field:
     """Place plants in rows and draw every leaf's parameters (deterministic given ``seed``).
 
     ``age`` overrides the plant age (for growth animation: same seed, same plants).
@@ -190,8 +198,9 @@ def build_field(spec: FieldSpec, seed: int | np.random.Generator = 0, origin=(0.
     plant_age = check_age(ps.age if age is None else age)
     shape = LeafShape.from_preset(ps.preset, **ps.shape_overrides)
     per_row = int(np.ceil(spec.plants / spec.rows))
-    dx = spec.plant_spacing or (1.0 / (spec.density * spec.row_spacing) if spec.density
-                                else spec.row_spacing / 3.0)
+    dx = spec.plant_spacing or (
+        1.0 / (spec.density * spec.row_spacing) if spec.density else spec.row_spacing / 3.0
+    )
     idx = np.arange(spec.plants)
     row, col = idx // per_row, idx % per_row
     pos = np.stack([col * dx, row * spec.row_spacing, np.zeros(spec.plants)], axis=1)
@@ -208,30 +217,58 @@ def build_field(spec: FieldSpec, seed: int | np.random.Generator = 0, origin=(0.
     n = ps.leaves
     rel_h = ((np.arange(n) + 1) / n) ** 1.3
     present, a, ls, az, incl = _plant_leaves(ps, plant_age, spec.plants, rng)
-    pp, kk = np.nonzero(present)                     # plant-major order, ranks ascending
+    pp, kk = np.nonzero(present)  # plant-major order, ranks ascending
     org = pos[pp].copy()
     org[:, 2] += stem_h[pp] * rel_h[kk]
-    cat = {"plant": pp, "rank": kk + 1, "age": a[pp, kk], "ls": ls[pp, kk], "az": az[pp, kk],
-           "incl": incl[pp, kk], "org": org}
+    cat = {
+        "plant": pp,
+        "rank": kk + 1,
+        "age": a[pp, kk],
+        "ls": ls[pp, kk],
+        "az": az[pp, kk],
+        "incl": incl[pp, kk],
+        "org": org,
+    }
     ground = spec.rows * spec.row_spacing * per_row * dx
     shapes, shape_id, ls_leaf = _class_shapes(ps, shape, kk, cat["ls"], rng)
-    fld = Field(shape, pos, stem_h, ps.stem_radius, cat["plant"].astype(np.int64),
-                cat["rank"].astype(np.int64), cat["age"], ls_leaf, cat["incl"], cat["az"],
-                cat["org"].reshape(-1, 3), float(ground), shapes, shape_id, ps.soil, n,
-                _tile(origin, dx, spec.row_spacing, per_row, spec.rows))
+    fld = Field(
+        shape,
+        pos,
+        stem_h,
+        ps.stem_radius,
+        cat["plant"].astype(np.int64),
+        cat["rank"].astype(np.int64),
+        cat["age"],
+        ls_leaf,
+        cat["incl"],
+        cat["az"],
+        cat["org"].reshape(-1, 3),
+        float(ground),
+        shapes,
+        shape_id,
+        ps.soil,
+        n,
+        _tile(origin, dx, spec.row_spacing, per_row, spec.rows),
+    )
     missing = fld.missing_leaves()
     if missing:
-        when = (f"thermal time {ps.thermal_time:g} °Cd" if ps.thermal_time is not None else
-                f"plant age {plant_age:g} (leaf i emerges at age i × appearance "
-                f"{ps.appearance:g})")
-        warnings.warn(f"{missing} of the {n} requested leaves per plant have not emerged at "
-                      f"{when}; the plants have {n - missing} leaves", LeafCountWarning,
-                      stacklevel=3)
+        when = (
+            f"thermal time {ps.thermal_time:g} °Cd"
+            if ps.thermal_time is not None
+            else f"plant age {plant_age:g} (leaf i emerges at age i × appearance {ps.appearance:g})"
+        )
+        warnings.warn(
+            f"{missing} of the {n} requested leaves per plant have not emerged at "
+            f"{when}; the plants have {n - missing} leaves",
+            LeafCountWarning,
+            stacklevel=3,
+        )
     return fld
 
 
-def _tile(origin, dx: float, dy: float, per_row: int, rows: int
-          ) -> tuple[float, float, float, float]:
+def _tile(
+    origin, dx: float, dy: float, per_row: int, rows: int
+) -> tuple[float, float, float, float]:
     """Ground rectangle of the planting pattern: plants sit at cell centres, so the field
     repeats with this tile (the light model's periodic ground)."""
     ox, oy = float(origin[0]), float(origin[1])
@@ -242,8 +279,9 @@ class LeafCountWarning(UserWarning):
     """A requested number of leaves cannot have emerged by the requested age."""
 
 
-def _class_shapes(ps: PlantSpec, base: LeafShape, kk: NDArray[np.int64], ls: Array,
-                  rng: np.random.Generator):
+def _class_shapes(
+    ps: PlantSpec, base: LeafShape, kk: NDArray[np.int64], ls: Array, rng: np.random.Generator
+):
     """Per-leaf shape classes (by rank) of the preset, and length scales relative to them.
 
     With classes, each leaf takes its rank class's shape, length and width (the class
@@ -257,10 +295,13 @@ def _class_shapes(ps: PlantSpec, base: LeafShape, kk: NDArray[np.int64], ls: Arr
     n = ps.leaves
     i = np.arange(n)
     profile = 0.55 + 0.45 * np.sin(np.pi * (0.15 + 0.7 * i / max(n - 1, 1)))
-    jitter = ls / profile[kk]                      # undo the bell profile, keep the jitter
+    jitter = ls / profile[kk]  # undo the bell profile, keep the jitter
     keys = [class_of_rank(ps.preset, int(k) + 1, n) for k in kk]
-    members = ([int(rng.integers(classes[k]["n_members"])) for k in keys]
-               if ps.draw_members else [0] * len(keys))
+    members = (
+        [int(rng.integers(classes[k]["n_members"])) for k in keys]
+        if ps.draw_members
+        else [0] * len(keys)
+    )
     index: dict[tuple[str, int], int] = {}
     shapes: list[LeafShape] = []
     sid = np.empty(len(keys), np.int64)
@@ -282,15 +323,15 @@ def _interp_rows(knots: Array, rows: Array, q: Array) -> Array:
     return (1 - w) * a + w * b
 
 
-def batch_from_field(fld: Field, s: Array, twist: bool = True, undulation: bool = True
-                     ) -> LeafBatch:
+def batch_from_field(
+    fld: Field, s: Array, twist: bool = True, undulation: bool = True
+) -> LeafBatch:
     """Vectorised profiles of every leaf of ``fld`` at visible fractions ``s`` ``(K,)``
     (one vectorised pass per distinct leaf shape), bent at the soil when ``fld.soil``."""
     shapes, sid = fld.leaf_shapes()
     sg = np.asarray(s, float)
     if len(shapes) == 1:
-        batch = _batch_one_shape(fld, shapes[0], np.arange(fld.n_leaves), sg, twist,
-                                 undulation)
+        batch = _batch_one_shape(fld, shapes[0], np.arange(fld.n_leaves), sg, twist, undulation)
     else:
         parts, order = [], []
         for k, shape in enumerate(shapes):
@@ -305,27 +346,39 @@ def batch_from_field(fld: Field, s: Array, twist: bool = True, undulation: bool 
     return rest_on_soil(batch, 0.0) if fld.soil else batch
 
 
-_BATCH_FIELDS = ("phi", "seg", "width", "theta", "wave_amp", "wave_arg", "v", "origin",
-                 "azimuth", "plant", "leaf")
+_BATCH_FIELDS = (
+    "phi",
+    "seg",
+    "width",
+    "theta",
+    "wave_amp",
+    "wave_arg",
+    "v",
+    "origin",
+    "azimuth",
+    "plant",
+    "leaf",
+)
 
 
-def _batch_one_shape(fld: Field, shape: LeafShape, idx: NDArray[np.int64], sg: Array,
-                     twist: bool, undulation: bool) -> LeafBatch:
+def _batch_one_shape(
+    fld: Field, shape: LeafShape, idx: NDArray[np.int64], sg: Array, twist: bool, undulation: bool
+) -> LeafBatch:
     """Profiles of the leaves ``idx`` of ``fld`` that share ``shape`` (``length_scale`` is
     relative to the field's base shape)."""
     age = fld.age[idx]
-    L = fld.shape.length * fld.length_scale[idx]                           # (N,)
+    L = fld.shape.length * fld.length_scale[idx]  # (N,)
     wscale = L / shape.length
     ext = shape.extension_end
     rel = MIN_RELATIVE_LENGTH + (1 - MIN_RELATIVE_LENGTH) * np.clip(age / ext, 0, 1)
     l_cur = L * rel
-    sigma = sg[None, :] * l_cur[:, None]                                   # (N,K) metres
+    sigma = sg[None, :] * l_cur[:, None]  # (N,K) metres
     shat = np.clip(1.0 - (l_cur[:, None] - sigma) / L[:, None], 0, 1)  # exact 1 at the tip
     smid = 0.5 * (sigma[:, 1:] + sigma[:, :-1]) / L[:, None]
     phi = np.interp(smid, shape.s, shape.phi)
     if shape.collection is not None:
         c = shape.collection
-        rows = np.atleast_2d(c.phi_at(age)) - c.phi_at(ext)[None, :]       # (N, M) change
+        rows = np.atleast_2d(c.phi_at(age)) - c.phi_at(ext)[None, :]  # (N, M) change
         phi = phi + _interp_rows(c.s, rows, smid)
     phi = phi + fld.incline[idx, None]
     seg = np.diff(sg)[None, :] * l_cur[:, None]
@@ -339,8 +392,19 @@ def _batch_one_shape(fld: Field, shape: LeafShape, idx: NDArray[np.int64], sg: A
     else:
         amp = arg = np.zeros_like(shat)
     v = np.broadcast_to(sg, shat.shape).copy()
-    return LeafBatch(phi, seg, width, theta, amp, arg, v, fld.origin[idx], fld.azimuth[idx],
-                     fld.plant[idx], fld.rank[idx])
+    return LeafBatch(
+        phi,
+        seg,
+        width,
+        theta,
+        amp,
+        arg,
+        v,
+        fld.origin[idx],
+        fld.azimuth[idx],
+        fld.plant[idx],
+        fld.rank[idx],
+    )
 
 
 def lod_samples(shape: LeafShape, triangles: int, age: float = 0.8, reduction=None) -> Array:
@@ -358,34 +422,54 @@ def stem_mesh(fld: Field, sides: int = 6) -> Mesh:
     """Prism stems (one per plant) with face ids ``plant`` and ``leaf = 0``."""
     p = fld.plant_pos.shape[0]
     ang = np.linspace(0, 2 * np.pi, sides, endpoint=False)
-    ring = np.stack([np.cos(ang), np.sin(ang), np.zeros(sides)], axis=1)       # (S,3)
+    ring = np.stack([np.cos(ang), np.sin(ang), np.zeros(sides)], axis=1)  # (S,3)
     bottom = fld.plant_pos[:, None, :] + fld.stem_radius * ring[None]
     top = bottom.copy()
     top[..., 2] += fld.stem_height[:, None]
-    verts = np.concatenate([bottom, top], axis=1).reshape(-1, 3)               # (P*2S,3)
+    verts = np.concatenate([bottom, top], axis=1).reshape(-1, 3)  # (P*2S,3)
     j = np.arange(sides)
     a, b = j, (j + 1) % sides
-    quad = np.concatenate([np.stack([a, b, b + sides], 1), np.stack([a, b + sides, a + sides],
-                                                                     1)])
+    quad = np.concatenate([np.stack([a, b, b + sides], 1), np.stack([a, b + sides, a + sides], 1)])
     faces = (quad[None] + (np.arange(p) * 2 * sides)[:, None, None]).reshape(-1, 3)
     normals = np.tile(np.concatenate([ring, ring]), (p, 1))
-    uv = np.tile(np.concatenate([np.stack([j / sides, np.zeros(sides)], 1),
-                                 np.stack([j / sides, np.ones(sides)], 1)]), (p, 1))
+    uv = np.tile(
+        np.concatenate(
+            [np.stack([j / sides, np.zeros(sides)], 1), np.stack([j / sides, np.ones(sides)], 1)]
+        ),
+        (p, 1),
+    )
     plant = np.repeat(np.arange(p), 2 * sides)
-    return Mesh(verts, faces, normals=normals, uv=uv,
-                face_ids={"plant": plant, "leaf": np.zeros(plant.size, np.int64)})
+    return Mesh(
+        verts,
+        faces,
+        normals=normals,
+        uv=uv,
+        face_ids={"plant": plant, "leaf": np.zeros(plant.size, np.int64)},
+    )
 
 
-def field_mesh(fld: Field, triangles_per_leaf: int = 20, stems: bool = True,
-               twist: bool = True, undulation: bool = True, drop_degenerate: bool = True,
-               s: Array | None = None) -> Mesh:
+def field_mesh(
+    fld: Field,
+    triangles_per_leaf: int = 20,
+    stems: bool = True,
+    twist: bool = True,
+    undulation: bool = True,
+    drop_degenerate: bool = True,
+    s: Array | None = None,
+) -> Mesh:
     """One mesh of the whole field (leaves, optionally stems)."""
     if triangles_per_leaf < 1:
-        raise ParameterError(f"triangles per leaf {triangles_per_leaf} is below the minimum "
-                             "mesh (1)")
+        raise ParameterError(
+            f"triangles per leaf {triangles_per_leaf} is below the minimum mesh (1)"
+        )
     sg = lod_samples(fld.shape, triangles_per_leaf) if s is None else s
-    leaves = mesh_batch(batch_from_field(fld, sg, twist, undulation), n_u=2,
-                        drop_degenerate=drop_degenerate) if fld.n_leaves else None
+    leaves = (
+        mesh_batch(
+            batch_from_field(fld, sg, twist, undulation), n_u=2, drop_degenerate=drop_degenerate
+        )
+        if fld.n_leaves
+        else None
+    )
     parts = [m for m in (leaves, stem_mesh(fld) if stems else None) if m is not None]
     return parts[0] if len(parts) == 1 else Mesh.merge(parts)
 
@@ -396,16 +480,26 @@ def leaf_area_index(fld: Field, mesh: Mesh) -> float:
     return float(mesh.face_areas()[leaf].sum() / fld.ground_area)
 
 
-def plant_growth_frames(spec: PlantSpec | FieldSpec, frames: int, seed: int = 0,
-                        age_start: float = 0.05, age_end: float = 1.0,
-                        triangles_per_leaf: int = 20) -> list[Mesh]:
+def plant_growth_frames(
+    spec: PlantSpec | FieldSpec,
+    frames: int,
+    seed: int = 0,
+    age_start: float = 0.05,
+    age_end: float = 1.0,
+    triangles_per_leaf: int = 20,
+) -> list[Mesh]:
     """Equal-topology meshes of a plant (or field) growing from ``age_start`` to
     ``age_end``: every leaf exists in every frame (zero-size before it appears)."""
     if frames < 1:
         raise ParameterError(f"frames={frames}: expected at least 1")
-    fs = spec if isinstance(spec, FieldSpec) else FieldSpec(
-        plants=1, rows=1, row_spacing=1.0, plant_spacing=1.0, position_jitter=0.0, plant=spec)
-    full = build_field(fs, seed=seed, age=1.0)           # every leaf present
+    fs = (
+        spec
+        if isinstance(spec, FieldSpec)
+        else FieldSpec(
+            plants=1, rows=1, row_spacing=1.0, plant_spacing=1.0, position_jitter=0.0, plant=spec
+        )
+    )
+    full = build_field(fs, seed=seed, age=1.0)  # every leaf present
     sg = lod_samples(full.shape, triangles_per_leaf)
     out = []
     ps = fs.plant
@@ -417,16 +511,44 @@ def plant_growth_frames(spec: PlantSpec | FieldSpec, frames: int, seed: int = 0,
         elong = np.clip(a / 0.8, 0.1, 1.0)
         stem_h = full.stem_height * elong
         org = full.origin.copy()
-        org[:, 2] = full.plant_pos[full.plant, 2] + (org[:, 2] - full.plant_pos[full.plant, 2]
-                                                      ) * elong
-        fr = Field(full.shape, full.plant_pos, stem_h, full.stem_radius, full.plant, full.rank,
-                   leaf_age, scale, full.incline, full.azimuth, org, full.ground_area,
-                   full.shapes, full.shape_id, full.soil, full.requested_leaves, full.tile,
-                   full.width_scale)
+        org[:, 2] = (
+            full.plant_pos[full.plant, 2] + (org[:, 2] - full.plant_pos[full.plant, 2]) * elong
+        )
+        fr = Field(
+            full.shape,
+            full.plant_pos,
+            stem_h,
+            full.stem_radius,
+            full.plant,
+            full.rank,
+            leaf_age,
+            scale,
+            full.incline,
+            full.azimuth,
+            org,
+            full.ground_area,
+            full.shapes,
+            full.shape_id,
+            full.soil,
+            full.requested_leaves,
+            full.tile,
+            full.width_scale,
+        )
         out.append(field_mesh(fr, s=sg, drop_degenerate=False))
     return out
 
 
-__all__ = ["Field", "FieldSpec", "LeafCountWarning", "PlantSpec", "batch_from_field",
-           "build_field", "build_plant", "field_mesh", "leaf_area_index", "lod_samples",
-           "plant_growth_frames", "stem_mesh"]
+__all__ = [
+    "Field",
+    "FieldSpec",
+    "LeafCountWarning",
+    "PlantSpec",
+    "batch_from_field",
+    "build_field",
+    "build_plant",
+    "field_mesh",
+    "leaf_area_index",
+    "lod_samples",
+    "plant_growth_frames",
+    "stem_mesh",
+]

@@ -52,13 +52,16 @@ def shared_leaves(required: bool = True) -> Path | None:
     if not required:
         return None
     more = " ..." if len(tried) > 3 else ""
-    raise FormatError(tried[0], f"leaf data folder not found; set {DATA_ENV} to the folder "
-                                f"that holds leaves/ (searched {', '.join(map(str, tried[:3]))}"
-                                f"{more})")
+    raise FormatError(
+        tried[0],
+        f"leaf data folder not found; set {DATA_ENV} to the folder "
+        f"that holds leaves/ (searched {', '.join(map(str, tried[:3]))}"
+        f"{more})",
+    )
 
 
 def __getattr__(name: str):
-    if name == "SHARED_LEAVES":   # backwards-compatible, resolved lazily
+    if name == "SHARED_LEAVES":  # backwards-compatible, resolved lazily
         return shared_leaves()
     raise AttributeError(f"module 'biomorph.leaf.data' has no attribute {name!r}")
 
@@ -72,8 +75,12 @@ def _rows(path: PathLike, columns: tuple[str, ...]) -> list[tuple[int, list[floa
         reader = csv.DictReader(fh)
         missing = [c for c in columns if c not in (reader.fieldnames or [])]
         if missing:
-            raise FormatError(p, f"missing column(s) {', '.join(missing)}; found "
-                                 f"{', '.join(reader.fieldnames or [])}", line=1)
+            raise FormatError(
+                p,
+                f"missing column(s) {', '.join(missing)}; found "
+                f"{', '.join(reader.fieldnames or [])}",
+                line=1,
+            )
         for i, row in enumerate(reader, start=2):
             try:
                 out.append((i, [float(row[c]) for c in columns]))
@@ -113,9 +120,12 @@ def read_trajectories(path: PathLike) -> dict[int, MidribCollection]:
         ages = sorted(curves)
         pts = [np.array(curves[a]) for a in ages]
         out[lindex] = MidribCollection.from_curves(
-            ages, [(p[:, 0], p[:, 1]) for p in pts], n=51,
+            ages,
+            [(p[:, 0], p[:, 1]) for p in pts],
+            n=51,
             source=f"{Path(path).name} lindex={lindex}",
-            full_extension_age=0.0)   # age = Haun stage − rank: 0 at full extension
+            full_extension_age=0.0,
+        )  # age = Haun stage − rank: 0 at full extension
     return out
 
 
@@ -126,8 +136,7 @@ def drop_duplicate_points(x: Array, y: Array) -> tuple[Array, Array]:
     return x[keep], y[keep]
 
 
-def wheat_leaves(root: PathLike | None = None, width_ratio: float = 0.07
-                 ) -> list[LeafShape]:
+def wheat_leaves(root: PathLike | None = None, width_ratio: float = 0.07) -> list[LeafShape]:
     """The 450 digitised wheat leaves of ``adel/So99.csv`` with their class width profiles
     (``adel/SRSo.csv``), in metres; maximal width = ``width_ratio · L``."""
     root = Path(root) if root is not None else shared_leaves()
@@ -155,13 +164,21 @@ def maize_leaves(root: PathLike | None = None, db: str = "leaves_db") -> list[Le
         s, r = sr[key]
         x, y = drop_duplicate_points(x, y)
         L = float((s[-1] - s[0]) * 0.01)
-        leaves.append(LeafShape.from_points(x, y, s, r, length=L,
-                                            name=f"maize r{key[0]} #{key[1]}"))
+        leaves.append(
+            LeafShape.from_points(x, y, s, r, length=L, name=f"maize r{key[0]} #{key[1]}")
+        )
     return leaves
 
 
-__all__ = ["DATA_ENV", "maize_leaves", "shared_leaves", "read_sr", "read_trajectories", "read_xy",
-           "wheat_leaves"]
+__all__ = [
+    "DATA_ENV",
+    "maize_leaves",
+    "shared_leaves",
+    "read_sr",
+    "read_trajectories",
+    "read_xy",
+    "wheat_leaves",
+]
 
 
 def _median_profile(leaves: list[LeafShape], n: int = 51) -> tuple[Array, Array, Array]:
@@ -208,23 +225,37 @@ def _class_entry(leaves: list[LeafShape], s_r: Array, r: Array, n: int = 101) ->
     members = class_members(curves, dist=dist)
     s = np.linspace(0, 1, n)
     best = leaves[members[0]]
-    phi = np.array(_r6(best.phi_at(s)))          # the stored shape, as it will be read back
+    phi = np.array(_r6(best.phi_at(s)))  # the stored shape, as it will be read back
     fig = class_figures(curves, unit_curve(lambda q: np.interp(q, s, phi)), dist)
-    return {"n_leaves": fig["n"], "medoid": best.name, "s": _r6(s), "phi": _r6(best.phi_at(s)),
-            "s_r": _r6(s_r), "r": _r6(r / r.max()),
-            "length": float(f"{np.median([lf.length for lf in leaves]):.6g}"),
-            "width": float(f"{np.median([lf.width for lf in leaves]):.6g}"),
-            "median_maxdist": round(fig["median_maxdist"], 4),
-            "spread": round(fig["spread"], 4), "chord_deg": round(fig["chord_deg"], 2),
-            "members_phi": [_r6(leaves[m].phi_at(s)) for m in members],
-            "members_maxdist": round(float(np.median(dist[:, members].min(axis=1))), 4)}
+    return {
+        "n_leaves": fig["n"],
+        "medoid": best.name,
+        "s": _r6(s),
+        "phi": _r6(best.phi_at(s)),
+        "s_r": _r6(s_r),
+        "r": _r6(r / r.max()),
+        "length": float(f"{np.median([lf.length for lf in leaves]):.6g}"),
+        "width": float(f"{np.median([lf.width for lf in leaves]):.6g}"),
+        "median_maxdist": round(fig["median_maxdist"], 4),
+        "spread": round(fig["spread"], 4),
+        "chord_deg": round(fig["chord_deg"], 2),
+        "members_phi": [_r6(leaves[m].phi_at(s)) for m in members],
+        "members_maxdist": round(float(np.median(dist[:, members].min(axis=1))), 4),
+    }
 
 
 def _wheat_dims(root: Path) -> dict:
-    cols = ("xn", "L_blade", "W_blade", "L_sheath", "L_internode", "W_sheath", "H_col",
-            "W_internode")
-    rows = np.array([v for _, v in _rows(root / "adel" / "Wheat_dimension_profiles.csv",
-                                         cols)])
+    cols = (
+        "xn",
+        "L_blade",
+        "W_blade",
+        "L_sheath",
+        "L_internode",
+        "W_sheath",
+        "H_col",
+        "W_internode",
+    )
+    rows = np.array([v for _, v in _rows(root / "adel" / "Wheat_dimension_profiles.csv", cols)])
     return {c: _r6(rows[:, k] * (1 if c == "xn" else 0.01)) for k, c in enumerate(cols)}
 
 
@@ -255,22 +286,36 @@ def derive_presets(root: PathLike | None = None) -> dict:
     dims = _wheat_dims(root)
     i_max = int(np.argmax(dims["L_blade"]))
     L_w, W_w = dims["L_blade"][i_max], dims["W_blade"][i_max]
-    traj = read_trajectories(root / "adel" / "echap_leaf_data" /
-                             "median_leaf_trajectories_Tremie12.csv")[1]
+    traj = read_trajectories(
+        root / "adel" / "echap_leaf_data" / "median_leaf_trajectories_Tremie12.csv"
+    )[1]
     w_all = wheat[medoid(curves_of(wheat))]
-    classes = {str(k): _class_entry([lf for lf in wheat if _rank_of(lf) == k], *sr[k])
-               for k in sorted(sr)}
+    classes = {
+        str(k): _class_entry([lf for lf in wheat if _rank_of(lf) == k], *sr[k]) for k in sorted(sr)
+    }
     out["wheat"] = {
         "source": "So99.csv (450 midribs: medoid of all, and per rank class), SRSo.csv "
-                  "(widths per class), Wheat_dimension_profiles.csv (longest blade, "
-                  "per-rank dimensions), Tremie12 trajectories",
-        "length": float(f"{L_w:.6g}"), "width": float(f"{W_w:.6g}"),
-        "s": _r6(s), "phi": _r6(w_all.phi_at(s)), "s_r": _r6(s), "r": _r6(r_w / r_w.max()),
-        "twist_deg": 0.0, "undulation": 0.0, "wavelength": 0.05,
-        "collection": {"ages": _r6(traj.ages), "s": _r6(traj.s),
-                       "phi": [_r6(row) for row in traj.phi], "source": traj.source,
-                       "full_extension_age": 0.0},
-        "class_rule": "normalised_rank", "classes": classes, "dimensions": dims,
+        "(widths per class), Wheat_dimension_profiles.csv (longest blade, "
+        "per-rank dimensions), Tremie12 trajectories",
+        "length": float(f"{L_w:.6g}"),
+        "width": float(f"{W_w:.6g}"),
+        "s": _r6(s),
+        "phi": _r6(w_all.phi_at(s)),
+        "s_r": _r6(s),
+        "r": _r6(r_w / r_w.max()),
+        "twist_deg": 0.0,
+        "undulation": 0.0,
+        "wavelength": 0.05,
+        "collection": {
+            "ages": _r6(traj.ages),
+            "s": _r6(traj.s),
+            "phi": [_r6(row) for row in traj.phi],
+            "source": traj.source,
+            "full_extension_age": 0.0,
+        },
+        "class_rule": "normalised_rank",
+        "classes": classes,
+        "dimensions": dims,
     }
     maize = maize_leaves(root)
     lmax = max(lf.length for lf in maize)
@@ -288,26 +333,35 @@ def derive_presets(root: PathLike | None = None) -> dict:
     m_all = maize[medoid(curves_of(maize))]
     out["maize"] = {
         "source": f"maize_leaves_db (medoid of the {len(maize)} leaves; length and width: "
-                  f"median of the {len(big)} leaves >= 80% of the longest; classes per rank "
-                  "group)",
+        f"median of the {len(big)} leaves >= 80% of the longest; classes per rank "
+        "group)",
         "length": float(f"{np.median([lf.length for lf in big]):.6g}"),
         "width": float(f"{np.median([lf.width for lf in big]):.6g}"),
-        "s": _r6(s), "phi": _r6(m_all.phi_at(s)), "s_r": _r6(s),
+        "s": _r6(s),
+        "phi": _r6(m_all.phi_at(s)),
+        "s_r": _r6(s),
         "r": _r6(np.median([lf.r_at(s) for lf in big], axis=0)),
-        "twist_deg": 30.0, "undulation": 0.004, "wavelength": 0.06,
+        "twist_deg": 30.0,
+        "undulation": 0.004,
+        "wavelength": 0.06,
         "hand_set": ["twist_deg", "undulation", "wavelength"],
-        "class_rule": "rank_groups", "classes": m_classes,
+        "class_rule": "rank_groups",
+        "classes": m_classes,
     }
-    bent = min(sr, key=lambda k: np.median(
-        [lf.phi[-1] for lf in wheat if _rank_of(lf) == k]))
+    bent = min(sr, key=lambda k: np.median([lf.phi[-1] for lf in wheat if _rank_of(lf) == k]))
     cls_leaves = [lf for lf in wheat if _rank_of(lf) == bent]
     sm, phi, _ = _median_profile(cls_leaves)
     out["grass"] = {
         "source": f"So99.csv rank class {bent} (most bent; median angle), SRSo class {bent}",
-        "length": 0.3, "width": 0.006,
-        "s": _r6(sm), "phi": _r6(phi), "s_r": _r6(sm),
+        "length": 0.3,
+        "width": 0.006,
+        "s": _r6(sm),
+        "phi": _r6(phi),
+        "s_r": _r6(sm),
         "r": _r6(np.interp(sm, *sr[bent]) / sr[bent][1].max()),
-        "twist_deg": 180.0, "undulation": 0.0, "wavelength": 0.05,
+        "twist_deg": 180.0,
+        "undulation": 0.0,
+        "wavelength": 0.05,
         "hand_set": ["length", "width", "twist_deg"],
     }
     return out

@@ -51,8 +51,11 @@ def read_points_csv(path: str | Path, columns: tuple[str, ...]) -> tuple[np.ndar
         reader = csv.DictReader(fh)
         names = reader.fieldnames or []
         if any(c not in names for c in columns):
-            raise FormatError(path, f"expected columns {' and '.join(columns)}; found "
-                                    f"{', '.join(names) or 'none'}", line=1)
+            raise FormatError(
+                path,
+                f"expected columns {' and '.join(columns)}; found {', '.join(names) or 'none'}",
+                line=1,
+            )
         vals = []
         for i, row in enumerate(reader, start=2):
             try:
@@ -63,8 +66,14 @@ def read_points_csv(path: str | Path, columns: tuple[str, ...]) -> tuple[np.ndar
     return tuple(arr[:, k] for k in range(len(columns)))
 
 
-_COMPONENT = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
-              5126: np.float32}
+_COMPONENT = {
+    5120: np.int8,
+    5121: np.uint8,
+    5122: np.int16,
+    5123: np.uint16,
+    5125: np.uint32,
+    5126: np.float32,
+}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 
 
@@ -75,12 +84,15 @@ def _accessor(gltf: Any, blob: bytes, index: int) -> np.ndarray:
     width = _WIDTH[acc.type]
     start = (view.byteOffset or 0) + (acc.byteOffset or 0)
     stride = view.byteStride or dtype.itemsize * width
-    raw = np.frombuffer(blob, dtype=np.uint8, count=stride * (acc.count - 1) +
-                        dtype.itemsize * width, offset=start)
-    rows = np.lib.stride_tricks.as_strided(raw, (acc.count, dtype.itemsize * width),
-                                           (stride, 1))
-    return np.ascontiguousarray(rows).view(dtype).reshape(acc.count, width).squeeze(-1) \
-        if width == 1 else np.ascontiguousarray(rows).view(dtype).reshape(acc.count, width)
+    raw = np.frombuffer(
+        blob, dtype=np.uint8, count=stride * (acc.count - 1) + dtype.itemsize * width, offset=start
+    )
+    rows = np.lib.stride_tricks.as_strided(raw, (acc.count, dtype.itemsize * width), (stride, 1))
+    return (
+        np.ascontiguousarray(rows).view(dtype).reshape(acc.count, width).squeeze(-1)
+        if width == 1
+        else np.ascontiguousarray(rows).view(dtype).reshape(acc.count, width)
+    )
 
 
 def read_canopy(path: str | Path) -> Any:
@@ -103,8 +115,7 @@ def read_canopy(path: str | Path) -> Any:
 
         return read_can(path)
     if ext != ".glb":
-        raise FormatError(path, f"extension {ext or '(none)'!r}: expected .glb, .obj, .ply "
-                                "or .can")
+        raise FormatError(path, f"extension {ext or '(none)'!r}: expected .glb, .obj, .ply or .can")
     import pygltflib
 
     try:
@@ -121,12 +132,14 @@ def read_canopy(path: str | Path) -> Any:
                     continue
                 pos = _accessor(gltf, blob, prim.attributes.POSITION).astype(np.float64)
                 idx = _accessor(gltf, blob, prim.indices).astype(np.int64).reshape(-1, 3)
-                extra = {k: getattr(prim.attributes, k, None) for k in ("_PLANT_ID",
-                                                                       "_LEAF_ID")}
+                extra = {k: getattr(prim.attributes, k, None) for k in ("_PLANT_ID", "_LEAF_ID")}
                 for key, name in (("plant", "_PLANT_ID"), ("leaf", "_LEAF_ID")):
                     acc = extra.get(name)
-                    vals = (_accessor(gltf, blob, acc).astype(np.int64) if acc is not None
-                            else np.full(len(pos), 1 if key == "leaf" else 0, np.int64))
+                    vals = (
+                        _accessor(gltf, blob, acc).astype(np.int64)
+                        if acc is not None
+                        else np.full(len(pos), 1 if key == "leaf" else 0, np.int64)
+                    )
                     ids[key].append(vals[idx[:, 0]])
                 verts.append(np.stack([pos[:, 0], -pos[:, 2], pos[:, 1]], axis=1))
                 faces.append(idx + offset)
@@ -135,8 +148,11 @@ def read_canopy(path: str | Path) -> Any:
         raise FormatError(path, f"broken glTF accessor ({exc})") from None
     if not faces:
         raise FormatError(path, "holds no triangles; expected a canopy mesh")
-    return Mesh(np.concatenate(verts), np.concatenate(faces),
-                face_ids={k: np.concatenate(v) for k, v in ids.items()})
+    return Mesh(
+        np.concatenate(verts),
+        np.concatenate(faces),
+        face_ids={k: np.concatenate(v) for k, v in ids.items()},
+    )
 
 
 __all__ = ["MESH_EXT", "read_canopy", "read_points_csv", "write_leaf_mesh"]

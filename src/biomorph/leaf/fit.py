@@ -64,8 +64,9 @@ def medoid(curves: Array, dist: Array | None = None) -> int:
     return int(np.argmin(np.median(d, axis=1)))
 
 
-def class_members(curves: Array, target: float = 0.1, k_max: int = 12,
-                  dist: Array | None = None) -> list[int]:
+def class_members(
+    curves: Array, target: float = 0.1, k_max: int = 12, dist: Array | None = None
+) -> list[int]:
     """Greedy medoids: start from :func:`medoid`, add the curve that lowers the median
     nearest-member distance most, until it is ``<= target`` or ``k_max`` members."""
     d = pairwise(curves) if dist is None else dist
@@ -85,11 +86,22 @@ def class_figures(curves: Array, ref: Array, dist: Array | None = None) -> dict[
     d = pairwise(curves) if dist is None else dist
     e = max_distances(curves, ref)
     iu = np.triu_indices(len(curves), 1)
-    return {"n": int(len(curves)), "median_maxdist": float(np.median(e)),
-            "p90_maxdist": float(np.percentile(e, 90)),
-            "spread": float(np.median(d[iu])) if iu[0].size else 0.0,
-            "chord_deg": float(np.degrees(np.arctan2(ref[-1, 1], ref[-1, 0])))}
+    return {
+        "n": int(len(curves)),
+        "median_maxdist": float(np.median(e)),
+        "p90_maxdist": float(np.percentile(e, 90)),
+        "spread": float(np.median(d[iu])) if iu[0].size else 0.0,
+        "chord_deg": float(np.degrees(np.arctan2(ref[-1, 1], ref[-1, 0]))),
+    }
 
 
-__all__ = ["COMPARE_S", "class_figures", "class_members", "curves_of", "max_distances",
-           "medoid", "pairwise", "unit_curve"]
+__all__ = [
+    "COMPARE_S",
+    "class_figures",
+    "class_members",
+    "curves_of",
+    "max_distances",
+    "medoid",
+    "pairwise",
+    "unit_curve",
+]

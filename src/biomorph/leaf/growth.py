@@ -42,6 +42,7 @@ from biomorph.leaf.mesh import LeafBatch, mesh_batch
 
 Rate = float | Callable[[float], float]
 
+
 def _rate(value: Rate, x: float) -> float:
     return float(value(x)) if callable(value) else float(value)
 
@@ -73,18 +74,27 @@ class LeafTimeline:
     >>> m = tl.mesh(5.0)        # mesh at t = 5 s
     """
 
-    def __init__(self, shape: ShapeLike, rates: GrowthRates | None = None,
-                 duration: float = 1.0, dt: float | None = None,
-                 initial: LeafState | None = None, hidden: float = 0.0,
-                 extension_end: float | None = None) -> None:
+    def __init__(
+        self,
+        shape: ShapeLike,
+        rates: GrowthRates | None = None,
+        duration: float = 1.0,
+        dt: float | None = None,
+        initial: LeafState | None = None,
+        hidden: float = 0.0,
+        extension_end: float | None = None,
+    ) -> None:
         if not np.isfinite(duration) or duration <= 0:
             raise ParameterError(f"duration {duration!r} must be > 0 s")
         self.shape = shape
         self.rates = rates or GrowthRates(age_rate=1.0 / duration)
         self.duration = float(duration)
         self.hidden = float(hidden)
-        self.extension_end = float(getattr(shape, "extension_end", EXTENSION_END)
-                                   if extension_end is None else extension_end)
+        self.extension_end = float(
+            getattr(shape, "extension_end", EXTENSION_END)
+            if extension_end is None
+            else extension_end
+        )
         steps = 400 if dt is None else max(1, int(np.ceil(duration / dt)))
         self.times = np.linspace(0.0, self.duration, steps + 1)
         s0 = initial or state_at_age(shape, 0.0, self.extension_end, hidden)
@@ -92,7 +102,7 @@ class LeafTimeline:
 
     def _integrate(self, s0: LeafState) -> NDArray[np.float64]:
         r = self.rates
-        out = np.empty((self.times.size, 4))   # age, length, width factor, bend
+        out = np.empty((self.times.size, 4))  # age, length, width factor, bend
         a, l_cur, wf, bend = s0.age, s0.length, s0.width_factor, s0.bend
         out[0] = a, l_cur, wf, bend
         L = self.shape.length
@@ -119,11 +129,11 @@ class LeafTimeline:
         a, l_cur, wf, bend = vals
         return LeafState(min(max(a, 0.0), 1.0), l_cur, max(l_cur - self.hidden, 0.0), wf, bend)
 
-    def mesh(self, t: float, n_s: int = 40, n_u: int = 3, drop_degenerate: bool = True,
-             **kwargs):
+    def mesh(self, t: float, n_s: int = 40, n_u: int = 3, drop_degenerate: bool = True, **kwargs):
         """Mesh of the visible leaf at time ``t`` (a :class:`~biomorph.core.mesh.Mesh`)."""
-        batch = LeafBatch.from_shapes([self.shape], states=[self.state(t)],
-                                      s=np.linspace(0, 1, n_s), **kwargs)
+        batch = LeafBatch.from_shapes(
+            [self.shape], states=[self.state(t)], s=np.linspace(0, 1, n_s), **kwargs
+        )
         return mesh_batch(batch, n_u, drop_degenerate=drop_degenerate)
 
     def frames(self, n: int, **kwargs) -> list:
@@ -144,6 +154,14 @@ def with_state(state: LeafState, **changes) -> LeafState:
     return replace(state, **changes)
 
 
-__all__ = ["EXTENSION_END", "MIN_RELATIVE_LENGTH", "GrowthRates", "LeafState", "LeafTimeline",
-           "relative_length",
-           "state_at_age", "visible_area", "with_state"]
+__all__ = [
+    "EXTENSION_END",
+    "MIN_RELATIVE_LENGTH",
+    "GrowthRates",
+    "LeafState",
+    "LeafTimeline",
+    "relative_length",
+    "state_at_age",
+    "visible_area",
+    "with_state",
+]

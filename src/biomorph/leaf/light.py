@@ -58,17 +58,17 @@ Array = NDArray[np.float64]
 class LightOptions:
     """Options of :func:`intercept` (angles in degrees, PAR in µmol m⁻² s⁻¹)."""
 
-    when: datetime | None = None        # UTC date and time of the sun (None: sky only)
-    latitude: float = 48.8              # degrees north
-    longitude: float = 2.3              # degrees east
-    sky: int = 46                       # 16 or 46 directions; 0: sun only (all PAR direct)
-    par: float = 1500.0                 # global horizontal PAR above the canopy
-    diffuse_fraction: float = 0.3       # part of ``par`` that is diffuse (1 with no sun)
-    absorptance: float = 0.85           # leaf PAR absorptance (green leaves absorb ~85 %)
-    ray_spacing: float | None = None    # metres between rays (default from triangle size)
-    max_rays: int = 300_000             # per direction
+    when: datetime | None = None  # UTC date and time of the sun (None: sky only)
+    latitude: float = 48.8  # degrees north
+    longitude: float = 2.3  # degrees east
+    sky: int = 46  # 16 or 46 directions; 0: sun only (all PAR direct)
+    par: float = 1500.0  # global horizontal PAR above the canopy
+    diffuse_fraction: float = 0.3  # part of ``par`` that is diffuse (1 with no sun)
+    absorptance: float = 0.85  # leaf PAR absorptance (green leaves absorb ~85 %)
+    ray_spacing: float | None = None  # metres between rays (default from triangle size)
+    max_rays: int = 300_000  # per direction
     periodic: bool = True
-    ground: tuple[float, float, float, float] | None = None   # xmin, ymin, xmax, ymax
+    ground: tuple[float, float, float, float] | None = None  # xmin, ymin, xmax, ymax
     seed: int = 0
 
     def validate(self) -> None:
@@ -105,17 +105,31 @@ def sun_position(when: datetime, latitude: float, longitude: float) -> tuple[flo
     days = 366 if (t.year % 4 == 0 and (t.year % 100 != 0 or t.year % 400 == 0)) else 365
     hour = t.hour + t.minute / 60 + t.second / 3600
     g = 2 * np.pi / days * ((t - start).days + (hour - 12) / 24)
-    eqtime = 229.18 * (0.000075 + 0.001868 * np.cos(g) - 0.032077 * np.sin(g)
-                       - 0.014615 * np.cos(2 * g) - 0.040849 * np.sin(2 * g))
-    decl = (0.006918 - 0.399912 * np.cos(g) + 0.070257 * np.sin(g) - 0.006758 * np.cos(2 * g)
-            + 0.000907 * np.sin(2 * g) - 0.002697 * np.cos(3 * g) + 0.00148 * np.sin(3 * g))
-    tst = hour * 60 + eqtime + 4 * longitude          # true solar time, minutes
+    eqtime = 229.18 * (
+        0.000075
+        + 0.001868 * np.cos(g)
+        - 0.032077 * np.sin(g)
+        - 0.014615 * np.cos(2 * g)
+        - 0.040849 * np.sin(2 * g)
+    )
+    decl = (
+        0.006918
+        - 0.399912 * np.cos(g)
+        + 0.070257 * np.sin(g)
+        - 0.006758 * np.cos(2 * g)
+        + 0.000907 * np.sin(2 * g)
+        - 0.002697 * np.cos(3 * g)
+        + 0.00148 * np.sin(3 * g)
+    )
+    tst = hour * 60 + eqtime + 4 * longitude  # true solar time, minutes
     ha = np.radians(tst / 4 - 180)
     lat = np.radians(latitude)
     cz = np.sin(lat) * np.sin(decl) + np.cos(lat) * np.cos(decl) * np.cos(ha)
     zen = np.arccos(np.clip(cz, -1, 1))
-    az = np.degrees(np.arctan2(np.sin(ha), np.cos(ha) * np.sin(lat) - np.tan(decl) *
-                               np.cos(lat))) + 180.0
+    az = (
+        np.degrees(np.arctan2(np.sin(ha), np.cos(ha) * np.sin(lat) - np.tan(decl) * np.cos(lat)))
+        + 180.0
+    )
     return float(90 - np.degrees(zen)), float(az % 360)
 
 
@@ -129,20 +143,35 @@ def direction_from(elevation: float, azimuth: float) -> Array:
 def _icosahedral_16() -> Array:
     phi = np.radians(np.degrees(np.arctan(0.5)))
     verts = [np.array([0.0, 0.0, 1.0])]
-    verts += [np.array([np.cos(phi) * np.cos(k * 2 * np.pi / 5),
-                        np.cos(phi) * np.sin(k * 2 * np.pi / 5), np.sin(phi)]) for k in range(5)]
-    lower = [np.array([np.cos(phi) * np.cos((k + 0.5) * 2 * np.pi / 5),
-                       np.cos(phi) * np.sin((k + 0.5) * 2 * np.pi / 5), -np.sin(phi)])
-             for k in range(5)]
+    verts += [
+        np.array(
+            [
+                np.cos(phi) * np.cos(k * 2 * np.pi / 5),
+                np.cos(phi) * np.sin(k * 2 * np.pi / 5),
+                np.sin(phi),
+            ]
+        )
+        for k in range(5)
+    ]
+    lower = [
+        np.array(
+            [
+                np.cos(phi) * np.cos((k + 0.5) * 2 * np.pi / 5),
+                np.cos(phi) * np.sin((k + 0.5) * 2 * np.pi / 5),
+                -np.sin(phi),
+            ]
+        )
+        for k in range(5)
+    ]
     dirs = [verts[0]] + verts[1:]
-    for k in range(5):   # upper cap faces: pole + two upper vertices
+    for k in range(5):  # upper cap faces: pole + two upper vertices
         c = verts[0] + verts[1 + k] + verts[1 + (k + 1) % 5]
         dirs.append(c / np.linalg.norm(c))
-    for k in range(5):   # band faces pointing up: two upper vertices + one lower
+    for k in range(5):  # band faces pointing up: two upper vertices + one lower
         c = verts[1 + k] + verts[1 + (k + 1) % 5] + lower[k]
         dirs.append(c / np.linalg.norm(c))
     out = np.array(dirs)
-    out[:, :2] *= -1.0          # CARIBU's azimuth origin (its file lists these exactly)
+    out[:, :2] *= -1.0  # CARIBU's azimuth origin (its file lists these exactly)
     return out
 
 
@@ -151,7 +180,7 @@ def _rings_46() -> Array:
     n = sum(counts)
     dirs, done = [], 0
     for j, c in enumerate(counts):
-        mid = 1 - (done + 0.5 * c) / n                      # cos(zenith) at the ring's middle
+        mid = 1 - (done + 0.5 * c) / n  # cos(zenith) at the ring's middle
         sz = np.sqrt(1 - mid * mid)
         for k in range(c):
             a = 2 * np.pi * (k + 0.5 * (j % 2)) / c
@@ -170,7 +199,7 @@ def sky_directions(n: int) -> tuple[Array, Array]:
     else:
         raise ParameterError(f"sky of {n} directions: expected 16 or 46")
     sin_b = d[:, 2]
-    w = (1 + 2 * sin_b) / 3 * sin_b          # equal solid angles: L(β) · sin β
+    w = (1 + 2 * sin_b) / 3 * sin_b  # equal solid angles: L(β) · sin β
     return d, w / w.sum()
 
 
@@ -179,18 +208,18 @@ def sky_directions(n: int) -> tuple[Array, Array]:
 class LightResult:
     """Light intercepted by every triangle, leaf and the ground."""
 
-    energy: Array                        # (m,) intercepted µmol s-1 per triangle
-    irradiance: Array                    # (m,) intercepted µmol m-2 s-1 per triangle
-    absorbed: Array                      # (m,) absorbed µmol m-2 s-1 per triangle
-    leaves: dict[str, Array]             # plant, leaf, area, intercepted, absorbed, fraction
-    gap_fraction: float                  # of all incident light (sun + sky weighted)
+    energy: Array  # (m,) intercepted µmol s-1 per triangle
+    irradiance: Array  # (m,) intercepted µmol m-2 s-1 per triangle
+    absorbed: Array  # (m,) absorbed µmol m-2 s-1 per triangle
+    leaves: dict[str, Array]  # plant, leaf, area, intercepted, absorbed, fraction
+    gap_fraction: float  # of all incident light (sun + sky weighted)
     gap_fraction_sun: float | None
     gap_fraction_sky: float | None
-    gap_by_direction: Array              # (d,) gap fraction per cast direction
-    directions: Array                    # (d, 3) towards the sources
-    incident: Array                      # (d,) horizontal irradiance per direction
+    gap_by_direction: Array  # (d,) gap fraction per cast direction
+    directions: Array  # (d, 3) towards the sources
+    incident: Array  # (d,) horizontal irradiance per direction
     ground_area: float
-    sun: tuple[float, float] | None      # elevation, azimuth (degrees)
+    sun: tuple[float, float] | None  # elevation, azimuth (degrees)
     rays: int
     engine: str
     meta: dict[str, Any] = field(default_factory=dict)
@@ -198,16 +227,24 @@ class LightResult:
     def summary(self) -> dict[str, Any]:
         lv = self.leaves
         total_in = float(self.incident.sum() * self.ground_area)
-        return {"triangles": int(self.energy.size), "leaves": int(lv["leaf"].size),
-                "rays": self.rays, "directions": int(self.directions.shape[0]),
-                "engine": self.engine, "sun_elevation_deg": None if self.sun is None
-                else self.sun[0], "sun_azimuth_deg": None if self.sun is None else self.sun[1],
-                "ground_area_m2": self.ground_area, "incident_umol_s": total_in,
-                "intercepted_fraction": float(self.energy.sum() / total_in) if total_in else 0,
-                "gap_fraction": self.gap_fraction, "gap_fraction_sun": self.gap_fraction_sun,
-                "gap_fraction_sky": self.gap_fraction_sky,
-                "absorbed_par_umol_s": float(lv["absorbed"].sum()),
-                "leaf_area_m2": float(lv["area"].sum()), **self.meta}
+        return {
+            "triangles": int(self.energy.size),
+            "leaves": int(lv["leaf"].size),
+            "rays": self.rays,
+            "directions": int(self.directions.shape[0]),
+            "engine": self.engine,
+            "sun_elevation_deg": None if self.sun is None else self.sun[0],
+            "sun_azimuth_deg": None if self.sun is None else self.sun[1],
+            "ground_area_m2": self.ground_area,
+            "incident_umol_s": total_in,
+            "intercepted_fraction": float(self.energy.sum() / total_in) if total_in else 0,
+            "gap_fraction": self.gap_fraction,
+            "gap_fraction_sun": self.gap_fraction_sun,
+            "gap_fraction_sky": self.gap_fraction_sky,
+            "absorbed_par_umol_s": float(lv["absorbed"].sum()),
+            "leaf_area_m2": float(lv["area"].sum()),
+            **self.meta,
+        }
 
     def vertex_values(self, mesh: Mesh, values: Array | None = None) -> Array:
         """Per-triangle ``values`` (default absorbed PAR) averaged to vertices by area."""
@@ -247,14 +284,18 @@ class _Trimesh:
         import trimesh
         from trimesh.ray.ray_triangle import RayMeshIntersector
 
-        tm = trimesh.Trimesh(tri.reshape(-1, 3), np.arange(tri.shape[0] * 3).reshape(-1, 3),
-                             process=False)
+        tm = trimesh.Trimesh(
+            tri.reshape(-1, 3), np.arange(tri.shape[0] * 3).reshape(-1, 3), process=False
+        )
         self.engine = RayMeshIntersector(tm)
 
     def first(self, origins: Array, direction: Array) -> tuple[NDArray[np.int64], Array]:
         tri, ray, loc = self.engine.intersects_id(
-            origins, np.broadcast_to(direction, origins.shape), multiple_hits=False,
-            return_locations=True)
+            origins,
+            np.broadcast_to(direction, origins.shape),
+            multiple_hits=False,
+            return_locations=True,
+        )
         prim = np.full(len(origins), -1, np.int64)
         dist = np.full(len(origins), np.inf)
         prim[ray] = tri
@@ -267,8 +308,12 @@ def _intersector(tri: Array) -> tuple[Any, str]:
     try:
         return _Embree(tri), "embree"
     except ImportError:
-        warnings.warn("embreex is not installed: using trimesh's pure-Python ray engine "
-                      "(much slower); pip install embreex", RuntimeWarning, stacklevel=3)
+        warnings.warn(
+            "embreex is not installed: using trimesh's pure-Python ray engine "
+            "(much slower); pip install embreex",
+            RuntimeWarning,
+            stacklevel=3,
+        )
         return _Trimesh(tri), "trimesh"
 
 
@@ -295,16 +340,21 @@ def _tiled(mesh: Mesh, rect) -> tuple[Array, NDArray[np.int64]]:
         for j in (-1, 0, 1):
             if i == 0 and j == 0:
                 continue
-            keep = np.flatnonzero((hi[:, 0] + i * wx > x0) & (lo[:, 0] + i * wx < x1) &
-                                  (hi[:, 1] + j * wy > y0) & (lo[:, 1] + j * wy < y1))
+            keep = np.flatnonzero(
+                (hi[:, 0] + i * wx > x0)
+                & (lo[:, 0] + i * wx < x1)
+                & (hi[:, 1] + j * wy > y0)
+                & (lo[:, 1] + j * wy < y1)
+            )
             if keep.size:
                 parts.append(tri[keep] + np.array([i * wx, j * wy, 0.0]))
                 src.append(keep)
     return np.concatenate(parts), np.concatenate(src)
 
 
-def _cast(engine: Any, ground: Array, d: Array, top: float, rect, periodic: bool
-          ) -> NDArray[np.int64]:
+def _cast(
+    engine: Any, ground: Array, d: Array, top: float, rect, periodic: bool
+) -> NDArray[np.int64]:
     """First triangle hit (or -1) by rays from the sky along ``-d`` to ground points.
 
     Periodic: the path from the top plane to the ground is cut where it crosses tile
@@ -312,7 +362,7 @@ def _cast(engine: Any, ground: Array, d: Array, top: float, rect, periodic: bool
     a hit counts only within that piece, so a ray sees the infinite periodic canopy."""
     n = ground.shape[0]
     t_end = top / d[2]
-    start = ground + d[None, :] * t_end                 # on the top plane
+    start = ground + d[None, :] * t_end  # on the top plane
     direction = -d
     out = np.full(n, -1, np.int64)
     if not periodic:
@@ -359,8 +409,11 @@ def intercept(mesh: Mesh, options: LightOptions | None = None, progress=None) ->
     area = (x1 - x0) * (y1 - y0)
     zmax = float(mesh.vertices[:, 2].max())
     top = zmax + 1e-3 + 1e-6 * max(x1 - x0, y1 - y0)
-    tri, src = _tiled(mesh, rect) if opts.periodic else (mesh.vertices[mesh.faces],
-                                                         np.arange(mesh.n_faces))
+    tri, src = (
+        _tiled(mesh, rect)
+        if opts.periodic
+        else (mesh.vertices[mesh.faces], np.arange(mesh.n_faces))
+    )
     engine, name = _intersector(tri)
     face_area = mesh.face_areas()
     spacing = opts.ray_spacing or 0.5 * float(np.sqrt(np.median(face_area[face_area > 0])))
@@ -383,18 +436,34 @@ def intercept(mesh: Mesh, options: LightOptions | None = None, progress=None) ->
         if progress is not None:
             progress(k + 1, len(D))
     irr = np.divide(energy, face_area, out=np.zeros_like(energy), where=face_area > 0)
-    is_leaf = mesh.face_ids["leaf"] > 0 if "leaf" in mesh.face_ids else np.ones(mesh.n_faces,
-                                                                                  bool)
+    is_leaf = mesh.face_ids["leaf"] > 0 if "leaf" in mesh.face_ids else np.ones(mesh.n_faces, bool)
     absorbed = irr * np.where(is_leaf, opts.absorptance, 1.0)
     w = E / E.sum()
     gap_sun = float(gaps[0]) if n_sun else None
-    gap_sky = float(np.dot(gaps[n_sun:], w[n_sun:]) / w[n_sun:].sum()) if len(D) > n_sun \
-        else None
+    gap_sky = float(np.dot(gaps[n_sun:], w[n_sun:]) / w[n_sun:].sum()) if len(D) > n_sun else None
     leaves = _per_leaf(mesh, energy, face_area, is_leaf, opts, E.sum() * area)
-    return LightResult(energy, irr, absorbed, leaves, float(np.dot(gaps, w)), gap_sun, gap_sky,
-                       gaps, D, E, area, sun, int(nx * ny * len(D)), name,
-                       {"ray_spacing_m": float(np.sqrt(dx * dy)), "periodic": opts.periodic,
-                        "diffuse_fraction": fd, "par": opts.par})
+    return LightResult(
+        energy,
+        irr,
+        absorbed,
+        leaves,
+        float(np.dot(gaps, w)),
+        gap_sun,
+        gap_sky,
+        gaps,
+        D,
+        E,
+        area,
+        sun,
+        int(nx * ny * len(D)),
+        name,
+        {
+            "ray_spacing_m": float(np.sqrt(dx * dy)),
+            "periodic": opts.periodic,
+            "diffuse_fraction": fd,
+            "par": opts.par,
+        },
+    )
 
 
 def _sources(opts: LightOptions):
@@ -403,13 +472,15 @@ def _sources(opts: LightOptions):
     dirs, inc = [], []
     fd = opts.diffuse_fraction if opts.when is not None else 1.0
     if opts.sky == 0:
-        fd = 0.0             # no sky: all of ``par`` comes from the sun
+        fd = 0.0  # no sky: all of ``par`` comes from the sun
     if opts.when is not None:
         el, az = sun_position(opts.when, opts.latitude, opts.longitude)
         if el <= 0:
-            raise ParameterError(f"the sun is below the horizon (elevation {el:.1f}°) at "
-                                 f"{opts.when.isoformat()} UTC, latitude {opts.latitude:g}, "
-                                 f"longitude {opts.longitude:g}; expected a daytime sun")
+            raise ParameterError(
+                f"the sun is below the horizon (elevation {el:.1f}°) at "
+                f"{opts.when.isoformat()} UTC, latitude {opts.latitude:g}, "
+                f"longitude {opts.longitude:g}; expected a daytime sun"
+            )
         sun = (el, az)
         if fd < 1:
             dirs.append(direction_from(el, az))
@@ -422,8 +493,9 @@ def _sources(opts: LightOptions):
     return np.array(dirs), np.array(inc), n_sun, sun, fd
 
 
-def _per_leaf(mesh: Mesh, energy: Array, face_area: Array, is_leaf, opts: LightOptions,
-              incident_total: float) -> dict[str, Array]:
+def _per_leaf(
+    mesh: Mesh, energy: Array, face_area: Array, is_leaf, opts: LightOptions, incident_total: float
+) -> dict[str, Array]:
     plant = mesh.face_ids.get("plant", np.zeros(mesh.n_faces, np.int64))
     leaf = mesh.face_ids.get("leaf", np.ones(mesh.n_faces, np.int64))
     sel = np.flatnonzero(is_leaf)
@@ -433,12 +505,22 @@ def _per_leaf(mesh: Mesh, energy: Array, face_area: Array, is_leaf, opts: LightO
     a = np.bincount(inv, weights=face_area[sel], minlength=uniq.size)
     first = np.zeros(uniq.size, np.int64)
     first[inv] = sel
-    return {"plant": plant[first], "leaf": leaf[first], "area": a, "intercepted": e,
-            "absorbed": e * opts.absorptance,
-            "fraction": e / incident_total if incident_total else np.zeros_like(e),
-            "absorbed_par": np.divide(e * opts.absorptance, a, out=np.zeros_like(e),
-                                      where=a > 0)}
+    return {
+        "plant": plant[first],
+        "leaf": leaf[first],
+        "area": a,
+        "intercepted": e,
+        "absorbed": e * opts.absorptance,
+        "fraction": e / incident_total if incident_total else np.zeros_like(e),
+        "absorbed_par": np.divide(e * opts.absorptance, a, out=np.zeros_like(e), where=a > 0),
+    }
 
 
-__all__ = ["LightOptions", "LightResult", "direction_from", "intercept", "sky_directions",
-           "sun_position"]
+__all__ = [
+    "LightOptions",
+    "LightResult",
+    "direction_from",
+    "intercept",
+    "sky_directions",
+    "sun_position",
+]

@@ -63,11 +63,19 @@ class LeafBatch:
         return int(self.width.shape[1])
 
     @classmethod
-    def from_shapes(cls, shapes: Sequence, ages: Sequence[float | None] | None = None,
-                    s: ArrayLike | None = None, origin: ArrayLike | None = None,
-                    azimuth: ArrayLike | None = None, plant: ArrayLike | None = None,
-                    leaf: ArrayLike | None = None, twist: bool = True,
-                    undulation: bool = True, states: Sequence | None = None) -> LeafBatch:
+    def from_shapes(
+        cls,
+        shapes: Sequence,
+        ages: Sequence[float | None] | None = None,
+        s: ArrayLike | None = None,
+        origin: ArrayLike | None = None,
+        azimuth: ArrayLike | None = None,
+        plant: ArrayLike | None = None,
+        leaf: ArrayLike | None = None,
+        twist: bool = True,
+        undulation: bool = True,
+        states: Sequence | None = None,
+    ) -> LeafBatch:
         """Evaluate leaf shapes (optionally growing: ``ages`` or explicit ``states``).
 
         ``s`` are sample positions in [0, 1] along the visible leaf: ``(K,)`` shared,
@@ -76,24 +84,37 @@ class LeafBatch:
         n = len(shapes)
         if states is None:
             ages_l = [None] * n if ages is None else list(ages)
-            states = [None if a is None else state_at_age(sh, a)
-                      for sh, a in zip(shapes, ages_l, strict=True)]
+            states = [
+                None if a is None else state_at_age(sh, a)
+                for sh, a in zip(shapes, ages_l, strict=True)
+            ]
         sg = np.linspace(0, 1, 31) if s is None else np.asarray(s, float)
         sg = np.broadcast_to(sg, (n, sg.shape[-1]))
-        rows = [leaf_profile(sh, st, sg[i], twist, undulation)
-                for i, (sh, st) in enumerate(zip(shapes, states, strict=True))]
+        rows = [
+            leaf_profile(sh, st, sg[i], twist, undulation)
+            for i, (sh, st) in enumerate(zip(shapes, states, strict=True))
+        ]
         cols = [np.array([r[c] for r in rows]) for c in range(7)]
         return cls(*cols, *_placement(n, origin, azimuth, plant, leaf))
 
 
 def _placement(n: int, origin, azimuth, plant, leaf):
-    o = np.zeros((n, 3)) if origin is None else np.broadcast_to(
-        np.asarray(origin, float), (n, 3)).copy()
+    o = (
+        np.zeros((n, 3))
+        if origin is None
+        else np.broadcast_to(np.asarray(origin, float), (n, 3)).copy()
+    )
     a = np.zeros(n) if azimuth is None else np.broadcast_to(np.asarray(azimuth, float), (n,))
-    p = np.zeros(n, np.int64) if plant is None else np.broadcast_to(
-        np.asarray(plant, np.int64), (n,))
-    lf = np.arange(n, dtype=np.int64) if leaf is None else np.broadcast_to(
-        np.asarray(leaf, np.int64), (n,))
+    p = (
+        np.zeros(n, np.int64)
+        if plant is None
+        else np.broadcast_to(np.asarray(plant, np.int64), (n,))
+    )
+    lf = (
+        np.arange(n, dtype=np.int64)
+        if leaf is None
+        else np.broadcast_to(np.asarray(leaf, np.int64), (n,))
+    )
     return o, np.array(a), np.array(p), np.array(lf)
 
 
@@ -107,11 +128,16 @@ def leaf_profile(shape, state, s: Array, twist: bool = True, undulation: bool = 
     if state is None:
         l_cur, h, wf, bend, age = L, L, 1.0, 0.0, None
     else:
-        l_cur, h, wf, bend, age = state.length, state.visible, state.width_factor, \
-            state.bend, state.age
-    sigma = l_cur - (1.0 - s) * h                  # metres from the base of the current leaf
+        l_cur, h, wf, bend, age = (
+            state.length,
+            state.visible,
+            state.width_factor,
+            state.bend,
+            state.age,
+        )
+    sigma = l_cur - (1.0 - s) * h  # metres from the base of the current leaf
     shat = np.clip(1.0 - (l_cur - sigma) / L, 0, 1)  # mature coordinate (tip-fixed, exact 1)
-    smid = 0.5 * (sigma[1:] + sigma[:-1]) / L      # base-relative midrib coordinate
+    smid = 0.5 * (sigma[1:] + sigma[:-1]) / L  # base-relative midrib coordinate
     phi = shape.phi_at(smid, age) - bend * smid
     seg = np.diff(s) * h
     width = shape.width * wf * shape.r_at(shat)
@@ -142,15 +168,28 @@ def rest_on_soil(batch: LeafBatch, ground: float = 0.0) -> LeafBatch:
         low = z + dz[:, k] < ground
         if low.any():
             new_dz = np.minimum(ground - z[low], 0.0)
-            ratio = np.divide(new_dz, batch.seg[low, k], out=np.zeros_like(new_dz),
-                              where=batch.seg[low, k] > 0)
+            ratio = np.divide(
+                new_dz, batch.seg[low, k], out=np.zeros_like(new_dz), where=batch.seg[low, k] > 0
+            )
             phi[low, k] = np.arcsin(np.clip(ratio, -1.0, 1.0))
             theta[low, k + 1] = 0.0
             amp[low, k + 1] = 0.0
             z[low] += new_dz
         z[~low] += dz[~low, k]
-    return LeafBatch(phi, batch.seg, batch.width, theta, amp, batch.wave_arg, batch.v,
-                     batch.origin, batch.azimuth, batch.plant, batch.leaf, float(ground))
+    return LeafBatch(
+        phi,
+        batch.seg,
+        batch.width,
+        theta,
+        amp,
+        batch.wave_arg,
+        batch.v,
+        batch.origin,
+        batch.azimuth,
+        batch.plant,
+        batch.leaf,
+        float(ground),
+    )
 
 
 def concat_batches(batches: Sequence[LeafBatch]) -> LeafBatch:
@@ -158,13 +197,28 @@ def concat_batches(batches: Sequence[LeafBatch]) -> LeafBatch:
     ks = {b.k for b in batches}
     if len(ks) != 1:
         raise ParameterError(f"batches have different sample counts {sorted(ks)}")
-    names = ("phi", "seg", "width", "theta", "wave_amp", "wave_arg", "v", "origin", "azimuth",
-             "plant", "leaf")
+    names = (
+        "phi",
+        "seg",
+        "width",
+        "theta",
+        "wave_amp",
+        "wave_arg",
+        "v",
+        "origin",
+        "azimuth",
+        "plant",
+        "leaf",
+    )
     grounds = {b.ground for b in batches}
-    ground = grounds.pop() if len(grounds) == 1 else min(
-        (g for g in grounds if g is not None), default=None)
-    return LeafBatch(*[np.concatenate([getattr(b, f) for b in batches]) for f in names],
-                     ground=ground)
+    ground = (
+        grounds.pop()
+        if len(grounds) == 1
+        else min((g for g in grounds if g is not None), default=None)
+    )
+    return LeafBatch(
+        *[np.concatenate([getattr(b, f) for b in batches]) for f in names], ground=ground
+    )
 
 
 def leaf_grid(batch: LeafBatch, u: ArrayLike, with_normals: bool = False):
@@ -175,7 +229,7 @@ def leaf_grid(batch: LeafBatch, u: ArrayLike, with_normals: bool = False):
     tilted by ≈ atan(u·w·dθ/ds) otherwise), finite differences of the surface otherwise.
     """
     ua = np.asarray(u, float)
-    xz = integrate_angles(batch.phi, batch.seg)                        # (N,K,2)
+    xz = integrate_angles(batch.phi, batch.seg)  # (N,K,2)
     ph = batch.phi
     phv = np.concatenate([ph[:, :1], 0.5 * (ph[:, 1:] + ph[:, :-1]), ph[:, -1:]], axis=1)
     c, sn = np.cos(phv), np.sin(phv)
@@ -200,8 +254,7 @@ def leaf_grid(batch: LeafBatch, u: ArrayLike, with_normals: bool = False):
     waves = bool(np.any(batch.wave_amp))
     if waves:
         side = np.where(ua < 0, 0.5 * np.pi, 0.0)
-        wave = batch.wave_amp[..., None] * (2 * ua) ** 2 * np.sin(batch.wave_arg[..., None]
-                                                                  + side)
+        wave = batch.wave_amp[..., None] * (2 * ua) ** 2 * np.sin(batch.wave_arg[..., None] + side)
         pts += wave[..., None] * m[:, :, None, :]
     if batch.ground is not None:
         np.maximum(pts[..., 2], batch.ground, out=pts[..., 2])
@@ -219,13 +272,14 @@ def _grid_faces(k: int, nu: int) -> NDArray[np.int64]:
     b = a + 1
     d = a + nu
     c = d + 1
-    t1 = np.stack([a, d, c], axis=-1)   # dropped when the upper row has zero width
-    t2 = np.stack([a, c, b], axis=-1)   # dropped when the lower row has zero width
+    t1 = np.stack([a, d, c], axis=-1)  # dropped when the upper row has zero width
+    t2 = np.stack([a, c, b], axis=-1)  # dropped when the lower row has zero width
     return np.stack([t1, t2], axis=2)
 
 
-def mesh_batch(batch: LeafBatch, n_u: int = 3, normals: bool = True,
-               drop_degenerate: bool = True) -> Mesh:
+def mesh_batch(
+    batch: LeafBatch, n_u: int = 3, normals: bool = True, drop_degenerate: bool = True
+) -> Mesh:
     """One mesh of all leaves in ``batch`` with ``n_u`` (>= 2) vertices across each blade.
 
     Degenerate triangles at zero-width ends (closed tips/bases) are dropped, so a closed
@@ -235,20 +289,19 @@ def mesh_batch(batch: LeafBatch, n_u: int = 3, normals: bool = True,
     if n_u < 2:
         raise ParameterError(f"n_u={n_u}: a leaf needs at least 2 vertices across")
     u = np.linspace(-0.5, 0.5, n_u)
-    pts, nrm = leaf_grid(batch, u, with_normals=True)                    # (N,K,U,3)
+    pts, nrm = leaf_grid(batch, u, with_normals=True)  # (N,K,U,3)
     n, k = batch.n, batch.k
     per = k * n_u
-    tmpl = _grid_faces(k, n_u)                                           # (K-1,U-1,2,3)
+    tmpl = _grid_faces(k, n_u)  # (K-1,U-1,2,3)
     w = batch.width
-    keep = np.stack([w[:, 1:] > 0, w[:, :-1] > 0], axis=-1)              # (N,K-1,2)
+    keep = np.stack([w[:, 1:] > 0, w[:, :-1] > 0], axis=-1)  # (N,K-1,2)
     if not drop_degenerate:
         keep = np.ones_like(keep)
     keep = np.broadcast_to(keep[:, :, None, :], (n, k - 1, n_u - 1, 2))
     if n and (keep == keep[:1]).all():
         # same zero-width pattern on every leaf (the usual case): filter the template once
-        one = tmpl[keep[0]]                                              # (f, 3)
-        faces = (one[None] + (np.arange(n, dtype=np.int64) * per)[:, None, None]
-                 ).reshape(-1, 3)
+        one = tmpl[keep[0]]  # (f, 3)
+        faces = (one[None] + (np.arange(n, dtype=np.int64) * per)[:, None, None]).reshape(-1, 3)
         leaf_of_face = np.repeat(np.arange(n), one.shape[0])
     else:
         faces = tmpl[None] + (np.arange(n, dtype=np.int64) * per)[:, None, None, None, None]
@@ -259,8 +312,13 @@ def mesh_batch(batch: LeafBatch, n_u: int = 3, normals: bool = True,
     uv = np.empty((n, k, n_u, 2))
     uv[..., 0] = u + 0.5
     uv[..., 1] = batch.v[:, :, None]
-    return Mesh(verts, faces, normals=nrm, uv=uv.reshape(-1, 2),
-                face_ids={"plant": batch.plant[leaf_of_face], "leaf": batch.leaf[leaf_of_face]})
+    return Mesh(
+        verts,
+        faces,
+        normals=nrm,
+        uv=uv.reshape(-1, 2),
+        face_ids={"plant": batch.plant[leaf_of_face], "leaf": batch.leaf[leaf_of_face]},
+    )
 
 
 def _grid_normals(pts: Array) -> Array:
@@ -286,8 +344,9 @@ def _grid_normals(pts: Array) -> Array:
 def leaf_areas(mesh: Mesh, key: str = "leaf") -> Array:
     """Area (m²) per id of ``mesh.face_ids[key]`` (index = id)."""
     ids = mesh.face_ids[key]
-    return np.bincount(ids, weights=mesh.face_areas(), minlength=int(ids.max()) + 1 if
-                       ids.size else 0)
+    return np.bincount(
+        ids, weights=mesh.face_areas(), minlength=int(ids.max()) + 1 if ids.size else 0
+    )
 
 
 def split_boundary_edge(mesh: Mesh, face: int | None = None, edge: int | None = None) -> Mesh:
@@ -303,7 +362,7 @@ def split_boundary_edge(mesh: Mesh, face: int | None = None, edge: int | None = 
         e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
         key = np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
         _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
-        boundary = (cnt[inv] == 1).reshape(3, -1).T                      # (m,3) per face edge
+        boundary = (cnt[inv] == 1).reshape(3, -1).T  # (m,3) per face edge
         cand = np.flatnonzero(boundary.any(axis=1))
         if cand.size == 0:
             raise ParameterError("mesh has no boundary edge to split")
@@ -327,6 +386,13 @@ def split_boundary_edge(mesh: Mesh, face: int | None = None, edge: int | None = 
     return Mesh(verts, new_faces, face_ids=ids, **extra)
 
 
-__all__ = ["LeafBatch", "concat_batches", "leaf_areas", "leaf_grid", "leaf_profile", "mesh_batch",
-           "rest_on_soil",
-           "split_boundary_edge"]
+__all__ = [
+    "LeafBatch",
+    "concat_batches",
+    "leaf_areas",
+    "leaf_grid",
+    "leaf_profile",
+    "mesh_batch",
+    "rest_on_soil",
+    "split_boundary_edge",
+]

@@ -71,15 +71,18 @@ def default_tables(preset: str = "wheat", leaves: int = 11) -> tuple[Table, Tabl
         raise ParameterError(f"leaves {leaves} must be >= 1")
     data = _presets()
     if preset not in data:
-        raise ParameterError(f"unknown leaf preset {preset!r}; expected one of "
-                             f"{', '.join(sorted(data))}")
+        raise ParameterError(
+            f"unknown leaf preset {preset!r}; expected one of {', '.join(sorted(data))}"
+        )
     wd = data["wheat"]["dimensions"]
     xn = np.asarray(wd["xn"])
     rank = np.arange(1, leaves + 1, dtype=float)
-    flag = float(xn[int(np.argmax(wd["L_blade"]))]) + 1.0   # F-1 is the longest blade
+    flag = float(xn[int(np.argmax(wd["L_blade"]))]) + 1.0  # F-1 is the longest blade
     q = flag - (leaves - rank)
-    wheat = {c: np.interp(q, xn, np.asarray(wd[c])) for c in
-             ("L_blade", "W_blade", "L_sheath", "W_sheath", "L_internode", "W_internode")}
+    wheat = {
+        c: np.interp(q, xn, np.asarray(wd[c]))
+        for c in ("L_blade", "W_blade", "L_sheath", "W_sheath", "L_internode", "W_internode")
+    }
     if preset == "maize":
         classes = preset_classes("maize")
         keys = [class_of_rank("maize", int(r), leaves) for r in rank]
@@ -87,14 +90,18 @@ def default_tables(preset: str = "wheat", leaves: int = 11) -> tuple[Table, Tabl
         wb = np.array([classes[k]["width"] for k in keys])
         kl = lb.max() / wheat["L_blade"].max()
         kw = wb.max() / wheat["W_blade"].max()
-        dims = {"L_blade": lb, "W_blade": wb, "L_sheath": wheat["L_sheath"] * kl,
-                "W_sheath": wheat["W_sheath"] * kw, "L_internode": wheat["L_internode"] * kl,
-                "W_internode": wheat["W_internode"] * kw}
+        dims = {
+            "L_blade": lb,
+            "W_blade": wb,
+            "L_sheath": wheat["L_sheath"] * kl,
+            "W_sheath": wheat["W_sheath"] * kw,
+            "L_internode": wheat["L_internode"] * kl,
+            "W_internode": wheat["W_internode"] * kw,
+        }
     else:
         dims = wheat
     dims = {"rank": rank, **dims}
-    phen = {"rank": rank, "tip": rank - 2.0, "col": rank, "ssi": rank + 4.0,
-            "disp": rank + 12.0}
+    phen = {"rank": rank, "tip": rank - 2.0, "col": rank, "ssi": rank + 4.0, "disp": rank + 12.0}
     return dims, phen
 
 
@@ -104,8 +111,10 @@ def _check_tables(dims: Table, phen: Table) -> None:
     check_dimensions(dims)
     check_phenology(phen)
     if not np.array_equal(np.sort(dims["rank"]), np.sort(phen["rank"])):
-        raise InputError(f"dimension table ranks {dims['rank'].astype(int).tolist()} and "
-                         f"phenology ranks {phen['rank'].astype(int).tolist()} differ")
+        raise InputError(
+            f"dimension table ranks {dims['rank'].astype(int).tolist()} and "
+            f"phenology ranks {phen['rank'].astype(int).tolist()} differ"
+        )
     r = np.sort(dims["rank"]).astype(int)
     if r[0] != 1 or np.any(np.diff(r) != 1):
         raise InputError(f"missing ranks: tables hold {r.tolist()}; expected 1..{r.max()}")
@@ -117,11 +126,11 @@ class PlantOptions:
     """One ADEL-like plant (or a row of them): tables, time, tillers, jitter, seed."""
 
     preset: str = "wheat"
-    leaves: int = 11                      # main-stem leaves (default tables)
-    thermal_time: float = 1100.0          # °Cd since emergence
-    phyllochron: float | None = None      # °Cd (default per preset)
+    leaves: int = 11  # main-stem leaves (default tables)
+    thermal_time: float = 1100.0  # °Cd since emergence
+    phyllochron: float | None = None  # °Cd (default per preset)
     tillers: int = 0
-    dimensions: Table | None = None       # None: default_tables(preset, leaves)
+    dimensions: Table | None = None  # None: default_tables(preset, leaves)
     phenology: Table | None = None
     azimuth_jitter_deg: float = 15.0
     insertion_jitter_deg: float = 5.0
@@ -136,8 +145,10 @@ class PlantOptions:
         phen = self.phenology if self.phenology is not None else p0
         _check_tables(dims, phen)
         order_d, order_p = np.argsort(dims["rank"]), np.argsort(phen["rank"])
-        return ({k: np.asarray(v, float)[order_d] for k, v in dims.items()},
-                {k: np.asarray(v, float)[order_p] for k, v in phen.items()})
+        return (
+            {k: np.asarray(v, float)[order_d] for k, v in dims.items()},
+            {k: np.asarray(v, float)[order_p] for k, v in phen.items()},
+        )
 
     def validate(self) -> None:
         if not self.thermal_time >= 0:
@@ -156,23 +167,27 @@ class Plant:
     """A built plant: its mesh, per-organ table and per-leaf report."""
 
     mesh: Mesh
-    organs: list[dict[str, Any]]          # one dict per organ (MTG rows)
-    leaves: dict[str, Array]              # per visible leaf
+    organs: list[dict[str, Any]]  # one dict per organ (MTG rows)
+    leaves: dict[str, Array]  # per visible leaf
     haun_stage: float
     thermal_time: float
-    missing: int                          # requested main-stem leaves not yet visible
+    missing: int  # requested main-stem leaves not yet visible
 
     def summary(self) -> dict[str, Any]:
         lv = self.leaves
-        return {"haun_stage": self.haun_stage, "thermal_time_cd": self.thermal_time,
-                "leaves": int(lv["rank"].size), "missing_leaves": self.missing,
-                "axes": int(len({o["axis"] for o in self.organs})),
-                "triangles": self.mesh.n_faces,
-                "height_m": float(self.mesh.vertices[:, 2].max()),
-                "leaf_area_m2": float(lv["area"].sum()),
-                "green_area_m2": float(lv["green_area"].sum()),
-                "senescent_area_m2": float((lv["area"] - lv["green_area"]).sum()),
-                "below_ground_vertices": int((self.mesh.vertices[:, 2] < 0).sum())}
+        return {
+            "haun_stage": self.haun_stage,
+            "thermal_time_cd": self.thermal_time,
+            "leaves": int(lv["rank"].size),
+            "missing_leaves": self.missing,
+            "axes": int(len({o["axis"] for o in self.organs})),
+            "triangles": self.mesh.n_faces,
+            "height_m": float(self.mesh.vertices[:, 2].max()),
+            "leaf_area_m2": float(lv["area"].sum()),
+            "green_area_m2": float(lv["green_area"].sum()),
+            "senescent_area_m2": float((lv["area"] - lv["green_area"]).sum()),
+            "below_ground_vertices": int((self.mesh.vertices[:, 2] < 0).sum()),
+        }
 
 
 def _axis_state(dims: Table, phen: Table, hs: float) -> dict[str, Array]:
@@ -186,9 +201,16 @@ def _axis_state(dims: Table, phen: Table, hs: float) -> dict[str, Array]:
     collar = node + sheath
     sen = np.clip((hs - ssi) / (disp - ssi), 0.0, 1.0)
     visible = (hs >= tip) & (hs < disp)
-    return {"g_blade": g_blade, "internode": internode, "sheath": sheath, "node": node,
-            "collar": collar, "sen": sen, "visible": visible,
-            "phyllochrons": hs - col}
+    return {
+        "g_blade": g_blade,
+        "internode": internode,
+        "sheath": sheath,
+        "node": node,
+        "collar": collar,
+        "sen": sen,
+        "visible": visible,
+        "phyllochrons": hs - col,
+    }
 
 
 def _leaf_age(st: dict[str, Array], ext: float, tt: ThermalTime) -> Array:
@@ -197,8 +219,9 @@ def _leaf_age(st: dict[str, Array], ext: float, tt: ThermalTime) -> Array:
     return np.where(st["g_blade"] < 1, ext * st["g_blade"], after)
 
 
-def build_plant_architecture(opts: PlantOptions, seed: int = 0,
-                             origin=(0.0, 0.0, 0.0), plant_id: int = 0) -> Plant:
+def build_plant_architecture(
+    opts: PlantOptions, seed: int = 0, origin=(0.0, 0.0, 0.0), plant_id: int = 0
+) -> Plant:
     """Build one plant from its tables at ``opts.thermal_time`` (deterministic per seed)."""
     opts.validate()
     dims, phen = opts.tables()
@@ -224,26 +247,59 @@ def build_plant_architecture(opts: PlantOptions, seed: int = 0,
             if hs < phen["tip"][i]:
                 break
             node = pos + [0, 0, st["node"][i]]
-            tubes.append((node, node + [0, 0, st["internode"][i]], dims["W_internode"][i] / 2,
-                          axis, ORGAN_INTERNODE, i + 1))
-            tubes.append((node, node + [0, 0, st["sheath"][i]], dims["W_sheath"][i] / 2,
-                          axis, ORGAN_SHEATH, i + 1))
+            tubes.append(
+                (
+                    node,
+                    node + [0, 0, st["internode"][i]],
+                    dims["W_internode"][i] / 2,
+                    axis,
+                    ORGAN_INTERNODE,
+                    i + 1,
+                )
+            )
+            tubes.append(
+                (
+                    node,
+                    node + [0, 0, st["sheath"][i]],
+                    dims["W_sheath"][i] / 2,
+                    axis,
+                    ORGAN_SHEATH,
+                    i + 1,
+                )
+            )
         for i in ranks:
             az = az0 + np.pi * i + np.radians(opts.azimuth_jitter_deg) * rng.standard_normal()
             incl = np.radians(opts.insertion_jitter_deg) * rng.standard_normal()
             key = class_of_rank(opts.preset, int(i) + 1, n)
-            leaf_rows.append({"axis": axis, "rank": int(i) + 1, "class": key, "az": az,
-                              "incl": incl, "origin": pos + [0, 0, st["collar"][i]],
-                              "sen": st["sen"][i], "L": dims["L_blade"][i],
-                              "W": dims["W_blade"][i], "hs": hs, "st": st, "i": int(i)})
-        organs.extend(_organ_rows(axis, st, dims, n if axis == 0 else max(n - axis, 0), pos,
-                                  hs, phen))
+            leaf_rows.append(
+                {
+                    "axis": axis,
+                    "rank": int(i) + 1,
+                    "class": key,
+                    "az": az,
+                    "incl": incl,
+                    "origin": pos + [0, 0, st["collar"][i]],
+                    "sen": st["sen"][i],
+                    "L": dims["L_blade"][i],
+                    "W": dims["W_blade"][i],
+                    "hs": hs,
+                    "st": st,
+                    "i": int(i),
+                }
+            )
+        organs.extend(
+            _organ_rows(axis, st, dims, n if axis == 0 else max(n - axis, 0), pos, hs, phen)
+        )
     visible_main = sum(1 for r in leaf_rows if r["axis"] == 0)
     missing = int(np.sum(phen["tip"] > hs_main))
     if missing:
-        warnings.warn(f"{missing} of the {n} main-stem leaves have not emerged at thermal "
-                      f"time {opts.thermal_time:g} °Cd (Haun stage {hs_main:.2f}); the plant "
-                      f"shows {visible_main} leaves", LeafCountWarning, stacklevel=2)
+        warnings.warn(
+            f"{missing} of the {n} main-stem leaves have not emerged at thermal "
+            f"time {opts.thermal_time:g} °Cd (Haun stage {hs_main:.2f}); the plant "
+            f"shows {visible_main} leaves",
+            LeafCountWarning,
+            stacklevel=2,
+        )
     mesh, leaves = _mesh_plant(opts, base, leaf_rows, tubes, tt, plant_id)
     return Plant(mesh, organs, leaves, hs_main, float(opts.thermal_time), missing)
 
@@ -254,49 +310,99 @@ def _organ_rows(axis, st, dims, n, pos, hs, phen) -> list[dict[str, Any]]:
         if hs < phen["tip"][i]:
             break
         node = pos[2] + st["node"][i]
-        rows.append({"axis": axis, "rank": i + 1, "organ": "internode",
-                     "length": float(st["internode"][i]),
-                     "diameter": float(dims["W_internode"][i]),
-                     "top": (float(pos[0]), float(pos[1]), float(node + st["internode"][i]))})
-        rows.append({"axis": axis, "rank": i + 1, "organ": "sheath",
-                     "length": float(st["sheath"][i]), "diameter": float(dims["W_sheath"][i]),
-                     "top": (float(pos[0]), float(pos[1]), float(pos[2] + st["collar"][i]))})
+        rows.append(
+            {
+                "axis": axis,
+                "rank": i + 1,
+                "organ": "internode",
+                "length": float(st["internode"][i]),
+                "diameter": float(dims["W_internode"][i]),
+                "top": (float(pos[0]), float(pos[1]), float(node + st["internode"][i])),
+            }
+        )
+        rows.append(
+            {
+                "axis": axis,
+                "rank": i + 1,
+                "organ": "sheath",
+                "length": float(st["sheath"][i]),
+                "diameter": float(dims["W_sheath"][i]),
+                "top": (float(pos[0]), float(pos[1]), float(pos[2] + st["collar"][i])),
+            }
+        )
         if st["visible"][i]:
-            rows.append({"axis": axis, "rank": i + 1, "organ": "blade",
-                         "length": float(dims["L_blade"][i] * st["g_blade"][i]),
-                         "width": float(dims["W_blade"][i]),
-                         "senescent_fraction": float(st["sen"][i]),
-                         "top": (float(pos[0]), float(pos[1]),
-                                 float(pos[2] + st["collar"][i]))})
+            rows.append(
+                {
+                    "axis": axis,
+                    "rank": i + 1,
+                    "organ": "blade",
+                    "length": float(dims["L_blade"][i] * st["g_blade"][i]),
+                    "width": float(dims["W_blade"][i]),
+                    "senescent_fraction": float(st["sen"][i]),
+                    "top": (float(pos[0]), float(pos[1]), float(pos[2] + st["collar"][i])),
+                }
+            )
     return rows
 
 
-def _mesh_plant(opts: PlantOptions, base: LeafShape, rows, tubes, tt: ThermalTime,
-                plant_id: int) -> tuple[Mesh, dict[str, Array]]:
+def _mesh_plant(
+    opts: PlantOptions, base: LeafShape, rows, tubes, tt: ThermalTime, plant_id: int
+) -> tuple[Mesh, dict[str, Array]]:
     parts = []
-    leaves = {k: np.zeros(len(rows)) for k in ("rank", "axis", "length", "green_length",
-                                               "area", "green_area", "insertion_deg",
-                                               "age")}
+    leaves = {
+        k: np.zeros(len(rows))
+        for k in (
+            "rank",
+            "axis",
+            "length",
+            "green_length",
+            "area",
+            "green_area",
+            "insertion_deg",
+            "age",
+        )
+    }
     if rows:
         shapes, index = [], {}
         for r in rows:
             if r["class"] not in index:
                 index[r["class"]] = len(shapes)
-                shapes.append(LeafShape.from_preset(opts.preset, rank_class=r["class"])
-                              if r["class"] is not None else base)
+                shapes.append(
+                    LeafShape.from_preset(opts.preset, rank_class=r["class"])
+                    if r["class"] is not None
+                    else base
+                )
         sid = np.array([index[r["class"]] for r in rows], np.int64)
         ext = np.array([shapes[k].extension_end for k in sid])
-        age = np.array([_leaf_age({k: v[r["i"]:r["i"] + 1] for k, v in r["st"].items()},
-                                  e, tt)[0] for r, e in zip(rows, ext, strict=True)])
+        age = np.array(
+            [
+                _leaf_age({k: v[r["i"] : r["i"] + 1] for k, v in r["st"].items()}, e, tt)[0]
+                for r, e in zip(rows, ext, strict=True)
+            ]
+        )
         L = np.array([r["L"] for r in rows])
         W = np.array([r["W"] for r in rows])
         cls_w = np.array([shapes[k].width / shapes[k].length for k in sid])
-        fld = Field(base, np.asarray([rows[0]["origin"]]) * [1, 1, 0], np.zeros(1), 0.001,
-                    np.full(len(rows), plant_id, np.int64),
-                    np.array([r["rank"] for r in rows], np.int64), age, L / base.length,
-                    np.array([r["incl"] for r in rows]), np.array([r["az"] for r in rows]),
-                    np.array([r["origin"] for r in rows]), 1.0, tuple(shapes), sid, opts.soil,
-                    0, None, W / (cls_w * L))
+        fld = Field(
+            base,
+            np.asarray([rows[0]["origin"]]) * [1, 1, 0],
+            np.zeros(1),
+            0.001,
+            np.full(len(rows), plant_id, np.int64),
+            np.array([r["rank"] for r in rows], np.int64),
+            age,
+            L / base.length,
+            np.array([r["incl"] for r in rows]),
+            np.array([r["az"] for r in rows]),
+            np.array([r["origin"] for r in rows]),
+            1.0,
+            tuple(shapes),
+            sid,
+            opts.soil,
+            0,
+            None,
+            W / (cls_w * L),
+        )
         s = lod_samples(base, opts.triangles_per_leaf)
         batch = batch_from_field(fld, s)
         blades = mesh_batch(batch, n_u=2)
@@ -316,21 +422,31 @@ def _mesh_plant(opts: PlantOptions, base: LeafShape, rows, tubes, tt: ThermalTim
         leaves["length"] = vis
         leaves["green_length"] = vis * (1 - sen)
         leaves["area"] = np.bincount(idx_face, weights=area, minlength=len(rows))
-        leaves["green_area"] = np.bincount(idx_face, weights=area * green_face,
-                                           minlength=len(rows))
+        leaves["green_area"] = np.bincount(idx_face, weights=area * green_face, minlength=len(rows))
         leaves["insertion_deg"] = 90 - np.degrees(batch.phi[:, 0])
         leaves["age"] = age
-        parts.append(Mesh(blades.vertices, blades.faces, normals=blades.normals, uv=blades.uv,
-                          vertex_colors=colors,
-                          face_ids={"plant": blades.face_ids["plant"], "leaf": leaf_of_face,
-                                    "axis": leaves["axis"].astype(np.int64)[idx_face],
-                                    "organ": np.full(blades.n_faces, ORGAN_BLADE, np.int64)}))
+        parts.append(
+            Mesh(
+                blades.vertices,
+                blades.faces,
+                normals=blades.normals,
+                uv=blades.uv,
+                vertex_colors=colors,
+                face_ids={
+                    "plant": blades.face_ids["plant"],
+                    "leaf": leaf_of_face,
+                    "axis": leaves["axis"].astype(np.int64)[idx_face],
+                    "organ": np.full(blades.n_faces, ORGAN_BLADE, np.int64),
+                },
+            )
+        )
     tube_mesh = _tubes(tubes, opts.tube_sides, plant_id)
     if tube_mesh is not None:
         parts.append(tube_mesh)
     if not parts:
-        raise InputError("the plant has no organ at this thermal time (before the first "
-                         "leaf tip emerges)")
+        raise InputError(
+            "the plant has no organ at this thermal time (before the first leaf tip emerges)"
+        )
     return (parts[0] if len(parts) == 1 else Mesh.merge(parts)), leaves
 
 
@@ -355,24 +471,30 @@ def _tubes(tubes, sides: int, plant_id: int) -> Mesh | None:
     verts = np.concatenate([bottom, top], axis=1).reshape(-1, 3)
     j = np.arange(sides)
     a, b = j, (j + 1) % sides
-    quad = np.concatenate([np.stack([a, b, b + sides], 1),
-                           np.stack([a, b + sides, a + sides], 1)])
+    quad = np.concatenate([np.stack([a, b, b + sides], 1), np.stack([a, b + sides, a + sides], 1)])
     m = len(keep)
     faces = (quad[None] + (np.arange(m) * 2 * sides)[:, None, None]).reshape(-1, 3)
     per = quad.shape[0]
     normals = np.tile(np.concatenate([ring, ring]), (m, 1))
     colors = np.tile(np.array(GREEN, np.uint8), (verts.shape[0], 1))
-    ids = {"plant": np.full(m * per, plant_id, np.int64),
-           "leaf": np.zeros(m * per, np.int64),
-           "axis": np.repeat([t[3] for t in keep], per).astype(np.int64),
-           "organ": np.repeat([t[4] for t in keep], per).astype(np.int64)}
+    ids = {
+        "plant": np.full(m * per, plant_id, np.int64),
+        "leaf": np.zeros(m * per, np.int64),
+        "axis": np.repeat([t[3] for t in keep], per).astype(np.int64),
+        "organ": np.repeat([t[4] for t in keep], per).astype(np.int64),
+    }
     return Mesh(verts, faces, normals=normals, vertex_colors=colors, face_ids=ids)
 
 
-def build_plant_stand(opts: PlantOptions, plants: int, rows: int, row_spacing: float,
-                      density: float | None = None, seed: int = 0,
-                      position_jitter: float = 0.01) -> tuple[Mesh, list[Plant],
-                                                            tuple[float, float, float, float]]:
+def build_plant_stand(
+    opts: PlantOptions,
+    plants: int,
+    rows: int,
+    row_spacing: float,
+    density: float | None = None,
+    seed: int = 0,
+    position_jitter: float = 0.01,
+) -> tuple[Mesh, list[Plant], tuple[float, float, float, float]]:
     """A stand of ADEL-like plants in rows (each with its own seed-derived draws): the merged
     mesh (``plant`` ids 0..plants-1), the plants, and the ground tile of the planting
     pattern (for :func:`biomorph.leaf.light.intercept`'s periodic ground)."""
@@ -390,8 +512,7 @@ def build_plant_stand(opts: PlantOptions, plants: int, rows: int, row_spacing: f
         warnings.simplefilter("always", LeafCountWarning)
         for k in range(plants):
             pos = (k % per_row * dx + jit[k, 0], k // per_row * row_spacing + jit[k, 1], 0.0)
-            built.append(build_plant_architecture(opts, seed=int(seeds[k]), origin=pos,
-                                                  plant_id=k))
+            built.append(build_plant_architecture(opts, seed=int(seeds[k]), origin=pos, plant_id=k))
     if caught:
         warnings.warn(str(caught[0].message), LeafCountWarning, stacklevel=2)
     tile = (-dx / 2, -row_spacing / 2, per_row * dx - dx / 2, rows * row_spacing - row_spacing / 2)
@@ -424,9 +545,15 @@ def _plant_rows(plant: Plant, rows: list) -> None:
 
     def organ_feats(o):
         x, y, z = o["top"]
-        return {"XX": x, "YY": y, "ZZ": z, "Length": o["length"],
-                "Diameter": o.get("diameter"), "Width": o.get("width"),
-                "SenescentFraction": o.get("senescent_fraction")}
+        return {
+            "XX": x,
+            "YY": y,
+            "ZZ": z,
+            "Length": o["length"],
+            "Diameter": o.get("diameter"),
+            "Width": o.get("width"),
+            "SenescentFraction": o.get("senescent_fraction"),
+        }
 
     def axis_rows(axis: int, col: int, first: str) -> None:
         rows.append((col, first, {}))
@@ -434,8 +561,7 @@ def _plant_rows(plant: Plant, rows: list) -> None:
         for j, rank in enumerate(sorted(metamers)):
             rows.append((col, f"^/M{rank}" if j == 0 else f"^<M{rank}", {}))
             for k, o in enumerate(metamers[rank]):
-                code = f"/{symbol[o['organ']]}{rank}" if k == 0 else \
-                    f"^<{symbol[o['organ']]}{rank}"
+                code = f"/{symbol[o['organ']]}{rank}" if k == 0 else f"^<{symbol[o['organ']]}{rank}"
                 rows.append((col + 1, code, organ_feats(o)))
             tiller = rank if axis == 0 else None
             if tiller is not None and tiller in by_axis and tiller != 0:
@@ -444,5 +570,11 @@ def _plant_rows(plant: Plant, rows: list) -> None:
     axis_rows(0, 0, "^/A1")
 
 
-__all__ = ["Plant", "PlantOptions", "build_plant_architecture", "build_plant_stand",
-           "default_tables", "write_plant_mtg"]
+__all__ = [
+    "Plant",
+    "PlantOptions",
+    "build_plant_architecture",
+    "build_plant_stand",
+    "default_tables",
+    "write_plant_mtg",
+]

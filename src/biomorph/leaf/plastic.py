@@ -41,11 +41,11 @@ class PlasticOp:
 
     def __post_init__(self) -> None:
         if self.kind not in ("bend", "curvature", "scale_width"):
-            raise ParameterError(f"plastic operator {self.kind!r} unknown; expected bend, "
-                                 "curvature or scale_width")
+            raise ParameterError(
+                f"plastic operator {self.kind!r} unknown; expected bend, curvature or scale_width"
+            )
         if not (0.0 <= self.s0 < self.s1 <= 1.0):
-            raise ParameterError(f"interval [{self.s0}, {self.s1}] must satisfy "
-                                 "0 <= s0 < s1 <= 1")
+            raise ParameterError(f"interval [{self.s0}, {self.s1}] must satisfy 0 <= s0 < s1 <= 1")
         if not np.isfinite(self.value):
             raise ParameterError(f"{self.kind} value {self.value!r} must be finite")
         if self.kind in ("curvature", "scale_width") and self.value < 0:

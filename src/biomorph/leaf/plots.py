@@ -30,8 +30,9 @@ def _save(fig, path: PathLike) -> Path:
     return Path(path)
 
 
-def time_vs_triangles(shape, budgets: Sequence[int], leaves: int = 500, repeat: int = 3,
-                      seed: int = 0) -> np.ndarray:
+def time_vs_triangles(
+    shape, budgets: Sequence[int], leaves: int = 500, repeat: int = 3, seed: int = 0
+) -> np.ndarray:
     """Seconds to mesh a ``leaves``-leaf field at each per-leaf triangle budget and compute
     its per-triangle light interception proxy (projected area × cos of the sun angle)."""
     from biomorph.leaf.canopy import (
@@ -42,9 +43,15 @@ def time_vs_triangles(shape, budgets: Sequence[int], leaves: int = 500, repeat: 
         lod_samples,
     )
 
-    spec = FieldSpec(plants=max(leaves // 6, 1), rows=max(leaves // 60, 1),
-                     plant=PlantSpec(preset=shape.name if shape.name in
-                                     ("wheat", "maize", "grass") else "wheat", leaves=6, age=1.0))
+    spec = FieldSpec(
+        plants=max(leaves // 6, 1),
+        rows=max(leaves // 60, 1),
+        plant=PlantSpec(
+            preset=shape.name if shape.name in ("wheat", "maize", "grass") else "wheat",
+            leaves=6,
+            age=1.0,
+        ),
+    )
     fld = build_field(spec, seed=seed)
     red = None
     out = []
@@ -55,15 +62,20 @@ def time_vs_triangles(shape, budgets: Sequence[int], leaves: int = 500, repeat: 
             t0 = time.perf_counter()
             m = field_mesh(fld, triangles_per_leaf=int(b), stems=False, s=s)
             n = m.face_normals_unnormalised()
-            _ = np.abs(n[:, 2]).sum() * 0.5           # horizontal projected area
+            _ = np.abs(n[:, 2]).sum() * 0.5  # horizontal projected area
             best = min(best, time.perf_counter() - t0)
         out.append(best)
     return np.array(out)
 
 
-def reduction_curves(shape, path: PathLike, n_points: int = 200,
-                     budgets: Sequence[int] | None = None, leaves: int = 500,
-                     repeat: int = 3) -> dict:
+def reduction_curves(
+    shape,
+    path: PathLike,
+    n_points: int = 200,
+    budgets: Sequence[int] | None = None,
+    leaves: int = 500,
+    repeat: int = 3,
+) -> dict:
     """Write the two-panel reduction figure; return its numbers as a dict of lists."""
     from biomorph.leaf.reduction import reduce_leaf
 
@@ -86,12 +98,23 @@ def reduction_curves(shape, path: PathLike, n_points: int = 200,
     ax[1].set_title("computation time falls with triangle count")
     ax[1].legend()
     _save(fig, path)
-    return {"triangles": tri.tolist(), "midrib_error": exy.tolist(), "bound": bound.tolist(),
-            "budgets": list(map(int, budgets)), "time_s": np.asarray(times).tolist()}
+    return {
+        "triangles": tri.tolist(),
+        "midrib_error": exy.tolist(),
+        "bound": bound.tolist(),
+        "budgets": list(map(int, budgets)),
+        "time_s": np.asarray(times).tolist(),
+    }
 
 
-def mesh_preview(meshes: Sequence[Mesh], path: PathLike, titles: Sequence[str] | None = None,
-                 elev: float = 20.0, azim: float = -60.0, same_scale: bool = False) -> Path:
+def mesh_preview(
+    meshes: Sequence[Mesh],
+    path: PathLike,
+    titles: Sequence[str] | None = None,
+    elev: float = 20.0,
+    azim: float = -60.0,
+    same_scale: bool = False,
+) -> Path:
     """Render meshes side by side (3-D, flat shading by normal·light), Z-up.
 
     ``same_scale`` uses one scale for all panels (e.g. a leaf at several ages)."""
@@ -108,8 +131,9 @@ def mesh_preview(meshes: Sequence[Mesh], path: PathLike, titles: Sequence[str] |
         tri = np.asarray(m.vertices)[np.asarray(m.faces)]
         shade = 0.35 + 0.65 * np.abs(m.face_normals() @ light)
         col = np.stack([0.15 * shade, 0.55 * shade, 0.12 * shade, np.ones_like(shade)], 1)
-        ax.add_collection3d(Poly3DCollection(tri, facecolors=col, edgecolors=(0, 0.2, 0, 0.25),
-                                             linewidths=0.2))
+        ax.add_collection3d(
+            Poly3DCollection(tri, facecolors=col, edgecolors=(0, 0.2, 0, 0.25), linewidths=0.2)
+        )
         lo, hi = m.bounds()
         c, r = (lo + hi) / 2, max((hi - lo).max() / 2, 1e-6)
         if same_scale:
@@ -124,10 +148,13 @@ def mesh_preview(meshes: Sequence[Mesh], path: PathLike, titles: Sequence[str] |
     return _save(fig, path)
 
 
-
-
-def light_map(mesh: Mesh, values: np.ndarray, path: PathLike, title: str = "",
-              label: str = "absorbed PAR (µmol m⁻² s⁻¹)") -> Path:
+def light_map(
+    mesh: Mesh,
+    values: np.ndarray,
+    path: PathLike,
+    title: str = "",
+    label: str = "absorbed PAR (µmol m⁻² s⁻¹)",
+) -> Path:
     """False-colour top view of per-triangle ``values`` (painter's order: higher triangles
     drawn last), with a colour bar. Uses matplotlib's ``Figure`` API only (no global
     backend switch)."""
@@ -141,15 +168,16 @@ def light_map(mesh: Mesh, values: np.ndarray, path: PathLike, title: str = "",
     fig = Figure(figsize=(7, 6))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
-    coll = PolyCollection(tri[order, :, :2], array=vals, cmap="inferno", edgecolors="none",
-                          linewidths=0)
+    coll = PolyCollection(
+        tri[order, :, :2], array=vals, cmap="inferno", edgecolors="none", linewidths=0
+    )
     coll.set_clim(0.0, float(np.percentile(vals, 99.5)) if vals.size else 1.0)
     ax.add_collection(coll)
     lo, hi = mesh.vertices[:, :2].min(axis=0), mesh.vertices[:, :2].max(axis=0)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
-    ax.set_facecolor((0.35, 0.27, 0.2))         # soil
+    ax.set_facecolor((0.35, 0.27, 0.2))  # soil
     ax.set_xlabel("x (m, east)")
     ax.set_ylabel("y (m, north)")
     ax.set_title(title)

@@ -143,7 +143,7 @@ def reduction_order(x, z, s, w):  # pragma: no cover - compiled
     while size > 0:
         key, i, v, size = _pop(hk, hi, hv, size)
         if not alive[i] or v != ver[i]:
-            continue            # stale entry (lazy deletion)
+            continue  # stale entry (lazy deletion)
         a, b = prev[i], nxt[i]
         tri += _strip(w[a], w[b]) - _strip(w[a], w[i]) - _strip(w[i], w[b])
         alive[i] = False
@@ -253,7 +253,7 @@ class Reduction:
     order: NDArray[np.int64]
     errors: Array
     triangles: NDArray[np.int64]
-    cols: int = 1            # triangle columns per strip: 1 margins only, 2 with midrib
+    cols: int = 1  # triangle columns per strip: 1 margins only, 2 with midrib
 
     @property
     def full_triangles(self) -> int:
@@ -271,11 +271,15 @@ class Reduction:
     def removed_for_budget(self, triangles: int) -> int:
         """Number of removals so the count is ``triangles`` or one less (then split once)."""
         if triangles < self.min_triangles:
-            raise ParameterError(f"triangle budget {triangles} is below the minimum mesh of "
-                                 f"this leaf ({self.min_triangles} triangle(s))")
+            raise ParameterError(
+                f"triangle budget {triangles} is below the minimum mesh of "
+                f"this leaf ({self.min_triangles} triangle(s))"
+            )
         if triangles > self.full_triangles:
-            raise ParameterError(f"triangle budget {triangles} exceeds the discretisation "
-                                 f"({self.full_triangles}); use more points")
+            raise ParameterError(
+                f"triangle budget {triangles} exceeds the discretisation "
+                f"({self.full_triangles}); use more points"
+            )
         if triangles == self.full_triangles:
             return 0
         return int(np.argmax(self.triangles <= triangles)) + 1
@@ -296,15 +300,17 @@ class Reduction:
         """Indices kept for a budget of ``polygons`` (>= 1) quads/strips (the paper's polygon
         budget: one polygon between consecutive kept points)."""
         if polygons < 1:
-            raise ParameterError(f"polygon budget {polygons} is below the minimum mesh "
-                                 "(1 polygon: base to tip)")
+            raise ParameterError(
+                f"polygon budget {polygons} is below the minimum mesh (1 polygon: base to tip)"
+            )
         return self.kept_for_points(polygons + 1)
 
     def error(self, kept: NDArray[np.int64]) -> tuple[float, float]:
         """(midrib error, width error): max distance of all discretised points to the
         reduced midrib polyline / width profile, in units of the leaf length."""
-        seg = np.clip(np.searchsorted(kept, np.arange(self.s.size), side="right") - 1, 0,
-                      kept.size - 2)
+        seg = np.clip(
+            np.searchsorted(kept, np.arange(self.s.size), side="right") - 1, 0, kept.size - 2
+        )
         a, b = kept[seg], kept[seg + 1]
         exy = _dist(self.x, self.z, a, b)
         er = _dist(self.s, self.w, a, b)
@@ -326,13 +332,15 @@ def _dist(px: Array, py: Array, a: NDArray[np.int64], b: NDArray[np.int64]) -> A
     ax, ay, bx, by = px[a], py[a], px[b], py[b]
     dx, dy = bx - ax, by - ay
     l2 = dx * dx + dy * dy
-    t = np.clip(np.divide((px - ax) * dx + (py - ay) * dy, l2, out=np.zeros_like(l2),
-                          where=l2 > 0), 0, 1)
+    t = np.clip(
+        np.divide((px - ax) * dx + (py - ay) * dy, l2, out=np.zeros_like(l2), where=l2 > 0), 0, 1
+    )
     return np.hypot(px - ax - t * dx, py - ay - t * dy)
 
 
-def _fine_profile(shape, n_points: int, age: float | None, twist: bool, undulation: bool,
-                  state=None):
+def _fine_profile(
+    shape, n_points: int, age: float | None, twist: bool, undulation: bool, state=None
+):
     if n_points < 2:
         raise ParameterError(f"n_points={n_points}: need at least 2 points")
     st = state if state is not None else (None if age is None else state_at_age(shape, age))
@@ -349,8 +357,14 @@ def reduce_profile(s: Array, x: Array, z: Array, w: Array) -> Reduction:
     return Reduction(*arrs, order, errs, tris)
 
 
-def reduce_leaf(shape, n_points: int = 200, age: float | None = None, state=None,
-                twist: bool = True, undulation: bool = True) -> Reduction:
+def reduce_leaf(
+    shape,
+    n_points: int = 200,
+    age: float | None = None,
+    state=None,
+    twist: bool = True,
+    undulation: bool = True,
+) -> Reduction:
     """Discretise ``shape`` (at ``age``) into ``n_points`` and compute its reduction."""
     s, prof = _fine_profile(shape, n_points, age, twist, undulation, state)
     return _reduce_prof(s, prof)
@@ -363,9 +377,19 @@ def _reduce_prof(s: Array, prof) -> Reduction:
     return reduce_profile(s, xz[:, 0], xz[:, 1], width / L)
 
 
-def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int | None = None,
-                 twist: bool = True, undulation: bool = True, plant: int = 0, leaf: int = 0,
-                 state=None, reduction: Reduction | None = None, surface: bool = True) -> Mesh:
+def reduced_mesh(
+    shape,
+    triangles: int,
+    age: float | None = None,
+    n_points: int | None = None,
+    twist: bool = True,
+    undulation: bool = True,
+    plant: int = 0,
+    leaf: int = 0,
+    state=None,
+    reduction: Reduction | None = None,
+    surface: bool = True,
+) -> Mesh:
     """Mesh of ``shape`` with exactly ``triangles`` triangles (see module docstring).
 
     ``surface`` (default): points are removed by their error on the surface (margins and
@@ -376,8 +400,9 @@ def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int 
     its plane + width profile)."""
     triangles = int(triangles)
     if triangles < 1:
-        raise ParameterError(f"triangle budget {triangles} is below the minimum mesh "
-                             "(at least 1 triangle)")
+        raise ParameterError(
+            f"triangle budget {triangles} is below the minimum mesh (at least 1 triangle)"
+        )
     n_pts = n_points or max(200, triangles // 2 + 3)
     s, prof = _fine_profile(shape, n_pts, age, twist, undulation, state)
     st = state if state is not None else (None if age is None else state_at_age(shape, age))
@@ -388,13 +413,25 @@ def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int 
     else:
         wavy = bool(np.any(prof[4] > 0))
         best = None
-        for cols in ((1, 2, 4) if wavy else (1,)):
+        for cols in (1, 2, 4) if wavy else (1,):
             red = _reduce_surface(s, prof, cols)
             if triangles < red.min_triangles or (cols > 1 and triangles < 2 * red.min_triangles):
                 continue
             cand = _coarse_mesh(s, prof, red, triangles, plant, leaf, exact)
-            err = surface_error(shape, cand, age=age, n_s=200, n_u=5, twist=twist,
-                                undulation=undulation, state=st) if wavy else 0.0
+            err = (
+                surface_error(
+                    shape,
+                    cand,
+                    age=age,
+                    n_s=200,
+                    n_u=5,
+                    twist=twist,
+                    undulation=undulation,
+                    state=st,
+                )
+                if wavy
+                else 0.0
+            )
             if best is None or err < best[0]:
                 best = (err, cand, red)
         if best is None:
@@ -416,8 +453,9 @@ def reduced_mesh(shape, triangles: int, age: float | None = None, n_points: int 
     return mesh
 
 
-def _coarse_mesh(s: Array, prof, red: Reduction, triangles: int, plant: int, leaf: int,
-                 exact: float) -> Mesh:
+def _coarse_mesh(
+    s: Array, prof, red: Reduction, triangles: int, plant: int, leaf: int, exact: float
+) -> Mesh:
     kept = red.kept(red.removed_for_budget(triangles))
     batch = coarse_batch(s, prof, kept, plant, leaf, exact_area=exact)
     return mesh_batch(LeafBatch(*batch), n_u=red.cols + 1)
@@ -427,24 +465,39 @@ def _reduce_surface(s: Array, prof, cols: int) -> Reduction:
     """Reduction with the 3D surface error (rows: margins, and the midrib when cols=2)."""
     phi, seg, width = prof[0], prof[1], prof[2]
     L = max(float(seg.sum()), 1e-12)
-    batch = LeafBatch(*[np.asarray(a)[None] for a in prof], np.zeros((1, 3)), np.zeros(1),
-                      np.zeros(1, np.int64), np.zeros(1, np.int64))
+    batch = LeafBatch(
+        *[np.asarray(a)[None] for a in prof],
+        np.zeros((1, 3)),
+        np.zeros(1),
+        np.zeros(1, np.int64),
+        np.zeros(1, np.int64),
+    )
     u = np.linspace(-0.5, 0.5, max(cols, 2) + 1)
-    rows = np.ascontiguousarray(leaf_grid(batch, u)[0] / L)             # (n, rows, 3)
+    rows = np.ascontiguousarray(leaf_grid(batch, u)[0] / L)  # (n, rows, 3)
     xz = integrate_angles(phi, seg) / L
     w = np.ascontiguousarray(width / L)
     order, errs, tris = reduction_order_surface(rows, np.ascontiguousarray(s), w, cols)
-    return Reduction(np.asarray(s, float), xz[:, 0].copy(), xz[:, 1].copy(), w, order, errs,
-                     tris, cols)
+    return Reduction(
+        np.asarray(s, float), xz[:, 0].copy(), xz[:, 1].copy(), w, order, errs, tris, cols
+    )
 
 
-def surface_error(shape, mesh: Mesh, age: float | None = None, n_s: int = 400, n_u: int = 9,
-                  twist: bool = True, undulation: bool = True, state=None) -> float:
+def surface_error(
+    shape,
+    mesh: Mesh,
+    age: float | None = None,
+    n_s: int = 400,
+    n_u: int = 9,
+    twist: bool = True,
+    undulation: bool = True,
+    state=None,
+) -> float:
     """Largest distance (metres) from ``n_s × n_u`` points of the exact surface (twist and
     undulation included) to ``mesh``: the error measure of a reduced leaf."""
     st = state if state is not None else (None if age is None else state_at_age(shape, age))
-    batch = LeafBatch.from_shapes([shape], states=[st], s=np.linspace(0, 1, n_s),
-                                  twist=twist, undulation=undulation)
+    batch = LeafBatch.from_shapes(
+        [shape], states=[st], s=np.linspace(0, 1, n_s), twist=twist, undulation=undulation
+    )
     pts = leaf_grid(batch, np.linspace(-0.5, 0.5, n_u))[0].reshape(-1, 3)
     tri = np.asarray(mesh.vertices)[np.asarray(mesh.faces)]
     return float(point_triangle_distance(pts, tri).max())
@@ -460,7 +513,7 @@ def point_triangle_distance(points: Array, triangles: Array, chunk: int = 256) -
     n2 = (nrm * nrm).sum(-1)
     out = np.empty(len(p_all))
     for s0 in range(0, len(p_all), chunk):
-        p = p_all[s0:s0 + chunk, None, :]
+        p = p_all[s0 : s0 + chunk, None, :]
         best = np.full(p.shape[0], np.inf)
         for x, e in ((a, ab), (a, ac), (b, bc)):
             e2 = np.maximum((e * e).sum(-1), 1e-300)
@@ -479,12 +532,18 @@ def point_triangle_distance(points: Array, triangles: Array, chunk: int = 256) -
             bw = (d00 * d21 - d01 * d20) / den
         inside = (bv >= 0) & (bw >= 0) & (bv + bw <= 1) & (n2 > 0)
         d_in = np.where(inside, np.abs(h) * np.sqrt(n2), np.inf)
-        out[s0:s0 + chunk] = np.minimum(best, d_in.min(axis=1))
+        out[s0 : s0 + chunk] = np.minimum(best, d_in.min(axis=1))
     return out
 
 
-def coarse_batch(s: Array, prof, kept: NDArray[np.int64], plant: int = 0, leaf: int = 0,
-                 exact_area: float | None = None):
+def coarse_batch(
+    s: Array,
+    prof,
+    kept: NDArray[np.int64],
+    plant: int = 0,
+    leaf: int = 0,
+    exact_area: float | None = None,
+):
     """Arrays of a one-leaf :class:`~biomorph.leaf.mesh.LeafBatch` through the kept points.
 
     Widths are scaled by one factor so the flat strip area equals ``exact_area`` (default:
@@ -500,25 +559,60 @@ def coarse_batch(s: Array, prof, kept: NDArray[np.int64], plant: int = 0, leaf: 
     approx = np.trapezoid(w_c, cum[kept])
     if approx > 0:
         w_c = w_c * (exact / approx)
-    return (phi_c[None], seg_c[None], w_c[None], theta[kept][None], amp[kept][None],
-            arg[kept][None], v[kept][None], np.zeros((1, 3)), np.zeros(1),
-            np.array([plant], np.int64), np.array([leaf], np.int64))
+    return (
+        phi_c[None],
+        seg_c[None],
+        w_c[None],
+        theta[kept][None],
+        amp[kept][None],
+        arg[kept][None],
+        v[kept][None],
+        np.zeros((1, 3)),
+        np.zeros(1),
+        np.array([plant], np.int64),
+        np.array([leaf], np.int64),
+    )
 
 
-def mesh_leaf(shape, age: float | None = None, triangles: int | None = None, n_s: int = 60,
-              n_u: int = 3, twist: bool = True, undulation: bool = True,
-              plant: int = 0, leaf: int = 0) -> Mesh:
+def mesh_leaf(
+    shape,
+    age: float | None = None,
+    triangles: int | None = None,
+    n_s: int = 60,
+    n_u: int = 3,
+    twist: bool = True,
+    undulation: bool = True,
+    plant: int = 0,
+    leaf: int = 0,
+) -> Mesh:
     """Mesh of one leaf: a regular ``n_s × n_u`` grid, or an exact triangle budget."""
     if triangles is not None:
-        return reduced_mesh(shape, triangles, age=age, twist=twist, undulation=undulation,
-                            plant=plant, leaf=leaf)
+        return reduced_mesh(
+            shape, triangles, age=age, twist=twist, undulation=undulation, plant=plant, leaf=leaf
+        )
     if n_s < 2:
         raise ParameterError(f"n_s={n_s}: a leaf needs at least 2 samples along the midrib")
-    batch = LeafBatch.from_shapes([shape], ages=[age], s=np.linspace(0, 1, n_s),
-                                  twist=twist, undulation=undulation, plant=[plant], leaf=[leaf])
+    batch = LeafBatch.from_shapes(
+        [shape],
+        ages=[age],
+        s=np.linspace(0, 1, n_s),
+        twist=twist,
+        undulation=undulation,
+        plant=[plant],
+        leaf=[leaf],
+    )
     return mesh_batch(batch, n_u)
 
 
-__all__ = ["Reduction", "coarse_batch", "mesh_leaf", "point_triangle_distance", "reduce_leaf",
-           "reduce_profile", "reduced_mesh", "reduction_order", "reduction_order_surface",
-           "surface_error"]
+__all__ = [
+    "Reduction",
+    "coarse_batch",
+    "mesh_leaf",
+    "point_triangle_distance",
+    "reduce_leaf",
+    "reduce_profile",
+    "reduced_mesh",
+    "reduction_order",
+    "reduction_order_surface",
+    "surface_error",
+]

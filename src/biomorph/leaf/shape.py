@@ -67,8 +67,10 @@ def _check_width_profile(s: ArrayLike, r: ArrayLike) -> tuple[Array, Array]:
         raise InputError(f"width profile has {sa.size} point(s); expected at least 2")
     if np.any(np.diff(sa) <= 0):
         i = int(np.flatnonzero(np.diff(sa) <= 0)[0])
-        raise InputError(f"width profile s must increase strictly; s[{i}]={sa[i]:g} then "
-                         f"s[{i + 1}]={sa[i + 1]:g}")
+        raise InputError(
+            f"width profile s must increase strictly; s[{i}]={sa[i]:g} then "
+            f"s[{i + 1}]={sa[i + 1]:g}"
+        )
     if np.any(ra < 0):
         i = int(np.flatnonzero(ra < 0)[0])
         raise InputError(f"width r[{i}]={ra[i]:g} is negative; expected widths >= 0")
@@ -99,8 +101,9 @@ class MidribCollection:
         s = _as_1d("collection s", self.s)
         phi = np.asarray(self.phi, dtype=float)
         if phi.shape != (ages.size, s.size):
-            raise InputError(f"collection phi has shape {phi.shape}; expected "
-                             f"({ages.size}, {s.size})")
+            raise InputError(
+                f"collection phi has shape {phi.shape}; expected ({ages.size}, {s.size})"
+            )
         if ages.size < 1 or np.any(np.diff(ages) <= 0):
             raise InputError("collection ages must increase strictly")
         object.__setattr__(self, "ages", ages)
@@ -108,22 +111,31 @@ class MidribCollection:
         object.__setattr__(self, "phi", phi)
 
     @classmethod
-    def from_curves(cls, ages: ArrayLike, curves: list[tuple[ArrayLike, ArrayLike]],
-                    n: int = 51, source: str = "", full_extension_age: float | None = None
-                    ) -> MidribCollection:
+    def from_curves(
+        cls,
+        ages: ArrayLike,
+        curves: list[tuple[ArrayLike, ArrayLike]],
+        n: int = 51,
+        source: str = "",
+        full_extension_age: float | None = None,
+    ) -> MidribCollection:
         """Build from one digitised curve ``(x, y)`` per age (any units, any point count)."""
         s_common = np.linspace(0.0, 1.0, n)
         rows = []
         for x, y in curves:
             s, phi, _ = angles_from_points(x, y)
             rows.append(np.interp(s_common, s, phi))
-        return cls(np.asarray(ages, float), s_common, np.array(rows), source,
-                   full_extension_age)
+        return cls(np.asarray(ages, float), s_common, np.array(rows), source, full_extension_age)
 
     def with_phi(self, s: ArrayLike, phi: ArrayLike) -> MidribCollection:
         """Same ages and metadata, new knots and angles."""
-        return MidribCollection(self.ages, np.asarray(s, float), np.asarray(phi, float),
-                                self.source, self.full_extension_age)
+        return MidribCollection(
+            self.ages,
+            np.asarray(s, float),
+            np.asarray(phi, float),
+            self.source,
+            self.full_extension_age,
+        )
 
     @property
     def extension_end(self) -> float | None:
@@ -147,8 +159,7 @@ class MidribCollection:
         """
         a = np.asarray(age, dtype=float)
         if np.any((a < 0) | (a > 1)):
-            raise ParameterError(f"age {a.min() if a.min() < 0 else a.max()!r} is outside "
-                                 "[0, 1]")
+            raise ParameterError(f"age {a.min() if a.min() < 0 else a.max()!r} is outside [0, 1]")
         t = self.data_age(a)
         if self.ages.size == 1:
             rows = np.broadcast_to(self.phi[0], a.shape + self.phi.shape[1:])
@@ -185,8 +196,7 @@ class MidribCollection:
         if self.ages.size == 1:
             xy = pts[0]
         else:
-            j = int(np.clip(np.searchsorted(self.ages, t, side="right") - 1, 0,
-                            self.ages.size - 2))
+            j = int(np.clip(np.searchsorted(self.ages, t, side="right") - 1, 0, self.ages.size - 2))
             w = float(np.clip((t - self.ages[j]) / (self.ages[j + 1] - self.ages[j]), 0, 1))
             xy = (1 - w) * pts[j] + w * pts[j + 1]
         return solve_arc_length(xy, 1.0, s)
@@ -232,8 +242,9 @@ class LeafShape:
         s = _as_1d("midrib s", self.s)
         phi = _as_1d("midrib phi", self.phi)
         if s.size != phi.size or s.size < 2:
-            raise InputError(f"midrib angle form needs >= 2 matching knots; got {s.size} s "
-                             f"and {phi.size} phi")
+            raise InputError(
+                f"midrib angle form needs >= 2 matching knots; got {s.size} s and {phi.size} phi"
+            )
         if np.any(np.diff(s) <= 0) or s[0] != 0 or s[-1] != 1:
             raise InputError("midrib knots s must increase strictly from 0 to 1")
         sr, rr = _check_width_profile(self.s_r, self.r)
@@ -254,8 +265,10 @@ class LeafShape:
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
         if self.twist_profile is not None:
-            ts, tv = (_as_1d("twist s", self.twist_profile[0]),
-                      _as_1d("twist theta", self.twist_profile[1]))
+            ts, tv = (
+                _as_1d("twist s", self.twist_profile[0]),
+                _as_1d("twist theta", self.twist_profile[1]),
+            )
             if ts.size != tv.size or ts.size < 2 or np.any(np.diff(ts) <= 0):
                 raise InputError("twist_profile needs >= 2 knots with strictly increasing s")
             object.__setattr__(self, "twist_profile", (ts, tv))
@@ -264,8 +277,9 @@ class LeafShape:
 
     # ------------------------------------------------------------------ constructors
     @classmethod
-    def from_preset(cls, name: str, rank_class: str | int | None = None, member: int = 0,
-                    **overrides: Any) -> LeafShape:
+    def from_preset(
+        cls, name: str, rank_class: str | int | None = None, member: int = 0, **overrides: Any
+    ) -> LeafShape:
         """A built-in preset (``maize``, ``wheat``, ``grass``) fitted to real leaves.
 
         ``rank_class`` picks one of the preset's shape classes (wheat: So99 rank classes
@@ -276,41 +290,79 @@ class LeafShape:
         """
         data = _presets()
         if name not in data:
-            raise ParameterError(f"unknown leaf preset {name!r}; expected one of "
-                                 f"{', '.join(sorted(data))}")
+            raise ParameterError(
+                f"unknown leaf preset {name!r}; expected one of {', '.join(sorted(data))}"
+            )
         p = data[name]
         coll = None
         if "collection" in p:
             c = p["collection"]
-            coll = MidribCollection(np.array(c["ages"]), np.array(c["s"]), np.array(c["phi"]),
-                                    c.get("source", ""), c.get("full_extension_age"))
+            coll = MidribCollection(
+                np.array(c["ages"]),
+                np.array(c["s"]),
+                np.array(c["phi"]),
+                c.get("source", ""),
+                c.get("full_extension_age"),
+            )
         label = name
         if rank_class is not None:
             classes = p.get("classes", {})
             key = str(rank_class)
             if key not in classes:
-                raise ParameterError(f"preset {name!r} has no shape class {rank_class!r}; "
-                                     f"expected one of {', '.join(classes) or '(none)'}")
+                raise ParameterError(
+                    f"preset {name!r} has no shape class {rank_class!r}; "
+                    f"expected one of {', '.join(classes) or '(none)'}"
+                )
             cp = classes[key]
             phis = cp["members_phi"]
             if not 0 <= member < len(phis):
-                raise ParameterError(f"member {member} of class {key} of {name!r} is outside "
-                                     f"0..{len(phis) - 1}")
-            p = {**p, "s": cp["s"], "phi": phis[member], "s_r": cp["s_r"], "r": cp["r"],
-                 "length": cp["length"], "width": cp["width"]}
+                raise ParameterError(
+                    f"member {member} of class {key} of {name!r} is outside 0..{len(phis) - 1}"
+                )
+            p = {
+                **p,
+                "s": cp["s"],
+                "phi": phis[member],
+                "s_r": cp["s_r"],
+                "r": cp["r"],
+                "length": cp["length"],
+                "width": cp["width"],
+            }
             label = f"{name} class {key}" + (f" member {member}" if member else "")
-        shape = cls(np.array(p["s"]), np.array(p["phi"]), np.array(p["s_r"]), np.array(p["r"]),
-                    p["length"], p["width"], twist=np.radians(p.get("twist_deg", 0.0)),
-                    undulation=p.get("undulation", 0.0), wavelength=p.get("wavelength", 0.05),
-                    collection=coll, name=label,
-                    meta={"source": p.get("source", ""), "preset": name,
-                          "rank_class": None if rank_class is None else str(rank_class)})
+        shape = cls(
+            np.array(p["s"]),
+            np.array(p["phi"]),
+            np.array(p["s_r"]),
+            np.array(p["r"]),
+            p["length"],
+            p["width"],
+            twist=np.radians(p.get("twist_deg", 0.0)),
+            undulation=p.get("undulation", 0.0),
+            wavelength=p.get("wavelength", 0.05),
+            collection=coll,
+            name=label,
+            meta={
+                "source": p.get("source", ""),
+                "preset": name,
+                "rank_class": None if rank_class is None else str(rank_class),
+            },
+        )
         return replace(shape, **overrides) if overrides else shape
 
     @classmethod
-    def from_points(cls, x: ArrayLike, y: ArrayLike, s_width: ArrayLike, r: ArrayLike, *,
-                    width: float | None = None, length: float | None = None,
-                    scale: float = 0.01, rounding: float = 0.25, **kwargs: Any) -> LeafShape:
+    def from_points(
+        cls,
+        x: ArrayLike,
+        y: ArrayLike,
+        s_width: ArrayLike,
+        r: ArrayLike,
+        *,
+        width: float | None = None,
+        length: float | None = None,
+        scale: float = 0.01,
+        rounding: float = 0.25,
+        **kwargs: Any,
+    ) -> LeafShape:
         """Fit a leaf to a digitised midrib ``(x_i, y_i)`` and a width profile ``(s, r)``.
 
         ``x, y`` are in data units (default cm, ``scale`` converts to metres); the arc
@@ -328,9 +380,18 @@ class LeafShape:
         return cls(s, phi, sw, rw / rw.max(), L, w, **kwargs)
 
     @classmethod
-    def parametric(cls, length: float, width: float, insertion_deg: float = 60.0,
-                   bending_deg: float = 90.0, base_width: float = 0.6, widest_at: float = 0.35,
-                   tip_power: float = 2.0, n: int = 51, **kwargs: Any) -> LeafShape:
+    def parametric(
+        cls,
+        length: float,
+        width: float,
+        insertion_deg: float = 60.0,
+        bending_deg: float = 90.0,
+        base_width: float = 0.6,
+        widest_at: float = 0.35,
+        tip_power: float = 2.0,
+        n: int = 51,
+        **kwargs: Any,
+    ) -> LeafShape:
         """A leaf from a few numbers instead of digitised data.
 
         Midrib: insertion angle above the horizontal (degrees) and total bending along the
@@ -346,7 +407,7 @@ class LeafShape:
         if tip_power <= 0:
             raise ParameterError(f"tip_power {tip_power!r} must be > 0")
         s = np.linspace(0.0, 1.0, n)
-        phi = np.radians(insertion_deg) - np.radians(bending_deg) * s ** 2
+        phi = np.radians(insertion_deg) - np.radians(bending_deg) * s**2
         rise = base_width + (1 - base_width) * np.sin(0.5 * np.pi * s / widest_at)
         fall = 1 - (np.clip(s - widest_at, 0.0, None) / (1 - widest_at)) ** tip_power
         r = np.where(s <= widest_at, rise, np.clip(fall, 0.0, 1.0))
@@ -421,8 +482,15 @@ class LeafShape:
         batch = LeafBatch.from_shapes([self], ages=None if age is None else [age], s=sg)
         return leaf_grid(batch, np.asarray(u, float))[0]
 
-    def mesh(self, age: float | None = None, triangles: int | None = None, n_s: int = 60,
-             n_u: int = 3, twist: bool = True, undulation: bool = True):
+    def mesh(
+        self,
+        age: float | None = None,
+        triangles: int | None = None,
+        n_s: int = 60,
+        n_u: int = 3,
+        twist: bool = True,
+        undulation: bool = True,
+    ):
         """Triangle mesh (:class:`biomorph.core.mesh.Mesh`) of this leaf.
 
         ``triangles`` gives an exact triangle budget (reduced mesh, see
@@ -431,8 +499,9 @@ class LeafShape:
         """
         from biomorph.leaf.reduction import mesh_leaf
 
-        return mesh_leaf(self, age=age, triangles=triangles, n_s=n_s, n_u=n_u, twist=twist,
-                         undulation=undulation)
+        return mesh_leaf(
+            self, age=age, triangles=triangles, n_s=n_s, n_u=n_u, twist=twist, undulation=undulation
+        )
 
 
 # --------------------------------------------------------------------------- presets
@@ -460,12 +529,16 @@ def preset_classes(name: str) -> dict[str, dict[str, Any]]:
     """Shape classes of a preset: ``{key: {n_leaves, median_maxdist, spread, ranks?...}}``."""
     data = _presets()
     if name not in data:
-        raise ParameterError(f"unknown leaf preset {name!r}; expected one of "
-                             f"{', '.join(sorted(data))}")
-    return {k: {**{f: v for f, v in c.items()
-                   if f not in ("members_phi", "phi", "s", "r", "s_r")},
-                "n_members": len(c["members_phi"])}
-            for k, c in data[name].get("classes", {}).items()}
+        raise ParameterError(
+            f"unknown leaf preset {name!r}; expected one of {', '.join(sorted(data))}"
+        )
+    return {
+        k: {
+            **{f: v for f, v in c.items() if f not in ("members_phi", "phi", "s", "r", "s_r")},
+            "n_members": len(c["members_phi"]),
+        }
+        for k, c in data[name].get("classes", {}).items()
+    }
 
 
 def class_of_rank(name: str, rank: int, n_ranks: int) -> str | None:
@@ -491,6 +564,16 @@ def class_of_rank(name: str, rank: int, n_ranks: int) -> str | None:
     return best
 
 
-__all__ = ["LeafShape", "MidribCollection", "PRESET_NAMES", "angles_from_points", "check_age",
-           "class_of_rank", "integrate_angles", "load_presets", "midrib_arc_length",
-           "preset_classes", "solve_arc_length"]
+__all__ = [
+    "LeafShape",
+    "MidribCollection",
+    "PRESET_NAMES",
+    "angles_from_points",
+    "check_age",
+    "class_of_rank",
+    "integrate_angles",
+    "load_presets",
+    "midrib_arc_length",
+    "preset_classes",
+    "solve_arc_length",
+]

@@ -45,8 +45,8 @@ class ThermalTime:
 
     phyllochron: float = 100.0
     base_temperature: float = 0.0
-    age_start: float = -2.0     # leaf age (phyllochrons from full extension) at a = 0
-    age_end: float = 12.0       # ... at a = 1 (end of life)
+    age_start: float = -2.0  # leaf age (phyllochrons from full extension) at a = 0
+    age_end: float = 12.0  # ... at a = 1 (end of life)
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.phyllochron) or self.phyllochron <= 0:
@@ -54,20 +54,24 @@ class ThermalTime:
         if not np.isfinite(self.base_temperature):
             raise ParameterError(f"base temperature {self.base_temperature!r} must be finite")
         if not self.age_end > self.age_start:
-            raise ParameterError(f"leaf age range {self.age_start}..{self.age_end} must "
-                                 "increase")
+            raise ParameterError(f"leaf age range {self.age_start}..{self.age_end} must increase")
 
     @classmethod
-    def for_preset(cls, preset: str, phyllochron: float | None = None,
-                   base_temperature: float | None = None) -> ThermalTime:
+    def for_preset(
+        cls, preset: str, phyllochron: float | None = None, base_temperature: float | None = None
+    ) -> ThermalTime:
         """Defaults of ``preset`` (see :data:`DEFAULTS`), age range from its collection."""
         from biomorph.leaf.shape import LeafShape
 
         tb, ph = DEFAULTS.get(preset, DEFAULTS["wheat"])
         coll = LeafShape.from_preset(preset).collection
         lo, hi = (-2.0, 12.0) if coll is None else (float(coll.ages[0]), float(coll.ages[-1]))
-        return cls(ph if phyllochron is None else float(phyllochron),
-                   tb if base_temperature is None else float(base_temperature), lo, hi)
+        return cls(
+            ph if phyllochron is None else float(phyllochron),
+            tb if base_temperature is None else float(base_temperature),
+            lo,
+            hi,
+        )
 
     def degree_days(self, daily_mean_temperatures: ArrayLike) -> Array:
         """Cumulative thermal time (°Cd) after each day of mean temperatures (°C)."""

@@ -45,22 +45,25 @@ def lowpass_into(cur, nxt, step, mode):  # pragma: no cover - compiled
         # provably non-negative (no negative-index wraparound test per access) and the loop
         # vectorises; same expression, same rounding as the per-index form (11x faster)
         c0 = cur[lo:hi]
-        cm1 = cur[lo - step:hi - step]
-        cp1 = cur[lo + step:hi + step]
-        cm2 = cur[lo - 2 * step:hi - 2 * step]
-        cp2 = cur[lo + 2 * step:hi + 2 * step]
+        cm1 = cur[lo - step : hi - step]
+        cp1 = cur[lo + step : hi + step]
+        cm2 = cur[lo - 2 * step : hi - 2 * step]
+        cp2 = cur[lo + 2 * step : hi + 2 * step]
         dst = nxt[lo:hi]
         for i in range(hi - lo):
-            dst[i] = (0.375 * c0[i] + 0.25 * (cm1[i] + cp1[i])
-                      + 0.0625 * (cm2[i] + cp2[i]))
+            dst[i] = 0.375 * c0[i] + 0.25 * (cm1[i] + cp1[i]) + 0.0625 * (cm2[i] + cp2[i])
     for i in range(0, lo):
-        nxt[i] = (0.375 * cur[i] + 0.25 * (cur[_idx(i - step, f, mode)]
-                                          + cur[_idx(i + step, f, mode)])
-                  + 0.0625 * (cur[_idx(i - 2 * step, f, mode)] + cur[_idx(i + 2 * step, f, mode)]))
+        nxt[i] = (
+            0.375 * cur[i]
+            + 0.25 * (cur[_idx(i - step, f, mode)] + cur[_idx(i + step, f, mode)])
+            + 0.0625 * (cur[_idx(i - 2 * step, f, mode)] + cur[_idx(i + 2 * step, f, mode)])
+        )
     for i in range(hi, f):
-        nxt[i] = (0.375 * cur[i] + 0.25 * (cur[_idx(i - step, f, mode)]
-                                          + cur[_idx(i + step, f, mode)])
-                  + 0.0625 * (cur[_idx(i - 2 * step, f, mode)] + cur[_idx(i + 2 * step, f, mode)]))
+        nxt[i] = (
+            0.375 * cur[i]
+            + 0.25 * (cur[_idx(i - step, f, mode)] + cur[_idx(i + step, f, mode)])
+            + 0.0625 * (cur[_idx(i - 2 * step, f, mode)] + cur[_idx(i + 2 * step, f, mode)])
+        )
 
 
 @njit(cache=True, inline="always")
@@ -154,8 +157,17 @@ def blend_slerp(qa, qb, wb, out):  # pragma: no cover - compiled
     for k in range(qa.shape[0]):
         t = wb[k]
         for j in range(qa.shape[1]):
-            x, y, z, w = _slerp(qa[k, j, 0], qa[k, j, 1], qa[k, j, 2], qa[k, j, 3],
-                                qb[k, j, 0], qb[k, j, 1], qb[k, j, 2], qb[k, j, 3], t)
+            x, y, z, w = _slerp(
+                qa[k, j, 0],
+                qa[k, j, 1],
+                qa[k, j, 2],
+                qa[k, j, 3],
+                qb[k, j, 0],
+                qb[k, j, 1],
+                qb[k, j, 2],
+                qb[k, j, 3],
+                t,
+            )
             _store_continuous(out, k, j, x, y, z, w)
 
 
@@ -283,8 +295,16 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
             mz += ref[i, 2]
             mw += ref[i, 3]
             # x = log(conj(R) q)
-            a, b, cc, d = _qmul(-ref[i, 0], -ref[i, 1], -ref[i, 2], ref[i, 3],
-                                qj[i, 0], qj[i, 1], qj[i, 2], qj[i, 3])
+            a, b, cc, d = _qmul(
+                -ref[i, 0],
+                -ref[i, 1],
+                -ref[i, 2],
+                ref[i, 3],
+                qj[i, 0],
+                qj[i, 1],
+                qj[i, 2],
+                qj[i, 3],
+            )
             rx, ry, rz = _qlog(a, b, cc, d)
             xs[0, i] = rx
             xs[1, i] = ry
@@ -365,8 +385,12 @@ def blend_average(q, w, out):  # pragma: no cover - compiled
                     wi = w[k, i]
                     if wi == 0.0:
                         continue
-                    d = (q[i, k, j, 0] * rx + q[i, k, j, 1] * ry + q[i, k, j, 2] * rz
-                         + q[i, k, j, 3] * rw)
+                    d = (
+                        q[i, k, j, 0] * rx
+                        + q[i, k, j, 1] * ry
+                        + q[i, k, j, 2] * rz
+                        + q[i, k, j, 3] * rw
+                    )
                     s = wi if d >= 0 else -wi
                     x += s * q[i, k, j, 0]
                     y += s * q[i, k, j, 1]
@@ -399,9 +423,17 @@ def blend_average_sampled(rot, start, length, i0, frac, w, out):  # pragma: no c
         bh = start[h] + min(i0[h, k] + 1, length[h] - 1)
         th = frac[h, k]
         for j in range(nj):
-            rx, ry, rz, rw = _slerp(rot[ah, j, 0], rot[ah, j, 1], rot[ah, j, 2], rot[ah, j, 3],
-                                    rot[bh, j, 0], rot[bh, j, 1], rot[bh, j, 2], rot[bh, j, 3],
-                                    th)
+            rx, ry, rz, rw = _slerp(
+                rot[ah, j, 0],
+                rot[ah, j, 1],
+                rot[ah, j, 2],
+                rot[ah, j, 3],
+                rot[bh, j, 0],
+                rot[bh, j, 1],
+                rot[bh, j, 2],
+                rot[bh, j, 3],
+                th,
+            )
             if w[k, h] == 1.0:
                 x, y, z, ww = rx, ry, rz, rw
             else:
@@ -418,9 +450,17 @@ def blend_average_sampled(rot, start, length, i0, frac, w, out):  # pragma: no c
                     else:
                         a = start[i] + i0[i, k]
                         b = start[i] + min(i0[i, k] + 1, length[i] - 1)
-                        qx, qy, qz, qw = _slerp(rot[a, j, 0], rot[a, j, 1], rot[a, j, 2],
-                                                rot[a, j, 3], rot[b, j, 0], rot[b, j, 1],
-                                                rot[b, j, 2], rot[b, j, 3], frac[i, k])
+                        qx, qy, qz, qw = _slerp(
+                            rot[a, j, 0],
+                            rot[a, j, 1],
+                            rot[a, j, 2],
+                            rot[a, j, 3],
+                            rot[b, j, 0],
+                            rot[b, j, 1],
+                            rot[b, j, 2],
+                            rot[b, j, 3],
+                            frac[i, k],
+                        )
                     d = qx * rx + qy * ry + qz * rz + qw * rw
                     s = wi if d >= 0 else -wi
                     x += s * qx

@@ -35,8 +35,13 @@ def _up_index(up: str) -> int:
         raise ParameterError(f"up axis {up!r}; expected 'x', 'y' or 'z'") from None
 
 
-def reorient(motion: Motion, angle: float, translate: ArrayLike = (0.0, 0.0, 0.0),
-             pivot: ArrayLike | None = None, up: str = "y") -> Motion:
+def reorient(
+    motion: Motion,
+    angle: float,
+    translate: ArrayLike = (0.0, 0.0, 0.0),
+    pivot: ArrayLike | None = None,
+    up: str = "y",
+) -> Motion:
     """Rotate the whole motion by ``angle`` (rad) about the vertical axis through ``pivot``
     (default: the root's horizontal position at frame 0), then move it by ``translate``.
 
@@ -55,8 +60,9 @@ def reorient(motion: Motion, angle: float, translate: ArrayLike = (0.0, 0.0, 0.0
 
 def _forward_axis(motion: Motion, up: int) -> int:
     step = max(1, motion.n_frames // 64)  # a sample of frames is enough to pick the axis
-    w = tf.quat_to_matrix(tf.quat_multiply(motion.skeleton.rest_rotation[0],
-                                           motion.rotation[::step, 0]))
+    w = tf.quat_to_matrix(
+        tf.quat_multiply(motion.skeleton.rest_rotation[0], motion.rotation[::step, 0])
+    )
     vertical = np.abs(w[:, up, :]).mean(axis=0)  # |up component| of each local axis
     vertical[up] += 1e-9  # prefer non-up axes on ties
     return int(np.argmin(vertical))
@@ -69,8 +75,7 @@ def heading(motion: Motion, up: str = "y", axis: int | None = None) -> Array:
     ground plane; differences of heading are what alignment uses."""
     ui = _up_index(up)
     a = _forward_axis(motion, ui) if axis is None else axis
-    w = tf.quat_to_matrix(tf.quat_multiply(motion.skeleton.rest_rotation[0],
-                                           motion.rotation[:, 0]))
+    w = tf.quat_to_matrix(tf.quat_multiply(motion.skeleton.rest_rotation[0], motion.rotation[:, 0]))
     d = w[:, :, a]
     h1, h2 = [(ui + 1) % 3, (ui + 2) % 3]
     # a rotation by +theta about +up turns h1 towards h2, so this angle grows by theta
@@ -82,21 +87,27 @@ def heading_at(motion: Motion, frame: int, up: str = "y", axis: int | None = Non
     evaluating the whole clip (the forward axis is still chosen from the whole clip)."""
     ui = _up_index(up)
     a = _forward_axis(motion, ui) if axis is None else axis
-    w = tf.quat_to_matrix(tf.quat_multiply(motion.skeleton.rest_rotation[0],
-                                           motion.rotation[frame, 0]))
+    w = tf.quat_to_matrix(
+        tf.quat_multiply(motion.skeleton.rest_rotation[0], motion.rotation[frame, 0])
+    )
     h1, h2 = [(ui + 1) % 3, (ui + 2) % 3]
     return float(np.arctan2(w[h2, a], w[h1, a]))
 
 
-def align_root_to(b: Motion, a_position: ArrayLike, a_heading: float, frame_b: int,
-                  up: str = "y", axis: int | None = None) -> Motion:
+def align_root_to(
+    b: Motion,
+    a_position: ArrayLike,
+    a_heading: float,
+    frame_b: int,
+    up: str = "y",
+    axis: int | None = None,
+) -> Motion:
     """Rotate ``b`` about the vertical so its heading at ``frame_b`` equals ``a_heading`` and
     move it horizontally so its root at ``frame_b`` sits at ``a_position`` (height kept)."""
     ui = _up_index(up)
     hb = heading_at(b, frame_b, up, axis)
     pb = b.root_position[frame_b]
-    rotated = reorient(b, float(a_heading - hb), pivot=np.where(np.arange(3) == ui, 0.0, pb),
-                       up=up)
+    rotated = reorient(b, float(a_heading - hb), pivot=np.where(np.arange(3) == ui, 0.0, pb), up=up)
     shift = np.asarray(a_position, float) - rotated.root_position[frame_b]
     shift[ui] = 0.0
     return transform_root(rotated, tf.quat_identity(), shift)
@@ -112,21 +123,25 @@ def local_maxima(x: ArrayLike) -> NDArray[np.int64]:
     return np.flatnonzero((x[1:-1] > x[:-2]) & (x[1:-1] >= x[2:])) + 1
 
 
-def peak_offset(a: Motion, b: Motion, joint: str, channel: str = "Xrotation",
-                smooth: int = 2) -> tuple[int, int]:
+def peak_offset(
+    a: Motion, b: Motion, joint: str, channel: str = "Xrotation", smooth: int = 2
+) -> tuple[int, int]:
     """The seed's auto-align: ``(frame in a, frame in b)`` of the last local maximum of
     ``joint.channel`` in ``a`` and the first in ``b``.
 
     The channel (Euler, in the joint's own order, unwrapped) is smoothed by ``smooth`` passes
     of the [1/4, 1/2, 1/4] kernel first so capture noise does not create spurious peaks."""
+
     def peaks(m: Motion, which: str) -> int:
         x = m.channel(joint, channel)
         for _ in range(max(0, smooth)):
             x = np.convolve(np.pad(x, 1, mode="edge"), [0.25, 0.5, 0.25], mode="valid")
         p = local_maxima(x)
         if p.size == 0:
-            raise InputError(f"{joint}.{channel} has no local maximum in the {which} clip; "
-                             "choose another joint/channel or set the offset by hand")
+            raise InputError(
+                f"{joint}.{channel} has no local maximum in the {which} clip; "
+                "choose another joint/channel or set the offset by hand"
+            )
         return int(p[-1] if which == "first (A)" else p[0])
 
     return peaks(a, "first (A)"), peaks(b, "second (B)")
@@ -186,10 +201,20 @@ def dtw_path(cost: ArrayLike) -> tuple[NDArray[np.int64], float]:
     (0, 0) to (n-1, m-1) minimising the summed cost, and that cost."""
     c = np.ascontiguousarray(cost, dtype=float)
     if c.ndim != 2 or 0 in c.shape:
-        raise ParameterError(f"DTW cost matrix of shape {c.shape}; expected a non-empty 2-D "
-                             "array")
+        raise ParameterError(f"DTW cost matrix of shape {c.shape}; expected a non-empty 2-D array")
     return _dtw(c)
 
 
-__all__ = ["transform_root", "reorient", "to_y_up", "heading", "heading_at", "align_root_to",
-           "local_maxima", "peak_offset", "pose_features", "pose_distance", "dtw_path"]
+__all__ = [
+    "transform_root",
+    "reorient",
+    "to_y_up",
+    "heading",
+    "heading_at",
+    "align_root_to",
+    "local_maxima",
+    "peak_offset",
+    "pose_features",
+    "pose_distance",
+    "dtw_path",
+]

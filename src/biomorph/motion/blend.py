@@ -61,9 +61,17 @@ def _clip_span(m: Motion, off: float, scale: float) -> tuple[float, float]:
     return off, off + (m.n_frames - 1) * scale
 
 
-def auto_offset(a: Motion, b: Motion, method: str = "peaks", joint: str | None = None,
-                channel: str = "Xrotation", window: int = 60, a_offset: float = 0.0,
-                a_scale: float = 1.0, b_scale: float = 1.0) -> float:
+def auto_offset(
+    a: Motion,
+    b: Motion,
+    method: str = "peaks",
+    joint: str | None = None,
+    channel: str = "Xrotation",
+    window: int = 60,
+    a_offset: float = 0.0,
+    a_scale: float = 1.0,
+    b_scale: float = 1.0,
+) -> float:
     """Output-frame offset of ``b`` so it continues ``a`` (placed at ``a_offset``).
 
     ``"peaks"``: last local maximum of ``joint.channel`` in A onto the first one in B.
@@ -71,14 +79,15 @@ def auto_offset(a: Motion, b: Motion, method: str = "peaks", joint: str | None =
     every non-root joint); the offset is the median lag along the warping path."""
     if method == "peaks":
         if joint is None:
-            raise ParameterError("peak alignment needs a joint (e.g. the thigh: --align-joint "
-                                 "LeftUpLeg)")
+            raise ParameterError(
+                "peak alignment needs a joint (e.g. the thigh: --align-joint LeftUpLeg)"
+            )
         pa, pb = peak_offset(a, b, joint, channel)
         return a_offset + pa * a_scale - pb * b_scale
     if method == "dtw":
         wa = min(window, a.n_frames)
         wb = min(window, b.n_frames)
-        fa = pose_features(a)[a.n_frames - wa:]
+        fa = pose_features(a)[a.n_frames - wa :]
         fb = pose_features(b)[:wb]
         path, _ = dtw_path(pose_distance(fa, fb))
         lag = np.median((path[:, 0] + a.n_frames - wa) * a_scale - path[:, 1] * b_scale)
@@ -86,9 +95,13 @@ def auto_offset(a: Motion, b: Motion, method: str = "peaks", joint: str | None =
     raise ParameterError(f"align method {method!r}; expected 'peaks' or 'dtw'")
 
 
-def plan(clips: Sequence[Motion], offsets: ArrayLike | None = None,
-         scales: ArrayLike | None = None, transition: float = 30,
-         curve: Keys | float | Curve | None = None) -> BlendPlan:
+def plan(
+    clips: Sequence[Motion],
+    offsets: ArrayLike | None = None,
+    scales: ArrayLike | None = None,
+    transition: float = 30,
+    curve: Keys | float | Curve | None = None,
+) -> BlendPlan:
     """Timeline and normalised weights ``(f, N)`` for :func:`blend` (see module docstring)."""
     n = len(clips)
     if n < 1:
@@ -104,10 +117,12 @@ def plan(clips: Sequence[Motion], offsets: ArrayLike | None = None,
             span_prev = (clips[i - 1].n_frames - 1) * sc[i - 1]
             span_this = (clips[i].n_frames - 1) * sc[i]
             if transition > min(span_prev, span_this):
-                raise ParameterError(f"transition of {transition:g} frames is longer than clip "
-                                     f"{i - 1 if span_prev < span_this else i} "
-                                     f"({min(span_prev, span_this):g} frames); expected a "
-                                     "shorter transition")
+                raise ParameterError(
+                    f"transition of {transition:g} frames is longer than clip "
+                    f"{i - 1 if span_prev < span_this else i} "
+                    f"({min(span_prev, span_this):g} frames); expected a "
+                    "shorter transition"
+                )
             off[i] = off[i - 1] + span_prev - transition
     else:
         off = np.asarray(offsets, dtype=float).reshape(-1)
@@ -118,8 +133,9 @@ def plan(clips: Sequence[Motion], offsets: ArrayLike | None = None,
     f = int(np.floor(ends.max() + 1e-9)) + 1
     t = np.arange(f, dtype=float)
     eps = 1e-9
-    exists = np.stack([(t >= o - eps) & (t <= e + eps) for o, e in zip(off, ends, strict=True)],
-                      axis=1)
+    exists = np.stack(
+        [(t >= o - eps) & (t <= e + eps) for o, e in zip(off, ends, strict=True)], axis=1
+    )
     act = exists.astype(float)
     user = None if curve is None else curve_from_keys(curve, kind="monotone")
     for i in range(1, n):
@@ -140,16 +156,25 @@ def plan(clips: Sequence[Motion], offsets: ArrayLike | None = None,
     total = act.sum(axis=1)
     if np.any(total <= 0):
         gap = int(np.flatnonzero(total <= 0)[0])
-        raise ParameterError(f"no clip covers output frame {gap} (clips leave a gap or the "
-                             "blend curve zeroes every clip); overlap the clips")
+        raise ParameterError(
+            f"no clip covers output frame {gap} (clips leave a gap or the "
+            "blend curve zeroes every clip); overlap the clips"
+        )
     return BlendPlan(off, sc, act / total[:, None], f)
 
 
-def blend(clips: Sequence[Motion], offsets: ArrayLike | None = None,
-          scales: ArrayLike | None = None, transition: float = 30,
-          curve: Keys | float | Curve | None = None, align_root: bool = True,
-          align: str | None = None, align_joint: str | None = None,
-          align_channel: str = "Xrotation", up: str = "y") -> Motion:
+def blend(
+    clips: Sequence[Motion],
+    offsets: ArrayLike | None = None,
+    scales: ArrayLike | None = None,
+    transition: float = 30,
+    curve: Keys | float | Curve | None = None,
+    align_root: bool = True,
+    align: str | None = None,
+    align_joint: str | None = None,
+    align_channel: str = "Xrotation",
+    up: str = "y",
+) -> Motion:
     """Blend clips into one motion (see the module docstring).
 
     Parameters
@@ -172,15 +197,29 @@ def blend(clips: Sequence[Motion], offsets: ArrayLike | None = None,
     for c in clips[1:]:
         same_skeleton(clips[0].skeleton, c.skeleton, "clips to blend")
     # one timeline: clips at another frame rate are resampled to the first clip's rate
-    clips = [c if abs(c.frame_time - clips[0].frame_time) <= 1e-9 * clips[0].frame_time
-             else c.resample(clips[0].fps) for c in clips]
+    clips = [
+        c
+        if abs(c.frame_time - clips[0].frame_time) <= 1e-9 * clips[0].frame_time
+        else c.resample(clips[0].fps)
+        for c in clips
+    ]
     sc = np.ones(len(clips)) if scales is None else np.asarray(scales, dtype=float)
     if align is not None and offsets is None:
         off = [0.0]
         for i in range(1, len(clips)):
-            off.append(auto_offset(clips[i - 1], clips[i], align, align_joint, align_channel,
-                                   window=max(int(2 * transition), 8), a_offset=off[-1],
-                                   a_scale=float(sc[i - 1]), b_scale=float(sc[i])))
+            off.append(
+                auto_offset(
+                    clips[i - 1],
+                    clips[i],
+                    align,
+                    align_joint,
+                    align_channel,
+                    window=max(int(2 * transition), 8),
+                    a_offset=off[-1],
+                    a_scale=float(sc[i - 1]),
+                    b_scale=float(sc[i]),
+                )
+            )
         offsets = np.asarray(off)
     p = plan(clips, offsets, sc, transition, curve)
     t = np.arange(p.n_frames, dtype=float)
@@ -222,8 +261,10 @@ def blend(clips: Sequence[Motion], offsets: ArrayLike | None = None,
     jt = None
     if any(j is not None for j in jts):
         sk0 = clips[0].skeleton
-        full = [j if j is not None else
-                np.broadcast_to(sk0.offset, (p.n_frames,) + sk0.offset.shape) for j in jts]
+        full = [
+            j if j is not None else np.broadcast_to(sk0.offset, (p.n_frames,) + sk0.offset.shape)
+            for j in jts
+        ]
         jt = np.einsum("fi,ifnk->fnk", w, np.stack(full))
         jt[:, 0] = pos
     meta = dict(clips[0].meta)
@@ -242,8 +283,15 @@ def average_rotations(clips: Sequence[Motion], us: Sequence[Array], w: Array) ->
     for i, (c, u) in enumerate(zip(clips, us, strict=True)):
         i0[i], frac[i] = sample_linear(c, u)[:2]
     rot = np.empty((w.shape[0],) + clips[0].rotation.shape[1:])
-    blend_average_sampled(ro(np.concatenate([c.rotation for c in clips])), ro_int(start),
-                          ro_int(length), ro_int(i0), ro(frac), ro(w), rot)
+    blend_average_sampled(
+        ro(np.concatenate([c.rotation for c in clips])),
+        ro_int(start),
+        ro_int(length),
+        ro_int(i0),
+        ro(frac),
+        ro(w),
+        rot,
+    )
     return rot
 
 

@@ -32,8 +32,18 @@ from typing import Any
 from biomorph.core.motion import Motion
 from biomorph.errors import ParameterError
 
-OPS = ("equalize", "speed", "cycle", "trim", "resample", "reorient", "mirror", "in-place",
-       "extract-root", "retarget")
+OPS = (
+    "equalize",
+    "speed",
+    "cycle",
+    "trim",
+    "resample",
+    "reorient",
+    "mirror",
+    "in-place",
+    "extract-root",
+    "retarget",
+)
 _TIMING_KEPT = ("equalize", "reorient", "in-place")  # same frames: feet follow the input
 
 
@@ -49,8 +59,9 @@ class Step:
         name, _, rest = text.strip().partition(":")
         name = name.strip().lower()
         if name not in OPS:
-            raise ParameterError(f"--op {text!r}: unknown operator {name!r}; expected one of "
-                                 f"{', '.join(OPS)}")
+            raise ParameterError(
+                f"--op {text!r}: unknown operator {name!r}; expected one of {', '.join(OPS)}"
+            )
         params = {}
         for part in filter(None, (p.strip() for p in rest.split(","))):
             k, eq, v = part.partition("=")
@@ -60,8 +71,9 @@ class Step:
         return cls(name, params)
 
 
-def _num(step: Step, key: str, default: float | None, lo: float, hi: float,
-         integer: bool = False) -> Any:
+def _num(
+    step: Step, key: str, default: float | None, lo: float, hi: float, integer: bool = False
+) -> Any:
     raw = step.params.get(key)
     if raw is None:
         return default
@@ -70,8 +82,10 @@ def _num(step: Step, key: str, default: float | None, lo: float, hi: float,
     except ValueError:
         raise ParameterError(f"{step.name}: {key}={raw!r} is not a number") from None
     if not math.isfinite(v) or not lo <= v <= hi or (integer and v != int(v)):
-        raise ParameterError(f"{step.name}: {key}={raw!r}; expected "
-                             f"{'an integer' if integer else 'a number'} in [{lo:g}, {hi:g}]")
+        raise ParameterError(
+            f"{step.name}: {key}={raw!r}; expected "
+            f"{'an integer' if integer else 'a number'} in [{lo:g}, {hi:g}]"
+        )
     return int(v) if integer else v
 
 
@@ -97,24 +111,41 @@ def apply_step(mo: Motion, step: Step) -> Motion:
     up = mo.meta.get("up_guess") or "y"
     n, p = step.name, step.params
     if n == "equalize":
-        return bm.equalize(mo, _floats(step, "gains") or [1, 1, 1, 1, 1], p.get("joint"),
-                           "all", p.get("below", "0") == "1", "edge",
-                           p.get("root", "trajectory"))
+        return bm.equalize(
+            mo,
+            _floats(step, "gains") or [1, 1, 1, 1, 1],
+            p.get("joint"),
+            "all",
+            p.get("below", "0") == "1",
+            "edge",
+            p.get("root", "trajectory"),
+        )
     if n == "speed":
         return bm.change_speed(mo, _num(step, "speed", 1.0, 1e-6, 1e6))
     if n == "cycle":
         if p.get("auto", "0") == "1":
-            s, e, _ = bm.best_loop(mo, _num(step, "min_length", 30, 2, 1e9, True), None,
-                                   _num(step, "transition", 10, 1, 1e7, True))
+            s, e, _ = bm.best_loop(
+                mo,
+                _num(step, "min_length", 30, 2, 1e9, True),
+                None,
+                _num(step, "transition", 10, 1, 1e7, True),
+            )
         else:
             s = _num(step, "start", 0, 0, 1e12, True)
             e = _num(step, "stop", mo.n_frames, 1, 1e12, True)
-        return bm.make_cycle(mo, s, e, _num(step, "transition", 10, 1, 1e7, True),
-                             _num(step, "cycles", 1, 1, 10000, True), up=up,
-                             mode=p.get("mode", "world"))
+        return bm.make_cycle(
+            mo,
+            s,
+            e,
+            _num(step, "transition", 10, 1, 1e7, True),
+            _num(step, "cycles", 1, 1, 10000, True),
+            up=up,
+            mode=p.get("mode", "world"),
+        )
     if n == "trim":
-        return mo.frames(_num(step, "start", 0, 0, 1e12, True),
-                         _num(step, "stop", mo.n_frames, 1, 1e12, True))
+        return mo.frames(
+            _num(step, "start", 0, 0, 1e12, True), _num(step, "stop", mo.n_frames, 1, 1e12, True)
+        )
     if n == "resample":
         return mo.resample(_num(step, "fps", mo.fps, 1e-6, 1e4))
     if n == "reorient":
@@ -160,8 +191,14 @@ def batch_item(item: tuple[str, str, list[Step], bool, str]) -> dict[str, Any]:
         mo = io.read_motion(src)
     res = apply_chain(mo, steps, lock_feet)
     io.write_bvh(out, res, euler=euler)
-    return {"input": src, "output": out, "frames_in": mo.n_frames, "frames": res.n_frames,
-            "joints": res.n_joints, "tolerated": mo.meta.get("tolerated", [])}
+    return {
+        "input": src,
+        "output": out,
+        "frames_in": mo.n_frames,
+        "frames": res.n_frames,
+        "joints": res.n_joints,
+        "tolerated": mo.meta.get("tolerated", []),
+    }
 
 
 __all__ = ["Step", "OPS", "apply_step", "apply_chain", "batch_item"]

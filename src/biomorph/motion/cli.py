@@ -19,8 +19,12 @@ import typer
 from biomorph._cli import bounded
 from biomorph.errors import ParameterError, UnsupportedFormatError
 
-app = typer.Typer(name="motion", no_args_is_help=True, add_completion=False,
-                  help="MotionLab: equalize, edit, blend, retime and loop motion capture.")
+app = typer.Typer(
+    name="motion",
+    no_args_is_help=True,
+    add_completion=False,
+    help="MotionLab: equalize, edit, blend, retime and loop motion capture.",
+)
 
 OUT_FORMATS = (".bvh", ".glb")
 # Longest clip a retiming command writes: 10 M frames is a day at 120 fps (about 14 GB of
@@ -28,19 +32,32 @@ OUT_FORMATS = (".bvh", ".glb")
 MAX_OUTPUT_FRAMES = 10_000_000
 
 Json = Annotated[bool, typer.Option("--json", help="Print a machine-readable summary.")]
-Up = Annotated[str | None, typer.Option("--up", help="Vertical axis of the input (z: convert "
-                                                     "Z-up data to Y-up before editing).")]
+Up = Annotated[
+    str | None,
+    typer.Option(
+        "--up", help="Vertical axis of the input (z: convert Z-up data to Y-up before editing)."
+    ),
+]
 Output = Annotated[Path, typer.Option("-o", "--output", help="Output .bvh or .glb.")]
-Strict = Annotated[bool, typer.Option("--strict", help="Refuse files whose frame count "
-                                                       "disagrees with their data.")]
-Feet = Annotated[bool, typer.Option("--lock-feet/--no-lock-feet",
-                                    help="Keep planted feet in place after the operator "
-                                         "(contact detection + two-bone IK).")]
-Euler = Annotated[str, typer.Option("--euler", help="BVH angles: wrap (±180°) or "
-                                                    "continuous (unwrapped over time).")]
-Preview = Annotated[Path | None, typer.Option("--preview", help="Also write an animated "
-                                                               "preview (.gif, or .mp4 with "
-                                                               "ffmpeg).")]
+Strict = Annotated[
+    bool, typer.Option("--strict", help="Refuse files whose frame count disagrees with their data.")
+]
+Feet = Annotated[
+    bool,
+    typer.Option(
+        "--lock-feet/--no-lock-feet",
+        help="Keep planted feet in place after the operator (contact detection + two-bone IK).",
+    ),
+]
+Euler = Annotated[
+    str,
+    typer.Option("--euler", help="BVH angles: wrap (±180°) or continuous (unwrapped over time)."),
+]
+Preview = Annotated[
+    Path | None,
+    typer.Option("--preview", help="Also write an animated preview (.gif, or .mp4 with ffmpeg)."),
+]
+
 
 def _read(path: Path, up: str | None = None, strict: bool | None = None):
     import warnings
@@ -62,8 +79,14 @@ def _read(path: Path, up: str | None = None, strict: bool | None = None):
     return mo
 
 
-def _finish(path: Path, mo, reference=None, lock: bool = True, euler: str = "wrap",
-            preview: Path | None = None):
+def _finish(
+    path: Path,
+    mo,
+    reference=None,
+    lock: bool = True,
+    euler: str = "wrap",
+    preview: Path | None = None,
+):
     """Lock planted feet (against ``reference`` when it shares the timing), write, and
     render the preview (checked before anything is written)."""
     import shutil
@@ -77,8 +100,10 @@ def _finish(path: Path, mo, reference=None, lock: bool = True, euler: str = "wra
     if preview is not None:
         check_suffix(preview, (".gif", ".mp4"), "--preview")
         if preview.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
-            raise UnsupportedFormatError(f"--preview {preview}: MP4 needs ffmpeg (apt-get "
-                                         "install ffmpeg); write a .gif instead")
+            raise UnsupportedFormatError(
+                f"--preview {preview}: MP4 needs ffmpeg (apt-get "
+                "install ffmpeg); write a .gif instead"
+            )
     if lock:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ContactWarning)
@@ -95,8 +120,10 @@ def _finish(path: Path, mo, reference=None, lock: bool = True, euler: str = "wra
 
 def _check_out(path: Path) -> None:
     if path.suffix.lower() not in OUT_FORMATS:
-        raise UnsupportedFormatError(f"{path}: cannot write motion as {path.suffix or '(none)'};"
-                                     f" expected one of {' '.join(OUT_FORMATS)}")
+        raise UnsupportedFormatError(
+            f"{path}: cannot write motion as {path.suffix or '(none)'};"
+            f" expected one of {' '.join(OUT_FORMATS)}"
+        )
 
 
 def _write(path: Path, mo, euler: str = "wrap") -> Path:
@@ -116,14 +143,20 @@ def _floats(text: str, name: str) -> list[float]:
         raise ParameterError(f"--{name} is empty; expected comma-separated numbers")
     bad = [v for v in vals if not (abs(v) <= 1e12)]  # NaN fails the comparison too
     if bad:
-        raise ParameterError(f"--{name} {text!r}: value {bad[0]!r}; expected finite numbers "
-                             "with |x| <= 1e12")
+        raise ParameterError(
+            f"--{name} {text!r}: value {bad[0]!r}; expected finite numbers with |x| <= 1e12"
+        )
     return vals
 
 
 def _summary(mo, out: Path | None, t0: float, **extra: Any) -> dict[str, Any]:
-    d = {"frames": mo.n_frames, "fps": mo.fps, "duration_s": mo.duration,
-         "joints": mo.n_joints, "seconds": round(time.perf_counter() - t0, 4)}
+    d = {
+        "frames": mo.n_frames,
+        "fps": mo.fps,
+        "duration_s": mo.duration,
+        "joints": mo.n_joints,
+        "seconds": round(time.perf_counter() - t0, 4),
+    }
     if out is not None:
         d["output"] = str(out)
     d.update(extra)
@@ -143,8 +176,12 @@ def _deg_keys(text: str, dim: int) -> list[tuple[float, Any]]:
 
 
 @app.command()
-def info(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC file.")],
-         up: Up = None, strict: Strict = False, as_json: Json = False) -> None:
+def info(
+    path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC file.")],
+    up: Up = None,
+    strict: Strict = False,
+    as_json: Json = False,
+) -> None:
     """Sizes, rates, fastest joints, Euler wraps, foot skate, and what the reader tolerated.
 
     Example: biomorph motion info walk.bvh --json
@@ -167,8 +204,10 @@ def info(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC file.")]
         if k == "fastest_joints":
             v = "; ".join(f"{r['joint']} {r['max_speed_deg_s']:.0f}°/s" for r in v)
         elif k == "foot_skate":
-            v = (f"{v['skate_speed']:.4g} units/s ({v['skate_per_body_scale']:.3g} body/s), "
-                 f"contact {100 * v['contact_fraction']:.0f}%, ground {v['ground_height']:.3g}")
+            v = (
+                f"{v['skate_speed']:.4g} units/s ({v['skate_per_body_scale']:.3g} body/s), "
+                f"contact {100 * v['contact_fraction']:.0f}%, ground {v['ground_height']:.3g}"
+            )
         elif k == "tolerated":
             v = "; ".join(v) if v else "nothing"
         elif isinstance(v, float):
@@ -181,19 +220,26 @@ Gain = Annotated[str, typer.Option(help="Band gains, highest band first.")]
 
 
 @app.command()
-def equalize(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-             gains: Gain = "1,1,1,1,1",
-             joint: Annotated[list[str] | None, typer.Option(help="Joint(s); default all.")] =
-             None,
-             below: Annotated[bool, typer.Option("--below", help="Include the hierarchy below "
-                                                                 "each joint.")] = False,
-             channels: Annotated[str, typer.Option(help="all | rotation | position")] = "all",
-             boundary: Annotated[str, typer.Option(help="edge | reflect")] = "edge",
-             root: Annotated[str, typer.Option(help="Last gain on the root path: trajectory "
-                                                    "(kept) | start | world.")] = "trajectory",
-             up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-             euler: Euler = "wrap", preview: Preview = None,
-    as_json: Json = False) -> None:
+def equalize(
+    path: Annotated[Path, typer.Argument(help="Input motion.")],
+    output: Output,
+    gains: Gain = "1,1,1,1,1",
+    joint: Annotated[list[str] | None, typer.Option(help="Joint(s); default all.")] = None,
+    below: Annotated[
+        bool, typer.Option("--below", help="Include the hierarchy below each joint.")
+    ] = False,
+    channels: Annotated[str, typer.Option(help="all | rotation | position")] = "all",
+    boundary: Annotated[str, typer.Option(help="edge | reflect")] = "edge",
+    root: Annotated[
+        str, typer.Option(help="Last gain on the root path: trajectory (kept) | start | world.")
+    ] = "trajectory",
+    up: Up = None,
+    strict: Strict = False,
+    lock_feet: Feet = True,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Motion Equalizer: scale frequency bands (à-trous filter bank), feet kept planted.
 
     Example: biomorph motion equalize walk.bvh -o smooth.bvh --gains 0,0,1,1,1
@@ -210,20 +256,33 @@ def equalize(path: Annotated[Path, typer.Argument(help="Input motion.")], output
 
 
 @app.command()
-def edit(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-         joint: Annotated[str, typer.Option(help="Joint to edit.")],
-         key: Annotated[str, typer.Option(help="Offset keys frame:x/y/z; rotation offsets are "
-                                               "rotation vectors in degrees (joint frame), "
-                                               "position offsets in file units.")],
-         kind: Annotated[str, typer.Option(help="rotation | position")] = "rotation",
-         fade: Annotated[float | None, typer.Option(help="Fade in/out frames (default "
-                                                         "0.25 s).",
-                                                    callback=bounded(0, 1e7))] = None,
-         tangent: Annotated[str, typer.Option(help="auto (clamped, no overshoot) | spline | "
-                                                   "linear | flat")] = "auto",
-         up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-         euler: Euler = "wrap", preview: Preview = None,
-    as_json: Json = False) -> None:
+def edit(
+    path: Annotated[Path, typer.Argument(help="Input motion.")],
+    output: Output,
+    joint: Annotated[str, typer.Option(help="Joint to edit.")],
+    key: Annotated[
+        str,
+        typer.Option(
+            help="Offset keys frame:x/y/z; rotation offsets are "
+            "rotation vectors in degrees (joint frame), "
+            "position offsets in file units."
+        ),
+    ],
+    kind: Annotated[str, typer.Option(help="rotation | position")] = "rotation",
+    fade: Annotated[
+        float | None,
+        typer.Option(help="Fade in/out frames (default 0.25 s).", callback=bounded(0, 1e7)),
+    ] = None,
+    tangent: Annotated[
+        str, typer.Option(help="auto (clamped, no overshoot) | spline | linear | flat")
+    ] = "auto",
+    up: Up = None,
+    strict: Strict = False,
+    lock_feet: Feet = True,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Displacement map: add a smooth offset curve through keys to one joint.
 
     Example: biomorph motion edit walk.bvh -o reach.bvh --joint RightArm --key "120:0/0/30"
@@ -244,13 +303,23 @@ def edit(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
 
 
 @app.command()
-def layers(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-           layer: Annotated[list[str], typer.Option(
-               help="name:joint:kind:weight:keys, e.g. 'reach:RightArm:rotation:1:120:0/0/30' "
-                    "(repeat for more layers; rotation keys in degrees).")],
-           up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-           euler: Euler = "wrap", preview: Preview = None,
-    as_json: Json = False) -> None:
+def layers(
+    path: Annotated[Path, typer.Argument(help="Input motion.")],
+    output: Output,
+    layer: Annotated[
+        list[str],
+        typer.Option(
+            help="name:joint:kind:weight:keys, e.g. 'reach:RightArm:rotation:1:120:0/0/30' "
+            "(repeat for more layers; rotation keys in degrees)."
+        ),
+    ],
+    up: Up = None,
+    strict: Strict = False,
+    lock_feet: Feet = True,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Additive animation layers (overAnimate): each layer a displacement map with a weight.
 
     Example: biomorph motion layers walk.bvh -o out.bvh --layer "up:Hips:position:1:60:0/2/0"
@@ -285,13 +354,19 @@ def layers(path: Annotated[Path, typer.Argument(help="Input motion.")], output: 
 
 
 @app.command()
-def reorient(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-             angle: Annotated[float, typer.Option(help="Turn about the vertical, degrees.",
-                                                  callback=bounded(-1e6, 1e6))] = 0.0,
-             move: Annotated[str, typer.Option(help="Translation x,y,z (file units).")] =
-             "0,0,0",
-             up: Up = None, strict: Strict = False, euler: Euler = "wrap",
-             preview: Preview = None, as_json: Json = False) -> None:
+def reorient(
+    path: Annotated[Path, typer.Argument(help="Input motion.")],
+    output: Output,
+    angle: Annotated[
+        float, typer.Option(help="Turn about the vertical, degrees.", callback=bounded(-1e6, 1e6))
+    ] = 0.0,
+    move: Annotated[str, typer.Option(help="Translation x,y,z (file units).")] = "0,0,0",
+    up: Up = None,
+    strict: Strict = False,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Re-orient / re-position the whole motion (root recomputed, the rest untouched).
 
     Example: biomorph motion reorient walk.bvh -o west.bvh --angle 90 --move 0,0,2
@@ -314,30 +389,36 @@ def reorient(path: Annotated[Path, typer.Argument(help="Input motion.")], output
 
 
 @app.command()
-def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, same "
-                                                           "skeleton.")],
-          output: Output,
-          transition: Annotated[float, typer.Option(help="Cross-fade length, frames.",
-                                                    callback=bounded(0, 1e7))] = 30,
-          offsets: Annotated[str | None, typer.Option(help="Start frame of every clip.")] =
-          None,
-          scales: Annotated[str | None, typer.Option(help="Time scale of every clip.")] = None,
-          curve: Annotated[str | None, typer.Option(help="Weight of B: keys frame:w or a "
-                                                         "number (two clips).")] = None,
-          align: Annotated[str | None, typer.Option(help="peaks | dtw (automatic timing).")] =
-          None,
-          align_joint: Annotated[str | None, typer.Option(help="Joint for --align peaks.")] =
-          None,
-          align_channel: Annotated[str, typer.Option(help="Channel for --align peaks.")] =
-          "Xrotation",
-          no_align_root: Annotated[bool, typer.Option("--no-align-root",
-                                                      help="Keep each clip's root.")] = False,
-          joint: Annotated[str | None, typer.Option(
-              help="Blend only this joint and the hierarchy below it (the rest from the "
-                   "first clip).")] = None,
-          up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-          euler: Euler = "wrap", preview: Preview = None,
-    as_json: Json = False) -> None:
+def blend(
+    paths: Annotated[list[Path], typer.Argument(help="Two or more clips, same skeleton.")],
+    output: Output,
+    transition: Annotated[
+        float, typer.Option(help="Cross-fade length, frames.", callback=bounded(0, 1e7))
+    ] = 30,
+    offsets: Annotated[str | None, typer.Option(help="Start frame of every clip.")] = None,
+    scales: Annotated[str | None, typer.Option(help="Time scale of every clip.")] = None,
+    curve: Annotated[
+        str | None, typer.Option(help="Weight of B: keys frame:w or a number (two clips).")
+    ] = None,
+    align: Annotated[str | None, typer.Option(help="peaks | dtw (automatic timing).")] = None,
+    align_joint: Annotated[str | None, typer.Option(help="Joint for --align peaks.")] = None,
+    align_channel: Annotated[str, typer.Option(help="Channel for --align peaks.")] = "Xrotation",
+    no_align_root: Annotated[
+        bool, typer.Option("--no-align-root", help="Keep each clip's root.")
+    ] = False,
+    joint: Annotated[
+        str | None,
+        typer.Option(
+            help="Blend only this joint and the hierarchy below it (the rest from the first clip)."
+        ),
+    ] = None,
+    up: Up = None,
+    strict: Strict = False,
+    lock_feet: Feet = True,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Blend clips with a blend curve, timing offsets/scales and automatic alignment.
 
     Example: biomorph motion blend walk.bvh run.bvh -o walk2run.bvh --transition 40
@@ -364,8 +445,7 @@ def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, s
             cv = [(f, float(v[0])) for f, v in parse_keys(curve, dim=1)]
         for w in [cv] if isinstance(cv, float) else [w for _, w in cv]:
             check_value("--curve", w, 0, 1)  # a weight of clip B (NaN or 2 is no weight)
-    mo = bl(clips, off, sc, transition, cv, not no_align_root, align, align_joint,
-            align_channel)
+    mo = bl(clips, off, sc, transition, cv, not no_align_root, align, align_joint, align_channel)
     ref = None
     if joint is not None:
         mo = merge_below(clips[0], mo, joint)
@@ -375,15 +455,26 @@ def blend(paths: Annotated[list[Path], typer.Argument(help="Two or more clips, s
 
 
 @app.command()
-def speed(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-          curve: Annotated[str, typer.Option("--speed", help="Constant or keys frame:speed "
-                                                             "(1 = original).")] = "1",
-          joint: Annotated[str | None, typer.Option(
-              help="Retime only this joint and the hierarchy below it (the rest keeps its "
-                   "timing; output keeps the input's length).")] = None,
-          up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-          euler: Euler = "wrap", preview: Preview = None,
-    as_json: Json = False) -> None:
+def speed(
+    path: Annotated[Path, typer.Argument(help="Input motion.")],
+    output: Output,
+    curve: Annotated[
+        str, typer.Option("--speed", help="Constant or keys frame:speed (1 = original).")
+    ] = "1",
+    joint: Annotated[
+        str | None,
+        typer.Option(
+            help="Retime only this joint and the hierarchy below it (the rest keeps its "
+            "timing; output keeps the input's length)."
+        ),
+    ] = None,
+    up: Up = None,
+    strict: Strict = False,
+    lock_feet: Feet = True,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Retime with a speed curve (2 = twice as fast), output at the original frame rate.
 
     Example: biomorph motion speed walk.bvh -o fast.bvh --speed "0:1,100:2,200:1"
@@ -404,17 +495,20 @@ def speed(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
     if not isinstance(sp, float):
         bad = [f for f, _ in sp if not 0 <= f <= src.n_frames - 1]
         if bad:
-            raise ParameterError(f"speed key at frame {bad[0]:g} is outside the clip; "
-                                 f"expected 0..{src.n_frames - 1}")
+            raise ParameterError(
+                f"speed key at frame {bad[0]:g} is outside the clip; expected 0..{src.n_frames - 1}"
+            )
         for _, v in sp:
             check_value("--speed", v, 0, 1e6, lo_open=True)
     slowest = sp if isinstance(sp, float) else min(v for _, v in sp)
     out_frames = src.n_frames / slowest
     if out_frames > MAX_OUTPUT_FRAMES:
-        raise ParameterError(f"--speed {slowest:g} would make {out_frames:.3g} frames from "
-                             f"{src.n_frames}; at most {MAX_OUTPUT_FRAMES:,} frames are "
-                             "written (use a speed of at least "
-                             f"{src.n_frames / MAX_OUTPUT_FRAMES:.3g})")
+        raise ParameterError(
+            f"--speed {slowest:g} would make {out_frames:.3g} frames from "
+            f"{src.n_frames}; at most {MAX_OUTPUT_FRAMES:,} frames are "
+            "written (use a speed of at least "
+            f"{src.n_frames / MAX_OUTPUT_FRAMES:.3g})"
+        )
     mo = change_speed(src, sp)
     ref = None
     if joint is not None:
@@ -425,30 +519,48 @@ def speed(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
 
 
 @app.command()
-def cycle(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-          start: Annotated[int | None, typer.Option(help="First frame of the range.",
-                                                    callback=bounded(0, 1e9))] = None,
-          stop: Annotated[int | None, typer.Option(help="End frame (exclusive).",
-                                                   callback=bounded(1, 1e9))] = None,
-          transition: Annotated[int, typer.Option(help="Cross-fade frames.",
-                                                  callback=bounded(1, 1e7))] = 10,
-          cycles: Annotated[int, typer.Option(help="Number of cycles to write.",
-                                              callback=bounded(1, 10000))] = 1,
-          auto: Annotated[bool, typer.Option("--auto", help="Search the best loop range.")] =
-          False,
-          min_length: Annotated[int, typer.Option(help="Shortest loop for --auto.",
-                                                  callback=bounded(2, 1e9))] = 30,
-          mode: Annotated[str, typer.Option(help="world (travel on) | in-place | root-motion "
-                                                 "(path on a ground-level root joint).")] =
-          "world",
-          no_offset: Annotated[bool, typer.Option("--no-offset",
-                                                  help="Same as --mode in-place.")] = False,
-          joint: Annotated[str | None, typer.Option(
-              help="Loop only this joint and the hierarchy below it over the input's length "
-                   "(the rest as captured).")] = None,
-          up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-          euler: Euler = "wrap", preview: Preview = None,
-    as_json: Json = False) -> None:
+def cycle(
+    path: Annotated[Path, typer.Argument(help="Input motion.")],
+    output: Output,
+    start: Annotated[
+        int | None, typer.Option(help="First frame of the range.", callback=bounded(0, 1e9))
+    ] = None,
+    stop: Annotated[
+        int | None, typer.Option(help="End frame (exclusive).", callback=bounded(1, 1e9))
+    ] = None,
+    transition: Annotated[
+        int, typer.Option(help="Cross-fade frames.", callback=bounded(1, 1e7))
+    ] = 10,
+    cycles: Annotated[
+        int, typer.Option(help="Number of cycles to write.", callback=bounded(1, 10000))
+    ] = 1,
+    auto: Annotated[bool, typer.Option("--auto", help="Search the best loop range.")] = False,
+    min_length: Annotated[
+        int, typer.Option(help="Shortest loop for --auto.", callback=bounded(2, 1e9))
+    ] = 30,
+    mode: Annotated[
+        str,
+        typer.Option(
+            help="world (travel on) | in-place | root-motion (path on a ground-level root joint)."
+        ),
+    ] = "world",
+    no_offset: Annotated[
+        bool, typer.Option("--no-offset", help="Same as --mode in-place.")
+    ] = False,
+    joint: Annotated[
+        str | None,
+        typer.Option(
+            help="Loop only this joint and the hierarchy below it over the input's length "
+            "(the rest as captured)."
+        ),
+    ] = None,
+    up: Up = None,
+    strict: Strict = False,
+    lock_feet: Feet = True,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Make a seamless loop (cycle with offset, in place, or root motion); never teleports.
 
     Example: biomorph motion cycle walk.bvh -o loop.bvh --auto --transition 12 --cycles 4
@@ -464,8 +576,9 @@ def cycle(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
     s = 0 if start is None else start
     e = mo.n_frames if stop is None else stop
     up_axis = (up and "y") or mo.meta.get("up_guess") or "y"
-    out = make_cycle(mo, s, e, transition, cycles, up=up_axis,
-                     mode="in-place" if no_offset else mode)
+    out = make_cycle(
+        mo, s, e, transition, cycles, up=up_axis, mode="in-place" if no_offset else mode
+    )
     ref = None
     if joint is not None:
         from biomorph.motion.partial import merge_below
@@ -475,20 +588,43 @@ def cycle(path: Annotated[Path, typer.Argument(help="Input motion.")], output: O
         out.meta["cycle"] = info
         ref = mo
     out = _finish(output, out, ref, lock_feet and mode != "root-motion", euler, preview)
-    _emit(_summary(out, output, t0, start=s, stop=e, period=out.meta["cycle"]["period"],
-                   mode=out.meta["cycle"]["mode"], loop_cost=cost), as_json)
+    _emit(
+        _summary(
+            out,
+            output,
+            t0,
+            start=s,
+            stop=e,
+            period=out.meta["cycle"]["period"],
+            mode=out.meta["cycle"]["mode"],
+            loop_cost=cost,
+        ),
+        as_json,
+    )
 
 
 @app.command()
-def root(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-         action: Annotated[str, typer.Option(help="extract (path onto a ground-level root "
-                                                  "joint) | in-place | apply (fold a ground "
-                                                  "root back into the hips).")] = "extract",
-         keep_heading: Annotated[bool, typer.Option(
-             "--keep-heading", help="Leave the turns in the body (path translation only).")] =
-         False,
-         up: Up = None, strict: Strict = False, euler: Euler = "wrap",
-         preview: Preview = None, as_json: Json = False) -> None:
+def root(
+    path: Annotated[Path, typer.Argument(help="Input motion.")],
+    output: Output,
+    action: Annotated[
+        str,
+        typer.Option(
+            help="extract (path onto a ground-level root "
+            "joint) | in-place | apply (fold a ground "
+            "root back into the hips)."
+        ),
+    ] = "extract",
+    keep_heading: Annotated[
+        bool,
+        typer.Option("--keep-heading", help="Leave the turns in the body (path translation only)."),
+    ] = False,
+    up: Up = None,
+    strict: Strict = False,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Root motion: extract the path to a ground-level root, make a clip in place, re-apply.
 
     Example: biomorph motion root walk.bvh -o walk_rm.bvh --action extract
@@ -512,14 +648,20 @@ def root(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
 
 
 @app.command()
-def trim(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-         start: Annotated[int, typer.Option(help="First frame kept.",
-                                            callback=bounded(0, 1e12))] = 0,
-         stop: Annotated[int | None, typer.Option(help="End frame (exclusive; default: the "
-                                                       "end).", callback=bounded(1, 1e12))] =
-         None,
-         up: Up = None, strict: Strict = False, euler: Euler = "wrap",
-         preview: Preview = None, as_json: Json = False) -> None:
+def trim(
+    path: Annotated[Path, typer.Argument(help="Input motion.")],
+    output: Output,
+    start: Annotated[int, typer.Option(help="First frame kept.", callback=bounded(0, 1e12))] = 0,
+    stop: Annotated[
+        int | None,
+        typer.Option(help="End frame (exclusive; default: the end).", callback=bounded(1, 1e12)),
+    ] = None,
+    up: Up = None,
+    strict: Strict = False,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Keep frames start..stop-1.
 
     Example: biomorph motion trim take.bvh -o part.bvh --start 120 --stop 480
@@ -533,12 +675,19 @@ def trim(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Ou
 
 
 @app.command()
-def convert(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC.")], output: Output,
-            fps: Annotated[float | None, typer.Option(help="Resample to this rate.",
-                                                      callback=bounded(0, 10000,
-                                                                       lo_open=True))] = None,
-            up: Up = None, strict: Strict = False, euler: Euler = "wrap",
-            preview: Preview = None, as_json: Json = False) -> None:
+def convert(
+    path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC.")],
+    output: Output,
+    fps: Annotated[
+        float | None,
+        typer.Option(help="Resample to this rate.", callback=bounded(0, 10000, lo_open=True)),
+    ] = None,
+    up: Up = None,
+    strict: Strict = False,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Convert (and optionally resample / make Y-up) a motion to BVH or glTF.
 
     Example: biomorph motion convert take.htr -o take.bvh --fps 30
@@ -553,10 +702,16 @@ def convert(path: Annotated[Path, typer.Argument(help="BVH, HTR or ASF/AMC.")], 
 
 
 @app.command()
-def mirror(path: Annotated[Path, typer.Argument(help="Input motion.")], output: Output,
-           up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-           euler: Euler = "wrap", preview: Preview = None,
-    as_json: Json = False) -> None:
+def mirror(
+    path: Annotated[Path, typer.Argument(help="Input motion.")],
+    output: Output,
+    up: Up = None,
+    strict: Strict = False,
+    lock_feet: Feet = True,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Swap left and right (names Left/Right, .L/.R, _l/_r, L_/R_): a mirror-image clip.
 
     Example: biomorph motion mirror walk.bvh -o walk_mirrored.bvh
@@ -571,21 +726,35 @@ def mirror(path: Annotated[Path, typer.Argument(help="Input motion.")], output: 
 
 
 @app.command()
-def retarget(path: Annotated[Path, typer.Argument(help="Source motion.")], output: Output,
-             to: Annotated[Path, typer.Option("--to", help="Target skeleton: any motion file "
-                                                           "(BVH/HTR/ASF; its skeleton is "
-                                                           "used).")],
-             source_names: Annotated[str | None, typer.Option(
-                 help="Source name preset: cmu | mixamo | humanik | rokoko | rigify "
-                      "(default: detected).")] = None,
-             target_names: Annotated[str | None, typer.Option(
-                 help="Target name preset (default: detected).")] = None,
-             map_csv: Annotated[Path | None, typer.Option(
-                 "--map", help="CSV of source,target joint names (instead of presets).")] =
-             None,
-             up: Up = None, strict: Strict = False, lock_feet: Feet = True,
-             euler: Euler = "wrap", preview: Preview = None,
-    as_json: Json = False) -> None:
+def retarget(
+    path: Annotated[Path, typer.Argument(help="Source motion.")],
+    output: Output,
+    to: Annotated[
+        Path,
+        typer.Option(
+            "--to", help="Target skeleton: any motion file (BVH/HTR/ASF; its skeleton is used)."
+        ),
+    ],
+    source_names: Annotated[
+        str | None,
+        typer.Option(
+            help="Source name preset: cmu | mixamo | humanik | rokoko | rigify (default: detected)."
+        ),
+    ] = None,
+    target_names: Annotated[
+        str | None, typer.Option(help="Target name preset (default: detected).")
+    ] = None,
+    map_csv: Annotated[
+        Path | None,
+        typer.Option("--map", help="CSV of source,target joint names (instead of presets)."),
+    ] = None,
+    up: Up = None,
+    strict: Strict = False,
+    lock_feet: Feet = True,
+    euler: Euler = "wrap",
+    preview: Preview = None,
+    as_json: Json = False,
+) -> None:
     """Play a clip on another skeleton (other names, proportions, rest pose); feet planted.
 
     Example: biomorph motion retarget cmu_walk.bvh --to mixamo_char.bvh -o walk_on_char.bvh
@@ -598,23 +767,45 @@ def retarget(path: Annotated[Path, typer.Argument(help="Source motion.")], outpu
     tgt = _read(to, None, strict)
     out = rt(src, tgt.skeleton, source_names, target_names, map_csv, feet=False)
     out = _finish(output, out, None, lock_feet, euler, preview)
-    _emit(_summary(out, output, t0, mapped=out.meta["retarget"]["joints"],
-                   leg_scale=out.meta["retarget"]["leg_scale"]), as_json)
+    _emit(
+        _summary(
+            out,
+            output,
+            t0,
+            mapped=out.meta["retarget"]["joints"],
+            leg_scale=out.meta["retarget"]["leg_scale"],
+        ),
+        as_json,
+    )
 
 
 @app.command()
-def batch(inputs: Annotated[list[Path], typer.Argument(help="Motion files (BVH/HTR/ASF).")],
-          op: Annotated[list[str], typer.Option(
-              "--op", help="Operator step name[:key=value,…], applied in order (repeat); "
-                           "e.g. equalize:gains=0/0/1/1/1  cycle:auto=1,mode=in-place.")],
-          out: Annotated[Path, typer.Option("--out", help="Output folder (OUT/<name>.bvh).")] =
-          Path("motion-batch"),
-          workers: Annotated[int | None, typer.Option(
-              help="Worker processes (0 = serial; default: CPU count).",
-              callback=bounded(0, 1024))] = None,
-          scheduler: Annotated[str | None, typer.Option(help="Address of a running dask "
-                                                             "scheduler.")] = None,
-          lock_feet: Feet = True, euler: Euler = "wrap", as_json: Json = False) -> None:
+def batch(
+    inputs: Annotated[list[Path], typer.Argument(help="Motion files (BVH/HTR/ASF).")],
+    op: Annotated[
+        list[str],
+        typer.Option(
+            "--op",
+            help="Operator step name[:key=value,…], applied in order (repeat); "
+            "e.g. equalize:gains=0/0/1/1/1  cycle:auto=1,mode=in-place.",
+        ),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Output folder (OUT/<name>.bvh).")] = Path(
+        "motion-batch"
+    ),
+    workers: Annotated[
+        int | None,
+        typer.Option(
+            help="Worker processes (0 = serial; default: CPU count).", callback=bounded(0, 1024)
+        ),
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Address of a running dask scheduler.")
+    ] = None,
+    lock_feet: Feet = True,
+    euler: Euler = "wrap",
+    as_json: Json = False,
+) -> None:
     """Apply a chain of operators to many files in parallel (dask), feet locked after each.
 
     Failed inputs are reported without stopping the others; re-runs resume. Exit code 1 if
@@ -636,9 +827,16 @@ def batch(inputs: Annotated[list[Path], typer.Argument(help="Motion files (BVH/H
     steps = [Step.parse(t) for t in op]
     out.mkdir(parents=True, exist_ok=True)
     items = [(str(p), str(out / f"{p.stem}.bvh"), steps, lock_feet, euler) for p in inputs]
-    report = run_batch(items, batch_item, out_dir=out, key=lambda it: Path(it[0]).stem,
-                       workers=workers, scheduler=scheduler, description="motions",
-                       options={"ops": op, "lock_feet": lock_feet, "euler": euler})
+    report = run_batch(
+        items,
+        batch_item,
+        out_dir=out,
+        key=lambda it: Path(it[0]).stem,
+        workers=workers,
+        scheduler=scheduler,
+        description="motions",
+        options={"ops": op, "lock_feet": lock_feet, "euler": euler},
+    )
     if as_json:
         from biomorph._cli import print_json
 
@@ -656,16 +854,16 @@ def batch(inputs: Annotated[list[Path], typer.Argument(help="Motion files (BVH/H
 
 
 @app.command()
-def plot(path: Annotated[Path, typer.Argument(help="Input motion.")],
-         output: Annotated[Path, typer.Option("-o", "--output", help="PNG to write.")],
-         joint: Annotated[str | None, typer.Option(help="Joint (default: first with "
-                                                        "motion).")] = None,
-         channel: Annotated[str, typer.Option(help="Xrotation.. or Xposition..")] =
-         "Xrotation",
-         gains: Annotated[str | None, typer.Option(help="Also draw the equalized "
-                                                        "channel.")] = None,
-         kind: Annotated[str, typer.Option(help="bands | poses")] = "bands",
-         up: Up = None, as_json: Json = False) -> None:
+def plot(
+    path: Annotated[Path, typer.Argument(help="Input motion.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="PNG to write.")],
+    joint: Annotated[str | None, typer.Option(help="Joint (default: first with motion).")] = None,
+    channel: Annotated[str, typer.Option(help="Xrotation.. or Xposition..")] = "Xrotation",
+    gains: Annotated[str | None, typer.Option(help="Also draw the equalized channel.")] = None,
+    kind: Annotated[str, typer.Option(help="bands | poses")] = "bands",
+    up: Up = None,
+    as_json: Json = False,
+) -> None:
     """PNG of a channel with its frequency bands, or a strip of poses.
 
     Example: biomorph motion plot walk.bvh -o bands.png --joint LeftUpLeg --gains 0,0,1,1,1

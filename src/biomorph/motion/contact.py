@@ -74,8 +74,10 @@ class ContactOptions:
         for name in ("height", "speed", "hysteresis", "blend_s", "min_s"):
             v = float(getattr(self, name))
             if not np.isfinite(v) or v < 0 or (name == "hysteresis" and v < 1):
-                raise ParameterError(f"contact {name} {v!r}; expected a finite number >= "
-                                     f"{1 if name == 'hysteresis' else 0}")
+                raise ParameterError(
+                    f"contact {name} {v!r}; expected a finite number >= "
+                    f"{1 if name == 'hysteresis' else 0}"
+                )
 
 
 @dataclass(frozen=True)
@@ -124,8 +126,9 @@ def _schmitt(low_on, low_off):  # pragma: no cover - compiled
     return out
 
 
-def detect_contacts(motion: Motion, options: ContactOptions | None = None,
-                    world: Array | None = None) -> dict[int, NDArray[np.bool_]]:
+def detect_contacts(
+    motion: Motion, options: ContactOptions | None = None, world: Array | None = None
+) -> dict[int, NDArray[np.bool_]]:
     """Planted frames per contact point (joint index → ``bool[f]``), ankles and toes."""
     o = options or ContactOptions()
     legs = find_legs(motion)
@@ -140,8 +143,10 @@ def detect_contacts(motion: Motion, options: ContactOptions | None = None,
         # each point against its own resting height (an ankle stands above the floor)
         h = (w[:, j, ui] - max(ground, float(np.percentile(w[:, j, ui], 2)))) / scale
         v = np.linalg.norm(np.gradient(w[:, j][:, horiz], axis=0), axis=-1) * motion.fps / scale
-        on = _schmitt((h < o.height) & (v < o.speed),
-                      (h < o.height * o.hysteresis) & (v < o.speed * o.hysteresis))
+        on = _schmitt(
+            (h < o.height) & (v < o.speed),
+            (h < o.height * o.hysteresis) & (v < o.speed * o.hysteresis),
+        )
         out[j] = _drop_short(on, max(1, round(o.min_s * motion.fps)))
     return out
 
@@ -156,20 +161,19 @@ def _drop_short(on: NDArray[np.bool_], min_len: int) -> NDArray[np.bool_]:
 
 def _runs(on: NDArray[np.bool_]) -> list[tuple[int, int]]:
     d = np.diff(np.concatenate([[0], on.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(),
-                    strict=True))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
 
 
-def _targets(on: NDArray[np.bool_], pts: Array, blend: int, follow: bool = False
-             ) -> tuple[Array, Array]:
+def _targets(
+    on: NDArray[np.bool_], pts: Array, blend: int, follow: bool = False
+) -> tuple[Array, Array]:
     """Per frame the held position of the nearest contact and its weight (1 inside a
     contact, smoothstep fade over ``blend`` frames outside, 0 elsewhere). The held position
     is the median position of the contact's slower half of frames: a foot still gliding in
     at the first frame is not frozen mid-glide, and a slide is split between the fade in
     and the fade out instead of released all at once."""
     pts = np.ascontiguousarray(pts, dtype=np.float64)
-    step = np.linalg.norm(np.gradient(pts, axis=0), axis=-1) if on.size > 1 else \
-        np.zeros(on.size)
+    step = np.linalg.norm(np.gradient(pts, axis=0), axis=-1) if on.size > 1 else np.zeros(on.size)
     runs = np.asarray(_runs(on), dtype=np.int64).reshape(-1, 2)
     tgt = np.array(pts)
     wgt = np.zeros(on.size)
@@ -238,10 +242,11 @@ def two_bone_ik(hip: Array, knee: Array, ankle: Array, target: Array) -> tuple[A
     u = _unit(np.where(d[:, None] > 1e-12, to_t, ankle - hip))
     bend = (knee - hip) - np.einsum("ij,ij->i", knee - hip, u)[:, None] * u
     fallback = _unit(np.cross(u, np.cross(ankle - hip, knee - hip) + 1e-12))
-    v = np.where(np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-9 * l1[:, None],
-                 _unit(bend), fallback)
-    cos_a = np.clip((l1 ** 2 + dc ** 2 - l2 ** 2) / (2 * l1 * dc), -1.0, 1.0)
-    new_knee = hip + l1[:, None] * (cos_a[:, None] * u + np.sqrt(1 - cos_a ** 2)[:, None] * v)
+    v = np.where(
+        np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-9 * l1[:, None], _unit(bend), fallback
+    )
+    cos_a = np.clip((l1**2 + dc**2 - l2**2) / (2 * l1 * dc), -1.0, 1.0)
+    new_knee = hip + l1[:, None] * (cos_a[:, None] * u + np.sqrt(1 - cos_a**2)[:, None] * v)
     new_ankle = hip + dc[:, None] * u
     r_hip = _arc(_unit(knee - hip), _unit(new_knee - hip))
     shin = tf.quat_rotate(r_hip, ankle - knee)
@@ -249,8 +254,9 @@ def two_bone_ik(hip: Array, knee: Array, ankle: Array, target: Array) -> tuple[A
     return r_hip, r_knee, clamped
 
 
-def lock_feet(motion: Motion, reference: Motion | None = None,
-              options: ContactOptions | None = None) -> Motion:
+def lock_feet(
+    motion: Motion, reference: Motion | None = None, options: ContactOptions | None = None
+) -> Motion:
     """``motion`` with planted feet held in place (see the module docstring).
 
     Contacts and their held positions come from ``reference`` when given (same frame count
@@ -262,11 +268,13 @@ def lock_feet(motion: Motion, reference: Motion | None = None,
     if not o.enabled or not legs or motion.n_frames < 2:
         return motion
     ref = motion
-    if (reference is not None and reference.n_frames == motion.n_frames
-            and reference.names == motion.names):
+    if (
+        reference is not None
+        and reference.n_frames == motion.n_frames
+        and reference.names == motion.names
+    ):
         ref = reference
-    opts = o if o.up is not None else replace(o, up=ref.meta.get("up_guess")
-                                              or guess_up_axis(ref))
+    opts = o if o.up is not None else replace(o, up=ref.meta.get("up_guess") or guess_up_axis(ref))
     follow = o.mode == "follow"
     pos, wq = motion._fk(None)
     w_ref = pos if ref is motion else ref.world_positions()
@@ -279,8 +287,11 @@ def lock_feet(motion: Motion, reference: Motion | None = None,
     clamped = 0
     for lg in legs:
         on_a = contacts.get(lg.ankle, np.zeros(motion.n_frames, bool))
-        on_t = contacts.get(lg.toe, np.zeros(motion.n_frames, bool)) if lg.toe >= 0 \
+        on_t = (
+            contacts.get(lg.toe, np.zeros(motion.n_frames, bool))
+            if lg.toe >= 0
             else np.zeros(motion.n_frames, bool)
+        )
         if not (on_a.any() or on_t.any()):
             continue
         # the ankle target: held ankle while the ankle is planted; while only the toe is
@@ -296,17 +307,20 @@ def lock_feet(motion: Motion, reference: Motion | None = None,
         act = np.flatnonzero(np.maximum(wa, wt if lg.toe >= 0 else 0) > 0)
         if act.size == 0:
             continue
-        r_hip, r_knee, c = two_bone_ik(pos[act, lg.hip], pos[act, lg.knee],
-                                       pos[act, lg.ankle], goal[act])
+        r_hip, r_knee, c = two_bone_ik(
+            pos[act, lg.hip], pos[act, lg.knee], pos[act, lg.ankle], goal[act]
+        )
         clamped += c
         hip_w = tf.quat_multiply(r_hip, wq[act, lg.hip])
         knee_w = tf.quat_multiply(r_knee, tf.quat_multiply(r_hip, wq[act, lg.knee]))
         parent_w = wq[act, par[lg.hip]] if par[lg.hip] >= 0 else tf.quat_identity((act.size,))
         inv = tf.quat_conjugate
-        rot[act, lg.hip] = tf.quat_multiply(inv(rest[lg.hip]),
-                                            tf.quat_multiply(inv(parent_w), hip_w))
-        rot[act, lg.knee] = tf.quat_multiply(inv(rest[lg.knee]),
-                                             tf.quat_multiply(inv(hip_w), knee_w))
+        rot[act, lg.hip] = tf.quat_multiply(
+            inv(rest[lg.hip]), tf.quat_multiply(inv(parent_w), hip_w)
+        )
+        rot[act, lg.knee] = tf.quat_multiply(
+            inv(rest[lg.knee]), tf.quat_multiply(inv(hip_w), knee_w)
+        )
         foot_w = wq[act, lg.ankle]
         if lg.toe >= 0:  # both planted: turn the foot so the toe lands on its held place
             both = np.flatnonzero(wt[act] > 0)
@@ -317,20 +331,32 @@ def lock_feet(motion: Motion, reference: Motion | None = None,
                 want = cur + wt[act[both], None] * (_unit(want) - cur)
                 foot_w = np.array(foot_w)
                 foot_w[both] = tf.quat_multiply(_arc(cur, _unit(want)), foot_w[both])
-        rot[act, lg.ankle] = tf.quat_multiply(inv(rest[lg.ankle]),
-                                              tf.quat_multiply(inv(knee_w), foot_w))
+        rot[act, lg.ankle] = tf.quat_multiply(
+            inv(rest[lg.ankle]), tf.quat_multiply(inv(knee_w), foot_w)
+        )
         changed += [lg.hip, lg.knee, lg.ankle]
     if clamped:
-        warnings.warn(f"{clamped} foot-contact target(s) out of the leg's reach; clamped to "
-                      "the leg length", ContactWarning, stacklevel=2)
+        warnings.warn(
+            f"{clamped} foot-contact target(s) out of the leg's reach; clamped to the leg length",
+            ContactWarning,
+            stacklevel=2,
+        )
     if changed:
         rot[:, changed] = tf.quat_continuous(rot[:, changed], axis=0)
     meta = dict(motion.meta)
-    meta["feet_locked"] = {"contacts": {motion.names[j]: int(v.sum())
-                                        for j, v in contacts.items()},
-                           "clamped": clamped}
+    meta["feet_locked"] = {
+        "contacts": {motion.names[j]: int(v.sum()) for j, v in contacts.items()},
+        "clamped": clamped,
+    }
     return motion.with_(rotation=frozen(rot), meta=meta)
 
 
-__all__ = ["ContactOptions", "ContactWarning", "Leg", "find_legs", "detect_contacts",
-           "two_bone_ik", "lock_feet"]
+__all__ = [
+    "ContactOptions",
+    "ContactWarning",
+    "Leg",
+    "find_legs",
+    "detect_contacts",
+    "two_bone_ik",
+    "lock_feet",
+]

@@ -57,8 +57,16 @@ def _offset_transform(seg: Motion, p: int, up: str) -> tuple[Array, Array, Array
 CYCLE_MODES = ("world", "in-place", "root-motion")
 
 
-def make_cycle(motion: Motion, start: int, stop: int, transition: int, cycles: int = 1,
-               offset: bool = True, up: str = "y", mode: str | None = None) -> Motion:
+def make_cycle(
+    motion: Motion,
+    start: int,
+    stop: int,
+    transition: int,
+    cycles: int = 1,
+    offset: bool = True,
+    up: str = "y",
+    mode: str | None = None,
+) -> Motion:
     """Loop frames ``start:stop`` with a ``transition``-frame cross-fade; ``cycles`` copies.
 
     ``mode`` (default ``"world"``; ``offset=False`` means ``"in-place"``):
@@ -81,14 +89,17 @@ def make_cycle(motion: Motion, start: int, stop: int, transition: int, cycles: i
         raise ParameterError(f"cycle range {start}:{stop} holds {n} frame; expected at least 2")
     offset = True
     if not isinstance(transition, (int, np.integer)) or transition < 1 or transition >= n:
-        raise ParameterError(f"transition of {transition} frames does not fit the cycle range "
-                             f"of {n} frames; expected 1 <= transition < {n}")
+        raise ParameterError(
+            f"transition of {transition} frames does not fit the cycle range "
+            f"of {n} frames; expected 1 <= transition < {n}"
+        )
     if int(cycles) < 1:
         raise ParameterError(f"cycles {cycles}; expected >= 1")
     seg = motion[start:stop]
     p = n - transition
-    q, a, b = _offset_transform(seg, p, up) if offset else (tf.quat_identity(), np.zeros(3),
-                                                             np.zeros(3))
+    q, a, b = (
+        _offset_transform(seg, p, up) if offset else (tf.quat_identity(), np.zeros(3), np.zeros(3))
+    )
     # tail S[P:N] expressed in the loop's frame: D^-1 x = R^-1 (x - b) + a
     tail = seg[p:]
     if offset:
@@ -100,8 +111,9 @@ def make_cycle(motion: Motion, start: int, stop: int, transition: int, cycles: i
         tail = transform_root(tail, tf.quat_identity(), shift)
     head = seg[:transition]
     w = smoothstep((np.arange(transition) + 1.0) / (transition + 1.0))
-    rot = tf.quat_slerp(tail.rotation, head.rotation,
-                        np.broadcast_to(w[:, None], head.rotation.shape[:-1]))
+    rot = tf.quat_slerp(
+        tail.rotation, head.rotation, np.broadcast_to(w[:, None], head.rotation.shape[:-1])
+    )
     pos = (1 - w[:, None]) * tail.root_position + w[:, None] * head.root_position
     loop_rot = np.concatenate([rot, seg.rotation[transition:p]])
     loop_pos = np.concatenate([pos, seg.root_position[transition:p]])
@@ -112,17 +124,25 @@ def make_cycle(motion: Motion, start: int, stop: int, transition: int, cycles: i
         bl = (1 - w[:, None, None]) * tj + w[:, None, None] * hj
         jt = np.concatenate([bl, seg.joint_translation[transition:p]])
         jt[:, 0] = loop_pos
-    loop = seg.with_(rotation=tf.quat_continuous(loop_rot, axis=0), root_position=loop_pos,
-                     joint_translation=jt)
+    loop = seg.with_(
+        rotation=tf.quat_continuous(loop_rot, axis=0), root_position=loop_pos, joint_translation=jt
+    )
     parts = [loop]
     for _ in range(1, int(cycles)):
         parts.append(transform_root(parts[-1], q, b - a, pivot=a) if offset else loop)
     out = concatenate(parts) if len(parts) > 1 else loop
     meta = dict(out.meta)
     ang = 2.0 * np.arctan2(np.linalg.norm(q[:3]), q[3]) * (1 if q[_up_index(up)] >= 0 else -1)
-    meta["cycle"] = {"start": start, "stop": stop, "transition": int(transition), "period": p,
-                     "cycles": int(cycles), "heading_offset": float(ang),
-                     "translation_offset": (b - a).tolist(), "mode": mode}
+    meta["cycle"] = {
+        "start": start,
+        "stop": stop,
+        "transition": int(transition),
+        "period": p,
+        "cycles": int(cycles),
+        "heading_offset": float(ang),
+        "translation_offset": (b - a).tolist(),
+        "mode": mode,
+    }
     out = out.with_(meta=meta)
     if mode == "in-place":
         from biomorph.motion.rootmotion import remove_drift
@@ -143,9 +163,14 @@ def loop_cost(motion: Motion, velocity_weight: float = 1.0) -> tuple[Array, Arra
     return f, v
 
 
-def best_loop(motion: Motion, min_length: int = 30, max_length: int | None = None,
-              transition: int = 0, candidates: int = 400, velocity_weight: float = 1.0
-              ) -> tuple[int, int, float]:
+def best_loop(
+    motion: Motion,
+    min_length: int = 30,
+    max_length: int | None = None,
+    transition: int = 0,
+    candidates: int = 400,
+    velocity_weight: float = 1.0,
+) -> tuple[int, int, float]:
     """``(start, stop, cost)`` for ``make_cycle(motion, start, stop, transition)``: the loop
     period ``P = stop − start − transition`` is chosen minimising
     ``|pose(start) − pose(start + P)|² + |vel(start) − vel(start + P)|²`` over
@@ -157,8 +182,9 @@ def best_loop(motion: Motion, min_length: int = 30, max_length: int | None = Non
     f_all = motion.n_frames - int(transition)
     max_length = f_all - 1 if max_length is None else int(max_length)
     if min_length < 2 or min_length > max_length or min_length > f_all - 1:
-        raise ParameterError(f"loop length {min_length}..{max_length} frames does not fit a "
-                             f"clip of {f_all} frames")
+        raise ParameterError(
+            f"loop length {min_length}..{max_length} frames does not fit a clip of {f_all} frames"
+        )
     feat, vel = loop_cost(motion[:f_all] if f_all > 0 else motion, velocity_weight)
     x = np.concatenate([feat, vel], axis=1)
     step = max(1, int(np.ceil(f_all / candidates)))

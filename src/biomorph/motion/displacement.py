@@ -41,17 +41,24 @@ Array = NDArray[np.float64]
 KINDS = ("rotation", "position")
 
 
-def _support(frames: Array, n_frames: int, fade: float | None,
-             support: tuple[float, float] | None, fps: float) -> tuple[float, float]:
+def _support(
+    frames: Array,
+    n_frames: int,
+    fade: float | None,
+    support: tuple[float, float] | None,
+    fps: float,
+) -> tuple[float, float]:
     if frames.min() < 0 or frames.max() > n_frames - 1:
         bad = frames[(frames < 0) | (frames > n_frames - 1)][0]
-        raise ParameterError(f"key at frame {bad:g} is outside the clip; expected frames "
-                             f"0..{n_frames - 1}")
+        raise ParameterError(
+            f"key at frame {bad:g} is outside the clip; expected frames 0..{n_frames - 1}"
+        )
     if support is not None:
         s0, s1 = float(support[0]), float(support[1])
         if not (s0 <= frames.min() and frames.max() <= s1) or s0 == s1:
-            raise ParameterError(f"support {s0:g}:{s1:g} must contain every key "
-                                 f"({frames.min():g}..{frames.max():g})")
+            raise ParameterError(
+                f"support {s0:g}:{s1:g} must contain every key ({frames.min():g}..{frames.max():g})"
+            )
         return s0, s1
     if fade is None:
         fade = max(2.0, round(0.25 * fps))
@@ -85,9 +92,14 @@ def _interp(kx: Array, ky: Array, t: Array, tangent: str) -> Array:
     return CubicHermiteSpline(kx, ky, slopes, axis=0)(t)
 
 
-def displacement_curve(keys: Keys, n_frames: int, fade: float | None = None,
-                       support: tuple[float, float] | None = None, fps: float = 30.0,
-                       tangent: str = "auto") -> Array:
+def displacement_curve(
+    keys: Keys,
+    n_frames: int,
+    fade: float | None = None,
+    support: tuple[float, float] | None = None,
+    fps: float = 30.0,
+    tangent: str = "auto",
+) -> Array:
     """Offset per frame ``float[n_frames, d]``: a clamped cubic spline through the keys and
     through 0 (with zero slope) at both support ends; exactly 0 outside the support.
 
@@ -129,8 +141,9 @@ def _joint(motion: Motion, joint: str | int) -> int:
     return motion.skeleton.index(joint)
 
 
-def apply_offsets(motion: Motion, joint: str | int, offset: Array, kind: str = "rotation"
-                  ) -> Motion:
+def apply_offsets(
+    motion: Motion, joint: str | int, offset: Array, kind: str = "rotation"
+) -> Motion:
     """Add a per-frame offset ``(f, 3)`` to one joint (see module docstring)."""
     if kind not in KINDS:
         raise ParameterError(f"kind {kind!r}; expected 'rotation' or 'position'")
@@ -154,9 +167,15 @@ def apply_offsets(motion: Motion, joint: str | int, offset: Array, kind: str = "
     return motion.with_(joint_translation=jt)
 
 
-def displace(motion: Motion, joint: str | int, keys: Keys, kind: str = "rotation",
-             fade: float | None = None, support: tuple[float, float] | None = None,
-             tangent: str = "auto") -> Motion:
+def displace(
+    motion: Motion,
+    joint: str | int,
+    keys: Keys,
+    kind: str = "rotation",
+    fade: float | None = None,
+    support: tuple[float, float] | None = None,
+    tangent: str = "auto",
+) -> Motion:
     """Displacement-map one joint: ``keys`` ``{frame: offset (3,)}`` (rotation vectors in
     radians, or translations), faded in/out over ``fade`` frames (default 0.25 s).
 
@@ -166,13 +185,15 @@ def displace(motion: Motion, joint: str | int, keys: Keys, kind: str = "rotation
     x, y = key_arrays(keys)
     if y.shape[1] != 3:
         raise ParameterError(f"{kind} keys need 3 values each, got {y.shape[1]}")
-    off = displacement_curve(list(zip(x, y, strict=True)), motion.n_frames, fade, support,
-                             motion.fps, tangent)
+    off = displacement_curve(
+        list(zip(x, y, strict=True)), motion.n_frames, fade, support, motion.fps, tangent
+    )
     return apply_offsets(motion, joint, off, kind)
 
 
-def offsets_to_targets(motion: Motion, joint: str | int, targets: Keys) -> list[tuple[float,
-                                                                                        Array]]:
+def offsets_to_targets(
+    motion: Motion, joint: str | int, targets: Keys
+) -> list[tuple[float, Array]]:
     """Rotation-vector offsets that bring ``joint`` to target local orientations
     (quaternions ``(4,)``) at integer key frames: ``d = log(q(k)⁻¹ · target)``."""
     j = _joint(motion, joint)
@@ -182,8 +203,9 @@ def offsets_to_targets(motion: Motion, joint: str | int, targets: Keys) -> list[
     fr = x.astype(np.int64)
     if np.any(fr != x) or fr.min() < 0 or fr.max() >= motion.n_frames:
         raise ParameterError(f"target frames must be integers in 0..{motion.n_frames - 1}")
-    d = tf.quat_to_rotvec(tf.quat_multiply(tf.quat_conjugate(motion.rotation[fr, j]),
-                                           tf.quat_normalize(y)))
+    d = tf.quat_to_rotvec(
+        tf.quat_multiply(tf.quat_conjugate(motion.rotation[fr, j]), tf.quat_normalize(y))
+    )
     return list(zip(x, d, strict=True))
 
 
@@ -202,11 +224,23 @@ class Layer:
     fade: float | None = None
 
     @staticmethod
-    def make(name: str, joint: str, keys: Keys, kind: str = "rotation", weight: float = 1.0,
-             fade: float | None = None) -> Layer:
+    def make(
+        name: str,
+        joint: str,
+        keys: Keys,
+        kind: str = "rotation",
+        weight: float = 1.0,
+        fade: float | None = None,
+    ) -> Layer:
         x, y = key_arrays(keys)
-        return Layer(name, joint, tuple((float(f), tuple(map(float, v)))
-                                        for f, v in zip(x, y, strict=True)), kind, weight, fade)
+        return Layer(
+            name,
+            joint,
+            tuple((float(f), tuple(map(float, v))) for f, v in zip(x, y, strict=True)),
+            kind,
+            weight,
+            fade,
+        )
 
 
 def apply_layers(motion: Motion, layers: Sequence[Layer]) -> Motion:
@@ -218,8 +252,9 @@ def apply_layers(motion: Motion, layers: Sequence[Layer]) -> Motion:
     total: dict[tuple[int, str], Array] = {}
     for layer in layers:
         if layer.kind not in KINDS:
-            raise ParameterError(f"layer {layer.name!r}: kind {layer.kind!r}; expected "
-                                 "'rotation' or 'position'")
+            raise ParameterError(
+                f"layer {layer.name!r}: kind {layer.kind!r}; expected 'rotation' or 'position'"
+            )
         j = _joint(motion, layer.joint)
         off = displacement_curve(list(layer.keys), motion.n_frames, layer.fade, None, motion.fps)
         key = (j, layer.kind)
@@ -233,10 +268,21 @@ def apply_layers(motion: Motion, layers: Sequence[Layer]) -> Motion:
 def remove_layer(layers: Sequence[Layer], name: str) -> tuple[Layer, ...]:
     """The layer stack without layer ``name`` (error if absent)."""
     if name not in [layer.name for layer in layers]:
-        raise ParameterError(f"no layer named {name!r}; layers are "
-                             f"{', '.join(layer.name for layer in layers) or '(none)'}")
+        raise ParameterError(
+            f"no layer named {name!r}; layers are "
+            f"{', '.join(layer.name for layer in layers) or '(none)'}"
+        )
     return tuple(layer for layer in layers if layer.name != name)
 
 
-__all__ = ["displace", "displacement_curve", "apply_offsets", "offsets_to_targets", "Layer",
-           "apply_layers", "remove_layer", "reorient", "transform_root"]
+__all__ = [
+    "displace",
+    "displacement_curve",
+    "apply_offsets",
+    "offsets_to_targets",
+    "Layer",
+    "apply_layers",
+    "remove_layer",
+    "reorient",
+    "transform_root",
+]

@@ -99,14 +99,17 @@ def _check_gains(gains: ArrayLike, n_frames: int) -> Array:
         raise ParameterError(f"gains {gains!r}; expected one or more finite numbers")
     fb = n_bands(n_frames)
     if g.size - 1 > fb:
-        raise ParameterError(f"{g.size} gains need {g.size - 1} band-pass bands but a clip of "
-                             f"{n_frames} frames supports at most {fb} (floor(log2 frames)); "
-                             f"give at most {fb + 1} gains")
+        raise ParameterError(
+            f"{g.size} gains need {g.size - 1} band-pass bands but a clip of "
+            f"{n_frames} frames supports at most {fb} (floor(log2 frames)); "
+            f"give at most {fb + 1} gains"
+        )
     return g
 
 
-def equalize_signal(x: ArrayLike, gains: ArrayLike = DEFAULT_GAINS,
-                    boundary: str = "edge") -> Array:
+def equalize_signal(
+    x: ArrayLike, gains: ArrayLike = DEFAULT_GAINS, boundary: str = "edge"
+) -> Array:
     """Equalize scalar signals along axis 0: ``x`` is ``(f,)`` or ``(f, c)``."""
     a = np.asarray(x, dtype=float)
     flat = a.reshape(a.shape[0], -1)
@@ -147,7 +150,7 @@ def _box(x: Array, width: int) -> Array:
     pad = np.concatenate([np.repeat(x[:1], r, axis=0), x, np.repeat(x[-1:], r, axis=0)])
     c = np.cumsum(pad, axis=0)
     c = np.concatenate([np.zeros((1,) + x.shape[1:]), c])
-    return (c[2 * r + 1:] - c[:-2 * r - 1]) / (2 * r + 1)
+    return (c[2 * r + 1 :] - c[: -2 * r - 1]) / (2 * r + 1)
 
 
 def smooth_reference(q: Array, levels: int) -> Array:
@@ -165,8 +168,9 @@ def smooth_reference(q: Array, levels: int) -> Array:
     return r
 
 
-def resolve_joints(motion: Motion, joints: Sequence[str | int] | str | int | None,
-                   hierarchy_below: bool = False) -> NDArray[np.int64]:
+def resolve_joints(
+    motion: Motion, joints: Sequence[str | int] | str | int | None, hierarchy_below: bool = False
+) -> NDArray[np.int64]:
     """Joint indices from names/indices (``None`` = all); ``hierarchy_below`` adds every
     joint below each chosen one (the seed's "Hierarchy Below" checkbox)."""
     sk = motion.skeleton
@@ -199,10 +203,15 @@ def _equalize_translation(x: Array, g: Array, boundary: str, root: str) -> Array
     return equalize_signal(x - x[:1], g, boundary) + x[:1]
 
 
-def equalize(motion: Motion, gains: ArrayLike = DEFAULT_GAINS,
-             joints: Sequence[str | int] | str | int | None = None,
-             channels: str = "all", hierarchy_below: bool = False,
-             boundary: str = "edge", root: str = "trajectory") -> Motion:
+def equalize(
+    motion: Motion,
+    gains: ArrayLike = DEFAULT_GAINS,
+    joints: Sequence[str | int] | str | int | None = None,
+    channels: str = "all",
+    hierarchy_below: bool = False,
+    boundary: str = "edge",
+    root: str = "trajectory",
+) -> Motion:
     """The Motion Equalizer: scale each frequency band of the chosen joints' signals.
 
     Parameters
@@ -258,5 +267,13 @@ def equalize(motion: Motion, gains: ArrayLike = DEFAULT_GAINS,
     return motion.with_(rotation=rot, root_position=pos, joint_translation=jt, meta=meta)
 
 
-__all__ = ["equalize", "equalize_signal", "bands", "n_bands", "smooth_reference",
-           "resolve_joints", "KERNEL", "DEFAULT_GAINS"]
+__all__ = [
+    "equalize",
+    "equalize_signal",
+    "bands",
+    "n_bands",
+    "smooth_reference",
+    "resolve_joints",
+    "KERNEL",
+    "DEFAULT_GAINS",
+]

@@ -34,8 +34,9 @@ def parse_keys(text: str, dim: int | None = None) -> list[tuple[float, Array]]:
         except FileNotFoundError:
             raise FormatError(p, "key file does not exist") from None
         except json.JSONDecodeError as exc:
-            raise FormatError(p, f"not valid JSON ({exc.msg}); expected [[frame, value], ...]",
-                              line=exc.lineno) from None
+            raise FormatError(
+                p, f"not valid JSON ({exc.msg}); expected [[frame, value], ...]", line=exc.lineno
+            ) from None
         items = list(data.items()) if isinstance(data, dict) else data
         try:
             keys = [(float(f), np.atleast_1d(np.asarray(v, dtype=float))) for f, v in items]
@@ -46,15 +47,17 @@ def parse_keys(text: str, dim: int | None = None) -> list[tuple[float, Array]]:
         keys = []
         for part in filter(None, (s.strip() for s in text.split(sep))):
             if ":" not in part:
-                raise ParameterError(f"key {part!r} has no ':'; expected frame:value "
-                                     "(e.g. 10:0.5,40:1)")
+                raise ParameterError(
+                    f"key {part!r} has no ':'; expected frame:value (e.g. 10:0.5,40:1)"
+                )
             f, v = part.split(":", 1)
             try:
                 vals = [float(x) for x in v.replace("/", " ").replace(",", " ").split()]
                 keys.append((float(f), np.asarray(vals, dtype=float)))
             except ValueError:
-                raise ParameterError(f"key {part!r} is not frame:number; expected e.g. "
-                                     "10:0.5 or 10:0/0/30") from None
+                raise ParameterError(
+                    f"key {part!r} is not frame:number; expected e.g. 10:0.5 or 10:0/0/30"
+                ) from None
             if not vals:
                 raise ParameterError(f"key {part!r} has no value")
     if not keys:
@@ -63,8 +66,9 @@ def parse_keys(text: str, dim: int | None = None) -> list[tuple[float, Array]]:
     sizes = {k[1].size for k in keys}
     if len(sizes) != 1 or (dim is not None and sizes != {dim}):
         want = f"{dim} numbers" if dim else "the same number of values"
-        raise ParameterError(f"keys {text!r} have values of sizes {sorted(sizes)}; expected "
-                             f"{want} per key")
+        raise ParameterError(
+            f"keys {text!r} have values of sizes {sorted(sizes)}; expected {want} per key"
+        )
     frames = [k[0] for k in keys]
     if len(set(frames)) != len(frames):
         raise ParameterError(f"keys {text!r} repeat a frame; expected distinct frames")

@@ -21,6 +21,19 @@ from biomorph.core.motion import (
     sample_linear,
 )
 
-__all__ = ["Motion", "concatenate", "dfs_preorder", "reorder_joints", "check_range",
-           "same_skeleton", "guess_up_axis", "frozen", "preview_positions", "sample_arrays",
-           "sample_linear", "ROTATION_CHANNELS", "POSITION_CHANNELS", "DEFAULT_ORDER"]
+__all__ = [
+    "Motion",
+    "concatenate",
+    "dfs_preorder",
+    "reorder_joints",
+    "check_range",
+    "same_skeleton",
+    "guess_up_axis",
+    "frozen",
+    "preview_positions",
+    "sample_arrays",
+    "sample_linear",
+    "ROTATION_CHANNELS",
+    "POSITION_CHANNELS",
+    "DEFAULT_ORDER",
+]

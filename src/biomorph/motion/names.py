@@ -18,8 +18,15 @@ from pathlib import Path
 from biomorph.errors import FormatError, InputError, ParameterError
 
 _SIDE = ("shoulder", "upper_arm", "forearm", "hand", "thigh", "shin", "foot", "toe")
-CANONICAL = ("hips", "spine", "chest", "upper_chest", "neck", "head",
-             *(f"{s}_{b}" for s in ("l", "r") for b in _SIDE))
+CANONICAL = (
+    "hips",
+    "spine",
+    "chest",
+    "upper_chest",
+    "neck",
+    "head",
+    *(f"{s}_{b}" for s in ("l", "r") for b in _SIDE),
+)
 #: joints a retarget map must cover (the legs carry the root height and the contacts)
 REQUIRED = ("hips", "l_thigh", "l_shin", "l_foot", "r_thigh", "r_shin", "r_foot")
 
@@ -41,9 +48,15 @@ PRESETS: dict[str, dict[str, str]] = {
     # Rokoko / HumanIK (MotionBuilder): Spine Spine1 Spine2 ... (Rokoko's Mixamo preset too)
     "humanik": _humanik(("Spine", "Spine1", "Spine2"), _HIK_SIDE),
     # Rigify metarig names as biomorph creature writes them
-    "rigify": {"hips": "spine", "spine": "spine.001", "chest": "spine.002",
-               "upper_chest": "spine.003", "neck": "neck", "head": "head",
-               **{f"{s}_{b}": f"{b}.{s.upper()}" for s in ("l", "r") for b in _SIDE}},
+    "rigify": {
+        "hips": "spine",
+        "spine": "spine.001",
+        "chest": "spine.002",
+        "upper_chest": "spine.003",
+        "neck": "neck",
+        "head": "head",
+        **{f"{s}_{b}": f"{b}.{s.upper()}" for s in ("l", "r") for b in _SIDE},
+    },
 }
 PRESETS["rokoko"] = PRESETS["humanik"]
 # biomorph creature's generator names (BVH export): limbs hip1_/shoulder1_ + girdle, upper,
@@ -51,12 +64,21 @@ PRESETS["rokoko"] = PRESETS["humanik"]
 # hierarchy by :func:`resolve`), the toe the middle digit's first bone
 PRESETS["creature"] = {
     "head": "skull",
-    **{f"{s}_{b}": f"{limb}_{part}_{s}" for s in ("l", "r")
-       for b, limb, part in (("shoulder", "shoulder1", "girdle"),
-                             ("upper_arm", "shoulder1", "upper"),
-                             ("forearm", "shoulder1", "lower"), ("hand", "shoulder1", "distal"),
-                             ("thigh", "hip1", "upper"), ("shin", "hip1", "lower"),
-                             ("foot", "hip1", "distal"), ("toe", "hip1", "digit3_1"))}}
+    **{
+        f"{s}_{b}": f"{limb}_{part}_{s}"
+        for s in ("l", "r")
+        for b, limb, part in (
+            ("shoulder", "shoulder1", "girdle"),
+            ("upper_arm", "shoulder1", "upper"),
+            ("forearm", "shoulder1", "lower"),
+            ("hand", "shoulder1", "distal"),
+            ("thigh", "hip1", "upper"),
+            ("shin", "hip1", "lower"),
+            ("foot", "hip1", "distal"),
+            ("toe", "hip1", "digit3_1"),
+        )
+    },
+}
 
 
 def bare(name: str) -> str:
@@ -70,20 +92,24 @@ def detect_preset(names: tuple[str, ...] | list[str]) -> str:
     scores = {k: sum(bare(v) in have for v in p.values()) for k, p in PRESETS.items()}
     best = max(scores, key=lambda k: scores[k])
     if scores[best] == 0:
-        raise InputError(f"no joint-name preset matches the skeleton (joints "
-                         f"{', '.join(list(names)[:5])}, …); expected CMU, Mixamo, Rokoko/HumanIK "
-                         "or Rigify names, or pass a CSV map")
+        raise InputError(
+            f"no joint-name preset matches the skeleton (joints "
+            f"{', '.join(list(names)[:5])}, …); expected CMU, Mixamo, Rokoko/HumanIK "
+            "or Rigify names, or pass a CSV map"
+        )
     return best
 
 
-def resolve(names: tuple[str, ...] | list[str], preset: str | dict[str, str],
-            parent=None) -> dict[str, int]:
+def resolve(
+    names: tuple[str, ...] | list[str], preset: str | dict[str, str], parent=None
+) -> dict[str, int]:
     """Canonical name → joint index in ``names`` under ``preset`` (name or mapping);
     ``parent`` (joint parents) lets the ``creature`` preset find its hips vertebra."""
     table = PRESETS.get(preset) if isinstance(preset, str) else preset
     if table is None:
-        raise ParameterError(f"name preset {preset!r}; expected one of "
-                             f"{', '.join(sorted(PRESETS))} or a CSV file")
+        raise ParameterError(
+            f"name preset {preset!r}; expected one of {', '.join(sorted(PRESETS))} or a CSV file"
+        )
     index = {bare(n): i for i, n in enumerate(names)}
     out = {c: index[bare(v)] for c, v in table.items() if bare(v) in index}
     if preset == "creature" and parent is not None and "l_thigh" in out:
@@ -118,14 +144,24 @@ def read_map_csv(path: str | os.PathLike[str]) -> dict[str, str]:
     return out
 
 
-_LR = [(re.compile(r"^(.*?)(Left)(.*)$"), "Right"), (re.compile(r"^(.*?)(Right)(.*)$"), "Left"),
-       (re.compile(r"^(.*?)(left)(.*)$"), "right"), (re.compile(r"^(.*?)(right)(.*)$"), "left"),
-       (re.compile(r"^(.*)(\.L)(\.\d+)?$"), ".R"), (re.compile(r"^(.*)(\.R)(\.\d+)?$"), ".L"),
-       (re.compile(r"^(.*)(_L)$"), "_R"), (re.compile(r"^(.*)(_R)$"), "_L"),
-       (re.compile(r"^(.*)(_l)$"), "_r"), (re.compile(r"^(.*)(_r)$"), "_l"),
-       (re.compile(r"^()(L_)(.*)$"), "R_"), (re.compile(r"^()(R_)(.*)$"), "L_"),
-       (re.compile(r"^()(l)([A-Z].*)$"), "r"), (re.compile(r"^()(r)([A-Z].*)$"), "l"),
-       (re.compile(r"^()(L)([A-Z][a-z].*)$"), "R"), (re.compile(r"^()(R)([A-Z][a-z].*)$"), "L")]
+_LR = [
+    (re.compile(r"^(.*?)(Left)(.*)$"), "Right"),
+    (re.compile(r"^(.*?)(Right)(.*)$"), "Left"),
+    (re.compile(r"^(.*?)(left)(.*)$"), "right"),
+    (re.compile(r"^(.*?)(right)(.*)$"), "left"),
+    (re.compile(r"^(.*)(\.L)(\.\d+)?$"), ".R"),
+    (re.compile(r"^(.*)(\.R)(\.\d+)?$"), ".L"),
+    (re.compile(r"^(.*)(_L)$"), "_R"),
+    (re.compile(r"^(.*)(_R)$"), "_L"),
+    (re.compile(r"^(.*)(_l)$"), "_r"),
+    (re.compile(r"^(.*)(_r)$"), "_l"),
+    (re.compile(r"^()(L_)(.*)$"), "R_"),
+    (re.compile(r"^()(R_)(.*)$"), "L_"),
+    (re.compile(r"^()(l)([A-Z].*)$"), "r"),
+    (re.compile(r"^()(r)([A-Z].*)$"), "l"),
+    (re.compile(r"^()(L)([A-Z][a-z].*)$"), "R"),
+    (re.compile(r"^()(R)([A-Z][a-z].*)$"), "L"),
+]
 
 
 def mirror_name(name: str) -> str | None:
@@ -150,5 +186,14 @@ def left_right_pairs(names: tuple[str, ...] | list[str]) -> list[tuple[int, int]
     return sorted(pairs)
 
 
-__all__ = ["CANONICAL", "REQUIRED", "PRESETS", "bare", "detect_preset", "resolve",
-           "read_map_csv", "mirror_name", "left_right_pairs"]
+__all__ = [
+    "CANONICAL",
+    "REQUIRED",
+    "PRESETS",
+    "bare",
+    "detect_preset",
+    "resolve",
+    "read_map_csv",
+    "mirror_name",
+    "left_right_pairs",
+]

@@ -46,8 +46,12 @@ def merge_below(base: Motion, result: Motion, joint: str | int) -> Motion:
 
     meta = dict(result.meta)
     meta["partial"] = {"joint": str(joint), "joints": int(sel.size)}
-    return base.with_(rotation=frozen(tf.quat_continuous(rot, axis=0)), root_position=pos,
-                      joint_translation=jt, meta=meta)
+    return base.with_(
+        rotation=frozen(tf.quat_continuous(rot, axis=0)),
+        root_position=pos,
+        joint_translation=jt,
+        meta=meta,
+    )
 
 
 __all__ = ["merge_below", "subtree"]

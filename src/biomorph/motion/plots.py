@@ -37,9 +37,15 @@ def _save(fig, path: str | os.PathLike[str]) -> Path:
     return Path(path)
 
 
-def plot_bands(signal: ArrayLike, path: str | os.PathLike[str], levels: int = 4,
-               fps: float = 1.0, gains: ArrayLike | None = None, title: str = "channel",
-               unit: str = "deg") -> Path:
+def plot_bands(
+    signal: ArrayLike,
+    path: str | os.PathLike[str],
+    levels: int = 4,
+    fps: float = 1.0,
+    gains: ArrayLike | None = None,
+    title: str = "channel",
+    unit: str = "deg",
+) -> Path:
     """Channel ``signal`` (f,) and its ``levels`` band-pass bands plus the low-pass rest;
     with ``gains`` the equalized signal is drawn over the original."""
     from biomorph.motion.equalizer import bands, equalize_signal
@@ -51,9 +57,13 @@ def plot_bands(signal: ArrayLike, path: str | os.PathLike[str], levels: int = 4,
     fig, axes = plt.subplots(levels + 2, 1, figsize=(9, 1.4 * (levels + 2)), sharex=True)
     axes[0].plot(t, x, color="0.3", lw=1.2, label="original")
     if gains is not None:
-        axes[0].plot(t, equalize_signal(x, gains), color="C3", lw=1.0,
-                     label="equalized, gains " + ", ".join(
-                         f"{g:g}" for g in np.asarray(gains, float)))
+        axes[0].plot(
+            t,
+            equalize_signal(x, gains),
+            color="C3",
+            lw=1.0,
+            label="equalized, gains " + ", ".join(f"{g:g}" for g in np.asarray(gains, float)),
+        )
     axes[0].legend(loc="upper right", fontsize=7)
     axes[0].set_title(title, fontsize=9)
     names = [f"band {k + 1} (L{k}{', noise' if k == 0 else ''})" for k in range(levels)]
@@ -68,9 +78,14 @@ def plot_bands(signal: ArrayLike, path: str | os.PathLike[str], levels: int = 4,
     return _save(fig, path)
 
 
-def plot_blend(weights: ArrayLike, channels: Sequence[ArrayLike], result: ArrayLike,
-               path: str | os.PathLike[str], labels: Sequence[str] | None = None,
-               title: str = "blend") -> Path:
+def plot_blend(
+    weights: ArrayLike,
+    channels: Sequence[ArrayLike],
+    result: ArrayLike,
+    path: str | os.PathLike[str],
+    labels: Sequence[str] | None = None,
+    title: str = "blend",
+) -> Path:
     """Blend weights ``(f, N)`` and a channel of every clip (on the output timeline) and of
     the result."""
     plt = _plt()
@@ -90,9 +105,14 @@ def plot_blend(weights: ArrayLike, channels: Sequence[ArrayLike], result: ArrayL
     return _save(fig, path)
 
 
-def plot_speed(speed: ArrayLike, t_src: ArrayLike, path: str | os.PathLike[str],
-               title: str = "speed curve", original: ArrayLike | None = None,
-               result: ArrayLike | None = None) -> Path:
+def plot_speed(
+    speed: ArrayLike,
+    t_src: ArrayLike,
+    path: str | os.PathLike[str],
+    title: str = "speed curve",
+    original: ArrayLike | None = None,
+    result: ArrayLike | None = None,
+) -> Path:
     """Speed curve over original frames and the resulting time warp (output frame → source
     frame); with ``original``/``result`` channels a third panel shows the retimed signal."""
     plt = _plt()
@@ -120,8 +140,13 @@ def plot_speed(speed: ArrayLike, t_src: ArrayLike, path: str | os.PathLike[str],
     return _save(fig, path)
 
 
-def plot_cycle(original: ArrayLike, looped: ArrayLike, period: int,
-               path: str | os.PathLike[str], title: str = "cycle") -> Path:
+def plot_cycle(
+    original: ArrayLike,
+    looped: ArrayLike,
+    period: int,
+    path: str | os.PathLike[str],
+    title: str = "cycle",
+) -> Path:
     """A channel of the source range and of the looped result; seams marked."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(9, 3.2))
@@ -137,15 +162,21 @@ def plot_cycle(original: ArrayLike, looped: ArrayLike, period: int,
     return _save(fig, path)
 
 
-def plot_poses(motions: Sequence[tuple[str, Motion]], frames: Sequence[int],
-               path: str | os.PathLike[str], up: str = "y", title: str = "poses") -> Path:
+def plot_poses(
+    motions: Sequence[tuple[str, Motion]],
+    frames: Sequence[int],
+    path: str | os.PathLike[str],
+    up: str = "y",
+    title: str = "poses",
+) -> Path:
     """Stick figures (side view: forward axis horizontal, up vertical) of ``frames`` for
     each ``(label, motion)`` — one row per motion, poses side by side."""
     plt = _plt()
     ui = "xyz".index(up)
     rows = len(motions)
-    fig, axes = plt.subplots(rows, 1, figsize=(min(2.0 + 1.3 * len(frames), 14), 2.4 * rows),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        rows, 1, figsize=(min(2.0 + 1.3 * len(frames), 14), 2.4 * rows), squeeze=False
+    )
     for r, (label, m) in enumerate(motions):
         ax = axes[r, 0]
         fr = [min(max(int(f), 0), m.n_frames - 1) for f in frames]
@@ -161,10 +192,19 @@ def plot_poses(motions: Sequence[tuple[str, Motion]], frames: Sequence[int],
                 par = m.skeleton.parent[j]
                 if par < 0:
                     continue
-                ax.plot([p[par, hi] + shift, p[j, hi] + shift], [p[par, ui], p[j, ui]],
-                        color=f"C{r}", lw=1.2)
-            ax.text(p[0, hi] + shift, float(w[..., ui].min()) - 0.08 * span, str(fr[k]),
-                    fontsize=6, ha="center")
+                ax.plot(
+                    [p[par, hi] + shift, p[j, hi] + shift],
+                    [p[par, ui], p[j, ui]],
+                    color=f"C{r}",
+                    lw=1.2,
+                )
+            ax.text(
+                p[0, hi] + shift,
+                float(w[..., ui].min()) - 0.08 * span,
+                str(fr[k]),
+                fontsize=6,
+                ha="center",
+            )
         ax.set_aspect("equal")
         ax.set_axis_off()
         ax.set_title(label, fontsize=8, loc="left")

@@ -23,8 +23,14 @@ from biomorph.io.atomic import atomic_path
 FORMATS = (".gif", ".mp4")
 
 
-def render_preview(motion: Motion, path: str | os.PathLike[str], max_frames: int = 120,
-                   turns: float = 1.0, size_px: int = 320, up: str | None = None) -> Path:
+def render_preview(
+    motion: Motion,
+    path: str | os.PathLike[str],
+    max_frames: int = 120,
+    turns: float = 1.0,
+    size_px: int = 320,
+    up: str | None = None,
+) -> Path:
     """Write an animated preview of ``motion`` to ``path`` (.gif or .mp4)."""
     from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
     from matplotlib.collections import LineCollection
@@ -33,11 +39,13 @@ def render_preview(motion: Motion, path: str | os.PathLike[str], max_frames: int
     p = Path(path)
     ext = p.suffix.lower()
     if ext not in FORMATS:
-        raise UnsupportedFormatError(f"--preview {p}: extension {ext or '(none)'!r}; expected "
-                                     ".gif or .mp4")
+        raise UnsupportedFormatError(
+            f"--preview {p}: extension {ext or '(none)'!r}; expected .gif or .mp4"
+        )
     if ext == ".mp4" and shutil.which("ffmpeg") is None:
-        raise UnsupportedFormatError(f"--preview {p}: MP4 needs ffmpeg (apt-get install "
-                                     "ffmpeg); write a .gif instead")
+        raise UnsupportedFormatError(
+            f"--preview {p}: MP4 needs ffmpeg (apt-get install ffmpeg); write a .gif instead"
+        )
     if not (isinstance(max_frames, int) and 1 <= max_frames <= 100000):
         raise ParameterError(f"max_frames {max_frames!r}; expected an integer 1..100000")
     step = max(1, int(np.ceil(motion.n_frames / max_frames)))
@@ -66,8 +74,13 @@ def render_preview(motion: Motion, path: str | os.PathLike[str], max_frames: int
         c, s = np.cos(theta[k]), np.sin(theta[k])
         x = (w[k, :, h1] - centre[k, h1]) * c + (w[k, :, h2] - centre[k, h2]) * s
         y = w[k, :, ui]
-        segs = np.stack([np.column_stack([x[par[bones]], y[par[bones]]]),
-                         np.column_stack([x[bones], y[bones]])], axis=1)
+        segs = np.stack(
+            [
+                np.column_stack([x[par[bones]], y[par[bones]]]),
+                np.column_stack([x[bones], y[bones]]),
+            ],
+            axis=1,
+        )
         lines.set_segments(segs)
         title.set_text(f"frame {frames[k]} / {motion.n_frames - 1}")
         return lines, title

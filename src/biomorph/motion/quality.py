@@ -65,13 +65,22 @@ def foot_skate(motion: Motion, up: str | None = None) -> dict[str, Any]:
     scale = scale if scale > 0 else float(np.ptp(w[..., ui]) or 1.0)
     contact = h < ground + 0.08 * scale
     horiz = [a for a in range(3) if a != ui]
-    v = np.gradient(w[:, feet][:, :, horiz], axis=0) * motion.fps if motion.n_frames > 1 \
+    v = (
+        np.gradient(w[:, feet][:, :, horiz], axis=0) * motion.fps
+        if motion.n_frames > 1
         else np.zeros((1, len(feet), 2))
+    )
     sp = np.linalg.norm(v, axis=-1)
     skate = float(sp[contact].mean()) if contact.any() else 0.0
-    return {"feet": [motion.names[i] for i in feet], "up": up, "ground_height": ground,
-            "body_scale": scale, "contact_fraction": float(contact.mean()),
-            "skate_speed": skate, "skate_per_body_scale": skate / scale}
+    return {
+        "feet": [motion.names[i] for i in feet],
+        "up": up,
+        "ground_height": ground,
+        "body_scale": scale,
+        "contact_fraction": float(contact.mean()),
+        "skate_speed": skate,
+        "skate_per_body_scale": skate / scale,
+    }
 
 
 def quality_report(motion: Motion, up: str | None = None, top: int = 5) -> dict[str, Any]:
@@ -84,10 +93,14 @@ def quality_report(motion: Motion, up: str | None = None, top: int = 5) -> dict[
     if speed.size:
         order = np.argsort(-speed.max(axis=0))[:top]
         for j in order:
-            per_joint.append({"joint": motion.names[j],
-                              "max_speed_deg_s": float(deg(speed[:, j].max())),
-                              "mean_speed_deg_s": float(deg(speed[:, j].mean())),
-                              "max_acc_deg_s2": float(deg(acc[:, j].max())) if acc.size else 0.0})
+            per_joint.append(
+                {
+                    "joint": motion.names[j],
+                    "max_speed_deg_s": float(deg(speed[:, j].max())),
+                    "mean_speed_deg_s": float(deg(speed[:, j].mean())),
+                    "max_acc_deg_s2": float(deg(acc[:, j].max())) if acc.size else 0.0,
+                }
+            )
     root = motion.root_position
     chans = motion.skeleton.channels
     first_jump = 0.0
@@ -99,8 +112,11 @@ def quality_report(motion: Motion, up: str | None = None, top: int = 5) -> dict[
         # a calibration pose glued before the take: frame 0 jumps far more than a usual step
         tpose = first_jump > 30.0 and first_jump > 10.0 * max(typical, 1e-9)
     return {
-        "frames": motion.n_frames, "fps": motion.fps, "frame_time": motion.frame_time,
-        "duration_s": motion.duration, "joints": motion.n_joints,
+        "frames": motion.n_frames,
+        "fps": motion.fps,
+        "frame_time": motion.frame_time,
+        "duration_s": motion.duration,
+        "joints": motion.n_joints,
         "channels": int(sum(len(c) for c in chans)) if chans else None,
         "root": motion.names[0],
         "up_guess": motion.meta.get("up_guess") or guess_up_axis(motion),

@@ -49,8 +49,14 @@ def _rest_world(sk: JointSkeleton) -> tuple[Array, Array]:
     """World positions (n, 3) and orientations (n, 4) of the rest pose."""
     n = sk.n_joints
     pos, quat = np.empty((1, n, 3)), np.empty((1, n, 4))
-    fk_positions(ro(sk.rest_rotation), ro(tf.quat_identity((1, n))), ro(sk.offset[None]),
-                 ro_int(sk.parent), pos, quat)
+    fk_positions(
+        ro(sk.rest_rotation),
+        ro(tf.quat_identity((1, n))),
+        ro(sk.offset[None]),
+        ro_int(sk.parent),
+        pos,
+        quat,
+    )
     return pos[0], quat[0]
 
 
@@ -71,37 +77,61 @@ def _retarget_kernel(ws, src_of, pre, post, rest_t, parent, rot_out):  # pragma:
                 px, py, pz, pw = 0.0, 0.0, 0.0, 1.0
             s = src_of[j]
             if s >= 0:
-                x, y, z, w = _qmul(ws[t, s, 0], ws[t, s, 1], ws[t, s, 2], ws[t, s, 3],
-                                   pre[j, 0], pre[j, 1], pre[j, 2], pre[j, 3])
+                x, y, z, w = _qmul(
+                    ws[t, s, 0],
+                    ws[t, s, 1],
+                    ws[t, s, 2],
+                    ws[t, s, 3],
+                    pre[j, 0],
+                    pre[j, 1],
+                    pre[j, 2],
+                    pre[j, 3],
+                )
                 x, y, z, w = _qmul(x, y, z, w, post[j, 0], post[j, 1], post[j, 2], post[j, 3])
             else:
-                x, y, z, w = _qmul(px, py, pz, pw, rest_t[j, 0], rest_t[j, 1], rest_t[j, 2],
-                                   rest_t[j, 3])
+                x, y, z, w = _qmul(
+                    px, py, pz, pw, rest_t[j, 0], rest_t[j, 1], rest_t[j, 2], rest_t[j, 3]
+                )
             world[j, 0], world[j, 1], world[j, 2], world[j, 3] = x, y, z, w
             # local = rest^-1 * parent^-1 * world
             lx, ly, lz, lw = _qmul(-px, -py, -pz, pw, x, y, z, w)
-            lx, ly, lz, lw = _qmul(-rest_t[j, 0], -rest_t[j, 1], -rest_t[j, 2], rest_t[j, 3],
-                                   lx, ly, lz, lw)
-            if t > 0 and (lx * rot_out[t - 1, j, 0] + ly * rot_out[t - 1, j, 1]
-                          + lz * rot_out[t - 1, j, 2] + lw * rot_out[t - 1, j, 3]) < 0:
+            lx, ly, lz, lw = _qmul(
+                -rest_t[j, 0], -rest_t[j, 1], -rest_t[j, 2], rest_t[j, 3], lx, ly, lz, lw
+            )
+            if (
+                t > 0
+                and (
+                    lx * rot_out[t - 1, j, 0]
+                    + ly * rot_out[t - 1, j, 1]
+                    + lz * rot_out[t - 1, j, 2]
+                    + lw * rot_out[t - 1, j, 3]
+                )
+                < 0
+            ):
                 lx, ly, lz, lw = -lx, -ly, -lz, -lw
-            rot_out[t, j, 0], rot_out[t, j, 1], rot_out[t, j, 2], rot_out[t, j, 3] = \
-                lx, ly, lz, lw
+            rot_out[t, j, 0], rot_out[t, j, 1], rot_out[t, j, 2], rot_out[t, j, 3] = lx, ly, lz, lw
 
 
-def _maps(source: JointSkeleton, target: JointSkeleton, source_preset: str | None,
-          target_preset: str | None, csv_map: str | os.PathLike[str] | None
-          ) -> list[tuple[int, int, str]]:
+def _maps(
+    source: JointSkeleton,
+    target: JointSkeleton,
+    source_preset: str | None,
+    target_preset: str | None,
+    csv_map: str | os.PathLike[str] | None,
+) -> list[tuple[int, int, str]]:
     """(source joint, target joint, canonical name) pairs."""
     if csv_map is not None:
         pairs = nm.read_map_csv(csv_map)
         si = {nm.bare(n): i for i, n in enumerate(source.names)}
         ti = {nm.bare(n): i for i, n in enumerate(target.names)}
-        miss = [a for a in pairs if nm.bare(a) not in si] + \
-            [b for b in pairs.values() if nm.bare(b) not in ti]
+        miss = [a for a in pairs if nm.bare(a) not in si] + [
+            b for b in pairs.values() if nm.bare(b) not in ti
+        ]
         if miss:
-            raise InputError(f"{os.fspath(csv_map)}: joint {miss[0]!r} is not in the "
-                             f"{'source' if nm.bare(miss[0]) not in si else 'target'} skeleton")
+            raise InputError(
+                f"{os.fspath(csv_map)}: joint {miss[0]!r} is not in the "
+                f"{'source' if nm.bare(miss[0]) not in si else 'target'} skeleton"
+            )
         out = [(si[nm.bare(a)], ti[nm.bare(b)], "") for a, b in pairs.items()]
         s_can = {v: k for k, v in nm.resolve(source.names, nm.detect_preset(source.names)).items()}
         out = [(s, t, s_can.get(s, "")) for s, t, _ in out]
@@ -113,10 +143,12 @@ def _maps(source: JointSkeleton, target: JointSkeleton, source_preset: str | Non
         for side, m, p, sk in (("source", s_map, sp, source), ("target", t_map, tp, target)):
             miss = [c for c in nm.REQUIRED if c not in m]
             if miss:
-                raise InputError(f"retarget map misses required joint {miss[0]!r} in the {side} "
-                                 f"skeleton (preset {p!r}: expected "
-                                 f"{nm.PRESETS[p].get(miss[0], miss[0])!r} among "
-                                 f"{', '.join(sk.names[:4])}, …)")
+                raise InputError(
+                    f"retarget map misses required joint {miss[0]!r} in the {side} "
+                    f"skeleton (preset {p!r}: expected "
+                    f"{nm.PRESETS[p].get(miss[0], miss[0])!r} among "
+                    f"{', '.join(sk.names[:4])}, …)"
+                )
         out = [(s_map[c], t_map[c], c) for c in nm.CANONICAL if c in s_map and c in t_map]
     # joints outside the canonical set (fingers, extra spine or clavicle joints) follow by
     # identical name when both skeletons have them
@@ -129,8 +161,10 @@ def _maps(source: JointSkeleton, target: JointSkeleton, source_preset: str | Non
     got = {c for *_, c in out}
     miss = [c for c in nm.REQUIRED if c not in got]
     if miss:
-        raise InputError(f"retarget map misses required joint {miss[0]!r}; expected the hips "
-                         "and both legs (thigh, shin, foot) mapped")
+        raise InputError(
+            f"retarget map misses required joint {miss[0]!r}; expected the hips "
+            "and both legs (thigh, shin, foot) mapped"
+        )
     return out
 
 
@@ -142,9 +176,14 @@ def _leg_length(sk: JointSkeleton, pos: Array, m: dict[str, int]) -> float:
     return float(np.mean(out))
 
 
-def retarget(source: Motion, target: JointSkeleton, source_preset: str | None = None,
-             target_preset: str | None = None, csv_map: str | os.PathLike[str] | None = None,
-             feet: bool = True) -> Motion:
+def retarget(
+    source: Motion,
+    target: JointSkeleton,
+    source_preset: str | None = None,
+    target_preset: str | None = None,
+    csv_map: str | os.PathLike[str] | None = None,
+    feet: bool = True,
+) -> Motion:
     """``source`` played on the ``target`` skeleton (see the module docstring)."""
     pairs = _maps(source.skeleton, target, source_preset, target_preset, csv_map)
     s_of = {t: s for s, t, _ in pairs}
@@ -163,16 +202,22 @@ def retarget(source: Motion, target: JointSkeleton, source_preset: str | None = 
             continue
         k = kids[0]
         dt = pt[k] - pt[t]
-        ds = (ps[s_of[k]] - ps[s]) if k in s_of else tf.quat_rotate(
-            tf.quat_multiply(qs[s], tf.quat_conjugate(qt[t])), dt)
+        ds = (
+            (ps[s_of[k]] - ps[s])
+            if k in s_of
+            else tf.quat_rotate(tf.quat_multiply(qs[s], tf.quat_conjugate(qt[t])), dt)
+        )
         if np.linalg.norm(dt) < 1e-12 or np.linalg.norm(ds) < 1e-12:
             align[t] = tf.quat_identity()
             continue
         a, b = dt / np.linalg.norm(dt), ds / np.linalg.norm(ds)
         c = np.cross(a, b)
         q = np.array([*c, 1.0 + float(a @ b)])
-        align[t] = tf.quat_normalize(q) if q[3] > 1e-9 else tf.quat_from_axis_angle(
-            np.cross(a, np.eye(3)[np.argmin(np.abs(a))]), np.pi)
+        align[t] = (
+            tf.quat_normalize(q)
+            if q[3] > 1e-9
+            else tf.quat_from_axis_angle(np.cross(a, np.eye(3)[np.argmin(np.abs(a))]), np.pi)
+        )
     wpos, ws = source._fk(None)
     f, n = source.n_frames, target.n_joints
     src_of = np.full(n, -1, dtype=np.int64)
@@ -183,18 +228,27 @@ def retarget(source: Motion, target: JointSkeleton, source_preset: str | None = 
         pre[t] = tf.quat_conjugate(qs[s])
         post[t] = tf.quat_multiply(align[t], qt[t])
     rot = np.empty((f, n, 4))
-    _retarget_kernel(ro(ws), ro_int(src_of), ro(pre), ro(post), ro(target.rest_rotation),
-                     ro_int(target.parent), rot)
+    _retarget_kernel(
+        ro(ws),
+        ro_int(src_of),
+        ro(pre),
+        ro(post),
+        ro(target.rest_rotation),
+        ro_int(target.parent),
+        rot,
+    )
     hips_s, hips_t = s_can["hips"], t_can["hips"]
     src_hips = wpos[:, hips_s]
     root = src_hips * scale
     if t_can["hips"] != 0:  # joints above the target's hips: keep them at rest, move the root
         root = root - (pt[hips_t] - pt[0])
-    meta = {"source": source.meta.get("source"), "format": "retarget",
-            "up_guess": source.meta.get("up_guess", "y"),
-            "retarget": {"joints": len(pairs), "leg_scale": scale}}
-    out = Motion(target, frozen(rot), frozen(root),
-                 source.frame_time, None, meta)
+    meta = {
+        "source": source.meta.get("source"),
+        "format": "retarget",
+        "up_guess": source.meta.get("up_guess", "y"),
+        "retarget": {"joints": len(pairs), "leg_scale": scale},
+    }
+    out = Motion(target, frozen(rot), frozen(root), source.frame_time, None, meta)
     if feet:
         from biomorph.motion.contact import lock_feet
 
@@ -212,11 +266,20 @@ def _local_from_world(world, rest, parent, out):  # pragma: no cover - compiled
             p = parent[j]
             x, y, z, w = world[t, j, 0], world[t, j, 1], world[t, j, 2], world[t, j, 3]
             if p >= 0:
-                x, y, z, w = _qmul(-world[t, p, 0], -world[t, p, 1], -world[t, p, 2],
-                                   world[t, p, 3], x, y, z, w)
+                x, y, z, w = _qmul(
+                    -world[t, p, 0], -world[t, p, 1], -world[t, p, 2], world[t, p, 3], x, y, z, w
+                )
             x, y, z, w = _qmul(-rest[j, 0], -rest[j, 1], -rest[j, 2], rest[j, 3], x, y, z, w)
-            if t > 0 and (x * out[t - 1, j, 0] + y * out[t - 1, j, 1] + z * out[t - 1, j, 2]
-                          + w * out[t - 1, j, 3]) < 0:
+            if (
+                t > 0
+                and (
+                    x * out[t - 1, j, 0]
+                    + y * out[t - 1, j, 1]
+                    + z * out[t - 1, j, 2]
+                    + w * out[t - 1, j, 3]
+                )
+                < 0
+            ):
                 x, y, z, w = -x, -y, -z, -w
             out[t, j, 0], out[t, j, 1], out[t, j, 2], out[t, j, 3] = x, y, z, w
 
@@ -233,8 +296,10 @@ def mirror(motion: Motion, axis: int | None = None) -> Motion:
     sk = motion.skeleton
     pairs = nm.left_right_pairs(sk.names)
     if not pairs:
-        raise InputError(f"mirror needs left/right joint names (Left…/Right…, ….L/….R, …_l/…_r);"
-                         f" the skeleton has none ({', '.join(sk.names[:4])}, …)")
+        raise InputError(
+            f"mirror needs left/right joint names (Left…/Right…, ….L/….R, …_l/…_r);"
+            f" the skeleton has none ({', '.join(sk.names[:4])}, …)"
+        )
     a = _lateral_axis(sk, pairs) if axis is None else int(axis)
     other = np.arange(sk.n_joints)
     for i, j in pairs:
@@ -255,8 +320,9 @@ def mirror(motion: Motion, axis: int | None = None) -> Motion:
         jt[:, 0] = pos
     meta = dict(motion.meta)
     meta["history"] = [*meta.get("history", []), f"mirror axis={'xyz'[a]}"]
-    return motion.with_(rotation=frozen(rot), root_position=frozen(pos), joint_translation=jt,
-                        meta=meta)
+    return motion.with_(
+        rotation=frozen(rot), root_position=frozen(pos), joint_translation=jt, meta=meta
+    )
 
 
 __all__ = ["retarget", "mirror"]

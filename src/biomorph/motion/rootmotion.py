@@ -55,8 +55,9 @@ def in_place(motion: Motion, up: str = "y", with_heading: bool = True) -> Motion
     return _note(out, "in_place")
 
 
-def remove_drift(motion: Motion, translation: ArrayLike, yaw: float, period: float,
-                 up: str = "y") -> Motion:
+def remove_drift(
+    motion: Motion, translation: ArrayLike, yaw: float, period: float, up: str = "y"
+) -> Motion:
     """Subtract a steady travel of ``translation`` (horizontal) and ``yaw`` (rad) per
     ``period`` frames, growing linearly from frame 0 (frame ``k`` is moved back by
     ``k / period`` of it)."""
@@ -74,21 +75,25 @@ def remove_drift(motion: Motion, translation: ArrayLike, yaw: float, period: flo
     return transform_root(motion, q, trans)
 
 
-def extract_root_motion(motion: Motion, up: str = "y", name: str = "root",
-                        with_heading: bool = True) -> Motion:
+def extract_root_motion(
+    motion: Motion, up: str = "y", name: str = "root", with_heading: bool = True
+) -> Motion:
     """A motion with a new ground-level root joint ``name`` carrying the path (horizontal
     position, height 0) and heading; the former root becomes its child (module docstring)."""
     if name in motion.names:
-        raise InputError(f"the skeleton already has a joint named {name!r}; pass another "
-                         "name for the ground-level root")
+        raise InputError(
+            f"the skeleton already has a joint named {name!r}; pass another "
+            "name for the ground-level root"
+        )
     ui = _up_index(up)
     path, yaw = ground_path(motion, up, with_heading)
     q = _yaw_quat(yaw, ui)
     sk = motion.skeleton
     rest_h = sk.rest_rotation[0]
     inv = tf.quat_conjugate
-    hips = tf.quat_multiply(inv(rest_h), tf.quat_multiply(
-        inv(q), tf.quat_multiply(rest_h, motion.rotation[:, 0])))
+    hips = tf.quat_multiply(
+        inv(rest_h), tf.quat_multiply(inv(q), tf.quat_multiply(rest_h, motion.rotation[:, 0]))
+    )
     rot = np.concatenate([q[:, None], motion.rotation], axis=1)
     rot[:, 1] = hips
     jt = np.concatenate([path[:, None], motion.local_translations()], axis=1)
@@ -96,17 +101,33 @@ def extract_root_motion(motion: Motion, up: str = "y", name: str = "root",
     parent = np.concatenate([[-1], np.where(sk.parent >= 0, sk.parent + 1, 0)])
     chans = None
     if sk.channels is not None:
-        chans = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation",
-                  "Yrotation"), *sk.channels]
-        chans[1] = tuple(chans[1]) if any(c.endswith("position") for c in chans[1]) else \
-            ("Xposition", "Yposition", "Zposition", *chans[1])
+        chans = [
+            ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"),
+            *sk.channels,
+        ]
+        chans[1] = (
+            tuple(chans[1])
+            if any(c.endswith("position") for c in chans[1])
+            else ("Xposition", "Yposition", "Zposition", *chans[1])
+        )
     end = np.concatenate([np.full((1, 3), np.nan), sk.end_site])
-    new = JointSkeleton([name, *sk.names], parent, np.concatenate([np.zeros((1, 3)), sk.offset]),
-                        np.concatenate([tf.quat_identity((1,)), sk.rest_rotation]),
-                        np.concatenate([np.tile([-np.pi, np.pi], (1, 3, 1)), sk.limits]),
-                        chans, end)
-    out = Motion(new, frozen(tf.quat_continuous(rot, axis=0)), frozen(np.array(path)),
-                 motion.frame_time, frozen(jt), dict(motion.meta))
+    new = JointSkeleton(
+        [name, *sk.names],
+        parent,
+        np.concatenate([np.zeros((1, 3)), sk.offset]),
+        np.concatenate([tf.quat_identity((1,)), sk.rest_rotation]),
+        np.concatenate([np.tile([-np.pi, np.pi], (1, 3, 1)), sk.limits]),
+        chans,
+        end,
+    )
+    out = Motion(
+        new,
+        frozen(tf.quat_continuous(rot, axis=0)),
+        frozen(np.array(path)),
+        motion.frame_time,
+        frozen(jt),
+        dict(motion.meta),
+    )
     return _note(out, "extract_root_motion")
 
 
@@ -116,28 +137,44 @@ def apply_root_motion(motion: Motion) -> Motion:
     sk = motion.skeleton
     kids = np.flatnonzero(sk.parent == 0)
     if sk.n_joints < 2 or kids.size != 1 or kids[0] != 1:
-        raise InputError(f"root {sk.names[0]!r} does not have exactly one child joint; "
-                         "expected a ground-level root above the hips")
+        raise InputError(
+            f"root {sk.names[0]!r} does not have exactly one child joint; "
+            "expected a ground-level root above the hips"
+        )
     wq = tf.quat_multiply(sk.rest_rotation[0], motion.rotation[:, 0])
     lt = motion.local_translations()
     hips_pos = tf.quat_rotate(wq, lt[:, 1]) + lt[:, 0]
     rest_h = sk.rest_rotation[1]
     inv = tf.quat_conjugate
-    hips = tf.quat_multiply(inv(rest_h), tf.quat_multiply(
-        wq, tf.quat_multiply(rest_h, motion.rotation[:, 1])))
+    hips = tf.quat_multiply(
+        inv(rest_h), tf.quat_multiply(wq, tf.quat_multiply(rest_h, motion.rotation[:, 1]))
+    )
     rot = np.array(motion.rotation[:, 1:])
     rot[:, 0] = hips
     parent = np.where(sk.parent[1:] > 0, sk.parent[1:] - 1, -1)
     chans = None if sk.channels is None else list(sk.channels[1:])
-    new = JointSkeleton(list(sk.names[1:]), parent, sk.offset[1:], sk.rest_rotation[1:],
-                        sk.limits[1:], chans, sk.end_site[1:])
+    new = JointSkeleton(
+        list(sk.names[1:]),
+        parent,
+        sk.offset[1:],
+        sk.rest_rotation[1:],
+        sk.limits[1:],
+        chans,
+        sk.end_site[1:],
+    )
     jt = None
     inner = lt[:, 2:] - sk.offset[None, 2:]
     if np.any(np.abs(inner) > 0):
         jt = np.array(lt[:, 1:])
         jt[:, 0] = hips_pos
-    out = Motion(new, frozen(tf.quat_continuous(rot, axis=0)), frozen(hips_pos),
-                 motion.frame_time, jt, dict(motion.meta))
+    out = Motion(
+        new,
+        frozen(tf.quat_continuous(rot, axis=0)),
+        frozen(hips_pos),
+        motion.frame_time,
+        jt,
+        dict(motion.meta),
+    )
     return _note(out, "apply_root_motion")
 
 
@@ -147,5 +184,4 @@ def _note(motion: Motion, what: str) -> Motion:
     return motion.with_(meta=meta)
 
 
-__all__ = ["ground_path", "in_place", "remove_drift", "extract_root_motion",
-           "apply_root_motion"]
+__all__ = ["ground_path", "in_place", "remove_drift", "extract_root_motion", "apply_root_motion"]

@@ -56,20 +56,33 @@ def humanoid(n_joints: int | None = None) -> JointSkeleton:
     names = [r[0] for r in rows]
     parent = [-1 if r[1] is None else names.index(r[1]) for r in rows]
     offset = np.array([r[2] for r in rows], float)
-    channels = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
-                if p < 0 else ("Zrotation", "Xrotation", "Yrotation") for p in parent]
+    channels = [
+        ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+        if p < 0
+        else ("Zrotation", "Xrotation", "Yrotation")
+        for p in parent
+    ]
     end = np.full((len(names), 3), np.nan)
     for i, name in enumerate(names):
-        if name in ("Head", "LeftHand", "RightHand", "LeftToeBase", "RightToeBase") and \
-                i not in parent:
+        if (
+            name in ("Head", "LeftHand", "RightHand", "LeftToeBase", "RightToeBase")
+            and i not in parent
+        ):
             end[i] = {"Head": (0, 0.15, 0)}.get(name, (0, 0, 0.05))
     sk = JointSkeleton(names, parent, offset, channels=channels, end_site=end)
     return reorder_joints(sk, dfs_preorder(sk.parent))[0]  # BVH (depth-first) joint order
 
 
-def walk(n_frames: int = 240, fps: float = 60.0, n_joints: int | None = None,
-         speed: float = 1.2, stride_hz: float = 0.9, noise_deg: float = 0.0,
-         turn_deg_s: float = 0.0, seed: int = 0) -> Motion:
+def walk(
+    n_frames: int = 240,
+    fps: float = 60.0,
+    n_joints: int | None = None,
+    speed: float = 1.2,
+    stride_hz: float = 0.9,
+    noise_deg: float = 0.0,
+    turn_deg_s: float = 0.0,
+    seed: int = 0,
+) -> Motion:
     """A procedural walk: legs and arms swing at ``stride_hz`` (strides per second), the
     hips bob and sway, the root moves at ``speed`` m/s along +Z (turning at ``turn_deg_s``),
     plus optional Gaussian noise (``noise_deg``) on every rotation channel — capture jitter
@@ -111,8 +124,13 @@ def walk(n_frames: int = 240, fps: float = 60.0, n_joints: int | None = None,
     pos = np.concatenate([[np.zeros(3)], np.cumsum(vel[1:] / fps, axis=0)])
     pos[:, 1] = 0.95 + 0.025 * np.cos(2 * ph)
     pos[:, 0] += 0.02 * np.sin(ph)
-    return Motion(sk, q, pos, 1.0 / fps, meta={"source": "built-in walk", "up_guess": "y",
-                                                "euler_wraps_in_file": 0})
+    return Motion(
+        sk,
+        q,
+        pos,
+        1.0 / fps,
+        meta={"source": "built-in walk", "up_guess": "y", "euler_wraps_in_file": 0},
+    )
 
 
 def spin(n_frames: int = 240, fps: float = 60.0, turns: float = 1.0) -> Motion:

@@ -23,15 +23,19 @@ Array = NDArray[np.float64]
 def speed_values(motion: Motion, speed: Keys | float | Curve) -> Array:
     """The speed curve evaluated at every original frame (monotone spline through keys, so
     positive keys never give a non-positive speed in between). Raises on speed <= 0."""
-    s = np.asarray(curve_from_keys(speed, kind="monotone")(np.arange(motion.n_frames, dtype=float)),
-                   dtype=float).reshape(-1)
+    s = np.asarray(
+        curve_from_keys(speed, kind="monotone")(np.arange(motion.n_frames, dtype=float)),
+        dtype=float,
+    ).reshape(-1)
     if s.shape != (motion.n_frames,):
         raise ParameterError("the speed curve must give one number per frame")
     bad = ~np.isfinite(s) | (s <= 0)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise ParameterError(f"speed {s[i]:g} at frame {i}; expected a speed > 0 everywhere "
-                             "(1 = original, 2 = twice as fast)")
+        raise ParameterError(
+            f"speed {s[i]:g} at frame {i}; expected a speed > 0 everywhere "
+            "(1 = original, 2 = twice as fast)"
+        )
     return s
 
 

@@ -102,8 +102,10 @@ class BatchReport(Generic[R]):
 
     def summary(self) -> str:
         """One line: ``"trees: 118 ok, 2 failed, 40 skipped in 312.4 s"``."""
-        return (f"{self.description}: {len(self.ok)} ok, {len(self.failed)} failed, "
-                f"{len(self.skipped)} skipped in {self.seconds:.1f} s")
+        return (
+            f"{self.description}: {len(self.ok)} ok, {len(self.failed)} failed, "
+            f"{len(self.skipped)} skipped in {self.seconds:.1f} s"
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary for ``--json`` (results are left out: they may be any type)."""
@@ -115,8 +117,10 @@ class BatchReport(Generic[R]):
             "n_failed": len(self.failed),
             "n_skipped": len(self.skipped),
             "ok": list(self.ok),
-            "failed": [{"key": k, "error": msg, "traceback": self.tracebacks.get(k, "")}
-                       for k, msg in self.failed],
+            "failed": [
+                {"key": k, "error": msg, "traceback": self.tracebacks.get(k, "")}
+                for k, msg in self.failed
+            ],
             "skipped": list(self.skipped),
             "seconds": round(self.seconds, 6),
             "item_seconds": {k: round(v, 6) for k, v in self.item_seconds.items()},
@@ -133,8 +137,12 @@ def _call(func: Callable[[Any], Any], item: Any) -> tuple[bool, Any, float, str]
     try:
         result = func(item)
     except Exception as exc:  # reported per item; the batch carries on
-        return (False, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0,
-                traceback.format_exc())
+        return (
+            False,
+            f"{type(exc).__name__}: {exc}",
+            time.perf_counter() - t0,
+            traceback.format_exc(),
+        )
     return True, result, time.perf_counter() - t0, ""
 
 
@@ -177,8 +185,10 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:  # pragma: no cover - depends on the installed extras
-        raise BiomorphError("dask.distributed is not installed; install biomorph[scale] or "
-                            "run serially with workers=0") from None
+        raise BiomorphError(
+            "dask.distributed is not installed; install biomorph[scale] or "
+            "run serially with workers=0"
+        ) from None
     cluster = None
     client = None
     try:
@@ -189,18 +199,23 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
                 try:
                     client = Client(scheduler, timeout="20s")
                 except (OSError, ValueError, TypeError) as exc:  # unreachable or malformed
-                    raise BiomorphError(f"cannot reach the dask scheduler at {scheduler!r} "
-                                        f"({exc}); expected an address like tcp://host:8786"
-                                        ) from None
+                    raise BiomorphError(
+                        f"cannot reach the dask scheduler at {scheduler!r} "
+                        f"({exc}); expected an address like tcp://host:8786"
+                    ) from None
             else:
                 try:
                     # scheduler, workers, nannies and dashboard listen on the loopback
                     # only: a batch run must not open ports to the network
-                    cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                           processes=True, host=LOOPBACK,
-                                           dashboard_address=f"{LOOPBACK}:0",
-                                           worker_dashboard_address=f"{LOOPBACK}:0",
-                                           silence_logs=logging.ERROR)
+                    cluster = LocalCluster(
+                        n_workers=workers,
+                        threads_per_worker=1,
+                        processes=True,
+                        host=LOOPBACK,
+                        dashboard_address=f"{LOOPBACK}:0",
+                        worker_dashboard_address=f"{LOOPBACK}:0",
+                        silence_logs=logging.ERROR,
+                    )
                 except (RuntimeError, OSError) as exc:
                     if interrupted():  # Ctrl-C reached the workers while they started
                         raise KeyboardInterrupt from None
@@ -208,7 +223,8 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
                         f"could not start a dask LocalCluster with {workers} workers ({exc}); "
                         "a script that calls run_batch must do so under "
                         "`if __name__ == '__main__':` (workers are spawned processes), "
-                        "or use workers=0") from None
+                        "or use workers=0"
+                    ) from None
                 client = Client(cluster)
         if interrupted():
             raise KeyboardInterrupt
@@ -245,11 +261,19 @@ def _held_interrupt() -> Iterator[Callable[[], bool]]:
         signal.signal(signal.SIGINT, previous)
 
 
-def run_batch(items: Sequence[T], func: Callable[[T], R], *, out_dir: str | os.PathLike[str] |
-              None = None, key: Callable[[T], str] = str,
-              done: Callable[[T], bool] | None = None, workers: int | None = None,
-              scheduler: str | None = None, progress: bool = True,
-              description: str = "batch", options: Any = None) -> BatchReport[R]:
+def run_batch(
+    items: Sequence[T],
+    func: Callable[[T], R],
+    *,
+    out_dir: str | os.PathLike[str] | None = None,
+    key: Callable[[T], str] = str,
+    done: Callable[[T], bool] | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: bool = True,
+    description: str = "batch",
+    options: Any = None,
+) -> BatchReport[R]:
     """Apply ``func`` to every item, in parallel on dask.distributed; never stop on one error.
 
     Parameters
@@ -275,8 +299,9 @@ def run_batch(items: Sequence[T], func: Callable[[T], R], *, out_dir: str | os.P
     t_start = time.perf_counter()
     items = list(items)
     if workers is not None and (not isinstance(workers, int) or workers < 0):
-        raise ParameterError(f"workers must be a non-negative integer (0 = serial); "
-                             f"got {workers!r}")
+        raise ParameterError(
+            f"workers must be a non-negative integer (0 = serial); got {workers!r}"
+        )
     keys = [str(key(item)) for item in items]
     if len(set(keys)) != len(keys):
         from collections import Counter
@@ -289,14 +314,34 @@ def run_batch(items: Sequence[T], func: Callable[[T], R], *, out_dir: str | os.P
             from biomorph._cli import folder_lock
 
             stack.enter_context(folder_lock(out, option="out_dir"))
-        return _run_batch(items, keys, func, out, done, workers, scheduler, progress,
-                          description, options, t_start)
+        return _run_batch(
+            items,
+            keys,
+            func,
+            out,
+            done,
+            workers,
+            scheduler,
+            progress,
+            description,
+            options,
+            t_start,
+        )
 
 
-def _run_batch(items: list[Any], keys: list[str], func: Callable[[Any], Any],
-               out: Path | None, done: Callable[[Any], bool] | None, workers: int | None,
-               scheduler: str | None, progress: bool, description: str, options: Any,
-               t_start: float) -> BatchReport[Any]:
+def _run_batch(
+    items: list[Any],
+    keys: list[str],
+    func: Callable[[Any], Any],
+    out: Path | None,
+    done: Callable[[Any], bool] | None,
+    workers: int | None,
+    scheduler: str | None,
+    progress: bool,
+    description: str,
+    options: Any,
+    t_start: float,
+) -> BatchReport[Any]:
     markers = out is not None and done is None
     if markers:
         (out / MARKER_DIR).mkdir(exist_ok=True)  # type: ignore[operator]
@@ -305,8 +350,10 @@ def _run_batch(items: list[Any], keys: list[str], func: Callable[[Any], Any],
     def is_done(i: int) -> bool:
         if done is not None:
             return bool(done(items[i]))
-        return markers and _marker_matches(_marker(out, keys[i]),  # type: ignore[arg-type]
-                                           digests[i])
+        return markers and _marker_matches(
+            _marker(out, keys[i]),  # type: ignore[arg-type]
+            digests[i],
+        )
 
     report: BatchReport[Any] = BatchReport(description=description)
     todo = []
@@ -337,8 +384,11 @@ def _run_batch(items: list[Any], keys: list[str], func: Callable[[Any], Any],
         else:
             with _client(n_workers, scheduler) as client:
                 report.scheduler = scheduler or "local"
-                report.workers = (n_workers if scheduler is None else
-                                  len(client.scheduler_info().get("workers", {})))
+                report.workers = (
+                    n_workers
+                    if scheduler is None
+                    else len(client.scheduler_info().get("workers", {}))
+                )
                 _run_distributed(client, func, items, todo, record, advance)
 
     for i in todo:  # item order, not completion order
@@ -360,9 +410,14 @@ def _run_batch(items: list[Any], keys: list[str], func: Callable[[Any], Any],
     return report
 
 
-def _run_distributed(client: Any, func: Callable[[Any], Any], items: list[Any],
-                     todo: list[int], record: Callable[[int, tuple[bool, Any, float, str]], None],
-                     advance: Callable[..., None]) -> None:
+def _run_distributed(
+    client: Any,
+    func: Callable[[Any], Any],
+    items: list[Any],
+    todo: list[int],
+    record: Callable[[int, tuple[bool, Any, float, str]], None],
+    advance: Callable[..., None],
+) -> None:
     """Submit every item, collect results as they complete; cancel all on Ctrl-C."""
     from dask.distributed import as_completed
 
@@ -375,9 +430,12 @@ def _run_distributed(client: Any, func: Callable[[Any], Any], items: list[Any],
                 outcome = fut.result()
             except Exception as exc:  # the worker died or the task was lost
                 name = type(exc).__name__
-                msg = (f"{name}: the worker process died while running this item "
-                       "(crash, os._exit or out of memory); see the dask worker log"
-                       if name == "KilledWorker" else f"{name}: {exc}")
+                msg = (
+                    f"{name}: the worker process died while running this item "
+                    "(crash, os._exit or out of memory); see the dask worker log"
+                    if name == "KilledWorker"
+                    else f"{name}: {exc}"
+                )
                 outcome = (False, msg, 0.0, "")
             record(i, outcome)
             advance()

@@ -46,9 +46,15 @@ class LatencyLog:
         """Per action: count, median, 95th percentile and maximum in milliseconds."""
         with self._lock:
             items = {k: np.asarray(v) * 1000.0 for k, v in self.samples.items() if v}
-        return {k: {"n": int(v.size), "median_ms": float(np.median(v)),
-                    "p95_ms": float(np.percentile(v, 95)), "max_ms": float(v.max())}
-                for k, v in sorted(items.items())}
+        return {
+            k: {
+                "n": int(v.size),
+                "median_ms": float(np.median(v)),
+                "p95_ms": float(np.percentile(v, 95)),
+                "max_ms": float(v.max()),
+            }
+            for k, v in sorted(items.items())
+        }
 
     def markdown(self, prefix: str = "") -> str:
         """A small markdown table of :meth:`summary` for names starting with ``prefix``."""
@@ -56,8 +62,10 @@ class LatencyLog:
         if not rows:
             return "_no edits measured yet_"
         lines = ["| action | n | median ms | max ms |", "|---|---|---|---|"]
-        lines += [f"| {k.split('/', 1)[-1]} | {s['n']} | {s['median_ms']:.1f} | "
-                  f"{s['max_ms']:.1f} |" for k, s in rows]
+        lines += [
+            f"| {k.split('/', 1)[-1]} | {s['n']} | {s['median_ms']:.1f} | {s['max_ms']:.1f} |"
+            for k, s in rows
+        ]
         return "\n".join(lines)
 
 
@@ -173,7 +181,7 @@ class StudioTab:
     def remember(self, handle: Any, old: Any) -> None:
         """Record a parameter change (``handle`` had ``old``) for :meth:`undo_parameter`."""
         self.history.append((handle, old))
-        del self.history[:-self.UNDO_DEPTH]
+        del self.history[: -self.UNDO_DEPTH]
 
     def undo_parameter(self) -> None:
         """Put the last changed parameter back (its callbacks redraw)."""
@@ -183,11 +191,19 @@ class StudioTab:
             raise InputError("nothing to undo in this tab")
         handle, old = self.history.pop()
         handle.value = old
-        self.set_status(f"Undone: {plain(getattr(handle, 'label', 'value'))} is back to "
-                        f"{plain(old)}.")
+        self.set_status(
+            f"Undone: {plain(getattr(handle, 'label', 'value'))} is back to {plain(old)}."
+        )
 
-    def run(self, action: str, fn: Callable[[], Any], *, timed: bool = True,
-            show: bool = True, heavy: bool = False) -> Any:
+    def run(
+        self,
+        action: str,
+        fn: Callable[[], Any],
+        *,
+        timed: bool = True,
+        show: bool = True,
+        heavy: bool = False,
+    ) -> Any:
         """Run ``fn`` as the user action ``action``: lock, time, show errors in the page;
         ``heavy`` actions take one of the page's job slots (refused when all are busy)."""
         with self.lock:
@@ -216,12 +232,15 @@ class StudioTab:
 
     def action(self, action: str, fn: Callable[[], Any], **kw: Any) -> Callable[[Any], None]:
         """A viser callback running ``fn`` through :meth:`run`."""
+
         def callback(_event: Any = None) -> None:
             self.run(action, fn, **kw)
+
         return callback
 
     def live(self, action: str, fn: Callable[[], Any]) -> Callable[[Any], None]:
         """A viser callback for live sliders: bursts of events collapse to the latest one."""
+
         def callback(_event: Any = None) -> None:
             with self._pending_lock:
                 self._pending[action] = fn
@@ -240,6 +259,7 @@ class StudioTab:
                 with self._pending_lock:
                     self._running.discard(action)
                 raise
+
         return callback
 
     def redrawn(self) -> None:

@@ -9,21 +9,43 @@ import typer
 
 
 def studio(
-    host: Annotated[str, typer.Option("--host", help="Interface to bind. Loopback by default; "
-                                      "anything else exposes the studio and the data folder "
-                                      "to the network.")] = "127.0.0.1",
+    host: Annotated[
+        str,
+        typer.Option(
+            "--host",
+            help="Interface to bind. Loopback by default; "
+            "anything else exposes the studio and the data folder "
+            "to the network.",
+        ),
+    ] = "127.0.0.1",
     port: Annotated[int, typer.Option("--port", help="TCP port (0 picks a free one).")] = 8080,
-    data: Annotated[Path, typer.Option("--data", help="Folder files are opened from and "
-                                       "saved to (nothing outside it is reachable).")] = Path("."),
-    max_upload_mb: Annotated[float, typer.Option("--max-upload-mb",
-                                                 help="Largest accepted upload.")] = 64.0,
-    token: Annotated[str | None, typer.Option(
-        "--token", help="Require this secret (at least 8 characters) on every request; the "
-                        "printed URL carries it. Use it behind a tunnel or on a shared "
-                        "machine.")] = None,
-    shared: Annotated[bool, typer.Option(
-        "--shared", help="One session for every page (all pages see and move the same "
-                         "controls) instead of one per page.")] = False,
+    data: Annotated[
+        Path,
+        typer.Option(
+            "--data",
+            help="Folder files are opened from and saved to (nothing outside it is reachable).",
+        ),
+    ] = Path("."),
+    max_upload_mb: Annotated[
+        float, typer.Option("--max-upload-mb", help="Largest accepted upload.")
+    ] = 64.0,
+    token: Annotated[
+        str | None,
+        typer.Option(
+            "--token",
+            help="Require this secret (at least 8 characters) on every request; the "
+            "printed URL carries it. Use it behind a tunnel or on a shared "
+            "machine.",
+        ),
+    ] = None,
+    shared: Annotated[
+        bool,
+        typer.Option(
+            "--shared",
+            help="One session for every page (all pages see and move the same "
+            "controls) instead of one per page.",
+        ),
+    ] = False,
 ) -> None:
     """Open the four pillars in the browser: creature, motion, tree, leaf (plus files).
 
@@ -36,8 +58,14 @@ def studio(
         raise ParameterError(f"--port {port} is outside 0..65535")
     if max_upload_mb <= 0:
         raise ParameterError(f"--max-upload-mb must be positive, got {max_upload_mb}")
-    app = StudioApp(data, host=host, port=port, max_upload_bytes=int(max_upload_mb * 1e6),
-                    token=token, shared=shared)
+    app = StudioApp(
+        data,
+        host=host,
+        port=port,
+        max_upload_bytes=int(max_upload_mb * 1e6),
+        token=token,
+        shared=shared,
+    )
     try:
         url = app.start()
     except OSError as exc:

@@ -9,10 +9,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 #: Colours by branch order / category (RGB 0..255), cycled.
-PALETTE = np.array([
-    [120, 72, 40], [214, 96, 77], [244, 165, 62], [120, 180, 60], [44, 160, 160],
-    [66, 110, 210], [140, 90, 200], [200, 80, 160], [110, 110, 110],
-], dtype=np.uint8)
+PALETTE = np.array(
+    [
+        [120, 72, 40],
+        [214, 96, 77],
+        [244, 165, 62],
+        [120, 180, 60],
+        [44, 160, 160],
+        [66, 110, 210],
+        [140, 90, 200],
+        [200, 80, 160],
+        [110, 110, 110],
+    ],
+    dtype=np.uint8,
+)
 
 
 def palette(index: NDArray[np.integer]) -> NDArray[np.uint8]:
@@ -21,8 +31,9 @@ def palette(index: NDArray[np.integer]) -> NDArray[np.uint8]:
     return PALETTE[np.mod(np.maximum(idx, 0), len(PALETTE))]
 
 
-def subsample(points: NDArray[np.float64], max_points: int, seed: int = 0
-              ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def subsample(
+    points: NDArray[np.float64], max_points: int, seed: int = 0
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """At most ``max_points`` of ``points`` (uniform random, reproducible) and their indices."""
     pts = np.asarray(points, dtype=float)
     n = pts.shape[0]
@@ -44,8 +55,9 @@ def height_colors(points: NDArray[np.float64], axis: int = 2) -> NDArray[np.uint
     return (low + t[:, None] * (high - low)).astype(np.uint8)
 
 
-def graph_segments(position: NDArray[np.float64], parent: NDArray[np.integer]
-                   ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def graph_segments(
+    position: NDArray[np.float64], parent: NDArray[np.integer]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Segments ``(m, 2, 3)`` parent->child of a forest and the child index of each."""
     par = np.asarray(parent, dtype=np.int64)
     child = np.flatnonzero(par >= 0)
@@ -64,8 +76,9 @@ def order_legend(orders: NDArray[np.integer], limit: int = 9) -> str:
     present = np.unique(np.asarray(orders, dtype=np.int64))[:limit]
     if present.size == 0:
         return ""
-    return "Branch order: " + ", ".join(f"{int(o)} `{hex_colour(palette(np.array([o]))[0])}`"
-                                        for o in present)
+    return "Branch order: " + ", ".join(
+        f"{int(o)} `{hex_colour(palette(np.array([o]))[0])}`" for o in present
+    )
 
 
 #: Radius colour ramp (thin -> thick): light yellow-green to dark brown.
@@ -101,8 +114,9 @@ def radius_colors(radius: NDArray[np.float64], lo: float, hi: float) -> NDArray[
 def radius_legend(lo: float, hi: float, steps: int = 4) -> str:
     """Markdown legend of :func:`radius_colors` between ``lo`` and ``hi`` (in cm)."""
     values = np.geomspace(lo, hi, steps)
-    chips = ", ".join(f"{v * 100:.2g} cm `{hex_colour(radius_colors(np.array([v]), lo, hi)[0])}`"
-                      for v in values)
+    chips = ", ".join(
+        f"{v * 100:.2g} cm `{hex_colour(radius_colors(np.array([v]), lo, hi)[0])}`" for v in values
+    )
     return f"Tube radius (log scale): {chips}"
 
 

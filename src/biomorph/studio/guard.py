@@ -158,16 +158,21 @@ def install_http_guard(viser_server: Any, policy: AccessPolicy, shared: bool) ->
 
     def refuse(why: str) -> Response:
         body = f"403 Forbidden: {why}\n".encode()
-        return Response(http.HTTPStatus.FORBIDDEN, "Forbidden",
-                        Headers({"Content-Type": "text/plain; charset=utf-8",
-                                 "Content-Length": str(len(body))}), body)
+        return Response(
+            http.HTTPStatus.FORBIDDEN,
+            "Forbidden",
+            Headers(
+                {"Content-Type": "text/plain; charset=utf-8", "Content-Length": str(len(body))}
+            ),
+            body,
+        )
 
     def redirect(location: str, set_token: bool) -> Response:
-        headers = Headers({"Location": location, "Content-Length": "0",
-                           "Cache-Control": "no-store"})
+        headers = Headers(
+            {"Location": location, "Content-Length": "0", "Cache-Control": "no-store"}
+        )
         if set_token and policy.token is not None:
-            headers["Set-Cookie"] = (f"{COOKIE}={policy.token}; HttpOnly; SameSite=Strict; "
-                                     "Path=/")
+            headers["Set-Cookie"] = f"{COOKIE}={policy.token}; HttpOnly; SameSite=Strict; Path=/"
         return Response(http.HTTPStatus.FOUND, "Found", headers, b"")
 
     def process_request(connection: Any, request: Any) -> Any:
@@ -189,8 +194,12 @@ def install_http_guard(viser_server: Any, policy: AccessPolicy, shared: bool) ->
             request = Request("/", request.headers)
         response = inner(connection, request)
         if response is not None:
-            for k, v in (("X-Frame-Options", "DENY"), ("Referrer-Policy", "no-referrer"),
-                         ("X-Content-Type-Options", "nosniff"), ("Cache-Control", "no-store")):
+            for k, v in (
+                ("X-Frame-Options", "DENY"),
+                ("Referrer-Policy", "no-referrer"),
+                ("X-Content-Type-Options", "nosniff"),
+                ("Cache-Control", "no-store"),
+            ):
                 response.headers[k] = v
         return response
 
@@ -222,8 +231,11 @@ def check_value(handle: Any, value: Any) -> tuple[bool, Any]:
     cur = impl.value
     label = getattr(handle, "label", "") or "value"
     if isinstance(cur, bool):
-        return (True, value) if isinstance(value, bool) else (False, f"{label}: expected "
-                                                                     "true or false")
+        return (
+            (True, value)
+            if isinstance(value, bool)
+            else (False, f"{label}: expected true or false")
+        )
     if isinstance(cur, int | float):
         return _check_number(handle, label, value, isinstance(cur, int))
     if isinstance(cur, tuple):
@@ -291,11 +303,14 @@ class InputGuard:
 
         iface = self.gui._websock_interface
         for cls, mine, theirs in (
-                (_messages.GuiUpdateMessage, self.on_update, self.gui._handle_gui_updates),
-                (_messages.FileTransferStartUpload, self.on_start,
-                 self.gui._handle_file_transfer_start),
-                (_messages.FileTransferPart, self.on_part,
-                 self.gui._handle_file_transfer_part)):
+            (_messages.GuiUpdateMessage, self.on_update, self.gui._handle_gui_updates),
+            (
+                _messages.FileTransferStartUpload,
+                self.on_start,
+                self.gui._handle_file_transfer_start,
+            ),
+            (_messages.FileTransferPart, self.on_part, self.gui._handle_file_transfer_part),
+        ):
             iface.unregister_handler(cls, theirs)
             iface.register_handler(cls, mine(theirs))
 
@@ -303,16 +318,22 @@ class InputGuard:
         from viser._messages import GuiUpdateMessage
 
         self.gui._websock_interface.queue_message(
-            GuiUpdateMessage(handle._impl.uuid, {"value": handle._impl.value}))
+            GuiUpdateMessage(handle._impl.uuid, {"value": handle._impl.value})
+        )
 
     def _release(self, component: str | None, transfer: str) -> None:
         """Tell the page's upload button the transfer is over (viser's client otherwise
         spins forever and keeps the button disabled after a refusal)."""
         from viser._messages import FileTransferPartAck
 
-        self.gui._websock_interface.queue_message(FileTransferPartAck(
-            source_component_uuid=component, transfer_uuid=transfer, transferred_bytes=0,
-            total_bytes=0))
+        self.gui._websock_interface.queue_message(
+            FileTransferPartAck(
+                source_component_uuid=component,
+                transfer_uuid=transfer,
+                transferred_bytes=0,
+                total_bytes=0,
+            )
+        )
 
     def on_update(self, inner: Callable) -> Callable:
         async def handler(client_id: int, message: Any) -> None:
@@ -337,25 +358,40 @@ class InputGuard:
             old = handle._impl.value
             message.updates = updates
             await inner(client_id, message)
-            if self.changed is not None and "value" in updates and \
-                    not handle._impl.is_button and handle._impl.value != old:
+            if (
+                self.changed is not None
+                and "value" in updates
+                and not handle._impl.is_button
+                and handle._impl.value != old
+            ):
                 self.changed(message.uuid, handle, old)
+
         return handler
 
     def on_start(self, inner: Callable) -> Callable:
         def handler(client_id: int, message: Any) -> None:
             limit = self.max_upload()
             size, parts = message.size_bytes, message.part_count
-            if not isinstance(size, int) or size < 0 or size > limit or \
-                    not isinstance(parts, int) or parts < 0 or parts > size // 1024 + 1:
+            if (
+                not isinstance(size, int)
+                or size < 0
+                or size > limit
+                or not isinstance(parts, int)
+                or parts < 0
+                or parts > size // 1024 + 1
+            ):
                 self.refused += 1
-                self.report(message.source_component_uuid,
-                            f"{message.filename}: {size / 1e6:.1f} MB exceeds the upload "
-                            f"limit of {limit / 1e6:.1f} MB" if isinstance(size, int) and
-                            size > limit else f"{message.filename}: malformed upload")
+                self.report(
+                    message.source_component_uuid,
+                    f"{message.filename}: {size / 1e6:.1f} MB exceeds the upload "
+                    f"limit of {limit / 1e6:.1f} MB"
+                    if isinstance(size, int) and size > limit
+                    else f"{message.filename}: malformed upload",
+                )
                 self._release(message.source_component_uuid, message.transfer_uuid)
                 return  # nothing is buffered: later parts find no transfer and are dropped
             inner(client_id, message)
+
         return handler
 
     def on_part(self, inner: Callable) -> Callable:
@@ -368,11 +404,14 @@ class InputGuard:
             if got > min(state["total_bytes"], self.max_upload()):
                 states.pop(message.transfer_uuid, None)
                 self.refused += 1
-                self.report(message.source_component_uuid,
-                            f"{state['filename']}: the upload sent more than the "
-                            f"{state['total_bytes']:,} bytes it declared; dropped")
+                self.report(
+                    message.source_component_uuid,
+                    f"{state['filename']}: the upload sent more than the "
+                    f"{state['total_bytes']:,} bytes it declared; dropped",
+                )
                 self._release(message.source_component_uuid, message.transfer_uuid)
                 self.close(client_id)
                 return
             inner(client_id, message)
+
         return handler

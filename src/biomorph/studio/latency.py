@@ -44,8 +44,9 @@ def _sweep(tab: Any, handle: Any, values: Any) -> None:
         handle.value = v
 
 
-def measure(repeats: int = 15, motion: Path | None = None, cloud: Path | None = None
-            ) -> tuple[dict[str, Any], str]:
+def measure(
+    repeats: int = 15, motion: Path | None = None, cloud: Path | None = None
+) -> tuple[dict[str, Any], str]:
     """Move every slider of every tab ``repeats`` times; return (latency summary, notes)."""
     from biomorph.studio.server import StudioApp
 
@@ -64,8 +65,9 @@ def measure(repeats: int = 15, motion: Path | None = None, cloud: Path | None = 
                 _sweep(t, t.k, rng.integers(2, 28, repeats))
                 _sweep(t, t.temperature, np.round(np.linspace(0.2, 1.8, repeats), 2))
                 _sweep(t, t.pcs[0], np.round(np.linspace(-2.0, 2.0, repeats), 1))
-                notes.append("creature: seed, neck, tail, k, temperature, PC1 (each a full "
-                             "regeneration)")
+                notes.append(
+                    "creature: seed, neck, tail, k, temperature, PC1 (each a full regeneration)"
+                )
             if "leaf" in tabs:
                 t = tabs["leaf"]
                 _sweep(t, t.lod, rng.integers(10, 390, repeats))
@@ -76,8 +78,9 @@ def measure(repeats: int = 15, motion: Path | None = None, cloud: Path | None = 
                 _sweep(t, t.undulation, np.round(np.linspace(0.0, 10.0, repeats), 1))
                 t.op_kind.value = "bend"
                 _sweep(t, t.op_value, np.round(np.linspace(0.2, 2.0, repeats), 2))
-                notes.append("leaf: maize; LOD 10-390 triangles, age, length, width, twist, "
-                             "undulation, bend")
+                notes.append(
+                    "leaf: maize; LOD 10-390 triangles, age, length, width, twist, undulation, bend"
+                )
             if "motion" in tabs:
                 t = tabs["motion"]
                 clip = _motion_clip(Path(tmp) / "clip.bvh", motion)
@@ -93,9 +96,11 @@ def measure(repeats: int = 15, motion: Path | None = None, cloud: Path | None = 
                     t.cycle_on.value = False
                 for f in rng.integers(0, mo.n_frames, repeats):
                     t.run("scrub", lambda f=f: t.draw_frame(int(f)))
-                notes.append(f"motion: {mo.n_frames} frames at {mo.fps:.0f} fps "
-                             f"({mo.duration:.0f} s), {mo.n_joints} joints; equalizer band "
-                             "3, speed, cycle transition, scrub")
+                notes.append(
+                    f"motion: {mo.n_frames} frames at {mo.fps:.0f} fps "
+                    f"({mo.duration:.0f} s), {mo.n_joints} joints; equalizer band "
+                    "3, speed, cycle transition, scrub"
+                )
             if "tree" in tabs:
                 t = tabs["tree"]
                 if cloud is not None:
@@ -115,17 +120,24 @@ def measure(repeats: int = 15, motion: Path | None = None, cloud: Path | None = 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=15)
-    ap.add_argument("--motion", type=Path, default=None,
-                    help="BVH/HTR clip repeated to about one minute (default: synthetic)")
-    ap.add_argument("--cloud", type=Path, default=None,
-                    help="point cloud for the tree tab (default: a synthetic scan)")
+    ap.add_argument(
+        "--motion",
+        type=Path,
+        default=None,
+        help="BVH/HTR clip repeated to about one minute (default: synthetic)",
+    )
+    ap.add_argument(
+        "--cloud",
+        type=Path,
+        default=None,
+        help="point cloud for the tree tab (default: a synthetic scan)",
+    )
     args = ap.parse_args(argv)
     summary, notes = measure(args.repeats, args.motion, args.cloud)
     print(f"Data: {notes}\n")
     print("| tab/action | n | median ms | p95 ms | max ms |\n|---|---|---|---|---|")
     for k, s in summary.items():
-        print(f"| {k} | {s['n']} | {s['median_ms']:.1f} | {s['p95_ms']:.1f} | "
-              f"{s['max_ms']:.1f} |")
+        print(f"| {k} | {s['n']} | {s['median_ms']:.1f} | {s['p95_ms']:.1f} | {s['max_ms']:.1f} |")
 
 
 if __name__ == "__main__":

@@ -44,8 +44,9 @@ class Sandbox:
     max_upload_bytes : largest accepted upload in bytes.
     """
 
-    def __init__(self, root: str | os.PathLike[str],
-                 max_upload_bytes: int = DEFAULT_MAX_UPLOAD) -> None:
+    def __init__(
+        self, root: str | os.PathLike[str], max_upload_bytes: int = DEFAULT_MAX_UPLOAD
+    ) -> None:
         root_path = Path(root).expanduser()
         root_path.mkdir(parents=True, exist_ok=True)
         self.root = root_path.resolve()
@@ -63,20 +64,24 @@ class Sandbox:
             raise SandboxError(f"{text!r} is not a valid file name")
         pure = PurePosixPath(text.replace("\\", "/"))
         if pure.is_absolute() or re.match(r"^[A-Za-z]:", text):
-            raise SandboxError(f"{text!r} is an absolute path; name files relative to the "
-                               f"data folder {self.root}")
+            raise SandboxError(
+                f"{text!r} is an absolute path; name files relative to the data folder {self.root}"
+            )
         candidate = (self.root / Path(*pure.parts)).resolve()
         if candidate != self.root and not candidate.is_relative_to(self.root):
-            raise SandboxError(f"{text!r} lies outside the data folder {self.root}; "
-                               "files are opened and saved only inside it")
+            raise SandboxError(
+                f"{text!r} lies outside the data folder {self.root}; "
+                "files are opened and saved only inside it"
+            )
         return candidate
 
     def relative(self, path: str | os.PathLike[str]) -> str:
         """The name of an absolute path inside the folder, as shown in the page."""
         return Path(path).resolve().relative_to(self.root).as_posix()
 
-    def list_files(self, extensions: Iterable[str] | None = None, limit: int = 500,
-                   max_depth: int = 4) -> list[str]:
+    def list_files(
+        self, extensions: Iterable[str] | None = None, limit: int = 500, max_depth: int = 4
+    ) -> list[str]:
         """Relative names of files under the folder (hidden entries skipped), sorted.
 
         ``extensions`` (lower case, with the dot) filters by suffix; at most ``limit``
@@ -87,8 +92,7 @@ class Sandbox:
         for dirpath, dirnames, filenames in os.walk(self.root, followlinks=False):
             rel_dir = Path(dirpath).relative_to(self.root)
             depth = 0 if rel_dir == Path(".") else len(rel_dir.parts)
-            dirnames[:] = sorted(d for d in dirnames if not d.startswith(".")
-                                 and depth < max_depth)
+            dirnames[:] = sorted(d for d in dirnames if not d.startswith(".") and depth < max_depth)
             for name in sorted(filenames):
                 if name.startswith("."):
                     continue
@@ -118,8 +122,10 @@ class Sandbox:
     def check_upload_size(self, size: int, name: str = "upload") -> None:
         """Raise :class:`SandboxError` if an upload of ``size`` bytes exceeds the limit."""
         if size > self.max_upload_bytes:
-            raise SandboxError(f"{name}: {size / 1e6:.1f} MB exceeds the upload limit of "
-                               f"{self.max_upload_bytes / 1e6:.1f} MB")
+            raise SandboxError(
+                f"{name}: {size / 1e6:.1f} MB exceeds the upload limit of "
+                f"{self.max_upload_bytes / 1e6:.1f} MB"
+            )
 
     def save_upload(self, name: str, content: bytes) -> Path:
         """Store an uploaded file as ``uploads/<safe name>`` (atomically) and return its path."""

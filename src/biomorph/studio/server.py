@@ -66,10 +66,16 @@ class StudioApp:
     shared : one session for every page (the old behaviour) instead of one per page.
     """
 
-    def __init__(self, data_dir: str | os.PathLike[str] = ".", host: str = "127.0.0.1",
-                 port: int = 8080, max_upload_bytes: int = DEFAULT_MAX_UPLOAD,
-                 tabs: Sequence[str] | None = None, token: str | None = None,
-                 shared: bool = False) -> None:
+    def __init__(
+        self,
+        data_dir: str | os.PathLike[str] = ".",
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        max_upload_bytes: int = DEFAULT_MAX_UPLOAD,
+        tabs: Sequence[str] | None = None,
+        token: str | None = None,
+        shared: bool = False,
+    ) -> None:
         if token is not None and (len(token) < 8 or not token.isprintable() or " " in token):
             raise ParameterError("--token must be at least 8 printable characters, no spaces")
         self.sandbox = Sandbox(data_dir, max_upload_bytes)
@@ -118,15 +124,17 @@ class StudioApp:
         """Start the web server (guarded), build the shared session if any; return the URL."""
         import viser
 
-        self.server = viser.ViserServer(host=self.host, port=self.port, label="biomorph studio",
-                                        verbose=False)
+        self.server = viser.ViserServer(
+            host=self.host, port=self.port, label="biomorph studio", verbose=False
+        )
         self.port = int(self.server.get_port())
         self.policy = AccessPolicy(self.host, self.port, self.token)
         self._guard_connections()
         install_http_guard(self.server, self.policy, self.shared)
         self.server.scene.set_up_direction("+z")
-        self.server.scene.add_grid("/grid", width=10.0, height=10.0, cell_size=0.5,
-                                   plane="xy", position=(0.0, 0.0, 0.0))
+        self.server.scene.add_grid(
+            "/grid", width=10.0, height=10.0, cell_size=0.5, plane="xy", position=(0.0, 0.0, 0.0)
+        )
         self.server.initial_camera.position = (3.0, -4.0, 2.5)
         self.server.initial_camera.look_at = (0.0, 0.0, 0.8)
         if self.shared:
@@ -191,8 +199,9 @@ class StudioApp:
     def _reap(self) -> None:
         """Close sessions idle too long, and the longest idle beyond :data:`MAX_SESSIONS`."""
         now = time.monotonic()
-        idle = sorted((s for s in self.sessions.values() if s.client is None),
-                      key=lambda s: s.idle_since)
+        idle = sorted(
+            (s for s in self.sessions.values() if s.client is None), key=lambda s: s.idle_since
+        )
         excess = max(0, len(self.sessions) - MAX_SESSIONS)
         for i, s in enumerate(idle):
             if i < excess or now - s.idle_since > SESSION_IDLE_SECONDS:

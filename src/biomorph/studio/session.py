@@ -28,8 +28,14 @@ Y_UP_WXYZ = (0.7071067811865476, 0.7071067811865476, 0.0, 0.0)
 #: Heavy jobs (skeletonisation, synthesis, file reading) one page may run at once.
 MAX_JOBS = 2
 #: Inputs whose values a reload restores.
-RESTORED = ("add_slider", "add_number", "add_multi_slider", "add_dropdown", "add_checkbox",
-            "add_text")
+RESTORED = (
+    "add_slider",
+    "add_number",
+    "add_multi_slider",
+    "add_dropdown",
+    "add_checkbox",
+    "add_text",
+)
 
 
 class RestoringGui:
@@ -55,6 +61,7 @@ class RestoringGui:
             handle = attr(label, *args, **kw)
             self.created.append((name, label, handle))
             return handle
+
         return add
 
 
@@ -80,7 +87,7 @@ class Session:
         self.shared = shared
         self.sandbox: Sandbox = app.sandbox
         self.latency: LatencyLog = app.latency
-        self.client: Any = None   # the page's ClientHandle (None when shared / detached)
+        self.client: Any = None  # the page's ClientHandle (None when shared / detached)
         self.tabs: dict[str, StudioTab] = {}
         self.unavailable: dict[str, str] = {}
         self.idle_since = self.attached_at = time.monotonic()
@@ -111,8 +118,13 @@ class Session:
             self.client = None if self.shared else client
             host = self.host
             self.scene = host.scene
-            InputGuard(host.gui, lambda: self.sandbox.max_upload_bytes, self._refused,
-                       self.app.close_client, self._changed).install()
+            InputGuard(
+                host.gui,
+                lambda: self.sandbox.max_upload_bytes,
+                self._refused,
+                self.app.close_client,
+                self._changed,
+            ).install()
             self._build(host)
             self.ready.set()
 
@@ -125,7 +137,8 @@ class Session:
         gui = host.gui
         gui.add_markdown(
             "**biomorph studio** — pick a tab; the 3-D view shows its content. Ctrl-Z "
-            "undoes the open tab's last parameter change.")
+            "undoes the open tab's last parameter change."
+        )
         labels = tuple(t.label for t in self._classes)
         self._tab_bar = gui.add_button_group("Tab", labels)
         self._tab_bar.on_click(lambda e: self.show_scene(self._key_of(e.target.value)))
@@ -134,10 +147,12 @@ class Session:
         current = self._current
         for tab in self._classes:
             self._frames[tab.key] = self.scene.add_frame(
-                tab.root, show_axes=False, wxyz=Y_UP_WXYZ if tab.y_up else (1.0, 0, 0, 0),
-                visible=tab.key == current)
-            box = self._containers[tab.key] = gui.add_folder(
-                tab.label, visible=tab.key == current)
+                tab.root,
+                show_axes=False,
+                wxyz=Y_UP_WXYZ if tab.y_up else (1.0, 0, 0, 0),
+                visible=tab.key == current,
+            )
+            box = self._containers[tab.key] = gui.add_folder(tab.label, visible=tab.key == current)
             with box:
                 self.gui = RestoringGui(gui, self._widgets.get(tab.key))
                 tab.status = self.gui.add_markdown(tab.status_text)
@@ -176,9 +191,9 @@ class Session:
         if add is None:  # pragma: no cover - an older viser
             return
         add("Undo the last parameter change", hotkey="Z", modifier="cmd/ctrl").on_trigger(
-            lambda _e: self.undo())
-        add("Play / pause the motion", hotkey="space").on_trigger(
-            lambda _e: self.hotkey("space"))
+            lambda _e: self.undo()
+        )
+        add("Play / pause the motion", hotkey="space").on_trigger(lambda _e: self.hotkey("space"))
 
     def hotkey(self, key: str) -> None:
         tab = self.tabs.get(self._current)
@@ -209,8 +224,9 @@ class Session:
             return [] if server is None else list(server.get_clients().values())
         return [] if self.client is None else [self.client]
 
-    def notify(self, title: str, body: str, color: str = "blue",
-               seconds: float | None = 8.0) -> None:
+    def notify(
+        self, title: str, body: str, color: str = "blue", seconds: float | None = 8.0
+    ) -> None:
         """A notification in this session's page (plain text: never rendered as HTML)."""
         for client in self._clients():
             try:
@@ -269,27 +285,40 @@ class Session:
         """Take one of the page's :data:`MAX_JOBS` heavy-job slots; returns its release.
         Raises :class:`InputError` when all are busy (the page keeps working)."""
         if not self._jobs.acquire(blocking=False):
-            raise InputError(f"{MAX_JOBS} long jobs are already running in this page; "
-                             "wait for one to finish or cancel it")
+            raise InputError(
+                f"{MAX_JOBS} long jobs are already running in this page; "
+                "wait for one to finish or cancel it"
+            )
         released = threading.Event()
 
         def release() -> None:
             if not released.is_set():
                 released.set()
                 self._jobs.release()
+
         return release
 
     # ------------------------------------------------------------------ files
-    def add_upload(self, tab: StudioTab, label: str, on_file: Callable[[Path], Any],
-                   extensions: Sequence[str], hint: str | None = None) -> Any:
+    def add_upload(
+        self,
+        tab: StudioTab,
+        label: str,
+        on_file: Callable[[Path], Any],
+        extensions: Sequence[str],
+        hint: str | None = None,
+    ) -> Any:
         """An upload button whose file is size-checked (while it streams, by the
         :class:`~biomorph.studio.guard.InputGuard`, and after assembly), saved into
         ``uploads/`` and passed (as a sandboxed path) to ``on_file`` inside ``tab.run``."""
         exts = tuple(e.lower() for e in extensions)
         button = self.gui.add_upload_button(
-            label, icon=None, mime_type=",".join(exts) if exts else "*/*",
-            hint=hint or f"Upload a file ({', '.join(exts)}; at most "
-                         f"{self.sandbox.max_upload_bytes / 1e6:.0f} MB) into the data folder.")
+            label,
+            icon=None,
+            mime_type=",".join(exts) if exts else "*/*",
+            hint=hint
+            or f"Upload a file ({', '.join(exts)}; at most "
+            f"{self.sandbox.max_upload_bytes / 1e6:.0f} MB) into the data folder.",
+        )
         self._owner[button._impl.uuid] = tab
 
         def handle(_event: Any) -> None:
@@ -299,8 +328,9 @@ class Session:
                 self.sandbox.check_upload_size(len(upload.content), upload.name)
                 name = self.sandbox.safe_name(upload.name)
                 if exts and Path(name).suffix.lower() not in exts:
-                    raise SandboxError(f"{name}: unsupported file type; expected one of "
-                                       f"{' '.join(exts)}")
+                    raise SandboxError(
+                        f"{name}: unsupported file type; expected one of {' '.join(exts)}"
+                    )
                 path = self.sandbox.save_upload(name, upload.content)
                 tab.set_status(f"Reading {plain(name)} ({len(upload.content) / 1e6:.1f} MB) …")
                 return on_file(path)
@@ -318,8 +348,9 @@ class Session:
         if not path.is_file() or path.stat().st_size == 0:
             raise SandboxError(f"export {filename} produced no data")
         rel = self.sandbox.relative(path)
-        tab.set_status(f"Wrote `{plain(rel)}` ({path.stat().st_size / 1024:.1f} kB) in the "
-                       "data folder.")
+        tab.set_status(
+            f"Wrote `{plain(rel)}` ({path.stat().st_size / 1024:.1f} kB) in the data folder."
+        )
         host = self.host
         if host is not None and path.stat().st_size <= 64 * 1024 * 1024:
             host.send_file_download(path.name, path.read_bytes(), save_immediately=False)

@@ -18,19 +18,28 @@ class FilePicker:
     ``on_open(path)`` runs inside the tab's error-capturing :meth:`StudioTab.run`.
     """
 
-    def __init__(self, tab: StudioTab, label: str, extensions: Sequence[str],
-                 on_open: Callable[[Path], Any], upload_label: str | None = None) -> None:
+    def __init__(
+        self,
+        tab: StudioTab,
+        label: str,
+        extensions: Sequence[str],
+        on_open: Callable[[Path], Any],
+        upload_label: str | None = None,
+    ) -> None:
         self.tab = tab
         self.extensions = tuple(e.lower() for e in extensions)
         self.on_open = on_open
         gui = tab.gui
-        self.dropdown = gui.add_dropdown(label, options=self.options(),
-                                         hint=f"Files ({' '.join(self.extensions)}) in the "
-                                              "data folder.")
+        self.dropdown = gui.add_dropdown(
+            label,
+            options=self.options(),
+            hint=f"Files ({' '.join(self.extensions)}) in the data folder.",
+        )
         self.buttons = gui.add_button_group("", ("Open", "Refresh"))
         self.buttons.on_click(self._clicked)
-        self.upload = tab.app.add_upload(tab, upload_label or f"Upload {label.lower()}",
-                                         self._uploaded, self.extensions)
+        self.upload = tab.app.add_upload(
+            tab, upload_label or f"Upload {label.lower()}", self._uploaded, self.extensions
+        )
 
     def options(self) -> tuple[str, ...]:
         files = self.tab.app.sandbox.list_files(self.extensions)
@@ -64,9 +73,14 @@ class ExportRow:
     """One button per export format; each writes ``exports/<stem>.<ext>`` via ``writers``,
     with a list saying what each file holds (``contents``, format -> one line)."""
 
-    def __init__(self, tab: StudioTab, stem: Callable[[], str],
-                 writers: dict[str, Callable[[Path], Any]], label: str = "Export",
-                 contents: dict[str, str] | None = None) -> None:
+    def __init__(
+        self,
+        tab: StudioTab,
+        stem: Callable[[], str],
+        writers: dict[str, Callable[[Path], Any]],
+        label: str = "Export",
+        contents: dict[str, str] | None = None,
+    ) -> None:
         self.tab = tab
         self.stem = stem
         self.writers = writers
@@ -74,8 +88,9 @@ class ExportRow:
         self.buttons.on_click(self._clicked)
         if contents:
             lines = "\n".join(f"* **{fmt}**: {text}" for fmt, text in contents.items())
-            tab.gui.add_markdown("Written to `exports/` in the data folder and offered as a "
-                                 f"download:\n\n{lines}")
+            tab.gui.add_markdown(
+                f"Written to `exports/` in the data folder and offered as a download:\n\n{lines}"
+            )
         self.last_path: Path | None = None
 
     def _clicked(self, event: Any) -> None:

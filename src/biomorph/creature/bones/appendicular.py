@@ -21,11 +21,18 @@ from numpy.typing import NDArray
 from biomorph.creature.bones.prim import SIDES, Parts, box, ellipsoid, torus, tube, unit
 
 #: digits (count, spread of the fan in radians, end shape) per (class, limb role)
-DIGITS = {("mammal", "hand"): (5, 0.35, "claw"), ("mammal", "foot"): (5, 0.3, "claw"),
-          ("bird", "foot"): (4, 0.9, "claw"), ("reptile", "hand"): (5, 0.7, "claw"),
-          ("reptile", "foot"): (5, 0.6, "claw"), ("amphibian", "hand"): (4, 0.8, "nail"),
-          ("amphibian", "foot"): (5, 0.8, "nail"), ("bird", "hand"): (3, 0.2, "nail"),
-          ("mammal", "wing"): (5, 1.4, "nail"), ("bird", "wing"): (3, 0.15, "nail")}
+DIGITS = {
+    ("mammal", "hand"): (5, 0.35, "claw"),
+    ("mammal", "foot"): (5, 0.3, "claw"),
+    ("bird", "foot"): (4, 0.9, "claw"),
+    ("reptile", "hand"): (5, 0.7, "claw"),
+    ("reptile", "foot"): (5, 0.6, "claw"),
+    ("amphibian", "hand"): (4, 0.8, "nail"),
+    ("amphibian", "foot"): (5, 0.8, "nail"),
+    ("bird", "hand"): (3, 0.2, "nail"),
+    ("mammal", "wing"): (5, 1.4, "nail"),
+    ("bird", "wing"): (3, 0.15, "nail"),
+}
 #: hooved mammals (unguligrade stance) bear on two digits ending in hooves
 UNGULATE = (2, 0.18, "hoof")
 
@@ -58,9 +65,9 @@ def long_bone(kind: str, lod: int) -> tuple[NDArray, NDArray, NDArray]:
     else:
         path = np.stack([np.zeros(k), y, np.zeros(k)], axis=1)
         parts.add(tube(path, prof, s, ref=[1.0, 0, 0]))
-        parts.add(ellipsoid([0.14, 0.1, 0.0], [0.3, 0.1, 0.3], s))         # head
+        parts.add(ellipsoid([0.14, 0.1, 0.0], [0.3, 0.1, 0.3], s))  # head
         parts.add(ellipsoid([-0.2, 0.12, 0.1], [0.16, 0.12, 0.18], max(4, s // 2)))
-        for z in (-0.2, 0.2):                                                # condyles
+        for z in (-0.2, 0.2):  # condyles
             parts.add(ellipsoid([0.0, 0.92, z], [0.3, 0.08, 0.2], max(4, s // 2 + 1)))
     return _freeze(parts.mesh())
 
@@ -77,8 +84,15 @@ def scapula(lod: int) -> tuple[NDArray, NDArray, NDArray]:
     for x0, x1 in zip(xs[:-1], xs[1:], strict=True):
         xm = 0.5 * (x0 + x1)
         path = np.array([[xm, 0.02, 0.0], [xm * 0.25, 0.82, 0.0]])
-        parts.add(tube(path, [0.5 * (x1 - x0) + 0.02, 0.1], max(4, s // 2),
-                       radius2=[0.3, 0.35], ref=[1.0, 0, 0]))
+        parts.add(
+            tube(
+                path,
+                [0.5 * (x1 - x0) + 0.02, 0.1],
+                max(4, s // 2),
+                radius2=[0.3, 0.35],
+                ref=[1.0, 0, 0],
+            )
+        )
     ridge = np.array([[0.05, 0.05, 0.0], [0.0, 0.8, 0.0]])
     parts.add(tube(ridge, 0.04, max(4, s // 2), radius2=0.5, ref=[1.0, 0, 0]))
     parts.add(ellipsoid([0.0, 0.92, 0.0], [0.16, 0.08, 0.5], s))
@@ -102,8 +116,9 @@ def _unit_rod(lod: int) -> tuple[NDArray, NDArray, NDArray]:
     k = 3 + lod
     y = np.linspace(0, 1, k)
     path = np.stack([np.zeros(k), y, np.zeros(k)], axis=1)
-    return _freeze(tube(path, 1.0 - 0.3 * np.sin(np.pi * y), max(4, SIDES[lod] // 2),
-                        ref=[1.0, 0, 0]))
+    return _freeze(
+        tube(path, 1.0 - 0.3 * np.sin(np.pi * y), max(4, SIDES[lod] // 2), ref=[1.0, 0, 0])
+    )
 
 
 def rod(a: NDArray, b: NDArray, radius: float, lod: int) -> tuple[NDArray, NDArray, NDArray]:
@@ -123,8 +138,9 @@ def rod(a: NDArray, b: NDArray, radius: float, lod: int) -> tuple[NDArray, NDArr
 
 
 @cache
-def autopod(n_digits: int, spread: float, end: str, lod: int, digits_from: float
-            ) -> tuple[NDArray, NDArray, NDArray]:
+def autopod(
+    n_digits: int, spread: float, end: str, lod: int, digits_from: float
+) -> tuple[NDArray, NDArray, NDArray]:
     """Unit hand/foot/wing-hand: ``n_digits`` metapodials side by side from y = 0 to
     ``digits_from`` and a fan of phalanges (three per digit, shortening) beyond it, ending
     in ``end`` (``claw`` curved cone, ``hoof`` wedge, ``nail`` flat tip); the fan opens in
@@ -137,8 +153,14 @@ def autopod(n_digits: int, spread: float, end: str, lod: int, digits_from: float
     for i, z in enumerate(zs):
         a = np.array([0.0, 0.02, z * 0.6])
         b = np.array([0.0, digits_from, z])
-        parts.add(tube(np.stack([a, 0.5 * (a + b), b]), [r_meta * 1.2, r_meta, r_meta * 1.2],
-                       s, ref=[1.0, 0, 0]))
+        parts.add(
+            tube(
+                np.stack([a, 0.5 * (a + b), b]),
+                [r_meta * 1.2, r_meta, r_meta * 1.2],
+                s,
+                ref=[1.0, 0, 0],
+            )
+        )
         ang = (i / (n - 1) - 0.5) * spread if n > 1 else 0.0
         d = np.array([np.sin(ang), np.cos(ang), 0.0])
         rest = 1.0 - digits_from
@@ -156,11 +178,24 @@ def autopod(n_digits: int, spread: float, end: str, lod: int, digits_from: float
         tip = p + d * lens[-1]
         if end == "claw":  # curved cone, bending ventrally (-x)
             mid = 0.5 * (p + tip) + np.array([0.04, 0, 0])
-            parts.add(tube(np.stack([p, mid, tip + np.array([-0.06, 0, 0])]),
-                           [r * 1.1, r * 0.6, 0.004], s, ref=[0, 0, 1.0]))
+            parts.add(
+                tube(
+                    np.stack([p, mid, tip + np.array([-0.06, 0, 0])]),
+                    [r * 1.1, r * 0.6, 0.004],
+                    s,
+                    ref=[0, 0, 1.0],
+                )
+            )
         elif end == "hoof":  # wedge: wide at the sole, closing at the toe
-            parts.add(tube(np.stack([p, tip]), [r * 1.8, r * 0.5], s,
-                           radius2=[r * 1.4, r * 0.9], ref=[1.0, 0, 0]))
+            parts.add(
+                tube(
+                    np.stack([p, tip]),
+                    [r * 1.8, r * 0.5],
+                    s,
+                    radius2=[r * 1.4, r * 0.9],
+                    ref=[1.0, 0, 0],
+                )
+            )
     return _freeze(parts.mesh())
 
 
@@ -172,15 +207,22 @@ def fin(n_rays: int, spread: float, lod: int, base: bool) -> tuple[NDArray, NDAr
     parts = Parts()
     if base:
         for x in np.linspace(-0.35, 0.35, 4):
-            parts.add(tube(np.array([[x * 0.6, 0.02, 0.0], [x, 0.98, 0.0]]), 0.1, s,
-                           ref=[0, 0, 1.0]))
+            parts.add(
+                tube(np.array([[x * 0.6, 0.02, 0.0], [x, 0.98, 0.0]]), 0.1, s, ref=[0, 0, 1.0])
+            )
         return _freeze(parts.mesh())
     for a in np.linspace(-spread / 2, spread / 2, n_rays):
         d = np.array([0.5 * np.sin(a) / max(np.sin(spread / 2), 1e-9) * 0.9, np.cos(a), 0.0])
         tip = d / max(np.linalg.norm(d), 1e-9)
         tip[1] = max(tip[1], 0.6)
-        parts.add(tube(np.array([[0.0, 0.0, 0.0], [tip[0] * 0.5, 0.5 * tip[1], 0.0],
-                                 tip]), [0.06, 0.04, 0.015], s, ref=[0, 0, 1.0]))
+        parts.add(
+            tube(
+                np.array([[0.0, 0.0, 0.0], [tip[0] * 0.5, 0.5 * tip[1], 0.0], tip]),
+                [0.06, 0.04, 0.015],
+                s,
+                ref=[0, 0, 1.0],
+            )
+        )
     return _freeze(parts.mesh())
 
 
@@ -189,15 +231,35 @@ def digit_end(end: str, lod: int) -> tuple[NDArray, NDArray, NDArray]:
     """Unit phalanx (``phalanx``) or end phalanx with its horn (``claw``/``hoof``/``nail``)."""
     s = max(4, SIDES[lod] // 2 + 1)
     if end == "claw":
-        return _freeze(tube(np.array([[0.0, 0.16, 0.0], [0.1, 0.55, 0.0], [-0.3, 0.98, 0.0]]),
-                            [0.45, 0.3, 0.03], s, radius2=[0.4, 0.25, 0.03],
-                            ref=[0, 0, 1.0]))
+        return _freeze(
+            tube(
+                np.array([[0.0, 0.16, 0.0], [0.1, 0.55, 0.0], [-0.3, 0.98, 0.0]]),
+                [0.45, 0.3, 0.03],
+                s,
+                radius2=[0.4, 0.25, 0.03],
+                ref=[0, 0, 1.0],
+            )
+        )
     if end == "hoof":
-        return _freeze(tube(np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), [0.5, 0.2], s,
-                            radius2=[0.5, 0.45], ref=[1.0, 0, 0]))
+        return _freeze(
+            tube(
+                np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+                [0.5, 0.2],
+                s,
+                radius2=[0.5, 0.45],
+                ref=[1.0, 0, 0],
+            )
+        )
     if end == "nail":
-        return _freeze(tube(np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), [0.35, 0.1], s,
-                            radius2=[0.45, 0.4], ref=[1.0, 0, 0]))
+        return _freeze(
+            tube(
+                np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+                [0.35, 0.1],
+                s,
+                radius2=[0.45, 0.4],
+                ref=[1.0, 0, 0],
+            )
+        )
     return long_bone("phalanx", lod)
 
 
@@ -207,5 +269,17 @@ def unit_box_model() -> tuple[NDArray, NDArray, NDArray]:
     return _freeze(box([-0.5, 0.0, -0.5], [0.5, 1.0, 0.5]))
 
 
-__all__ = ["long_bone", "scapula", "ilium", "rod", "autopod", "fin", "digit_end",
-           "unit_box_model", "DIGITS", "UNGULATE", "ellipsoid", "torus"]
+__all__ = [
+    "long_bone",
+    "scapula",
+    "ilium",
+    "rod",
+    "autopod",
+    "fin",
+    "digit_end",
+    "unit_box_model",
+    "DIGITS",
+    "UNGULATE",
+    "ellipsoid",
+    "torus",
+]

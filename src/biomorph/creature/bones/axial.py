@@ -60,8 +60,7 @@ def vertebra(region: str, t_bin: int, lod: int) -> tuple[NDArray, NDArray, NDArr
     if spine_h > 0.02:  # neural spine, leaning caudally (towards y = 0 for headward bones)
         top = 0.08 + 0.42 * spine_h
         sp = np.array([[0.06, 0.5, 0.0], [top, 0.5 - 0.15 * spine_h, 0.0]])
-        parts.add(tube(sp, [0.06, 0.03], max(4, s // 2), radius2=[0.035, 0.02],
-                       ref=[0, 1.0, 0]))
+        parts.add(tube(sp, [0.06, 0.03], max(4, s // 2), radius2=[0.035, 0.02], ref=[0, 1.0, 0]))
     if span > 0.02:  # transverse processes
         z1 = 0.5 * span
         tp = np.array([[-0.05, 0.5, 0.12], [-0.02, 0.5 + 0.05 * (region == "lumbar"), z1]])
@@ -87,8 +86,7 @@ def rib_pair(reach: float, pleural: bool, lod: int) -> tuple[NDArray, NDArray, N
         path = np.stack([-0.1 - 0.5 * u, 0.5 - 1.2 * u, 0.15 + 0.2 * u], axis=1)
     else:
         a = np.linspace(0.08 * np.pi, reach * np.pi, k)
-        path = np.stack([-0.5 + 0.5 * np.cos(a), 0.5 - 0.8 * a / np.pi, 0.5 * np.sin(a)],
-                        axis=1)
+        path = np.stack([-0.5 + 0.5 * np.cos(a), 0.5 - 0.8 * a / np.pi, 0.5 * np.sin(a)], axis=1)
     parts.mirrored(tube(path, 0.09, s, radius2=0.012, ref=[0, 1.0, 0]), axis=2)
     return _freeze(parts.mesh())
 
@@ -135,8 +133,10 @@ def mandible(taper: float, lod: int) -> tuple[NDArray, NDArray, NDArray]:
     u = np.linspace(0, 1, k)
     tip_x = 0.05 - (1 - taper) * 0.3 - 0.32 * taper - 0.05  # below the snout's tip
     for side in (1, -1):
-        path = np.stack([-0.36 + (tip_x + 0.36) * u, 0.18 + 0.78 * u,
-                         side * (0.36 * (1 - u) + 0.05 * u)], axis=1)
+        path = np.stack(
+            [-0.36 + (tip_x + 0.36) * u, 0.18 + 0.78 * u, side * (0.36 * (1 - u) + 0.05 * u)],
+            axis=1,
+        )
         parts.add(tube(path, 0.06 * (1 - 0.4 * u), s, radius2=0.03, ref=[1.0, 0, 0]))
         cor = np.array([[-0.33, 0.28, 0.34 * side], [-0.05, 0.26, 0.3 * side]])
         parts.add(tube(cor, [0.04, 0.015], s, ref=[0, 1.0, 0]))

@@ -95,8 +95,7 @@ class _Context:
         self.cls = str(c.params.get("class", "mammal"))
         self.stance = str(c.params.get("stance", ""))
         self.has_mandible = "mandible" in self.parts
-        skull = skulls.get(c.params.get("skull", skulls.CLASS_SKULL.get(self.cls,
-                                                                           "mammal_long")))
+        skull = skulls.get(c.params.get("skull", skulls.CLASS_SKULL.get(self.cls, "mammal_long")))
         self.taper = round(float(skull.taper), 2)
         self.n_thoracic = sum(1 for p in self.parts if p == "thoracic")
 
@@ -113,15 +112,26 @@ class _Geometry:
         self.j: list[int] = []
         self.xf: list[NDArray] = []  # per piece: scale(3), shift(3), sign(3), flip_y
 
-    def unit(self, j: int, model: tuple[NDArray, NDArray, NDArray], scale: NDArray,
-             mirror: NDArray | None = None, shift: NDArray | None = None,
-             flip_y: float | None = None) -> None:
+    def unit(
+        self,
+        j: int,
+        model: tuple[NDArray, NDArray, NDArray],
+        scale: NDArray,
+        mirror: NDArray | None = None,
+        shift: NDArray | None = None,
+        flip_y: float | None = None,
+    ) -> None:
         """``model`` scaled by ``scale``, shifted, then mirrored (``mirror``: signs per
         axis) and optionally flipped along y (``y -> flip_y - y``)."""
         self._add(j, model[0], model[1], model[2], scale, mirror, shift, flip_y)
 
-    def raw(self, j: int, piece: tuple[NDArray, ...], mirror: NDArray | None = None,
-            flip_y: float | None = None) -> None:
+    def raw(
+        self,
+        j: int,
+        piece: tuple[NDArray, ...],
+        mirror: NDArray | None = None,
+        flip_y: float | None = None,
+    ) -> None:
         """A piece in metres: ``(vertices, faces)`` or ``(vertices, normals, faces)``."""
         v, n, f = (piece[0], None, piece[1]) if len(piece) == 2 else piece
         self._add(j, np.asarray(v, float), n, np.asarray(f), _ONE, mirror, None, flip_y)
@@ -136,16 +146,28 @@ class _Geometry:
         self.n.append(n)
         self.f.append(f)
         self.j.append(j)
-        self.xf.append(np.concatenate([scale, _ZERO if shift is None else shift, sign,
-                                       [0.0 if flip_y is None else flip_y]]))
+        self.xf.append(
+            np.concatenate(
+                [
+                    scale,
+                    _ZERO if shift is None else shift,
+                    sign,
+                    [0.0 if flip_y is None else flip_y],
+                ]
+            )
+        )
 
     def arrays(self) -> tuple[NDArray, NDArray, NDArray, NDArray]:
         """``(vertices, unit normals, joint, faces)`` over all pieces."""
         from biomorph.creature.bones.prim import vertex_normals
 
         if not self.v:
-            return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), \
-                np.zeros((0, 3), np.int64)
+            return (
+                np.zeros((0, 3)),
+                np.zeros((0, 3)),
+                np.zeros(0, np.int64),
+                np.zeros((0, 3), np.int64),
+            )
         counts = np.fromiter((len(v) for v in self.v), np.int64, len(self.v))
         base = np.cumsum(counts) - counts
         xf = np.repeat(np.asarray(self.xf), counts, axis=0)
@@ -158,7 +180,7 @@ class _Geometry:
             rf = np.concatenate([self.f[i] + b for i, b in zip(raw, rb, strict=True)])
             rn = vertex_normals(rv, rf)
             for i, b, c in zip(raw, rb, rc, strict=True):
-                self.n[i] = rn[b:b + c]
+                self.n[i] = rn[b : b + c]
         faces = np.concatenate([f + b for f, b in zip(self.f, base, strict=True)])
         verts = (np.concatenate(self.v) * scale + shift) * sign
         verts[:, 1] += flip
@@ -183,8 +205,11 @@ def _axial(g: _Geometry, ctx: _Context, j: int, part: str) -> None:
     L = float(c.bone_length[j])
     size = _size(c, j)
     if part in ("skull", "mandible"):
-        model = ax.skull(ctx.taper, lod, not ctx.has_mandible) if part == "skull" else \
-            ax.mandible(ctx.taper, lod)
+        model = (
+            ax.skull(ctx.taper, lod, not ctx.has_mandible)
+            if part == "skull"
+            else ax.mandible(ctx.taper, lod)
+        )
         g.unit(j, model, size, mirror=_MX)
         return
     head = bool(ctx.headward[j])
@@ -263,14 +288,14 @@ def _box(g: _Geometry, c: Creature, j: int) -> None:
     g.unit(j, ap.unit_box_model(), _size(c, j))
 
 
-def geometry(creature: Creature, shape: str = "bone", lod: int = 1
-             ) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+def geometry(
+    creature: Creature, shape: str = "bone", lod: int = 1
+) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """All bone models as ``(vertices, normals, joint, faces)``: each vertex in the local
     frame of joint ``joint[k]`` (metres) — what :func:`biomorph.io.gltf.write_gltf` takes as
     ``joint_geometry``."""
     if shape not in SHAPES:
-        raise ParameterError(f"bone shape {shape!r} unknown; expected one of "
-                             f"{', '.join(SHAPES)}")
+        raise ParameterError(f"bone shape {shape!r} unknown; expected one of {', '.join(SHAPES)}")
     if lod not in LODS:
         raise ParameterError(f"bone level of detail {lod!r}; expected one of 0, 1, 2")
     g = _Geometry()

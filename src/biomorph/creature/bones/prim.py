@@ -37,8 +37,11 @@ def _frames(path: NDArray, ref: NDArray | None) -> tuple[NDArray, NDArray, NDArr
     t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
     if ref is None:
         mean = t.mean(axis=0)
-        ref = np.array([1.0, 0, 0]) if abs(mean[0]) < 0.8 * np.linalg.norm(mean) + 1e-9 \
+        ref = (
+            np.array([1.0, 0, 0])
+            if abs(mean[0]) < 0.8 * np.linalg.norm(mean) + 1e-9
             else np.array([0, 0, 1.0])
+        )
     ref = np.broadcast_to(np.asarray(ref, float), t.shape)
     n = ref - (ref * t).sum(axis=1, keepdims=True) * t
     bad = np.linalg.norm(n, axis=1) < 1e-6
@@ -49,8 +52,15 @@ def _frames(path: NDArray, ref: NDArray | None) -> tuple[NDArray, NDArray, NDArr
     return t, n, np.cross(t, n)
 
 
-def tube(path: ArrayLike, radius: ArrayLike, sides: int, *, radius2: ArrayLike | None = None,
-         ref: ArrayLike | None = None, caps: bool = True) -> tuple[NDArray, NDArray]:
+def tube(
+    path: ArrayLike,
+    radius: ArrayLike,
+    sides: int,
+    *,
+    radius2: ArrayLike | None = None,
+    ref: ArrayLike | None = None,
+    caps: bool = True,
+) -> tuple[NDArray, NDArray]:
     """A tube swept along ``path (k, 3)`` with elliptical rings: ``radius`` along the ring's
     normal (towards ``ref``), ``radius2`` (default ``radius``) along the binormal."""
     p = np.asarray(path, float)
@@ -59,15 +69,23 @@ def tube(path: ArrayLike, radius: ArrayLike, sides: int, *, radius2: ArrayLike |
     t, n, b = _frames(p, None if ref is None else np.asarray(ref, float))
     a = np.linspace(0.0, 2 * np.pi, sides, endpoint=False)
     ca, sa = np.cos(a), np.sin(a)
-    rings = (p[:, None, :] + (r1[:, None, None] * ca[None, :, None]) * n[:, None, :]
-             + (r2[:, None, None] * sa[None, :, None]) * b[:, None, :])
+    rings = (
+        p[:, None, :]
+        + (r1[:, None, None] * ca[None, :, None]) * n[:, None, :]
+        + (r2[:, None, None] * sa[None, :, None]) * b[:, None, :]
+    )
     v = rings.reshape(-1, 3)
     f = _ring_faces(len(p), sides)
     if caps:
         base = len(v)
         v = np.concatenate([v, p[:1], p[-1:]])
-        f = np.concatenate([f, _cap(base, 0, sides, flip=True),
-                            _cap(base + 1, (len(p) - 1) * sides, sides, flip=False)])
+        f = np.concatenate(
+            [
+                f,
+                _cap(base, 0, sides, flip=True),
+                _cap(base + 1, (len(p) - 1) * sides, sides, flip=False),
+            ]
+        )
     return v, f[:, ::-1]  # rings run n -> b with b = t x n: reversed winding faces out
 
 
@@ -80,29 +98,53 @@ def ellipsoid(center: ArrayLike, radii: ArrayLike, sides: int) -> tuple[NDArray,
     # rings stacked along -y .. +y so the ring order matches tube()'s (+y sweep)
     y = -np.cos(th)
     s = np.sin(th)
-    ring = np.stack([np.outer(s, np.cos(ph)), np.repeat(y[:, None], sides, 1),
-                     -np.outer(s, np.sin(ph))], axis=-1)
+    ring = np.stack(
+        [np.outer(s, np.cos(ph)), np.repeat(y[:, None], sides, 1), -np.outer(s, np.sin(ph))],
+        axis=-1,
+    )
     v = ring.reshape(-1, 3)
     f = _ring_faces(len(th), sides)
     base = len(v)
     v = np.concatenate([v, [[0, -1.0, 0], [0, 1.0, 0]]])
-    f = np.concatenate([f, _cap(base, 0, sides, flip=True),
-                        _cap(base + 1, (len(th) - 1) * sides, sides, flip=False)])
+    f = np.concatenate(
+        [
+            f,
+            _cap(base, 0, sides, flip=True),
+            _cap(base + 1, (len(th) - 1) * sides, sides, flip=False),
+        ]
+    )
     return v * r + c, f[:, ::-1]
 
 
 def box(lo: ArrayLike, hi: ArrayLike) -> tuple[NDArray, NDArray]:
     """An axis-aligned box from corner ``lo`` to ``hi``."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    u = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1],
-                  [0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]], float)
-    f = np.array([[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6], [0, 4, 5], [0, 5, 1],
-                  [1, 5, 6], [1, 6, 2], [2, 6, 7], [2, 7, 3], [3, 7, 4], [3, 4, 0]])
+    u = np.array(
+        [[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1], [0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]],
+        float,
+    )
+    f = np.array(
+        [
+            [0, 1, 2],
+            [0, 2, 3],
+            [4, 6, 5],
+            [4, 7, 6],
+            [0, 4, 5],
+            [0, 5, 1],
+            [1, 5, 6],
+            [1, 6, 2],
+            [2, 6, 7],
+            [2, 7, 3],
+            [3, 7, 4],
+            [3, 4, 0],
+        ]
+    )
     return lo + u * (hi - lo), f
 
 
-def torus(center: ArrayLike, axis: int, radius: float, thickness: float, sides: int
-          ) -> tuple[NDArray, NDArray]:
+def torus(
+    center: ArrayLike, axis: int, radius: float, thickness: float, sides: int
+) -> tuple[NDArray, NDArray]:
     """A ring of ``radius`` around coordinate axis ``axis`` (0, 1, 2) through ``center``."""
     a = np.linspace(0, 2 * np.pi, max(sides, 6) + 1)
     circle = np.zeros((len(a), 3))
@@ -111,8 +153,9 @@ def torus(center: ArrayLike, axis: int, radius: float, thickness: float, sides: 
     path = circle[:-1]
     ref = np.zeros(3)
     ref[axis] = 1.0
-    v, _ = tube(np.concatenate([path, path[:1]]), thickness, max(4, sides // 2), ref=ref,
-                caps=False)
+    v, _ = tube(
+        np.concatenate([path, path[:1]]), thickness, max(4, sides // 2), ref=ref, caps=False
+    )
     ring = max(4, sides // 2)
     n = len(path)
     f = _ring_faces(n + 1, ring)
@@ -157,8 +200,9 @@ def vertex_normals(v: NDArray, f: NDArray) -> NDArray:
     fn = np.cross(b - a, c - a)
     idx = f.reshape(-1)
     n = len(v)
-    acc = np.stack([np.bincount(idx, weights=np.repeat(fn[:, k], 3), minlength=n)
-                    for k in range(3)], axis=1)
+    acc = np.stack(
+        [np.bincount(idx, weights=np.repeat(fn[:, k], 3), minlength=n) for k in range(3)], axis=1
+    )
     norm = np.linalg.norm(acc, axis=1, keepdims=True)
     return np.divide(acc, norm, out=np.zeros_like(acc), where=norm > 0)
 

@@ -37,16 +37,51 @@ POINT_COLUMNS = tuple(f"p{i}{c}" for i in range(10) for c in "xy")
 REQUIRED = ("name", "class", "weight_kg", "wings", "legs") + POINT_COLUMNS + LIMB_COLUMNS
 #: Defaults for the optional (beyond-seed) columns, per class.
 CLASS_DEFAULTS = {
-    "fish": dict(stance="plantigrade", posture="erect", skull="fish", girth=0.4,
-                 cervical=0, trunk=24, caudal=24),
-    "amphibian": dict(stance="plantigrade", posture="sprawling", skull="amphibian", girth=0.45,
-                      cervical=1, trunk=16, caudal=10),
-    "reptile": dict(stance="plantigrade", posture="sprawling", skull="reptile_long", girth=0.5,
-                    cervical=8, trunk=18, caudal=35),
-    "bird": dict(stance="digitigrade", posture="erect", skull="bird", girth=0.65,
-                 cervical=14, trunk=12, caudal=7),
-    "mammal": dict(stance="digitigrade", posture="erect", skull="mammal_long", girth=0.6,
-                   cervical=7, trunk=20, caudal=18),
+    "fish": dict(
+        stance="plantigrade",
+        posture="erect",
+        skull="fish",
+        girth=0.4,
+        cervical=0,
+        trunk=24,
+        caudal=24,
+    ),
+    "amphibian": dict(
+        stance="plantigrade",
+        posture="sprawling",
+        skull="amphibian",
+        girth=0.45,
+        cervical=1,
+        trunk=16,
+        caudal=10,
+    ),
+    "reptile": dict(
+        stance="plantigrade",
+        posture="sprawling",
+        skull="reptile_long",
+        girth=0.5,
+        cervical=8,
+        trunk=18,
+        caudal=35,
+    ),
+    "bird": dict(
+        stance="digitigrade",
+        posture="erect",
+        skull="bird",
+        girth=0.65,
+        cervical=14,
+        trunk=12,
+        caudal=7,
+    ),
+    "mammal": dict(
+        stance="digitigrade",
+        posture="erect",
+        skull="mammal_long",
+        girth=0.6,
+        cervical=7,
+        trunk=20,
+        caudal=18,
+    ),
 }
 
 
@@ -57,17 +92,17 @@ class SpeciesTable:
     name: tuple[str, ...]
     german: tuple[str, ...]
     cls: tuple[str, ...]
-    weight: NDArray[np.float64]       # kg
-    wings: NDArray[np.float64]        # 0/1
-    legs: NDArray[np.float64]         # 0/2/4
-    points: NDArray[np.float64]       # (n, 10, 2) px
-    lengths: NDArray[np.float64]      # (n, 6) px, LIMB_COLUMNS order
+    weight: NDArray[np.float64]  # kg
+    wings: NDArray[np.float64]  # 0/1
+    legs: NDArray[np.float64]  # 0/2/4
+    points: NDArray[np.float64]  # (n, 10, 2) px
+    lengths: NDArray[np.float64]  # (n, 6) px, LIMB_COLUMNS order
     stance: tuple[str, ...]
     posture: tuple[str, ...]
     skull: tuple[str, ...]
     skull_length: NDArray[np.float64]  # px
-    girth: NDArray[np.float64]        # trunk depth / back chord
-    counts: NDArray[np.int64]         # (n, 3) cervical, trunk, caudal vertebrae
+    girth: NDArray[np.float64]  # trunk depth / back chord
+    counts: NDArray[np.int64]  # (n, 3) cervical, trunk, caudal vertebrae
 
     def __len__(self) -> int:
         return len(self.name)
@@ -83,17 +118,28 @@ class SpeciesTable:
         """One dict per species with every CSV column (for writing and ``dataset`` listing)."""
         out = []
         for i in range(len(self)):
-            row: dict[str, object] = {"name": self.name[i], "german": self.german[i],
-                                      "class": self.cls[i], "weight_kg": float(self.weight[i]),
-                                      "wings": int(self.wings[i]), "legs": int(self.legs[i])}
+            row: dict[str, object] = {
+                "name": self.name[i],
+                "german": self.german[i],
+                "class": self.cls[i],
+                "weight_kg": float(self.weight[i]),
+                "wings": int(self.wings[i]),
+                "legs": int(self.legs[i]),
+            }
             for k, col in enumerate(POINT_COLUMNS):
                 row[col] = float(self.points[i].reshape(-1)[k])
             for k, col in enumerate(LIMB_COLUMNS):
                 row[col] = float(self.lengths[i, k])
-            row.update(stance=self.stance[i], posture=self.posture[i], skull=self.skull[i],
-                       skull_length=float(self.skull_length[i]), girth=float(self.girth[i]),
-                       cervical=int(self.counts[i, 0]), trunk=int(self.counts[i, 1]),
-                       caudal=int(self.counts[i, 2]))
+            row.update(
+                stance=self.stance[i],
+                posture=self.posture[i],
+                skull=self.skull[i],
+                skull_length=float(self.skull_length[i]),
+                girth=float(self.girth[i]),
+                cervical=int(self.counts[i, 0]),
+                trunk=int(self.counts[i, 1]),
+                caudal=int(self.counts[i, 2]),
+            )
             out.append(row)
         return out
 
@@ -103,8 +149,9 @@ def _num(path: Path, line: int, row: dict[str, str], key: str) -> float:
     try:
         val = float(raw)
     except ValueError:
-        raise FormatError(path, f"column {key!r} holds {raw!r}; expected a number",
-                          line=line) from None
+        raise FormatError(
+            path, f"column {key!r} holds {raw!r}; expected a number", line=line
+        ) from None
     if not np.isfinite(val):
         raise FormatError(path, f"column {key!r} is {raw}; expected a finite number", line=line)
     return val
@@ -113,8 +160,9 @@ def _num(path: Path, line: int, row: dict[str, str], key: str) -> float:
 def _row_values(path: Path, line: int, row: dict[str, str]) -> dict[str, object]:
     cls = (row.get("class") or "").strip().lower()
     if cls not in CLASSES:
-        raise FormatError(path, f"class {cls!r} unknown; expected one of {', '.join(CLASSES)}",
-                          line=line)
+        raise FormatError(
+            path, f"class {cls!r} unknown; expected one of {', '.join(CLASSES)}", line=line
+        )
     d = CLASS_DEFAULTS[cls]
     weight = _num(path, line, row, "weight_kg")
     if weight <= 0:
@@ -124,8 +172,9 @@ def _row_values(path: Path, line: int, row: dict[str, str]) -> dict[str, object]
     if wings not in (0.0, 1.0):
         raise FormatError(path, f"wings {wings} must be 0 or 1", line=line)
     if legs not in (0.0, 2.0, 4.0):
-        raise FormatError(path, f"legs {legs} must be 0, 2 or 4 (legs with ground contact)",
-                          line=line)
+        raise FormatError(
+            path, f"legs {legs} must be 0, 2 or 4 (legs with ground contact)", line=line
+        )
     pts = np.array([_num(path, line, row, c) for c in POINT_COLUMNS]).reshape(10, 2)
     lengths = np.array([_num(path, line, row, c) for c in LIMB_COLUMNS])
     if np.any(lengths < 0):
@@ -139,20 +188,33 @@ def _row_values(path: Path, line: int, row: dict[str, str]) -> dict[str, object]
 
     stance, posture, skull = opt("stance"), opt("posture"), opt("skull")
     if stance not in STANCES:
-        raise FormatError(path, f"stance {stance!r}; expected one of {', '.join(STANCES)}",
-                          line=line)
+        raise FormatError(
+            path, f"stance {stance!r}; expected one of {', '.join(STANCES)}", line=line
+        )
     if posture not in POSTURES:
-        raise FormatError(path, f"posture {posture!r}; expected one of {', '.join(POSTURES)}",
-                          line=line)
+        raise FormatError(
+            path, f"posture {posture!r}; expected one of {', '.join(POSTURES)}", line=line
+        )
     back_chord = float(np.linalg.norm(pts[6] - pts[3]))
     skull_len = opt("skull_length", float)
     if skull_len is None:
         skull_len = 0.45 * back_chord
-    return dict(name=(row.get("name") or f"species_{line}").strip(),
-                german=(row.get("german") or "").strip(), cls=cls, weight=weight, wings=wings,
-                legs=legs, points=pts, lengths=lengths, stance=stance, posture=posture,
-                skull=skull, skull_length=float(skull_len), girth=float(opt("girth", float)),
-                counts=[int(opt(k, float)) for k in ("cervical", "trunk", "caudal")])
+    return dict(
+        name=(row.get("name") or f"species_{line}").strip(),
+        german=(row.get("german") or "").strip(),
+        cls=cls,
+        weight=weight,
+        wings=wings,
+        legs=legs,
+        points=pts,
+        lengths=lengths,
+        stance=stance,
+        posture=posture,
+        skull=skull,
+        skull_length=float(skull_len),
+        girth=float(opt("girth", float)),
+        counts=[int(opt(k, float)) for k in ("cervical", "trunk", "caudal")],
+    )
 
 
 def load_species(path: str | os.PathLike[str] | None = None) -> SpeciesTable:
@@ -176,20 +238,26 @@ def load_species(path: str | os.PathLike[str] | None = None) -> SpeciesTable:
         dup = [n for n in names if names.count(n) > 1][0]
         raise FormatError(p, f"species {dup!r} occurs more than once")
     return SpeciesTable(
-        name=tuple(names), german=tuple(v["german"] for v in vals),
+        name=tuple(names),
+        german=tuple(v["german"] for v in vals),
         cls=tuple(v["cls"] for v in vals),
-        weight=np.array([v["weight"] for v in vals]), wings=np.array([v["wings"] for v in vals]),
-        legs=np.array([v["legs"] for v in vals]), points=np.array([v["points"] for v in vals]),
+        weight=np.array([v["weight"] for v in vals]),
+        wings=np.array([v["wings"] for v in vals]),
+        legs=np.array([v["legs"] for v in vals]),
+        points=np.array([v["points"] for v in vals]),
         lengths=np.array([v["lengths"] for v in vals]),
-        stance=tuple(v["stance"] for v in vals), posture=tuple(v["posture"] for v in vals),
+        stance=tuple(v["stance"] for v in vals),
+        posture=tuple(v["posture"] for v in vals),
         skull=tuple(v["skull"] for v in vals),
         skull_length=np.array([v["skull_length"] for v in vals]),
         girth=np.array([v["girth"] for v in vals]),
-        counts=np.array([v["counts"] for v in vals], dtype=np.int64))
+        counts=np.array([v["counts"] for v in vals], dtype=np.int64),
+    )
 
 
-def append_species(path: str | os.PathLike[str], row: dict[str, object],
-                   base: str | os.PathLike[str] | None = None) -> Path:
+def append_species(
+    path: str | os.PathLike[str], row: dict[str, object], base: str | os.PathLike[str] | None = None
+) -> Path:
     """Append one species row to the CSV at ``path`` (created from ``base``/built-in if absent).
 
     The whole file is validated by :func:`load_species` before it is written (atomically).
@@ -205,6 +273,7 @@ def append_species(path: str | os.PathLike[str], row: dict[str, object],
     rows.append(row)
     cols = list(rows[0].keys())
     import io as _io
+
     buf = _io.StringIO()
     w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n")
     w.writeheader()
@@ -212,6 +281,7 @@ def append_species(path: str | os.PathLike[str], row: dict[str, object],
         w.writerow({k: r.get(k, "") for k in cols})
     # validate the new table before replacing anything
     import tempfile
+
     with tempfile.NamedTemporaryFile("w", suffix=".csv", delete=False, encoding="utf-8") as tmp:
         tmp.write(buf.getvalue())
     try:
@@ -221,5 +291,13 @@ def append_species(path: str | os.PathLike[str], row: dict[str, object],
     return write_text(p, buf.getvalue())
 
 
-__all__ = ["SpeciesTable", "load_species", "append_species", "SPECIES_CSV", "CLASSES",
-           "STANCES", "POSTURES", "LIMB_COLUMNS"]
+__all__ = [
+    "SpeciesTable",
+    "load_species",
+    "append_species",
+    "SPECIES_CSV",
+    "CLASSES",
+    "STANCES",
+    "POSTURES",
+    "LIMB_COLUMNS",
+]

@@ -14,8 +14,9 @@ from biomorph.errors import ParameterError
 from biomorph.io.svg_annotations import PathLike, read_annotations
 
 
-def species_row(path: PathLike, name: str, cls: str, weight: float, wings: bool,
-                legs: int) -> dict[str, object]:
+def species_row(
+    path: PathLike, name: str, cls: str, weight: float, wings: bool, legs: int
+) -> dict[str, object]:
     """A dataset row (see :mod:`biomorph.creature.dataset`) from an annotated SVG."""
     if cls not in CLASSES:
         raise ParameterError(f"class {cls!r} unknown; expected one of {', '.join(CLASSES)}")
@@ -24,9 +25,14 @@ def species_row(path: PathLike, name: str, cls: str, weight: float, wings: bool,
     if legs not in (0, 2, 4):
         raise ParameterError(f"legs {legs}: annotated species have 0, 2 or 4 legs on the ground")
     ann = read_annotations(path)
-    row: dict[str, object] = {"name": name, "german": "", "class": cls,
-                              "weight_kg": float(weight), "wings": int(bool(wings)),
-                              "legs": int(legs)}
+    row: dict[str, object] = {
+        "name": name,
+        "german": "",
+        "class": cls,
+        "weight_kg": float(weight),
+        "wings": int(bool(wings)),
+        "legs": int(legs),
+    }
     for k, col in enumerate(POINT_COLUMNS):
         row[col] = round(float(ann["points"].reshape(-1)[k]), 3)
     for k, col in enumerate(LIMB_COLUMNS):

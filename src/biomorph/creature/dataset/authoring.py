@@ -26,11 +26,34 @@ import numpy as np
 # --------------------------------------------------------------------------- descriptors
 #: Columns of :data:`DESCRIPTORS` (lengths relative to the back chord B, angles in degrees).
 DESCRIPTOR_COLUMNS = (
-    "name", "german", "class", "weight_kg", "wings", "legs", "stance", "posture",
-    "neck_len", "neck_ang", "neck_bend", "back_arch", "back_slope",
-    "tail_len", "tail_ang", "tail_bend",
-    "upper_arm", "lower_arm", "hand", "upper_leg", "lower_leg", "foot",
-    "skull", "skull_len", "girth", "cervical", "trunk", "caudal",
+    "name",
+    "german",
+    "class",
+    "weight_kg",
+    "wings",
+    "legs",
+    "stance",
+    "posture",
+    "neck_len",
+    "neck_ang",
+    "neck_bend",
+    "back_arch",
+    "back_slope",
+    "tail_len",
+    "tail_ang",
+    "tail_bend",
+    "upper_arm",
+    "lower_arm",
+    "hand",
+    "upper_leg",
+    "lower_leg",
+    "foot",
+    "skull",
+    "skull_len",
+    "girth",
+    "cervical",
+    "trunk",
+    "caudal",
 )
 
 # Weights follow the seed's appendix C.2 (mid-range where it gives a range).
@@ -100,8 +123,9 @@ def descriptors() -> list[dict[str, str]]:
     out = []
     for row in rows:
         if len(row) != len(DESCRIPTOR_COLUMNS):
-            raise ValueError(f"descriptor row {row[0]} has {len(row)} fields, "
-                             f"expected {len(DESCRIPTOR_COLUMNS)}")
+            raise ValueError(
+                f"descriptor row {row[0]} has {len(row)} fields, expected {len(DESCRIPTOR_COLUMNS)}"
+            )
         out.append(dict(zip(DESCRIPTOR_COLUMNS, row, strict=True)))
     return out
 
@@ -164,8 +188,9 @@ def layout(desc: dict[str, str]) -> dict[str, object]:
         feet.append([hip[0], 0.0])
     if legs == 4:
         feet.append([shoulder[0], 0.0])
-    extent = np.concatenate([pts, skull_end[None], np.array(feet).reshape(-1, 2),
-                             pts - [0, 0.5 * f["girth"]]])
+    extent = np.concatenate(
+        [pts, skull_end[None], np.array(feet).reshape(-1, 2), pts - [0, 0.5 * f["girth"]]]
+    )
     lo, hi = extent.min(axis=0), extent.max(axis=0)
     lo[1] = min(lo[1], 0.0)
     size = max(hi[0] - lo[0], hi[1] - lo[1])
@@ -173,16 +198,24 @@ def layout(desc: dict[str, str]) -> dict[str, object]:
     # mirror x so the head is on the left, centre horizontally, bottom at y = 10 px
     px = 500.0 - (pts[:, 0] - 0.5 * (lo[0] + hi[0])) * scale
     py = 10.0 + (pts[:, 1] - lo[1]) * scale
-    out: dict[str, object] = {k: desc[k] for k in ("name", "german", "class", "weight_kg",
-                                                     "wings", "legs")}
+    out: dict[str, object] = {
+        k: desc[k] for k in ("name", "german", "class", "weight_kg", "wings", "legs")
+    }
     for i in range(10):
         out[f"p{i}x"] = round(float(px[i]), 1)
         out[f"p{i}y"] = round(float(py[i]), 1)
     for k in ("upper_arm", "lower_arm", "hand", "upper_leg", "lower_leg", "foot"):
         out[k] = round(f[k] * scale, 1)
-    out.update(stance=stance, posture=posture, skull=desc["skull"],
-               skull_length=round(f["skull_len"] * scale, 1), girth=f["girth"],
-               cervical=desc["cervical"], trunk=desc["trunk"], caudal=desc["caudal"])
+    out.update(
+        stance=stance,
+        posture=posture,
+        skull=desc["skull"],
+        skull_length=round(f["skull_len"] * scale, 1),
+        girth=f["girth"],
+        cervical=desc["cervical"],
+        trunk=desc["trunk"],
+        caudal=desc["caudal"],
+    )
     return out
 
 

@@ -21,8 +21,7 @@ from biomorph.io.gltf.skin import _converted_rest
 
 
 def _is_motion(obj: Any) -> bool:
-    return all(hasattr(obj, a) for a in ("skeleton", "rotation", "root_position",
-                                         "frame_time"))
+    return all(hasattr(obj, a) for a in ("skeleton", "rotation", "root_position", "frame_time"))
 
 
 def _key_times(frames: int, frame_time: float) -> NDArray[np.float32]:
@@ -31,13 +30,21 @@ def _key_times(frames: int, frame_time: float) -> NDArray[np.float32]:
         raise InputError(f"frame_time is {frame_time!r} s; expected a positive number")
     times = (np.arange(frames, dtype=np.float64) * ft).astype(np.float32)
     if frames > 1 and np.any(np.diff(times) <= 0):
-        raise InputError(f"{frames} frames at frame_time {ft} s do not give strictly increasing "
-                         "float32 key times; shorten the motion")
+        raise InputError(
+            f"{frames} frames at frame_time {ft} s do not give strictly increasing "
+            "float32 key times; shorten the motion"
+        )
     return times
 
 
-def _add_motion(builder: _Builder, motion: Any, skeleton: JointSkeleton, joints: list[int],
-                y_up: bool, name: str | None) -> None:
+def _add_motion(
+    builder: _Builder,
+    motion: Any,
+    skeleton: JointSkeleton,
+    joints: list[int],
+    y_up: bool,
+    name: str | None,
+) -> None:
     n = len(skeleton)
     rot = np.asarray(motion.rotation, dtype=float)
     root_pos = np.asarray(motion.root_position, dtype=float)
@@ -65,48 +72,59 @@ def _add_motion(builder: _Builder, motion: Any, skeleton: JointSkeleton, joints:
     view = builder.view(block.tobytes())
     accessors = builder.doc["accessors"]
     first = len(accessors)
-    accessors.extend({"bufferView": view, "componentType": _FLOAT, "count": f, "type": "VEC4"}
-                     for _ in range(n))
+    accessors.extend(
+        {"bufferView": view, "componentType": _FLOAT, "count": f, "type": "VEC4"} for _ in range(n)
+    )
     for j in range(1, n):
         accessors[first + j]["byteOffset"] = j * f * 16
     samplers: list[dict[str, Any]] = [
-        {"input": t_acc, "output": first + j, "interpolation": "LINEAR"} for j in range(n)]
+        {"input": t_acc, "output": first + j, "interpolation": "LINEAR"} for j in range(n)
+    ]
     channels: list[dict[str, Any]] = [
-        {"sampler": j, "target": {"node": joints[j], "path": "rotation"}} for j in range(n)]
+        {"sampler": j, "target": {"node": joints[j], "path": "rotation"}} for j in range(n)
+    ]
     tr_acc = builder.accessor(_float32("motion root_position", root_pos))
     moved: list[tuple[int, int]] = [(int(r), tr_acc) for r in roots]
     jt = getattr(motion, "joint_translation", None)
     if jt is not None:  # translated inner joints (BVH position channels, HTR)
         jt = np.asarray(jt, dtype=float)
         if jt.shape != (f, n, 3):
-            raise InputError(f"motion joint_translation has shape {jt.shape}; expected "
-                             f"({f}, {n}, 3)")
+            raise InputError(
+                f"motion joint_translation has shape {jt.shape}; expected ({f}, {n}, 3)"
+            )
         inner = skeleton.parent >= 0
         varies = np.any(np.abs(jt - skeleton.offset) > 1e-9, axis=(0, 2)) & inner
         for j in np.flatnonzero(varies):
-            moved.append((int(j), builder.accessor(
-                _float32("motion joint_translation", jt[:, j]))))
+            moved.append((int(j), builder.accessor(_float32("motion joint_translation", jt[:, j]))))
     for j, acc in moved:
         samplers.append({"input": t_acc, "output": acc, "interpolation": "LINEAR"})
-        channels.append({"sampler": len(samplers) - 1,
-                         "target": {"node": joints[j], "path": "translation"}})
-    builder.doc["animations"].append({"name": name or "motion", "samplers": samplers,
-                                      "channels": channels})
+        channels.append(
+            {"sampler": len(samplers) - 1, "target": {"node": joints[j], "path": "translation"}}
+        )
+    builder.doc["animations"].append(
+        {"name": name or "motion", "samplers": samplers, "channels": channels}
+    )
 
 
-def _add_frames(builder: _Builder, frames: Sequence[Any], frame_time: float, y_up: bool,
-                name: str | None) -> None:
+def _add_frames(
+    builder: _Builder, frames: Sequence[Any], frame_time: float, y_up: bool, name: str | None
+) -> None:
     """Mesh frames of equal topology as morph targets with a stepping weight animation."""
     meshes = [Mesh.from_any(m) for m in frames]
     if len(meshes) < 2:
         raise InputError(f"frames holds {len(meshes)} mesh(es); expected at least 2")
     base = meshes[0]
     for k, m in enumerate(meshes[1:], start=1):
-        if m.n_vertices != base.n_vertices or m.faces.shape != base.faces.shape or \
-                not np.array_equal(m.faces, base.faces):
-            raise InputError(f"frame {k} has different topology ({m.n_vertices} vertices, "
-                             f"{m.n_faces} faces) from frame 0 ({base.n_vertices}, "
-                             f"{base.n_faces}); morph frames need identical faces")
+        if (
+            m.n_vertices != base.n_vertices
+            or m.faces.shape != base.faces.shape
+            or not np.array_equal(m.faces, base.faces)
+        ):
+            raise InputError(
+                f"frame {k} has different topology ({m.n_vertices} vertices, "
+                f"{m.n_faces} faces) from frame 0 ({base.n_vertices}, "
+                f"{base.n_faces}); morph frames need identical faces"
+            )
     times = _key_times(len(meshes), frame_time)
     prim, src = _mesh_primitive(builder, base, y_up)  # ids of frame 0 label all frames
     pick = slice(None) if src is None else src
@@ -116,8 +134,7 @@ def _add_frames(builder: _Builder, frames: Sequence[Any], frame_time: float, y_u
         base_nrm = _unit_rows(_y_up(np.asarray(base.normals, float)[pick], y_up))
     targets = []
     for m in meshes[1:]:
-        delta = _float32("frame vertices",
-                         _y_up(m.vertices[pick], y_up, builder.scale) - base_pos)
+        delta = _float32("frame vertices", _y_up(m.vertices[pick], y_up, builder.scale) - base_pos)
         target = {"POSITION": builder.accessor(delta, target=ARRAY_BUFFER, bounds=True)}
         if with_normals:  # normal displacements, so shading follows the shape
             dn = _unit_rows(_y_up(np.asarray(m.normals, float)[pick], y_up)) - base_nrm
@@ -130,11 +147,18 @@ def _add_frames(builder: _Builder, frames: Sequence[Any], frame_time: float, y_u
     node = builder.node({"name": label, "mesh": len(builder.doc["meshes"]) - 1}, root=True)
     weights = np.zeros((len(meshes), k), np.float32)
     weights[np.arange(1, len(meshes)), np.arange(k)] = 1.0
-    sampler = {"input": builder.accessor(times, bounds=True),
-               "output": builder.accessor(weights.reshape(-1)), "interpolation": "LINEAR"}
-    builder.doc["animations"].append({
-        "name": f"{label}_growth", "samplers": [sampler],
-        "channels": [{"sampler": 0, "target": {"node": node, "path": "weights"}}]})
+    sampler = {
+        "input": builder.accessor(times, bounds=True),
+        "output": builder.accessor(weights.reshape(-1)),
+        "interpolation": "LINEAR",
+    }
+    builder.doc["animations"].append(
+        {
+            "name": f"{label}_growth",
+            "samplers": [sampler],
+            "channels": [{"sampler": 0, "target": {"node": node, "path": "weights"}}],
+        }
+    )
 
 
 def _scaled(skeleton: JointSkeleton, motion: Any, k: float) -> tuple[JointSkeleton, Any]:
@@ -143,8 +167,11 @@ def _scaled(skeleton: JointSkeleton, motion: Any, k: float) -> tuple[JointSkelet
     if motion is None:
         return sk, None
     jt = getattr(motion, "joint_translation", None)
-    view = SimpleNamespace(skeleton=sk, rotation=motion.rotation,
-                           root_position=np.asarray(motion.root_position, dtype=float) * k,
-                           frame_time=motion.frame_time,
-                           joint_translation=None if jt is None else np.asarray(jt, float) * k)
+    view = SimpleNamespace(
+        skeleton=sk,
+        rotation=motion.rotation,
+        root_position=np.asarray(motion.root_position, dtype=float) * k,
+        frame_time=motion.frame_time,
+        joint_translation=None if jt is None else np.asarray(jt, float) * k,
+    )
     return sk, view

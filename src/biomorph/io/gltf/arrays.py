@@ -64,13 +64,16 @@ def _id_array(name: str, ids: NDArray[np.int64]) -> NDArray:
     if ids.size == 0 or (ids.min() >= 0 and ids.max() <= 65535):
         return ids.astype(np.uint16)
     if np.abs(ids).max() > 2**24:
-        raise InputError(f"face id {name!r} holds {int(np.abs(ids).max())}; glTF custom "
-                         "attributes store ids exactly only up to 16777216")
+        raise InputError(
+            f"face id {name!r} holds {int(np.abs(ids).max())}; glTF custom "
+            "attributes store ids exactly only up to 16777216"
+        )
     return ids.astype(np.float32)
 
 
-def _joint_nodes(names: Sequence[str], translation: NDArray, rotation: NDArray
-                 ) -> list[dict[str, Any]]:
+def _joint_nodes(
+    names: Sequence[str], translation: NDArray, rotation: NDArray
+) -> list[dict[str, Any]]:
     """One node per joint with its local TRS; zero translations and identity rotations
     (``|xyz| <= 1e-8``, ``w > 0``) are left out."""
     has_t = np.any(translation != 0, axis=1).tolist()

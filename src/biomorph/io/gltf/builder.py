@@ -20,25 +20,48 @@ ARRAY_BUFFER = 34962
 ELEMENT_ARRAY_BUFFER = 34963
 
 _FLOAT, _UINT, _USHORT, _UBYTE, _SHORT, _BYTE = 5126, 5125, 5123, 5121, 5122, 5120
-_COMPONENT = {np.dtype("float32"): _FLOAT, np.dtype("uint32"): _UINT,
-              np.dtype("uint16"): _USHORT, np.dtype("uint8"): _UBYTE,
-              np.dtype("int16"): _SHORT, np.dtype("int8"): _BYTE}
+_COMPONENT = {
+    np.dtype("float32"): _FLOAT,
+    np.dtype("uint32"): _UINT,
+    np.dtype("uint16"): _USHORT,
+    np.dtype("uint8"): _UBYTE,
+    np.dtype("int16"): _SHORT,
+    np.dtype("int8"): _BYTE,
+}
 _TYPE = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
 _TRIANGLES = 4
 
 
 # the document is a plain dict of lists of dicts (the glTF JSON itself), serialised with
 # json.dumps: pygltflib's dataclass-to-JSON conversion cost more than everything else
-_BONE_MATERIAL = {"name": "bone", "doubleSided": False,
-                  "pbrMetallicRoughness": {"baseColorFactor": [0.89, 0.85, 0.78, 1.0],
-                                           "metallicFactor": 0.0, "roughnessFactor": 0.7}}
-_SKIN_MATERIAL = {"name": "skin", "doubleSided": False,
-                  "pbrMetallicRoughness": {"baseColorFactor": [0.80, 0.55, 0.45, 0.55],
-                                           "metallicFactor": 0.0, "roughnessFactor": 0.6},
-                  "alphaMode": "BLEND"}
-_MESH_MATERIAL = {"name": "surface", "doubleSided": True,
-                  "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
-                                           "metallicFactor": 0.0, "roughnessFactor": 0.8}}
+_BONE_MATERIAL = {
+    "name": "bone",
+    "doubleSided": False,
+    "pbrMetallicRoughness": {
+        "baseColorFactor": [0.89, 0.85, 0.78, 1.0],
+        "metallicFactor": 0.0,
+        "roughnessFactor": 0.7,
+    },
+}
+_SKIN_MATERIAL = {
+    "name": "skin",
+    "doubleSided": False,
+    "pbrMetallicRoughness": {
+        "baseColorFactor": [0.80, 0.55, 0.45, 0.55],
+        "metallicFactor": 0.0,
+        "roughnessFactor": 0.6,
+    },
+    "alphaMode": "BLEND",
+}
+_MESH_MATERIAL = {
+    "name": "surface",
+    "doubleSided": True,
+    "pbrMetallicRoughness": {
+        "baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+        "metallicFactor": 0.0,
+        "roughnessFactor": 0.8,
+    },
+}
 
 
 # =========================================================================== buffer builder
@@ -50,9 +73,17 @@ class _Builder:
         if name is not None:
             scene["name"] = name
         self.doc: dict[str, Any] = {
-            "asset": {"version": "2.0", "generator": "biomorph"}, "scene": 0,
-            "scenes": [scene], "nodes": [], "meshes": [], "skins": [], "animations": [],
-            "materials": [], "accessors": [], "bufferViews": []}
+            "asset": {"version": "2.0", "generator": "biomorph"},
+            "scene": 0,
+            "scenes": [scene],
+            "nodes": [],
+            "meshes": [],
+            "skins": [],
+            "animations": [],
+            "materials": [],
+            "accessors": [],
+            "bufferViews": [],
+        }
         self.chunks: list[bytes] = []
         self.size = 0
         self._materials: dict[str, int] = {}
@@ -75,9 +106,17 @@ class _Builder:
         self.size += len(data)
         return len(views) - 1
 
-    def accessor(self, arr: NDArray, *, target: int | None = None, bounds: bool = False,
-                 normalized: bool = False, matrix: bool = False, view: int | None = None,
-                 offset: int = 0) -> int:
+    def accessor(
+        self,
+        arr: NDArray,
+        *,
+        target: int | None = None,
+        bounds: bool = False,
+        normalized: bool = False,
+        matrix: bool = False,
+        view: int | None = None,
+        offset: int = 0,
+    ) -> int:
         """Add an accessor for ``arr`` (``(count,)`` or ``(count, k)``, or ``(count, 4, 4)``
         with ``matrix=True``: written column-major). ``bounds`` writes exact min/max."""
         a = np.asarray(arr)
@@ -96,9 +135,12 @@ class _Builder:
                 view = self.view(padded.tobytes(), target, stride=stride)
             else:
                 view = self.view(data.tobytes(), target)
-        acc: dict[str, Any] = {"bufferView": view, "componentType": comp,
-                               "count": int(a.shape[0]), "type": "MAT4" if matrix
-                               else _TYPE[width]}
+        acc: dict[str, Any] = {
+            "bufferView": view,
+            "componentType": comp,
+            "count": int(a.shape[0]),
+            "type": "MAT4" if matrix else _TYPE[width],
+        }
         if offset:
             acc["byteOffset"] = offset
         if normalized:
@@ -143,8 +185,7 @@ class _Builder:
         js = self.json_text({"byteLength": size} if size else None).encode("utf-8")
         js += b" " * (-len(js) % 4)
         total = 12 + 8 + len(js) + (8 + size if size else 0)
-        parts = [struct.pack("<4sII", b"glTF", 2, total), struct.pack("<I4s", len(js), b"JSON"),
-                 js]
+        parts = [struct.pack("<4sII", b"glTF", 2, total), struct.pack("<I4s", len(js), b"JSON"), js]
         if size:
             parts += [struct.pack("<I4s", size, b"BIN\0"), *self.chunks, b"\0" * pad]
         return parts

@@ -21,8 +21,9 @@ from biomorph.io.gltf.builder import (
 )
 
 
-def _per_vertex_ids(mesh: Mesh) -> tuple[Mesh, dict[str, NDArray[np.int64]],
-                                          NDArray[np.int64] | None]:
+def _per_vertex_ids(
+    mesh: Mesh,
+) -> tuple[Mesh, dict[str, NDArray[np.int64]], NDArray[np.int64] | None]:
     """Turn per-face ids into per-vertex ids, splitting vertices shared by faces that differ.
 
     Returns the (possibly re-indexed) mesh, the per-vertex id arrays and the source vertex
@@ -47,11 +48,14 @@ def _per_vertex_ids(mesh: Mesh) -> tuple[Mesh, dict[str, NDArray[np.int64]],
     uniq, inverse = np.unique(rows, axis=0, return_inverse=True)
     src = uniq[:, 0]
     faces = inverse.reshape(-1, 3)
-    new = Mesh(mesh.vertices[src], faces,
-               normals=None if mesh.normals is None else mesh.normals[src],
-               uv=None if mesh.uv is None else mesh.uv[src],
-               vertex_colors=None if mesh.vertex_colors is None else mesh.vertex_colors[src],
-               face_ids=mesh.face_ids)
+    new = Mesh(
+        mesh.vertices[src],
+        faces,
+        normals=None if mesh.normals is None else mesh.normals[src],
+        uv=None if mesh.uv is None else mesh.uv[src],
+        vertex_colors=None if mesh.vertex_colors is None else mesh.vertex_colors[src],
+        face_ids=mesh.face_ids,
+    )
     return new, {k: uniq[:, 1 + i] for i, k in enumerate(keys)}, src
 
 
@@ -68,8 +72,9 @@ def _as_meshes(obj: Any) -> list[Mesh]:
 
     A 2-tuple/list whose first element is an ``(n, 3)`` array is one ``(vertices, faces)``.
     """
-    if isinstance(obj, Mesh | Mapping) or (isinstance(obj, tuple | list) and len(obj) == 2
-                                           and _is_vertex_array(obj[0])):
+    if isinstance(obj, Mesh | Mapping) or (
+        isinstance(obj, tuple | list) and len(obj) == 2 and _is_vertex_array(obj[0])
+    ):
         return [Mesh.from_any(obj)]
     if isinstance(obj, Sequence) and not isinstance(obj, str | bytes):
         return [Mesh.from_any(m) for m in obj]
@@ -95,13 +100,12 @@ def _merge(meshes: list[Mesh]) -> Mesh:
         keys.extend(k for k in m.face_ids if k not in keys)
     face_ids = {}
     for k in keys:
-        face_ids[k] = np.concatenate([
-            m.face_ids[k] if k in m.face_ids else np.full(m.n_faces, -1, np.int64)
-            for m in meshes])
+        face_ids[k] = np.concatenate(
+            [m.face_ids[k] if k in m.face_ids else np.full(m.n_faces, -1, np.int64) for m in meshes]
+        )
     if "mesh" not in face_ids:
         face_ids["mesh"] = np.repeat(np.arange(len(meshes)), counts)
-    return Mesh(np.concatenate([m.vertices for m in meshes]), faces, face_ids=face_ids,
-                **extra)
+    return Mesh(np.concatenate([m.vertices for m in meshes]), faces, face_ids=face_ids, **extra)
 
 
 def _indices(builder: _Builder, faces: NDArray, n_vertices: int) -> int:
@@ -110,20 +114,21 @@ def _indices(builder: _Builder, faces: NDArray, n_vertices: int) -> int:
     return builder.accessor(faces.reshape(-1).astype(dtype), target=ELEMENT_ARRAY_BUFFER)
 
 
-def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool,
-                    vertex_attributes: Mapping[str, Any] | None = None
-                    ) -> tuple[dict[str, Any], NDArray[np.int64] | None]:
+def _mesh_primitive(
+    builder: _Builder, mesh: Mesh, y_up: bool, vertex_attributes: Mapping[str, Any] | None = None
+) -> tuple[dict[str, Any], NDArray[np.int64] | None]:
     """A triangle primitive for ``mesh``; also the vertex mapping if ids split vertices.
 
     ``vertex_attributes`` maps names to float arrays ``(n_vertices,)`` or
     ``(n_vertices, k)`` (k <= 4), written as custom attributes ``_NAME`` (float32)."""
     if mesh.n_faces == 0 or mesh.n_vertices == 0:
-        raise InputError(f"mesh has {mesh.n_vertices} vertices and {mesh.n_faces} faces; "
-                         "expected at least one triangle")
+        raise InputError(
+            f"mesh has {mesh.n_vertices} vertices and {mesh.n_faces} faces; "
+            "expected at least one triangle"
+        )
     mesh, vertex_ids, src = _per_vertex_ids(mesh)
     pos = _float32("mesh vertices", _y_up(mesh.vertices, y_up, builder.scale))
-    attrs: dict[str, int] = {"POSITION": builder.accessor(pos, target=ARRAY_BUFFER,
-                                                          bounds=True)}
+    attrs: dict[str, int] = {"POSITION": builder.accessor(pos, target=ARRAY_BUFFER, bounds=True)}
     if mesh.normals is not None:
         nrm = _unit_rows(_y_up(mesh.normals, y_up)).astype(np.float32)
         attrs["NORMAL"] = builder.accessor(nrm, target=ARRAY_BUFFER)
@@ -135,27 +140,38 @@ def _mesh_primitive(builder: _Builder, mesh: Mesh, y_up: bool,
         col = np.ascontiguousarray(mesh.vertex_colors, dtype=np.uint8)
         attrs["COLOR_0"] = builder.accessor(col, target=ARRAY_BUFFER, normalized=True)
     for key, ids in vertex_ids.items():
-        attrs[_id_attribute_name(key)] = builder.accessor(_id_array(key, ids),
-                                                          target=ARRAY_BUFFER)
+        attrs[_id_attribute_name(key)] = builder.accessor(_id_array(key, ids), target=ARRAY_BUFFER)
     for key, values in (vertex_attributes or {}).items():
         arr = np.asarray(values, dtype=np.float64)
         if src is not None:
             arr = arr[src]
-        if arr.shape[0] != mesh.n_vertices or arr.ndim > 2 or (arr.ndim == 2 and
-                                                                 arr.shape[1] > 4):
-            raise InputError(f"vertex attribute {key!r} has shape {arr.shape}; expected "
-                             f"({mesh.n_vertices},) or ({mesh.n_vertices}, k<=4)")
+        if arr.shape[0] != mesh.n_vertices or arr.ndim > 2 or (arr.ndim == 2 and arr.shape[1] > 4):
+            raise InputError(
+                f"vertex attribute {key!r} has shape {arr.shape}; expected "
+                f"({mesh.n_vertices},) or ({mesh.n_vertices}, k<=4)"
+            )
         name = "_" + ("".join(ch if ch.isalnum() else "_" for ch in key).upper() or "DATA")
-        attrs[name] = builder.accessor(_float32(f"vertex attribute {key}", arr),
-                                       target=ARRAY_BUFFER)
-    prim = {"attributes": attrs, "indices": _indices(builder, mesh.faces, mesh.n_vertices),
-            "material": builder.material(_MESH_MATERIAL), "mode": _TRIANGLES}
+        attrs[name] = builder.accessor(
+            _float32(f"vertex attribute {key}", arr), target=ARRAY_BUFFER
+        )
+    prim = {
+        "attributes": attrs,
+        "indices": _indices(builder, mesh.faces, mesh.n_vertices),
+        "material": builder.material(_MESH_MATERIAL),
+        "mode": _TRIANGLES,
+    }
     return prim, src
 
 
-def _add_mesh_nodes(builder: _Builder, meshes: list[Mesh], *, merge: bool, y_up: bool,
-                    name: str | None, vertex_attributes: Mapping[str, Any] | None = None
-                    ) -> list[int]:
+def _add_mesh_nodes(
+    builder: _Builder,
+    meshes: list[Mesh],
+    *,
+    merge: bool,
+    y_up: bool,
+    name: str | None,
+    vertex_attributes: Mapping[str, Any] | None = None,
+) -> list[int]:
     if vertex_attributes and len(meshes) != 1:
         raise InputError(f"vertex_attributes need exactly one mesh; got {len(meshes)}")
     groups = [meshes[0]] if vertex_attributes else ([_merge(meshes)] if merge else meshes)
@@ -166,6 +182,7 @@ def _add_mesh_nodes(builder: _Builder, meshes: list[Mesh], *, merge: bool, y_up:
             label = f"{label}_{i}"
         prim, _ = _mesh_primitive(builder, mesh, y_up, vertex_attributes)
         builder.doc["meshes"].append({"name": label, "primitives": [prim]})
-        nodes.append(builder.node({"name": label, "mesh": len(builder.doc["meshes"]) - 1},
-                                  root=True))
+        nodes.append(
+            builder.node({"name": label, "mesh": len(builder.doc["meshes"]) - 1}, root=True)
+        )
     return nodes

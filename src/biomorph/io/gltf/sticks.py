@@ -18,14 +18,47 @@ from biomorph.io.gltf.arrays import _unit_rows
 
 # unit solids in a bone frame: x, y across (half-width 0.5), z along the bone from 0 to 1;
 # listed as triangles with their own corners so flat normals come out per triangle
-_BOX = np.array([[-.5, -.5, 0], [.5, -.5, 0], [.5, .5, 0], [-.5, .5, 0],
-                 [-.5, -.5, 1], [.5, -.5, 1], [.5, .5, 1], [-.5, .5, 1]])
-_BOX_TRIS = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
-                      [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
-_OCTA = np.array([[0, 0, 0], [-.5, -.5, .15], [.5, -.5, .15], [.5, .5, .15], [-.5, .5, .15],
-                  [0, 0, 1]])
-_OCTA_TRIS = np.array([[0, 2, 1], [0, 3, 2], [0, 4, 3], [0, 1, 4],
-                       [5, 1, 2], [5, 2, 3], [5, 3, 4], [5, 4, 1]])
+_BOX = np.array(
+    [
+        [-0.5, -0.5, 0],
+        [0.5, -0.5, 0],
+        [0.5, 0.5, 0],
+        [-0.5, 0.5, 0],
+        [-0.5, -0.5, 1],
+        [0.5, -0.5, 1],
+        [0.5, 0.5, 1],
+        [-0.5, 0.5, 1],
+    ]
+)
+_BOX_TRIS = np.array(
+    [
+        [0, 2, 1],
+        [0, 3, 2],
+        [4, 5, 6],
+        [4, 6, 7],
+        [0, 1, 5],
+        [0, 5, 4],
+        [1, 2, 6],
+        [1, 6, 5],
+        [2, 3, 7],
+        [2, 7, 6],
+        [3, 0, 4],
+        [3, 4, 7],
+    ]
+)
+_OCTA = np.array(
+    [
+        [0, 0, 0],
+        [-0.5, -0.5, 0.15],
+        [0.5, -0.5, 0.15],
+        [0.5, 0.5, 0.15],
+        [-0.5, 0.5, 0.15],
+        [0, 0, 1],
+    ]
+)
+_OCTA_TRIS = np.array(
+    [[0, 2, 1], [0, 3, 2], [0, 4, 3], [0, 1, 4], [5, 1, 2], [5, 2, 3], [5, 3, 4], [5, 4, 1]]
+)
 _SHAPES = {"box": (_BOX, _BOX_TRIS), "octahedron": (_OCTA, _OCTA_TRIS)}
 
 
@@ -37,8 +70,9 @@ def _bone_frames(direction: NDArray) -> tuple[NDArray, NDArray]:
     return u, v
 
 
-def _bone_solids(skeleton: JointSkeleton, world: NDArray, shape: str,
-                 width: float | ArrayLike | None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+def _bone_solids(
+    skeleton: JointSkeleton, world: NDArray, shape: str, width: float | ArrayLike | None
+) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """Bone geometry in bind (rest world) space.
 
     Returns ``(positions (k, 3), normals (k, 3), joint (k,), faces (t, 3))``: one solid per
@@ -73,8 +107,10 @@ def _bone_solids(skeleton: JointSkeleton, world: NDArray, shape: str,
         if w.ndim == 0:
             w = np.full(n, float(w))
         if w.shape != (n,) or not np.isfinite(w).all() or np.any(w <= 0):
-            raise ParameterError(f"bone_width must be a positive number or {n} positive "
-                                 f"numbers (one per joint, metres); got {np.asarray(width)!r}")
+            raise ParameterError(
+                f"bone_width must be a positive number or {n} positive "
+                f"numbers (one per joint, metres); got {np.asarray(width)!r}"
+            )
         w_bone, w_tip = w[owner_a], w[tips]
     template, tris = _SHAPES[shape]
 
@@ -88,8 +124,9 @@ def _bone_solids(skeleton: JointSkeleton, world: NDArray, shape: str,
     axes_t = np.eye(3)[None] * w_tip[:, None, None]
     origin_t = np.tile([0.0, 0.0, -0.5], (tips.size, 1)) * w_tip[:, None]
 
-    def solids(templ: NDArray, tri: NDArray, axes: NDArray, origin: NDArray,
-               joints: NDArray) -> tuple[NDArray, NDArray]:
+    def solids(
+        templ: NDArray, tri: NDArray, axes: NDArray, origin: NDArray, joints: NDArray
+    ) -> tuple[NDArray, NDArray]:
         corners = templ[tri].reshape(-1, 3)  # (3t, 3) unshared corners
         local = origin[:, None, :] + np.einsum("kc,bcj->bkj", corners, axes)
         rot, trans = world[joints, :3, :3], world[joints, :3, 3]
@@ -107,14 +144,17 @@ def _bone_solids(skeleton: JointSkeleton, world: NDArray, shape: str,
     return pos, normals, joint, faces
 
 
-def _joint_meshes(skeleton: JointSkeleton, world: NDArray, meshes: Mapping[Any, Any],
-                  scale: float = 1.0) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+def _joint_meshes(
+    skeleton: JointSkeleton, world: NDArray, meshes: Mapping[Any, Any], scale: float = 1.0
+) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """Per-joint meshes given in the joint's local frame, moved to bind space."""
     owner, parts = [], []
     for key, obj in meshes.items():
         j = skeleton.index(key) if isinstance(key, str) else int(key)
         if not 0 <= j < len(skeleton):
-            raise ParameterError(f"meshes key {key!r} is not a joint index in 0..{len(skeleton)-1}")
+            raise ParameterError(
+                f"meshes key {key!r} is not a joint index in 0..{len(skeleton) - 1}"
+            )
         m = Mesh.from_any(obj)
         if m.normals is None:
             m = m.compute_normals()

@@ -27,15 +27,16 @@ def read_gltf_summary(path: PathLike) -> dict[str, Any]:
     try:
         doc = g.GLTF2().load(os.fspath(p))
     except Exception as exc:  # pygltflib raises many kinds on malformed input
-        raise FormatError(path, f"not a readable glTF/GLB file ({type(exc).__name__}: "
-                                f"{exc}); expected glTF 2.0") from None
+        raise FormatError(
+            path, f"not a readable glTF/GLB file ({type(exc).__name__}: {exc}); expected glTF 2.0"
+        ) from None
     if doc is None or doc.asset is None:
         raise FormatError(path, "not a glTF 2.0 file: no asset header")
     accessors = doc.accessors or []
 
     def count(idx: int | None) -> int:
         if idx is None or not 0 <= idx < len(accessors):
-            raise FormatError(path, f"accessor index {idx!r} out of range 0..{len(accessors)-1}")
+            raise FormatError(path, f"accessor index {idx!r} out of range 0..{len(accessors) - 1}")
         return int(accessors[idx].count)
 
     vertices = triangles = primitives = 0
@@ -62,8 +63,11 @@ def read_gltf_summary(path: PathLike) -> dict[str, Any]:
     duration = 0.0
     for anim in doc.animations or []:
         for s in anim.samplers:
-            acc = accessors[s.input] if s.input is not None and 0 <= s.input < len(accessors) \
+            acc = (
+                accessors[s.input]
+                if s.input is not None and 0 <= s.input < len(accessors)
                 else None
+            )
             if acc is not None and acc.max:
                 duration = max(duration, float(acc.max[0]))
     return {

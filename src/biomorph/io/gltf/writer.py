@@ -17,14 +17,26 @@ from biomorph.io.gltf.meshes import _add_mesh_nodes, _as_meshes
 from biomorph.io.gltf.skin import _add_skeleton
 
 
-def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
-               bone_shape: str | None = "box", bone_width: float | ArrayLike | None = None,
-               meshes: Any = None, y_up: bool = True, name: str | None = None, merge: bool = True,
-               frames: Sequence[Any] | None = None, frame_time: float = 1 / 30,
-               scale: float = 1.0, joint_extras: Sequence[Mapping[str, Any] | None] | None = None,
-               extras: Mapping[str, Any] | None = None,
-               vertex_attributes: Mapping[str, Any] | None = None,
-               joint_geometry: Any = None, skinned_mesh: Any = None) -> Path:
+def write_gltf(
+    path: PathLike,
+    obj: Any = None,
+    *,
+    motion: Any = None,
+    bone_shape: str | None = "box",
+    bone_width: float | ArrayLike | None = None,
+    meshes: Any = None,
+    y_up: bool = True,
+    name: str | None = None,
+    merge: bool = True,
+    frames: Sequence[Any] | None = None,
+    frame_time: float = 1 / 30,
+    scale: float = 1.0,
+    joint_extras: Sequence[Mapping[str, Any] | None] | None = None,
+    extras: Mapping[str, Any] | None = None,
+    vertex_attributes: Mapping[str, Any] | None = None,
+    joint_geometry: Any = None,
+    skinned_mesh: Any = None,
+) -> Path:
     """Write a skeleton, an animated skeleton, meshes or mesh frames as binary glTF (.glb).
 
     Parameters
@@ -76,13 +88,16 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
         skeleton = obj.skeleton
     if motion is not None:
         if not _is_motion(motion):
-            raise ParameterError(f"motion is a {type(motion).__name__}; expected an object with "
-                                 ".skeleton, .rotation, .root_position and .frame_time")
+            raise ParameterError(
+                f"motion is a {type(motion).__name__}; expected an object with "
+                ".skeleton, .rotation, .root_position and .frame_time"
+            )
         if skeleton is None:
             skeleton = motion.skeleton
         if len(motion.skeleton) != len(skeleton):
-            raise InputError(f"motion animates {len(motion.skeleton)} joints; the skeleton "
-                             f"has {len(skeleton)}")
+            raise InputError(
+                f"motion animates {len(motion.skeleton)} joints; the skeleton has {len(skeleton)}"
+            )
     if not isinstance(y_up, bool | np.bool_):
         raise ParameterError(f"y_up must be True or False; got {y_up!r}")
     if not (isinstance(scale, int | float | np.number) and np.isfinite(scale) and scale > 0):
@@ -93,12 +108,24 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
         if bone_width is not None:
             bone_width = np.asarray(bone_width, dtype=float) * scale
     if skeleton is not None:
-        joint_meshes = meshes if isinstance(meshes, Mapping) and not (
-            "vertices" in meshes and "faces" in meshes) else None
-        joints = _add_skeleton(builder, skeleton, bone_shape=bone_shape, bone_width=bone_width,
-                               joint_meshes=joint_meshes, y_up=y_up, name=name,
-                               joint_extras=joint_extras, extras=extras,
-                               joint_geometry=joint_geometry, skinned=skinned_mesh)
+        joint_meshes = (
+            meshes
+            if isinstance(meshes, Mapping) and not ("vertices" in meshes and "faces" in meshes)
+            else None
+        )
+        joints = _add_skeleton(
+            builder,
+            skeleton,
+            bone_shape=bone_shape,
+            bone_width=bone_width,
+            joint_meshes=joint_meshes,
+            y_up=y_up,
+            name=name,
+            joint_extras=joint_extras,
+            extras=extras,
+            joint_geometry=joint_geometry,
+            skinned=skinned_mesh,
+        )
         if motion is not None:
             _add_motion(builder, motion, skeleton, joints, y_up, name)
         if meshes is not None and joint_meshes is None:
@@ -110,24 +137,45 @@ def write_gltf(path: PathLike, obj: Any = None, *, motion: Any = None,
         if meshes is not None:
             parts.extend(_as_meshes(meshes))
         if parts:
-            _add_mesh_nodes(builder, parts, merge=merge, y_up=y_up, name=name,
-                            vertex_attributes=vertex_attributes)
+            _add_mesh_nodes(
+                builder,
+                parts,
+                merge=merge,
+                y_up=y_up,
+                name=name,
+                vertex_attributes=vertex_attributes,
+            )
         elif frames is None:
-            raise InputError("nothing to write: expected a JointSkeleton, a motion, meshes or "
-                             "frames")
+            raise InputError(
+                "nothing to write: expected a JointSkeleton, a motion, meshes or frames"
+            )
     if frames is not None:
         _add_frames(builder, frames, frame_time, y_up, name)
     return builder.save(path)
 
 
-def write_mesh(path: PathLike, mesh: Any, *, y_up: bool = True, name: str | None = None,
-               merge: bool = True, scale: float = 1.0) -> Path:
+def write_mesh(
+    path: PathLike,
+    mesh: Any,
+    *,
+    y_up: bool = True,
+    name: str | None = None,
+    merge: bool = True,
+    scale: float = 1.0,
+) -> Path:
     """Write one mesh or a list of meshes as ``.glb`` (see :func:`write_gltf`)."""
-    return write_gltf(path, None, meshes=_as_meshes(mesh), y_up=y_up, name=name, merge=merge,
-                      scale=scale)
+    return write_gltf(
+        path, None, meshes=_as_meshes(mesh), y_up=y_up, name=name, merge=merge, scale=scale
+    )
 
 
-def write_mesh_animation(path: PathLike, frames: Sequence[Any], frame_time: float, *,
-                         y_up: bool = True, name: str | None = None) -> Path:
+def write_mesh_animation(
+    path: PathLike,
+    frames: Sequence[Any],
+    frame_time: float,
+    *,
+    y_up: bool = True,
+    name: str | None = None,
+) -> Path:
     """Write equal-topology mesh frames (e.g. a growing leaf) as a morph-target animation."""
     return write_gltf(path, None, frames=frames, frame_time=frame_time, y_up=y_up, name=name)

@@ -19,13 +19,18 @@ AUTO = "auto"
 N_PC_SLIDERS = 6
 LIMB_KINDS = ("leg", "arm", "wing", "fin")
 #: Bone colour of each kind (palette index = position in LIMB_KINDS + 1, body 0, + 4).
-KIND_COLOURS = {kind: draw.hex_colour(draw.palette(np.array([i + 4]))[0])
-                for i, kind in enumerate(("body", *LIMB_KINDS))}
+KIND_COLOURS = {
+    kind: draw.hex_colour(draw.palette(np.array([i + 4]))[0])
+    for i, kind in enumerate(("body", *LIMB_KINDS))
+}
 STABLE, UNSTABLE, SUPPORT = (30, 160, 60), (220, 40, 40), (240, 150, 20)
-LEGEND = ("Bones by kind: " + ", ".join(f"{k} `{c}`" for k, c in KIND_COLOURS.items())
-          + f"; centre of mass `{draw.hex_colour(STABLE)}` stable / "
-          f"`{draw.hex_colour(UNSTABLE)}` tips over; support polygon "
-          f"`{draw.hex_colour(SUPPORT)}` (sizes in metres).")
+LEGEND = (
+    "Bones by kind: "
+    + ", ".join(f"{k} `{c}`" for k, c in KIND_COLOURS.items())
+    + f"; centre of mass `{draw.hex_colour(STABLE)}` stable / "
+    f"`{draw.hex_colour(UNSTABLE)}` tips over; support polygon "
+    f"`{draw.hex_colour(SUPPORT)}` (sizes in metres)."
+)
 
 
 class CreatureTab(StudioTab):
@@ -33,8 +38,10 @@ class CreatureTab(StudioTab):
 
     key = "creature"
     label = "Creature"
-    getting_started = ("Getting started: change the seed or any parameter and the animal is "
-                       "generated again; Next step rebuilds it step by step.")
+    getting_started = (
+        "Getting started: change the seed or any parameter and the animal is "
+        "generated again; Next step rebuilds it step by step."
+    )
     y_up = True
 
     def __init__(self, app: Any) -> None:
@@ -58,35 +65,74 @@ class CreatureTab(StudioTab):
         with gui.add_folder("Parameters"):
             self.seed = gui.add_number("Seed", initial_value=7, min=0, max=2**31 - 1, step=1)
             self.cls = gui.add_dropdown("Class", options=(AUTO, *CLASSES), initial_value=AUTO)
-            self.legs = gui.add_dropdown("Legs", options=(AUTO, *map(str, LEG_COUNTS)),
-                                         initial_value="4")
-            self.wings = gui.add_dropdown("Wings", options=(AUTO, "yes", "no"),
-                                          initial_value="no")
+            self.legs = gui.add_dropdown(
+                "Legs", options=(AUTO, *map(str, LEG_COUNTS)), initial_value="4"
+            )
+            self.wings = gui.add_dropdown("Wings", options=(AUTO, "yes", "no"), initial_value="no")
             self.arms = gui.add_checkbox("Arms", initial_value=False)
             self.centaur = gui.add_checkbox("Centaur girdle", initial_value=False)
-            self.weight = gui.add_number("Weight kg (0 = sample)", initial_value=0.0, min=0.0,
-                                         max=200000.0, step=1.0,
-                                         hint="Body mass in kg, up to a blue whale (2e5).")
-            self.neck = gui.add_slider("Neck length (-0.1 = sample)", min=-0.1, max=1.5,
-                                       step=0.01, initial_value=-0.1,
-                                       hint="Neck chord in frame units (1 = the largest "
-                                            "extent); below 0 the neck is sampled.")
-            self.tail = gui.add_slider("Tail length (-0.1 = sample)", min=-0.1, max=1.5,
-                                       step=0.01, initial_value=-0.1)
-            self.k = gui.add_slider("PCA components", min=1, max=29, step=1, initial_value=29,
-                                    hint="Sample from the top k principal components.")
-            self.temperature = gui.add_slider("PCA temperature", min=0.0, max=2.0, step=0.05,
-                                              initial_value=1.0,
-                                              hint="Variance scale of the PCA sample (0 = "
-                                                   "the mean animal).")
+            self.weight = gui.add_number(
+                "Weight kg (0 = sample)",
+                initial_value=0.0,
+                min=0.0,
+                max=200000.0,
+                step=1.0,
+                hint="Body mass in kg, up to a blue whale (2e5).",
+            )
+            self.neck = gui.add_slider(
+                "Neck length (-0.1 = sample)",
+                min=-0.1,
+                max=1.5,
+                step=0.01,
+                initial_value=-0.1,
+                hint="Neck chord in frame units (1 = the largest "
+                "extent); below 0 the neck is sampled.",
+            )
+            self.tail = gui.add_slider(
+                "Tail length (-0.1 = sample)", min=-0.1, max=1.5, step=0.01, initial_value=-0.1
+            )
+            self.k = gui.add_slider(
+                "PCA components",
+                min=1,
+                max=29,
+                step=1,
+                initial_value=29,
+                hint="Sample from the top k principal components.",
+            )
+            self.temperature = gui.add_slider(
+                "PCA temperature",
+                min=0.0,
+                max=2.0,
+                step=0.05,
+                initial_value=1.0,
+                hint="Variance scale of the PCA sample (0 = the mean animal).",
+            )
             self.pcs = tuple(
-                gui.add_slider(f"PC{i + 1} score (0 = sampled)", min=-3.0, max=3.0, step=0.1,
-                               initial_value=0.0,
-                               hint=f"Fix principal component {i + 1} at this many standard "
-                                    "deviations; 0 leaves it sampled.")
-                for i in range(N_PC_SLIDERS))
-            params = (self.seed, self.cls, self.legs, self.wings, self.arms, self.centaur,
-                      self.weight, self.neck, self.tail, self.k, self.temperature, *self.pcs)
+                gui.add_slider(
+                    f"PC{i + 1} score (0 = sampled)",
+                    min=-3.0,
+                    max=3.0,
+                    step=0.1,
+                    initial_value=0.0,
+                    hint=f"Fix principal component {i + 1} at this many standard "
+                    "deviations; 0 leaves it sampled.",
+                )
+                for i in range(N_PC_SLIDERS)
+            )
+            params = (
+                self.seed,
+                self.cls,
+                self.legs,
+                self.wings,
+                self.arms,
+                self.centaur,
+                self.weight,
+                self.neck,
+                self.tail,
+                self.k,
+                self.temperature,
+                *self.pcs,
+            )
             for h in params:
                 h.on_update(self.live("parameters", self.generate))
         self.steps = gui.add_button_group("Steps", ("Next step", "Undo", "All steps"))
@@ -95,27 +141,36 @@ class CreatureTab(StudioTab):
             self.reroll_step = gui.add_dropdown("Part", options=STEPS, initial_value="limbs")
             gui.add_button("Re-roll this part").on_click(self.action("re-roll", self.reroll))
             self.limb_slot = gui.add_dropdown("Limb pair", options=("(generate first)",))
-            self.limb_kind = gui.add_dropdown("Limb type", options=LIMB_KINDS,
-                                              initial_value="arm")
+            self.limb_kind = gui.add_dropdown("Limb type", options=LIMB_KINDS, initial_value="arm")
             self.limb_buttons = gui.add_button_group("", ("Change limb type", "Add limb pair"))
             self.limb_buttons.on_click(self._limb_clicked)
-            self.neck_factor = gui.add_slider("Scale neck / tail by", min=0.25, max=3.0,
-                                              step=0.05, initial_value=1.5)
+            self.neck_factor = gui.add_slider(
+                "Scale neck / tail by", min=0.25, max=3.0, step=0.05, initial_value=1.5
+            )
             self.part_buttons = gui.add_button_group("", ("Scale neck", "Scale tail"))
             self.part_buttons.on_click(self._part_clicked)
         self.bone_models = gui.add_checkbox(
-            "Bone models (shaded)", initial_value=False,
+            "Bone models (shaded)",
+            initial_value=False,
             hint="Draw the procedural bone models (creature.bones, lowest LOD) coloured by "
-                 "limb kind; adds about 0.1-0.2 s to every edit.")
+            "limb kind; adds about 0.1-0.2 s to every edit.",
+        )
         self.bone_models.on_update(self.action("bone models", self.redraw))
         self.info = gui.add_markdown("")
         self.exports = ExportRow(
-            self, lambda: f"creature_{int(self.seed.value)}",
-            {"GLB": self._writer(".glb"), "BVH": self._writer(".bvh"),
-             "OSIM": self._writer(".osim")},
-            contents={"GLB": "skinned bone meshes with the skeleton (Y up, metres)",
-                      "BVH": "the skeleton's hierarchy and rest pose (one frame)",
-                      "OSIM": "OpenSim model: bodies with masses and inertias, joints"})
+            self,
+            lambda: f"creature_{int(self.seed.value)}",
+            {
+                "GLB": self._writer(".glb"),
+                "BVH": self._writer(".bvh"),
+                "OSIM": self._writer(".osim"),
+            },
+            contents={
+                "GLB": "skinned bone meshes with the skeleton (Y up, metres)",
+                "BVH": "the skeleton's hierarchy and rest pose (one frame)",
+                "OSIM": "OpenSim model: bodies with masses and inertias, joints",
+            },
+        )
         self.latency_md = gui.add_markdown("")
         if self.generator is None:
             self.run("initial", self.generate, timed=False, show=False)
@@ -136,15 +191,20 @@ class CreatureTab(StudioTab):
         wings = {"yes": True, "no": False}.get(self.wings.value)
         legs = opt(self.legs.value)
         scores = {i: float(h.value) for i, h in enumerate(self.pcs) if float(h.value) != 0.0}
-        return Options(seed=int(self.seed.value), cls=opt(self.cls.value),
-                       legs=None if legs is None else int(legs), wings=wings,
-                       arms=bool(self.arms.value), centaur=bool(self.centaur.value),
-                       weight=float(self.weight.value) or None,
-                       neck_length=None if self.neck.value < 0 else float(self.neck.value),
-                       tail_length=None if self.tail.value < 0 else float(self.tail.value),
-                       k=None if int(self.k.value) >= 29 else int(self.k.value),
-                       temperature=float(self.temperature.value),
-                       scores=scores or None).validate()
+        return Options(
+            seed=int(self.seed.value),
+            cls=opt(self.cls.value),
+            legs=None if legs is None else int(legs),
+            wings=wings,
+            arms=bool(self.arms.value),
+            centaur=bool(self.centaur.value),
+            weight=float(self.weight.value) or None,
+            neck_length=None if self.neck.value < 0 else float(self.neck.value),
+            tail_length=None if self.tail.value < 0 else float(self.tail.value),
+            k=None if int(self.k.value) >= 29 else int(self.k.value),
+            temperature=float(self.temperature.value),
+            scores=scores or None,
+        ).validate()
 
     def generate(self) -> None:
         """A new generator from the parameters, run to the end, drawn."""
@@ -241,8 +301,9 @@ class CreatureTab(StudioTab):
                 self._draw_spine(gen.state("spine"))
         nxt = gen.next_step
         self.info.content = self._describe(done, nxt) + "\n\n" + LEGEND
-        self.latency_md.content = "Edit → redraw (server side):\n\n" + \
-            self.app.latency.markdown("creature/")
+        self.latency_md.content = "Edit → redraw (server side):\n\n" + self.app.latency.markdown(
+            "creature/"
+        )
         self.redrawn()
 
     def _update_slots(self) -> None:
@@ -264,31 +325,43 @@ class CreatureTab(StudioTab):
         kinds = np.array([LIMB_KINDS.index(k) + 1 if k in LIMB_KINDS else 0 for k in c.kind])
         colors = np.repeat(draw.palette(kinds + 4)[:, None, :], 2, axis=1)
         size = max(c.length, c.height, 0.05)
-        self.scene.add_line_segments(f"{self.root}/bones", seg, colors,
-                                     thickness=max(size / 120, 0.002))
-        self.scene.add_point_cloud(f"{self.root}/joints", p, (40, 40, 40),
-                                   point_size=max(size / 80, 0.003), point_shape="circle")
+        self.scene.add_line_segments(
+            f"{self.root}/bones", seg, colors, thickness=max(size / 120, 0.002)
+        )
+        self.scene.add_point_cloud(
+            f"{self.root}/joints",
+            p,
+            (40, 40, 40),
+            point_size=max(size / 80, 0.003),
+            point_shape="circle",
+        )
         if self.bone_models.value:
             self._draw_models(c, kinds)
         com = np.asarray(c.center_of_mass, dtype=np.float32)
         b = c.balance
         ok = b is None or not b.applicable or b.stable
         com_colour = STABLE if ok else UNSTABLE
-        self.scene.add_icosphere(f"{self.root}/com", radius=max(size / 40, 0.005),
-                                 color=com_colour, position=tuple(com))
+        self.scene.add_icosphere(
+            f"{self.root}/com", radius=max(size / 40, 0.005), color=com_colour, position=tuple(com)
+        )
         ground = np.array([com, [com[0], 0.0, com[2]]], dtype=np.float32)[None]
-        self.scene.add_line_segments(f"{self.root}/com_line", ground, com_colour,
-                                     thickness=max(size / 300, 0.001))
+        self.scene.add_line_segments(
+            f"{self.root}/com_line", ground, com_colour, thickness=max(size / 300, 0.001)
+        )
         if b is not None and len(b.support) >= 2:
             poly = np.array([[x, 0.001, z] for x, z in b.support])
-            self.scene.add_line_segments(f"{self.root}/support",
-                                         draw.polygon_loop(poly).astype(np.float32),
-                                         SUPPORT, thickness=max(size / 200, 0.002))
+            self.scene.add_line_segments(
+                f"{self.root}/support",
+                draw.polygon_loop(poly).astype(np.float32),
+                SUPPORT,
+                thickness=max(size / 200, 0.002),
+            )
         lo = np.minimum(p.min(axis=0), ends.min(axis=0))
         hi = np.maximum(p.max(axis=0), ends.max(axis=0))
         centre = (lo + hi) / 2  # Y-up creature frame -> Z-up view: (x, y, z) -> (x, -z, y)
-        self.app.focus(self.key, np.array([centre[0], -centre[2], centre[1]]),
-                       float(np.linalg.norm(hi - lo)))
+        self.app.focus(
+            self.key, np.array([centre[0], -centre[2], centre[1]]), float(np.linalg.norm(hi - lo))
+        )
 
     def _draw_models(self, c: Any, kinds: np.ndarray) -> None:
         """Shaded bone models, one mesh per limb kind (same colours as the bone lines)."""
@@ -300,9 +373,12 @@ class CreatureTab(StudioTab):
             faces = mesh.faces[face_kind == k]
             used, inv = np.unique(faces, return_inverse=True)
             colour = tuple(int(v) for v in draw.palette(np.array([k + 4]))[0])
-            self.scene.add_mesh_simple(f"{self.root}/models/k{int(k)}",
-                                       mesh.vertices[used].astype(np.float32),
-                                       inv.reshape(-1, 3).astype(np.int32), color=colour)
+            self.scene.add_mesh_simple(
+                f"{self.root}/models/k{int(k)}",
+                mesh.vertices[used].astype(np.float32),
+                inv.reshape(-1, 3).astype(np.int32),
+                color=colour,
+            )
 
     def _draw_spine(self, spine: Any) -> None:
         """The sampled spine's control polygon (frame px, shown at 1 px = 2 mm)."""
@@ -320,15 +396,19 @@ class CreatureTab(StudioTab):
         c = self.creature
         if c is not None:
             b = c.balance
-            lines.append(f"{len(c)} joints, {c.total_mass:.3g} kg, height {c.height:.2f} m, "
-                         f"length {c.length:.2f} m, class {plain(c.params.get('class', '?'))}, "
-                         f"nearest species {plain(c.params.get('nearest_species', '?'))}")
+            lines.append(
+                f"{len(c)} joints, {c.total_mass:.3g} kg, height {c.height:.2f} m, "
+                f"length {c.length:.2f} m, class {plain(c.params.get('class', '?'))}, "
+                f"nearest species {plain(c.params.get('nearest_species', '?'))}"
+            )
             if b is None or not b.applicable:
                 lines.append("Balance: not applicable (no legs on the ground)")
             else:
-                lines.append(f"Balance: {'**stable**' if b.stable else '**tips over**'}, "
-                             f"margin {b.margin * 100:.1f} cm ({b.margin_fraction * 100:.1f} % "
-                             f"of the length), restoring torque {b.tipping_torque:.3g} N·m")
+                lines.append(
+                    f"Balance: {'**stable**' if b.stable else '**tips over**'}, "
+                    f"margin {b.margin * 100:.1f} cm ({b.margin_fraction * 100:.1f} % "
+                    f"of the length), restoring torque {b.tipping_torque:.3g} N·m"
+                )
         return "\n\n".join(lines)
 
     @staticmethod
@@ -345,4 +425,5 @@ class CreatureTab(StudioTab):
             if self.creature is None:
                 raise InputError("the creature is not finished: run all steps before export")
             export(self.creature, path.with_suffix(ext) if path.suffix != ext else path)
+
         return write

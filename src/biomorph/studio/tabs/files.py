@@ -33,8 +33,10 @@ class FilesTab(StudioTab):
 
     key = "files"
     label = "Files"
-    getting_started = ("Getting started: choose a file of the data folder and press Open, "
-                       "or upload one; clouds are coloured by height, graphs by branch order.")
+    getting_started = (
+        "Getting started: choose a file of the data folder and press Open, "
+        "or upload one; clouds are coloured by height, graphs by branch order."
+    )
 
     def __init__(self, app: Any) -> None:
         super().__init__(app)
@@ -51,10 +53,10 @@ class FilesTab(StudioTab):
         refresh.on_click(self.action("refresh", self.refresh, timed=False, show=False))
         opener = gui.add_button("Open")
         opener.on_click(self.action("open", lambda: self.open(self.file.value), heavy=True))
-        self.upload = self.app.add_upload(self, "Upload and open", self._opened_upload,
-                                          _extensions())
-        self.frame = gui.add_slider("Frame", min=0, max=1, step=1, initial_value=0,
-                                    visible=False)
+        self.upload = self.app.add_upload(
+            self, "Upload and open", self._opened_upload, _extensions()
+        )
+        self.frame = gui.add_slider("Frame", min=0, max=1, step=1, initial_value=0, visible=False)
         self.frame.on_update(self.live("frame", self._draw_motion_frame))
         self.info = gui.add_markdown("")
 
@@ -105,8 +107,9 @@ class FilesTab(StudioTab):
             obj, kind = self._read_mesh(path), "mesh"
         else:
             known = " ".join(_extensions())
-            raise UnsupportedFormatError(f"{name}: no reader for extension {ext or '(none)'}; "
-                                         f"expected one of {known}")
+            raise UnsupportedFormatError(
+                f"{name}: no reader for extension {ext or '(none)'}; expected one of {known}"
+            )
         self.loaded, self.loaded_kind, self.loaded_path = obj, kind, path
         self._clear()
         getattr(self, f"_draw_{kind}")(obj)
@@ -149,17 +152,24 @@ class FilesTab(StudioTab):
 
     def _draw_points(self, cloud: Any) -> None:
         xyz = np.asarray(cloud.xyz)
-        shown, _ = draw.subsample(xyz - xyz.mean(axis=0) * [1, 1, 0] - [0, 0, xyz[:, 2].min()],
-                                  MAX_DISPLAY_POINTS)
+        shown, _ = draw.subsample(
+            xyz - xyz.mean(axis=0) * [1, 1, 0] - [0, 0, xyz[:, 2].min()], MAX_DISPLAY_POINTS
+        )
         _, size = draw.fit_camera(shown)
-        self.scene.add_point_cloud(f"{self.root}/points", shown.astype(np.float32),
-                                   draw.height_colors(shown), point_size=size / 400,
-                                   point_shape="circle")
+        self.scene.add_point_cloud(
+            f"{self.root}/points",
+            shown.astype(np.float32),
+            draw.height_colors(shown),
+            point_size=size / 400,
+            point_shape="circle",
+        )
         lo, hi = cloud.bounds()
-        self.info.content = (f"**{cloud.n_points:,} points** (showing {len(shown):,}; colour: "
-                             f"height, brown low → green high); extent "
-                             f"{np.round(hi - lo, 3).tolist()} m; attributes: "
-                             f"{plain(', '.join(cloud.attributes) or 'none')}")
+        self.info.content = (
+            f"**{cloud.n_points:,} points** (showing {len(shown):,}; colour: "
+            f"height, brown low → green high); extent "
+            f"{np.round(hi - lo, 3).tolist()} m; attributes: "
+            f"{plain(', '.join(cloud.attributes) or 'none')}"
+        )
 
     def _draw_graph(self, graph: Any) -> None:
         pos = np.asarray(graph.position)
@@ -168,11 +178,14 @@ class FilesTab(StudioTab):
         depth = graph.depth if graph.depth is not None else np.zeros(len(pos), int)
         colors = np.repeat(draw.palette(np.asarray(depth)[child])[:, None, :], 2, axis=1)
         _, size = draw.fit_camera(pos)
-        self.scene.add_line_segments(f"{self.root}/edges", seg.astype(np.float32), colors,
-                                     thickness=max(size / 300, 1e-4))
-        self.info.content = (f"**{graph.n_nodes:,} nodes**, {len(graph.roots)} tree(s), "
-                             f"{len(graph.leaves)} tips, total length {graph.total_length:.2f} m"
-                             f"; colour: branch order\n\n{draw.order_legend(depth)}")
+        self.scene.add_line_segments(
+            f"{self.root}/edges", seg.astype(np.float32), colors, thickness=max(size / 300, 1e-4)
+        )
+        self.info.content = (
+            f"**{graph.n_nodes:,} nodes**, {len(graph.roots)} tree(s), "
+            f"{len(graph.leaves)} tips, total length {graph.total_length:.2f} m"
+            f"; colour: branch order\n\n{draw.order_legend(depth)}"
+        )
 
     def _draw_motion(self, motion: Any) -> None:
         n_frames = int(np.asarray(motion.rotation).shape[0])
@@ -181,8 +194,10 @@ class FilesTab(StudioTab):
         self.frame.visible = True
         self._draw_motion_frame()
         skel = motion.skeleton
-        self.info.content = (f"**{skel.n_joints} joints**, {n_frames} frames at "
-                             f"{1.0 / float(motion.frame_time):.1f} fps")
+        self.info.content = (
+            f"**{skel.n_joints} joints**, {n_frames} frames at "
+            f"{1.0 / float(motion.frame_time):.1f} fps"
+        )
 
     def _draw_motion_frame(self) -> None:
         motion = self.loaded
@@ -193,21 +208,33 @@ class FilesTab(StudioTab):
         if hasattr(motion, "world_positions"):  # handles per-joint translations too
             world = motion.world_positions(slice(f, f + 1))[0]
         else:
-            world = skel.world_positions(np.asarray(motion.rotation)[f],
-                                         np.asarray(motion.root_position)[f])
+            world = skel.world_positions(
+                np.asarray(motion.rotation)[f], np.asarray(motion.root_position)[f]
+            )
         _, size = draw.fit_camera(skel.world_positions())
         scale = 1.7 / size if size > 5 else 1.0  # centimetre BVH files -> about human size
         p = y_up_to_z_up(world) * scale
         child = np.flatnonzero(skel.parent >= 0)
         seg = np.stack([p[skel.parent[child]], p[child]], axis=1)
-        self.scene.add_line_segments(f"{self.root}/edges", seg.astype(np.float32),
-                                     (230, 230, 240), thickness=0.02)
-        self.scene.add_point_cloud(f"{self.root}/joints", p.astype(np.float32), (220, 60, 60),
-                                   point_size=0.04, point_shape="circle")
+        self.scene.add_line_segments(
+            f"{self.root}/edges", seg.astype(np.float32), (230, 230, 240), thickness=0.02
+        )
+        self.scene.add_point_cloud(
+            f"{self.root}/joints",
+            p.astype(np.float32),
+            (220, 60, 60),
+            point_size=0.04,
+            point_shape="circle",
+        )
         self.redrawn()
 
     def _draw_mesh(self, mesh: Any) -> None:
         v = np.asarray(mesh.vertices, dtype=np.float32)
-        self.scene.add_mesh_simple(f"{self.root}/mesh", v, np.asarray(mesh.faces, np.int32),
-                                   color=(120, 190, 120), side="double")
+        self.scene.add_mesh_simple(
+            f"{self.root}/mesh",
+            v,
+            np.asarray(mesh.faces, np.int32),
+            color=(120, 190, 120),
+            side="double",
+        )
         self.info.content = f"**mesh**: {len(v):,} vertices, {len(mesh.faces):,} triangles"

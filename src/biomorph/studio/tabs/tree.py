@@ -30,8 +30,10 @@ class TreeTab(StudioTab):
 
     key = "tree"
     label = "Tree"
-    getting_started = ("Getting started: press Synthesise and scan (or open a LAS/PLY/XYZ "
-                       "cloud), then Run; the skeleton is coloured by branch order.")
+    getting_started = (
+        "Getting started: press Synthesise and scan (or open a LAS/PLY/XYZ "
+        "cloud), then Run; the skeleton is coloured by branch order."
+    )
 
     def __init__(self, app: Any) -> None:
         super().__init__(app)
@@ -64,30 +66,43 @@ class TreeTab(StudioTab):
 
         gui = self.gui
         with gui.add_folder("Cloud"):
-            self.picker = FilePicker(self, "Point cloud", CLOUD_EXTENSIONS, self.load,
-                                     upload_label="Upload cloud (LAS/LAZ/PLY/XYZ)")
-            self.preset = gui.add_dropdown("Synthetic tree", options=tuple(PRESETS),
-                                           initial_value="aspen" if "aspen" in PRESETS
-                                           else tuple(PRESETS)[0])
+            self.picker = FilePicker(
+                self,
+                "Point cloud",
+                CLOUD_EXTENSIONS,
+                self.load,
+                upload_label="Upload cloud (LAS/LAZ/PLY/XYZ)",
+            )
+            self.preset = gui.add_dropdown(
+                "Synthetic tree",
+                options=tuple(PRESETS),
+                initial_value="aspen" if "aspen" in PRESETS else tuple(PRESETS)[0],
+            )
             self.seed = gui.add_number("Seed", initial_value=1, min=0, max=2**31 - 1, step=1)
-            self.n_points = gui.add_slider("Scan points", min=2000, max=100000, step=1000,
-                                           initial_value=8000)
+            self.n_points = gui.add_slider(
+                "Scan points", min=2000, max=100000, step=1000, initial_value=8000
+            )
             gui.add_button("Synthesise and scan").on_click(
-                self.action("synthesise", self.synthesise, timed=False, heavy=True))
+                self.action("synthesise", self.synthesise, timed=False, heavy=True)
+            )
             self.cloud_info = gui.add_markdown("")
         with gui.add_folder("Method"):
-            self.method = gui.add_dropdown("Method", options=("graph", "voxel"),
-                                           initial_value="graph")
-            self.k = gui.add_slider("Neighbours k (graph)", min=4, max=30, step=1,
-                                    initial_value=10)
-            self.node_spacing = gui.add_number("Node spacing m (0 = auto)", initial_value=0.0,
-                                               min=0.0, max=1.0, step=0.01)
-            self.max_iter = gui.add_slider("Iterations (graph)", min=1, max=10, step=1,
-                                           initial_value=5)
-            self.cell = gui.add_number("Voxel cell m (voxel)", initial_value=0.05, min=0.005,
-                                       max=1.0, step=0.005)
-            self.radius = gui.add_dropdown("Radius", options=("fit", "allometric"),
-                                           initial_value="fit")
+            self.method = gui.add_dropdown(
+                "Method", options=("graph", "voxel"), initial_value="graph"
+            )
+            self.k = gui.add_slider("Neighbours k (graph)", min=4, max=30, step=1, initial_value=10)
+            self.node_spacing = gui.add_number(
+                "Node spacing m (0 = auto)", initial_value=0.0, min=0.0, max=1.0, step=0.01
+            )
+            self.max_iter = gui.add_slider(
+                "Iterations (graph)", min=1, max=10, step=1, initial_value=5
+            )
+            self.cell = gui.add_number(
+                "Voxel cell m (voxel)", initial_value=0.05, min=0.005, max=1.0, step=0.005
+            )
+            self.radius = gui.add_dropdown(
+                "Radius", options=("fit", "allometric"), initial_value="fit"
+            )
             self.cleanup = gui.add_checkbox("Cleanup", initial_value=True)
         self.buttons = gui.add_button_group("Skeleton", ("Run", "Cancel"))
         self.buttons.on_click(self._run_clicked)
@@ -96,21 +111,26 @@ class TreeTab(StudioTab):
             self.show_cloud = gui.add_checkbox("Cloud", initial_value=True)
             self.show_skeleton = gui.add_checkbox("Skeleton (by order)", initial_value=True)
             self.show_tubes = gui.add_checkbox("Tubes (by radius)", initial_value=True)
-            self.max_display = gui.add_slider("Cloud points shown", min=5000, max=200000,
-                                              step=5000, initial_value=50000)
+            self.max_display = gui.add_slider(
+                "Cloud points shown", min=5000, max=200000, step=5000, initial_value=50000
+            )
             for h in (self.show_cloud, self.show_skeleton, self.show_tubes):
                 h.on_update(self.action("display", self.update_visibility))
             self.max_display.on_update(self.live("display points", self.draw_cloud))
         self.legend_md = gui.add_markdown("")
         self.metrics_md = gui.add_markdown("")
         self.exports = ExportRow(
-            self, lambda: f"{self.cloud_name}_skeleton",
+            self,
+            lambda: f"{self.cloud_name}_skeleton",
             {"PLY": self._write_ply, "GLB": self._write_glb, "CSV": self._write_csv},
-            contents={"PLY": "skeleton graph: nodes (x y z radius, parent, order), "
-                             "in the cloud's own coordinates",
-                      "GLB": "tube mesh of the branches (Z up, metres)",
-                      "CSV": "QSM cylinder table: one cylinder per edge with radius, "
-                             "length, branch and order"})
+            contents={
+                "PLY": "skeleton graph: nodes (x y z radius, parent, order), "
+                "in the cloud's own coordinates",
+                "GLB": "tube mesh of the branches (Z up, metres)",
+                "CSV": "QSM cylinder table: one cylinder per edge with radius, "
+                "length, branch and order",
+            },
+        )
 
     def restore(self) -> None:
         """Redraw the cloud and the skeleton after a page reload."""
@@ -148,8 +168,10 @@ class TreeTab(StudioTab):
         self.set_cloud(cloud, f"{preset}_{seed}")
         self.truth = truth
         self.progress.value = 100.0
-        self.set_status(f"Synthetic {plain(preset)} (seed {seed}): "
-                        f"{truth.n_nodes} true nodes, {len(truth.leaves)} tips. Press Run.")
+        self.set_status(
+            f"Synthetic {plain(preset)} (seed {seed}): "
+            f"{truth.n_nodes} true nodes, {len(truth.leaves)} tips. Press Run."
+        )
 
     def set_cloud(self, cloud: Any, name: str) -> None:
         """Use ``cloud`` from now on; a run on the previous cloud is cancelled and its
@@ -166,8 +188,9 @@ class TreeTab(StudioTab):
         self.metrics_md.content = ""
         self.progress.value = 0.0
         lo, hi = cloud.bounds()
-        self.cloud_info.content = (f"**{cloud.n_points:,} points**, extent "
-                                   f"{np.round(hi - lo, 2).tolist()} m")
+        self.cloud_info.content = (
+            f"**{cloud.n_points:,} points**, extent {np.round(hi - lo, 2).tolist()} m"
+        )
         self.draw_cloud()
 
     def _display_xyz(self) -> np.ndarray:
@@ -186,8 +209,13 @@ class TreeTab(StudioTab):
         shown, _ = draw.subsample(xyz, int(self.max_display.value))
         centre, size = draw.fit_camera(shown)
         self._cloud_node = self.scene.add_point_cloud(
-            f"{self.root}/cloud", shown.astype(np.float32), draw.height_colors(shown),
-            point_size=size / 500, point_shape="circle", visible=self.show_cloud.value)
+            f"{self.root}/cloud",
+            shown.astype(np.float32),
+            draw.height_colors(shown),
+            point_size=size / 500,
+            point_shape="circle",
+            visible=self.show_cloud.value,
+        )
         self.app.focus(self.key, centre, size)
         self.redrawn()
 
@@ -212,9 +240,12 @@ class TreeTab(StudioTab):
         self.progress.value = 2.0
         self.progress.animated = True
         self.set_status(f"Running the {opts.method} method …")
-        self.job = threading.Thread(target=self._work, daemon=True, name="studio-tree-job",
-                                    args=(self.cloud, opts, self.generation, self._cancel,
-                                          release))
+        self.job = threading.Thread(
+            target=self._work,
+            daemon=True,
+            name="studio-tree-job",
+            args=(self.cloud, opts, self.generation, self._cancel, release),
+        )
         self.job.start()
 
     def cancel(self) -> None:
@@ -236,12 +267,17 @@ class TreeTab(StudioTab):
 
         spacing = float(self.node_spacing.value)
         return SkeletonizeOptions(
-            method=self.method.value, seed=int(self.seed.value),
-            graph=GraphOptions(k=int(self.k.value), max_iter=int(self.max_iter.value),
-                               node_spacing=spacing if spacing > 0 else None),
+            method=self.method.value,
+            seed=int(self.seed.value),
+            graph=GraphOptions(
+                k=int(self.k.value),
+                max_iter=int(self.max_iter.value),
+                node_spacing=spacing if spacing > 0 else None,
+            ),
             voxel=VoxelOptions(cell_size=float(self.cell.value)),
             cleanup=CleanupOptions(enabled=bool(self.cleanup.value)),
-            radius=RadiusOptions(method=self.radius.value))
+            radius=RadiusOptions(method=self.radius.value),
+        )
 
     def _progress(self, cancel: threading.Event) -> Any:
         """The pipeline's progress callback: one step of the bar per finished phase of
@@ -264,10 +300,12 @@ class TreeTab(StudioTab):
             self.progress.value = min(99.0, value)
             label = PHASES[self._phase - 1] if main else description
             self.set_status(f"Running … {plain(label)} ({self._phase}/{n} phases done)")
+
         return advance
 
-    def _work(self, cloud: Any, opts: Any, generation: int, cancel: threading.Event,
-              release: Any) -> None:
+    def _work(
+        self, cloud: Any, opts: Any, generation: int, cancel: threading.Event, release: Any
+    ) -> None:
         from biomorph.tree.pipeline import skeletonize
 
         t0 = time.perf_counter()
@@ -279,8 +317,9 @@ class TreeTab(StudioTab):
                 self.result = result
                 self.draw_result()
                 self.progress.value = 100.0
-                self.set_status(f"Done in {time.perf_counter() - t0:.1f} s "
-                                f"({result.graph.n_nodes} nodes).")
+                self.set_status(
+                    f"Done in {time.perf_counter() - t0:.1f} s ({result.graph.n_nodes} nodes)."
+                )
                 self.last_error = None
         except Cancelled:
             if generation == self.generation:
@@ -306,8 +345,12 @@ class TreeTab(StudioTab):
         colors = np.repeat(draw.palette(depth[child])[:, None, :], 2, axis=1)
         _, size = draw.fit_camera(g.position)
         self._skeleton_node = self.scene.add_line_segments(
-            f"{self.root}/skeleton", seg.astype(np.float32), colors,
-            thickness=max(size / 400, 0.004), visible=self.show_skeleton.value)
+            f"{self.root}/skeleton",
+            seg.astype(np.float32),
+            colors,
+            thickness=max(size / 400, 0.004),
+            visible=self.show_skeleton.value,
+        )
         self._tubes = self.tube_parts()
         self.draw_tubes()
         legend = draw.order_legend(depth[child]) + " (skeleton lines)"
@@ -345,21 +388,30 @@ class TreeTab(StudioTab):
             used, inv = np.unique(faces, return_inverse=True)
             mid = float(np.sqrt(edges[b] * edges[b + 1]))
             colour = tuple(int(c) for c in draw.radius_colors(np.array([mid]), lo, hi)[0])
-            parts.append((mesh.vertices[used].astype(np.float32),
-                          inv.reshape(-1, 3).astype(np.int32), colour))
+            parts.append(
+                (
+                    mesh.vertices[used].astype(np.float32),
+                    inv.reshape(-1, 3).astype(np.int32),
+                    colour,
+                )
+            )
         return parts
 
     def draw_tubes(self) -> None:
         """Shaded tubes, coloured by radius (legend in the tab)."""
         self.scene.remove_by_name(f"{self.root}/tubes")
         self._tube_handles = [
-            self.scene.add_mesh_simple(f"{self.root}/tubes/r{i}", verts, faces, color=colour,
-                                       visible=self.show_tubes.value)
-            for i, (verts, faces, colour) in enumerate(self._tubes)]
+            self.scene.add_mesh_simple(
+                f"{self.root}/tubes/r{i}", verts, faces, color=colour, visible=self.show_tubes.value
+            )
+            for i, (verts, faces, colour) in enumerate(self._tubes)
+        ]
 
     def update_visibility(self) -> None:
-        for handle, box in ((self._cloud_node, self.show_cloud),
-                            (self._skeleton_node, self.show_skeleton)):
+        for handle, box in (
+            (self._cloud_node, self.show_cloud),
+            (self._skeleton_node, self.show_skeleton),
+        ):
             if handle is not None:
                 handle.visible = box.value
         for handle in self._tube_handles:
@@ -376,16 +428,26 @@ class TreeTab(StudioTab):
                 return ", ".join(fmt(x) for x in v[:4]) + (" …" if len(v) > 4 else "")
             return str(v)
 
-        rows = [("method", self.result.method), ("nodes", m.get("n_nodes")),
-                ("trees", m.get("n_trees")), ("NOB (tips)", m.get("nob")),
-                ("TBL (m)", m.get("tbl")), ("MSE (m²)", m.get("mse")),
-                ("DBH (m)", m.get("dbh")), ("trunk radius (m)", m.get("trunk_radius")),
-                ("max order", m.get("max_order")), ("time (s)", t.get("total"))]
+        rows = [
+            ("method", self.result.method),
+            ("nodes", m.get("n_nodes")),
+            ("trees", m.get("n_trees")),
+            ("NOB (tips)", m.get("nob")),
+            ("TBL (m)", m.get("tbl")),
+            ("MSE (m²)", m.get("mse")),
+            ("DBH (m)", m.get("dbh")),
+            ("trunk radius (m)", m.get("trunk_radius")),
+            ("max order", m.get("max_order")),
+            ("time (s)", t.get("total")),
+        ]
         if self.truth is not None:
-            rows += [("true NOB", len(self.truth.leaves)),
-                     ("true TBL (m)", self.truth.total_length)]
+            rows += [
+                ("true NOB", len(self.truth.leaves)),
+                ("true TBL (m)", self.truth.total_length),
+            ]
         return "| metric | value |\n|---|---|\n" + "\n".join(
-            f"| {k} | {fmt(v)} |" for k, v in rows if v is not None)
+            f"| {k} | {fmt(v)} |" for k, v in rows if v is not None
+        )
 
     # ------------------------------------------------------------------ export
     def _need_result(self) -> Any:
