@@ -35,7 +35,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from numba import njit
@@ -63,6 +63,14 @@ def tolerate(meta: dict[str, Any], message: str) -> None:
 
     meta.setdefault("tolerated", []).append(message)
     warnings.warn(message, MotionInputWarning, stacklevel=3)
+
+
+@overload
+def frozen(a: Array) -> Array: ...
+@overload
+def frozen(a: None) -> None: ...
+@overload
+def frozen(a: Array | None) -> Array | None: ...
 
 
 def frozen(a: Array | None) -> Array | None:
@@ -236,7 +244,7 @@ class Motion:
     # ------------------------------------------------------------------ kinematics
     def local_translations(self, frames: ArrayLike | slice | None = None) -> Array:
         """Local translation of every joint ``float[f, n, 3]`` (root = root position)."""
-        sel = slice(None) if frames is None else frames
+        sel: Any = slice(None) if frames is None else frames
         if self.joint_translation is not None:
             return np.array(self.joint_translation[sel])
         pos = self.root_position[sel]
@@ -247,12 +255,12 @@ class Motion:
 
     def world_matrices(self, frames: ArrayLike | slice | None = None) -> Array:
         """World 4x4 transforms of every joint ``float[f, n, 4, 4]`` (vectorised FK)."""
-        sel = slice(None) if frames is None else frames
+        sel: Any = slice(None) if frames is None else frames
         q = tf.quat_multiply(self.skeleton.rest_rotation, self.rotation[sel])
         return self.skeleton.world_matrices(_transforms(q, self.local_translations(sel)))
 
     def _fk(self, frames: ArrayLike | slice | None) -> tuple[Array, Array]:
-        sel = slice(None) if frames is None else frames
+        sel: Any = slice(None) if frames is None else frames
         rot = np.ascontiguousarray(self.rotation[sel])
         lead = rot.shape[:-2]
         rot = rot.reshape(-1, self.n_joints, 4)
@@ -357,7 +365,7 @@ def sample_arrays(motion: Motion, t: Array) -> tuple[Array, Array, Array | None]
     return frozen(rot), pos, jt
 
 
-def sample_linear(motion: Motion, t: Array) -> tuple[Array, Array, Array, Array | None]:
+def sample_linear(motion: Motion, t: Array) -> tuple[NDArray[np.int64], Array, Array, Array | None]:
     """The sampling of :func:`sample_arrays` without the rotations: ``(i0, frac, root
     positions, joint translations)`` at frames ``t`` (rotations: slerp ``i0 → i0 + 1`` by
     ``frac``, done by the caller's kernel)."""
@@ -415,7 +423,7 @@ def dfs_preorder(parent: ArrayLike) -> NDArray[np.int64]:
     BVH file lists its joints in."""
     par = np.asarray(parent, dtype=np.int64)
     kids: list[list[int]] = [[] for _ in range(par.size)]
-    roots = []
+    roots: list[int] = []
     for j, p in enumerate(par):
         (kids[int(p)] if p >= 0 else roots).append(j)
     out: list[int] = []
@@ -438,12 +446,12 @@ def reorder_joints(
     par = skeleton.parent[order]
     par = np.where(par >= 0, inv[np.maximum(par, 0)], -1)
     sk = JointSkeleton(
-        [skeleton.names[i] for i in order],
+        tuple(skeleton.names[i] for i in order),
         par,
         skeleton.offset[order],
         skeleton.rest_rotation[order],
         skeleton.limits[order],
-        None if skeleton.channels is None else [skeleton.channels[i] for i in order],
+        None if skeleton.channels is None else tuple(skeleton.channels[i] for i in order),
         skeleton.end_site[order],
     )
     return sk, order

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -96,7 +97,7 @@ def read_asf(path: str | os.PathLike[str]) -> dict:
     lines = _lines(p)
     if not lines:
         raise FormatError(p, "file is empty; expected an ASF skeleton", line=1)
-    units = {"length": 1.0, "angle": "deg", "mass": 1.0}
+    units: dict[str, Any] = {"length": 1.0, "angle": "deg", "mass": 1.0}
     root = {
         "order": ["TX", "TY", "TZ", "RX", "RY", "RZ"],
         "axis": "XYZ",
@@ -397,7 +398,12 @@ def read_amc(path: str | os.PathLike[str], asf: dict, fps: float = 120.0, strict
         chans.append(("Xposition", "Yposition", "Zposition") + rc if j == 0 else rc)
     try:
         skel = JointSkeleton(
-            names, parent, offset, rest_rotation=rest, channels=chans, end_site=end
+            tuple(names),
+            np.asarray(parent, dtype=np.int64),
+            offset,
+            rest_rotation=rest,
+            channels=tuple(chans),
+            end_site=end,
         )
     except InputError as exc:
         raise FormatError(p, str(exc)) from None

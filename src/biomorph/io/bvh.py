@@ -463,7 +463,7 @@ def _parse_hierarchy(text: str, path: str | os.PathLike[str]):
             if key == "JOINT" and not stack:
                 raise FormatError(path, "JOINT outside any ROOT; expected ROOT first", line=ln)
             parts = []
-            while toks.peek() is not None and toks.peek()[1] == ln and toks.peek()[0] != "{":
+            while (nxt := toks.peek()) is not None and nxt[1] == ln and nxt[0] != "{":
                 parts.append(toks.next("a name")[0])
             name = " ".join(parts)
             if not name:
@@ -981,7 +981,7 @@ def write_bvh(
     has_rest = not np.allclose(sk.rest_rotation, tf.quat_identity((n,)), atol=0.0)
     for j in range(n):
         rot_names = [c for c in chans[j] if c.endswith("rotation")]
-        euler = None
+        euler_deg = None
         if rot_names:
             q = mo.rotation[:, j]
             if has_rest:
@@ -990,11 +990,12 @@ def write_bvh(
             with warnings.catch_warnings():  # gimbal lock: scipy picks a valid solution
                 warnings.simplefilter("ignore", UserWarning)
                 e = tf.quat_to_euler(q, order)
-            euler = np.degrees(tf.unwrap_euler(e, axis=0) if euler_mode == "continuous" else e)
+            euler_deg = np.degrees(tf.unwrap_euler(e, axis=0) if euler_mode == "continuous" else e)
         for c in chans[j]:
             a = "XYZ".index(c[0])
             if c.endswith("rotation"):
-                joint_cols[j].append(euler[:, orders[j].index(c[0])])
+                assert euler_deg is not None  # a rotation channel implies rot_names
+                joint_cols[j].append(euler_deg[:, orders[j].index(c[0])])
             else:
                 joint_cols[j].append(trans[:, j, a])
     from biomorph.core.motion import dfs_preorder

@@ -298,7 +298,12 @@ def read_htr(path: str | os.PathLike[str], reverse_order: bool = False, strict: 
     ]
     try:
         skel = JointSkeleton(
-            names, parent, offset, rest_rotation=rest, channels=chans, end_site=end
+            tuple(names),
+            np.asarray(parent, dtype=np.int64),
+            offset,
+            rest_rotation=rest,
+            channels=tuple(chans),
+            end_site=end,
         )
     except InputError as exc:
         raise FormatError(path, str(exc)) from None

@@ -150,7 +150,7 @@ def settle(creature, seconds: float = 2.0, max_tilt_deg: float = 20.0) -> dict:
         mujoco.mj_step(model, data)
     q1 = data.qpos[3:7]
     dot = abs(float(np.dot(q0, q1)) / (np.linalg.norm(q0) * np.linalg.norm(q1)))
-    tilt = float(np.degrees(2 * np.arccos(min(dot, 1.0))))
+    tilt = float(np.degrees(2 * np.arccos(np.minimum(dot, 1.0))))
     return {
         "upright": bool(tilt <= max_tilt_deg),
         "tilt_deg": tilt,

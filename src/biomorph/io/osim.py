@@ -135,17 +135,21 @@ def read_osim_summary(path: PathLike) -> dict:
         root = ET.parse(path).getroot()
     except (ET.ParseError, OSError) as exc:
         raise FormatError(path, f"not a readable OpenSim XML file ({exc})") from None
+
+    def numbers(el: ET.Element, tag: str) -> list[float]:
+        text = el.findtext(tag)
+        try:
+            return [float(x) for x in (text or "").split()] or [float("nan")]
+        except ValueError:
+            raise FormatError(
+                path, f"<{tag}> of {el.get('name')!r} holds {text!r}; expected numbers"
+            ) from None
+
     bodies = {
-        b.get("name"): {
-            "mass": float(b.findtext("mass")),
-            "inertia": [float(x) for x in b.findtext("inertia").split()],
-        }
+        b.get("name"): {"mass": numbers(b, "mass")[0], "inertia": numbers(b, "inertia")}
         for b in root.iter("Body")
     }
-    coords = {
-        c.get("name"): [float(x) for x in c.findtext("range").split()]
-        for c in root.iter("Coordinate")
-    }
+    coords = {c.get("name"): numbers(c, "range") for c in root.iter("Coordinate")}
     return {
         "bodies": bodies,
         "coordinates": coords,

@@ -473,7 +473,7 @@ def read_points(path: PathLike) -> PointCloud:
     return PointCloud(np.ascontiguousarray(xyz), attrs, meta=meta, source=os.fspath(path))
 
 
-def _format_block(columns: list[NDArray]) -> tuple[str, tuple]:
+def _format_block(columns: list[NDArray]) -> tuple[list[str], list[NDArray]]:
     fmts = []
     flat = []
     for c in columns:
