@@ -35,8 +35,10 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "trees"
 
 THESIS_GRAPH = {"14k": "~1,200 s (t3 ≈ 1,100 s gradient descent)", "livny": "~7 s (Livny 2010)"}
-THESIS_ACC = {"graph": "NOB 91–103 %, TBL 89–101 % (B4/B5; B6 NOB 170 %)",
-              "voxel": "NOB 115–140 %, TBL 75–102 %"}
+THESIS_ACC = {
+    "graph": "NOB 91–103 %, TBL 89–101 % (B4/B5; B6 NOB 170 %)",
+    "voxel": "NOB 115–140 %, TBL 75–102 %",
+}
 TARGET = "NOB ±10 %, TBL ±5 %, F1 ≥ 0.9, radius error ≤ 15 % (> 3 cm branches)"
 
 
@@ -44,8 +46,9 @@ def _cloud(n: int, seed: int = 0, occlusion: bool = True):
     from biomorph.tree.synthetic import generate_tree, simulate_scan
 
     truth = generate_tree("maple", seed=seed)
-    return truth, simulate_scan(truth, n_points=n, seed=seed, noise=0.003, ground=False,
-                                occlusion=occlusion)
+    return truth, simulate_scan(
+        truth, n_points=n, seed=seed, noise=0.003, ground=False, occlusion=occlusion
+    )
 
 
 def one_timing(n: int) -> dict:
@@ -53,7 +56,7 @@ def one_timing(n: int) -> dict:
     from biomorph.tree.pipeline import skeletonize
 
     truth, cloud = _cloud(n, occlusion=n <= 200_000)
-    skeletonize(cloud.select(np.arange(min(2000, n))), ground=None)   # numba warm-up
+    skeletonize(cloud.select(np.arange(min(2000, n))), ground=None)  # numba warm-up
     t0 = time.perf_counter()
     r0 = resource.getrusage(resource.RUSAGE_SELF)
     skel = skeletonize(cloud, ground=None)
@@ -61,40 +64,76 @@ def one_timing(n: int) -> dict:
     r1 = resource.getrusage(resource.RUSAGE_SELF)
     cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
     t = skel.timings
-    return {"points": cloud.n_points, "total": total, "cpu": cpu,
-            **{k: t.get(k, 0.0) for k in ("prepare", "t1", "t2", "t3", "t4", "radius_fit",
-                                           "order", "metrics", "neighbour_graph", "bridging",
-                                           "dijkstra", "contraction", "optimisation",
-                                           "radii")},
-            "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-            "nodes": skel.graph.n_nodes, "iterations": t.get("iterations")}
+    return {
+        "points": cloud.n_points,
+        "total": total,
+        "cpu": cpu,
+        **{
+            k: t.get(k, 0.0)
+            for k in (
+                "prepare",
+                "t1",
+                "t2",
+                "t3",
+                "t4",
+                "radius_fit",
+                "order",
+                "metrics",
+                "neighbour_graph",
+                "bridging",
+                "dijkstra",
+                "contraction",
+                "optimisation",
+                "radii",
+            )
+        },
+        "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "nodes": skel.graph.n_nodes,
+        "iterations": t.get("iterations"),
+    }
 
 
 def speed(full: bool) -> None:
     sizes = [14_000, 100_000] + ([1_000_000] if full else [])
     rows = []
     for n in sizes:
-        out = subprocess.run([sys.executable, __file__, "--one", str(n)], capture_output=True,
-                             text=True, check=True, cwd=ROOT)
+        out = subprocess.run(
+            [sys.executable, __file__, "--one", str(n)],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=ROOT,
+        )
         rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
-    print("\n### Graph method, full pipeline (prepare, Livny i–viii, RANSAC radii, orders, "
-          "metrics)\n")
-    print("| points | total s | CPU s | prepare | t1 roots | t2 graph+Dijkstra+contraction | "
-          "t3 optimisation | t4 cleanup | radius fit | metrics | peak MB | nodes | thesis |")
+    print(
+        "\n### Graph method, full pipeline (prepare, Livny i–viii, RANSAC radii, orders, metrics)\n"
+    )
+    print(
+        "| points | total s | CPU s | prepare | t1 roots | t2 graph+Dijkstra+contraction | "
+        "t3 optimisation | t4 cleanup | radius fit | metrics | peak MB | nodes | thesis |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         thesis = THESIS_GRAPH["14k"] if r["points"] <= 20_000 else "—"
-        print(f"| {r['points']:,} | {r['total']:.2f} | {r['cpu']:.1f} | {r['prepare']:.2f} | "
-              f"{r['t1']:.2f} | "
-              f"{r['t2']:.2f} | {r['t3']:.2f} | {r['t4']:.2f} | {r['radius_fit']:.2f} | "
-              f"{r['metrics']:.2f} | {r['peak_mb']:.0f} | {r['nodes']:,} | {thesis} |")
-    print("\nSub-phases (s): " + "; ".join(
-        f"{r['points']:,}: kNN {r['neighbour_graph']:.2f}, bridging {r['bridging']:.2f}, "
-        f"Dijkstra {r['dijkstra']:.2f}, contraction {r['contraction']:.2f}, "
-        f"exact solves ×{int(r['iterations'] or 0)} {r['optimisation']:.2f}"
-        for r in rows))
-    print(f"Targets: 14k < 2 s; 1M < 60 s and < 6 GB. Thesis: {THESIS_GRAPH['14k']}; "
-          f"{THESIS_GRAPH['livny']}.")
+        print(
+            f"| {r['points']:,} | {r['total']:.2f} | {r['cpu']:.1f} | {r['prepare']:.2f} | "
+            f"{r['t1']:.2f} | "
+            f"{r['t2']:.2f} | {r['t3']:.2f} | {r['t4']:.2f} | {r['radius_fit']:.2f} | "
+            f"{r['metrics']:.2f} | {r['peak_mb']:.0f} | {r['nodes']:,} | {thesis} |"
+        )
+    print(
+        "\nSub-phases (s): "
+        + "; ".join(
+            f"{r['points']:,}: kNN {r['neighbour_graph']:.2f}, bridging {r['bridging']:.2f}, "
+            f"Dijkstra {r['dijkstra']:.2f}, contraction {r['contraction']:.2f}, "
+            f"exact solves ×{int(r['iterations'] or 0)} {r['optimisation']:.2f}"
+            for r in rows
+        )
+    )
+    print(
+        f"Targets: 14k < 2 s; 1M < 60 s and < 6 GB. Thesis: {THESIS_GRAPH['14k']}; "
+        f"{THESIS_GRAPH['livny']}."
+    )
 
 
 def accuracy(seeds: int, points: int, tip_support: float | None = None) -> None:
@@ -102,13 +141,18 @@ def accuracy(seeds: int, points: int, tip_support: float | None = None) -> None:
     from biomorph.tree.pipeline import skeletonize
     from biomorph.tree.synthetic import PRESETS, generate_tree, simulate_scan
 
-    conditions = {"clean": dict(noise=0.002, occlusion=False, scanners=4),
-                  "noisy+occluded": dict(noise=0.008, occlusion=True, scanners=2, leaves=0.05)}
-    print(f"\n### Accuracy on synthetic trees ({points:,} points, seeds 0..{seeds - 1}, "
-          "median over seeds"
-          + (f", graph tip_support={tip_support}" if tip_support else "") + ")\n")
-    print("| preset | condition | method | NOB % | TBL % | TBL % of observed | observed | F1 | "
-          "radius err | DBH err | seconds |")
+    conditions = {
+        "clean": dict(noise=0.002, occlusion=False, scanners=4),
+        "noisy+occluded": dict(noise=0.008, occlusion=True, scanners=2, leaves=0.05),
+    }
+    print(
+        f"\n### Accuracy on synthetic trees ({points:,} points, seeds 0..{seeds - 1}, "
+        "median over seeds" + (f", graph tip_support={tip_support}" if tip_support else "") + ")\n"
+    )
+    print(
+        "| preset | condition | method | NOB % | TBL % | TBL % of observed | observed | F1 | "
+        "radius err | DBH err | seconds |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     summary: dict[str, list] = {"graph": [], "voxel": []}
     for preset in sorted(PRESETS):
@@ -120,34 +164,49 @@ def accuracy(seeds: int, points: int, tip_support: float | None = None) -> None:
                 for method in ("graph", "voxel"):
                     t0 = time.perf_counter()
                     try:
-                        skel = skeletonize(cloud, method=method,
-                                           tip_support=tip_support if method == "graph"
-                                           else None)
+                        skel = skeletonize(
+                            cloud,
+                            method=method,
+                            tip_support=tip_support if method == "graph" else None,
+                        )
                     except Exception as exc:  # noqa: BLE001 - report and carry on
                         print(f"<!-- {preset} {cname} {method} seed {seed}: {exc} -->")
                         continue
                     dt = time.perf_counter() - t0
                     c = compare_to_truth(skel.world_graph(), truth, cloud=cloud)
-                    res[method].append([c["nob_ratio"], c["tbl_ratio"], c["f1"],
-                                        c["radius_error"] or np.nan, c["dbh_error"] or np.nan,
-                                        dt, c["tbl_ratio_observed"], c["observed_fraction"]])
+                    res[method].append(
+                        [
+                            c["nob_ratio"],
+                            c["tbl_ratio"],
+                            c["f1"],
+                            c["radius_error"] or np.nan,
+                            c["dbh_error"] or np.nan,
+                            dt,
+                            c["tbl_ratio_observed"],
+                            c["observed_fraction"],
+                        ]
+                    )
             for method, vals in res.items():
                 if not vals:
                     continue
                 v = np.nanmedian(np.array(vals, dtype=float), axis=0)
                 summary[method].append(v)
-                print(f"| {preset} | {cname} | {method} | {100 * v[0]:.0f} | {100 * v[1]:.0f} "
-                      f"| {100 * v[6]:.0f} | {100 * v[7]:.0f} % | {v[2]:.3f} | "
-                      f"{100 * v[3]:.1f} % | {100 * v[4]:+.1f} % | {v[5]:.1f} |")
+                print(
+                    f"| {preset} | {cname} | {method} | {100 * v[0]:.0f} | {100 * v[1]:.0f} "
+                    f"| {100 * v[6]:.0f} | {100 * v[7]:.0f} % | {v[2]:.3f} | "
+                    f"{100 * v[3]:.1f} % | {100 * v[4]:+.1f} % | {v[5]:.1f} |"
+                )
     for method, vals in summary.items():
         if vals:
             a = np.array(vals)
-            print(f"\n{method}: NOB {100 * a[:, 0].min():.0f}–{100 * a[:, 0].max():.0f} %, "
-                  f"TBL {100 * a[:, 1].min():.0f}–{100 * a[:, 1].max():.0f} % "
-                  f"({100 * a[:, 6].min():.0f}–{100 * a[:, 6].max():.0f} % of the observed "
-                  "truth), "
-                  f"F1 {a[:, 2].min():.3f}–{a[:, 2].max():.3f}, radius error "
-                  f"{100 * np.nanmax(a[:, 3]):.1f} % max. Thesis: {THESIS_ACC[method]}.")
+            print(
+                f"\n{method}: NOB {100 * a[:, 0].min():.0f}–{100 * a[:, 0].max():.0f} %, "
+                f"TBL {100 * a[:, 1].min():.0f}–{100 * a[:, 1].max():.0f} % "
+                f"({100 * a[:, 6].min():.0f}–{100 * a[:, 6].max():.0f} % of the observed "
+                "truth), "
+                f"F1 {a[:, 2].min():.3f}–{a[:, 2].max():.3f}, radius error "
+                f"{100 * np.nanmax(a[:, 3]):.1f} % max. Thesis: {THESIS_ACC[method]}."
+            )
     print(f"Targets (graph): {TARGET}.")
 
 
@@ -160,14 +219,25 @@ def real() -> None:
         print(f"\n(real data not found at {DATA}; skipped)")
         return
     print("\n### Agreement with reference models (tolerance 5 cm)\n")
-    print("| cloud | reference | tips (ref) | length m (ref) | base radius cm (ref) | "
-          "radius profile err | F1 | seconds |")
+    print(
+        "| cloud | reference | tips (ref) | length m (ref) | base radius cm (ref) | "
+        "radius profile err | F1 | seconds |"
+    )
     print("|---|---|---|---|---|---|---|---|")
-    cases = [("rtwig_cloud.txt", "SimpleForest QSM", lambda c: read_qsm_csv(
-        DATA / "rtwig_QSM_simpleforest.csv")),
-             ("plantscan3d_A3B4.asc", "plantscan3d MTG", lambda c: (lambda m: m.with_(
-                 position=m.position + c.xyz.mean(axis=0)))(read_graph(
-                     DATA / "plantscan3d_A3B4.mtg")))]
+    cases = [
+        (
+            "rtwig_cloud.txt",
+            "SimpleForest QSM",
+            lambda c: read_qsm_csv(DATA / "rtwig_QSM_simpleforest.csv"),
+        ),
+        (
+            "plantscan3d_A3B4.asc",
+            "plantscan3d MTG",
+            lambda c: (lambda m: m.with_(position=m.position + c.xyz.mean(axis=0)))(
+                read_graph(DATA / "plantscan3d_A3B4.mtg")
+            ),
+        ),
+    ]
     for name, label, ref_fn in cases:
         cloud = read_points(DATA / name)
         ref = ref_fn(cloud)
@@ -175,16 +245,24 @@ def real() -> None:
         skel = skeletonize(cloud)
         dt = time.perf_counter() - t0
         c = compare_to_reference(skel.world_graph(), ref, tolerance=0.05)
-        print(f"| {name} | {label} | {c['tips']} ({c['tips_reference']}) | {c['length']:.2f} "
-              f"({c['length_reference']:.2f}) | {100 * c['base_radius']:.2f} "
-              f"({100 * c['base_radius_reference']:.2f}) | "
-              f"{100 * c['radius_profile_error']:.0f} % | {c['f1']:.3f} | {dt:.2f} |")
+        print(
+            f"| {name} | {label} | {c['tips']} ({c['tips_reference']}) | {c['length']:.2f} "
+            f"({c['length_reference']:.2f}) | {100 * c['base_radius']:.2f} "
+            f"({100 * c['base_radius_reference']:.2f}) | "
+            f"{100 * c['radius_profile_error']:.0f} % | {c['f1']:.3f} | {dt:.2f} |"
+        )
     print("\n### Other real clouds (graph method, defaults)\n")
-    print("| cloud | points | pieces bridged | trees | NOB | TBL m | trunk r cm | DBH cm | "
-          "seconds |")
+    print(
+        "| cloud | points | pieces bridged | trees | NOB | TBL m | trunk r cm | DBH cm | seconds |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
-    for name in ("adtree_tree1.xyz", "adtree_tree7.xyz", "treels_spruce.laz",
-                 "archi_tree2.las", "treels_pine_plot.laz"):
+    for name in (
+        "adtree_tree1.xyz",
+        "adtree_tree7.xyz",
+        "treels_spruce.laz",
+        "archi_tree2.las",
+        "treels_pine_plot.laz",
+    ):
         cloud = read_points(DATA / name)
         t0 = time.perf_counter()
         skel = skeletonize(cloud)
@@ -192,17 +270,26 @@ def real() -> None:
         m = skel.metrics
         dbh = [d for d in (m.get("dbh") or []) if d]
         tr = m["trunk_radius"]
-        print(f"| {name} | {cloud.n_points:,} | {skel.info['components']} | {m['n_trees']} | "
-              f"{m['nob']} | {m['tbl']:.1f} | {100 * np.median(tr):.1f} | "
-              f"{100 * np.median(dbh) if dbh else float('nan'):.1f} | {dt:.1f} |")
+        print(
+            f"| {name} | {cloud.n_points:,} | {skel.info['components']} | {m['n_trees']} | "
+            f"{m['nob']} | {m['tbl']:.1f} | {100 * np.median(tr):.1f} | "
+            f"{100 * np.median(dbh) if dbh else float('nan'):.1f} | {dt:.1f} |"
+        )
 
 
 # ----------------------------------------------------------------------------- peers (issue 13)
 
 #: the clouds of the peer table, and the reference models that come with them
-PEER_CLOUDS = ("rtwig_cloud.txt", "plantscan3d_A3B4.asc", "adtree_tree1.xyz",
-               "adtree_tree7.xyz", "archi_tree2.las", "treels_spruce.laz",
-               "treels_pine_plot.laz", "adtree_tiny_for_debug.xyz")
+PEER_CLOUDS = (
+    "rtwig_cloud.txt",
+    "plantscan3d_A3B4.asc",
+    "adtree_tree1.xyz",
+    "adtree_tree7.xyz",
+    "archi_tree2.las",
+    "treels_spruce.laz",
+    "treels_pine_plot.laz",
+    "adtree_tiny_for_debug.xyz",
+)
 #: pytlidar is a single-tree method (TreeQSM): a plot of several trees is not its input
 SINGLE_TREE_ONLY = {"treels_pine_plot.laz"}
 
@@ -221,10 +308,12 @@ def cylinders_to_graph(start, axis, length, radius, parent, order):
     par = np.where(parent >= 0, parent, m + np.searchsorted(roots, np.arange(m)))
     rad = np.asarray(radius, float)
     dep = np.asarray(order, np.int64)
-    return BranchGraph(np.vstack([end, start[roots]]), np.concatenate([par, np.full(roots.size,
-                                                                                    -1)]),
-                       radius=np.concatenate([rad, rad[roots]]),
-                       depth=np.concatenate([dep, dep[roots]]))
+    return BranchGraph(
+        np.vstack([end, start[roots]]),
+        np.concatenate([par, np.full(roots.size, -1)]),
+        radius=np.concatenate([rad, rad[roots]]),
+        depth=np.concatenate([dep, dep[roots]]),
+    )
 
 
 def read_treeqsm_mat(path: Path):
@@ -233,8 +322,9 @@ def read_treeqsm_mat(path: Path):
 
     q = sio.loadmat(path, squeeze_me=True, struct_as_record=False)["OptQSM"]
     c = q.cylinder
-    return cylinders_to_graph(c.start, c.axis, c.length, c.radius,
-                              np.asarray(c.parent, np.int64) - 1, c.BranchOrder)
+    return cylinders_to_graph(
+        c.start, c.axis, c.length, c.radius, np.asarray(c.parent, np.int64) - 1, c.BranchOrder
+    )
 
 
 def run_pytlidar(xyz: NDArray) -> dict:
@@ -262,8 +352,9 @@ def run_pytlidar(xyz: NDArray) -> dict:
         c = models[0]["cylinder"]
         par = np.asarray(c["parent"], np.int64)
         par = par - 1 if par.min() >= 0 and par[0] == 0 and par.size > 1 and par[1] == 1 else par
-        g = cylinders_to_graph(c["start"], c["axis"], c["length"], c["radius"], par,
-                               c["BranchOrder"])
+        g = cylinders_to_graph(
+            c["start"], c["axis"], c["length"], c["radius"], par, c["BranchOrder"]
+        )
         out: dict = {"graph": g}
     except Exception as exc:  # noqa: BLE001 - a peer failing is a result, not a crash
         out = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
@@ -292,11 +383,14 @@ def model_measures(graph, xyz: NDArray, refs: dict) -> dict:
     attrs = tree_attributes(graph)
     fit = cylinder_fit(graph, xyz)
     vc = volume_by_class(graph)
-    row = {"volume": sum(a["total_volume"] for a in attrs) * 1e3,
-           "length": sum(a["total_length"] for a in attrs),
-           "trunk": max(a["trunk_length"] for a in attrs),
-           "tips": int(graph.leaves.size), "max_order": max(a["max_order"] for a in attrs),
-           "far": 100 * fit["far_share"]}
+    row = {
+        "volume": sum(a["total_volume"] for a in attrs) * 1e3,
+        "length": sum(a["total_length"] for a in attrs),
+        "trunk": max(a["trunk_length"] for a in attrs),
+        "tips": int(graph.leaves.size),
+        "max_order": max(a["max_order"] for a in attrs),
+        "far": 100 * fit["far_share"],
+    }
     for lab in class_labels():
         row[f"V {lab}"] = vc[lab]["volume"] * 1e3
         res = fit["classes"][lab]["residual"]
@@ -306,9 +400,13 @@ def model_measures(graph, xyz: NDArray, refs: dict) -> dict:
     return row
 
 
-PEER_ROWS = [("volume", "volume L", "{:.1f}"), ("length", "length m", "{:.1f}"),
-             ("trunk", "trunk length m", "{:.2f}"), ("tips", "tips", "{:d}"),
-             ("max_order", "max order", "{:d}")]
+PEER_ROWS = [
+    ("volume", "volume L", "{:.1f}"),
+    ("length", "length m", "{:.1f}"),
+    ("trunk", "trunk length m", "{:.2f}"),
+    ("tips", "tips", "{:d}"),
+    ("max_order", "max order", "{:d}"),
+]
 
 
 def _fmt(v, f: str) -> str:
@@ -335,8 +433,9 @@ def peers(names: tuple[str, ...], with_pytlidar: bool = True) -> None:
         if name == "plantscan3d_A3B4.asc":
             m = read_graph(DATA / "plantscan3d_A3B4.mtg")
             refs["plantscan3d"] = m.with_(position=m.position + xyz.mean(axis=0))
-        cols: dict[str, dict] = {k: {"graph": g, "wall": None, "cpu": None}
-                                 for k, g in refs.items()}
+        cols: dict[str, dict] = {
+            k: {"graph": g, "wall": None, "cpu": None} for k, g in refs.items()
+        }
         cols["biomorph graph"] = run_biomorph(cloud, "graph")
         cols["biomorph voxel"] = run_biomorph(cloud, "voxel")
         if with_pytlidar and name not in SINGLE_TREE_ONLY:
@@ -355,8 +454,10 @@ def peers(names: tuple[str, ...], with_pytlidar: bool = True) -> None:
         rows += [(f"F1 vs {r}", f"F1@5 cm vs {r}", "{:.3f}") for r in refs]
         rows += [(f"V {lab}", f"volume {lab} L", "{:.2f}") for lab in class_labels()]
         rows += [("far", "points > 10 cm from every cylinder %", "{:.1f}")]
-        rows += [(f"res {lab}", f"median signed residual {lab} % of r", "{:+.0f}")
-                 for lab in class_labels()]
+        rows += [
+            (f"res {lab}", f"median signed residual {lab} % of r", "{:+.0f}")
+            for lab in class_labels()
+        ]
         for key, label, f in rows:
             cells = [_fmt(meas[k].get(key), f) if k in meas else "—" for k in cols]
             print(f"| {label} | " + " | ".join(cells) + " |")
@@ -366,11 +467,16 @@ def peers(names: tuple[str, ...], with_pytlidar: bool = True) -> None:
         for k, c in cols.items():
             if "error" in c:
                 print(f"\n{k}: {c['error']}")
-        if "pytlidar" in cols and "error" not in cols["pytlidar"] and "error" not in cols[
-                "biomorph graph"]:
+        if (
+            "pytlidar" in cols
+            and "error" not in cols["pytlidar"]
+            and "error" not in cols["biomorph graph"]
+        ):
             g, p = cols["biomorph graph"], cols["pytlidar"]
-            print(f"\nSpeed: pytlidar / biomorph graph = {p['wall'] / g['wall']:.1f}× wall, "
-                  f"{p['cpu'] / g['cpu']:.1f}× CPU (same run).")
+            print(
+                f"\nSpeed: pytlidar / biomorph graph = {p['wall'] / g['wall']:.1f}× wall, "
+                f"{p['cpu'] / g['cpu']:.1f}× CPU (same run)."
+            )
         sys.stdout.flush()
 
 
@@ -380,13 +486,20 @@ def truth_table(seeds: int, sizes: tuple[int, ...], methods: tuple[str, ...]) ->
     from biomorph.tree.pipeline import skeletonize
     from biomorph.tree.synthetic import PRESETS, generate_tree, simulate_scan
 
-    conditions = {"clean": dict(noise=0.002, occlusion=False, scanners=4),
-                  "8 mm+occl.": dict(noise=0.008, occlusion=True, scanners=2, leaves=0.05)}
+    conditions = {
+        "clean": dict(noise=0.002, occlusion=False, scanners=4),
+        "8 mm+occl.": dict(noise=0.008, occlusion=True, scanners=2, leaves=0.05),
+    }
     labs = class_labels()
-    print(f"\n### Against synthetic truth (seeds 0..{seeds - 1}, median over seeds; "
-          "ratios to the truth in %)\n")
-    print("| preset | condition | points | method | volume | " + " | ".join(labs)
-          + " | length | F1 | s |")
+    print(
+        f"\n### Against synthetic truth (seeds 0..{seeds - 1}, median over seeds; "
+        "ratios to the truth in %)\n"
+    )
+    print(
+        "| preset | condition | points | method | volume | "
+        + " | ".join(labs)
+        + " | length | F1 | s |"
+    )
     print("|---|---|---|---|---|" + "---|" * len(labs) + "---|---|---|")
     for preset in sorted(PRESETS):
         for cname, kw in conditions.items():
@@ -407,17 +520,30 @@ def truth_table(seeds: int, sizes: tuple[int, ...], methods: tuple[str, ...]) ->
                         dt = time.perf_counter() - t0
                         vc = volume_by_class(g)
                         c = compare_to_truth(g, truth, cloud=cloud)
-                        cls = [vc[lab]["volume"] / vt[lab]["volume"]
-                               if vt[lab]["volume"] > 1e-6 else np.nan for lab in labs]
-                        res[method].append([sum(v["volume"] for v in vc.values()) / tv, *cls,
-                                            c["tbl_ratio"], c["f1"], dt])
+                        cls = [
+                            vc[lab]["volume"] / vt[lab]["volume"]
+                            if vt[lab]["volume"] > 1e-6
+                            else np.nan
+                            for lab in labs
+                        ]
+                        res[method].append(
+                            [
+                                sum(v["volume"] for v in vc.values()) / tv,
+                                *cls,
+                                c["tbl_ratio"],
+                                c["f1"],
+                                dt,
+                            ]
+                        )
                 for method, vals in res.items():
                     if not vals:
                         continue
                     v = np.nanmedian(np.array(vals, dtype=float), axis=0)
-                    cells = " | ".join(_fmt(100 * x, "{:.0f}") for x in v[1:1 + len(labs)])
-                    print(f"| {preset} | {cname} | {n:,} | {method} | {100 * v[0]:.0f} | "
-                          f"{cells} | {100 * v[-3]:.0f} | {v[-2]:.3f} | {v[-1]:.1f} |")
+                    cells = " | ".join(_fmt(100 * x, "{:.0f}") for x in v[1 : 1 + len(labs)])
+                    print(
+                        f"| {preset} | {cname} | {n:,} | {method} | {100 * v[0]:.0f} | "
+                        f"{cells} | {100 * v[-3]:.0f} | {v[-2]:.3f} | {v[-1]:.1f} |"
+                    )
                 sys.stdout.flush()
     print("\nTargets: volume ±10 %, each class ±20 %, length ±10 %, F1 ≥ 0.9.")
 
@@ -426,16 +552,29 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also time 1,000,000 points")
     ap.add_argument("--only", choices=("speed", "accuracy", "real", "peers", "truth"))
-    ap.add_argument("--clouds", nargs="*", default=list(PEER_CLOUDS),
-                    help="real clouds of the peer table (names in ../shared/data/trees)")
+    ap.add_argument(
+        "--clouds",
+        nargs="*",
+        default=list(PEER_CLOUDS),
+        help="real clouds of the peer table (names in ../shared/data/trees)",
+    )
     ap.add_argument("--no-pytlidar", action="store_true", help="peer table without pytlidar")
-    ap.add_argument("--sizes", type=int, nargs="*", default=[60_000, 240_000],
-                    help="points per synthetic scan of the truth table")
+    ap.add_argument(
+        "--sizes",
+        type=int,
+        nargs="*",
+        default=[60_000, 240_000],
+        help="points per synthetic scan of the truth table",
+    )
     ap.add_argument("--methods", nargs="*", default=["graph", "voxel"])
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--points", type=int, default=60_000, help="points per synthetic scan")
-    ap.add_argument("--tip-support", type=float, default=None,
-                    help="graph method: prune weakly supported tip chains (e.g. 0.3)")
+    ap.add_argument(
+        "--tip-support",
+        type=float,
+        default=None,
+        help="graph method: prune weakly supported tip chains (e.g. 0.3)",
+    )
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.one:

@@ -25,10 +25,15 @@ from pathlib import Path
 import numpy as np
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "trees"
-CLOUDS = {"rtwig": "rtwig_cloud.txt", "a3b4": "plantscan3d_A3B4.asc",
-          "adtree1": "adtree_tree1.xyz", "adtree7": "adtree_tree7.xyz",
-          "archi2": "archi_tree2.las", "spruce": "treels_spruce.laz",
-          "pine_plot": "treels_pine_plot.laz"}
+CLOUDS = {
+    "rtwig": "rtwig_cloud.txt",
+    "a3b4": "plantscan3d_A3B4.asc",
+    "adtree1": "adtree_tree1.xyz",
+    "adtree7": "adtree_tree7.xyz",
+    "archi2": "archi_tree2.las",
+    "spruce": "treels_spruce.laz",
+    "pine_plot": "treels_pine_plot.laz",
+}
 
 
 def _classes(r: np.ndarray, length: np.ndarray) -> dict[str, float]:
@@ -45,14 +50,19 @@ def references(name: str, data: Path) -> dict[str, dict]:
     if name == "rtwig":
         import scipy.io
 
-        m = scipy.io.loadmat(data / "rtwig_QSM_treeqsm.mat", squeeze_me=True,
-                             struct_as_record=False)["OptQSM"]
+        m = scipy.io.loadmat(
+            data / "rtwig_QSM_treeqsm.mat", squeeze_me=True, struct_as_record=False
+        )["OptQSM"]
         td, cy = m.treedata, m.cylinder
-        out["TreeQSM"] = {"volume": float(td.TotalVolume), "trunk_volume": float(td.TrunkVolume),
-                          "trunk_length": float(td.TrunkLength), "height": float(td.TreeHeight),
-                          "order1": int(np.sum(m.branch.order == 1)),
-                          "max_order": int(td.MaxBranchOrder),
-                          "classes": _classes(cy.radius, cy.length)}
+        out["TreeQSM"] = {
+            "volume": float(td.TotalVolume),
+            "trunk_volume": float(td.TrunkVolume),
+            "trunk_length": float(td.TrunkLength),
+            "height": float(td.TreeHeight),
+            "order1": int(np.sum(m.branch.order == 1)),
+            "max_order": int(td.MaxBranchOrder),
+            "classes": _classes(cy.radius, cy.length),
+        }
         from biomorph.tree.reference import _columns
 
         header, rows = _columns(data / "rtwig_QSM_simpleforest.csv")
@@ -60,10 +70,13 @@ def references(name: str, data: Path) -> dict[str, dict]:
         r, ln = rows[:, col["radius"]], rows[:, col["length"]]
         order = rows[:, col["branchOrder"]]
         vol = np.pi * r * r * ln
-        out["SimpleForest"] = {"volume": 1000 * float(vol.sum()),
-                               "trunk_volume": 1000 * float(vol[order == 0].sum()),
-                               "trunk_length": float(ln[order == 0].sum()),
-                               "max_order": int(order.max()), "classes": _classes(r, ln)}
+        out["SimpleForest"] = {
+            "volume": 1000 * float(vol.sum()),
+            "trunk_volume": 1000 * float(vol[order == 0].sum()),
+            "trunk_length": float(ln[order == 0].sum()),
+            "max_order": int(order.max()),
+            "classes": _classes(r, ln),
+        }
     if name == "a3b4":
         from biomorph.io import read_graph
         from biomorph.tree.metrics import tree_attributes, volume_by_class
@@ -71,11 +84,14 @@ def references(name: str, data: Path) -> dict[str, dict]:
 
         g = with_order(read_graph(data / "plantscan3d_A3B4.mtg"))
         a = tree_attributes(g)[0]
-        out["plantscan3d"] = {"volume": 1000 * a["total_volume"],
-                              "trunk_length": a["trunk_length"], "height": a["height"],
-                              "order1": a["branches_order1"], "max_order": a["max_order"],
-                              "classes": {k: 1000 * v["volume"]
-                                          for k, v in volume_by_class(g).items()}}
+        out["plantscan3d"] = {
+            "volume": 1000 * a["total_volume"],
+            "trunk_length": a["trunk_length"],
+            "height": a["height"],
+            "order1": a["branches_order1"],
+            "max_order": a["max_order"],
+            "classes": {k: 1000 * v["volume"] for k, v in volume_by_class(g).items()},
+        }
     return out
 
 
@@ -87,19 +103,26 @@ def ours(path: Path, method: str) -> dict:
     s = skeletonize(path, method=method)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     m = s.metrics
-    t = max(m["trees"], key=lambda r: r.get("height", 0.0))       # the tallest tree
-    return {"volume": 1000 * t["total_volume"], "trunk_volume": 1000 * t["trunk_volume"],
-            "trunk_length": t["trunk_length"], "height": t["height"],
-            "trunk_top_gap": max(r["trunk_top_gap"] for r in m["trees"]
-                                 if r.get("height", 0.0) > 3.0) if any(
-                r.get("height", 0.0) > 3.0 for r in m["trees"]) else t["trunk_top_gap"],
-            "order1": t["branches_order1"], "max_order": t["max_order"],
-            "n_trees": m["n_trees"], "tips": m["nob"],
-            "trees_over_3m": sum(r.get("height", 0.0) > 3.0 for r in m["trees"]),
-            "classes": {k: 1000 * v["volume"] for k, v in m["classes"].items()},
-            "far_share": m["fit"]["far_share"],
-            "residual": {k: v["residual"] for k, v in m["fit"]["classes"].items()},
-            "wall": wall, "cpu": cpu}
+    t = max(m["trees"], key=lambda r: r.get("height", 0.0))  # the tallest tree
+    return {
+        "volume": 1000 * t["total_volume"],
+        "trunk_volume": 1000 * t["trunk_volume"],
+        "trunk_length": t["trunk_length"],
+        "height": t["height"],
+        "trunk_top_gap": max(r["trunk_top_gap"] for r in m["trees"] if r.get("height", 0.0) > 3.0)
+        if any(r.get("height", 0.0) > 3.0 for r in m["trees"])
+        else t["trunk_top_gap"],
+        "order1": t["branches_order1"],
+        "max_order": t["max_order"],
+        "n_trees": m["n_trees"],
+        "tips": m["nob"],
+        "trees_over_3m": sum(r.get("height", 0.0) > 3.0 for r in m["trees"]),
+        "classes": {k: 1000 * v["volume"] for k, v in m["classes"].items()},
+        "far_share": m["fit"]["far_share"],
+        "residual": {k: v["residual"] for k, v in m["fit"]["classes"].items()},
+        "wall": wall,
+        "cpu": cpu,
+    }
 
 
 def _fmt(v: object) -> str:
@@ -109,9 +132,21 @@ def _fmt(v: object) -> str:
 
 
 def table(name: str, rows: dict[str, dict]) -> None:
-    keys = ["volume", "trunk_volume", "trunk_length", "height", "trunk_top_gap", "order1",
-            "max_order",
-            "n_trees", "trees_over_3m", "tips", "far_share", "wall", "cpu"]
+    keys = [
+        "volume",
+        "trunk_volume",
+        "trunk_length",
+        "height",
+        "trunk_top_gap",
+        "order1",
+        "max_order",
+        "n_trees",
+        "trees_over_3m",
+        "tips",
+        "far_share",
+        "wall",
+        "cpu",
+    ]
     cols = list(rows)
     print(f"\n## {name}\n")
     print("| metric | " + " | ".join(cols) + " |")
@@ -119,11 +154,17 @@ def table(name: str, rows: dict[str, dict]) -> None:
     for k in keys:
         print(f"| {k} | " + " | ".join(_fmt(rows[c].get(k)) for c in cols) + " |")
     for lab in ("<2.5cm", "2.5-7cm", "7-20cm", ">20cm"):
-        print(f"| volume {lab} (L) | " + " | ".join(
-            _fmt(rows[c].get("classes", {}).get(lab)) for c in cols) + " |")
+        print(
+            f"| volume {lab} (L) | "
+            + " | ".join(_fmt(rows[c].get("classes", {}).get(lab)) for c in cols)
+            + " |"
+        )
     for lab in ("<2.5cm", "2.5-7cm", "7-20cm", ">20cm"):
-        print(f"| residual {lab} | " + " | ".join(
-            _fmt(rows[c].get("residual", {}).get(lab)) for c in cols) + " |")
+        print(
+            f"| residual {lab} | "
+            + " | ".join(_fmt(rows[c].get("residual", {}).get(lab)) for c in cols)
+            + " |"
+        )
 
 
 def synthetic(presets: list[str], points: int, noise: float, seed: int) -> None:
@@ -132,13 +173,16 @@ def synthetic(presets: list[str], points: int, noise: float, seed: int) -> None:
     from biomorph.tree.synthetic import generate_tree, simulate_scan
 
     print(f"\n## synthetic, {points} points, {1000 * noise:g} mm noise, seed {seed}\n")
-    print("| preset | taper | volume / truth | <2.5cm | 2.5-7cm | 7-20cm | >20cm | F1 | "
-          "trunk length | height | max order | cpu |")
+    print(
+        "| preset | taper | volume / truth | <2.5cm | 2.5-7cm | 7-20cm | >20cm | F1 | "
+        "trunk length | height | max order | cpu |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for preset in presets:
         truth = generate_tree(preset, seed=seed)
-        cloud = simulate_scan(truth, n_points=points, noise=noise, scanners=3, ground=True,
-                              seed=seed)
+        cloud = simulate_scan(
+            truth, n_points=points, noise=noise, scanners=3, ground=True, seed=seed
+        )
         tv = volume_by_class(truth)
         for taper in (False, True):
             c0 = time.process_time()
@@ -148,12 +192,15 @@ def synthetic(presets: list[str], points: int, noise: float, seed: int) -> None:
             cmp_ = compare_to_truth(g, truth)
             v = volume_by_class(g)
             a = max(tree_attributes(s.graph), key=lambda r: r["height"])
-            ratios = [v[k]["volume"] / tv[k]["volume"] if tv[k]["volume"] else float("nan")
-                      for k in tv]
-            print(f"| {preset} | {taper} | {1 + cmp_['volume_error']:.2f} | "
-                  + " | ".join(f"{r:.2f}" for r in ratios)
-                  + f" | {cmp_['f1']:.3f} | {a['trunk_length']:.1f} | {a['height']:.1f} | "
-                  f"{a['max_order']} | {cpu:.1f} |")
+            ratios = [
+                v[k]["volume"] / tv[k]["volume"] if tv[k]["volume"] else float("nan") for k in tv
+            ]
+            print(
+                f"| {preset} | {taper} | {1 + cmp_['volume_error']:.2f} | "
+                + " | ".join(f"{r:.2f}" for r in ratios)
+                + f" | {cmp_['f1']:.3f} | {a['trunk_length']:.1f} | {a['height']:.1f} | "
+                f"{a['max_order']} | {cpu:.1f} |"
+            )
 
 
 def main() -> None:

@@ -47,26 +47,34 @@ def speed(quick: bool) -> None:
     scan = simulate_scan(truth, n_points=60_000 if quick else 150_000, seed=0, ground=False)
     ext = float(np.ptp(scan.xyz, axis=0).max())
     thin_palagyi_kuba(np.ones((3, 3, 3), bool))  # JIT warm-up (cached on disk afterwards)
-    print("\n### Voxel method: full pipeline (synthetic maple, "
-          f"{scan.n_points} points, extent {ext:.1f} m)\n")
-    print("| grid width | cell (m) | grid | t1 voxelise (s) | t2 preprocess (s) | t3 thin (s) "
-          "| t4 graph (s) | total (s) | nodes | target |")
+    print(
+        "\n### Voxel method: full pipeline (synthetic maple, "
+        f"{scan.n_points} points, extent {ext:.1f} m)\n"
+    )
+    print(
+        "| grid width | cell (m) | grid | t1 voxelise (s) | t2 preprocess (s) | t3 thin (s) "
+        "| t4 graph (s) | total (s) | nodes | target |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     vols = {}
     for width, target in ((161, 10), (300, 60)):
         cell = ext / width * 1.0001
         vs = skeletonize_voxel(scan, cell_size=cell)
         tm = vs.timings
-        print(f"| {width} | {cell:.4f} | {'×'.join(map(str, vs.grid['shape']))} | "
-              f"{tm['t1']:.2f} | {tm['t2']:.2f} | {tm['t3']:.2f} | {tm['t4']:.2f} | "
-              f"{tm['total']:.2f} | {vs.graph.n_nodes} | < {target} s "
-              f"{'✓' if tm['total'] < target else '✗'} |")
+        print(
+            f"| {width} | {cell:.4f} | {'×'.join(map(str, vs.grid['shape']))} | "
+            f"{tm['t1']:.2f} | {tm['t2']:.2f} | {tm['t3']:.2f} | {tm['t4']:.2f} | "
+            f"{tm['total']:.2f} | {vs.graph.n_nodes} | < {target} s "
+            f"{'✓' if tm['total'] < target else '✗'} |"
+        )
         counts, _ = voxelize(scan.xyz, cell)
         vol, _ = preprocess_volume(counts, disc_radius=vs.grid["disc_radius"])
         vols[width] = vol
     print("\n### Thinning alone on the same preprocessed volume\n")
-    print("| grid width | object voxels | ours: Palágyi–Kuba (s) | skimage Lee (s) | "
-          "kimimaro TEASAR (s) | ours / skimage | ours / kimimaro |")
+    print(
+        "| grid width | object voxels | ours: Palágyi–Kuba (s) | skimage Lee (s) | "
+        "kimimaro TEASAR (s) | ours / skimage | ours / kimimaro |"
+    )
     print("|---|---|---|---|---|---|---|")
     rep = 1 if quick else 3
     for width, vol in vols.items():
@@ -81,39 +89,60 @@ def speed(quick: bool) -> None:
             import kimimaro
 
             lab = vol.astype(np.uint32)
-            t_ki, _ = _best(lambda lab=lab: kimimaro.skeletonize(
-                lab, anisotropy=(1, 1, 1), dust_threshold=10, progress=False, parallel=1),
-                rep)
+            t_ki, _ = _best(
+                lambda lab=lab: kimimaro.skeletonize(
+                    lab, anisotropy=(1, 1, 1), dust_threshold=10, progress=False, parallel=1
+                ),
+                rep,
+            )
         except Exception:  # pragma: no cover - optional
             t_ki = float("nan")
-        print(f"| {width} | {int(vol.sum())} | {t_ours:.3f} | {t_sk:.3f} | {t_ki:.3f} | "
-              f"{t_ours / t_sk:.2f} | {t_ours / t_ki:.2f} |")
+        print(
+            f"| {width} | {int(vol.sum())} | {t_ours:.3f} | {t_sk:.3f} | {t_ki:.3f} | "
+            f"{t_ours / t_sk:.2f} | {t_ours / t_ki:.2f} |"
+        )
 
 
 def accuracy(quick: bool) -> None:
     presets = ["aspen", "conifer"] if quick else ["maple", "birch", "aspen", "conifer"]
     seeds = [0] if quick else [0, 1, 2]
-    print("\n### Voxel method accuracy on synthetic trees (tolerance 0.1 m, 60k points, "
-          "3 scanners)\n")
-    print("| preset | scan | seeds | F1 | precision | recall | NOB ratio | TBL ratio | "
-          "radius err (>3 cm) | DBH err | total (s) |")
+    print(
+        "\n### Voxel method accuracy on synthetic trees (tolerance 0.1 m, 60k points, 3 scanners)\n"
+    )
+    print(
+        "| preset | scan | seeds | F1 | precision | recall | NOB ratio | TBL ratio | "
+        "radius err (>3 cm) | DBH err | total (s) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for preset in presets:
-        for label, kw in (("clean", dict(noise=0.0, occlusion=False)),
-                          ("noise 5 mm + occlusion", dict(noise=0.005, occlusion=True))):
+        for label, kw in (
+            ("clean", dict(noise=0.0, occlusion=False)),
+            ("noise 5 mm + occlusion", dict(noise=0.005, occlusion=True)),
+        ):
             rows = []
             for seed in seeds:
                 truth = generate_tree(preset, seed=seed)
                 scan = simulate_scan(truth, n_points=60_000, seed=seed, ground=False, **kw)
                 vs = skeletonize_voxel(scan)
                 m = compare_to_truth(vs.graph, truth, tolerance=0.1)
-                rows.append([m["f1"], m["precision"], m["recall"], m["nob_ratio"],
-                             m["tbl_ratio"], m["radius_error"], m["dbh_error"],
-                             vs.timings["total"]])
+                rows.append(
+                    [
+                        m["f1"],
+                        m["precision"],
+                        m["recall"],
+                        m["nob_ratio"],
+                        m["tbl_ratio"],
+                        m["radius_error"],
+                        m["dbh_error"],
+                        vs.timings["total"],
+                    ]
+                )
             a = np.nanmean(np.array(rows, dtype=float), axis=0)
-            print(f"| {preset} | {label} | {len(seeds)} | {a[0]:.3f} | {a[1]:.3f} | "
-                  f"{a[2]:.3f} | {a[3]:.2f} | {a[4]:.2f} | {a[5]:.3f} | {a[6]:+.3f} | "
-                  f"{a[7]:.1f} |")
+            print(
+                f"| {preset} | {label} | {len(seeds)} | {a[0]:.3f} | {a[1]:.3f} | "
+                f"{a[2]:.3f} | {a[3]:.2f} | {a[4]:.2f} | {a[5]:.3f} | {a[6]:+.3f} | "
+                f"{a[7]:.1f} |"
+            )
 
 
 def _tilt(c: PointCloud, deg: float) -> PointCloud:
@@ -129,13 +158,17 @@ def _hilly(c: PointCloud) -> PointCloud:
 
 
 def ground(quick: bool) -> None:
-    print("\n### Ground removal on synthetic scans with known labels "
-          "(ground = 20 % of 20k points)\n")
+    print(
+        "\n### Ground removal on synthetic scans with known labels (ground = 20 % of 20k points)\n"
+    )
     print("| terrain | method | precision | recall | F1 | wood lost (%) | seconds |")
     print("|---|---|---|---|---|---|---|")
     presets = ["maple", "conifer"] if quick else ["maple", "birch", "aspen", "conifer"]
-    for terrain, f in (("flat", lambda c: c), ("tilted 10°", lambda c: _tilt(c, 10)),
-                       ("hilly ±1 m", _hilly)):
+    for terrain, f in (
+        ("flat", lambda c: c),
+        ("tilted 10°", lambda c: _tilt(c, 10)),
+        ("hilly ±1 m", _hilly),
+    ):
         for method in ("grid", "csf"):
             agg = []
             for preset in presets:
@@ -151,8 +184,10 @@ def ground(quick: bool) -> None:
                 r = tp / max(lab.sum(), 1)
                 agg.append([p, r, 2 * p * r / max(p + r, 1e-12), fp / (~lab).sum() * 100, dt])
             a = np.mean(agg, axis=0)
-            print(f"| {terrain} | {method} | {a[0]:.4f} | {a[1]:.4f} | {a[2]:.4f} | "
-                  f"{a[3]:.2f} | {a[4]:.2f} |")
+            print(
+                f"| {terrain} | {method} | {a[0]:.4f} | {a[1]:.4f} | {a[2]:.4f} | "
+                f"{a[3]:.2f} | {a[4]:.2f} |"
+            )
     path = SHARED / "treels_pine_plot.laz"
     if not path.exists():
         print(f"\n(pine plot not found at {path}; skipped)")
@@ -163,13 +198,17 @@ def ground(quick: bool) -> None:
     xyz = np.column_stack([las.x, las.y, las.z]).astype(float)
     cloud = PointCloud(xyz - xyz.min(axis=0), source=str(path))
     print(f"\n### Ground removal on the TreeLS pine plot ({cloud.n_points} points, no labels)\n")
-    print("Proxies: *veg. below 0.3 m* = non-ground points less than 0.3 m above the "
-          "lowest ground point of their 1 m cell (missed ground); *ground above 0.5 m* = "
-          "ground points more than 0.5 m above their cell's lowest point (stems/branches "
-          "called ground); *roughness* = std of ground heights about a 1 m-cell median "
-          "surface.\n")
-    print("| method | ground points | veg. below 0.3 m | ground above 0.5 m | roughness (m) | "
-          "seconds |")
+    print(
+        "Proxies: *veg. below 0.3 m* = non-ground points less than 0.3 m above the "
+        "lowest ground point of their 1 m cell (missed ground); *ground above 0.5 m* = "
+        "ground points more than 0.5 m above their cell's lowest point (stems/branches "
+        "called ground); *roughness* = std of ground heights about a 1 m-cell median "
+        "surface.\n"
+    )
+    print(
+        "| method | ground points | veg. below 0.3 m | ground above 0.5 m | roughness (m) | "
+        "seconds |"
+    )
     print("|---|---|---|---|---|---|")
     for method in ("grid", "csf"):
         t = time.perf_counter()
@@ -199,8 +238,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--section", choices=["speed", "accuracy", "ground"], action="append")
     args = ap.parse_args(argv)
     sections = args.section or ["speed", "accuracy", "ground"]
-    print(f"tree_voxel benchmark ({time.strftime('%Y-%m-%d %H:%M')}, "
-          f"python {sys.version.split()[0]})")
+    print(
+        f"tree_voxel benchmark ({time.strftime('%Y-%m-%d %H:%M')}, python {sys.version.split()[0]})"
+    )
     for s in sections:
         {"speed": speed, "accuracy": accuracy, "ground": ground}[s](args.quick)
     return 0

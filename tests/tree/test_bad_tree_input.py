@@ -55,13 +55,13 @@ def test_only_leaves_raises_from_both_methods():
 
 
 def test_trunk_must_reach_a_found_ground():
-    check_trunk_reaches_ground(None)                      # no ground: nothing to check
+    check_trunk_reaches_ground(None)  # no ground: nothing to check
     check_trunk_reaches_ground(np.array([0.05, 2.0, 9.0]))
     with pytest.raises(InputError, match=r"no trunk found .* 2\.40 m high"):
         check_trunk_reaches_ground(np.array([2.4, 3.0, 7.0]), source="crown.laz")
     pts = make_cloud(n=3000)
     with pytest.raises(InputError, match="no trunk found"):
-        skeletonize_graph(pts, height=pts[:, 2] + 1.5)    # the cloud floats 1.5 m up
+        skeletonize_graph(pts, height=pts[:, 2] + 1.5)  # the cloud floats 1.5 m up
 
 
 def test_two_stems_in_a_one_tree_run():
@@ -73,7 +73,7 @@ def test_two_stems_in_a_one_tree_run():
         check_single_tree(pts, source="pair.xyz")
     with pytest.raises(InputError, match="n_trees=1"):
         skeletonize_graph(pts, n_trees=1)
-    assert skeletonize_graph(pts).info["trees"] == 2     # the automatic count splits them
+    assert skeletonize_graph(pts).info["trees"] == 2  # the automatic count splits them
 
 
 def test_single_trees_pass_the_one_tree_check():

@@ -55,7 +55,7 @@ def test_floating_fragment_is_left_out_of_the_tree():
     pts = np.vstack([tree, frag])
     res = livny.skeletonize_graph(pts)
     assert res.info["unbridged_points"] >= 150
-    assert (res.point_node[-150:] < 0).all()             # not part of the skeleton
+    assert (res.point_node[-150:] < 0).all()  # not part of the skeleton
     assert (res.point_node[:-150] >= 0).mean() > 0.99
     # the earlier behaviour bridged it anyway
     old = livny.skeletonize_graph(pts, bridge_gap=np.inf)
@@ -97,7 +97,7 @@ def test_voxel_fragments_join_their_tree_or_drop():
     cloud = PointCloud(np.vstack([pts[~shadow], frag]))
     kw = dict(cell_size=0.04, bridge_gap=0.0, min_component_voxels=5)
     thesis = skeletonize_voxel(cloud, root_slice=None, **kw)
-    assert thesis.grid["components"] >= 2                  # fragments are separate "trees"
+    assert thesis.grid["components"] >= 2  # fragments are separate "trees"
     one = skeletonize_voxel(cloud, **kw)
     assert one.grid["components"] == 1
     g = one.graph

@@ -30,8 +30,9 @@ def test_axis_fraction_closed_form_cases():
     f = cl.axis_inside_fraction(o, z, np.array([10.0]), np.array([0.1]), o, d, np.array([1.0]))
     assert f[0] == pytest.approx(0.1 * np.sqrt(2))
     # a segment starting outside the cylinder is not inside at all
-    f = cl.axis_inside_fraction(o, z, np.array([1.0]), np.array([0.1]),
-                                np.array([[1.0, 0, 0.5]]), z, np.array([0.2]))
+    f = cl.axis_inside_fraction(
+        o, z, np.array([1.0]), np.array([0.1]), np.array([[1.0, 0, 0.5]]), z, np.array([0.2])
+    )
     assert f[0] == 0.0
 
 
@@ -55,7 +56,7 @@ def test_rule2_collapses_straight_chains_and_keeps_bends():
     g = BranchGraph(pos, np.arange(-1, 10), radius=np.full(11, 0.05))
     out = cl.collapse_overlaps(g)
     assert out.n_nodes < 5
-    assert out.position[out.roots[0]] == pytest.approx([0, 0, 0])       # root never moves
+    assert out.position[out.roots[0]] == pytest.approx([0, 0, 0])  # root never moves
     assert out.total_length == pytest.approx(1.0, rel=0.1)
     # a right-angle bend survives as a bend (the merged corner moves to the c-weighted
     # mean with its straight neighbour, as the rule says, but the polyline still turns)
@@ -75,13 +76,15 @@ def test_merged_vertex_is_the_weighted_mean():
     c = g.subtree_length()
     out = cl.collapse_overlaps(g, max_rounds=1)
     expect = (c[1] * pos[1] + (c[2] + 1e-9) * pos[2]) / (c[1] + c[2] + 1e-9)
-    assert np.any(np.allclose(out.position, expect, atol=1e-6), axis=None) or \
-        np.min(np.linalg.norm(out.position - expect, axis=1)) < 1e-6
+    assert (
+        np.any(np.allclose(out.position, expect, atol=1e-6), axis=None)
+        or np.min(np.linalg.norm(out.position - expect, axis=1)) < 1e-6
+    )
 
 
 def test_false_trunk_branches_are_removed_by_radius_contrast():
     stem = np.column_stack([np.zeros(11), np.zeros(11), np.linspace(0, 2, 11)])
-    spur = np.array([[0.12, 0, 1.0], [0.15, 0, 1.02]])       # 5 cm on a 10 cm stem
+    spur = np.array([[0.12, 0, 1.0], [0.15, 0, 1.02]])  # 5 cm on a 10 cm stem
     branch = np.array([[0.3, 0, 1.3], [0.6, 0, 1.6], [0.9, 0, 1.9]])
     pos = np.vstack([stem, spur, branch])
     parent = np.concatenate([np.arange(-1, 10), [5, 11], [6, 13, 14]])
@@ -93,7 +96,7 @@ def test_false_trunk_branches_are_removed_by_radius_contrast():
     out2 = cl.remove_false_branches(g, radius_ratio=0.0, min_length=0.2)
     assert out2.n_nodes == 14
     out3 = cl.remove_false_branches(g, radius_ratio=0.0, min_length=0.1)
-    assert out3.n_nodes == 16                    # the spur (0.16 m) is longer than that
+    assert out3.n_nodes == 16  # the spur (0.16 m) is longer than that
     with pytest.raises(ParameterError):
         cl.remove_false_branches(g.with_(radius=None))
 
@@ -125,12 +128,11 @@ def test_smooth_chains_removes_zigzag_and_keeps_ends():
     # a straight, evenly spaced chain is a fixed point
     assert np.allclose(smooth_chains(g, 3).position, straight, atol=1e-15)
     # an alternating ±5 mm zig-zag on 5 cm steps: two sweeps remove it and its extra length
-    zig = straight + np.column_stack([0.005 * (-1.0) ** np.arange(n), np.zeros(n),
-                                      np.zeros(n)])
+    zig = straight + np.column_stack([0.005 * (-1.0) ** np.arange(n), np.zeros(n), np.zeros(n)])
     zig[0, 0] = zig[-1, 0] = 0.0
     gz = BranchGraph(zig, parent)
     sm = smooth_chains(gz, 2)
-    assert gz.total_length > 2.009                      # the zig-zag is 0.5 % longer
+    assert gz.total_length > 2.009  # the zig-zag is 0.5 % longer
     assert sm.total_length == pytest.approx(2.0, abs=1e-3)
     assert np.allclose(sm.position[[0, -1]], zig[[0, -1]])  # root and tip stay
     # forks stay too
@@ -145,7 +147,7 @@ def test_min_radius_merges_a_parallel_noise_spur_beside_a_thin_twig():
     # twig 0 -> 1 -> 2 along z (radius 4 mm); spur from 1 running 1.2 cm beside it
     pos = np.array([[0, 0, 0], [0, 0, 0.2], [0, 0, 0.4], [0.012, 0, 0.3], [0.012, 0, 0.38]])
     g = BranchGraph(pos, np.array([-1, 0, 1, 1, 3]), radius=np.full(5, 0.004))
-    assert cl.collapse_overlaps(g).leaves.size == 2            # thesis rule: two tips
+    assert cl.collapse_overlaps(g).leaves.size == 2  # thesis rule: two tips
     out = cl.collapse_overlaps(g, min_radius=0.01)
     assert out.leaves.size == 1
     # a real side branch leaving at 60 degrees is kept with the floor
@@ -158,8 +160,19 @@ def test_min_radius_merges_a_parallel_noise_spur_beside_a_thin_twig():
 
 def _fork_graph():
     # stem 0-1-2-3 (z), side chain A 4-5 from node 1 (x), side chain B 6-7 from node 2 (y)
-    pos = np.array([[0, 0, 0], [0, 0, 0.1], [0, 0, 0.2], [0, 0, 0.3],
-                    [0.1, 0, 0.1], [0.2, 0, 0.1], [0, 0.1, 0.2], [0, 0.2, 0.2]], float)
+    pos = np.array(
+        [
+            [0, 0, 0],
+            [0, 0, 0.1],
+            [0, 0, 0.2],
+            [0, 0, 0.3],
+            [0.1, 0, 0.1],
+            [0.2, 0, 0.1],
+            [0, 0.1, 0.2],
+            [0, 0.2, 0.2],
+        ],
+        float,
+    )
     par = np.array([-1, 0, 1, 2, 1, 4, 2, 6])
     return BranchGraph(pos, par)
 
@@ -175,7 +188,7 @@ def test_prune_unsupported_tips_removes_the_chain_without_points():
     g = _fork_graph()
     rng = np.random.default_rng(1)
     dense = [g.position[i] + rng.normal(0, 0.005, (20, 3)) for i in (0, 1, 2, 3, 4, 5)]
-    sparse = [g.position[7] + rng.normal(0, 0.005, (2, 3))]     # chain B: 2 points, 2 nodes
+    sparse = [g.position[7] + rng.normal(0, 0.005, (2, 3))]  # chain B: 2 points, 2 nodes
     xyz = np.vstack(dense + sparse)
     out = cl.prune_unsupported_tips(g, xyz, 0.3)
     assert out.n_nodes == 6 and out.leaves.size == 2

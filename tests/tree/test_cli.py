@@ -52,8 +52,20 @@ def _bad_inputs(tmp):
     return cases
 
 
-@pytest.mark.parametrize("case", ["empty", "single", "nan", "inf", "coplanar", "collinear",
-                                  "no_tree", "corrupt_laz", "non_numeric"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "empty",
+        "single",
+        "nan",
+        "inf",
+        "coplanar",
+        "collinear",
+        "no_tree",
+        "corrupt_laz",
+        "non_numeric",
+    ],
+)
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(case, tmp_path, capsys):
     path = _bad_inputs(tmp_path)[case]
     out = tmp_path / f"out_{case}"
@@ -66,22 +78,87 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(case, tmp_path, caps
 
 
 def test_missing_file_and_bad_parameters(tmp_path, good_xyz, capsys):
-    assert run(["tree", "skeletonize", str(tmp_path / "nope.laz"),
-                "--out", str(tmp_path / "o")]) == 2
-    assert run(["tree", "skeletonize", str(good_xyz), "--method", "magic",
-                "--out", str(tmp_path / "o")]) == 2
-    assert run(["tree", "skeletonize", str(good_xyz), "--order-angle", "0",
-                "--out", str(tmp_path / "o")]) == 2
-    assert run(["tree", "skeletonize", str(good_xyz), "--filter", "Deviation",
-                "--out", str(tmp_path / "o")]) == 2
-    assert run(["tree", "skeletonize", str(good_xyz), "--foliage", "0.5",
-                "--out", str(tmp_path / "o")]) == 2
+    assert (
+        run(["tree", "skeletonize", str(tmp_path / "nope.laz"), "--out", str(tmp_path / "o")]) == 2
+    )
+    assert (
+        run(
+            [
+                "tree",
+                "skeletonize",
+                str(good_xyz),
+                "--method",
+                "magic",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
+    assert (
+        run(
+            [
+                "tree",
+                "skeletonize",
+                str(good_xyz),
+                "--order-angle",
+                "0",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
+    assert (
+        run(
+            [
+                "tree",
+                "skeletonize",
+                str(good_xyz),
+                "--filter",
+                "Deviation",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
+    assert (
+        run(
+            ["tree", "skeletonize", str(good_xyz), "--foliage", "0.5", "--out", str(tmp_path / "o")]
+        )
+        == 2
+    )
     assert "--foliage must be 0 (off) or a factor > 1" in capsys.readouterr().err
-    assert run(["tree", "skeletonize", str(good_xyz), "--edge-weights", "heavy",
-                "--out", str(tmp_path / "o")]) == 2
+    assert (
+        run(
+            [
+                "tree",
+                "skeletonize",
+                str(good_xyz),
+                "--edge-weights",
+                "heavy",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
     assert "edge_weights 'heavy'" in capsys.readouterr().err
-    assert run(["tree", "skeletonize", str(good_xyz), "--tip-support", "1.5",
-                "--out", str(tmp_path / "o")]) == 2
+    assert (
+        run(
+            [
+                "tree",
+                "skeletonize",
+                str(good_xyz),
+                "--tip-support",
+                "1.5",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
     assert "--tip-support: got 1.5; expected (0, 1)" in capsys.readouterr().err
     capsys.readouterr()
     assert _nothing_written(tmp_path / "o")
@@ -89,25 +166,50 @@ def test_missing_file_and_bad_parameters(tmp_path, good_xyz, capsys):
 
 def test_skeletonize_json_and_outputs(good_xyz, tmp_path, capsys):
     out = tmp_path / "out"
-    code = run(["tree", "skeletonize", str(good_xyz), "--out", str(out), "--json",
-                "--no-ground"])
+    code = run(["tree", "skeletonize", str(good_xyz), "--out", str(out), "--json", "--no-ground"])
     assert code == 0
     data = json.loads(capsys.readouterr().out)
     assert data["method"] == "graph" and data["metrics"]["nob"] == 3
     assert data["params"]["foliage"] == 3.0 and data["params"]["edge_weights"] == "livny"
     # foliage separation off, the paper's alternative weights: still the same Y
     out2 = tmp_path / "out2"
-    assert run(["tree", "skeletonize", str(good_xyz), "--out", str(out2), "--json",
-                "--no-ground", "--foliage", "0", "--edge-weights", "branch",
-                "--tip-support", "0.3"]) == 0
+    assert (
+        run(
+            [
+                "tree",
+                "skeletonize",
+                str(good_xyz),
+                "--out",
+                str(out2),
+                "--json",
+                "--no-ground",
+                "--foliage",
+                "0",
+                "--edge-weights",
+                "branch",
+                "--tip-support",
+                "0.3",
+            ]
+        )
+        == 0
+    )
     data2 = json.loads(capsys.readouterr().out)
     assert data2["params"]["foliage"] is None and data2["params"]["edge_weights"] == "branch"
     assert data2["params"]["tip_support"] == 0.3
     assert data["params"]["min_cylinder_radius"] == 0.01 and "tip_support" not in data["params"]
     assert data2["metrics"]["nob"] == 3
-    for name in ("skeleton.ply", "skeleton.mtg", "tube.glb", "tube.obj", "cylinders.csv",
-                 "branches.csv", "treedata.csv", "points.laz",
-                 "summary.json", "preview.png"):
+    for name in (
+        "skeleton.ply",
+        "skeleton.mtg",
+        "tube.glb",
+        "tube.obj",
+        "cylinders.csv",
+        "branches.csv",
+        "treedata.csv",
+        "points.laz",
+        "summary.json",
+        "preview.png",
+    ):
         assert (out / name).is_file(), name
 
 
@@ -126,15 +228,32 @@ def test_georeferenced_cloud_is_written_back_in_world_coordinates(tmp_path, caps
 
 def test_synth_then_evaluate(tmp_path, capsys):
     syn = tmp_path / "syn"
-    assert run(["tree", "synth", "--preset", "aspen", "--points", "20000", "--out", str(syn),
-                "--json"]) == 0
+    assert (
+        run(
+            ["tree", "synth", "--preset", "aspen", "--points", "20000", "--out", str(syn), "--json"]
+        )
+        == 0
+    )
     info = json.loads(capsys.readouterr().out)
     assert info["nob"] > 5 and (syn / "truth.ply").is_file() and (syn / "cloud.ply").is_file()
     out = tmp_path / "sk"
     assert run(["tree", "skeletonize", str(syn / "cloud.ply"), "--out", str(out)]) == 0
     capsys.readouterr()
-    assert run(["tree", "evaluate", str(out / "skeleton.ply"), "--truth", str(syn / "truth.ply"),
-                "--cloud", str(syn / "cloud.ply"), "--json"]) == 0
+    assert (
+        run(
+            [
+                "tree",
+                "evaluate",
+                str(out / "skeleton.ply"),
+                "--truth",
+                str(syn / "truth.ply"),
+                "--cloud",
+                str(syn / "cloud.ply"),
+                "--json",
+            ]
+        )
+        == 0
+    )
     ev = json.loads(capsys.readouterr().out)
     assert ev["comparison"]["f1"] > 0.6
     assert ev["mse"] is not None and ev["nob"] > 0
@@ -145,8 +264,9 @@ def test_batch_reports_failures_and_resumes(tmp_path, good_xyz, capsys):
     bad = tmp_path / "bad.xyz"
     bad.write_text("1 2 3\n")
     out = tmp_path / "batch"
-    code = run(["tree", "batch", str(good_xyz), str(bad), "--out", str(out), "--workers", "0",
-                "--json"])
+    code = run(
+        ["tree", "batch", str(good_xyz), str(bad), "--out", str(out), "--workers", "0", "--json"]
+    )
     assert code == 1
     rep = json.loads(capsys.readouterr().out)
     assert rep["n_ok"] == 1 and rep["n_failed"] == 1

@@ -22,18 +22,24 @@ from biomorph.tree.synthetic import generate_tree, simulate_scan
 
 def _blob(n=500, seed=0, offset=(0.0, 0.0, 0.0)):
     rng = np.random.default_rng(seed)
-    return PointCloud(rng.normal(size=(n, 3)) + np.asarray(offset), source="blob.xyz",
-                      attributes={"dev": rng.uniform(0, 10, n)})
+    return PointCloud(
+        rng.normal(size=(n, 3)) + np.asarray(offset),
+        source="blob.xyz",
+        attributes={"dev": rng.uniform(0, 10, n)},
+    )
 
 
-@pytest.mark.parametrize("xyz, word", [
-    (np.zeros((0, 3)), "empty"),
-    (np.ones((1, 3)), "1 point"),
-    (np.random.default_rng(0).normal(size=(5, 3)), "5 points"),
-    (np.c_[np.random.default_rng(0).normal(size=(50, 2)), np.zeros(50)], "coplanar"),
-    (np.outer(np.arange(50.0), [1, 2, 3]), "one line"),
-    (np.ones((50, 3)), "one line"),
-])
+@pytest.mark.parametrize(
+    "xyz, word",
+    [
+        (np.zeros((0, 3)), "empty"),
+        (np.ones((1, 3)), "1 point"),
+        (np.random.default_rng(0).normal(size=(5, 3)), "5 points"),
+        (np.c_[np.random.default_rng(0).normal(size=(50, 2)), np.zeros(50)], "coplanar"),
+        (np.outer(np.arange(50.0), [1, 2, 3]), "one line"),
+        (np.ones((50, 3)), "one line"),
+    ],
+)
 def test_validate_rejects_bad_clouds(xyz, word):
     with pytest.raises(InputError, match=word) as e:
         validate_cloud(PointCloud(xyz, source="bad.laz"))
@@ -121,17 +127,21 @@ def test_has_ground_and_prepare_removes_ground():
 def test_prepare_georeferenced_filter_and_no_tree():
     truth = generate_tree("aspen", seed=0)
     scan = simulate_scan(truth, n_points=5000, seed=0)
-    geo = scan.with_(offset=np.array([512345.0, 5401234.0, 250.0]),
-                     attributes={**scan.attributes,
-                                 "Deviation": np.random.default_rng(0).integers(0, 60, 5000)})
+    geo = scan.with_(
+        offset=np.array([512345.0, 5401234.0, 250.0]),
+        attributes={**scan.attributes, "Deviation": np.random.default_rng(0).integers(0, 60, 5000)},
+    )
     p = prepare(geo, filter={"name": "Deviation", "max_value": 40}, outliers=False)
     assert (p.cloud.attributes["Deviation"] <= 40).all()
-    np.testing.assert_allclose(p.cloud.world_xyz.min(axis=0)[:2],
-                               geo.world_xyz[~geo.attributes["is_ground"]].min(axis=0)[:2],
-                               atol=0.5)
+    np.testing.assert_allclose(
+        p.cloud.world_xyz.min(axis=0)[:2],
+        geo.world_xyz[~geo.attributes["is_ground"]].min(axis=0)[:2],
+        atol=0.5,
+    )
     assert abs(p.cloud.offset[0] - 512345.0) < 20  # the offset carries the georeference
     rng = np.random.default_rng(1)
-    lawn = PointCloud(np.c_[rng.uniform(0, 10, (4000, 2)), 0.02 * rng.normal(size=4000)],
-                      source="lawn.las")
+    lawn = PointCloud(
+        np.c_[rng.uniform(0, 10, (4000, 2)), 0.02 * rng.normal(size=4000)], source="lawn.las"
+    )
     with pytest.raises(InputError, match="no tree above the ground"):
         prepare(lawn)

@@ -29,8 +29,9 @@ def test_tube_glb_is_y_up(tmp_path) -> None:
 def test_grid_ground_filter_with_empty_cells_has_no_nan_warning() -> None:
     rng = np.random.default_rng(0)
     # two ground strips 14 m apart: the grid between them has windows with no cell at all
-    strip = np.c_[rng.uniform(0, 3, (2000, 1)), rng.uniform(0, 10, (2000, 1)),
-                  rng.normal(0, 0.01, 2000)]
+    strip = np.c_[
+        rng.uniform(0, 3, (2000, 1)), rng.uniform(0, 10, (2000, 1)), rng.normal(0, 0.01, 2000)
+    ]
     ground = np.vstack([strip, strip + [17.0, 0.0, 0.0]])
     stem = np.c_[1.5 + 0.1 * rng.normal(size=(800, 2)) + [0.0, 3.5], rng.uniform(0, 8, 800)]
     cloud = PointCloud(np.vstack([ground, stem]))

@@ -12,8 +12,9 @@ from biomorph.tree.synthetic import generate_tree, simulate_scan
 
 def test_thickness_of_a_plane_is_its_noise_and_of_a_ball_is_large():
     rng = np.random.default_rng(0)
-    plane = np.column_stack([rng.uniform(0, 1, 4000), rng.uniform(0, 1, 4000),
-                             rng.normal(0, 0.002, 4000)])
+    plane = np.column_stack(
+        [rng.uniform(0, 1, 4000), rng.uniform(0, 1, 4000), rng.normal(0, 0.002, 4000)]
+    )
     th = neighbourhood_thickness(plane, k=12)
     assert np.median(th) < 0.002  # RMS off-plane distance of 12 neighbours < the noise σ
     ball = rng.normal(0, 0.1, (4000, 3))
@@ -35,12 +36,20 @@ def test_thickness_in_blocks_equals_one_block(monkeypatch):
 @pytest.mark.parametrize("preset", ["maple", "conifer"])
 def test_synthetic_foliage_is_removed_and_wood_kept(preset):
     truth = generate_tree(preset, seed=0)
-    cloud = simulate_scan(truth, n_points=30000, seed=0, ground=False, noise=0.008,
-                          occlusion=True, scanners=2, leaves=0.05)
+    cloud = simulate_scan(
+        truth,
+        n_points=30000,
+        seed=0,
+        ground=False,
+        noise=0.008,
+        occlusion=True,
+        scanners=2,
+        leaves=0.05,
+    )
     leaf = cloud.attributes["is_leaf"]
     split = separate_foliage(cloud.xyz)
-    assert (~split.wood[leaf]).mean() > 0.75      # most foliage goes
-    assert split.wood[~leaf].mean() > 0.95        # nearly all wood stays
+    assert (~split.wood[leaf]).mean() > 0.75  # most foliage goes
+    assert split.wood[~leaf].mean() > 0.95  # nearly all wood stays
     assert 0.04 < split.foliage_fraction < 0.12
     assert len(split.threshold) == 2 and split.threshold[0] > 0
 
@@ -65,15 +74,24 @@ def test_bad_parameters_are_refused():
 
 def test_detection_keeps_leafless_scans_whole_and_splits_leafy_ones():
     truth = generate_tree("maple", seed=0)
-    bare = simulate_scan(truth, n_points=30000, seed=0, ground=False, noise=0.002,
-                         occlusion=False, scanners=4)
+    bare = simulate_scan(
+        truth, n_points=30000, seed=0, ground=False, noise=0.002, occlusion=False, scanners=4
+    )
     split = separate_foliage(bare.xyz, detect=True)
     assert not split.detected and split.wood.all() and split.threshold == ()
     assert split.foliage_share < 0.003
     # the same scan without detection loses its most curved twig points
     assert not separate_foliage(bare.xyz).wood.all()
-    leafy = simulate_scan(truth, n_points=30000, seed=0, ground=False, noise=0.008,
-                          occlusion=True, scanners=2, leaves=0.05)
+    leafy = simulate_scan(
+        truth,
+        n_points=30000,
+        seed=0,
+        ground=False,
+        noise=0.008,
+        occlusion=True,
+        scanners=2,
+        leaves=0.05,
+    )
     split = separate_foliage(leafy.xyz, detect=True)
     assert split.detected and split.foliage_share > 0.01
     assert (~split.wood[leafy.attributes["is_leaf"]]).mean() > 0.75

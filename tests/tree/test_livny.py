@@ -17,8 +17,12 @@ from biomorph.tree import livny
 from biomorph.tree.allometry import edge_length
 
 #: (start, end, radius) of a Y-shaped tree: trunk, two crown branches, one lateral branch
-Y_TREE = [((0, 0, 0), (0, 0, 2), 0.10), ((0, 0, 2), (0.8, 0, 3), 0.05),
-          ((0, 0, 2), (-0.6, 0.3, 3.2), 0.05), ((0, 0, 1.2), (0, 0.7, 1.8), 0.03)]
+Y_TREE = [
+    ((0, 0, 0), (0, 0, 2), 0.10),
+    ((0, 0, 2), (0.8, 0, 3), 0.05),
+    ((0, 0, 2), (-0.6, 0.3, 3.2), 0.05),
+    ((0, 0, 1.2), (0, 0.7, 1.8), 0.03),
+]
 
 
 def cylinder_points(a, b, r, n, rng, noise=0.0):
@@ -44,8 +48,12 @@ def make_cloud(segments=Y_TREE, n=6000, seed=0, noise=0.002, offset=(0, 0, 0)):
     rng = np.random.default_rng(seed)
     area = np.array([np.linalg.norm(np.subtract(b, a)) * r for a, b, r in segments])
     counts = np.maximum((n * area / area.sum()).astype(int), 10)
-    pts = np.vstack([cylinder_points(a, b, r, c, rng, noise)
-                     for (a, b, r), c in zip(segments, counts, strict=True)])
+    pts = np.vstack(
+        [
+            cylinder_points(a, b, r, c, rng, noise)
+            for (a, b, r), c in zip(segments, counts, strict=True)
+        ]
+    )
     return pts + np.asarray(offset, float)
 
 
@@ -65,12 +73,14 @@ def random_tree(n, seed=0):
 
 # ----------------------------------------------------------------------------- exact solves
 
+
 def test_tree_solver_matches_spsolve_on_both_livny_systems():
     parent, pos = random_tree(300, seed=1)
     c = livny.importance_weights(parent, pos)
-    for diag, off, rhs in (livny.orientation_system(parent, pos, c),
-                           livny.refinement_system(parent, pos, c,
-                                                   livny.orientation_field(parent, pos, c))):
+    for diag, off, rhs in (
+        livny.orientation_system(parent, pos, c),
+        livny.refinement_system(parent, pos, c, livny.orientation_field(parent, pos, c)),
+    ):
         a = livny.tree_matrix(parent, diag, off)
         ref = np.column_stack([spsolve(a.tocsc(), rhs[:, j]) for j in range(3)])
         x = livny.solve_tree_system(parent, diag, off, rhs)
@@ -137,6 +147,7 @@ def test_importance_weight_is_subtree_length():
 
 # ----------------------------------------------------------------------------- steps i-ii
 
+
 def test_roots_found_automatically_for_two_trees_and_by_kmeans():
     a = make_cloud(n=3000, seed=1)
     b = make_cloud(n=3000, seed=2, offset=(3, 0, 0))
@@ -164,6 +175,7 @@ def test_bridging_joins_pieces_by_their_shortest_edges():
     assert added[0].size == 2  # a spanning forest over three pieces has two edges
     # each bridge is no longer than the closest pair between its two pieces (+ tolerance)
     from scipy.spatial.distance import cdist
+
     gap01 = cdist(pieces[0], pieces[1]).min()
     d = np.linalg.norm(pts[added[0]] - pts[added[1]], axis=1)
     assert d.min() == pytest.approx(gap01, rel=1e-9)
@@ -181,6 +193,7 @@ def test_shortest_path_forest_uses_a_virtual_root():
 
 # ----------------------------------------------------------------------------- end to end
 
+
 def test_y_tree_skeleton_matches_the_axes():
     from biomorph.tree.cleanup import cleanup
 
@@ -188,7 +201,7 @@ def test_y_tree_skeleton_matches_the_axes():
     res = livny.skeletonize_graph(pts)
     g = cleanup(res.graph)
     assert g.roots.size == 1
-    assert g.leaves.size == 3                                   # three branch tips
+    assert g.leaves.size == 3  # three branch tips
     assert g.total_length == pytest.approx(true_length(), rel=0.12)
     # nodes lie near the true axes (centroids of the level pieces)
     d = _distance_to_segments(g.position, Y_TREE)
@@ -209,11 +222,11 @@ def _distance_to_segments(p, segments):
 
 def test_gappy_cloud_is_bridged_into_one_tree():
     pts = make_cloud(n=6000, seed=4)
-    gap = (pts[:, 2] > 0.9) & (pts[:, 2] < 1.0)          # a 10 cm scan gap in the trunk
+    gap = (pts[:, 2] > 0.9) & (pts[:, 2] < 1.0)  # a 10 cm scan gap in the trunk
     res = livny.skeletonize_graph(pts[~gap])
     assert res.info["components"] >= 2
     assert res.info["trees"] == 1
-    assert (res.point_node >= 0).all()                     # no point lost
+    assert (res.point_node >= 0).all()  # no point lost
 
 
 def test_two_trees_come_out_as_separate_skeletons():
@@ -227,8 +240,14 @@ def test_two_trees_come_out_as_separate_skeletons():
         m = g.tree_id == t
         x = g.position[m, 0].mean()
         off = 0.0 if x < 1.25 else 2.5
-        segs = [((a_[0] + off, a_[1] + 0.5 * (off > 0), a_[2]),
-                 (b_[0] + off, b_[1] + 0.5 * (off > 0), b_[2]), r) for a_, b_, r in Y_TREE]
+        segs = [
+            (
+                (a_[0] + off, a_[1] + 0.5 * (off > 0), a_[2]),
+                (b_[0] + off, b_[1] + 0.5 * (off > 0), b_[2]),
+                r,
+            )
+            for a_, b_, r in Y_TREE
+        ]
         assert np.median(_distance_to_segments(g.position[m], segs)) < 0.05
 
 
@@ -267,11 +286,11 @@ def test_densify_and_extend_tips():
 def _fork(n_trunk=30, n_twig=6):
     """A vertical trunk chain (0.1 m steps) with a horizontal twig leaving node 10."""
     trunk = np.column_stack([np.zeros(n_trunk), np.zeros(n_trunk), 0.1 * np.arange(n_trunk)])
-    twig = trunk[10] + np.column_stack([0.05 * np.arange(1, n_twig + 1), np.zeros(n_twig),
-                                        np.zeros(n_twig)])
+    twig = trunk[10] + np.column_stack(
+        [0.05 * np.arange(1, n_twig + 1), np.zeros(n_twig), np.zeros(n_twig)]
+    )
     pos = np.vstack([trunk, twig])
-    parent = np.concatenate([[-1], np.arange(n_trunk - 1), [10],
-                             n_trunk + np.arange(n_twig - 1)])
+    parent = np.concatenate([[-1], np.arange(n_trunk - 1), [10], n_trunk + np.arange(n_twig - 1)])
     return parent, pos
 
 
@@ -287,20 +306,21 @@ def test_branch_edge_weights_keep_a_twig_on_its_points():
         o = livny.orientation_field(parent, pos, c, edge_weights=scheme)
         x = livny.refine_positions(parent, pos, c, o, edge_weights=scheme)
         moved[scheme] = np.linalg.norm(x[twig] - pos[twig], axis=1).max()
-    assert moved["branch"] < 0.03                    # 5 cm twig steps
+    assert moved["branch"] < 0.03  # 5 cm twig steps
     assert moved["livny"] > 2 * moved["branch"]
 
 
 def test_branch_weights_solve_their_own_objective_exactly():
     parent, pos = random_tree(150, seed=4)
     c = livny.importance_weights(parent, pos)
-    w = c + edge_length(parent, pos)          # c̃: the length each edge carries
+    w = c + edge_length(parent, pos)  # c̃: the length each edge carries
     ch = parent >= 0
     for diag, off, rhs in (livny.orientation_system(parent, pos, c, "branch"),):
         a = livny.tree_matrix(parent, diag, off)
         ref = np.column_stack([spsolve(a.tocsc(), rhs[:, j]) for j in range(3)])
-        assert np.allclose(livny.solve_tree_system(parent, diag, off, rhs), ref, rtol=1e-8,
-                           atol=1e-10)
+        assert np.allclose(
+            livny.solve_tree_system(parent, diag, off, rhs), ref, rtol=1e-8, atol=1e-10
+        )
     # the ΣE weight of every edge is c̃ of its child
     diag, _, rhs = livny.orientation_system(parent, pos, c, "branch")
     e = pos[ch] - pos[parent[ch]]

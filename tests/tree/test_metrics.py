@@ -42,8 +42,10 @@ def test_point_segment_distance_exact():
 
 def test_per_tree_metrics():
     a = _fork()
-    b = BranchGraph(np.r_[a.position, a.position + [5, 0, 0]],
-                    np.r_[a.parent, np.where(a.parent >= 0, a.parent + 5, -1)])
+    b = BranchGraph(
+        np.r_[a.position, a.position + [5, 0, 0]],
+        np.r_[a.parent, np.where(a.parent >= 0, a.parent + 5, -1)],
+    )
     m = skeleton_metrics(b, np.array([[5, 0, 0.5]]))
     assert m["n_trees"] == 2 and [t["nob"] for t in m["trees"]] == [2, 2]
     assert m["trees"][1]["n_points"] == 1 and m["trees"][0]["mse"] is None
@@ -84,7 +86,7 @@ def test_observed_truth_measures_leave_out_unscanned_branches():
     t = _fork()
     rng = np.random.default_rng(0)
     s = rng.uniform(0, 1, 600)
-    r = 0.2 - 0.1 * s                                      # the stem's true radius
+    r = 0.2 - 0.1 * s  # the stem's true radius
     stem = np.column_stack([r * np.cos(9 * s), r * np.sin(9 * s), 2 * s])
     s2 = rng.uniform(0, 1, 300)
     branch = np.array([0, 0, 2.0]) + s2[:, None] * np.array([1.0, 0, 1]) + [0, 0.05, 0]
@@ -103,5 +105,6 @@ def test_observed_truth_measures_leave_out_unscanned_branches():
     assert "observed_fraction" not in compare_to_truth(seen_part, t, tolerance=0.05)
     # the leaf points alone observe nothing of the wood
     with pytest.raises(InputError, match="no wood points"):
-        compare_to_truth(seen_part, t, cloud=PointCloud(leaves,
-                                                        attributes={"is_leaf": is_leaf[900:]}))
+        compare_to_truth(
+            seen_part, t, cloud=PointCloud(leaves, attributes={"is_leaf": is_leaf[900:]})
+        )

@@ -70,7 +70,7 @@ def test_cylinder_fit_residual_is_the_radius_error(scale):
     fit = cylinder_fit(g, _surface_points(g, scale))
     assert fit["far_share"] == 0.0
     res = fit["classes"][">20cm"]["residual"]
-    assert res == pytest.approx(scale - 1.0, abs=1e-6)      # thin model: positive
+    assert res == pytest.approx(scale - 1.0, abs=1e-6)  # thin model: positive
 
 
 def test_cylinder_fit_counts_points_far_from_every_surface():

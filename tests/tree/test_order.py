@@ -13,10 +13,19 @@ from biomorph.tree import order
 def _tree():
     """Stem 0-1-2-3 (z up), lateral branch at node 1 (60° off, short), fork at 3 into a
     continuation 4 (10°, long) and a second lateral 6."""
-    pos = np.array([[0, 0, 0], [0, 0, 1.0], [0, 0, 2], [0, 0, 3],
-                    [0.2, 0, 4.0], [0.4, 0, 5.0],                  # continuation (long)
-                    [0.9, 0, 3.5],                                 # lateral at the fork
-                    [0.87, 0, 1.5], [1.7, 0, 2.0]])                # lateral on the stem
+    pos = np.array(
+        [
+            [0, 0, 0],
+            [0, 0, 1.0],
+            [0, 0, 2],
+            [0, 0, 3],
+            [0.2, 0, 4.0],
+            [0.4, 0, 5.0],  # continuation (long)
+            [0.9, 0, 3.5],  # lateral at the fork
+            [0.87, 0, 1.5],
+            [1.7, 0, 2.0],
+        ]
+    )  # lateral on the stem
     parent = np.array([-1, 0, 1, 2, 3, 4, 3, 1, 7])
     return BranchGraph(pos, parent)
 
@@ -44,8 +53,7 @@ def test_thresholds_are_parameters_of_the_angle_rule():
     with pytest.raises(ParameterError):
         order.branch_order(g, tie=0)
     # the supported rule ignores the angle: the same trunk at any limit
-    assert order.branch_order(g, max_angle=np.radians(5)).tolist() == \
-        order.branch_order(g).tolist()
+    assert order.branch_order(g, max_angle=np.radians(5)).tolist() == order.branch_order(g).tolist()
 
 
 def _bent_stem(n_whorls=6):
@@ -58,11 +66,11 @@ def _bent_stem(n_whorls=6):
         pos.append(list(np.array(pos[2]) + (i + 1) * 0.5 * d))
         parent.append(2 if i == 0 else len(pos) - 3)
         stem_node = len(pos) - 1
-        pos.append(list(np.array(pos[stem_node]) + [0, 0.3, 0.0]))   # 0.3 m side twig
+        pos.append(list(np.array(pos[stem_node]) + [0, 0.3, 0.0]))  # 0.3 m side twig
         parent.append(stem_node)
-    pos.append(list(np.array(pos[-2]) + 0.5 * d))                     # the leader's tip
+    pos.append(list(np.array(pos[-2]) + 0.5 * d))  # the leader's tip
     parent.append(len(pos) - 3)
-    pos.append([0, 0.3, 2.0])                                          # a twig at the bend
+    pos.append([0, 0.3, 2.0])  # a twig at the bend
     parent.append(2)
     return BranchGraph(np.array(pos, dtype=float), np.array(parent))
 
@@ -79,9 +87,14 @@ def test_the_trunk_follows_the_most_wood_however_it_bends():
 def test_a_codominant_fork_continues_into_the_straighter_child():
     # fork at node 1: a child 30° off carrying 1.0 m, one 5° off carrying 0.8 m (tie 0.5)
     a30, a5 = np.radians(30), np.radians(5)
-    pos = np.array([[0, 0, 0], [0, 0, 1.0],
-                    [np.sin(a30), 0, 1 + np.cos(a30)],
-                    [-0.8 * np.sin(a5), 0, 1 + 0.8 * np.cos(a5)]])
+    pos = np.array(
+        [
+            [0, 0, 0],
+            [0, 0, 1.0],
+            [np.sin(a30), 0, 1 + np.cos(a30)],
+            [-0.8 * np.sin(a5), 0, 1 + 0.8 * np.cos(a5)],
+        ]
+    )
     g = BranchGraph(pos, np.array([-1, 0, 1, 1]))
     assert order.branch_order(g).tolist() == [0, 0, 1, 0]
     # with a strict tie share the heavier one wins
@@ -107,7 +120,7 @@ def test_segments_are_branches_of_constant_order():
 
 def test_second_order_branches():
     g = _tree()
-    pos = np.vstack([g.position, [[1.3, 0.5, 2.0]]])                 # a twig off the lateral
+    pos = np.vstack([g.position, [[1.3, 0.5, 2.0]]])  # a twig off the lateral
     parent = np.concatenate([g.parent, [7]])
     g2 = BranchGraph(pos, parent)
     d = order.with_order(g2).depth

@@ -29,8 +29,9 @@ def test_graph_pipeline_matches_synthetic_truth(aspen, aspen_skeleton):
     truth, cloud = aspen
     skel = aspen_skeleton
     assert isinstance(skel, TreeSkeleton) and skel.method == "graph"
-    assert skel.ground is not None and skel.ground.n_points > 0.5 * cloud.attributes[
-        "is_ground"].sum()
+    assert (
+        skel.ground is not None and skel.ground.n_points > 0.5 * cloud.attributes["is_ground"].sum()
+    )
     c = compare_to_truth(skel.world_graph(), truth)
     assert c["f1"] >= 0.8
     assert 0.7 <= c["nob_ratio"] <= 1.4
@@ -119,12 +120,11 @@ def test_sparse_filter_removes_leaf_clutter_not_wood():
     from biomorph.tree.pipeline import remove_sparse
 
     truth = generate_tree("maple", seed=0)
-    cloud = simulate_scan(truth, n_points=30000, seed=0, noise=0.004, ground=False,
-                          leaves=0.05)
+    cloud = simulate_scan(truth, n_points=30000, seed=0, noise=0.004, ground=False, leaves=0.05)
     leaf = cloud.attributes["is_leaf"].astype(bool)
     kept = remove_sparse(cloud.with_(attributes={"leaf": leaf}), 4.0)
     k_leaf = kept.attributes["leaf"]
-    assert k_leaf.sum() < 0.35 * leaf.sum()                  # most clutter gone
-    assert (~k_leaf).sum() > 0.9 * (~leaf).sum()              # wood kept
+    assert k_leaf.sum() < 0.35 * leaf.sum()  # most clutter gone
+    assert (~k_leaf).sum() > 0.9 * (~leaf).sum()  # wood kept
     with pytest.raises(ParameterError):
         remove_sparse(cloud, 0.5)

@@ -23,8 +23,12 @@ from biomorph.tree.reference import read_qsm_csv
 def _tree():
     """4 m stem (r 0.1 → 0.06) with a horizontal 1 m branch (r 0.01) leaving at 2 m."""
     z = np.linspace(0, 4, 9)
-    pos = np.vstack([np.column_stack([np.zeros(9), np.zeros(9), z]),
-                     np.column_stack([np.linspace(0.25, 1.0, 4), np.zeros(4), np.full(4, 2.0)])])
+    pos = np.vstack(
+        [
+            np.column_stack([np.zeros(9), np.zeros(9), z]),
+            np.column_stack([np.linspace(0.25, 1.0, 4), np.zeros(4), np.full(4, 2.0)]),
+        ]
+    )
     parent = np.concatenate([[-1], np.arange(8), [4, 9, 10, 11]])
     radius = np.concatenate([np.linspace(0.1, 0.06, 9), np.full(4, 0.01)])
     return with_order(BranchGraph(pos, parent, radius=radius))
@@ -33,20 +37,46 @@ def _tree():
 def test_treeqsm_column_order():
     # TreeQSM's cylinder text export: radius, length, start, axis, parent, extension,
     # branch, BranchOrder, PositionInBranch, added, then mad, SurfCov, UnmodRadius
-    assert CYLINDER_COLUMNS[:14] == ("radius", "length", "start_x", "start_y", "start_z",
-                                     "axis_x", "axis_y", "axis_z", "parent", "extension",
-                                     "branch", "BranchOrder", "PositionInBranch", "added")
-    assert BRANCH_COLUMNS[:10] == ("order", "parent", "diameter", "volume", "area", "length",
-                                   "angle", "height", "azimuth", "zenith")
+    assert CYLINDER_COLUMNS[:14] == (
+        "radius",
+        "length",
+        "start_x",
+        "start_y",
+        "start_z",
+        "axis_x",
+        "axis_y",
+        "axis_z",
+        "parent",
+        "extension",
+        "branch",
+        "BranchOrder",
+        "PositionInBranch",
+        "added",
+    )
+    assert BRANCH_COLUMNS[:10] == (
+        "order",
+        "parent",
+        "diameter",
+        "volume",
+        "area",
+        "length",
+        "angle",
+        "height",
+        "azimuth",
+        "zenith",
+    )
     assert TREEDATA_COLUMNS[:3] == ("TotalVolume", "TrunkVolume", "BranchVolume")
 
 
 def test_tables_describe_the_tree():
     g = _tree()
     seg = segments(g)
-    quality = {"reliable": np.r_[np.ones(9, bool), np.zeros(4, bool)],
-               "mad": np.full(13, 0.002), "coverage": np.full(13, 0.75),
-               "fitted_radius": np.full(13, 0.05)}
+    quality = {
+        "reliable": np.r_[np.ones(9, bool), np.zeros(4, bool)],
+        "mad": np.full(13, 0.002),
+        "coverage": np.full(13, 0.75),
+        "fitted_radius": np.full(13, 0.05),
+    }
     cyl = cylinder_table(g, seg, quality)
     assert cyl["ID"].tolist() == list(range(1, 13))
     assert cyl["parent"][0] == 0 and cyl["BranchOrder"].max() == 1
@@ -59,7 +89,7 @@ def test_tables_describe_the_tree():
     assert br["length"] == pytest.approx([4.0, 1.0])
     assert br["angle"][1] == pytest.approx(90.0) and br["zenith"][1] == pytest.approx(90.0)
     assert br["height"][1] == pytest.approx(2.0)
-    assert br["volume"].sum() == pytest.approx(1000 * volume(g))       # litres
+    assert br["volume"].sum() == pytest.approx(1000 * volume(g))  # litres
     assert br["volume"][1] == pytest.approx(1000 * np.pi * 0.01**2 * 1.0)
     td = treedata_table(g, cyl)
     assert td["TotalVolume"][0] == pytest.approx(1000 * volume(g))

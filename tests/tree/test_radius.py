@@ -27,7 +27,7 @@ def test_node_axes_of_a_fork_and_a_chain():
 def test_fit_recovers_radius_with_noise_and_outliers():
     rng = np.random.default_rng(0)
     stem = cylinder_points((0, 0, 0), (0, 0, 2), 0.12, 6000, rng, noise=0.002)
-    clutter = rng.uniform([-0.3, -0.3, 0], [0.3, 0.3, 2], (600, 3))   # 10 % outliers
+    clutter = rng.uniform([-0.3, -0.3, 0], [0.3, 0.3, 2], (600, 3))  # 10 % outliers
     pts = np.vstack([stem, clutter])
     g = _chain((0, 0, 0), (0, 0, 2), 21)
     out, fit = rd.fit_radii(g, pts)
@@ -39,7 +39,7 @@ def test_fit_recovers_radius_with_noise_and_outliers():
 def test_recentring_moves_an_off_centre_skeleton_onto_the_axis():
     rng = np.random.default_rng(1)
     pts = cylinder_points((0, 0, 0), (0, 0, 2), 0.1, 5000, rng, noise=0.001)
-    g = _chain((0.06, 0, 0), (0.06, 0, 2), 21)          # on the stem surface side
+    g = _chain((0.06, 0, 0), (0.06, 0, 2), 21)  # on the stem surface side
     out, _ = rd.fit_radii(g, pts, recentre=True)
     off = np.linalg.norm(out.position[2:-2, :2], axis=1)
     assert np.median(off) < 0.01
@@ -80,7 +80,7 @@ def test_cap_down_lets_a_stem_recover_from_one_low_node():
     g = _chain((0, 0, 0), (0, 0, 1), 8)
     r = rd.cap_down(g, np.array([0.2, 0.2, 0.1, 0.2, 0.2, 0.2, 0.2, 0.2]), slack=1.1)
     assert np.allclose(r[:4], [0.2, 0.2, 0.1, 0.11])
-    assert np.allclose(r[-1], 0.1 * 1.1 ** 5) and np.all(np.diff(r[2:]) > 0)
+    assert np.allclose(r[-1], 0.1 * 1.1**5) and np.all(np.diff(r[2:]) > 0)
 
 
 def test_recentring_shifts_are_smoothed_along_the_branch():

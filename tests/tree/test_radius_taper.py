@@ -20,24 +20,29 @@ def _tree():
 
 def _fit(g, radius, ok, coverage=0.8, mad=0.001):
     n = g.n_nodes
-    return RadiusFit(centre=g.position.copy(), radius=np.asarray(radius, dtype=float),
-                     inliers=np.full(n, 50), coverage=np.full(n, coverage),
-                     ok=np.asarray(ok), search_radius=np.full(n, 1.0),
-                     mad=np.full(n, mad))
+    return RadiusFit(
+        centre=g.position.copy(),
+        radius=np.asarray(radius, dtype=float),
+        inliers=np.full(n, 50),
+        coverage=np.full(n, coverage),
+        ok=np.asarray(ok),
+        search_radius=np.full(n, 1.0),
+        mad=np.full(n, mad),
+    )
 
 
 def test_a_thick_branch_fit_does_not_survive_the_model():
     g = _tree()
     carried = g.subtree_length() + g.edge_length
-    truth = 0.02 * carried ** 0.4                        # the allometric taper
+    truth = 0.02 * carried**0.4  # the allometric taper
     fitted = truth.copy()
-    fitted[51:] = 0.12                                   # needle-clump circles on the branch
+    fitted[51:] = 0.12  # needle-clump circles on the branch
     ok = np.ones(g.n_nodes, dtype=bool)
     r, fit = taper_radii(g, _fit(g, fitted, ok))
     assert fit.reliable[:20].all() and not fit.reliable[51:].any()
-    assert np.allclose(r[:40], truth[:40], rtol=0.05)    # the stem follows its fits
-    assert np.allclose(r[53:], truth[53:], rtol=0.25)    # the branch follows the model
-    assert r[51] <= r[20] + 1e-12                        # never thicker than its parent
+    assert np.allclose(r[:40], truth[:40], rtol=0.05)  # the stem follows its fits
+    assert np.allclose(r[53:], truth[53:], rtol=0.25)  # the branch follows the model
+    assert r[51] <= r[20] + 1e-12  # never thicker than its parent
     assert fit.model[0]["anchor"] == "stem" and fit.model[0]["b"] == 0.4
 
 
@@ -47,7 +52,7 @@ def test_poorly_covered_fits_are_not_reliable_and_radii_have_a_floor():
     ok = np.ones(g.n_nodes, dtype=bool)
     _, fit = taper_radii(g, _fit(g, fitted, ok, coverage=0.25))
     assert not fit.reliable.any()
-    _, fit = taper_radii(g, _fit(g, fitted, ok, mad=0.01))       # scatter 20 % of r
+    _, fit = taper_radii(g, _fit(g, fitted, ok, mad=0.01))  # scatter 20 % of r
     assert not fit.reliable.any()
     r, _ = taper_radii(g, _fit(g, np.full(g.n_nodes, 1e-5), ok), min_radius=MIN_RADIUS)
     assert r.min() >= MIN_RADIUS

@@ -25,7 +25,7 @@ def rtwig():
 
 def test_rtwig_qsm_reference_numbers():
     qsm = read_qsm_csv(shared_file("trees", "rtwig_QSM_simpleforest.csv"))
-    assert qsm.n_nodes == 1149 + 1                    # cylinder ends + one base node
+    assert qsm.n_nodes == 1149 + 1  # cylinder ends + one base node
     assert qsm.leaves.size == 69
     assert qsm.total_length == pytest.approx(31.43, abs=0.01)
     assert qsm.radius[qsm.roots[0]] == pytest.approx(0.0472, abs=1e-4)
@@ -49,9 +49,13 @@ def test_plantscan3d_branch_agrees_with_its_mtg():
     pts = read_points(shared_file("trees", "plantscan3d_A3B4.asc"))
     mtg = read_graph(shared_file("trees", "plantscan3d_A3B4.mtg"))
     ref = mtg.with_(position=mtg.position + pts.xyz.mean(axis=0))  # README alignment
-    d = np.linalg.norm(ref.position - pts.xyz[np.argmin(
-        np.linalg.norm(pts.xyz[None, :50] - ref.position[:50, None], axis=2), axis=1)][:1],
-        axis=1)
+    d = np.linalg.norm(
+        ref.position
+        - pts.xyz[
+            np.argmin(np.linalg.norm(pts.xyz[None, :50] - ref.position[:50, None], axis=2), axis=1)
+        ][:1],
+        axis=1,
+    )
     assert np.isfinite(d).all()
     skel = skeletonize(pts)
     c = compare_to_reference(skel.world_graph(), ref, tolerance=0.05)
@@ -64,11 +68,11 @@ def test_plantscan3d_branch_agrees_with_its_mtg():
 def test_gappy_adtree_clouds_are_bridged(name, min_pieces):
     cloud = read_points(shared_file("trees", name))
     skel = skeletonize(cloud, outliers=False)
-    assert skel.info["components"] >= min_pieces      # README: 9 and 13 pieces at k = 10
+    assert skel.info["components"] >= min_pieces  # README: 9 and 13 pieces at k = 10
     assert skel.metrics["n_trees"] == 1
     g = skel.graph
     top = skel.cloud.xyz[:, 2].max()
-    assert g.position[:, 2].max() > 0.9 * top        # the skeleton reaches the crown top
+    assert g.position[:, 2].max() > 0.9 * top  # the skeleton reaches the crown top
     assert skel.graph.leaves.size > 20
 
 
@@ -88,7 +92,7 @@ def test_pine_plot_ground_removal_and_tree_segmentation():
     skel = skeletonize(cloud)
     assert skel.ground is not None and skel.ground.n_points > 5000
     n = skel.metrics["n_trees"]
-    assert 15 <= n <= 32                              # ~20 pine stems in the 10 x 10 m plot
+    assert 15 <= n <= 32  # ~20 pine stems in the 10 x 10 m plot
     g = skel.world_graph()
     roots = g.position[g.roots]
     # stems stand apart: no two roots closer than 0.5 m
@@ -96,5 +100,6 @@ def test_pine_plot_ground_removal_and_tree_segmentation():
 
     assert pdist(roots[:, :2]).min() > 0.5
     # the skeletons are in the original (projected) coordinates of the LAZ file
-    assert np.allclose(np.median(roots[:, :2], axis=0),
-                       np.median(cloud.world_xyz[:, :2], axis=0), atol=3.0)
+    assert np.allclose(
+        np.median(roots[:, :2], axis=0), np.median(cloud.world_xyz[:, :2], axis=0), atol=3.0
+    )

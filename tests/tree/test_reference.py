@@ -35,12 +35,15 @@ def test_read_simpleforest_style_csv(tmp_path):
     assert np.allclose(shifted.position - g.position, [1, 2, 3])
 
 
-@pytest.mark.parametrize("text, msg", [
-    ("", "empty"),
-    (" ID, parentID, startX\n0,-1\n", "expected 3"),
-    (" ID, parentID, startX, startY, startZ, radius\n0,-1,a,0,0,1\n", "non-numeric"),
-    (" ID, foo\n0,1\n", "missing columns"),
-])
+@pytest.mark.parametrize(
+    "text, msg",
+    [
+        ("", "empty"),
+        (" ID, parentID, startX\n0,-1\n", "expected 3"),
+        (" ID, parentID, startX, startY, startZ, radius\n0,-1,a,0,0,1\n", "non-numeric"),
+        (" ID, foo\n0,1\n", "missing columns"),
+    ],
+)
 def test_malformed_csv_raises_format_error(tmp_path, text, msg):
     p = tmp_path / "bad.csv"
     p.write_text(text)
@@ -67,7 +70,10 @@ def test_agreement_of_a_model_with_itself_and_a_shortened_copy(tmp_path):
 
 
 def test_radius_profile_is_length_weighted():
-    g = BranchGraph(np.array([[0, 0, 0], [0, 0, 1.0], [0, 0, 2]]), np.array([-1, 0, 1]),
-                    radius=np.array([0.2, 0.1, 0.05]))
+    g = BranchGraph(
+        np.array([[0, 0, 0], [0, 0, 1.0], [0, 0, 2]]),
+        np.array([-1, 0, 1]),
+        radius=np.array([0.2, 0.1, 0.05]),
+    )
     prof = radius_profile(g, np.array([0.5, 1.5, 2.5]))
     assert np.allclose(prof, [0.1, 0.05])

@@ -13,8 +13,9 @@ from biomorph.tree.thinning import DIRECTIONS, templates, thin_palagyi_kuba
 def _topology(v):
     """(26-connected object components, 6-connected background components incl. outside)."""
     _, nobj = ndimage.label(v, structure=np.ones((3, 3, 3)))
-    _, nbg = ndimage.label(np.pad(~v, 1, constant_values=True),
-                           structure=ndimage.generate_binary_structure(3, 1))
+    _, nbg = ndimage.label(
+        np.pad(~v, 1, constant_values=True), structure=ndimage.generate_binary_structure(3, 1)
+    )
     return nobj, nbg
 
 
@@ -41,8 +42,9 @@ def test_template_sets():
 def test_topology_preserved_on_random_shapes(full):
     rng = np.random.default_rng(1)
     for _ in range(60):
-        v = ndimage.binary_dilation(rng.random((11, 11, 11)) < 0.05,
-                                    iterations=int(rng.integers(1, 3)))
+        v = ndimage.binary_dilation(
+            rng.random((11, 11, 11)) < 0.05, iterations=int(rng.integers(1, 3))
+        )
         v &= rng.random(v.shape) < 0.93  # pepper: small cavities and tunnels
         t = thin_palagyi_kuba(v, full_symmetry=full)
         assert _topology(t) == _topology(v)
@@ -82,8 +84,10 @@ def test_ball_shrinks_to_point_and_hollow_sphere_keeps_cavity():
 def test_symmetric_shape_gives_near_symmetric_result():
     # a plus-shaped prism: four arms; the skeleton has four arms of similar length
     x, y, z = _grid((31, 31, 9))
-    plus = (((np.abs(x - 15) <= 2) & (np.abs(y - 15) <= 12)) |
-            ((np.abs(y - 15) <= 2) & (np.abs(x - 15) <= 12))) & (np.abs(z - 4) <= 2)
+    plus = (
+        ((np.abs(x - 15) <= 2) & (np.abs(y - 15) <= 12))
+        | ((np.abs(y - 15) <= 2) & (np.abs(x - 15) <= 12))
+    ) & (np.abs(z - 4) <= 2)
     t = np.argwhere(thin_palagyi_kuba(plus))
     reach = [t[:, 0].max() - 15, 15 - t[:, 0].min(), t[:, 1].max() - 15, 15 - t[:, 1].min()]
     assert max(reach) - min(reach) <= 2 and min(reach) >= 8

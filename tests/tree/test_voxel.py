@@ -53,8 +53,7 @@ def test_preprocess_removes_small_components_and_fills_hollow_stem():
     assert vol[15, 15, 15]  # hollow stem filled (closed rings)
     # a ring with a gap is closed by the disc
     gap = ring & ~((x > 18) & (np.abs(y - 15) <= 1))
-    v2, _ = preprocess_volume(gap.astype(np.int32), closing=None, disc_radius=6,
-                              fill_slices=True)
+    v2, _ = preprocess_volume(gap.astype(np.int32), closing=None, disc_radius=6, fill_slices=True)
     assert v2[15, 15, 15]
     v3, _ = preprocess_volume(gap.astype(np.int32), closing=None, disc_radius=0)
     assert not v3[15, 15, 15]  # without the disc the open ring stays hollow

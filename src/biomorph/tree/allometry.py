@@ -27,11 +27,15 @@ def edge_length(parent: NDArray[np.int64], position: NDArray[np.float64]) -> NDA
     return out
 
 
-
-def allometric_radii(parent: NDArray[np.int64], position: NDArray[np.float64],
-                     weight: NDArray[np.float64], mean_distance: NDArray[np.float64] | float,
-                     tree: NDArray[np.int64] | None = None, exponent: float = 2.5,
-                     order=None) -> NDArray[np.float64]:
+def allometric_radii(
+    parent: NDArray[np.int64],
+    position: NDArray[np.float64],
+    weight: NDArray[np.float64],
+    mean_distance: NDArray[np.float64] | float,
+    tree: NDArray[np.int64] | None = None,
+    exponent: float = 2.5,
+    order=None,
+) -> NDArray[np.float64]:
     """Step vii: radii with ``r_v = r_u (c̃_v / c̃_u)^(1/exponent)`` along every edge
     (ΣR = 0) scaled per tree so that ``Σ c̃ r / Σ c̃`` equals the mean point-to-skeleton
     distance of that tree (ΣD). ``c̃_v = c_v + |e(v_p, v)|`` (the carried length including
@@ -46,7 +50,7 @@ def allometric_radii(parent: NDArray[np.int64], position: NDArray[np.float64],
     logratio = np.zeros(parent.size)
     logratio[ch] = np.log(ct[ch] / ct[parent[ch]]) / exponent
     logr = treeops.accumulate_down(parent, logratio, order)
-    rel = np.exp(logr)                     # radius relative to the root (root = 1)
+    rel = np.exp(logr)  # radius relative to the root (root = 1)
     root = treeops.root_of(parent, order)
     tree = root if tree is None else np.asarray(tree)
     _, tix = np.unique(tree, return_inverse=True)
@@ -58,9 +62,12 @@ def allometric_radii(parent: NDArray[np.int64], position: NDArray[np.float64],
     return rel * scale[tix]
 
 
-def skeleton_distance(points: NDArray[np.float64], parent: NDArray[np.int64],
-                      position: NDArray[np.float64], step: float | None = None,
-                      ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def skeleton_distance(
+    points: NDArray[np.float64],
+    parent: NDArray[np.int64],
+    position: NDArray[np.float64],
+    step: float | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Distance of every point to the skeleton polyline (metres) and the nearest node.
 
     Edges are sampled every ``step`` (default a quarter of the median edge length), so the
@@ -83,4 +90,3 @@ def skeleton_distance(points: NDArray[np.float64], parent: NDArray[np.int64],
     node = np.where(t < 0.5, parent[ch][eid], ch[eid])
     d, j = cKDTree(samples).query(points, workers=-1)
     return d, node[j]
-

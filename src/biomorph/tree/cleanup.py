@@ -26,9 +26,17 @@ from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 
-__all__ = ["remove_false_branches", "collapse_overlaps", "cleanup", "cleanup_skeleton",
-           "axis_inside_fraction", "smooth_chains",
-           "prune_small_trees", "tip_chains", "prune_unsupported_tips"]
+__all__ = [
+    "remove_false_branches",
+    "collapse_overlaps",
+    "cleanup",
+    "cleanup_skeleton",
+    "axis_inside_fraction",
+    "smooth_chains",
+    "prune_small_trees",
+    "tip_chains",
+    "prune_unsupported_tips",
+]
 
 
 def _carried(graph: BranchGraph) -> NDArray[np.float64]:
@@ -36,8 +44,13 @@ def _carried(graph: BranchGraph) -> NDArray[np.float64]:
     return graph.subtree_sum(graph.edge_length)
 
 
-def remove_false_branches(graph: BranchGraph, *, radius_ratio: float = 0.5,
-                          length_factor: float = 3.0, min_length: float = 0.0) -> BranchGraph:
+def remove_false_branches(
+    graph: BranchGraph,
+    *,
+    radius_ratio: float = 0.5,
+    length_factor: float = 3.0,
+    min_length: float = 0.0,
+) -> BranchGraph:
     """Remove side branches that are thin **and** short next to their parent stem.
 
     A child ``v`` of a fork ``u`` (not the heaviest child) is removed with its subtree if
@@ -73,8 +86,9 @@ def remove_false_branches(graph: BranchGraph, *, radius_ratio: float = 0.5,
     return graph.subgraph(~removed)
 
 
-def axis_inside_fraction(a: NDArray, d1: NDArray, len1: NDArray, rad1: NDArray,
-                         b: NDArray, d2: NDArray, len2: NDArray) -> NDArray[np.float64]:
+def axis_inside_fraction(
+    a: NDArray, d1: NDArray, len1: NDArray, rad1: NDArray, b: NDArray, d2: NDArray, len2: NDArray
+) -> NDArray[np.float64]:
     """Fraction of segment ``b + s d2, s ∈ [0, len2]`` inside the cylinder
     ``a + t d1, t ∈ [0, len1]`` of radius ``rad1`` (``d1``, ``d2`` unit vectors, rows).
 
@@ -89,12 +103,11 @@ def axis_inside_fraction(a: NDArray, d1: NDArray, len1: NDArray, rad1: NDArray,
     # |perp0 + s pd|^2 = R^2: quadratic in s
     qa = np.einsum("ij,ij->i", pd, pd)
     qb = 2 * np.einsum("ij,ij->i", perp0, pd)
-    qc = np.einsum("ij,ij->i", perp0, perp0) - rad1 ** 2
+    qc = np.einsum("ij,ij->i", perp0, perp0) - rad1**2
     with np.errstate(divide="ignore", invalid="ignore"):
         disc = np.maximum(qb * qb - 4 * qa * qc, 0.0)
         s_mantle = np.where(qa > 1e-18, (-qb + np.sqrt(disc)) / (2 * qa), np.inf)
-        s_cap = np.where(cos > 1e-12, (len1 - t0) / cos,
-                         np.where(cos < -1e-12, -t0 / cos, np.inf))
+        s_cap = np.where(cos > 1e-12, (len1 - t0) / cos, np.where(cos < -1e-12, -t0 / cos, np.inf))
     s_exit = np.minimum(np.maximum(s_mantle, 0), np.maximum(s_cap, 0))
     inside0 = (qc <= 1e-12) & (t0 >= -1e-12) & (t0 <= len1 + 1e-12)
     frac = np.minimum(s_exit, len2) / np.maximum(len2, 1e-300)
@@ -106,8 +119,9 @@ def _unit(v: NDArray) -> tuple[NDArray, NDArray]:
     return v / np.maximum(n, 1e-300)[:, None], n
 
 
-def _candidates(graph: BranchGraph, overlap: float, max_edge: float | None,
-                min_radius: float = 0.0):
+def _candidates(
+    graph: BranchGraph, overlap: float, max_edge: float | None, min_radius: float = 0.0
+):
     """``(keep, drop, dist)`` merge candidates of both rules for the current graph."""
     par = graph.parent
     pos = graph.position
@@ -156,20 +170,28 @@ def _candidates(graph: BranchGraph, overlap: float, max_edge: float | None,
         frac = axis_inside_fraction(pos[u], d1, 2 * l1, rad, pos[v], d2, l2)
         hit = (frac > overlap) & (l1 > 0) & (l2 > 0)
         if max_edge is not None:
-            hit &= (np.linalg.norm(pos[w] - pos[u], axis=1) <= max_edge)
+            hit &= np.linalg.norm(pos[w] - pos[u], axis=1) <= max_edge
         keeps.append(u[hit])
         drops.append(v[hit])
         dists.append(l1[hit])
     if not keeps:
         z = np.zeros(0, dtype=np.int64)
         return z, z, np.zeros(0)
-    return (np.concatenate(keeps).astype(np.int64), np.concatenate(drops).astype(np.int64),
-            np.concatenate(dists))
+    return (
+        np.concatenate(keeps).astype(np.int64),
+        np.concatenate(drops).astype(np.int64),
+        np.concatenate(dists),
+    )
 
 
-def collapse_overlaps(graph: BranchGraph, *, overlap: float = 0.5,
-                      max_edge: float | None = None, max_rounds: int = 200,
-                      min_radius: float = 0.0) -> BranchGraph:
+def collapse_overlaps(
+    graph: BranchGraph,
+    *,
+    overlap: float = 0.5,
+    max_edge: float | None = None,
+    max_rounds: int = 200,
+    min_radius: float = 0.0,
+) -> BranchGraph:
     """Apply both cylinder-overlap rules until stable (see module doc).
 
     ``max_edge`` (metres) caps the length of edges rule 2 may create (``None``: no cap).
@@ -216,8 +238,12 @@ def collapse_overlaps(graph: BranchGraph, *, overlap: float = 0.5,
             break
         par = np.where(par >= 0, redirect[np.maximum(par, 0)], -1)
         par[removed] = -1
-        g2 = graph.with_(position=pos, parent=par, radius=rad,
-                         weight=None if graph.weight is None else graph.weight)
+        g2 = graph.with_(
+            position=pos,
+            parent=par,
+            radius=rad,
+            weight=None if graph.weight is None else graph.weight,
+        )
         graph = g2.subgraph(~removed)
         graph = graph.with_(weight=graph.subtree_length())
     return graph
@@ -234,17 +260,24 @@ def prune_small_trees(graph: BranchGraph, min_length: float) -> BranchGraph:
     return graph if keep.all() else graph.subgraph(keep)
 
 
-def cleanup(graph: BranchGraph, *, radius_ratio: float = 0.5, length_factor: float = 3.0,
-            min_length: float = 0.0, overlap: float = 0.5, max_edge: float | None = None,
-            min_radius: float = 0.0) -> BranchGraph:
+def cleanup(
+    graph: BranchGraph,
+    *,
+    radius_ratio: float = 0.5,
+    length_factor: float = 3.0,
+    min_length: float = 0.0,
+    overlap: float = 0.5,
+    max_edge: float | None = None,
+    min_radius: float = 0.0,
+) -> BranchGraph:
     """Step viii: collapse overlapping cylinders, then remove false branches (the order the
     thesis found better), then collapse again until nothing changes."""
-    g = collapse_overlaps(graph, overlap=overlap, max_edge=max_edge,
-                          min_radius=min_radius)
+    g = collapse_overlaps(graph, overlap=overlap, max_edge=max_edge, min_radius=min_radius)
     for _ in range(10):
         n0 = g.n_nodes
-        g = remove_false_branches(g, radius_ratio=radius_ratio, length_factor=length_factor,
-                                  min_length=min_length)
+        g = remove_false_branches(
+            g, radius_ratio=radius_ratio, length_factor=length_factor, min_length=min_length
+        )
         g = collapse_overlaps(g, overlap=overlap, max_edge=max_edge, min_radius=min_radius)
         if g.n_nodes == n0:
             break
@@ -274,7 +307,7 @@ def smooth_chains(graph: BranchGraph, iterations: int = 2) -> BranchGraph:
         return graph
     child = np.full(graph.n_nodes, -1, dtype=np.int64)
     ch = np.flatnonzero(par >= 0)
-    child[par[ch]] = ch                   # the only child, for one-child nodes
+    child[par[ch]] = ch  # the only child, for one-child nodes
     pos = graph.position.copy()
     pi, ci = par[inner], child[inner]
     for _ in range(iterations):
@@ -302,8 +335,9 @@ def tip_chains(graph: BranchGraph) -> NDArray[np.int64]:
     return np.where(lc == 1, lab - 1, -1).astype(np.int64)
 
 
-def prune_unsupported_tips(graph: BranchGraph, xyz: NDArray[np.float64], ratio: float = 0.3,
-                           max_length: float = np.inf) -> BranchGraph:
+def prune_unsupported_tips(
+    graph: BranchGraph, xyz: NDArray[np.float64], ratio: float = 0.3, max_length: float = np.inf
+) -> BranchGraph:
     """Remove side tip chains (:func:`tip_chains`) shorter than ``max_length`` metres that
     hold fewer points per node than ``ratio`` × the median over all side tip chains (every
     point of ``xyz`` counts for its nearest node).
@@ -316,8 +350,10 @@ def prune_unsupported_tips(graph: BranchGraph, xyz: NDArray[np.float64], ratio: 
     in ``skeletonize``.
     """
     if not 0 < ratio < 1:
-        raise ParameterError(f"tip support ratio must lie in (0, 1) (a share of the median "
-                             f"points per node of the tip chains), got {ratio}")
+        raise ParameterError(
+            f"tip support ratio must lie in (0, 1) (a share of the median "
+            f"points per node of the tip chains), got {ratio}"
+        )
     if graph.n_nodes < 3:
         return graph
     from scipy.spatial import cKDTree

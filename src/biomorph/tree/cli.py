@@ -19,9 +19,13 @@ from biomorph._cli import bounded
 from biomorph.errors import ParameterError
 from biomorph.tree.options import SkeletonizeOptions, cli_default, cli_fields, cli_type
 
-app = typer.Typer(name="tree", no_args_is_help=True, add_completion=False,
-                  pretty_exceptions_enable=False,
-                  help="Tree skeletons from LiDAR point clouds (graph and voxel methods).")
+app = typer.Typer(
+    name="tree",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    help="Tree skeletons from LiDAR point clouds (graph and voxel methods).",
+)
 
 Method = Annotated[str, typer.Option("--method", "-m", help="graph (Livny) or voxel (Gorte).")]
 Seed = Annotated[int, typer.Option(help="Random seed.")]
@@ -50,11 +54,17 @@ def _option_parameters() -> list[inspect.Parameter]:
         if spec.lo is not None or spec.hi is not None:
             check = bounded(spec.lo, spec.hi, lo_open=spec.lo_open, hi_open=spec.hi_open)
         decls = [spec.flag] if typ is not bool else [f"{spec.flag}/--no-{spec.flag[2:]}"]
-        opt = typer.Option(*decls, help=spec.help, callback=check,
-                           rich_help_panel=f"{stage.capitalize()} options")
-        params.append(inspect.Parameter(f"{stage}__{f.name}", inspect.Parameter.KEYWORD_ONLY,
-                                        default=cli_default(f, spec),
-                                        annotation=Annotated[typ, opt]))
+        opt = typer.Option(
+            *decls, help=spec.help, callback=check, rich_help_panel=f"{stage.capitalize()} options"
+        )
+        params.append(
+            inspect.Parameter(
+                f"{stage}__{f.name}",
+                inspect.Parameter.KEYWORD_ONLY,
+                default=cli_default(f, spec),
+                annotation=Annotated[typ, opt],
+            )
+        )
     return params
 
 
@@ -68,14 +78,14 @@ def with_skeleton_options(func: Callable[..., Any]) -> Callable[..., Any]:
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         values = {k.replace("__", ".", 1): kwargs.pop(k) for k in list(kwargs) if "__" in k}
-        kwargs["options"] = SkeletonizeOptions.from_cli(values, method=kwargs["method"],
-                                                        seed=kwargs["seed"])
+        kwargs["options"] = SkeletonizeOptions.from_cli(
+            values, method=kwargs["method"], seed=kwargs["seed"]
+        )
         return func(*args, **kwargs)
 
     own = [p for p in sig.parameters.values() if p.name != "options"]
     wrapper.__signature__ = sig.replace(parameters=own + extra)  # type: ignore[attr-defined]
-    wrapper.__annotations__ = {**func.__annotations__,
-                               **{p.name: p.annotation for p in extra}}
+    wrapper.__annotations__ = {**func.__annotations__, **{p.name: p.annotation for p in extra}}
     wrapper.__annotations__.pop("options", None)
     return wrapper
 
@@ -87,8 +97,9 @@ def skeletonize(
     out: Annotated[Path, typer.Option("--out", "-o", help="Output folder.")] = Path("tree-out"),
     method: Method = "graph",
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
-    world: Annotated[bool, typer.Option(help="Write original (e.g. georeferenced) "
-                                             "coordinates.")] = True,
+    world: Annotated[
+        bool, typer.Option(help="Write original (e.g. georeferenced) coordinates.")
+    ] = True,
     seed: Seed = 0,
     options: SkeletonizeOptions | None = None,
 ) -> None:
@@ -113,12 +124,21 @@ def skeletonize(
         print_json(summary)
         return
     m = skel.metrics
-    _print_table(f"{cloud.name}: {method} skeleton", [
-        ("points", skel.info.get("points")), ("trees", m.get("n_trees")),
-        ("nodes", m.get("n_nodes")), ("NOB (tips)", m.get("nob")), ("TBL (m)", m.get("tbl")),
-        ("MSE (m²)", m.get("mse")), ("max order", m.get("max_order")),
-        ("trunk radius (m)", ", ".join(f"{r:.3f}" for r in m.get("trunk_radius", []))),
-        ("seconds", skel.timings.get("total")), ("output", str(out))])
+    _print_table(
+        f"{cloud.name}: {method} skeleton",
+        [
+            ("points", skel.info.get("points")),
+            ("trees", m.get("n_trees")),
+            ("nodes", m.get("n_nodes")),
+            ("NOB (tips)", m.get("nob")),
+            ("TBL (m)", m.get("tbl")),
+            ("MSE (m²)", m.get("mse")),
+            ("max order", m.get("max_order")),
+            ("trunk radius (m)", ", ".join(f"{r:.3f}" for r in m.get("trunk_radius", []))),
+            ("seconds", skel.timings.get("total")),
+            ("output", str(out)),
+        ],
+    )
 
 
 @app.command()
@@ -144,19 +164,33 @@ def synth(
     from biomorph.tree.synthetic import generate_tree, simulate_scan
 
     truth = generate_tree(preset, seed=seed)
-    cloud = simulate_scan(truth, n_points=points, noise=noise, scanners=scanners,
-                          leaves=leaves, ground=ground, seed=seed)
+    cloud = simulate_scan(
+        truth,
+        n_points=points,
+        noise=noise,
+        scanners=scanners,
+        leaves=leaves,
+        ground=ground,
+        seed=seed,
+    )
     out.mkdir(parents=True, exist_ok=True)
-    files = {"truth": write_graph(out / "truth.ply", truth),
-             "truth_mtg": write_graph(out / "truth.mtg", truth),
-             "cloud": write_points(out / "cloud.ply", cloud)}
+    files = {
+        "truth": write_graph(out / "truth.ply", truth),
+        "truth_mtg": write_graph(out / "truth.mtg", truth),
+        "cloud": write_points(out / "cloud.ply", cloud),
+    }
     with atomic_path(out / "preview.png") as tmp:
         render_graph(truth, tmp, cloud=cloud, title=f"synthetic {preset} (seed {seed})")
     files["preview"] = out / "preview.png"
-    summary = {"preset": preset, "seed": seed, "points": cloud.n_points,
-               "nob": int(truth.leaves.size), "tbl": truth.total_length,
-               "base_radius": float(truth.radius[truth.roots[0]]),
-               "files": {k_: str(v) for k_, v in files.items()}}
+    summary = {
+        "preset": preset,
+        "seed": seed,
+        "points": cloud.n_points,
+        "nob": int(truth.leaves.size),
+        "tbl": truth.total_length,
+        "base_radius": float(truth.radius[truth.roots[0]]),
+        "files": {k_: str(v) for k_, v in files.items()},
+    }
     if as_json:
         from biomorph._cli import print_json
 
@@ -169,9 +203,12 @@ def synth(
 def evaluate(
     skeleton: Annotated[Path, typer.Argument(help="Skeleton .ply or .mtg.")],
     truth: Annotated[Path | None, typer.Option(help="Ground-truth skeleton .ply/.mtg.")] = None,
-    cloud: Annotated[Path | None, typer.Option(help="Point cloud for the MSE (and, with "
-                                                    "--truth, the observed-truth "
-                                                    "measures).")] = None,
+    cloud: Annotated[
+        Path | None,
+        typer.Option(
+            help="Point cloud for the MSE (and, with --truth, the observed-truth measures)."
+        ),
+    ] = None,
     tolerance: Annotated[float | None, typer.Option(help="Match tolerance, m.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
@@ -210,23 +247,30 @@ def batch_item(item: tuple[str, str, SkeletonizeOptions, bool]) -> dict[str, Any
     skel = run(path, options=options)
     export_skeleton(skel, out, world=world, title=Path(path).name)
     m = skel.metrics
-    return {"nob": m.get("nob"), "tbl": m.get("tbl"), "trees": m.get("n_trees"),
-            "seconds": skel.timings.get("total")}
+    return {
+        "nob": m.get("nob"),
+        "tbl": m.get("tbl"),
+        "trees": m.get("n_trees"),
+        "seconds": skel.timings.get("total"),
+    }
 
 
 @app.command()
 @with_skeleton_options
 def batch(
     inputs: Annotated[list[Path], typer.Argument(help="Point cloud files.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Output folder (one sub-folder "
-                                                          "per input).")] = Path("batch-out"),
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Output folder (one sub-folder per input).")
+    ] = Path("batch-out"),
     method: Method = "graph",
     workers: Annotated[int | None, typer.Option(help="Worker processes (0 = serial).")] = None,
-    scheduler: Annotated[str | None, typer.Option(help="Address of a running dask "
-                                                       "scheduler.")] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Address of a running dask scheduler.")
+    ] = None,
     world: Annotated[bool, typer.Option(help="Write original coordinates.")] = True,
-    as_json: Annotated[bool, typer.Option("--json", help="Print the batch report as JSON.")
-                       ] = False,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print the batch report as JSON.")
+    ] = False,
     seed: Seed = 0,
     options: SkeletonizeOptions | None = None,
 ) -> None:
@@ -247,8 +291,15 @@ def batch(
     if len(set(stems)) != len(stems):
         raise ParameterError("input file names must be unique (outputs go to OUT/<name>/)")
     items = [(str(p), str(out / p.stem), options, world) for p in inputs]
-    report = run_batch(items, batch_item, out_dir=out, key=lambda it: Path(it[0]).stem,
-                       workers=workers, scheduler=scheduler, description="trees")
+    report = run_batch(
+        items,
+        batch_item,
+        out_dir=out,
+        key=lambda it: Path(it[0]).stem,
+        workers=workers,
+        scheduler=scheduler,
+        description="trees",
+    )
     if as_json:
         from biomorph._cli import print_json
 

@@ -29,8 +29,17 @@ from scipy.spatial import cKDTree
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 
-__all__ = ["validate_cloud", "centre", "filter_attribute", "downsample", "remove_outliers",
-           "point_spacing", "prepare", "PreparedCloud", "has_ground"]
+__all__ = [
+    "validate_cloud",
+    "centre",
+    "filter_attribute",
+    "downsample",
+    "remove_outliers",
+    "point_spacing",
+    "prepare",
+    "PreparedCloud",
+    "has_ground",
+]
 
 #: Minimum number of points a cloud needs to be skeletonised.
 MIN_POINTS = 10
@@ -53,23 +62,29 @@ def validate_cloud(cloud: PointCloud) -> None:
     if n == 0:
         raise InputError(f"{name} is empty; expected at least {MIN_POINTS} points")
     if n < MIN_POINTS:
-        raise InputError(f"{name} has {n} point{'s' if n != 1 else ''}; expected at least "
-                         f"{MIN_POINTS} to skeletonise a tree")
+        raise InputError(
+            f"{name} has {n} point{'s' if n != 1 else ''}; expected at least "
+            f"{MIN_POINTS} to skeletonise a tree"
+        )
     xyz = cloud.xyz
     finite = np.isfinite(xyz).all(axis=1)
     if not finite.all():
         bad = int(np.flatnonzero(~finite)[0])
-        raise InputError(f"{name}: point {bad} has a non-finite coordinate (NaN or inf); "
-                         f"expected finite numbers ({int((~finite).sum())} bad points)")
+        raise InputError(
+            f"{name}: point {bad} has a non-finite coordinate (NaN or inf); "
+            f"expected finite numbers ({int((~finite).sum())} bad points)"
+        )
     d = xyz - xyz.mean(axis=0)
     ev = np.linalg.eigvalsh(d.T @ d / n)  # ascending
     top = ev[2]
     if top <= 0 or ev[1] <= 1e-10 * top:
-        raise InputError(f"{name}: all {n} points lie on one line (or coincide); expected a "
-                         "3-D tree point cloud")
+        raise InputError(
+            f"{name}: all {n} points lie on one line (or coincide); expected a 3-D tree point cloud"
+        )
     if ev[0] <= 1e-10 * top:
-        raise InputError(f"{name}: all {n} points are coplanar; expected a 3-D tree point "
-                         "cloud with volume")
+        raise InputError(
+            f"{name}: all {n} points are coplanar; expected a 3-D tree point cloud with volume"
+        )
 
 
 def centre(cloud: PointCloud) -> PointCloud:
@@ -84,8 +99,9 @@ def centre(cloud: PointCloud) -> PointCloud:
     return cloud.with_(xyz=cloud.xyz - shift, offset=cloud.offset + shift)
 
 
-def filter_attribute(cloud: PointCloud, name: str, max_value: float | None = None,
-                     min_value: float | None = None) -> PointCloud:
+def filter_attribute(
+    cloud: PointCloud, name: str, max_value: float | None = None, min_value: float | None = None
+) -> PointCloud:
     """Keep the points whose attribute ``name`` lies in ``[min_value, max_value]``.
 
     Used e.g. with the LAS ``Deviation`` attribute (thesis: drop noisy returns). Raises
@@ -93,8 +109,9 @@ def filter_attribute(cloud: PointCloud, name: str, max_value: float | None = Non
     """
     if name not in cloud.attributes:
         have = ", ".join(sorted(cloud.attributes)) or "none"
-        raise ParameterError(f"{_name(cloud)} has no attribute {name!r} to filter on; "
-                             f"available: {have}")
+        raise ParameterError(
+            f"{_name(cloud)} has no attribute {name!r} to filter on; available: {have}"
+        )
     if max_value is None and min_value is None:
         raise ParameterError("filter_attribute needs max_value and/or min_value")
     v = np.asarray(cloud.attributes[name], dtype=float)
@@ -113,8 +130,13 @@ def _voxel_keys(xyz: NDArray[np.float64], voxel_size: float) -> NDArray[np.int64
     return (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
 
 
-def downsample(cloud: PointCloud, method: str = "ratio", ratio: float | None = None,
-               voxel_size: float | None = None, seed: int = 0) -> PointCloud:
+def downsample(
+    cloud: PointCloud,
+    method: str = "ratio",
+    ratio: float | None = None,
+    voxel_size: float | None = None,
+    seed: int = 0,
+) -> PointCloud:
     """Reduce the number of points.
 
     Parameters
@@ -139,17 +161,20 @@ def downsample(cloud: PointCloud, method: str = "ratio", ratio: float | None = N
         idx = np.sort(rng.choice(n, size=k, replace=False))
         return cloud.select(idx)
     if method not in ("voxel", "centroid"):
-        raise ParameterError(f"downsample method must be 'ratio', 'voxel' or 'centroid'; "
-                             f"got {method!r}")
+        raise ParameterError(
+            f"downsample method must be 'ratio', 'voxel' or 'centroid'; got {method!r}"
+        )
     if voxel_size is None or not voxel_size > 0:
-        raise ParameterError(f"downsample method {method!r} needs voxel_size > 0 (metres); "
-                             f"got {voxel_size}")
+        raise ParameterError(
+            f"downsample method {method!r} needs voxel_size > 0 (metres); got {voxel_size}"
+        )
     if n == 0:
         return cloud
     keys = _voxel_keys(cloud.xyz, voxel_size)
     if method == "centroid":
-        uniq, first, inv, counts = np.unique(keys, return_index=True, return_inverse=True,
-                                             return_counts=True)
+        uniq, first, inv, counts = np.unique(
+            keys, return_index=True, return_inverse=True, return_counts=True
+        )
         sums = np.zeros((uniq.size, 3))
         np.add.at(sums, inv, cloud.xyz)
         rep = cloud.select(first)
@@ -161,15 +186,19 @@ def downsample(cloud: PointCloud, method: str = "ratio", ratio: float | None = N
     start = np.r_[0, np.flatnonzero(np.diff(ks)) + 1]
     counts = np.diff(np.r_[start, ks.size])
     rank = np.arange(ks.size) - np.repeat(start, counts)
-    quota = np.ones_like(counts) if ratio is None else np.maximum(
-        1, np.round(ratio * counts).astype(np.int64))
+    quota = (
+        np.ones_like(counts)
+        if ratio is None
+        else np.maximum(1, np.round(ratio * counts).astype(np.int64))
+    )
     keep = rank < np.repeat(quota, counts)
     idx = np.sort(perm[order[keep]])
     return cloud.select(idx)
 
 
-def remove_outliers(cloud: PointCloud, k: int = 16, std_ratio: float = 2.0, *,
-                    return_mask: bool = False) -> PointCloud | tuple[PointCloud, NDArray]:
+def remove_outliers(
+    cloud: PointCloud, k: int = 16, std_ratio: float = 2.0, *, return_mask: bool = False
+) -> PointCloud | tuple[PointCloud, NDArray]:
     """Statistical outlier removal.
 
     A point is an outlier when its mean distance to its ``k`` nearest neighbours exceeds
@@ -257,11 +286,17 @@ class PreparedCloud:
     steps: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
-def prepare(cloud: PointCloud, *, centre: bool = True,  # noqa: PLR0913
-            filter: dict[str, Any] | tuple | None = None,  # noqa: A002
-            downsample: dict[str, Any] | float | None = None,
-            outliers: bool | dict[str, Any] = True, ground: str | None = "auto",
-            seed: int = 0, ground_params: dict[str, Any] | None = None) -> PreparedCloud:
+def prepare(
+    cloud: PointCloud,
+    *,
+    centre: bool = True,  # noqa: PLR0913
+    filter: dict[str, Any] | tuple | None = None,  # noqa: A002
+    downsample: dict[str, Any] | float | None = None,
+    outliers: bool | dict[str, Any] = True,
+    ground: str | None = "auto",
+    seed: int = 0,
+    ground_params: dict[str, Any] | None = None,
+) -> PreparedCloud:
     """Validate, centre, filter, downsample, de-noise and remove ground, in that order.
 
     Parameters
@@ -279,8 +314,12 @@ def prepare(cloud: PointCloud, *, centre: bool = True,  # noqa: PLR0913
     cur = cloud
 
     def record(step: str, before: int, t0: float, **extra: Any) -> None:
-        steps[step] = {"points_in": before, "points_out": cur.n_points,
-                       "seconds": time.perf_counter() - t0, **extra}
+        steps[step] = {
+            "points_in": before,
+            "points_out": cur.n_points,
+            "seconds": time.perf_counter() - t0,
+            **extra,
+        }
 
     if centre:
         t0 = time.perf_counter()
@@ -292,16 +331,24 @@ def prepare(cloud: PointCloud, *, centre: bool = True,  # noqa: PLR0913
         n0 = cur.n_points
         if isinstance(filter, dict):
             cur = filter_attribute(cur, **filter)
-            record("filter", n0, t0, attribute=filter.get("name"),
-                   **{k: v for k, v in filter.items() if k != "name"})
+            record(
+                "filter",
+                n0,
+                t0,
+                attribute=filter.get("name"),
+                **{k: v for k, v in filter.items() if k != "name"},
+            )
         else:
             cur = filter_attribute(cur, *filter)
             record("filter", n0, t0, args=list(filter))
     if downsample is not None:
         t0 = time.perf_counter()
         n0 = cur.n_points
-        kw = {"method": "ratio", "ratio": float(downsample)} if isinstance(
-            downsample, (int, float)) else dict(downsample)
+        kw = (
+            {"method": "ratio", "ratio": float(downsample)}
+            if isinstance(downsample, (int, float))
+            else dict(downsample)
+        )
         kw.setdefault("seed", seed)
         cur = _downsample(cur, **kw)
         record("downsample", n0, t0, **kw)

@@ -32,14 +32,17 @@ def run_demo(out_dir: str | Path) -> list[Section]:
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     truth = generate_tree(PRESET, seed=3)
-    cloud = simulate_scan(truth, n_points=POINTS, scanners=3, noise=0.004, ground=True,
-                          seed=3)
+    cloud = simulate_scan(truth, n_points=POINTS, scanners=3, noise=0.004, ground=True, seed=3)
     t_synth = time.perf_counter() - t0
     images = []
     with atomic_path(out / "truth.png") as tmp:
-        render_graph(truth, tmp, cloud=cloud,
-                     title=f"synthetic {PRESET}: truth and simulated scan "
-                           f"({cloud.n_points:,} points, ground, 4 mm noise)")
+        render_graph(
+            truth,
+            tmp,
+            cloud=cloud,
+            title=f"synthetic {PRESET}: truth and simulated scan "
+            f"({cloud.n_points:,} points, ground, 4 mm noise)",
+        )
     images.append(out / "truth.png")
     rows = []
     files = []
@@ -48,27 +51,61 @@ def run_demo(out_dir: str | Path) -> list[Section]:
             skel = skeletonize(cloud, method=method)
         except ImportError:  # pragma: no cover - voxel module missing in a partial build
             continue
-        written = export_skeleton(skel, out / method, formats=("ply", "csv", "json", "png"),
-                                  title=f"{method} method")
+        written = export_skeleton(
+            skel, out / method, formats=("ply", "csv", "json", "png"), title=f"{method} method"
+        )
         images.append(written["png"])
         files.extend([written["ply"], written["csv"]])
         c = compare_to_truth(skel.world_graph(), truth)
-        rows.append([method, c["nob"], c["nob_truth"], f"{100 * c['nob_ratio']:.0f} %",
-                     f"{c['tbl']:.1f}", f"{c['tbl_truth']:.1f}",
-                     f"{100 * c['tbl_ratio']:.0f} %", f"{c['f1']:.3f}",
-                     f"{100 * c['radius_error']:.1f} %" if c["radius_error"] is not None
-                     else "–",
-                     f"{100 * c['dbh_error']:+.1f} %" if c["dbh_error"] is not None else "–",
-                     f"{100 * c['volume_error']:+.1f} %", f"{skel.timings['total']:.2f}"])
-    table = Table(["method", "NOB", "NOB truth", "NOB %", "TBL m", "TBL truth", "TBL %",
-                   "F1", "radius err", "DBH err", "volume err", "seconds"], rows,
-                  caption="Skeletons against the synthetic truth (thesis: graph NOB 91–103 %, "
-                          "TBL 89–101 %; voxel NOB 115–140 %, TBL 75–102 %, ~20 min per run)")
-    text = (f"A {PRESET}-like tree (Weber–Penn style generator) scanned by a simulated TLS "
-            f"from three positions ({t_synth:.1f} s), then skeletonised with the graph "
-            "method (Livny et al. 2010, least squares solved exactly, RANSAC radii, "
-            "re-centring, branch orders) and the voxel method (Gorte & Pfeifer 2004 with "
-            "Palágyi–Kuba thinning). The ground is removed automatically; no parameter is "
-            "set by hand. Colours show branch order, line widths the fitted radii.")
-    return [Section(title="Tree skeletons from a LiDAR scan", text=text, images=images,
-                    tables=[table], files=files)]
+        rows.append(
+            [
+                method,
+                c["nob"],
+                c["nob_truth"],
+                f"{100 * c['nob_ratio']:.0f} %",
+                f"{c['tbl']:.1f}",
+                f"{c['tbl_truth']:.1f}",
+                f"{100 * c['tbl_ratio']:.0f} %",
+                f"{c['f1']:.3f}",
+                f"{100 * c['radius_error']:.1f} %" if c["radius_error"] is not None else "–",
+                f"{100 * c['dbh_error']:+.1f} %" if c["dbh_error"] is not None else "–",
+                f"{100 * c['volume_error']:+.1f} %",
+                f"{skel.timings['total']:.2f}",
+            ]
+        )
+    table = Table(
+        [
+            "method",
+            "NOB",
+            "NOB truth",
+            "NOB %",
+            "TBL m",
+            "TBL truth",
+            "TBL %",
+            "F1",
+            "radius err",
+            "DBH err",
+            "volume err",
+            "seconds",
+        ],
+        rows,
+        caption="Skeletons against the synthetic truth (thesis: graph NOB 91–103 %, "
+        "TBL 89–101 %; voxel NOB 115–140 %, TBL 75–102 %, ~20 min per run)",
+    )
+    text = (
+        f"A {PRESET}-like tree (Weber–Penn style generator) scanned by a simulated TLS "
+        f"from three positions ({t_synth:.1f} s), then skeletonised with the graph "
+        "method (Livny et al. 2010, least squares solved exactly, RANSAC radii, "
+        "re-centring, branch orders) and the voxel method (Gorte & Pfeifer 2004 with "
+        "Palágyi–Kuba thinning). The ground is removed automatically; no parameter is "
+        "set by hand. Colours show branch order, line widths the fitted radii."
+    )
+    return [
+        Section(
+            title="Tree skeletons from a LiDAR scan",
+            text=text,
+            images=images,
+            tables=[table],
+            files=files,
+        )
+    ]

@@ -40,8 +40,17 @@ from biomorph.errors import ParameterError
 from biomorph.io.atomic import atomic_path, write_text
 from biomorph.tree.qsm import CYLINDER_COLUMNS
 
-__all__ = ["tube_mesh", "cylinder_table", "write_cylinders", "write_qsm_tables",
-           "write_summary", "write_preview", "export_skeleton", "CYLINDER_COLUMNS", "FORMATS"]
+__all__ = [
+    "tube_mesh",
+    "cylinder_table",
+    "write_cylinders",
+    "write_qsm_tables",
+    "write_summary",
+    "write_preview",
+    "export_skeleton",
+    "CYLINDER_COLUMNS",
+    "FORMATS",
+]
 
 PathLike = str | os.PathLike[str]
 
@@ -55,8 +64,12 @@ def _graph_of(obj: Any) -> BranchGraph:
     return g
 
 
-def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4,
-              segment: NDArray[np.int64] | None = None):
+def tube_mesh(
+    graph: BranchGraph,
+    sides: int = 8,
+    min_radius: float = 1e-4,
+    segment: NDArray[np.int64] | None = None,
+):
     """Tube mesh of a skeleton with radii (a :class:`biomorph.core.mesh.Mesh`).
 
     One ring of ``sides`` vertices per node, perpendicular to the node's branch direction;
@@ -82,7 +95,7 @@ def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4,
     par = graph.parent
     cont = continuation(graph) if segment is None else continuation_from_segments(graph, segment)
     ch = np.flatnonzero(par >= 0)
-    branch_start = ch[cont[par[ch]] != ch]          # children that start a new branch
+    branch_start = ch[cont[par[ch]] != ch]  # children that start a new branch
     # ring centres, axes and radii: one per node, then one per branch start (at the parent)
     rc = np.vstack([pos, pos[par[branch_start]]])
     e = pos[branch_start] - pos[par[branch_start]]
@@ -91,19 +104,20 @@ def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4,
     rr = np.concatenate([r, r[branch_start]])
     t0, t1 = _tangents(ra)
     ang = 2 * np.pi * np.arange(sides) / sides
-    ring = (rc[:, None, :] + rr[:, None, None] * (np.cos(ang)[None, :, None] * t0[:, None, :]
-                                                  + np.sin(ang)[None, :, None] * t1[:, None, :]))
+    ring = rc[:, None, :] + rr[:, None, None] * (
+        np.cos(ang)[None, :, None] * t0[:, None, :] + np.sin(ang)[None, :, None] * t1[:, None, :]
+    )
     verts = ring.reshape(-1, 3)
-    start_ring = par.copy()                          # ring each edge starts from
+    start_ring = par.copy()  # ring each edge starts from
     start_ring[branch_start] = n + np.arange(branch_start.size)
     a = start_ring[ch]
     b = ch
     j = np.arange(sides)
     jn = (j + 1) % sides
-    a0 = (a[:, None] * sides + j[None, :])
-    a1 = (a[:, None] * sides + jn[None, :])
-    b0 = (b[:, None] * sides + j[None, :])
-    b1 = (b[:, None] * sides + jn[None, :])
+    a0 = a[:, None] * sides + j[None, :]
+    a1 = a[:, None] * sides + jn[None, :]
+    b0 = b[:, None] * sides + j[None, :]
+    b1 = b[:, None] * sides + jn[None, :]
     f = np.concatenate([np.stack([a0, a1, b1], -1), np.stack([a0, b1, b0], -1)], axis=1)
     faces = [f.reshape(-1, 3)]
     edge_node = [np.repeat(b, 2 * sides)]
@@ -112,9 +126,11 @@ def tube_mesh(graph: BranchGraph, sides: int = 8, min_radius: float = 1e-4,
     # every branch is a closed tube
     tips = graph.leaves[par[graph.leaves] >= 0]
     roots = graph.roots
-    caps = ((tips, pos[tips] + axes[tips] * r[tips, None] * 0.5, tips, False),
-            (roots, pos[roots], roots, True),
-            (n + np.arange(branch_start.size), pos[par[branch_start]], branch_start, True))
+    caps = (
+        (tips, pos[tips] + axes[tips] * r[tips, None] * 0.5, tips, False),
+        (roots, pos[roots], roots, True),
+        (n + np.arange(branch_start.size), pos[par[branch_start]], branch_start, True),
+    )
     base = verts.shape[0]
     extra = []
     for rings, centres, label, flip in caps:
@@ -150,8 +166,11 @@ def _vertex_normals(verts: NDArray, faces: NDArray) -> NDArray:
     return vn / ln[:, None]
 
 
-def cylinder_table(graph: BranchGraph, segment: NDArray[np.int64] | None = None,
-                   quality: dict[str, NDArray] | None = None) -> dict[str, NDArray]:
+def cylinder_table(
+    graph: BranchGraph,
+    segment: NDArray[np.int64] | None = None,
+    quality: dict[str, NDArray] | None = None,
+) -> dict[str, NDArray]:
     """TreeQSM cylinders, one per edge (:func:`biomorph.tree.qsm.cylinder_table`)."""
     from biomorph.tree.qsm import cylinder_table as table
 
@@ -172,26 +191,35 @@ def _write_table(path: PathLike, tab: dict[str, NDArray], columns: tuple[str, ..
     return write_text(path, buf.getvalue().replace("nan", ""))
 
 
-def write_cylinders(path: PathLike, graph: BranchGraph,
-                    segment: NDArray[np.int64] | None = None,
-                    quality: dict[str, NDArray] | None = None) -> Path:
+def write_cylinders(
+    path: PathLike,
+    graph: BranchGraph,
+    segment: NDArray[np.int64] | None = None,
+    quality: dict[str, NDArray] | None = None,
+) -> Path:
     """Write :func:`cylinder_table` as CSV (header line, metres, TreeQSM column order)."""
     return _write_table(path, cylinder_table(graph, segment, quality), CYLINDER_COLUMNS)
 
 
-def write_qsm_tables(out: Path, graph: BranchGraph, segment: NDArray[np.int64] | None,
-                     quality: dict[str, NDArray] | None) -> dict[str, Path]:
+def write_qsm_tables(
+    out: Path,
+    graph: BranchGraph,
+    segment: NDArray[np.int64] | None,
+    quality: dict[str, NDArray] | None,
+) -> dict[str, Path]:
     """``cylinders.csv``, ``branches.csv`` and ``treedata.csv`` (TreeQSM's tables, see
     :mod:`biomorph.tree.qsm`; an empty field is a value that does not exist, e.g. the DBH
     of a tree lower than 1.3 m)."""
     from biomorph.tree.qsm import BRANCH_COLUMNS, TREEDATA_COLUMNS, branch_table, treedata_table
 
     cyl = cylinder_table(graph, segment, quality)
-    return {"csv": _write_table(out / "cylinders.csv", cyl, CYLINDER_COLUMNS),
-            "branches": _write_table(out / "branches.csv", branch_table(graph, cyl),
-                                     BRANCH_COLUMNS),
-            "treedata": _write_table(out / "treedata.csv", treedata_table(graph, cyl),
-                                     TREEDATA_COLUMNS)}
+    return {
+        "csv": _write_table(out / "cylinders.csv", cyl, CYLINDER_COLUMNS),
+        "branches": _write_table(out / "branches.csv", branch_table(graph, cyl), BRANCH_COLUMNS),
+        "treedata": _write_table(
+            out / "treedata.csv", treedata_table(graph, cyl), TREEDATA_COLUMNS
+        ),
+    }
 
 
 def write_summary(path: PathLike, skel: Any, extra: dict | None = None) -> Path:
@@ -221,8 +249,12 @@ def write_labelled_points(path: PathLike, skel: Any, labels: NDArray | None = No
 
     pc = skel.cloud
     lab = point_tree_labels(skel) if labels is None else labels
-    out = PointCloud(pc.xyz, attributes={**pc.attributes, "tree_id": lab.astype(np.int32)},
-                     offset=pc.offset, meta=pc.meta)
+    out = PointCloud(
+        pc.xyz,
+        attributes={**pc.attributes, "tree_id": lab.astype(np.int32)},
+        offset=pc.offset,
+        meta=pc.meta,
+    )
     return write_points(path, out)
 
 
@@ -256,10 +288,15 @@ def write_per_tree(out: Path, skel: Any, world: bool) -> dict[str, Path]:
             from biomorph.io import write_points
 
             pc = skel.cloud.select(labels == t)
-            write_points(d / "points.laz", PointCloud(
-                pc.xyz, attributes={**pc.attributes,
-                                    "tree_id": np.full(pc.n_points, int(t), np.int32)},
-                offset=pc.offset, meta=pc.meta))
+            write_points(
+                d / "points.laz",
+                PointCloud(
+                    pc.xyz,
+                    attributes={**pc.attributes, "tree_id": np.full(pc.n_points, int(t), np.int32)},
+                    offset=pc.offset,
+                    meta=pc.meta,
+                ),
+            )
     return written
 
 
@@ -270,7 +307,7 @@ def write_preview(path: PathLike, skel: Any, title: str | None = None) -> Path:
 
     g = _graph_of(skel)
     if np.unique(g.trees).size > 1:
-        g = g.with_(depth=None, tree_id=g.trees)      # render_graph colours by tree then
+        g = g.with_(depth=None, tree_id=g.trees)  # render_graph colours by tree then
     cloud = getattr(skel, "cloud", None)
     with atomic_path(path) as tmp:
         render_graph(g, tmp, cloud=cloud, title=title)
@@ -302,8 +339,7 @@ def write_tube_glb(path: Path, mesh: Any, offset: NDArray) -> tuple[Path, NDArra
 
     gl = pygltflib.GLTF2().load(str(path))
     frame = "world" if not lacking.any() else "centred"
-    extras = {"frame": frame, "offset": [float(v) for v in lacking],
-              "up": "Z (source) -> Y (glTF)"}
+    extras = {"frame": frame, "offset": [float(v) for v in lacking], "up": "Z (source) -> Y (glTF)"}
     for scene in gl.scenes:
         scene.extras = extras
     gl.asset.extras = extras
@@ -312,9 +348,16 @@ def write_tube_glb(path: Path, mesh: Any, offset: NDArray) -> tuple[Path, NDArra
     return Path(path), lacking
 
 
-def export_skeleton(skel: Any, out_dir: PathLike, *, formats: tuple[str, ...] | None = None,
-                    world: bool = True, sides: int = 8, stem: str = "skeleton",
-                    title: str | None = None) -> dict[str, Path]:
+def export_skeleton(
+    skel: Any,
+    out_dir: PathLike,
+    *,
+    formats: tuple[str, ...] | None = None,
+    world: bool = True,
+    sides: int = 8,
+    stem: str = "skeleton",
+    title: str | None = None,
+) -> dict[str, Path]:
     """Write every output of a TreeSkeleton into ``out_dir``; returns ``{format: path}``.
 
     ``formats`` is a subset of :data:`FORMATS` (default all). ``world`` writes positions in
@@ -323,8 +366,9 @@ def export_skeleton(skel: Any, out_dir: PathLike, *, formats: tuple[str, ...] | 
     formats = FORMATS if formats is None else tuple(formats)
     bad = set(formats) - set(FORMATS)
     if bad:
-        raise ParameterError(f"unknown export format(s) {sorted(bad)}; expected "
-                             f"{', '.join(FORMATS)}")
+        raise ParameterError(
+            f"unknown export format(s) {sorted(bad)}; expected {', '.join(FORMATS)}"
+        )
     from biomorph.io import write_graph, write_mesh
 
     out = Path(out_dir)
@@ -349,8 +393,12 @@ def export_skeleton(skel: Any, out_dir: PathLike, *, formats: tuple[str, ...] | 
     if "obj" in formats or "mesh_ply" in formats:
         from biomorph.core.mesh import Mesh
 
-        mw = Mesh(mesh.vertices + (offset if world else 0.0), mesh.faces,
-                  normals=mesh.normals, face_ids=mesh.face_ids)
+        mw = Mesh(
+            mesh.vertices + (offset if world else 0.0),
+            mesh.faces,
+            normals=mesh.normals,
+            face_ids=mesh.face_ids,
+        )
         if "obj" in formats:
             written["obj"] = write_mesh(out / "tube.obj", mw)
         if "mesh_ply" in formats:
@@ -360,10 +408,15 @@ def export_skeleton(skel: Any, out_dir: PathLike, *, formats: tuple[str, ...] | 
     if "trees" in formats:
         written.update(write_per_tree(out, skel, world))
     if "json" in formats:
-        written["json"] = write_summary(out / "summary.json", skel,
-                                        {"files": {k: v.name for k, v in written.items()},
-                                         "world_coordinates": bool(world),
-                                         "glb_offset": [float(v) for v in glb_offset]})
+        written["json"] = write_summary(
+            out / "summary.json",
+            skel,
+            {
+                "files": {k: v.name for k, v in written.items()},
+                "world_coordinates": bool(world),
+                "glb_offset": [float(v) for v in glb_offset],
+            },
+        )
     if "png" in formats:
         written["png"] = write_preview(out / "preview.png", skel, title)
     return written

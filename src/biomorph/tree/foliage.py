@@ -43,14 +43,21 @@ from scipy.spatial import cKDTree
 
 from biomorph.errors import InputError, ParameterError
 
-__all__ = ["neighbourhood_thickness", "separate_foliage", "FoliageSplit", "scatter_ratio",
-           "check_not_only_leaves", "SCATTER_LEAVES"]
+__all__ = [
+    "neighbourhood_thickness",
+    "separate_foliage",
+    "FoliageSplit",
+    "scatter_ratio",
+    "check_not_only_leaves",
+    "SCATTER_LEAVES",
+]
 
 _CHUNK = 200_000  #: points per block of neighbourhood covariances (bounds memory)
 
 
-def neighbourhood_thickness(xyz: NDArray[np.float64], k: int = 12,
-                            kdtree: cKDTree | None = None) -> NDArray[np.float64]:
+def neighbourhood_thickness(
+    xyz: NDArray[np.float64], k: int = 12, kdtree: cKDTree | None = None
+) -> NDArray[np.float64]:
     """RMS distance (m) of each point's ``k`` nearest neighbours (itself included) from
     their least-squares plane: ``√λ3`` of the neighbourhood covariance. Computed in blocks
     of 200,000 points, so memory stays ~100 MB for any cloud size."""
@@ -96,7 +103,7 @@ class FoliageSplit:
         return float(1.0 - self.wood.mean()) if self.wood.size else 0.0
 
 
-DETECT_FACTOR = 6.0   #: "clearly foliage": thicker than this × the median
+DETECT_FACTOR = 6.0  #: "clearly foliage": thicker than this × the median
 DETECT_SHARE = 0.003  #: foliage present when more than this share of points is
 
 
@@ -110,14 +117,18 @@ DETECT_SAMPLE = 200_000
 def _detected_share(xyz: NDArray[np.float64], k: int) -> float:
     """Share of thick neighbourhoods (> ``DETECT_FACTOR`` × median) on a seeded sample."""
     n = xyz.shape[0]
-    pick = np.sort(np.random.default_rng(0).choice(n, size=min(n, DETECT_SAMPLE),
-                                                   replace=False))
+    pick = np.sort(np.random.default_rng(0).choice(n, size=min(n, DETECT_SAMPLE), replace=False))
     th = neighbourhood_thickness(xyz[pick], k)
     return float(np.mean(th > DETECT_FACTOR * np.median(th)))
 
 
-def separate_foliage(xyz: NDArray[np.float64], factor: float = 3.0, k: int = 12,
-                     passes: int = 2, detect: bool = False) -> FoliageSplit:
+def separate_foliage(
+    xyz: NDArray[np.float64],
+    factor: float = 3.0,
+    k: int = 12,
+    passes: int = 2,
+    detect: bool = False,
+) -> FoliageSplit:
     """Split a tree cloud into wood and foliage by neighbourhood thickness (module doc).
 
     Parameters
@@ -130,8 +141,10 @@ def separate_foliage(xyz: NDArray[np.float64], factor: float = 3.0, k: int = 12,
     detect : only split when foliage is detected (module doc); otherwise keep every point.
     """
     if not factor > 1:
-        raise ParameterError(f"foliage factor must be > 1 (a multiple of the median "
-                             f"neighbourhood thickness), got {factor}")
+        raise ParameterError(
+            f"foliage factor must be > 1 (a multiple of the median "
+            f"neighbourhood thickness), got {factor}"
+        )
     if passes < 1:
         raise ParameterError(f"foliage passes must be >= 1, got {passes}")
     xyz = np.asarray(xyz, dtype=np.float64)
@@ -174,8 +187,9 @@ def separate_foliage(xyz: NDArray[np.float64], factor: float = 3.0, k: int = 12,
 SCATTER_LEAVES = 0.21
 
 
-def scatter_ratio(xyz: NDArray[np.float64], k: int = 12, sample: int = 20_000,
-                  seed: int = 0) -> float:
+def scatter_ratio(
+    xyz: NDArray[np.float64], k: int = 12, sample: int = 20_000, seed: int = 0
+) -> float:
     """Median neighbourhood thickness (``√λ3`` of a point's ``k`` nearest neighbours) over
     the distance to the ``k``-th neighbour, on a seeded random subsample of ``sample``
     points: scale-free, small on surfaces and lines (wood), about 0.28 inside a uniformly
@@ -204,8 +218,10 @@ def check_not_only_leaves(xyz: NDArray[np.float64], source: str = "point cloud")
     returns is a silent wrong model. Returns the ratio."""
     s = scatter_ratio(xyz)
     if s > SCATTER_LEAVES:
-        raise InputError(f"{source}: the points look like foliage only (median neighbourhood "
-                         f"scatter {s:.2f} > {SCATTER_LEAVES}, a volume of scattered returns; "
-                         "wood surfaces give 0.07-0.18); expected a scan showing the stem and "
-                         "branches")
+        raise InputError(
+            f"{source}: the points look like foliage only (median neighbourhood "
+            f"scatter {s:.2f} > {SCATTER_LEAVES}, a volume of scattered returns; "
+            "wood surfaces give 0.07-0.18); expected a scan showing the stem and "
+            "branches"
+        )
     return s

@@ -61,9 +61,15 @@ def _quiet_stdout():
         os.close(saved)
 
 
-def _csf_mask(xyz: NDArray[np.float64], cloth_resolution: float = 0.3, rigidness: int = 1,
-              class_threshold: float = 0.2, iterations: int = 500, time_step: float = 0.65,
-              slope_smooth: bool = True) -> NDArray[np.bool_]:
+def _csf_mask(
+    xyz: NDArray[np.float64],
+    cloth_resolution: float = 0.3,
+    rigidness: int = 1,
+    class_threshold: float = 0.2,
+    iterations: int = 500,
+    time_step: float = 0.65,
+    slope_smooth: bool = True,
+) -> NDArray[np.bool_]:
     # defaults tuned on the synthetic tilted/hilly scans of bench/tree_voxel.py: the
     # package's flat-terrain defaults (rigidness 2-3, resolution 0.5) missed up to 56 % of
     # the ground on ±1 m hills
@@ -87,9 +93,13 @@ def _csf_mask(xyz: NDArray[np.float64], cloth_resolution: float = 0.3, rigidness
     return mask
 
 
-def ground_surface_grid(xyz: NDArray[np.float64], cell: float = 0.5, window: float = 3.0,
-                        max_step: float = 0.5, slope: float = 0.3
-                        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def ground_surface_grid(
+    xyz: NDArray[np.float64],
+    cell: float = 0.5,
+    window: float = 3.0,
+    max_step: float = 0.5,
+    slope: float = 0.3,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Ground candidates (``float[m, 3]``) and the terrain height under every point.
 
     ``cell``: XY cell (m); ``window``: width (m) of the lower-envelope minimum filter;
@@ -97,8 +107,10 @@ def ground_surface_grid(xyz: NDArray[np.float64], cell: float = 0.5, window: flo
     envelope is not ground; ``slope``: tolerated terrain slope (rise over run).
     """
     if cell <= 0 or window <= 0:
-        raise ParameterError(f"grid ground filter needs cell > 0 and window > 0 (metres); "
-                             f"got cell={cell}, window={window}")
+        raise ParameterError(
+            f"grid ground filter needs cell > 0 and window > 0 (metres); "
+            f"got cell={cell}, window={window}"
+        )
     lo = xyz.min(axis=0)
     ij = np.floor((xyz[:, :2] - lo[:2]) / cell).astype(np.int64)
     shape = ij.max(axis=0) + 1
@@ -147,9 +159,9 @@ def ground_surface_grid(xyz: NDArray[np.float64], cell: float = 0.5, window: flo
     return pts, h
 
 
-def remove_ground(cloud: PointCloud, method: str = DEFAULT_METHOD,
-                  min_height: float = 0.5, **params: Any
-                  ) -> tuple[PointCloud, NDArray[np.bool_]]:
+def remove_ground(
+    cloud: PointCloud, method: str = DEFAULT_METHOD, min_height: float = 0.5, **params: Any
+) -> tuple[PointCloud, NDArray[np.bool_]]:
     """Split ``cloud`` into vegetation and ground.
 
     Parameters
@@ -181,13 +193,15 @@ def remove_ground(cloud: PointCloud, method: str = DEFAULT_METHOD,
         mask = _csf_mask(xyz, **params)
         above = None
     else:
-        raise ParameterError(f"ground removal method must be one of {', '.join(METHODS)}; "
-                             f"got {method!r}")
+        raise ParameterError(
+            f"ground removal method must be one of {', '.join(METHODS)}; got {method!r}"
+        )
     veg = ~mask
     if above is None:
         # height above ground for the check: nearest ground point's z
         if mask.any():
             from scipy.spatial import cKDTree
+
             gi = cKDTree(xyz[mask, :2]).query(xyz[veg, :2])[1]
             above_v = xyz[veg, 2] - xyz[mask][gi, 2]
         else:
@@ -196,7 +210,9 @@ def remove_ground(cloud: PointCloud, method: str = DEFAULT_METHOD,
         above_v = above[veg]
     if veg.sum() < 10 or not (above_v.size and np.max(above_v) >= min_height):
         top = float(np.max(above_v)) if above_v.size else 0.0
-        raise InputError(f"{name}: no tree above the ground ({int(veg.sum())} non-ground "
-                         f"points, highest {top:.2f} m above the terrain; expected a tree "
-                         f"rising at least {min_height} m)")
+        raise InputError(
+            f"{name}: no tree above the ground ({int(veg.sum())} non-ground "
+            f"points, highest {top:.2f} m above the terrain; expected a tree "
+            f"rising at least {min_height} m)"
+        )
     return cloud.select(veg), mask

@@ -107,11 +107,29 @@ from biomorph.tree.treesolve import (
 #: tree solves (:mod:`~biomorph.tree.treesolve`), allometry
 #: (:mod:`~biomorph.tree.allometry`), resampling (:mod:`~biomorph.tree.resample`)
 __all__ = [
-    "LivnyResult", "skeletonize_graph", "find_roots", "neighbour_graph", "bridge_components",
-    "shortest_path_forest", "contract", "importance_weights", "orientation_field",
-    "refine_positions", "solve_tree_system", "allometric_radii", "skeleton_distance",
-    "estimate_spacing", "densify", "extend_tips", "Contraction", "orientation_system",
-    "refinement_system", "tree_matrix", "EDGE_WEIGHTS", "NODE_SPACING", "NODE_SPACING_MIN",
+    "LivnyResult",
+    "skeletonize_graph",
+    "find_roots",
+    "neighbour_graph",
+    "bridge_components",
+    "shortest_path_forest",
+    "contract",
+    "importance_weights",
+    "orientation_field",
+    "refine_positions",
+    "solve_tree_system",
+    "allometric_radii",
+    "skeleton_distance",
+    "estimate_spacing",
+    "densify",
+    "extend_tips",
+    "Contraction",
+    "orientation_system",
+    "refinement_system",
+    "tree_matrix",
+    "EDGE_WEIGHTS",
+    "NODE_SPACING",
+    "NODE_SPACING_MIN",
     "LEVEL_CELL",
 ]
 
@@ -135,15 +153,25 @@ class LivnyResult:
     info: dict[str, object] = field(default_factory=dict)
 
 
-def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
-                      k: int = 10, search_radius: float | None = None,
-                      node_spacing: float | None = None, max_iter: int = 5,
-                      reweight: float = 0.5, height: NDArray[np.float64] | None = None,
-                      root_slice: float = 0.5, min_tree_distance: float = 0.6,
-                      allometry_exponent: float = 2.5, seed: int = 0,
-                      edge_weights: str = "livny", progress=None,
-                      source: str = "point cloud", bridge_gap: float | None = None,
-                      ) -> LivnyResult:
+def skeletonize_graph(
+    xyz: NDArray[np.float64],
+    *,
+    n_trees: int | None = None,
+    k: int = 10,
+    search_radius: float | None = None,
+    node_spacing: float | None = None,
+    max_iter: int = 5,
+    reweight: float = 0.5,
+    height: NDArray[np.float64] | None = None,
+    root_slice: float = 0.5,
+    min_tree_distance: float = 0.6,
+    allometry_exponent: float = 2.5,
+    seed: int = 0,
+    edge_weights: str = "livny",
+    progress=None,
+    source: str = "point cloud",
+    bridge_gap: float | None = None,
+) -> LivnyResult:
     """Livny et al. 2010 steps i–vii on a point cloud (cleanup is :mod:`~biomorph.tree.cleanup`).
 
     Parameters
@@ -184,13 +212,19 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     if not 0 <= reweight < 1:
         raise ParameterError(f"reweight must lie in [0, 1), got {reweight}")
     if edge_weights not in EDGE_WEIGHTS:
-        raise ParameterError(f"edge_weights {edge_weights!r}; expected one of "
-                             f"{', '.join(EDGE_WEIGHTS)}")
+        raise ParameterError(
+            f"edge_weights {edge_weights!r}; expected one of {', '.join(EDGE_WEIGHTS)}"
+        )
     check_not_only_leaves(xyz, source)
     check_trunk_reaches_ground(height, source=source)
     if n_trees == 1:
-        check_single_tree(xyz, height=height, root_slice=root_slice,
-                          min_tree_distance=min_tree_distance, source=source)
+        check_single_tree(
+            xyz,
+            height=height,
+            root_slice=root_slice,
+            min_tree_distance=min_tree_distance,
+            source=source,
+        )
     timings: dict[str, float] = {}
 
     def tick(name: str, t0: float) -> float:
@@ -206,12 +240,19 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     spacing_pts = estimate_spacing(xyz, kdtree=kd)
     extent = float(np.ptp(xyz[:, 2]))
     if node_spacing is None:
-        node_spacing = float(np.clip(NODE_SPACING * spacing_pts, NODE_SPACING_MIN * extent,
-                                     0.02 * extent))
+        node_spacing = float(
+            np.clip(NODE_SPACING * spacing_pts, NODE_SPACING_MIN * extent, 0.02 * extent)
+        )
         node_spacing = max(node_spacing, 1e-4)
-    roots, root_tree = find_roots(xyz, n_trees=n_trees, height=height, root_slice=root_slice,
-                                  min_tree_distance=min_tree_distance,
-                                  base_height=max(node_spacing / 2, 2 * spacing_pts), seed=seed)
+    roots, root_tree = find_roots(
+        xyz,
+        n_trees=n_trees,
+        height=height,
+        root_slice=root_slice,
+        min_tree_distance=min_tree_distance,
+        base_height=max(node_spacing / 2, 2 * spacing_pts),
+        seed=seed,
+    )
     t0 = tick("roots", t0)
     timings["t1"] = t0 - t_start
 
@@ -282,19 +323,28 @@ def skeletonize_graph(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     ptree = con.tree[con.label[ok]]
     ntree = int(con.tree.max()) + 1
     md = np.bincount(ptree, weights=d, minlength=ntree) / np.maximum(
-        np.bincount(ptree, minlength=ntree), 1)
+        np.bincount(ptree, minlength=ntree), 1
+    )
     root = treeops.root_of(parent, order)
     vtree = con.tree[root]
-    r = allometric_radii(parent, pos, c, md[np.unique(vtree)], tree=vtree,
-                         exponent=allometry_exponent, order=order)
+    r = allometric_radii(
+        parent, pos, c, md[np.unique(vtree)], tree=vtree, exponent=allometry_exponent, order=order
+    )
     t0 = tick("radii", t0)
     graph = BranchGraph(pos, parent, radius=r, weight=c, tree_id=vtree)
     if not keep.all():
         graph = graph.subgraph(keep)
-    info = {"points": n, "point_spacing": spacing_pts, "node_spacing": node_spacing,
-            "components": int(n_comp), "trees": int(np.unique(vtree).size),
-            "bridge_gap": gap, "unbridged_points": int((~np.isfinite(plen)).sum()),
-            "iterations": iterations, "vertices": graph.n_nodes,
-            "edge_weights": edge_weights,
-            "mean_point_distance": md.tolist()}
+    info = {
+        "points": n,
+        "point_spacing": spacing_pts,
+        "node_spacing": node_spacing,
+        "components": int(n_comp),
+        "trees": int(np.unique(vtree).size),
+        "bridge_gap": gap,
+        "unbridged_points": int((~np.isfinite(plen)).sum()),
+        "iterations": iterations,
+        "vertices": graph.n_nodes,
+        "edge_weights": edge_weights,
+        "mean_point_distance": md.tolist(),
+    }
     return LivnyResult(graph, con.label, point_tree, timings, info)

@@ -20,10 +20,23 @@ from biomorph.core.graph import BranchGraph
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 
-__all__ = ["skeleton_metrics", "compare_to_truth", "dbh", "dbh_per_tree", "volume",
-           "resample_graph", "point_to_skeleton_distance", "DIAMETER_CLASSES", "class_labels",
-           "edge_volumes", "volume_by_class", "volume_by_order", "tree_attributes",
-           "cylinder_fit", "qsm_report"]
+__all__ = [
+    "skeleton_metrics",
+    "compare_to_truth",
+    "dbh",
+    "dbh_per_tree",
+    "volume",
+    "resample_graph",
+    "point_to_skeleton_distance",
+    "DIAMETER_CLASSES",
+    "class_labels",
+    "edge_volumes",
+    "volume_by_class",
+    "volume_by_order",
+    "tree_attributes",
+    "cylinder_fit",
+    "qsm_report",
+]
 
 
 def resample_graph(graph: BranchGraph, step: float) -> tuple[NDArray, NDArray, NDArray]:
@@ -51,8 +64,9 @@ def resample_graph(graph: BranchGraph, step: float) -> tuple[NDArray, NDArray, N
     return pts, ec, tt
 
 
-def point_to_skeleton_distance(graph: BranchGraph, xyz: NDArray[np.float64],
-                               k: int = 8) -> NDArray[np.float64]:
+def point_to_skeleton_distance(
+    graph: BranchGraph, xyz: NDArray[np.float64], k: int = 8
+) -> NDArray[np.float64]:
     """Exact distance (m) of each point to the nearest skeleton edge segment.
 
     Candidate segments are the edges of the ``k`` nearest samples of the resampled skeleton
@@ -75,8 +89,9 @@ def point_to_skeleton_distance(graph: BranchGraph, xyz: NDArray[np.float64],
     ab = b - a
     denom = np.einsum("...i,...i->...", ab, ab)
     ap = xyz[:, None, :] - a
-    t = np.where(denom > 0, np.einsum("...i,...i->...", ap, ab) / np.where(denom > 0, denom, 1),
-                 0.0).clip(0, 1)
+    t = np.where(
+        denom > 0, np.einsum("...i,...i->...", ap, ab) / np.where(denom > 0, denom, 1), 0.0
+    ).clip(0, 1)
     d = np.linalg.norm(ap - ab * t[..., None], axis=-1)
     return d.min(axis=1)
 
@@ -105,16 +120,27 @@ def skeleton_metrics(graph: BranchGraph, cloud: PointCloud | NDArray | None = No
     trees = []
     for t in uniq:
         m = labels == t
-        rec = {"tree": int(t), "nob": int(leaf[m].sum()), "tbl": float(el[m].sum()),
-               "n_nodes": int(m.sum()), "mse": None, "n_points": 0}
+        rec = {
+            "tree": int(t),
+            "nob": int(leaf[m].sum()),
+            "tbl": float(el[m].sum()),
+            "n_nodes": int(m.sum()),
+            "mse": None,
+            "n_points": 0,
+        }
         if d2 is not None:
             pm = near_tree == t
             rec["n_points"] = int(pm.sum())
             rec["mse"] = float(d2[pm].mean()) if pm.any() else None
         trees.append(rec)
-    return {"nob": int(leaf.sum()), "tbl": float(el.sum()),
-            "mse": None if d2 is None else float(d2.mean()),
-            "n_nodes": graph.n_nodes, "n_trees": int(uniq.size), "trees": trees}
+    return {
+        "nob": int(leaf.sum()),
+        "tbl": float(el.sum()),
+        "mse": None if d2 is None else float(d2.mean()),
+        "n_nodes": graph.n_nodes,
+        "n_trees": int(uniq.size),
+        "trees": trees,
+    }
 
 
 def _interp_radius(graph: BranchGraph, ec: NDArray, t: NDArray) -> NDArray:
@@ -150,7 +176,7 @@ def dbh_per_tree(graph: BranchGraph, height: float = 1.3) -> NDArray[np.float64]
         # walk up the thickest child until the stem crosses zc (Python loop over the stem
         # only, a few hundred nodes at most)
         while True:
-            ch = indices[indptr[cur]:indptr[cur + 1]]
+            ch = indices[indptr[cur] : indptr[cur + 1]]
             if ch.size == 0:
                 break
             nxt = int(ch[np.argmax(r[ch])])
@@ -182,10 +208,16 @@ def volume(graph: BranchGraph) -> float:
     return float(edge_volumes(graph)[3].sum())
 
 
-def compare_to_truth(graph: BranchGraph, truth: BranchGraph, tolerance: float | None = None,
-                     *, step: float | None = None, thick: float = 0.03,
-                     cloud: PointCloud | NDArray | None = None,
-                     observed_margin: float = 0.03) -> dict:
+def compare_to_truth(
+    graph: BranchGraph,
+    truth: BranchGraph,
+    tolerance: float | None = None,
+    *,
+    step: float | None = None,
+    thick: float = 0.03,
+    cloud: PointCloud | NDArray | None = None,
+    observed_margin: float = 0.03,
+) -> dict:
     """Compare a skeleton with a ground-truth skeleton in the same frame.
 
     Both are resampled every ``step`` metres (default ``tolerance / 4``). **Precision** is
@@ -225,13 +257,23 @@ def compare_to_truth(graph: BranchGraph, truth: BranchGraph, tolerance: float | 
     recall = float((d_t <= tolerance).mean())
     f1 = 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
     nob_s, nob_t = int(graph.leaves.size), int(truth.leaves.size)
-    out = {"tolerance": float(tolerance), "precision": precision, "recall": recall, "f1": f1,
-           "nob": nob_s, "nob_truth": nob_t, "nob_ratio": nob_s / max(nob_t, 1),
-           "tbl": graph.total_length, "tbl_truth": truth.total_length,
-           "tbl_ratio": graph.total_length / truth.total_length if truth.total_length else
-           float("nan"),
-           "mean_distance": float(d_s.mean()), "radius_error": float("nan"),
-           "radius_samples": 0}
+    out = {
+        "tolerance": float(tolerance),
+        "precision": precision,
+        "recall": recall,
+        "f1": f1,
+        "nob": nob_s,
+        "nob_truth": nob_t,
+        "nob_ratio": nob_s / max(nob_t, 1),
+        "tbl": graph.total_length,
+        "tbl_truth": truth.total_length,
+        "tbl_ratio": graph.total_length / truth.total_length
+        if truth.total_length
+        else float("nan"),
+        "mean_distance": float(d_s.mean()),
+        "radius_error": float("nan"),
+        "radius_samples": 0,
+    }
     if graph.radius is not None and truth.radius is not None:
         rt = _interp_radius(truth, ect, tt)
         rs = _interp_radius(graph, ecs, ts)[near_s]
@@ -250,24 +292,29 @@ def compare_to_truth(graph: BranchGraph, truth: BranchGraph, tolerance: float | 
             xyz = np.asarray(cloud, dtype=float)
         if xyz.ndim != 2 or xyz.shape[0] == 0:
             raise InputError("cloud for the observed-truth measures has no wood points")
-        rt_all = (_interp_radius(truth, ect, tt) if truth.radius is not None
-                  else np.zeros(pt.shape[0]))
+        rt_all = (
+            _interp_radius(truth, ect, tt) if truth.radius is not None else np.zeros(pt.shape[0])
+        )
         d_c, _ = cKDTree(xyz).query(pt, workers=-1)
         seen = d_c <= rt_all + observed_margin
         frac = float(seen.mean())
-        out.update(observed_fraction=frac,
-                   tbl_ratio_observed=graph.total_length / (truth.total_length * frac)
-                   if frac > 0 else float("nan"),
-                   recall_observed=float((d_t[seen] <= tolerance).mean()) if seen.any()
-                   else float("nan"))
+        out.update(
+            observed_fraction=frac,
+            tbl_ratio_observed=graph.total_length / (truth.total_length * frac)
+            if frac > 0
+            else float("nan"),
+            recall_observed=float((d_t[seen] <= tolerance).mean()) if seen.any() else float("nan"),
+        )
     d_g, d_true = dbh(graph), dbh(truth)
     v_g, v_true = volume(graph), volume(truth)
-    out.update(dbh=d_g, dbh_truth=d_true,
-               dbh_error=(d_g - d_true) / d_true if np.isfinite(d_true) and d_true else
-               float("nan"),
-               volume=v_g, volume_truth=v_true,
-               volume_error=(v_g - v_true) / v_true if np.isfinite(v_true) and v_true else
-               float("nan"))
+    out.update(
+        dbh=d_g,
+        dbh_truth=d_true,
+        dbh_error=(d_g - d_true) / d_true if np.isfinite(d_true) and d_true else float("nan"),
+        volume=v_g,
+        volume_truth=v_true,
+        volume_error=(v_g - v_true) / v_true if np.isfinite(v_true) and v_true else float("nan"),
+    )
     return out
 
 
@@ -280,8 +327,11 @@ DIAMETER_CLASSES = (0.025, 0.07, 0.20)
 def class_labels(bounds: tuple[float, ...] = DIAMETER_CLASSES) -> list[str]:
     """``["<2.5cm", "2.5-7cm", "7-20cm", ">20cm"]`` for the default bounds."""
     cm = [f"{100 * b:g}" for b in bounds]
-    return ([f"<{cm[0]}cm"] + [f"{a}-{b}cm" for a, b in zip(cm[:-1], cm[1:], strict=True)]
-            + [f">{cm[-1]}cm"])
+    return (
+        [f"<{cm[0]}cm"]
+        + [f"{a}-{b}cm" for a, b in zip(cm[:-1], cm[1:], strict=True)]
+        + [f">{cm[-1]}cm"]
+    )
 
 
 def edge_volumes(graph: BranchGraph) -> tuple[NDArray, NDArray, NDArray, NDArray]:
@@ -308,8 +358,9 @@ def edge_volumes(graph: BranchGraph) -> tuple[NDArray, NDArray, NDArray, NDArray
     return child, length, r1 + r2, vol
 
 
-def volume_by_class(graph: BranchGraph, bounds: tuple[float, ...] = DIAMETER_CLASSES
-                    ) -> dict[str, dict[str, float]]:
+def volume_by_class(
+    graph: BranchGraph, bounds: tuple[float, ...] = DIAMETER_CLASSES
+) -> dict[str, dict[str, float]]:
     """Wood volume (m³) and length (m) per diameter class (an edge's class is its mean
     diameter): ``{"<2.5cm": {"volume", "length"}, ...}``."""
     _, length, diam, vol = edge_volumes(graph)
@@ -317,8 +368,10 @@ def volume_by_class(graph: BranchGraph, bounds: tuple[float, ...] = DIAMETER_CLA
     k = len(bounds) + 1
     v = np.bincount(cls, weights=vol, minlength=k)
     ln = np.bincount(cls, weights=length, minlength=k)
-    return {lab: {"volume": float(v[i]), "length": float(ln[i])}
-            for i, lab in enumerate(class_labels(bounds))}
+    return {
+        lab: {"volume": float(v[i]), "length": float(ln[i])}
+        for i, lab in enumerate(class_labels(bounds))
+    }
 
 
 def volume_by_order(graph: BranchGraph) -> dict[int, dict[str, float]]:
@@ -329,13 +382,16 @@ def volume_by_order(graph: BranchGraph) -> dict[int, dict[str, float]]:
     child, length, _, vol = edge_volumes(graph)
     order = np.asarray(graph.depth)[child]
     par = graph.parent
-    starts = order > np.asarray(graph.depth)[par[child]]   # a branch leaves its parent
+    starts = order > np.asarray(graph.depth)[par[child]]  # a branch leaves its parent
     out: dict[int, dict[str, float]] = {}
     for o in np.unique(order):
         m = order == o
         n_br = int((starts & m).sum()) if o > 0 else int(np.unique(graph.trees[child[m]]).size)
-        out[int(o)] = {"volume": float(vol[m].sum()), "length": float(length[m].sum()),
-                       "branches": n_br}
+        out[int(o)] = {
+            "volume": float(vol[m].sum()),
+            "length": float(length[m].sum()),
+            "branches": n_br,
+        }
     return out
 
 
@@ -366,23 +422,29 @@ def tree_attributes(graph: BranchGraph, height: float = 1.3) -> list[dict[str, f
         top = float(pos[nodes, 2].max() - z0)
         stem_nodes = nodes[depth[nodes] == 0]
         trunk_top = float(pos[stem_nodes, 2].max() - z0) if stem_nodes.size else 0.0
-        out.append({"tree": int(t), "total_volume": float(vol[e].sum()),
-                    "trunk_volume": float(vol[trunk].sum()),
-                    "branch_volume": float(vol[e & ~trunk].sum()),
-                    "total_length": float(length[e].sum()),
-                    "trunk_length": float(length[trunk].sum()),
-                    "branch_length": float(length[e & ~trunk].sum()),
-                    "branches_order1": int(first.sum()), "height": top,
-                    "trunk_top_gap": top - trunk_top,
-                    "dbh": float(dbhs[k]), "crown_base_height": cbh,
-                    "crown_length": top - cbh if np.isfinite(cbh) else float("nan"),
-                    "crown_diameter": float(np.mean(ext)),
-                    "max_order": int(depth[nodes].max())})
+        out.append(
+            {
+                "tree": int(t),
+                "total_volume": float(vol[e].sum()),
+                "trunk_volume": float(vol[trunk].sum()),
+                "branch_volume": float(vol[e & ~trunk].sum()),
+                "total_length": float(length[e].sum()),
+                "trunk_length": float(length[trunk].sum()),
+                "branch_length": float(length[e & ~trunk].sum()),
+                "branches_order1": int(first.sum()),
+                "height": top,
+                "trunk_top_gap": top - trunk_top,
+                "dbh": float(dbhs[k]),
+                "crown_base_height": cbh,
+                "crown_length": top - cbh if np.isfinite(cbh) else float("nan"),
+                "crown_diameter": float(np.mean(ext)),
+                "max_order": int(depth[nodes].max()),
+            }
+        )
     return out
 
 
-def _surface_candidates(graph: BranchGraph, xyz: NDArray, k: int = 8
-                        ) -> tuple[NDArray, NDArray]:
+def _surface_candidates(graph: BranchGraph, xyz: NDArray, k: int = 8) -> tuple[NDArray, NDArray]:
     """Per point and candidate edge (``k`` nearest skeleton samples): signed distance to
     the cylinder (frustum) surface, m (> 0 outside), and the local radius, m."""
     el = graph.edge_length[graph.parent >= 0]
@@ -397,8 +459,9 @@ def _surface_candidates(graph: BranchGraph, xyz: NDArray, k: int = 8
     ab = b - a
     denom = np.einsum("...i,...i->...", ab, ab)
     ap = xyz[:, None, :] - a
-    t = np.where(denom > 0, np.einsum("...i,...i->...", ap, ab) / np.where(denom > 0, denom, 1),
-                 0.0).clip(0, 1)
+    t = np.where(
+        denom > 0, np.einsum("...i,...i->...", ap, ab) / np.where(denom > 0, denom, 1), 0.0
+    ).clip(0, 1)
     d = np.linalg.norm(ap - ab * t[..., None], axis=-1)
     r = graph.radius
     rp = np.where(par >= 0, r[np.maximum(par, 0)], r[node])
@@ -406,8 +469,14 @@ def _surface_candidates(graph: BranchGraph, xyz: NDArray, k: int = 8
     return d - rad, rad
 
 
-def cylinder_fit(graph: BranchGraph, cloud: PointCloud | NDArray, *, far: float = 0.10,
-                 bounds: tuple[float, ...] = DIAMETER_CLASSES, k: int = 8) -> dict:
+def cylinder_fit(
+    graph: BranchGraph,
+    cloud: PointCloud | NDArray,
+    *,
+    far: float = 0.10,
+    bounds: tuple[float, ...] = DIAMETER_CLASSES,
+    k: int = 8,
+) -> dict:
     """Reference-free fit of a cylinder model to its cloud, as a forest scientist checks it.
 
     ``far_share``: share of points farther than ``far`` (10 cm) from every cylinder surface
@@ -430,8 +499,10 @@ def cylinder_fit(graph: BranchGraph, cloud: PointCloud | NDArray, *, far: float 
     res = {}
     for i, lab in enumerate(class_labels(bounds)):
         m = near & (cls == i)
-        res[lab] = {"residual": float(np.median(sb[m] / rb[m])) if m.any() else float("nan"),
-                    "points": int(m.sum())}
+        res[lab] = {
+            "residual": float(np.median(sb[m] / rb[m])) if m.any() else float("nan"),
+            "points": int(m.sum()),
+        }
     return {"far_share": float((np.abs(sb) > far).mean()), "far": far, "classes": res}
 
 
@@ -439,8 +510,11 @@ def qsm_report(graph: BranchGraph, cloud: PointCloud | NDArray | None = None) ->
     """All QSM measures in one dict: ``classes`` (:func:`volume_by_class`), ``orders``
     (:func:`volume_by_order`), ``trees`` (:func:`tree_attributes`) and, with a cloud,
     ``fit`` (:func:`cylinder_fit`)."""
-    out = {"classes": volume_by_class(graph), "orders": volume_by_order(graph),
-           "trees": tree_attributes(graph)}
+    out = {
+        "classes": volume_by_class(graph),
+        "orders": volume_by_order(graph),
+        "trees": tree_attributes(graph),
+    }
     if cloud is not None:
         out["fit"] = cylinder_fit(graph, cloud)
     return out

@@ -23,13 +23,28 @@ from scipy.spatial import cKDTree
 
 from biomorph.errors import InputError
 
-__all__ = ["estimate_spacing", "neighbour_graph", "bridge_components", "shortest_path_forest",
-           "BridgeRule", "bridge_supported", "GAP_SHORT", "GAP_ANGLE", "GAP_COVER", "GAP_EXTENT",
-           "Contraction", "contract", "NODE_SPACING", "NODE_SPACING_MIN", "LEVEL_CELL"]
+__all__ = [
+    "estimate_spacing",
+    "neighbour_graph",
+    "bridge_components",
+    "shortest_path_forest",
+    "BridgeRule",
+    "bridge_supported",
+    "GAP_SHORT",
+    "GAP_ANGLE",
+    "GAP_COVER",
+    "GAP_EXTENT",
+    "Contraction",
+    "contract",
+    "NODE_SPACING",
+    "NODE_SPACING_MIN",
+    "LEVEL_CELL",
+]
 
 
-def estimate_spacing(xyz: NDArray[np.float64], sample: int = 20000, seed: int = 0,
-                     kdtree: cKDTree | None = None) -> float:
+def estimate_spacing(
+    xyz: NDArray[np.float64], sample: int = 20000, seed: int = 0, kdtree: cKDTree | None = None
+) -> float:
     """Median nearest-neighbour distance of the points (metres), on a random subsample."""
     n = xyz.shape[0]
     if n < 2:
@@ -41,9 +56,14 @@ def estimate_spacing(xyz: NDArray[np.float64], sample: int = 20000, seed: int = 
     return float(np.median(pos)) if pos.size else 0.0
 
 
-
-def neighbour_graph(xyz: NDArray[np.float64], *, k: int = 10, radius: float | None = None,
-                    tree: cKDTree | None = None, workers: int = -1) -> sparse.csr_matrix:
+def neighbour_graph(
+    xyz: NDArray[np.float64],
+    *,
+    k: int = 10,
+    radius: float | None = None,
+    tree: cKDTree | None = None,
+    workers: int = -1,
+) -> sparse.csr_matrix:
     """Neighbour graph with squared-distance weights (``csr``, n×n).
 
     kNN (``k`` neighbours of every point) or all pairs within ``radius`` when given. The
@@ -66,18 +86,23 @@ def neighbour_graph(xyz: NDArray[np.float64], *, k: int = 10, radius: float | No
         indptr = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(ok.sum(axis=1), out=indptr[1:])
         w = np.maximum(d[:, 1:][ok] ** 2, 1e-18)
-        return sparse.csr_matrix((w, nb[ok].astype(np.int32 if n < 2**31 else np.int64),
-                                  indptr), shape=(n, n))
+        return sparse.csr_matrix(
+            (w, nb[ok].astype(np.int32 if n < 2**31 else np.int64), indptr), shape=(n, n)
+        )
     w = np.sum((xyz[r] - xyz[c]) ** 2, axis=1)
     w = np.maximum(w, 1e-18)
     return sparse.csr_matrix((w, (r, c)), shape=(n, n))
 
 
-def bridge_components(xyz: NDArray[np.float64], graph: sparse.csr_matrix,
-                      tree: cKDTree | None = None, max_rounds: int = 64,
-                      max_query: int = 200_000, rule: BridgeRule | None = None,
-                      anchors: NDArray[np.int64] | None = None,
-                      ) -> tuple[sparse.csr_matrix, int]:
+def bridge_components(
+    xyz: NDArray[np.float64],
+    graph: sparse.csr_matrix,
+    tree: cKDTree | None = None,
+    max_rounds: int = 64,
+    max_query: int = 200_000,
+    rule: BridgeRule | None = None,
+    anchors: NDArray[np.int64] | None = None,
+) -> tuple[sparse.csr_matrix, int]:
     """Join the connected pieces of ``graph`` by their shortest inter-piece edges.
 
     Borůvka rounds over components: each component except the largest finds its nearest
@@ -100,7 +125,7 @@ def bridge_components(xyz: NDArray[np.float64], graph: sparse.csr_matrix,
     tree = tree or cKDTree(xyz)
     add_r: list[int] = []
     add_c: list[int] = []
-    refused_pts: list[tuple[int, int]] = []   # (a point, its piece's size) of refused pieces
+    refused_pts: list[tuple[int, int]] = []  # (a point, its piece's size) of refused pieces
     ncomp, cur = n0, lab
     for _ in range(max_rounds):
         if ncomp <= 1:
@@ -113,7 +138,7 @@ def bridge_components(xyz: NDArray[np.float64], graph: sparse.csr_matrix,
         refused = np.zeros(ncomp, dtype=bool)
         if rule is not None and refused_pts:
             rp = np.asarray(refused_pts, dtype=np.int64)
-            same = sizes[cur[rp[:, 0]]] == rp[:, 1]     # unchanged since it was refused
+            same = sizes[cur[rp[:, 0]]] == rp[:, 1]  # unchanged since it was refused
             refused[cur[rp[same, 0]]] = True
         todo = np.flatnonzero((cur != big) & ~refused[cur])  # every piece but the largest
         if todo.size > max_query:
@@ -137,7 +162,7 @@ def bridge_components(xyz: NDArray[np.float64], graph: sparse.csr_matrix,
             rows = np.flatnonzero(has)
             dd = d[rows, first[rows]]
             comp = cur[todo[rows]]
-            o = np.lexsort((dd, comp))              # per component, nearest first
+            o = np.lexsort((dd, comp))  # per component, nearest first
             comp_o = comp[o]
             lead = np.ones(o.size, dtype=bool)
             lead[1:] = comp_o[1:] != comp_o[:-1]
@@ -156,7 +181,7 @@ def bridge_components(xyz: NDArray[np.float64], graph: sparse.csr_matrix,
             todo = todo[missing[cur[todo]]]
             kk *= 4
         for comp in np.flatnonzero((best_r < 0) & (np.arange(ncomp) != big) & ~refused):
-            members = np.flatnonzero(cur == comp)   # exact fallback, rare
+            members = np.flatnonzero(cur == comp)  # exact fallback, rare
             outside = np.flatnonzero(cur != comp)
             d, j = cKDTree(xyz[outside]).query(xyz[members])
             i = int(np.argmin(d))
@@ -165,12 +190,13 @@ def bridge_components(xyz: NDArray[np.float64], graph: sparse.csr_matrix,
         if rule is not None:
             found &= ~refused
             cand = np.flatnonzero(found)
-            ok, best_r[cand], best_c[cand] = bridge_supported(xyz, best_r[cand],
-                                                              best_c[cand], cur, tree, rule)
+            ok, best_r[cand], best_c[cand] = bridge_supported(
+                xyz, best_r[cand], best_c[cand], cur, tree, rule
+            )
             if anchors is not None and anchors.size:
                 anchored = np.zeros(ncomp, dtype=bool)
                 anchored[cur[anchors]] = True
-                ok |= anchored[cand]          # the asking piece holds a stem base
+                ok |= anchored[cand]  # the asking piece holds a stem base
             bad = best_r[cand[~ok]]
             refused_pts.extend(zip(bad.tolist(), sizes[cur[bad]].tolist(), strict=True))
             found[cand[~ok]] = False
@@ -193,9 +219,10 @@ def bridge_components(xyz: NDArray[np.float64], graph: sparse.csr_matrix,
     # the bridges join different pieces, so no entry of the graph repeats: appending them
     # and sorting each row gives the canonical sum without a 10⁶ x 10⁶ sparse addition
     g = graph.tocoo()
-    out = sparse.csr_matrix((np.concatenate([g.data, w]),
-                             (np.concatenate([g.row, r]), np.concatenate([g.col, c]))),
-                            shape=(n, n))
+    out = sparse.csr_matrix(
+        (np.concatenate([g.data, w]), (np.concatenate([g.row, r]), np.concatenate([g.col, c]))),
+        shape=(n, n),
+    )
     out.sum_duplicates()
     return out, n0
 
@@ -234,8 +261,9 @@ class BridgeRule:
     cover: float = GAP_COVER
 
 
-def _piece_axis(xyz: NDArray, kd: cKDTree, end: int, members_of: NDArray, comp: int,
-                radius: float) -> tuple[NDArray | None, float]:
+def _piece_axis(
+    xyz: NDArray, kd: cKDTree, end: int, members_of: NDArray, comp: int, radius: float
+) -> tuple[NDArray | None, float]:
     """Principal axis of the piece's points within ``radius`` of its end point and the
     piece's linearity there (``1 - λ2/λ1``); ``None`` with fewer than 5 points."""
     idx = np.asarray(kd.query_ball_point(xyz[end], radius), dtype=np.int64)
@@ -257,22 +285,30 @@ def _covered(xyz: NDArray, kd: cKDTree, pa: NDArray, pb: NDArray, rule: BridgeRu
     return float(np.mean(d <= 2.0 * rule.spacing)) >= rule.cover
 
 
-def _continues(xyz: NDArray, kd: cKDTree, end: int, target: NDArray, comp: NDArray,
-               extent: float, rule: BridgeRule) -> bool:
+def _continues(
+    xyz: NDArray,
+    kd: cKDTree,
+    end: int,
+    target: NDArray,
+    comp: NDArray,
+    extent: float,
+    rule: BridgeRule,
+) -> bool:
     """Whether the bridge ``end → target`` continues the piece's axis at ``end`` (within
     ``rule.angle``) and is no longer than the piece (``extent``)."""
     vec = target - xyz[end]
     gap = float(np.linalg.norm(vec))
     if gap > extent or gap == 0:
         return gap == 0
-    axis, lin = _piece_axis(xyz, kd, end, comp, int(comp[end]),
-                            max(0.5 * gap, 5.0 * rule.spacing))
-    return (axis is not None and lin > 0.5
-            and abs(float(np.dot(axis, vec / gap))) >= np.cos(rule.angle))
+    axis, lin = _piece_axis(xyz, kd, end, comp, int(comp[end]), max(0.5 * gap, 5.0 * rule.spacing))
+    return (
+        axis is not None and lin > 0.5 and abs(float(np.dot(axis, vec / gap))) >= np.cos(rule.angle)
+    )
 
 
-def _end_bridge(xyz: NDArray, kd: cKDTree, members: NDArray, comp: NDArray, extent: float,
-                rule: BridgeRule) -> tuple[int, int] | None:
+def _end_bridge(
+    xyz: NDArray, kd: cKDTree, members: NDArray, comp: NDArray, extent: float, rule: BridgeRule
+) -> tuple[int, int] | None:
     """A bridge from one of the piece's two ends (extremes along its principal axis) to the
     nearest point of another piece ahead of it, if that bridge continues the piece."""
     q = xyz[members] - xyz[members].mean(axis=0)
@@ -289,9 +325,14 @@ def _end_bridge(xyz: NDArray, kd: cKDTree, members: NDArray, comp: NDArray, exte
     return None
 
 
-def bridge_supported(xyz: NDArray[np.float64], a: NDArray[np.int64], b: NDArray[np.int64],
-                     comp: NDArray[np.int64], kd: cKDTree, rule: BridgeRule
-                     ) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int64]]:
+def bridge_supported(
+    xyz: NDArray[np.float64],
+    a: NDArray[np.int64],
+    b: NDArray[np.int64],
+    comp: NDArray[np.int64],
+    kd: cKDTree,
+    rule: BridgeRule,
+) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int64]]:
     """For candidate bridges ``a[i] → b[i]`` (``a`` in the piece asking to be joined, ``b``
     its nearest point elsewhere): is the gap supported by the wood (:class:`BridgeRule`)?
 
@@ -310,7 +351,7 @@ def bridge_supported(xyz: NDArray[np.float64], a: NDArray[np.int64], b: NDArray[
         members = np.flatnonzero(comp == comp[a[i]])
         extent = float(np.linalg.norm(np.ptp(xyz[members], axis=0)))
         if extent >= GAP_EXTENT * length[i]:
-            continue                      # a piece much longer than the gap is wood
+            continue  # a piece much longer than the gap is wood
         if _continues(xyz, kd, int(a[i]), xyz[b[i]], comp, extent, rule):
             continue
         alt = _end_bridge(xyz, kd, members, comp, extent, rule) if members.size >= 5 else None
@@ -320,8 +361,10 @@ def bridge_supported(xyz: NDArray[np.float64], a: NDArray[np.int64], b: NDArray[
             a[i], b[i] = alt
     return ok, a, b
 
-def shortest_path_forest(graph: sparse.csr_matrix, sources: NDArray[np.int64]
-                         ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+
+def shortest_path_forest(
+    graph: sparse.csr_matrix, sources: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Dijkstra from a virtual root joined to ``sources`` by 0-weight edges.
 
     Returns ``(dist, parent)`` for the n real vertices; ``parent`` is -1 at sources and at
@@ -340,7 +383,6 @@ def shortest_path_forest(graph: sparse.csr_matrix, sources: NDArray[np.int64]
     parent = pred[:n].astype(np.int64)
     parent[(parent == n) | (parent < 0)] = -1
     return dist[:n], parent
-
 
 
 @dataclass
@@ -372,13 +414,18 @@ def _voxel_level_edges(xyz, level, tree, ok, cell):
     lk = tree[idx].astype(np.int64) * (int(level[idx].max()) + 1) + level[idx]
     code = lk * us.size + srank
     ucode, first, cinv = np.unique(code, return_index=True, return_inverse=True)
-    rep = idx[first]                              # representative point of each cell
+    rep = idx[first]  # representative point of each cell
     rows = [idx]
     cols = [rep[cinv.reshape(-1)]]
     cell_lk = lk[first]
     cell_sc = sc[first]
-    offsets = [(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)
-               if (a, b, c) > (0, 0, 0)]
+    offsets = [
+        (a, b, c)
+        for a in (-1, 0, 1)
+        for b in (-1, 0, 1)
+        for c in (-1, 0, 1)
+        if (a, b, c) > (0, 0, 0)
+    ]
     for a, b, c in offsets:
         nsc = cell_sc + (a * dims[1] + b) * dims[2] + c
         pos = np.minimum(np.searchsorted(us, nsc), us.size - 1)
@@ -400,9 +447,14 @@ NODE_SPACING_MIN = 0.002
 LEVEL_CELL = 1.5  #: voxel size of the level-set connectivity, in node spacings
 
 
-def contract(xyz: NDArray[np.float64], graph: sparse.csr_matrix, path_length: NDArray,
-             point_tree: NDArray[np.int64], spacing: float,
-             cell: float | None = None) -> Contraction:
+def contract(
+    xyz: NDArray[np.float64],
+    graph: sparse.csr_matrix,
+    path_length: NDArray,
+    point_tree: NDArray[np.int64],
+    spacing: float,
+    cell: float | None = None,
+) -> Contraction:
     """Contract points into geodesic level-set pieces of width ``spacing`` (see module doc).
 
     ``path_length`` is the distance along the shortest-path forest from the root set;
@@ -428,8 +480,9 @@ def contract(xyz: NDArray[np.float64], graph: sparse.csr_matrix, path_length: ND
         r = np.concatenate([r, lvl0])
         c = np.concatenate([c, first[t0]])
     if spacing > 0:
-        vr, vc = _voxel_level_edges(xyz, level, point_tree, ok,
-                                    cell if cell else LEVEL_CELL * spacing)
+        vr, vc = _voxel_level_edges(
+            xyz, level, point_tree, ok, cell if cell else LEVEL_CELL * spacing
+        )
         r = np.concatenate([r, vr])
         c = np.concatenate([c, vc])
     a = sparse.csr_matrix((np.ones(r.size, dtype=np.int8), (r, c)), shape=(n, n))
@@ -440,8 +493,12 @@ def contract(xyz: NDArray[np.float64], graph: sparse.csr_matrix, path_length: ND
     label[ok] = lab_c.reshape(-1)
     m = uniq.size
     count = np.bincount(label[ok], minlength=m)
-    pos = np.stack([np.bincount(label[ok], weights=xyz[ok, d], minlength=m)
-                    for d in range(3)], axis=1) / count[:, None]
+    pos = (
+        np.stack(
+            [np.bincount(label[ok], weights=xyz[ok, d], minlength=m) for d in range(3)], axis=1
+        )
+        / count[:, None]
+    )
     vtree = np.zeros(m, dtype=np.int64)
     vtree[label[ok]] = point_tree[ok]
     vlevel = np.zeros(m, dtype=np.int64)
@@ -461,4 +518,3 @@ def contract(xyz: NDArray[np.float64], graph: sparse.csr_matrix, path_length: ND
     q = sparse.coo_matrix((w, (qr, qc)), shape=(m, m)).tocsr()
     q = q.maximum(q.T).tocsr()
     return Contraction(label, pos, vtree, roots[roots >= 0], q, count)
-

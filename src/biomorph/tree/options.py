@@ -34,10 +34,25 @@ from typing import Any
 
 from biomorph.errors import ParameterError
 
-__all__ = ["AttributeFilter", "CleanupOptions", "CliField", "GraphOptions", "OrderOptions",
-           "PrepareOptions", "RadiusOptions", "SkeletonizeOptions", "VoxelOptions",
-           "STAGES", "METHODS", "cli_default", "cli_fields", "cli_type", "TIP_LENGTH",
-           "MIN_CYLINDER_RADIUS", "TIP_SUPPORT_LENGTH"]
+__all__ = [
+    "AttributeFilter",
+    "CleanupOptions",
+    "CliField",
+    "GraphOptions",
+    "OrderOptions",
+    "PrepareOptions",
+    "RadiusOptions",
+    "SkeletonizeOptions",
+    "VoxelOptions",
+    "STAGES",
+    "METHODS",
+    "cli_default",
+    "cli_fields",
+    "cli_type",
+    "TIP_LENGTH",
+    "MIN_CYLINDER_RADIUS",
+    "TIP_SUPPORT_LENGTH",
+]
 
 METHODS = ("graph", "voxel")
 #: default shortest side tip kept by the graph method's cleanup, in node spacings: shorter
@@ -99,8 +114,11 @@ class AttributeFilter:
         try:
             if len(parts) == 2:
                 return cls(parts[0], max_value=float(parts[1]))
-            return cls(parts[0], min_value=float(parts[1]) if parts[1] else None,
-                       max_value=float(parts[2]) if parts[2] else None)
+            return cls(
+                parts[0],
+                min_value=float(parts[1]) if parts[1] else None,
+                max_value=float(parts[2]) if parts[2] else None,
+            )
         except ValueError:
             raise ParameterError(f"--filter {spec!r}: bounds must be numbers") from None
 
@@ -120,26 +138,41 @@ class PrepareOptions:
 
     centre: bool = True
     filter: AttributeFilter | None = _opt(  # noqa: A003
-        None, "--filter", "Keep points with attribute NAME <= MAX (NAME:MAX or NAME:MIN:MAX).",
-        kind="filter")
-    downsample: float | None = _opt(None, "--downsample", "Random downsampling ratio.",
-                                    lo=0, hi=1, lo_open=True)
+        None,
+        "--filter",
+        "Keep points with attribute NAME <= MAX (NAME:MAX or NAME:MIN:MAX).",
+        kind="filter",
+    )
+    downsample: float | None = _opt(
+        None, "--downsample", "Random downsampling ratio.", lo=0, hi=1, lo_open=True
+    )
     downsample_voxel: float | None = _opt(
-        None, "--downsample-voxel", "Keep one random point per cube of this edge, m.",
-        lo=0, lo_open=True)
+        None,
+        "--downsample-voxel",
+        "Keep one random point per cube of this edge, m.",
+        lo=0,
+        lo_open=True,
+    )
     outliers: bool = _opt(True, "--outliers", "Statistical outlier removal.", kind="enabled")
     outlier_k: int = 16
     outlier_std: float = 2.0
-    ground: str | None = _opt("auto", "--ground", "Remove the ground when detected.",
-                              kind="ground")
+    ground: str | None = _opt("auto", "--ground", "Remove the ground when detected.", kind="ground")
     foliage: float | str | None = _opt(
-        "auto", "--foliage", "Leaf/wood separation: drop points whose neighbourhood is "
+        "auto",
+        "--foliage",
+        "Leaf/wood separation: drop points whose neighbourhood is "
         "thicker than FOLIAGE x the median; 0 = off (default: 3 when foliage is detected "
-        "(graph), off (voxel)).", kind="foliage")
+        "(graph), off (voxel)).",
+        kind="foliage",
+    )
     foliage_passes: int = 2
     sparse_filter: float | None = _opt(
-        None, "--clutter", "Drop sparse points (leaf clutter): mean 16-NN distance > "
-        "CLUTTER x median, e.g. 4.", lo=1, lo_open=True)
+        None,
+        "--clutter",
+        "Drop sparse points (leaf clutter): mean 16-NN distance > CLUTTER x median, e.g. 4.",
+        lo=1,
+        lo_open=True,
+    )
 
     def downsample_arg(self) -> dict[str, Any] | float | None:
         """The ``downsample`` argument of :func:`~biomorph.tree.cloud.prepare`."""
@@ -163,30 +196,45 @@ class PrepareOptions:
 class GraphOptions:
     """Graph method (:func:`biomorph.tree.livny.skeletonize_graph`); None = from the data."""
 
-    n_trees: int | None = _opt(None, "--n-trees", "Number of trees (default: found "
-                               "automatically).", lo=1)
+    n_trees: int | None = _opt(
+        None, "--n-trees", "Number of trees (default: found automatically).", lo=1
+    )
     k: int = _opt(10, "--k", "Neighbours per point (graph method).", lo=2)
-    search_radius: float | None = _opt(None, "--search-radius", "Neighbour search radius, m "
-                                       "(default from the data).", lo=0, lo_open=True)
-    node_spacing: float | None = _opt(None, "--node-spacing", "Skeleton node spacing, m "
-                                      "(default from the data).", lo=0, lo_open=True)
+    search_radius: float | None = _opt(
+        None,
+        "--search-radius",
+        "Neighbour search radius, m (default from the data).",
+        lo=0,
+        lo_open=True,
+    )
+    node_spacing: float | None = _opt(
+        None,
+        "--node-spacing",
+        "Skeleton node spacing, m (default from the data).",
+        lo=0,
+        lo_open=True,
+    )
     max_iter: int = _opt(5, "--max-iter", "Re-weighting iterations cap.", lo=0)
     reweight: float = 0.5
-    root_slice: float = _opt(0.5, "--root-slice", "Height of the slice searched for stem "
-                             "bases, m.", lo=0, lo_open=True)
-    min_tree_distance: float = _opt(0.6, "--min-tree-distance", "Stem bases closer than "
-                                    "this are one tree, m.", lo=0)
+    root_slice: float = _opt(
+        0.5, "--root-slice", "Height of the slice searched for stem bases, m.", lo=0, lo_open=True
+    )
+    min_tree_distance: float = _opt(
+        0.6, "--min-tree-distance", "Stem bases closer than this are one tree, m.", lo=0
+    )
     allometry_exponent: float = 2.5
-    edge_weights: str = _opt("livny", "--edge-weights", "Weights of Livny steps iv-v: "
-                             "livny (the paper's) or branch.")
+    edge_weights: str = _opt(
+        "livny", "--edge-weights", "Weights of Livny steps iv-v: livny (the paper's) or branch."
+    )
 
 
 @dataclass(frozen=True)
 class VoxelOptions:
     """Voxel method (:func:`biomorph.tree.voxel.skeletonize_voxel`); None = its default."""
 
-    cell_size: float | None = _opt(None, "--cell-size", "Voxel size, m (voxel method).",
-                                   lo=0, lo_open=True)
+    cell_size: float | None = _opt(
+        None, "--cell-size", "Voxel size, m (voxel method).", lo=0, lo_open=True
+    )
     min_points: int | None = None
     closing_radius: float | None = None
     keep_largest: int | None = None
@@ -196,27 +244,41 @@ class VoxelOptions:
 
     def as_kwargs(self) -> dict[str, Any]:
         """The keyword arguments that differ from ``skeletonize_voxel``'s defaults."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-                if getattr(self, f.name) is not None}
+        return {
+            f.name: getattr(self, f.name)
+            for f in dataclasses.fields(self)
+            if getattr(self, f.name) is not None
+        }
 
 
 @dataclass(frozen=True)
 class CleanupOptions:
     """Skeleton cleanup (:func:`biomorph.tree.cleanup.cleanup`)."""
 
-    enabled: bool = _opt(True, "--cleanup", "False-branch removal and overlap collapse.",
-                         kind="enabled")
+    enabled: bool = _opt(
+        True, "--cleanup", "False-branch removal and overlap collapse.", kind="enabled"
+    )
     radius_ratio: float = 0.5
     length_factor: float = 3.0
     overlap: float = 0.5
     min_branch_length: float | None = _opt(
-        None, "--min-branch-length", "Shortest side tip kept, m (default 3 node spacings "
-        "for the graph method, 1.5 voxels for the voxel method).", lo=0)
+        None,
+        "--min-branch-length",
+        "Shortest side tip kept, m (default 3 node spacings "
+        "for the graph method, 1.5 voxels for the voxel method).",
+        lo=0,
+    )
     min_cylinder_radius: float = MIN_CYLINDER_RADIUS
     tip_support: float | None = _opt(
-        None, "--tip-support", "Prune short tip chains with fewer points per node than "
+        None,
+        "--tip-support",
+        "Prune short tip chains with fewer points per node than "
         "TIP_SUPPORT x the median tip chain, e.g. 0.3 for dense leafy scans (graph).",
-        lo=0, hi=1, lo_open=True, hi_open=True)
+        lo=0,
+        hi=1,
+        lo_open=True,
+        hi_open=True,
+    )
 
 
 @dataclass(frozen=True)
@@ -224,15 +286,18 @@ class RadiusOptions:
     """Branch radii (:mod:`biomorph.tree.radius`)."""
 
     method: str = _opt("fit", "--radius", "fit (circle fits + taper model) or allometric.")
-    recentre: bool = _opt(True, "--recentre", "Move nodes to fitted stem centres.",
-                          kind="enabled")
+    recentre: bool = _opt(True, "--recentre", "Move nodes to fitted stem centres.", kind="enabled")
     search_factor: float = 1.5
     smooth: int = 2
-    taper: bool = _opt(True, "--taper", "Keep circle fits only where the cross-section is "
-                       "well covered; elsewhere a taper model fitted on them "
-                       "(radius.taper_radii).", kind="enabled")
-    min_radius: float = _opt(0.001, "--min-radius", "Radius floor of the taper model, m.",
-                             lo=0)
+    taper: bool = _opt(
+        True,
+        "--taper",
+        "Keep circle fits only where the cross-section is "
+        "well covered; elsewhere a taper model fitted on them "
+        "(radius.taper_radii).",
+        kind="enabled",
+    )
+    min_radius: float = _opt(0.001, "--min-radius", "Radius floor of the taper model, m.", lo=0)
 
 
 @dataclass(frozen=True)
@@ -246,44 +311,100 @@ class OrderOptions:
     and ``angle`` as hard limits.
     """
 
-    rule: str = _opt("supported", "--order-rule", "supported (TreeQSM-style: the child "
-                     "carrying the most length continues, angle breaks ties) or angle "
-                     "(the seed's 45-degree rule).")
-    tie: float = _opt(0.5, "--order-tie", "Children carrying at least this share of the "
-                      "heaviest child's length are codominant (rule supported).",
-                      lo=0, hi=1, lo_open=True)
-    share: float = _opt(0.5, "--order-share", "Branch-order weight share (rule angle).",
-                        lo=0, hi=1, hi_open=True)
-    angle: float = _opt(math.radians(45.0), "--order-angle", "Branch-order angle, degrees "
-                        "(rule angle).", lo=0, hi=180, lo_open=True, kind="degrees")
+    rule: str = _opt(
+        "supported",
+        "--order-rule",
+        "supported (TreeQSM-style: the child "
+        "carrying the most length continues, angle breaks ties) or angle "
+        "(the seed's 45-degree rule).",
+    )
+    tie: float = _opt(
+        0.5,
+        "--order-tie",
+        "Children carrying at least this share of the "
+        "heaviest child's length are codominant (rule supported).",
+        lo=0,
+        hi=1,
+        lo_open=True,
+    )
+    share: float = _opt(
+        0.5, "--order-share", "Branch-order weight share (rule angle).", lo=0, hi=1, hi_open=True
+    )
+    angle: float = _opt(
+        math.radians(45.0),
+        "--order-angle",
+        "Branch-order angle, degrees (rule angle).",
+        lo=0,
+        hi=180,
+        lo_open=True,
+        kind="degrees",
+    )
 
     def rule_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of :func:`biomorph.tree.order.continuation`."""
-        return {"weight_share": self.share, "max_angle": self.angle, "rule": self.rule,
-                "tie": self.tie}
+        return {
+            "weight_share": self.share,
+            "max_angle": self.angle,
+            "rule": self.rule,
+            "tie": self.tie,
+        }
 
 
-STAGES = {"prepare": PrepareOptions, "graph": GraphOptions, "voxel": VoxelOptions,
-          "cleanup": CleanupOptions, "radius": RadiusOptions, "order": OrderOptions}
+STAGES = {
+    "prepare": PrepareOptions,
+    "graph": GraphOptions,
+    "voxel": VoxelOptions,
+    "cleanup": CleanupOptions,
+    "radius": RadiusOptions,
+    "order": OrderOptions,
+}
 
 #: the flat keyword arguments of the pre-options ``skeletonize`` → (stage, field)
-_LEGACY = {"centre": ("prepare", "centre"), "filter": ("prepare", "filter"),
-           "downsample": ("prepare", "downsample"), "outliers": ("prepare", "outliers"),
-           "ground": ("prepare", "ground"), "foliage": ("prepare", "foliage"),
-           "foliage_passes": ("prepare", "foliage_passes"),
-           "sparse_filter": ("prepare", "sparse_filter"),
-           **{f: ("graph", f) for f in ("n_trees", "k", "search_radius", "node_spacing",
-                                        "max_iter", "reweight", "root_slice",
-                                        "min_tree_distance", "allometry_exponent",
-                                        "edge_weights")},
-           "cleanup": ("cleanup", "enabled"),
-           **{f: ("cleanup", f) for f in ("radius_ratio", "length_factor", "overlap",
-                                          "min_branch_length", "min_cylinder_radius",
-                                          "tip_support")},
-           "radius": ("radius", "method"), "recentre": ("radius", "recentre"),
-           "search_factor": ("radius", "search_factor"), "smooth": ("radius", "smooth"),
-           "order_share": ("order", "share"), "order_angle": ("order", "angle"),
-           "order_rule": ("order", "rule"), "order_tie": ("order", "tie")}
+_LEGACY = {
+    "centre": ("prepare", "centre"),
+    "filter": ("prepare", "filter"),
+    "downsample": ("prepare", "downsample"),
+    "outliers": ("prepare", "outliers"),
+    "ground": ("prepare", "ground"),
+    "foliage": ("prepare", "foliage"),
+    "foliage_passes": ("prepare", "foliage_passes"),
+    "sparse_filter": ("prepare", "sparse_filter"),
+    **{
+        f: ("graph", f)
+        for f in (
+            "n_trees",
+            "k",
+            "search_radius",
+            "node_spacing",
+            "max_iter",
+            "reweight",
+            "root_slice",
+            "min_tree_distance",
+            "allometry_exponent",
+            "edge_weights",
+        )
+    },
+    "cleanup": ("cleanup", "enabled"),
+    **{
+        f: ("cleanup", f)
+        for f in (
+            "radius_ratio",
+            "length_factor",
+            "overlap",
+            "min_branch_length",
+            "min_cylinder_radius",
+            "tip_support",
+        )
+    },
+    "radius": ("radius", "method"),
+    "recentre": ("radius", "recentre"),
+    "search_factor": ("radius", "search_factor"),
+    "smooth": ("radius", "smooth"),
+    "order_share": ("order", "share"),
+    "order_angle": ("order", "angle"),
+    "order_rule": ("order", "rule"),
+    "order_tie": ("order", "tie"),
+}
 
 
 @dataclass(frozen=True)
@@ -306,35 +427,43 @@ class SkeletonizeOptions:
     def validate(self) -> None:
         """Raise :class:`ParameterError` on a value no stage accepts."""
         if self.method not in METHODS:
-            raise ParameterError(f"unknown method {self.method!r}; expected one of "
-                                 f"{', '.join(METHODS)}")
+            raise ParameterError(
+                f"unknown method {self.method!r}; expected one of {', '.join(METHODS)}"
+            )
         if self.radius.method not in ("fit", "allometric"):
-            raise ParameterError(f"radius must be 'fit' or 'allometric', got "
-                                 f"{self.radius.method!r}")
+            raise ParameterError(
+                f"radius must be 'fit' or 'allometric', got {self.radius.method!r}"
+            )
         if self.order.rule not in ("supported", "angle"):
-            raise ParameterError(f"order rule {self.order.rule!r}; expected 'supported' or "
-                                 "'angle'")
+            raise ParameterError(f"order rule {self.order.rule!r}; expected 'supported' or 'angle'")
         fol = self.prepare.foliage
         if isinstance(fol, str) and fol != "auto":
             raise ParameterError(f"foliage {fol!r}; expected 'auto', None or a factor > 1")
-        for name, value, cls in (("prepare", self.prepare, PrepareOptions),
-                                 ("graph", self.graph, GraphOptions),
-                                 ("voxel", self.voxel, VoxelOptions),
-                                 ("cleanup", self.cleanup, CleanupOptions),
-                                 ("radius", self.radius, RadiusOptions),
-                                 ("order", self.order, OrderOptions)):
+        for name, value, cls in (
+            ("prepare", self.prepare, PrepareOptions),
+            ("graph", self.graph, GraphOptions),
+            ("voxel", self.voxel, VoxelOptions),
+            ("cleanup", self.cleanup, CleanupOptions),
+            ("radius", self.radius, RadiusOptions),
+            ("order", self.order, OrderOptions),
+        ):
             if not isinstance(value, cls):
-                raise ParameterError(f"options.{name} must be a {cls.__name__}, got "
-                                     f"{type(value).__name__}")
+                raise ParameterError(
+                    f"options.{name} must be a {cls.__name__}, got {type(value).__name__}"
+                )
 
     def replace(self, **changes: Any) -> SkeletonizeOptions:
         """A copy with top-level fields (``method``, ``seed``, a stage) replaced."""
         return dataclasses.replace(self, **changes)
 
     @classmethod
-    def from_kwargs(cls, method: str = "graph", seed: int = 0,
-                    base: SkeletonizeOptions | None = None, **kwargs: Any
-                    ) -> SkeletonizeOptions:
+    def from_kwargs(
+        cls,
+        method: str = "graph",
+        seed: int = 0,
+        base: SkeletonizeOptions | None = None,
+        **kwargs: Any,
+    ) -> SkeletonizeOptions:
         """Options from the flat keywords of the pre-options ``skeletonize`` (``k=12``,
         ``order_angle=…``, ``voxel={"cell_size": 0.05}``, ``filter={...}``, …)."""
         base = base or cls()
@@ -344,8 +473,10 @@ class SkeletonizeOptions:
                 stages["voxel"].update(dict(value or {}))
                 continue
             if key not in _LEGACY:
-                raise ParameterError(f"skeletonize got an unknown option {key!r}; expected "
-                                     f"one of {', '.join(sorted([*_LEGACY, 'voxel']))}")
+                raise ParameterError(
+                    f"skeletonize got an unknown option {key!r}; expected "
+                    f"one of {', '.join(sorted([*_LEGACY, 'voxel']))}"
+                )
             stage, name = _LEGACY[key]
             stages[stage][name] = _legacy_value(key, value)
         changes: dict[str, Any] = {}
@@ -358,8 +489,9 @@ class SkeletonizeOptions:
         return dataclasses.replace(base, method=method, seed=seed, **changes)
 
     @classmethod
-    def from_cli(cls, values: dict[str, Any], method: str = "graph", seed: int = 0
-                 ) -> SkeletonizeOptions:
+    def from_cli(
+        cls, values: dict[str, Any], method: str = "graph", seed: int = 0
+    ) -> SkeletonizeOptions:
         """Options from the values of the generated CLI options (keys as in
         :func:`cli_fields`: ``"<stage>.<field>"``), converting degrees, ``--no-ground``,
         ``--foliage 0`` and ``--filter NAME:MAX``."""
@@ -369,8 +501,12 @@ class SkeletonizeOptions:
             if key in values:
                 stages[stage][f.name] = _from_cli(spec, values[key])
         base = cls()
-        return dataclasses.replace(base, method=method, seed=seed, **{
-            s: dataclasses.replace(getattr(base, s), **v) for s, v in stages.items() if v})
+        return dataclasses.replace(
+            base,
+            method=method,
+            seed=seed,
+            **{s: dataclasses.replace(getattr(base, s), **v) for s, v in stages.items() if v},
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """Nested plain dict (JSON-ready; angles in radians)."""
@@ -383,11 +519,14 @@ def _legacy_value(key: str, value: Any) -> Any:
             return AttributeFilter(**value)
         return AttributeFilter(*value)
     if key == "downsample" and isinstance(value, dict):
-        raise ParameterError("downsample: give a ratio (PrepareOptions.downsample) and/or "
-                             "PrepareOptions.downsample_voxel, not a dict")
+        raise ParameterError(
+            "downsample: give a ratio (PrepareOptions.downsample) and/or "
+            "PrepareOptions.downsample_voxel, not a dict"
+        )
     if key == "outliers" and isinstance(value, dict):
-        raise ParameterError("outliers: give PrepareOptions(outlier_k=..., outlier_std=...), "
-                             "not a dict")
+        raise ParameterError(
+            "outliers: give PrepareOptions(outlier_k=..., outlier_std=...), not a dict"
+        )
     return value
 
 
@@ -407,11 +546,22 @@ def _from_cli(spec: CliField, value: Any) -> Any:
     return value
 
 
-_CLI_TYPES: dict[str, Any] = {"int": int, "int | None": int | None, "float": float,
-                              "float | None": float | None, "str": str, "bool": bool,
-                              "str | None": str | None}
-_KIND_TYPES: dict[str, Any] = {"degrees": float, "ground": bool, "enabled": bool,
-                               "foliage": float | None, "filter": str | None}
+_CLI_TYPES: dict[str, Any] = {
+    "int": int,
+    "int | None": int | None,
+    "float": float,
+    "float | None": float | None,
+    "str": str,
+    "bool": bool,
+    "str | None": str | None,
+}
+_KIND_TYPES: dict[str, Any] = {
+    "degrees": float,
+    "ground": bool,
+    "enabled": bool,
+    "foliage": float | None,
+    "filter": str | None,
+}
 
 
 def cli_type(f: dataclasses.Field, spec: CliField) -> Any:

@@ -37,8 +37,15 @@ from numpy.typing import NDArray
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 
-__all__ = ["branch_order", "continuation", "segments", "with_order", "RULES",
-           "continuation_from_segments", "order_from_segments"]
+__all__ = [
+    "branch_order",
+    "continuation",
+    "segments",
+    "with_order",
+    "RULES",
+    "continuation_from_segments",
+    "order_from_segments",
+]
 
 RULES = ("supported", "angle")
 
@@ -46,7 +53,7 @@ RULES = ("supported", "angle")
 @numba.njit(cache=True)
 def _continuation(parent, order, indptr, idx, carried, pos, share, cos_max):
     n = parent.size
-    cont = np.full(n, -1, dtype=np.int64)   # the child continuing each node's branch
+    cont = np.full(n, -1, dtype=np.int64)  # the child continuing each node's branch
     for k in range(n):
         v = order[k]
         a = indptr[v]
@@ -159,9 +166,15 @@ def _continuation_supported(parent, order, indptr, idx, carried, pos, tie, look)
     return cont
 
 
-def continuation(graph: BranchGraph, weight_share: float = 0.5,
-                 max_angle: float = np.radians(45.0), *, rule: str = "supported",
-                 tie: float = 0.5, look: int = 3) -> NDArray[np.int64]:
+def continuation(
+    graph: BranchGraph,
+    weight_share: float = 0.5,
+    max_angle: float = np.radians(45.0),
+    *,
+    rule: str = "supported",
+    tie: float = 0.5,
+    look: int = 3,
+) -> NDArray[np.int64]:
     """For every node, the child that continues its branch (-1 if none); see the module
     doc for the two rules (``weight_share``/``max_angle`` belong to ``rule="angle"``,
     ``tie``/``look`` to ``rule="supported"``)."""
@@ -174,18 +187,26 @@ def continuation(graph: BranchGraph, weight_share: float = 0.5,
             raise ParameterError(f"order tie must lie in (0, 1], got {tie}")
         if look < 1:
             raise ParameterError(f"order look must be >= 1 edge, got {look}")
-        return _continuation_supported(graph.parent, graph.order, indptr, idx, carried,
-                                       graph.position, float(tie), int(look))
+        return _continuation_supported(
+            graph.parent, graph.order, indptr, idx, carried, graph.position, float(tie), int(look)
+        )
     if not 0 <= weight_share < 1:
         raise ParameterError(f"weight_share must lie in [0, 1), got {weight_share}")
     if not 0 < max_angle <= np.pi:
         raise ParameterError(f"max_angle must lie in (0, pi] radians, got {max_angle}")
-    return _continuation(graph.parent, graph.order, indptr, idx, carried, graph.position,
-                         float(weight_share), float(np.cos(max_angle)))
+    return _continuation(
+        graph.parent,
+        graph.order,
+        indptr,
+        idx,
+        carried,
+        graph.position,
+        float(weight_share),
+        float(np.cos(max_angle)),
+    )
 
 
-def continuation_from_segments(graph: BranchGraph, segment: NDArray[np.int64]
-                               ) -> NDArray[np.int64]:
+def continuation_from_segments(graph: BranchGraph, segment: NDArray[np.int64]) -> NDArray[np.int64]:
     """The continuation implied by a segmentation: the child in its parent's segment."""
     par = graph.parent
     cont = np.full(graph.n_nodes, -1, dtype=np.int64)
@@ -195,8 +216,9 @@ def continuation_from_segments(graph: BranchGraph, segment: NDArray[np.int64]
     return cont
 
 
-def branch_order(graph: BranchGraph, weight_share: float = 0.5,
-                 max_angle: float = np.radians(45.0), **rule: Any) -> NDArray[np.int64]:
+def branch_order(
+    graph: BranchGraph, weight_share: float = 0.5, max_angle: float = np.radians(45.0), **rule: Any
+) -> NDArray[np.int64]:
     """Branch order per node (0 = trunk); ``max_angle`` in radians; ``rule``, ``tie``,
     ``look`` as :func:`continuation`."""
     cont = continuation(graph, weight_share, max_angle, **rule)
@@ -209,8 +231,9 @@ def branch_order(graph: BranchGraph, weight_share: float = 0.5,
     return treeops.accumulate_down(par, inc, graph.order).astype(np.int64)
 
 
-def segments(graph: BranchGraph, weight_share: float = 0.5,
-             max_angle: float = np.radians(45.0), **rule: Any) -> NDArray[np.int64]:
+def segments(
+    graph: BranchGraph, weight_share: float = 0.5, max_angle: float = np.radians(45.0), **rule: Any
+) -> NDArray[np.int64]:
     """Segment (branch) id per node: ids 0.. in topological order of the segment starts."""
     cont = continuation(graph, weight_share, max_angle, **rule)
     par = graph.parent
@@ -246,7 +269,8 @@ def order_from_segments(graph: BranchGraph, segment: NDArray[np.int64]) -> NDArr
     return treeops.accumulate_down(par, inc, graph.order).astype(np.int64)
 
 
-def with_order(graph: BranchGraph, weight_share: float = 0.5,
-               max_angle: float = np.radians(45.0), **rule: Any) -> BranchGraph:
+def with_order(
+    graph: BranchGraph, weight_share: float = 0.5, max_angle: float = np.radians(45.0), **rule: Any
+) -> BranchGraph:
     """The graph with ``depth`` set to the branch order."""
     return graph.with_(depth=branch_order(graph, weight_share, max_angle, **rule))

@@ -32,10 +32,24 @@ from biomorph.tree.options import (
     SkeletonizeOptions,
 )
 
-__all__ = ["TreeSkeleton", "skeletonize", "METHODS", "PHASES", "load_cloud", "remove_sparse",
-           "SkeletonizeOptions", "TIP_LENGTH", "MIN_CYLINDER_RADIUS", "TIP_SUPPORT_LENGTH",
-           "prepare_phase", "graph_phase", "voxel_phase", "radius_phase", "order_phase",
-           "metrics_phase"]
+__all__ = [
+    "TreeSkeleton",
+    "skeletonize",
+    "METHODS",
+    "PHASES",
+    "load_cloud",
+    "remove_sparse",
+    "SkeletonizeOptions",
+    "TIP_LENGTH",
+    "MIN_CYLINDER_RADIUS",
+    "TIP_SUPPORT_LENGTH",
+    "prepare_phase",
+    "graph_phase",
+    "voxel_phase",
+    "radius_phase",
+    "order_phase",
+    "metrics_phase",
+]
 
 #: the tree pipeline's phases, in order; ``progress(1, phase)`` is called as each ends
 PHASES = ("prepare", "skeleton", "radii", "order", "metrics")
@@ -80,9 +94,16 @@ class TreeSkeleton:
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary: method, metrics, parameters, timings, info, offset."""
-        return _jsonable({"method": self.method, "metrics": self.metrics,
-                          "params": self.params, "timings": self.timings, "info": self.info,
-                          "offset": self.offset})
+        return _jsonable(
+            {
+                "method": self.method,
+                "metrics": self.metrics,
+                "params": self.params,
+                "timings": self.timings,
+                "info": self.info,
+                "offset": self.offset,
+            }
+        )
 
 
 def _jsonable(obj: Any) -> Any:
@@ -121,8 +142,9 @@ def remove_sparse(cloud: PointCloud, ratio: float, k: int = 16) -> PointCloud:
     from scipy.spatial import cKDTree
 
     if ratio <= 1:
-        raise ParameterError(f"sparse_filter must be > 1 (a multiple of the median "
-                             f"neighbour distance), got {ratio}")
+        raise ParameterError(
+            f"sparse_filter must be > 1 (a multiple of the median neighbour distance), got {ratio}"
+        )
     n = cloud.n_points
     if n <= k:
         return cloud
@@ -171,9 +193,14 @@ class _Run:
             self.progress(1, description)
 
 
-def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str | None = None, *,
-                options: SkeletonizeOptions | None = None, progress: Progress = None,
-                **kwargs: Any) -> TreeSkeleton:
+def skeletonize(
+    cloud: PointCloud | str | os.PathLike | NDArray,
+    method: str | None = None,
+    *,
+    options: SkeletonizeOptions | None = None,
+    progress: Progress = None,
+    **kwargs: Any,
+) -> TreeSkeleton:
     """Skeletonise a tree (or a plot of trees) with the graph or the voxel method.
 
     Parameters
@@ -198,8 +225,9 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str | N
     """
     opts = options or SkeletonizeOptions()
     if method is not None or kwargs:
-        opts = SkeletonizeOptions.from_kwargs(method or opts.method, kwargs.pop("seed", opts.seed),
-                                              base=opts, **kwargs)
+        opts = SkeletonizeOptions.from_kwargs(
+            method or opts.method, kwargs.pop("seed", opts.seed), base=opts, **kwargs
+        )
     t_all = time.perf_counter()
     run = _Run(opts, progress, load_cloud(cloud))
     prepare_phase(run)
@@ -209,11 +237,19 @@ def skeletonize(cloud: PointCloud | str | os.PathLike | NDArray, method: str | N
     metrics_phase(run)
     run.timings["total"] = time.perf_counter() - t_all
     assert run.cloud is not None and run.graph is not None
-    return TreeSkeleton(graph=run.graph, method=opts.method, timings=run.timings,
-                        params=run.params, metrics=run.metrics,
-                        offset=np.asarray(run.cloud.offset, dtype=float).copy(),
-                        cloud=run.cloud, ground=run.ground, segment=run.segment,
-                        info=run.info, quality=run.quality)
+    return TreeSkeleton(
+        graph=run.graph,
+        method=opts.method,
+        timings=run.timings,
+        params=run.params,
+        metrics=run.metrics,
+        offset=np.asarray(run.cloud.offset, dtype=float).copy(),
+        cloud=run.cloud,
+        ground=run.ground,
+        segment=run.segment,
+        info=run.info,
+        quality=run.quality,
+    )
 
 
 def prepare_phase(run: _Run) -> None:
@@ -222,10 +258,15 @@ def prepare_phase(run: _Run) -> None:
 
     po = run.opts.prepare
     t0 = time.perf_counter()
-    prep = prepare(run.raw, centre=po.centre,
-                   filter=None if po.filter is None else po.filter.as_kwargs(),
-                   downsample=po.downsample_arg(), outliers=po.outliers_arg(),
-                   ground=po.ground, seed=run.opts.seed)
+    prep = prepare(
+        run.raw,
+        centre=po.centre,
+        filter=None if po.filter is None else po.filter.as_kwargs(),
+        downsample=po.downsample_arg(),
+        outliers=po.outliers_arg(),
+        ground=po.ground,
+        seed=run.opts.seed,
+    )
     pc = prep.cloud
     foliage, foliage_info = _foliage(run, pc)
     if foliage_info:
@@ -233,15 +274,28 @@ def prepare_phase(run: _Run) -> None:
     if po.sparse_filter is not None:
         pc = remove_sparse(pc, po.sparse_filter)
     if pc.n_points < 10:
-        raise InputError(f"{run.source}: only {pc.n_points} points remain above the ground; "
-                         "expected a tree")
+        raise InputError(
+            f"{run.source}: only {pc.n_points} points remain above the ground; expected a tree"
+        )
     run.cloud, run.ground = pc, prep.ground
     run.timings["prepare"] = time.perf_counter() - t0
-    run.info.update({"points_in": run.raw.n_points, "points": pc.n_points,
-                     "prepare": prep.steps, **foliage_info})
-    run.params.update({"method": run.opts.method, "seed": run.opts.seed,
-                       "sparse_filter": po.sparse_filter, "foliage": foliage,
-                       "foliage_passes": po.foliage_passes})
+    run.info.update(
+        {
+            "points_in": run.raw.n_points,
+            "points": pc.n_points,
+            "prepare": prep.steps,
+            **foliage_info,
+        }
+    )
+    run.params.update(
+        {
+            "method": run.opts.method,
+            "seed": run.opts.seed,
+            "sparse_filter": po.sparse_filter,
+            "foliage": foliage,
+            "foliage_passes": po.foliage_passes,
+        }
+    )
     run.tick("prepared")
 
 
@@ -255,12 +309,16 @@ def _foliage(run: _Run, pc: PointCloud) -> tuple[float | None, dict[str, Any]]:
         return foliage, {}
     from biomorph.tree.foliage import separate_foliage
 
-    split = separate_foliage(pc.xyz, factor=foliage, passes=run.opts.prepare.foliage_passes,
-                             detect=detect)
-    return foliage, {"foliage_removed": int((~split.wood).sum()),
-                     "foliage_threshold": [float(x) for x in split.threshold],
-                     "foliage_detected": split.detected,
-                     "foliage_share": split.foliage_share, "_wood": split.wood}
+    split = separate_foliage(
+        pc.xyz, factor=foliage, passes=run.opts.prepare.foliage_passes, detect=detect
+    )
+    return foliage, {
+        "foliage_removed": int((~split.wood).sum()),
+        "foliage_threshold": [float(x) for x in split.threshold],
+        "foliage_detected": split.detected,
+        "foliage_share": split.foliage_share,
+        "_wood": split.wood,
+    }
 
 
 def graph_phase(run: _Run) -> None:
@@ -272,18 +330,36 @@ def graph_phase(run: _Run) -> None:
     xyz = run.cloud.xyz
     height = _height_above_ground(xyz, run.ground)
     res = livny.skeletonize_graph(
-        xyz, n_trees=go.n_trees, k=go.k, search_radius=go.search_radius,
-        node_spacing=go.node_spacing, max_iter=go.max_iter, reweight=go.reweight,
-        height=height, root_slice=go.root_slice, min_tree_distance=go.min_tree_distance,
-        allometry_exponent=go.allometry_exponent, edge_weights=go.edge_weights,
-        seed=run.opts.seed, progress=run.progress)
+        xyz,
+        n_trees=go.n_trees,
+        k=go.k,
+        search_radius=go.search_radius,
+        node_spacing=go.node_spacing,
+        max_iter=go.max_iter,
+        reweight=go.reweight,
+        height=height,
+        root_slice=go.root_slice,
+        min_tree_distance=go.min_tree_distance,
+        allometry_exponent=go.allometry_exponent,
+        edge_weights=go.edge_weights,
+        seed=run.opts.seed,
+        progress=run.progress,
+    )
     spacing = float(res.info["node_spacing"])
     run.timings.update(dict(res.timings.items()))
     run.info.update(res.info)
-    run.params.update(n_trees=go.n_trees, k=go.k, search_radius=go.search_radius,
-                      node_spacing=spacing, max_iter=go.max_iter, reweight=go.reweight,
-                      root_slice=go.root_slice, min_tree_distance=go.min_tree_distance,
-                      allometry_exponent=go.allometry_exponent, edge_weights=go.edge_weights)
+    run.params.update(
+        n_trees=go.n_trees,
+        k=go.k,
+        search_radius=go.search_radius,
+        node_spacing=spacing,
+        max_iter=go.max_iter,
+        reweight=go.reweight,
+        root_slice=go.root_slice,
+        min_tree_distance=go.min_tree_distance,
+        allometry_exponent=go.allometry_exponent,
+        edge_weights=go.edge_weights,
+    )
     t0 = time.perf_counter()
     graph = _graph_cleanup(run, res.graph, spacing)
     graph = livny.extend_tips(graph, xyz, 2.0 * spacing)
@@ -299,17 +375,28 @@ def _graph_cleanup(run: _Run, graph: BranchGraph, spacing: float) -> BranchGraph
     co = run.opts.cleanup
     if co.enabled:
         mbl = TIP_LENGTH * spacing if co.min_branch_length is None else co.min_branch_length
-        graph = tclean.cleanup(graph, radius_ratio=co.radius_ratio,
-                               length_factor=co.length_factor, min_length=mbl,
-                               overlap=co.overlap, min_radius=co.min_cylinder_radius)
+        graph = tclean.cleanup(
+            graph,
+            radius_ratio=co.radius_ratio,
+            length_factor=co.length_factor,
+            min_length=mbl,
+            overlap=co.overlap,
+            min_radius=co.min_cylinder_radius,
+        )
         graph = tclean.prune_small_trees(graph, 2 * spacing)
-        run.params.update(cleanup=True, radius_ratio=co.radius_ratio,
-                          length_factor=co.length_factor, overlap=co.overlap,
-                          min_branch_length=mbl, min_cylinder_radius=co.min_cylinder_radius)
+        run.params.update(
+            cleanup=True,
+            radius_ratio=co.radius_ratio,
+            length_factor=co.length_factor,
+            overlap=co.overlap,
+            min_branch_length=mbl,
+            min_cylinder_radius=co.min_cylinder_radius,
+        )
     if co.tip_support is not None:
         assert run.cloud is not None
-        graph = tclean.prune_unsupported_tips(graph, run.cloud.xyz, co.tip_support,
-                                             TIP_SUPPORT_LENGTH * spacing)
+        graph = tclean.prune_unsupported_tips(
+            graph, run.cloud.xyz, co.tip_support, TIP_SUPPORT_LENGTH * spacing
+        )
         run.params.update(tip_support=co.tip_support)
     return graph
 
@@ -323,11 +410,13 @@ def voxel_phase(run: _Run) -> None:
     assert run.cloud is not None
     vkw = run.opts.voxel.as_kwargs()
     progress = run.progress
-    vres = skeletonize_voxel(run.cloud, **vkw,
-                             progress=None if progress is None else lambda s: progress(1, s))
+    vres = skeletonize_voxel(
+        run.cloud, **vkw, progress=None if progress is None else lambda s: progress(1, s)
+    )
     graph = vres.graph
-    run.timings.update({k: float(v) for k, v in vres.timings.items()
-                        if isinstance(v, (int, float))})
+    run.timings.update(
+        {k: float(v) for k, v in vres.timings.items() if isinstance(v, (int, float))}
+    )
     el = graph.edge_length
     spacing = float(np.median(el[el > 0])) if (el > 0).any() else 0.05
     run.params.update(voxel=vkw, node_spacing=spacing)
@@ -341,13 +430,22 @@ def voxel_phase(run: _Run) -> None:
         t0 = time.perf_counter()
         xyz = run.cloud.xyz
         d, _ = livny.skeleton_distance(xyz, graph.parent, graph.position)
-        r = livny.allometric_radii(graph.parent, graph.position, graph.subtree_length(),
-                                   float(np.mean(d)), tree=graph.trees,
-                                   exponent=run.opts.graph.allometry_exponent,
-                                   order=graph.order)
+        r = livny.allometric_radii(
+            graph.parent,
+            graph.position,
+            graph.subtree_length(),
+            float(np.mean(d)),
+            tree=graph.trees,
+            exponent=run.opts.graph.allometry_exponent,
+            order=graph.order,
+        )
         mbl = 1.5 * spacing if co.min_branch_length is None else co.min_branch_length
-        graph = remove_false_branches(graph.with_(radius=r), radius_ratio=co.radius_ratio,
-                                      length_factor=co.length_factor, min_length=mbl)
+        graph = remove_false_branches(
+            graph.with_(radius=r),
+            radius_ratio=co.radius_ratio,
+            length_factor=co.length_factor,
+            min_length=mbl,
+        )
         run.timings["cleanup"] = time.perf_counter() - t0
     run.graph = graph
     _check_skeleton(run)
@@ -355,8 +453,9 @@ def voxel_phase(run: _Run) -> None:
 
 def _check_skeleton(run: _Run) -> None:
     if run.graph is None or run.graph.n_nodes == 0:
-        raise InputError(f"{run.source}: no skeleton could be built (no tree found above "
-                         "the ground)")
+        raise InputError(
+            f"{run.source}: no skeleton could be built (no tree found above the ground)"
+        )
     run.tick("skeleton")
 
 
@@ -372,25 +471,49 @@ def radius_phase(run: _Run) -> None:
     t0 = time.perf_counter()
     exponent = run.opts.graph.allometry_exponent
     if ro.method == "fit":
-        graph, fit = fit_radii(graph, xyz, recentre=ro.recentre,
-                               search_factor=ro.search_factor, allometry_exponent=exponent,
-                               taper=ro.taper, min_radius=ro.min_radius, seed=run.opts.seed)
+        graph, fit = fit_radii(
+            graph,
+            xyz,
+            recentre=ro.recentre,
+            search_factor=ro.search_factor,
+            allometry_exponent=exponent,
+            taper=ro.taper,
+            min_radius=ro.min_radius,
+            seed=run.opts.seed,
+        )
         run.fit = fit
-        run.quality = {"reliable": fit.reliable if fit.reliable is not None else fit.ok,
-                       "mad": fit.mad if fit.mad is not None else np.zeros(fit.ok.size),
-                       "coverage": fit.coverage, "fitted_radius": fit.radius}
+        run.quality = {
+            "reliable": fit.reliable if fit.reliable is not None else fit.ok,
+            "mad": fit.mad if fit.mad is not None else np.zeros(fit.ok.size),
+            "coverage": fit.coverage,
+            "fitted_radius": fit.radius,
+        }
         run.info["radius_fit_ok"] = float(fit.ok.mean()) if fit.ok.size else 0.0
         if fit.reliable is not None:
             run.info["radius_reliable"] = float(fit.reliable.mean()) if fit.ok.size else 0.0
             run.info["taper_model"] = fit.model
     elif graph.radius is None:
         d, _ = livny.skeleton_distance(xyz, graph.parent, graph.position)
-        graph = graph.with_(radius=livny.allometric_radii(
-            graph.parent, graph.position, graph.subtree_length(), float(np.mean(d)),
-            tree=graph.trees, exponent=exponent, order=graph.order))
+        graph = graph.with_(
+            radius=livny.allometric_radii(
+                graph.parent,
+                graph.position,
+                graph.subtree_length(),
+                float(np.mean(d)),
+                tree=graph.trees,
+                exponent=exponent,
+                order=graph.order,
+            )
+        )
     run.graph = smooth_chains(graph, ro.smooth)
-    run.params.update(radius=ro.method, recentre=ro.recentre, search_factor=ro.search_factor,
-                      smooth=ro.smooth, taper=ro.taper, min_radius=ro.min_radius)
+    run.params.update(
+        radius=ro.method,
+        recentre=ro.recentre,
+        search_factor=ro.search_factor,
+        smooth=ro.smooth,
+        taper=ro.taper,
+        min_radius=ro.min_radius,
+    )
     run.timings["radius_fit"] = time.perf_counter() - t0
     run.tick("radii")
 
@@ -410,8 +533,12 @@ def order_phase(run: _Run) -> None:
     if graph.tree_id is None:
         graph = graph.with_(tree_id=graph.trees)
     run.graph = graph
-    run.params.update(order_rule=oo.rule, order_tie=oo.tie, order_share=oo.share,
-                      order_angle_deg=float(np.degrees(oo.angle)))
+    run.params.update(
+        order_rule=oo.rule,
+        order_tie=oo.tie,
+        order_share=oo.share,
+        order_angle_deg=float(np.degrees(oo.angle)),
+    )
     run.timings["order"] = time.perf_counter() - t0
     run.tick("order")
 
@@ -433,8 +560,7 @@ def metrics_phase(run: _Run) -> None:
     t0 = time.perf_counter()
     mse_cloud = pc
     if pc.n_points > MSE_POINTS:
-        pick = np.random.default_rng(run.opts.seed).choice(pc.n_points, MSE_POINTS,
-                                                           replace=False)
+        pick = np.random.default_rng(run.opts.seed).choice(pc.n_points, MSE_POINTS, replace=False)
         mse_cloud = pc.select(np.sort(pick))
     metrics = skeleton_metrics(graph, mse_cloud)
     metrics["mse_points"] = mse_cloud.n_points

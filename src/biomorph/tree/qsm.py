@@ -38,35 +38,99 @@ from numpy.typing import NDArray
 
 from biomorph.core.graph import BranchGraph
 
-__all__ = ["CYLINDER_COLUMNS", "BRANCH_COLUMNS", "TREEDATA_COLUMNS", "cylinder_table",
-           "branch_table", "treedata_table"]
+__all__ = [
+    "CYLINDER_COLUMNS",
+    "BRANCH_COLUMNS",
+    "TREEDATA_COLUMNS",
+    "cylinder_table",
+    "branch_table",
+    "treedata_table",
+]
 
-CYLINDER_COLUMNS = ("radius", "length", "start_x", "start_y", "start_z", "axis_x", "axis_y",
-                    "axis_z", "parent", "extension", "branch", "BranchOrder",
-                    "PositionInBranch", "added", "mad", "SurfCov", "UnmodRadius", "ID",
-                    "tree_id")
-BRANCH_COLUMNS = ("order", "parent", "diameter", "volume", "area", "length", "angle",
-                  "height", "azimuth", "zenith", "tree_id")
-TREEDATA_COLUMNS = ("TotalVolume", "TrunkVolume", "BranchVolume", "TreeHeight", "TrunkLength",
-                    "BranchLength", "TotalLength", "NumberBranches", "MaxBranchOrder",
-                    "TrunkArea", "BranchArea", "TotalArea", "DBHqsm", "CrownDiamAve",
-                    "CrownBaseHeight", "CrownLength", "CrownRatio", "tree_id")
+CYLINDER_COLUMNS = (
+    "radius",
+    "length",
+    "start_x",
+    "start_y",
+    "start_z",
+    "axis_x",
+    "axis_y",
+    "axis_z",
+    "parent",
+    "extension",
+    "branch",
+    "BranchOrder",
+    "PositionInBranch",
+    "added",
+    "mad",
+    "SurfCov",
+    "UnmodRadius",
+    "ID",
+    "tree_id",
+)
+BRANCH_COLUMNS = (
+    "order",
+    "parent",
+    "diameter",
+    "volume",
+    "area",
+    "length",
+    "angle",
+    "height",
+    "azimuth",
+    "zenith",
+    "tree_id",
+)
+TREEDATA_COLUMNS = (
+    "TotalVolume",
+    "TrunkVolume",
+    "BranchVolume",
+    "TreeHeight",
+    "TrunkLength",
+    "BranchLength",
+    "TotalLength",
+    "NumberBranches",
+    "MaxBranchOrder",
+    "TrunkArea",
+    "BranchArea",
+    "TotalArea",
+    "DBHqsm",
+    "CrownDiamAve",
+    "CrownBaseHeight",
+    "CrownLength",
+    "CrownRatio",
+    "tree_id",
+)
 #: integer columns of the three tables (written without decimals)
-INTEGER_COLUMNS = {"parent", "extension", "branch", "BranchOrder", "PositionInBranch",
-                   "added", "ID", "tree_id", "order", "NumberBranches", "MaxBranchOrder"}
+INTEGER_COLUMNS = {
+    "parent",
+    "extension",
+    "branch",
+    "BranchOrder",
+    "PositionInBranch",
+    "added",
+    "ID",
+    "tree_id",
+    "order",
+    "NumberBranches",
+    "MaxBranchOrder",
+}
 
 
-def cylinder_table(graph: BranchGraph, segment: NDArray[np.int64] | None = None,
-                   quality: dict[str, NDArray] | None = None) -> dict[str, NDArray]:
+def cylinder_table(
+    graph: BranchGraph,
+    segment: NDArray[np.int64] | None = None,
+    quality: dict[str, NDArray] | None = None,
+) -> dict[str, NDArray]:
     """TreeQSM cylinder columns (module doc). ``quality``: per-node ``reliable``,
     ``mad``, ``coverage``, ``fitted_radius`` of the radius fit (zeros / the radius when
     absent)."""
     from biomorph.tree.order import branch_order, continuation_from_segments, segments
 
     par = graph.parent
-    ch = graph.order[par[graph.order] >= 0]          # children in topological order
+    ch = graph.order[par[graph.order] >= 0]  # children in topological order
     m = ch.size
-    cid = np.zeros(graph.n_nodes, dtype=np.int64)    # 1-based cylinder ending at each node
+    cid = np.zeros(graph.n_nodes, dtype=np.int64)  # 1-based cylinder ending at each node
     cid[ch] = np.arange(1, m + 1)
     start = graph.position[par[ch]]
     vec = graph.position[ch] - start
@@ -81,25 +145,39 @@ def cylinder_table(graph: BranchGraph, segment: NDArray[np.int64] | None = None,
     seg_rank = seg_rank.reshape(-1)
     s = seg_rank[ch]
     pib = np.zeros(m, dtype=np.int64)
-    order_in = np.argsort(s, kind="stable")           # topological order kept within a branch
+    order_in = np.argsort(s, kind="stable")  # topological order kept within a branch
     counts = np.bincount(s, minlength=seg_rank.max() + 1 if seg_rank.size else 0)
     first = np.concatenate([[0], np.cumsum(counts)])[:-1]
     pib[order_in] = np.arange(m) - np.repeat(first, counts)[np.arange(m)] + 1
     q = quality or {}
     reliable = np.asarray(q.get("reliable", np.ones(graph.n_nodes, bool)))[ch]
-    unmod = np.asarray(q.get("fitted_radius", graph.radius if graph.radius is not None
-                             else np.zeros(graph.n_nodes)))[ch]
+    unmod = np.asarray(
+        q.get(
+            "fitted_radius", graph.radius if graph.radius is not None else np.zeros(graph.n_nodes)
+        )
+    )[ch]
     unmod = np.where(unmod > 0, unmod, radius)
-    return {"radius": radius, "length": length,
-            "start_x": start[:, 0], "start_y": start[:, 1], "start_z": start[:, 2],
-            "axis_x": axis[:, 0], "axis_y": axis[:, 1], "axis_z": axis[:, 2],
-            "parent": cid[par[ch]], "extension": extension, "branch": s + 1,
-            "BranchOrder": depth[ch], "PositionInBranch": pib,
-            "added": (~reliable).astype(np.int64),
-            "mad": np.asarray(q.get("mad", np.zeros(graph.n_nodes)))[ch],
-            "SurfCov": np.asarray(q.get("coverage", np.zeros(graph.n_nodes)))[ch],
-            "UnmodRadius": unmod, "ID": np.arange(1, m + 1),
-            "tree_id": np.asarray(graph.trees)[ch]}
+    return {
+        "radius": radius,
+        "length": length,
+        "start_x": start[:, 0],
+        "start_y": start[:, 1],
+        "start_z": start[:, 2],
+        "axis_x": axis[:, 0],
+        "axis_y": axis[:, 1],
+        "axis_z": axis[:, 2],
+        "parent": cid[par[ch]],
+        "extension": extension,
+        "branch": s + 1,
+        "BranchOrder": depth[ch],
+        "PositionInBranch": pib,
+        "added": (~reliable).astype(np.int64),
+        "mad": np.asarray(q.get("mad", np.zeros(graph.n_nodes)))[ch],
+        "SurfCov": np.asarray(q.get("coverage", np.zeros(graph.n_nodes)))[ch],
+        "UnmodRadius": unmod,
+        "ID": np.arange(1, m + 1),
+        "tree_id": np.asarray(graph.trees)[ch],
+    }
 
 
 def _cylinder_volume_area(graph: BranchGraph, cyl: dict[str, NDArray]) -> tuple[NDArray, NDArray]:
@@ -114,7 +192,7 @@ def _cylinder_volume_area(graph: BranchGraph, cyl: dict[str, NDArray]) -> tuple[
     v = np.zeros(ch.size)
     a = np.zeros(ch.size)
     v[row_of[child]] = vol
-    a[row_of[child]] = np.pi * diam * length          # lateral area, mean diameter
+    a[row_of[child]] = np.pi * diam * length  # lateral area, mean diameter
     return v, a
 
 
@@ -128,7 +206,7 @@ def branch_table(graph: BranchGraph, cyl: dict[str, NDArray]) -> dict[str, NDArr
     first[b[firsts]] = firsts
     axis = np.column_stack([cyl["axis_x"], cyl["axis_y"], cyl["axis_z"]])
     f = np.maximum(first, 0)
-    pc = cyl["parent"][f] - 1                          # parent cylinder row (-1 at a base)
+    pc = cyl["parent"][f] - 1  # parent cylinder row (-1 at a base)
     parent_branch = np.where(pc >= 0, cyl["branch"][np.maximum(pc, 0)], 0)
     pax = np.where((pc >= 0)[:, None], axis[np.maximum(pc, 0)], np.array([0.0, 0.0, 1.0]))
     cosang = np.clip(np.einsum("ij,ij->i", axis[f], pax), -1, 1)
@@ -137,16 +215,19 @@ def branch_table(graph: BranchGraph, cyl: dict[str, NDArray]) -> dict[str, NDArr
     _, tix = np.unique(tid, return_inverse=True)
     base = np.full(tix.max() + 1 if tix.size else 0, np.inf)
     np.minimum.at(base, tix, cyl["start_z"])
-    return {"order": cyl["BranchOrder"][f], "parent": parent_branch,
-            "diameter": 2 * cyl["radius"][f],
-            "volume": 1000 * np.bincount(b, weights=vol, minlength=nb),
-            "area": np.bincount(b, weights=area, minlength=nb),
-            "length": np.bincount(b, weights=cyl["length"], minlength=nb),
-            "angle": np.where(pc >= 0, np.degrees(np.arccos(cosang)), 0.0),
-            "height": cyl["start_z"][f] - base[tix[f]],
-            "azimuth": np.degrees(np.arctan2(axis[f, 1], axis[f, 0])),
-            "zenith": np.degrees(np.arccos(np.clip(axis[f, 2], -1, 1))),
-            "tree_id": tid[f]}
+    return {
+        "order": cyl["BranchOrder"][f],
+        "parent": parent_branch,
+        "diameter": 2 * cyl["radius"][f],
+        "volume": 1000 * np.bincount(b, weights=vol, minlength=nb),
+        "area": np.bincount(b, weights=area, minlength=nb),
+        "length": np.bincount(b, weights=cyl["length"], minlength=nb),
+        "angle": np.where(pc >= 0, np.degrees(np.arccos(cosang)), 0.0),
+        "height": cyl["start_z"][f] - base[tix[f]],
+        "azimuth": np.degrees(np.arctan2(axis[f, 1], axis[f, 0])),
+        "zenith": np.degrees(np.arccos(np.clip(axis[f, 2], -1, 1))),
+        "tree_id": tid[f],
+    }
 
 
 def treedata_table(graph: BranchGraph, cyl: dict[str, NDArray]) -> dict[str, NDArray]:
@@ -159,17 +240,26 @@ def treedata_table(graph: BranchGraph, cyl: dict[str, NDArray]) -> dict[str, NDA
     for a in attrs:
         m = cyl["tree_id"] == a["tree"]
         trunk = m & (cyl["BranchOrder"] == 0)
-        row = {"TotalVolume": 1000 * a["total_volume"], "TrunkVolume": 1000 * a["trunk_volume"],
-               "BranchVolume": 1000 * a["branch_volume"], "TreeHeight": a["height"],
-               "TrunkLength": a["trunk_length"], "BranchLength": a["branch_length"],
-               "TotalLength": a["total_length"], "NumberBranches": a["branches_order1"],
-               "MaxBranchOrder": a["max_order"], "TrunkArea": float(area[trunk].sum()),
-               "BranchArea": float(area[m & ~trunk].sum()),
-               "TotalArea": float(area[m].sum()), "DBHqsm": a["dbh"],
-               "CrownDiamAve": a["crown_diameter"], "CrownBaseHeight": a["crown_base_height"],
-               "CrownLength": a["crown_length"],
-               "CrownRatio": a["crown_length"] / a["height"] if a["height"] else np.nan,
-               "tree_id": a["tree"]}
+        row = {
+            "TotalVolume": 1000 * a["total_volume"],
+            "TrunkVolume": 1000 * a["trunk_volume"],
+            "BranchVolume": 1000 * a["branch_volume"],
+            "TreeHeight": a["height"],
+            "TrunkLength": a["trunk_length"],
+            "BranchLength": a["branch_length"],
+            "TotalLength": a["total_length"],
+            "NumberBranches": a["branches_order1"],
+            "MaxBranchOrder": a["max_order"],
+            "TrunkArea": float(area[trunk].sum()),
+            "BranchArea": float(area[m & ~trunk].sum()),
+            "TotalArea": float(area[m].sum()),
+            "DBHqsm": a["dbh"],
+            "CrownDiamAve": a["crown_diameter"],
+            "CrownBaseHeight": a["crown_base_height"],
+            "CrownLength": a["crown_length"],
+            "CrownRatio": a["crown_length"] / a["height"] if a["height"] else np.nan,
+            "tree_id": a["tree"],
+        }
         for c in TREEDATA_COLUMNS:
             out[c].append(row[c])
     return {c: np.asarray(v) for c, v in out.items()}

@@ -38,8 +38,18 @@ from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree.livny import allometric_radii, skeleton_distance, solve_tree_system
 
-__all__ = ["RadiusFit", "node_axes", "fit_radii", "fit_circles", "smooth_log_ratio", "cap_down",
-           "taper_radii", "MIN_RADIUS", "RELIABLE_COVERAGE", "RELIABLE_MAD"]
+__all__ = [
+    "RadiusFit",
+    "node_axes",
+    "fit_radii",
+    "fit_circles",
+    "smooth_log_ratio",
+    "cap_down",
+    "taper_radii",
+    "MIN_RADIUS",
+    "RELIABLE_COVERAGE",
+    "RELIABLE_MAD",
+]
 
 #: a circle fit is kept as measured only where at least a third of the circumference holds
 #: inliers (4 of 12 sectors): an arc under 120° leaves the radius poorly determined (the
@@ -72,8 +82,9 @@ def node_axes(graph: BranchGraph) -> NDArray[np.float64]:
     ax = e_in + out
     an = np.linalg.norm(ax, axis=1)
     bad = an < 1e-9
-    ax[bad] = np.where(np.linalg.norm(e_in[bad], axis=1)[:, None] > 0, e_in[bad],
-                       np.array([0.0, 0.0, 1.0]))
+    ax[bad] = np.where(
+        np.linalg.norm(e_in[bad], axis=1)[:, None] > 0, e_in[bad], np.array([0.0, 0.0, 1.0])
+    )
     an = np.linalg.norm(ax, axis=1)
     return ax / an[:, None]
 
@@ -176,8 +187,25 @@ def _lsq_circle(x, y, cx, cy, r, rmax):
 
 
 @numba.njit(cache=True)
-def _fit_kernel(u, w, indptr, rmax, rmin, tol_rel, tol_abs, tol_max, trials, min_inliers, seed,
-                out_cx, out_cy, out_r, out_n, out_cov, out_mad):
+def _fit_kernel(
+    u,
+    w,
+    indptr,
+    rmax,
+    rmin,
+    tol_rel,
+    tol_abs,
+    tol_max,
+    trials,
+    min_inliers,
+    seed,
+    out_cx,
+    out_cy,
+    out_r,
+    out_n,
+    out_cov,
+    out_mad,
+):
     np.random.seed(seed)  # noqa: NPY002 - numba's per-thread generator
     m = indptr.size - 1
     for v in range(m):
@@ -261,13 +289,25 @@ class RadiusFit:
     model: dict | None = None
 
 
-def fit_circles(graph: BranchGraph, xyz: NDArray[np.float64], prior: NDArray[np.float64], *,
-                search_factor: float = 1.5, search_depth: float | None = None,
-                min_search: float = 0.0, trials: int = 64, tolerance: float = 0.15,
-                tolerance_abs: float = 0.003, tolerance_max: float = 0.01,
-                min_inliers: int = 8, min_coverage: float = 0.25,
-                spacing: float | None = None, min_density: float = 0.1,
-                seed: int = 0, kdtree: cKDTree | None = None) -> RadiusFit:
+def fit_circles(
+    graph: BranchGraph,
+    xyz: NDArray[np.float64],
+    prior: NDArray[np.float64],
+    *,
+    search_factor: float = 1.5,
+    search_depth: float | None = None,
+    min_search: float = 0.0,
+    trials: int = 64,
+    tolerance: float = 0.15,
+    tolerance_abs: float = 0.003,
+    tolerance_max: float = 0.01,
+    min_inliers: int = 8,
+    min_coverage: float = 0.25,
+    spacing: float | None = None,
+    min_density: float = 0.1,
+    seed: int = 0,
+    kdtree: cKDTree | None = None,
+) -> RadiusFit:
     """RANSAC + least-squares circle per node in its cross-section plane (steps 1–3).
 
     ``prior``: radius guess per node (m); the search cylinder has radius
@@ -289,8 +329,9 @@ def fit_circles(graph: BranchGraph, xyz: NDArray[np.float64], prior: NDArray[np.
     rs = np.maximum(rs, 1e-4)
     axes = node_axes(graph)
     t0, t1 = _tangents(axes)
-    lists = kd.query_ball_point(graph.position, np.sqrt(rs ** 2 + search_depth ** 2),
-                                workers=-1, return_sorted=False)
+    lists = kd.query_ball_point(
+        graph.position, np.sqrt(rs**2 + search_depth**2), workers=-1, return_sorted=False
+    )
     counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=n)
     idx = np.fromiter((i for x in lists for i in x), dtype=np.int64, count=int(counts.sum()))
     node = np.repeat(np.arange(n), counts)
@@ -309,15 +350,31 @@ def fit_circles(graph: BranchGraph, xyz: NDArray[np.float64], prior: NDArray[np.
     cov = np.zeros(n)
     mad = np.zeros(n)
     rmin = np.full(n, 1e-4)
-    _fit_kernel(np.ascontiguousarray(u), np.ascontiguousarray(w), indptr, rs, rmin, tolerance,
-                tolerance_abs, tolerance_max, trials, min_inliers, seed, cx, cy, r, ni, cov,
-                mad)
+    _fit_kernel(
+        np.ascontiguousarray(u),
+        np.ascontiguousarray(w),
+        indptr,
+        rs,
+        rmin,
+        tolerance,
+        tolerance_abs,
+        tolerance_max,
+        trials,
+        min_inliers,
+        seed,
+        cx,
+        cy,
+        r,
+        ni,
+        cov,
+        mad,
+    )
     centre = graph.position + cx[:, None] * t0 + cy[:, None] * t1
     ok = (r > 0) & (ni >= min_inliers) & (cov >= min_coverage) & (r < 0.98 * rs)
     if spacing is not None and spacing > 0:
         # a real stem section yields about (arc length x slab height) / spacing² points on
         # its scanned arc; a large circle through a few points of nearby twigs does not
-        expected = cov * 2 * np.pi * np.maximum(r, 0) * 2 * search_depth / spacing ** 2
+        expected = cov * 2 * np.pi * np.maximum(r, 0) * 2 * search_depth / spacing**2
         ok &= ni >= min_density * expected
     return RadiusFit(centre, r, ni, cov, ok, rs, mad)
 
@@ -325,7 +382,7 @@ def fit_circles(graph: BranchGraph, xyz: NDArray[np.float64], prior: NDArray[np.
 @numba.njit(cache=True)
 def _cap_down(parent, order, r, slack):
     out = r.copy()
-    for k in range(order.size):         # parents first: out[p] is already capped
+    for k in range(order.size):  # parents first: out[p] is already capped
         v = order[k]
         p = parent[v]
         if p >= 0 and out[v] > slack * out[p]:
@@ -333,8 +390,9 @@ def _cap_down(parent, order, r, slack):
     return out
 
 
-def cap_down(graph: BranchGraph, radius: NDArray[np.float64], slack: float = 1.1
-             ) -> NDArray[np.float64]:
+def cap_down(
+    graph: BranchGraph, radius: NDArray[np.float64], slack: float = 1.1
+) -> NDArray[np.float64]:
     """Limit every radius to ``slack`` times its (capped) parent's radius (pipe model: a
     branch is not thicker than the stem carrying it).
 
@@ -345,8 +403,9 @@ def cap_down(graph: BranchGraph, radius: NDArray[np.float64], slack: float = 1.1
     return _cap_down(graph.parent, graph.order, np.asarray(radius, dtype=float), float(slack))
 
 
-def smooth_log_ratio(graph: BranchGraph, values: NDArray[np.float64], ok: NDArray[np.bool_],
-                     strength: float = 1.0) -> NDArray[np.float64]:
+def smooth_log_ratio(
+    graph: BranchGraph, values: NDArray[np.float64], ok: NDArray[np.bool_], strength: float = 1.0
+) -> NDArray[np.float64]:
     """Minimise ``Σ_ok (x_v − values_v)² + strength Σ_edges (x_v − x_parent)²`` exactly.
 
     Nodes outside ``ok`` are filled from their neighbours. Trees without any ``ok`` node
@@ -363,14 +422,27 @@ def smooth_log_ratio(graph: BranchGraph, values: NDArray[np.float64], ok: NDArra
     return solve_tree_system(par, diag, off, rhs, graph.order)
 
 
-def fit_radii(graph: BranchGraph, xyz: NDArray[np.float64], *, recentre: bool = True,
-              search_factor: float = 1.5, search_depth: float | None = None,
-              smoothing: float = 1.0, passes: int = 2, trials: int = 64,
-              tolerance: float = 0.15, min_inliers: int = 8, min_coverage: float = 0.25,
-              allometry_exponent: float = 2.5, max_radius: float | None = None,
-              slack: float = 1.1, shift_smoothing: float = 4.0,
-              taper: bool = False, min_radius: float = MIN_RADIUS,
-              seed: int = 0) -> tuple[BranchGraph, RadiusFit]:
+def fit_radii(
+    graph: BranchGraph,
+    xyz: NDArray[np.float64],
+    *,
+    recentre: bool = True,
+    search_factor: float = 1.5,
+    search_depth: float | None = None,
+    smoothing: float = 1.0,
+    passes: int = 2,
+    trials: int = 64,
+    tolerance: float = 0.15,
+    min_inliers: int = 8,
+    min_coverage: float = 0.25,
+    allometry_exponent: float = 2.5,
+    max_radius: float | None = None,
+    slack: float = 1.1,
+    shift_smoothing: float = 4.0,
+    taper: bool = False,
+    min_radius: float = MIN_RADIUS,
+    seed: int = 0,
+) -> tuple[BranchGraph, RadiusFit]:
     """Radii (and optionally re-centred positions) from the points; see the module doc.
 
     Radii never exceed ``slack`` times the parent's (:func:`cap_down`; pipe model: a
@@ -384,8 +456,14 @@ def fit_radii(graph: BranchGraph, xyz: NDArray[np.float64], *, recentre: bool = 
     ``weight`` = subtree length) and the last :class:`RadiusFit`.
     """
     if graph.n_nodes == 0:
-        return graph, RadiusFit(np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64),
-                                np.zeros(0), np.zeros(0, bool), np.zeros(0))
+        return graph, RadiusFit(
+            np.zeros((0, 3)),
+            np.zeros(0),
+            np.zeros(0, np.int64),
+            np.zeros(0),
+            np.zeros(0, bool),
+            np.zeros(0),
+        )
     kd = cKDTree(xyz)
     from biomorph.tree.livny import estimate_spacing
 
@@ -397,24 +475,42 @@ def fit_radii(graph: BranchGraph, xyz: NDArray[np.float64], *, recentre: bool = 
     prior = np.full(n, np.nan)
     cnt = np.bincount(near, minlength=n)
     if near.size:
-        o = np.lexsort((d, near))                       # by node, then distance
+        o = np.lexsort((d, near))  # by node, then distance
         starts = np.concatenate([[0], np.cumsum(cnt)])[:-1]
         has = cnt > 0
         prior[has] = d[o][starts[has] + cnt[has] // 2]  # per-node median distance
     weight = graph.subtree_length()
     tree = graph.trees
     md = float(np.nanmedian(prior)) if np.isfinite(prior).any() else med_edge
-    allo = allometric_radii(graph.parent, graph.position, weight, md, tree=tree,
-                            exponent=allometry_exponent, order=graph.order)
+    allo = allometric_radii(
+        graph.parent,
+        graph.position,
+        weight,
+        md,
+        tree=tree,
+        exponent=allometry_exponent,
+        order=graph.order,
+    )
     prior = np.where(np.isfinite(prior), prior, allo)
     g = graph
     fit = None
     radius = prior
     for _ in range(max(passes, 1)):
-        fit = fit_circles(g, xyz, radius, search_factor=search_factor,
-                          search_depth=search_depth, min_search=0.5 * med_edge, trials=trials,
-                          tolerance=tolerance, min_inliers=min_inliers,
-                          min_coverage=min_coverage, spacing=spacing, seed=seed, kdtree=kd)
+        fit = fit_circles(
+            g,
+            xyz,
+            radius,
+            search_factor=search_factor,
+            search_depth=search_depth,
+            min_search=0.5 * med_edge,
+            trials=trials,
+            tolerance=tolerance,
+            min_inliers=min_inliers,
+            min_coverage=min_coverage,
+            spacing=spacing,
+            seed=seed,
+            kdtree=kd,
+        )
         ok = fit.ok.copy()
         delta = np.zeros(n)
         delta[ok] = np.log(fit.radius[ok] / allo[ok])
@@ -437,19 +533,20 @@ def fit_radii(graph: BranchGraph, xyz: NDArray[np.float64], *, recentre: bool = 
             if shift_smoothing > 0 and move.any():
                 # the off-centre bias of the skeleton varies slowly along a branch, the
                 # circle fits' noise from node to node: smooth the shifts along the graph
-                d = np.stack([smooth_log_ratio(g, d[:, c], move, shift_smoothing)
-                              for c in range(3)], axis=1)
+                d = np.stack(
+                    [smooth_log_ratio(g, d[:, c], move, shift_smoothing) for c in range(3)], axis=1
+                )
             pos = g.position.copy()
             pos[move] += d[move]
             g = g.with_(position=pos)
     if taper and fit is not None:
-        radius, fit = taper_radii(g, fit, min_radius=min_radius, exponent=allometry_exponent,
-                                  slack=slack)
+        radius, fit = taper_radii(
+            g, fit, min_radius=min_radius, exponent=allometry_exponent, slack=slack
+        )
     return g.with_(radius=radius, weight=g.subtree_length()), fit
 
 
 # --------------------------------------------------------------- taper model (issue 13)
-
 
 
 @numba.njit(cache=True)
@@ -482,10 +579,16 @@ def _robust_line(x: NDArray, y: NDArray, slope: float | None) -> tuple[float, fl
     return float(a), float(b), max(mad, 1e-3)
 
 
-def taper_radii(graph: BranchGraph, fit: RadiusFit, *, min_radius: float = MIN_RADIUS,
-                exponent: float = 2.5, decay: float = 0.1,
-                support: str = "length", slack: float = 1.1
-                ) -> tuple[NDArray[np.float64], RadiusFit]:
+def taper_radii(
+    graph: BranchGraph,
+    fit: RadiusFit,
+    *,
+    min_radius: float = MIN_RADIUS,
+    exponent: float = 2.5,
+    decay: float = 0.1,
+    support: str = "length",
+    slack: float = 1.1,
+) -> tuple[NDArray[np.float64], RadiusFit]:
     """Final radii: reliable circle fits where the scan measured the cross-section, a
     taper (pipe) model fitted on them elsewhere.
 
@@ -521,8 +624,11 @@ def taper_radii(graph: BranchGraph, fit: RadiusFit, *, min_radius: float = MIN_R
     """
     n = graph.n_nodes
     mad = fit.mad if fit.mad is not None else np.zeros(n)
-    reliable = (fit.ok & (fit.coverage >= RELIABLE_COVERAGE)
-                & (mad <= RELIABLE_MAD * np.maximum(fit.radius, 1e-12)))
+    reliable = (
+        fit.ok
+        & (fit.coverage >= RELIABLE_COVERAGE)
+        & (mad <= RELIABLE_MAD * np.maximum(fit.radius, 1e-12))
+    )
     carried = np.maximum(graph.subtree_length() + graph.edge_length, 1e-6)
     if support == "tips":
         x = np.log(graph.subtree_sum((graph.n_children == 0).astype(float)))
@@ -544,23 +650,29 @@ def taper_radii(graph: BranchGraph, fit: RadiusFit, *, min_radius: float = MIN_R
         m = trees == t
         rm = m & reliable
         sm_ = rm & stem
-        if sm_.sum() >= 3:           # anchored on the stem: its sections are the best seen
+        if sm_.sum() >= 3:  # anchored on the stem: its sections are the best seen
             a, b, sc = _robust_line(x[sm_], y[sm_], 1.0 / exponent)
             src = "stem"
-        elif pooled is not None:     # a fragment without a measured stem: the plot's stems
+        elif pooled is not None:  # a fragment without a measured stem: the plot's stems
             a, b, sc = pooled
             src = "all trees"
         elif rm.sum() >= 3:
             a, b, sc = _robust_line(x[rm], y[rm], 1.0 / exponent)
             src = "tree"
         else:
-            a, b, sc = np.log(0.01), 1.0 / exponent, 1.0   # no fit at all: 1 cm at L = 1 m
+            a, b, sc = np.log(0.01), 1.0 / exponent, 1.0  # no fit at all: 1 cm at L = 1 m
             src = "none"
         model[m] = a + b * x[m]
         keep[rm] = np.abs(y[rm] - model[rm]) <= 3 * sc
-        info[int(t)] = {"a": a, "b": b, "scatter": sc, "fits": int(rm.sum()),
-                        "stem_fits": int(sm_.sum()), "kept": int(keep[rm].sum()),
-                        "anchor": src}
+        info[int(t)] = {
+            "a": a,
+            "b": b,
+            "scatter": sc,
+            "fits": int(rm.sum()),
+            "stem_fits": int(sm_.sum()),
+            "kept": int(keep[rm].sum()),
+            "anchor": src,
+        }
     delta = np.where(keep, y - model, 0.0)
     sm = _smooth_with_decay(graph, delta, keep, decay)
     radius = np.maximum(np.exp(model + sm), min_radius)
@@ -570,7 +682,7 @@ def taper_radii(graph: BranchGraph, fit: RadiusFit, *, min_radius: float = MIN_R
     ch = np.flatnonzero(par >= 0)
     heavy = np.full(n, -1)
     if ch.size:
-        order_c = ch[np.lexsort((carried[ch], par[ch]))]   # by parent, heaviest last
+        order_c = ch[np.lexsort((carried[ch], par[ch]))]  # by parent, heaviest last
         heavy[par[order_c]] = order_c
     side = ch[heavy[par[ch]] != ch]
     slack_v[side] = 1.0
@@ -588,7 +700,7 @@ def _stem_mask(graph: BranchGraph, carried: NDArray) -> NDArray[np.bool_]:
         path = [int(root)]
         v = int(root)
         while indptr[v + 1] > indptr[v]:
-            kids = idx[indptr[v]:indptr[v + 1]]
+            kids = idx[indptr[v] : indptr[v + 1]]
             v = int(kids[np.argmax(carried[kids])])
             path.append(v)
         p = np.asarray(path)
@@ -597,8 +709,7 @@ def _stem_mask(graph: BranchGraph, carried: NDArray) -> NDArray[np.bool_]:
     return stem
 
 
-def _smooth_with_decay(graph: BranchGraph, values: NDArray, ok: NDArray, decay: float
-                       ) -> NDArray:
+def _smooth_with_decay(graph: BranchGraph, values: NDArray, ok: NDArray, decay: float) -> NDArray:
     par = graph.parent
     ch = par >= 0
     lam = np.where(ch, 1.0, 0.0)

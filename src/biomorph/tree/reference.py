@@ -74,8 +74,11 @@ def read_qsm_csv(path: PathLike) -> BranchGraph:
     end = [get(f"end{a}") for a in "XYZ"]
     radius = get("radius")
     if ids is None or parent_id is None or radius is None or any(s is None for s in start):
-        raise FormatError(path, "missing columns; expected ID, parentID (or parent), "
-                                "startX..startZ (or start_x..), radius")
+        raise FormatError(
+            path,
+            "missing columns; expected ID, parentID (or parent), "
+            "startX..startZ (or start_x..), radius",
+        )
     start_xyz = np.column_stack(start)
     if any(e is None for e in end):
         axis = np.column_stack([get(f"axis_{a}") for a in "xyz"])
@@ -128,8 +131,9 @@ def radius_profile(graph: BranchGraph, bins: NDArray[np.float64]) -> NDArray[np.
         return num / den
 
 
-def compare_to_reference(graph: BranchGraph, reference: BranchGraph,
-                         tolerance: float | None = None, n_bins: int = 10) -> dict[str, Any]:
+def compare_to_reference(
+    graph: BranchGraph, reference: BranchGraph, tolerance: float | None = None, n_bins: int = 10
+) -> dict[str, Any]:
     """Agreement of a skeleton with a reference model in the same frame.
 
     Returns tips and total length of both (and their ratios), base radius of both, the
@@ -154,11 +158,21 @@ def compare_to_reference(graph: BranchGraph, reference: BranchGraph,
 
     tips, tips_ref = int(graph.leaves.size), int(reference.leaves.size)
     tl, tl_ref = graph.total_length, reference.total_length
-    return {"tips": tips, "tips_reference": tips_ref, "tips_ratio": tips / max(tips_ref, 1),
-            "length": tl, "length_reference": tl_ref, "length_ratio": tl / max(tl_ref, 1e-12),
-            "base_radius": base_radius(graph), "base_radius_reference": base_radius(reference),
-            "radius_profile": [None if not np.isfinite(v) else float(v) for v in pa],
-            "radius_profile_reference": [None if not np.isfinite(v) else float(v) for v in pb],
-            "radius_profile_error": float(np.median(rel)) if rel.size else None,
-            "precision": cmp["precision"], "recall": cmp["recall"], "f1": cmp["f1"],
-            "tolerance": cmp["tolerance"], "mean_distance": cmp.get("mean_distance")}
+    return {
+        "tips": tips,
+        "tips_reference": tips_ref,
+        "tips_ratio": tips / max(tips_ref, 1),
+        "length": tl,
+        "length_reference": tl_ref,
+        "length_ratio": tl / max(tl_ref, 1e-12),
+        "base_radius": base_radius(graph),
+        "base_radius_reference": base_radius(reference),
+        "radius_profile": [None if not np.isfinite(v) else float(v) for v in pa],
+        "radius_profile_reference": [None if not np.isfinite(v) else float(v) for v in pb],
+        "radius_profile_error": float(np.median(rel)) if rel.size else None,
+        "precision": cmp["precision"],
+        "recall": cmp["recall"],
+        "f1": cmp["f1"],
+        "tolerance": cmp["tolerance"],
+        "mean_distance": cmp.get("mean_distance"),
+    }

@@ -23,7 +23,7 @@ def densify(graph: BranchGraph, spacing: float) -> BranchGraph:
     ch = np.flatnonzero((graph.parent >= 0) & (el > 1.5 * spacing))
     if ch.size == 0 or spacing <= 0:
         return graph
-    k = np.ceil(el[ch] / spacing).astype(np.int64) - 1      # nodes inserted per edge
+    k = np.ceil(el[ch] / spacing).astype(np.int64) - 1  # nodes inserted per edge
     n = graph.n_nodes
     total = int(k.sum())
     eid = np.repeat(np.arange(ch.size), k)
@@ -46,13 +46,23 @@ def densify(graph: BranchGraph, spacing: float) -> BranchGraph:
     def copy(a):
         return None if a is None else np.concatenate([a, a[c]])
 
-    return BranchGraph(np.vstack([graph.position, pos]), np.concatenate([parent, new_parent]),
-                       radius=lerp(graph.radius), weight=lerp(graph.weight),
-                       depth=copy(graph.depth), tree_id=copy(graph.tree_id))
+    return BranchGraph(
+        np.vstack([graph.position, pos]),
+        np.concatenate([parent, new_parent]),
+        radius=lerp(graph.radius),
+        weight=lerp(graph.weight),
+        depth=copy(graph.depth),
+        tree_id=copy(graph.tree_id),
+    )
 
 
-def extend_tips(graph: BranchGraph, xyz: NDArray[np.float64], reach: float,
-                kdtree: cKDTree | None = None, quantile: float = 0.9) -> BranchGraph:
+def extend_tips(
+    graph: BranchGraph,
+    xyz: NDArray[np.float64],
+    reach: float,
+    kdtree: cKDTree | None = None,
+    quantile: float = 0.9,
+) -> BranchGraph:
     """Move every tip forward along its last edge to the end of its points.
 
     Contracted vertices sit at the centroid of their level piece, so every tip ends about
@@ -73,8 +83,11 @@ def extend_tips(graph: BranchGraph, xyz: NDArray[np.float64], reach: float,
     lists = kd.query_ball_point(pos[tips], reach, return_sorted=False)
     cnt = np.fromiter((len(x) for x in lists), dtype=np.int64, count=tips.size)
     # one array per tip, joined once (a generator over every index cost ~10 s at 10⁶ points)
-    idx = (np.concatenate([np.asarray(x, dtype=np.int64) for x in lists]) if cnt.sum()
-           else np.zeros(0, dtype=np.int64))
+    idx = (
+        np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
+        if cnt.sum()
+        else np.zeros(0, dtype=np.int64)
+    )
     owner = np.repeat(np.arange(tips.size), cnt)
     rel = xyz[idx] - pos[tips][owner]
     t = np.einsum("ij,ij->i", rel, d[owner])
@@ -94,4 +107,3 @@ def extend_tips(graph: BranchGraph, xyz: NDArray[np.float64], reach: float,
     newpos = pos.copy()
     newpos[tips] += step[:, None] * d
     return graph.with_(position=newpos)
-

@@ -61,8 +61,9 @@ def _grid_clusters(xy: NDArray[np.float64], cell: float, min_points: int) -> NDA
     return np.where(dense_index[inv] >= 0, lab[np.maximum(dense_index[inv], 0)], -1)
 
 
-def _density_clusters(xy: NDArray[np.float64], cell: float, min_tree_distance: float
-                      ) -> NDArray[np.int64]:
+def _density_clusters(
+    xy: NDArray[np.float64], cell: float, min_tree_distance: float
+) -> NDArray[np.int64]:
     """Grid density clusters of XY points, small ones dropped (-1), close ones merged."""
     lab = _grid_clusters(xy, cell, min_points=3)
     if (lab >= 0).sum() == 0:
@@ -75,8 +76,9 @@ def _density_clusters(xy: NDArray[np.float64], cell: float, min_tree_distance: f
     cen = np.array([xy[lab == i].mean(axis=0) for i in ids])
     if ids.size > 1:
         pairs = cKDTree(cen).query_pairs(min_tree_distance, output_type="ndarray")
-        adj = sparse.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
-                                shape=(ids.size, ids.size))
+        adj = sparse.csr_matrix(
+            (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(ids.size, ids.size)
+        )
         _, merged = connected_components(adj, directed=False)
     else:
         merged = np.zeros(ids.size, dtype=np.int64)
@@ -85,9 +87,15 @@ def _density_clusters(xy: NDArray[np.float64], cell: float, min_tree_distance: f
     return np.where(lab >= 0, remap[np.maximum(lab, 0)], -1)
 
 
-def _stem_roots(xyz: NDArray[np.float64], h: NDArray[np.float64], stem_slice: tuple,
-                cell: float, min_tree_distance: float, base_height: float,
-                max_base: float = 0.5):
+def _stem_roots(
+    xyz: NDArray[np.float64],
+    h: NDArray[np.float64],
+    stem_slice: tuple,
+    cell: float,
+    min_tree_distance: float,
+    base_height: float,
+    max_base: float = 0.5,
+):
     """Trees of a plot with a known ground: stems are the density clusters of the slice
     ``stem_slice`` (heights above ground, default breast height 0.8–1.6 m) that continue
     down to the ground (points below them within ``max_base`` of the ground); the root
@@ -105,7 +113,7 @@ def _stem_roots(xyz: NDArray[np.float64], h: NDArray[np.float64], stem_slice: tu
     roots, tree = [], []
     ids, counts = np.unique(lab[lab >= 0], return_counts=True)
     accepted: list[NDArray] = []
-    for t in ids[np.argsort(-counts, kind="stable")]:      # biggest stems first
+    for t in ids[np.argsort(-counts, kind="stable")]:  # biggest stems first
         pts = xyz[sl[lab == t], :2]
         c = pts.mean(axis=0)
         rho = min(float(np.max(np.linalg.norm(pts - c, axis=1))), 1.0)
@@ -120,11 +128,11 @@ def _stem_roots(xyz: NDArray[np.float64], h: NDArray[np.float64], stem_slice: tu
             if near.size >= 5:
                 col = _densest_column(xyz, near, cell)
         if col.size < 5 or h[col].min() > max_base:
-            continue                               # a branch piece, not a stem
+            continue  # a branch piece, not a stem
         base = col[h[col] <= h[col].min() + base_height]
         bc = xyz[base, :2].mean(axis=0)
         if any(np.linalg.norm(bc - a) < min_tree_distance for a in accepted):
-            continue                               # the same stem base as a bigger cluster
+            continue  # the same stem base as a bigger cluster
         accepted.append(bc)
         roots.append(base)
         tree.append(np.full(base.size, len(roots) - 1, dtype=np.int64))
@@ -133,8 +141,9 @@ def _stem_roots(xyz: NDArray[np.float64], h: NDArray[np.float64], stem_slice: tu
     return np.concatenate(roots).astype(np.int64), np.concatenate(tree)
 
 
-def _densest_column(xyz: NDArray[np.float64], members: NDArray[np.int64],
-                    cell: float) -> NDArray[np.int64]:
+def _densest_column(
+    xyz: NDArray[np.float64], members: NDArray[np.int64], cell: float
+) -> NDArray[np.int64]:
     """The members of a root-slice cluster within ``1.5 cell`` (horizontally) of its
     densest point (most members within ``cell``).
 
@@ -152,12 +161,18 @@ def _densest_column(xyz: NDArray[np.float64], members: NDArray[np.int64],
     return members[np.linalg.norm(xy - centre, axis=1) <= 1.5 * cell]
 
 
-def find_roots(xyz: NDArray[np.float64], *, n_trees: int | None = None,
-               height: NDArray[np.float64] | None = None, root_slice: float = 0.5,
-               cell: float | None = None, min_tree_distance: float = 0.6,
-               base_height: float = 0.05, seed: int = 0,
-               stem_slice: tuple[float, float] = (0.8, 1.6),
-               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def find_roots(
+    xyz: NDArray[np.float64],
+    *,
+    n_trees: int | None = None,
+    height: NDArray[np.float64] | None = None,
+    root_slice: float = 0.5,
+    cell: float | None = None,
+    min_tree_distance: float = 0.6,
+    base_height: float = 0.05,
+    seed: int = 0,
+    stem_slice: tuple[float, float] = (0.8, 1.6),
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Step i: find the trees and their root points from the ground-plane projection.
 
     Parameters
@@ -181,8 +196,14 @@ def find_roots(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     ``(root_points, root_tree)``: indices of the root points and the tree (0..m-1) of each.
     """
     if height is not None and n_trees is None:
-        found = _stem_roots(xyz, np.asarray(height, dtype=float), stem_slice,
-                            cell or 0.1, min_tree_distance, base_height)
+        found = _stem_roots(
+            xyz,
+            np.asarray(height, dtype=float),
+            stem_slice,
+            cell or 0.1,
+            min_tree_distance,
+            base_height,
+        )
         if found is not None:
             return found
     z = xyz[:, 2] - xyz[:, 2].min() if height is None else np.asarray(height, dtype=float)
@@ -218,10 +239,14 @@ def find_roots(xyz: NDArray[np.float64], *, n_trees: int | None = None,
     return np.concatenate(roots).astype(np.int64), np.concatenate(tree)
 
 
-
-def stem_bases(xyz: NDArray[np.float64], *, height: NDArray[np.float64] | None = None,
-               root_slice: float = 0.5, min_tree_distance: float = 0.6,
-               stem_slice: tuple[float, float] = (0.8, 1.6)) -> NDArray[np.float64]:
+def stem_bases(
+    xyz: NDArray[np.float64],
+    *,
+    height: NDArray[np.float64] | None = None,
+    root_slice: float = 0.5,
+    min_tree_distance: float = 0.6,
+    stem_slice: tuple[float, float] = (0.8, 1.6),
+) -> NDArray[np.float64]:
     """XY centres (m) of the stems standing on the ground, largest first.
 
     With ``height`` (a ground was found) these are :func:`_stem_roots`' stems: density
@@ -260,24 +285,33 @@ def stem_bases(xyz: NDArray[np.float64], *, height: NDArray[np.float64] | None =
     return np.array(out).reshape(-1, 2)
 
 
-def check_single_tree(xyz: NDArray[np.float64], *, height: NDArray[np.float64] | None = None,
-                      root_slice: float = 0.5, min_tree_distance: float = 0.6,
-                      source: str = "point cloud") -> None:
+def check_single_tree(
+    xyz: NDArray[np.float64],
+    *,
+    height: NDArray[np.float64] | None = None,
+    root_slice: float = 0.5,
+    min_tree_distance: float = 0.6,
+    source: str = "point cloud",
+) -> None:
     """A one-tree run (``n_trees=1``) on a cloud with two or more stems is a wrong model (one
     tree spanning two stems): raise :class:`InputError` naming the stems found."""
-    bases = stem_bases(xyz, height=height, root_slice=root_slice,
-                       min_tree_distance=min_tree_distance)
+    bases = stem_bases(
+        xyz, height=height, root_slice=root_slice, min_tree_distance=min_tree_distance
+    )
     if bases.shape[0] < 2:
         return
     d = float(np.linalg.norm(bases[1] - bases[0]))
     where = ", ".join(f"({x + 0.0:.2f}, {y + 0.0:.2f})" for x, y in np.round(bases[:4], 2))
-    raise InputError(f"{source}: {bases.shape[0]} stems found at x, y = {where} m "
-                     f"({d:.2f} m apart); expected one tree with n_trees=1 -- touching trees "
-                     "need --n-trees 2 (or the default automatic count)")
+    raise InputError(
+        f"{source}: {bases.shape[0]} stems found at x, y = {where} m "
+        f"({d:.2f} m apart); expected one tree with n_trees=1 -- touching trees "
+        "need --n-trees 2 (or the default automatic count)"
+    )
 
 
-def check_trunk_reaches_ground(height: NDArray[np.float64] | None, *, max_gap: float = 0.8,
-                               source: str = "point cloud") -> None:
+def check_trunk_reaches_ground(
+    height: NDArray[np.float64] | None, *, max_gap: float = 0.8, source: str = "point cloud"
+) -> None:
     """With a ground found, a trunk must reach down to it: when no point lies within
     ``max_gap`` (default the 0.8 m bottom of the breast-height band, where a stem is
     always measured) of the ground there is no trunk in the scan (a crown alone, a
@@ -286,6 +320,8 @@ def check_trunk_reaches_ground(height: NDArray[np.float64] | None, *, max_gap: f
         return
     low = float(np.min(height))
     if low > max_gap:
-        raise InputError(f"{source}: no trunk found -- the lowest point above the ground is "
-                         f"{low:.2f} m high; expected a stem reaching within {max_gap:g} m of "
-                         "the ground (a crown-only scan, or a cloud cut above the base?)")
+        raise InputError(
+            f"{source}: no trunk found -- the lowest point above the ground is "
+            f"{low:.2f} m high; expected a stem reaching within {max_gap:g} m of "
+            "the ground (a crown-only scan, or a cloud cut above the base?)"
+        )

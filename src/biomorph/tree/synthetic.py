@@ -79,34 +79,107 @@ class TreeParams:
 PRESETS: dict[str, TreeParams] = {
     # japanese maple: short, wide, many thin twigs (thesis B4: NOB 286, TBL 460.4 m)
     "maple": TreeParams(
-        height=9.0, base_radius=0.16, base_size=0.2, shape="hemispherical", curve_var=0.15,
-        levels=(Level(n=12, length=0.82, down=math.radians(55), curve=0.35, radius=0.55,
-                      start=0.0, step=0.08),
-                Level(n=7, length=0.66, down=math.radians(45), curve=0.2, radius=0.6,
-                      start=0.15, step=0.06),
-                Level(n=5, length=0.6, down=math.radians(40), curve=0.1, radius=0.6,
-                      start=0.2, step=0.05))),
+        height=9.0,
+        base_radius=0.16,
+        base_size=0.2,
+        shape="hemispherical",
+        curve_var=0.15,
+        levels=(
+            Level(
+                n=12,
+                length=0.82,
+                down=math.radians(55),
+                curve=0.35,
+                radius=0.55,
+                start=0.0,
+                step=0.08,
+            ),
+            Level(
+                n=7,
+                length=0.66,
+                down=math.radians(45),
+                curve=0.2,
+                radius=0.6,
+                start=0.15,
+                step=0.06,
+            ),
+            Level(
+                n=5, length=0.6, down=math.radians(40), curve=0.1, radius=0.6, start=0.2, step=0.05
+            ),
+        ),
+    ),
     # white birch: tall, slender, drooping fine branches (thesis B5: NOB 291, TBL 599.07 m)
     "birch": TreeParams(
-        height=15.0, base_radius=0.17, base_size=0.3, shape="flame", curve_var=0.08,
-        levels=(Level(n=30, length=0.42, down=math.radians(50), curve=0.2, radius=0.5,
-                      start=0.0, step=0.08),
-                Level(n=14, length=0.75, down=math.radians(50), curve=-0.3, radius=0.55,
-                      start=0.15, step=0.06))),
+        height=15.0,
+        base_radius=0.17,
+        base_size=0.3,
+        shape="flame",
+        curve_var=0.08,
+        levels=(
+            Level(
+                n=30,
+                length=0.42,
+                down=math.radians(50),
+                curve=0.2,
+                radius=0.5,
+                start=0.0,
+                step=0.08,
+            ),
+            Level(
+                n=14,
+                length=0.75,
+                down=math.radians(50),
+                curve=-0.3,
+                radius=0.55,
+                start=0.15,
+                step=0.06,
+            ),
+        ),
+    ),
     # quaking aspen: tall straight stem, few long branches (thesis B6: NOB 30, TBL 116.83 m)
     "aspen": TreeParams(
-        height=15.0, base_radius=0.18, base_size=0.35, shape="tapered_cylindrical",
+        height=15.0,
+        base_radius=0.18,
+        base_size=0.35,
+        shape="tapered_cylindrical",
         curve_var=0.06,
-        levels=(Level(n=29, length=0.3, down=math.radians(45), curve=0.35, radius=0.45,
-                      start=0.0, step=0.08),)),
+        levels=(
+            Level(
+                n=29,
+                length=0.3,
+                down=math.radians(45),
+                curve=0.35,
+                radius=0.45,
+                start=0.0,
+                step=0.08,
+            ),
+        ),
+    ),
     # conifer: monopodial stem, whorls of near-horizontal branches, conical crown
     "conifer": TreeParams(
-        height=12.0, base_radius=0.2, base_size=0.1, shape="conical", curve_var=0.03,
-        levels=(Level(n=45, length=0.3, down=math.radians(80), down_var=0.1,
-                      rotate=math.radians(99.5), curve=0.25, curve_var=0.15, radius=0.35,
-                      start=0.0, step=0.07),
-                Level(n=4, length=0.35, down=math.radians(55), curve=0.0, radius=0.6,
-                      start=0.2, step=0.05))),
+        height=12.0,
+        base_radius=0.2,
+        base_size=0.1,
+        shape="conical",
+        curve_var=0.03,
+        levels=(
+            Level(
+                n=45,
+                length=0.3,
+                down=math.radians(80),
+                down_var=0.1,
+                rotate=math.radians(99.5),
+                curve=0.25,
+                curve_var=0.15,
+                radius=0.35,
+                start=0.0,
+                step=0.07,
+            ),
+            Level(
+                n=4, length=0.35, down=math.radians(55), curve=0.0, radius=0.6, start=0.2, step=0.05
+            ),
+        ),
+    ),
 }
 
 
@@ -124,8 +197,10 @@ def _shape_ratio(shape: str, r: NDArray[np.float64]) -> NDArray[np.float64]:
         return 0.5 + 0.5 * r
     if shape == "flame":
         return np.where(r >= 0.3, (1 - r) / 0.7, r / 0.3).clip(0.1)
-    raise ParameterError(f"unknown crown shape {shape!r}; expected conical, spherical, "
-                         "hemispherical, cylindrical, tapered_cylindrical or flame")
+    raise ParameterError(
+        f"unknown crown shape {shape!r}; expected conical, spherical, "
+        "hemispherical, cylindrical, tapered_cylindrical or flame"
+    )
 
 
 def _perp(d: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -135,17 +210,24 @@ def _perp(d: NDArray[np.float64]) -> NDArray[np.float64]:
     return p / np.linalg.norm(p)
 
 
-def _rotate(v: NDArray[np.float64], axis: NDArray[np.float64],
-            angle: NDArray[np.float64] | float) -> NDArray[np.float64]:
+def _rotate(
+    v: NDArray[np.float64], axis: NDArray[np.float64], angle: NDArray[np.float64] | float
+) -> NDArray[np.float64]:
     """Rodrigues rotation of vector(s) ``v`` about unit ``axis`` by ``angle`` (broadcast)."""
     angle = np.asarray(angle, dtype=float)[..., None]
     c, s = np.cos(angle), np.sin(angle)
     return v * c + np.cross(axis, v) * s + axis * float(axis @ v) * (1 - c)
 
 
-def _branch_axis(start: NDArray[np.float64], d0: NDArray[np.float64], length: float,
-                 step: float, curve: float, curve_var: float,
-                 rng: np.random.Generator) -> NDArray[np.float64]:
+def _branch_axis(
+    start: NDArray[np.float64],
+    d0: NDArray[np.float64],
+    length: float,
+    step: float,
+    curve: float,
+    curve_var: float,
+    rng: np.random.Generator,
+) -> NDArray[np.float64]:
     """Node positions (excluding ``start``) of a smoothly bending branch of given length."""
     nseg = max(2, int(math.ceil(length / step)))
     t = np.arange(nseg) / max(nseg - 1, 1)
@@ -165,14 +247,16 @@ def _branch_axis(start: NDArray[np.float64], d0: NDArray[np.float64], length: fl
     return start + np.cumsum(dirs * seg, axis=0)
 
 
-def _rotate_rows(v: NDArray[np.float64], axis: NDArray[np.float64],
-                 angle: NDArray[np.float64]) -> NDArray[np.float64]:
+def _rotate_rows(
+    v: NDArray[np.float64], axis: NDArray[np.float64], angle: NDArray[np.float64]
+) -> NDArray[np.float64]:
     c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
     return v * c + np.cross(axis, v) * s + axis * (v @ axis)[:, None] * (1 - c)
 
 
-def generate_tree(preset: str | TreeParams = "maple", seed: int = 0,
-                  **overrides: object) -> BranchGraph:
+def generate_tree(
+    preset: str | TreeParams = "maple", seed: int = 0, **overrides: object
+) -> BranchGraph:
     """Grow a synthetic tree and return its true skeleton.
 
     Parameters
@@ -189,8 +273,9 @@ def generate_tree(preset: str | TreeParams = "maple", seed: int = 0,
     """
     if isinstance(preset, str):
         if preset not in PRESETS:
-            raise ParameterError(f"unknown tree preset {preset!r}; expected one of "
-                                 f"{', '.join(sorted(PRESETS))}")
+            raise ParameterError(
+                f"unknown tree preset {preset!r}; expected one of {', '.join(sorted(PRESETS))}"
+            )
         params = PRESETS[preset]
     else:
         params = preset
@@ -209,8 +294,17 @@ def generate_tree(preset: str | TreeParams = "maple", seed: int = 0,
     dep_chunks: list[NDArray] = []
     n_total = 0
 
-    def add_branch(start_idx: int, start: NDArray, d0: NDArray, length: float, r0: float,
-                   step: float, curve: float, curve_var: float, depth: int) -> tuple[int, int]:
+    def add_branch(
+        start_idx: int,
+        start: NDArray,
+        d0: NDArray,
+        length: float,
+        r0: float,
+        step: float,
+        curve: float,
+        curve_var: float,
+        depth: int,
+    ) -> tuple[int, int]:
         nonlocal n_total
         pts = _branch_axis(start, d0, length, step, curve, curve_var, rng)
         m = pts.shape[0]
@@ -219,7 +313,7 @@ def generate_tree(preset: str | TreeParams = "maple", seed: int = 0,
         parent[0] = start_idx
         s = np.arange(1, m + 1) / m
         r_tip = min(params.tip_radius, r0)
-        rad = r0 + (r_tip - r0) * s ** params.taper
+        rad = r0 + (r_tip - r0) * s**params.taper
         pos_chunks.append(pts)
         par_chunks.append(parent)
         rad_chunks.append(rad)
@@ -234,8 +328,9 @@ def generate_tree(preset: str | TreeParams = "maple", seed: int = 0,
     dep_chunks.append(np.array([0]))
     n_total = 1
     up = np.array([0.0, 0.0, 1.0])
-    first, m = add_branch(0, np.zeros(3), up, params.height, params.base_radius, params.step,
-                          0.0, params.curve_var, 0)
+    first, m = add_branch(
+        0, np.zeros(3), up, params.height, params.base_radius, params.step, 0.0, params.curve_var, 0
+    )
     # (first node, node count, length, base fraction, parent-level index)
     branches = [(first, m, params.height, 0)]
     for lev_i, lev in enumerate(params.levels):
@@ -247,13 +342,18 @@ def generate_tree(preset: str | TreeParams = "maple", seed: int = 0,
             if n_child <= 0 or bm < 3:
                 continue
             start = params.base_size if lev_i == 0 else lev.start
-            tpos = start + (1 - start) * (np.arange(n_child) + rng.uniform(0.2, 0.8, n_child)) \
-                / n_child
+            tpos = (
+                start
+                + (1 - start) * (np.arange(n_child) + rng.uniform(0.2, 0.8, n_child)) / n_child
+            )
             tpos = np.clip(tpos, 0, 0.97)
             node = bfirst + np.minimum((tpos * bm).astype(int), bm - 2)
             crown_r = (1 - tpos) / (1 - start) if lev_i == 0 else 1 - tpos
-            ratio = _shape_ratio(params.shape, np.clip(crown_r, 0, 1)) if lev_i == 0 else \
-                0.4 + 0.6 * np.clip(crown_r, 0, 1)
+            ratio = (
+                _shape_ratio(params.shape, np.clip(crown_r, 0, 1))
+                if lev_i == 0
+                else 0.4 + 0.6 * np.clip(crown_r, 0, 1)
+            )
             az0 = rng.uniform(0, 2 * np.pi)
             for j in range(n_child):
                 ni = int(node[j])
@@ -266,16 +366,34 @@ def generate_tree(preset: str | TreeParams = "maple", seed: int = 0,
                 d /= np.linalg.norm(d)
                 clen = blen * lev.length * float(ratio[j]) * rng.uniform(0.85, 1.15)
                 r_par = float(_rad_at(rad_chunks, ni))
-                r0 = min(max(min(r_par * lev.radius * math.sqrt(clen / blen) * 1.2,
-                                     0.8 * r_par), params.tip_radius * 1.5), r_par)
-                cf, cm = add_branch(ni, _pos_at(pos_chunks, ni), d, clen, r0,
-                                    lev.step, lev.curve, lev.curve_var, lev_i + 1)
+                r0 = min(
+                    max(
+                        min(r_par * lev.radius * math.sqrt(clen / blen) * 1.2, 0.8 * r_par),
+                        params.tip_radius * 1.5,
+                    ),
+                    r_par,
+                )
+                cf, cm = add_branch(
+                    ni,
+                    _pos_at(pos_chunks, ni),
+                    d,
+                    clen,
+                    r0,
+                    lev.step,
+                    lev.curve,
+                    lev.curve_var,
+                    lev_i + 1,
+                )
                 new.append((cf, cm, clen, ni))
         branches = new
     pos = np.concatenate(pos_chunks)
     pos[:, 2] -= pos[:, 2].min()  # nothing below the ground
-    return BranchGraph(pos, np.concatenate(par_chunks), radius=np.concatenate(rad_chunks),
-                       depth=np.concatenate(dep_chunks))
+    return BranchGraph(
+        pos,
+        np.concatenate(par_chunks),
+        radius=np.concatenate(rad_chunks),
+        depth=np.concatenate(dep_chunks),
+    )
 
 
 def _flat_get(chunks: list[NDArray], i: int) -> NDArray:
@@ -296,9 +414,14 @@ def _rad_at(chunks: list[NDArray], i: int) -> float:
 
 # ------------------------------------------------------------------------- LiDAR simulator
 @numba.njit(cache=True, nogil=True)
-def _visible(occ: NDArray[np.bool_], origin: NDArray[np.float64], cell: float,
-             scanner: NDArray[np.float64], pts: NDArray[np.float64],
-             skip: NDArray[np.float64]) -> NDArray[np.bool_]:
+def _visible(
+    occ: NDArray[np.bool_],
+    origin: NDArray[np.float64],
+    cell: float,
+    scanner: NDArray[np.float64],
+    pts: NDArray[np.float64],
+    skip: NDArray[np.float64],
+) -> NDArray[np.bool_]:
     """Ray-march from each point toward the scanner through an occupancy grid.
 
     A point is hidden when an occupied cell lies on the ray farther than ``skip[i]`` metres
@@ -334,8 +457,9 @@ def _visible(occ: NDArray[np.bool_], origin: NDArray[np.float64], cell: float,
     return out
 
 
-def _surface_samples(p0: NDArray, p1: NDArray, r: NDArray, n: int,
-                     rng: np.random.Generator) -> tuple[NDArray, NDArray, NDArray]:
+def _surface_samples(
+    p0: NDArray, p1: NDArray, r: NDArray, n: int, rng: np.random.Generator
+) -> tuple[NDArray, NDArray, NDArray]:
     """``n`` area-uniform samples on the lateral surfaces of tubes (p0→p1, radius r).
 
     Returns points, outward unit normals and the segment index of each sample.
@@ -357,12 +481,21 @@ def _surface_samples(p0: NDArray, p1: NDArray, r: NDArray, n: int,
     return pts, nrm, seg
 
 
-def simulate_scan(truth: BranchGraph, *, n_points: int = 20000,  # noqa: PLR0913, PLR0915
-                  scanners: int = 3, noise: float = 0.005, occlusion: bool = True,
-                  leaves: float = 0.0, ground: bool = True, seed: int = 0,
-                  range_density: bool = True, distance: float | None = None,
-                  ground_fraction: float = 0.2, occlusion_cell: float | None = None,
-                  ) -> PointCloud:
+def simulate_scan(
+    truth: BranchGraph,
+    *,
+    n_points: int = 20000,  # noqa: PLR0913, PLR0915
+    scanners: int = 3,
+    noise: float = 0.005,
+    occlusion: bool = True,
+    leaves: float = 0.0,
+    ground: bool = True,
+    seed: int = 0,
+    range_density: bool = True,
+    distance: float | None = None,
+    ground_fraction: float = 0.2,
+    occlusion_cell: float | None = None,
+) -> PointCloud:
     """Simulate a terrestrial LiDAR scan of a synthetic tree.
 
     Model
@@ -411,8 +544,14 @@ def simulate_scan(truth: BranchGraph, *, n_points: int = 20000,  # noqa: PLR0913
     centre_xy = truth.position[truth.roots[0], :2]
     dist = distance if distance is not None else max(5.0, 0.8 * height)
     az = 2 * np.pi * np.arange(scanners) / scanners + rng.uniform(0, 2 * np.pi)
-    scan_pos = np.stack([centre_xy[0] + dist * np.cos(az), centre_xy[1] + dist * np.sin(az),
-                         np.full(scanners, 1.5)], axis=1)
+    scan_pos = np.stack(
+        [
+            centre_xy[0] + dist * np.cos(az),
+            centre_xy[1] + dist * np.sin(az),
+            np.full(scanners, 1.5),
+        ],
+        axis=1,
+    )
 
     n_leaf = int(round(leaves * n_points))
     n_ground = int(round(ground_fraction * n_points)) if ground else 0
@@ -482,14 +621,23 @@ def simulate_scan(truth: BranchGraph, *, n_points: int = 20000,  # noqa: PLR0913
         gx = rng.uniform(-half, half, (n_ground * 2, 2)) + centre_xy
         rb = float(truth.radius[truth.roots[0]])
         gx = gx[np.linalg.norm(gx - centre_xy, axis=1) > rb][:n_ground]
-        gz = 0.03 * np.sin(gx[:, 0] * 1.3) * np.cos(gx[:, 1] * 0.9) + rng.normal(
-            0, noise, gx.shape[0]) + float(truth.position[:, 2].min())
+        gz = (
+            0.03 * np.sin(gx[:, 0] * 1.3) * np.cos(gx[:, 1] * 0.9)
+            + rng.normal(0, noise, gx.shape[0])
+            + float(truth.position[:, 2].min())
+        )
         parts.append(np.column_stack([gx, gz]))
         nodes.append(np.full(gx.shape[0], -1))
         is_leaf.append(np.zeros(gx.shape[0], bool))
         is_ground.append(np.ones(gx.shape[0], bool))
     xyz = np.concatenate(parts)
-    return PointCloud(xyz, attributes={"is_ground": np.concatenate(is_ground),
-                                       "is_leaf": np.concatenate(is_leaf),
-                                       "node": np.concatenate(nodes).astype(np.int64)},
-                      meta={"scanners": scan_pos.tolist()}, source="synthetic scan")
+    return PointCloud(
+        xyz,
+        attributes={
+            "is_ground": np.concatenate(is_ground),
+            "is_leaf": np.concatenate(is_leaf),
+            "node": np.concatenate(nodes).astype(np.int64),
+        },
+        meta={"scanners": scan_pos.tolist()},
+        source="synthetic scan",
+    )

@@ -54,9 +54,16 @@ BASE_TEMPLATES = (
 
 #: Subiteration order: (name, (sx, sy, sz)) with s = the side from which voxels are peeled
 #: (x: -1 west / +1 east, y: -1 south / +1 north, z: -1 down / +1 up).
-DIRECTIONS = (("USW", (-1, -1, 1)), ("DNE", (1, 1, -1)), ("USE", (1, -1, 1)),
-              ("DNW", (-1, 1, -1)), ("UNE", (1, 1, 1)), ("DSW", (-1, -1, -1)),
-              ("UNW", (-1, 1, 1)), ("DSE", (1, -1, -1)))
+DIRECTIONS = (
+    ("USW", (-1, -1, 1)),
+    ("DNE", (1, 1, -1)),
+    ("USE", (1, -1, 1)),
+    ("DNW", (-1, 1, -1)),
+    ("UNE", (1, 1, 1)),
+    ("DSW", (-1, -1, -1)),
+    ("UNW", (-1, 1, 1)),
+    ("DSE", (1, -1, -1)),
+)
 
 _CODE = {"w": 0, "b": 1, "p": 2, "d": 3}
 
@@ -72,9 +79,11 @@ def _parse(s: str) -> NDArray[np.int8]:
 
 def _reflections(t: NDArray[np.int8]) -> list[NDArray[np.int8]]:
     """The three reflections through planes containing the USW diagonal (-1,-1,+1)."""
-    return [t.transpose(1, 0, 2),  # swap x and y
-            t.transpose(0, 2, 1)[:, ::-1, ::-1],  # (dy, dz) -> (-dz, -dy)
-            t.transpose(2, 1, 0)[::-1, :, ::-1]]  # (dx, dz) -> (-dz, -dx)
+    return [
+        t.transpose(1, 0, 2),  # swap x and y
+        t.transpose(0, 2, 1)[:, ::-1, ::-1],  # (dy, dz) -> (-dz, -dy)
+        t.transpose(2, 1, 0)[::-1, :, ::-1],
+    ]  # (dx, dz) -> (-dz, -dx)
 
 
 @lru_cache(maxsize=2)
@@ -117,8 +126,16 @@ def templates(full_symmetry: bool = False) -> tuple[tuple[NDArray[np.int8], ...]
 
 
 #: neighbour offsets in bit order (centre excluded)
-_OFFSETS = np.array([(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1)
-                     for dz in (-1, 0, 1) if (dx, dy, dz) != (0, 0, 0)], dtype=np.int64)
+_OFFSETS = np.array(
+    [
+        (dx, dy, dz)
+        for dx in (-1, 0, 1)
+        for dy in (-1, 0, 1)
+        for dz in (-1, 0, 1)
+        if (dx, dy, dz) != (0, 0, 0)
+    ],
+    dtype=np.int64,
+)
 
 
 @lru_cache(maxsize=2)
@@ -137,8 +154,9 @@ def _masks(full_symmetry: bool = False) -> NDArray[np.uint32]:
 
 
 @numba.njit(cache=True, nogil=True)
-def _thin_kernel(vol: NDArray[np.uint8], masks: NDArray[np.uint32],
-                 offsets: NDArray[np.int64], max_iter: int) -> int:
+def _thin_kernel(
+    vol: NDArray[np.uint8], masks: NDArray[np.uint32], offsets: NDArray[np.int64], max_iter: int
+) -> int:
     """Thin ``vol`` (padded by one white voxel on every side) in place; returns iterations."""
     nx, ny, nz = vol.shape
     n = 0
@@ -171,8 +189,14 @@ def _thin_kernel(vol: NDArray[np.uint8], masks: NDArray[np.uint32],
                     continue
                 x, y, z = pts[i, 0], pts[i, 1], pts[i, 2]
                 # border voxel: at least one white face neighbour
-                if (vol[x - 1, y, z] and vol[x + 1, y, z] and vol[x, y - 1, z]
-                        and vol[x, y + 1, z] and vol[x, y, z - 1] and vol[x, y, z + 1]):
+                if (
+                    vol[x - 1, y, z]
+                    and vol[x + 1, y, z]
+                    and vol[x, y - 1, z]
+                    and vol[x, y + 1, z]
+                    and vol[x, y, z - 1]
+                    and vol[x, y, z + 1]
+                ):
                     continue
                 cfg = np.uint32(0)
                 for b in range(26):
@@ -206,9 +230,13 @@ def _thin_kernel(vol: NDArray[np.uint8], masks: NDArray[np.uint32],
     return it
 
 
-def thin_palagyi_kuba(volume: NDArray[np.bool_], *, max_iter: int = 10_000,
-                      full_symmetry: bool = False, return_iterations: bool = False
-                      ) -> NDArray[np.bool_] | tuple[NDArray[np.bool_], int]:
+def thin_palagyi_kuba(
+    volume: NDArray[np.bool_],
+    *,
+    max_iter: int = 10_000,
+    full_symmetry: bool = False,
+    return_iterations: bool = False,
+) -> NDArray[np.bool_] | tuple[NDArray[np.bool_], int]:
     """Curve-thin a binary volume with the Palágyi–Kuba 8-subiteration algorithm.
 
     Parameters

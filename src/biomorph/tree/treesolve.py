@@ -20,17 +20,25 @@ from biomorph.core import treeops
 from biomorph.errors import ParameterError
 from biomorph.tree.allometry import edge_length as _edge_length
 
-__all__ = ["importance_weights", "solve_tree_system", "tree_matrix", "EDGE_WEIGHTS",
-           "orientation_system", "orientation_field", "refinement_system",
-           "refine_positions", "reweight_edges"]
+__all__ = [
+    "importance_weights",
+    "solve_tree_system",
+    "tree_matrix",
+    "EDGE_WEIGHTS",
+    "orientation_system",
+    "orientation_field",
+    "refinement_system",
+    "refine_positions",
+    "reweight_edges",
+]
 
 
-def importance_weights(parent: NDArray[np.int64], position: NDArray[np.float64],
-                       order: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
+def importance_weights(
+    parent: NDArray[np.int64], position: NDArray[np.float64], order: NDArray[np.int64] | None = None
+) -> NDArray[np.float64]:
     """Step iii: ``c_v`` = total edge length of the subtree below ``v`` (metres)."""
     el = _edge_length(parent, position)
     return treeops.subtree_sum(parent, el, order) - el
-
 
 
 @numba.njit(cache=True)
@@ -59,9 +67,13 @@ def _tree_solve(parent, order, diag, off, rhs):
     return x
 
 
-def solve_tree_system(parent: NDArray[np.int64], diag: NDArray[np.float64],
-                      off: NDArray[np.float64], rhs: NDArray[np.float64],
-                      order: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
+def solve_tree_system(
+    parent: NDArray[np.int64],
+    diag: NDArray[np.float64],
+    off: NDArray[np.float64],
+    rhs: NDArray[np.float64],
+    order: NDArray[np.int64] | None = None,
+) -> NDArray[np.float64]:
     """Solve ``A x = rhs`` exactly in O(n) for a symmetric tree-structured matrix.
 
     ``A[v, v] = diag[v]`` and ``A[v, parent[v]] = A[parent[v], v] = off[v]`` (``off`` at
@@ -73,8 +85,13 @@ def solve_tree_system(parent: NDArray[np.int64], diag: NDArray[np.float64],
     order = treeops.topological_order(parent) if order is None else order
     rhs = np.asarray(rhs, dtype=np.float64)
     vec = rhs.ndim == 1
-    x = _tree_solve(parent, np.asarray(order, dtype=np.int64), np.asarray(diag, dtype=float),
-                    np.asarray(off, dtype=float), rhs[:, None] if vec else rhs)
+    x = _tree_solve(
+        parent,
+        np.asarray(order, dtype=np.int64),
+        np.asarray(diag, dtype=float),
+        np.asarray(off, dtype=float),
+        rhs[:, None] if vec else rhs,
+    )
     return x[:, 0] if vec else x
 
 
@@ -91,8 +108,12 @@ def tree_matrix(parent: NDArray[np.int64], diag: NDArray, off: NDArray) -> spars
 EDGE_WEIGHTS = ("branch", "livny")
 
 
-def _edge_weights(parent: NDArray[np.int64], position: NDArray[np.float64],
-                  weight: NDArray[np.float64], scheme: str) -> tuple[NDArray, NDArray]:
+def _edge_weights(
+    parent: NDArray[np.int64],
+    position: NDArray[np.float64],
+    weight: NDArray[np.float64],
+    scheme: str,
+) -> tuple[NDArray, NDArray]:
     """Per child ``v`` of an edge p→v: the weight of its own terms (ΣE, ΣF) and of the
     pair terms (ΣO, ΣA). ``"livny"``: ``c_v`` and ``(c_p + c_v)/2``; ``"branch"``: ``c̃_v =
     c_v + |e(p, v)|`` for both. Zero at roots (no incoming edge)."""
@@ -117,8 +138,8 @@ def orientation_system(parent, position, weight, edge_weights: str = "livny"):
     good = ch & (le > 0)
     e[good] /= le[good, None]
     w_own, w_pair = _edge_weights(parent, position, weight, edge_weights)
-    we = np.where(good, w_own, 0.0) ** 2                        # ΣE weight c_v²
-    wo = w_pair ** 2                                            # ΣO weight ((c_p+c_v)/2)²
+    we = np.where(good, w_own, 0.0) ** 2  # ΣE weight c_v²
+    wo = w_pair**2  # ΣO weight ((c_p+c_v)/2)²
     diag = we.copy()
     diag += wo
     np.add.at(diag, p[ch], wo[ch])
@@ -128,9 +149,13 @@ def orientation_system(parent, position, weight, edge_weights: str = "livny"):
     return diag + ridge, off, rhs
 
 
-def orientation_field(parent: NDArray[np.int64], position: NDArray[np.float64],
-                      weight: NDArray[np.float64], order=None,
-                      edge_weights: str = "livny") -> NDArray[np.float64]:
+def orientation_field(
+    parent: NDArray[np.int64],
+    position: NDArray[np.float64],
+    weight: NDArray[np.float64],
+    order=None,
+    edge_weights: str = "livny",
+) -> NDArray[np.float64]:
     """Step iv: orientations ``o_v`` minimising ΣO + ΣE exactly (``float[n, 3]``).
 
     Roots have no incoming edge, so no ΣE term; their orientation follows from ΣO.
@@ -150,12 +175,12 @@ def refinement_system(parent, position, weight, orient, edge_weights: str = "liv
     nrm = np.linalg.norm(osum, axis=1)
     t = np.zeros((n, 3))
     good = ch & (nrm > 0)
-    t[good] = (el[good] / nrm[good])[:, None] * osum[good]     # target of v' - p'
+    t[good] = (el[good] / nrm[good])[:, None] * osum[good]  # target of v' - p'
     w_own, w_pair = _edge_weights(parent, position, weight, edge_weights)
-    a = w_pair ** 2                                            # ΣA weight ((c_u+c_v)/2)²
-    f = w_own ** 2                                             # ΣF weight c_v²
+    a = w_pair**2  # ΣA weight ((c_u+c_v)/2)²
+    f = w_own**2  # ΣF weight c_v²
     m = np.zeros((n, 3))
-    m[ch] = 0.5 * (position[ch] + position[p[ch]])             # old edge midpoints
+    m[ch] = 0.5 * (position[ch] + position[p[ch]])  # old edge midpoints
     diag = np.zeros(n)
     diag += a + f / 4
     np.add.at(diag, p[ch], (a + f / 4)[ch])
@@ -167,17 +192,27 @@ def refinement_system(parent, position, weight, orient, edge_weights: str = "liv
     return diag + ridge, off, rhs + ridge * position
 
 
-def refine_positions(parent: NDArray[np.int64], position: NDArray[np.float64],
-                     weight: NDArray[np.float64], orient: NDArray[np.float64],
-                     order=None, edge_weights: str = "livny") -> NDArray[np.float64]:
+def refine_positions(
+    parent: NDArray[np.int64],
+    position: NDArray[np.float64],
+    weight: NDArray[np.float64],
+    orient: NDArray[np.float64],
+    order=None,
+    edge_weights: str = "livny",
+) -> NDArray[np.float64]:
     """Step v: new vertex positions minimising ΣA + ΣF exactly (``float[n, 3]``)."""
     diag, off, rhs = refinement_system(parent, position, weight, orient, edge_weights)
     return solve_tree_system(parent, diag, off, rhs, order)
 
 
-
-def reweight_edges(q: sparse.csr_matrix, qpos: NDArray, parent: NDArray, newpos: NDArray,
-              strength: float, qtree: cKDTree) -> sparse.csr_matrix:
+def reweight_edges(
+    q: sparse.csr_matrix,
+    qpos: NDArray,
+    parent: NDArray,
+    newpos: NDArray,
+    strength: float,
+    qtree: cKDTree,
+) -> sparse.csr_matrix:
     """Multiply the weight of the Q edge nearest each refined edge by ``1 - s |cos|``."""
     ch = np.flatnonzero(parent >= 0)
     if ch.size == 0:
@@ -207,4 +242,3 @@ def reweight_edges(q: sparse.csr_matrix, qpos: NDArray, parent: NDArray, newpos:
         np.minimum.at(fac, pos[hit], factor[hit])
         q.data *= fac
     return q
-

@@ -59,8 +59,14 @@ from biomorph.tree.cleanup import smooth_chains
 from biomorph.tree.foliage import check_not_only_leaves
 from biomorph.tree.thinning import thin_palagyi_kuba
 
-__all__ = ["skeletonize_voxel", "VoxelSkeleton", "voxelize", "preprocess_volume",
-           "skeleton_graph", "auto_cell_size"]
+__all__ = [
+    "skeletonize_voxel",
+    "VoxelSkeleton",
+    "voxelize",
+    "preprocess_volume",
+    "skeleton_graph",
+    "auto_cell_size",
+]
 
 
 @dataclass(frozen=True)
@@ -84,8 +90,9 @@ def auto_cell_size(cloud: PointCloud, max_width: int = 400) -> float:
     return max(3.0 * point_spacing(cloud), 0.01, ext / max_width)
 
 
-def voxelize(xyz: NDArray[np.float64], cell_size: float
-             ) -> tuple[NDArray[np.uint16], NDArray[np.float64]]:
+def voxelize(
+    xyz: NDArray[np.float64], cell_size: float
+) -> tuple[NDArray[np.uint16], NDArray[np.float64]]:
     """Point counts per voxel (``uint16``, saturating) and the domain origin (m).
 
     The domain has ``res = max(ceil((max - min) / cell), 1)`` voxels per axis and is centred
@@ -96,8 +103,9 @@ def voxelize(xyz: NDArray[np.float64], cell_size: float
     lo, hi = xyz.min(axis=0), xyz.max(axis=0)
     res = np.maximum(np.ceil((hi - lo) / cell_size).astype(np.int64), 1)
     if np.prod(res.astype(float)) > 2e9:
-        raise ParameterError(f"cell_size {cell_size} m gives a {res.tolist()} voxel grid; "
-                             "choose a larger cell_size")
+        raise ParameterError(
+            f"cell_size {cell_size} m gives a {res.tolist()} voxel grid; choose a larger cell_size"
+        )
     origin = (lo + hi) / 2 - res * cell_size / 2
     ijk = np.floor((xyz - origin) / cell_size).astype(np.int64)
     np.clip(ijk, 0, res - 1, out=ijk)
@@ -134,12 +142,17 @@ def _octagon_factors(r: float) -> list[NDArray[np.int64]]:
     k = np.arange(-a, a + 1)
     j = np.arange(-b, b + 1)
     z = np.zeros_like
-    return [np.stack([k, z(k), z(k)], 1), np.stack([z(k), k, z(k)], 1),
-            np.stack([j, j, z(j)], 1), np.stack([j, -j, z(j)], 1)]
+    return [
+        np.stack([k, z(k), z(k)], 1),
+        np.stack([z(k), k, z(k)], 1),
+        np.stack([j, j, z(j)], 1),
+        np.stack([j, -j, z(j)], 1),
+    ]
 
 
-def _sparse_closing(vol: NDArray[np.bool_],
-                    offs: NDArray[np.int64] | list[NDArray[np.int64]]) -> NDArray[np.bool_]:
+def _sparse_closing(
+    vol: NDArray[np.bool_], offs: NDArray[np.int64] | list[NDArray[np.int64]]
+) -> NDArray[np.bool_]:
     """Binary closing (dilation then erosion) with a symmetric structuring element given by
     its offsets -- or by a list of offset sets whose Minkowski sum is the element --
     computed on the occupied voxels only (cost ∝ occupied voxels × element size, not grid
@@ -229,10 +242,16 @@ def _estimate_stem_radius(xyz: NDArray[np.float64], cell: float) -> float:
     return best if best > 0 else 2 * cell
 
 
-def preprocess_volume(counts: NDArray[np.integer], *, min_points: int = 1, min_size: int = 10,
-                      closing: str | int = "ball", closing_radius: float = 1,
-                      disc_radius: float | None = 0, fill_slices: bool = True
-                      ) -> tuple[NDArray[np.bool_], dict[str, int]]:
+def preprocess_volume(
+    counts: NDArray[np.integer],
+    *,
+    min_points: int = 1,
+    min_size: int = 10,
+    closing: str | int = "ball",
+    closing_radius: float = 1,
+    disc_radius: float | None = 0,
+    fill_slices: bool = True,
+) -> tuple[NDArray[np.bool_], dict[str, int]]:
     """Density threshold, small-component removal, binarisation and closings (step ii).
 
     ``closing``: ``"ball"`` (Euclidean ball of ``closing_radius`` voxels), ``6``, ``18`` or
@@ -269,12 +288,21 @@ def preprocess_volume(counts: NDArray[np.integer], *, min_points: int = 1, min_s
     return vol, stats
 
 
-_HALF = np.array([(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)
-                  if (dx, dy, dz) > (0, 0, 0)], dtype=np.int64)
+_HALF = np.array(
+    [
+        (dx, dy, dz)
+        for dx in (-1, 0, 1)
+        for dy in (-1, 0, 1)
+        for dz in (-1, 0, 1)
+        if (dx, dy, dz) > (0, 0, 0)
+    ],
+    dtype=np.int64,
+)
 
 
-def _adjacency26(ijk: NDArray[np.int64], shape: tuple[int, ...]
-                 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+def _adjacency26(
+    ijk: NDArray[np.int64], shape: tuple[int, ...]
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
     """26-adjacent pairs ``(rows, cols, weights 3/4/5)`` among voxels ``ijk`` (each pair
     once), by sorted linear keys and binary search -- cost ∝ voxels, not grid size."""
     n = ijk.shape[0]
@@ -301,9 +329,9 @@ def _components26(ijk: NDArray[np.int64], shape: tuple[int, ...]) -> NDArray[np.
     return connected_components(g, directed=False)[1]
 
 
-def _attach_fragments(ijk: NDArray[np.int64], lab: NDArray[np.int64], base: float,
-                      gap: float) -> tuple[NDArray[np.int64], NDArray[np.int64],
-                                           NDArray[np.float64], NDArray[np.bool_]]:
+def _attach_fragments(
+    ijk: NDArray[np.int64], lab: NDArray[np.int64], base: float, gap: float
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]]:
     """Join every skeleton component whose lowest voxel is more than ``base`` voxels above
     the lowest skeleton voxel (a fragment: no tree stands on it) to the nearest voxel of a
     rooted component, where the gap is supported (:func:`~biomorph.tree.neighbours.
@@ -342,14 +370,22 @@ def _attach_fragments(ijk: NDArray[np.int64], lab: NDArray[np.int64], base: floa
         cols += b[ok].tolist()
         wts += (3.0 * np.linalg.norm(pts[a[ok]] - pts[b[ok]], axis=1)).tolist()
         rooted[lab[a[ok]]] = True
-    return (np.asarray(rows, np.int64), np.asarray(cols, np.int64),
-            np.asarray(wts, np.float64), ~rooted[lab])
+    return (
+        np.asarray(rows, np.int64),
+        np.asarray(cols, np.int64),
+        np.asarray(wts, np.float64),
+        ~rooted[lab],
+    )
 
 
-def skeleton_graph(skel: NDArray[np.bool_], *, keep_largest: int | None = None,
-                   min_component_voxels: int = 1, bridge_gap: float = 0.0,
-                   base_height: float | None = None,
-                   ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+def skeleton_graph(
+    skel: NDArray[np.bool_],
+    *,
+    keep_largest: int | None = None,
+    min_component_voxels: int = 1,
+    bridge_gap: float = 0.0,
+    base_height: float | None = None,
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """Shortest-path forest over the 26-adjacent skeleton voxels (step iv, v).
 
     Returns ``(ijk[n,3], parent[n], component_rank[n])`` for the kept components; each
@@ -395,13 +431,12 @@ def skeleton_graph(skel: NDArray[np.bool_], *, keep_largest: int | None = None,
             g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
             ncomp, lab = connected_components(g, directed=False)
     if base_height is not None and ncomp > 1:
-        fr, fc, fw, drop = _attach_fragments(ijk, lab, float(base_height),
-                                             max(bridge_gap, 1.0))
+        fr, fc, fw, drop = _attach_fragments(ijk, lab, float(base_height), max(bridge_gap, 1.0))
         if fr.size:
             r, c, w = np.concatenate([r, fr]), np.concatenate([c, fc]), np.concatenate([w, fw])
             g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
         ncomp, lab = connected_components(g, directed=False)
-        if drop.any():                         # unattached fragments: below any size limit
+        if drop.any():  # unattached fragments: below any size limit
             lab = np.where(drop, ncomp, lab)
             ncomp += 1
     sizes = np.bincount(lab, minlength=ncomp)
@@ -410,7 +445,7 @@ def skeleton_graph(skel: NDArray[np.bool_], *, keep_largest: int | None = None,
     rank_order = np.argsort(-sizes, kind="stable")
     keep_comp = rank_order[sizes[rank_order] >= max(min_component_voxels, 1)]
     if keep_largest is not None:
-        keep_comp = keep_comp[:int(keep_largest)]
+        keep_comp = keep_comp[: int(keep_largest)]
     rank = np.full(ncomp, -1, dtype=np.int64)
     rank[keep_comp] = np.arange(keep_comp.size)
     keep = rank[lab] >= 0
@@ -424,8 +459,7 @@ def skeleton_graph(skel: NDArray[np.bool_], *, keep_largest: int | None = None,
     o = np.lexsort((d2, ijk[:, 2], lab))
     first = o[np.r_[True, lab[o][1:] != lab[o][:-1]]]
     roots = first[rank[lab[first]] >= 0]
-    _, pred, _ = dijkstra(g, directed=False, indices=roots, min_only=True,
-                       return_predecessors=True)
+    _, pred, _ = dijkstra(g, directed=False, indices=roots, min_only=True, return_predecessors=True)
     parent = np.where(pred < 0, -1, pred).astype(np.int64)
     sel = np.flatnonzero(keep)
     new = np.full(n, -1, dtype=np.int64)
@@ -456,8 +490,9 @@ def _inscribed_radius(vol: NDArray[np.bool_], ijk: NDArray[np.int64]) -> NDArray
 
 
 @numba.njit(cache=True)
-def _segment_start(parent: NDArray[np.int64], nch: NDArray[np.int64],
-                   order: NDArray[np.int64]) -> NDArray[np.int64]:
+def _segment_start(
+    parent: NDArray[np.int64], nch: NDArray[np.int64], order: NDArray[np.int64]
+) -> NDArray[np.int64]:
     """First node of each node's unbranched segment (a node whose parent is a fork, or a
     root), computed top-down in topological order."""
     out = np.arange(parent.shape[0])
@@ -482,7 +517,7 @@ def _prune_spurs(g: BranchGraph, min_length: float, rounds: int) -> BranchGraph:
         is_spur_seg = np.zeros(g.n_nodes, dtype=bool)
         tips = np.flatnonzero(leaf & (parent >= 0))
         st = seg_start[tips]
-        ok = (start_par[tips] >= 0)
+        ok = start_par[tips] >= 0
         ok &= nch[np.maximum(start_par[tips], 0)] >= 2
         ok &= seg_len[st] < min_length
         is_spur_seg[st[ok]] = True
@@ -509,18 +544,29 @@ def _extend_tips(g: BranchGraph, cell: float) -> BranchGraph:
     return g.with_(position=pos)
 
 
-def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # noqa: PLR0913
-                      min_points: int = 1, min_size: int = 3,
-                      closing: str | int | None = "ball", closing_radius: float = 1,
-                      disc_radius: float | None = None, fill_slices: bool = False,
-                      keep_largest: int | None = None, min_component_voxels: int = 10,
-                      bridge_gap: float | None = None,
-                      prune_length: float | None = None, prune_rounds: int = 2,
-                      smooth_iterations: int = 3, radius: bool = True,
-                      extend_tips: bool = True,
-                      full_symmetry: bool = False, max_disc_radius: float = 0.4,
-                      root_slice: float | None = 0.5,
-                      progress: Callable[[str], None] | None = None) -> VoxelSkeleton:
+def skeletonize_voxel(
+    cloud: PointCloud,
+    *,
+    cell_size: float | None = None,  # noqa: PLR0913
+    min_points: int = 1,
+    min_size: int = 3,
+    closing: str | int | None = "ball",
+    closing_radius: float = 1,
+    disc_radius: float | None = None,
+    fill_slices: bool = False,
+    keep_largest: int | None = None,
+    min_component_voxels: int = 10,
+    bridge_gap: float | None = None,
+    prune_length: float | None = None,
+    prune_rounds: int = 2,
+    smooth_iterations: int = 3,
+    radius: bool = True,
+    extend_tips: bool = True,
+    full_symmetry: bool = False,
+    max_disc_radius: float = 0.4,
+    root_slice: float | None = 0.5,
+    progress: Callable[[str], None] | None = None,
+) -> VoxelSkeleton:
     """Skeletonise a tree point cloud with the voxel method of Gorte & Pfeifer (2004).
 
     Parameters
@@ -578,13 +624,21 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
     if disc_radius is None:
         disc_radius = math.ceil(_estimate_stem_radius(cloud.xyz, cell) / cell) + 1
         disc_radius = min(disc_radius, max(1, math.floor(max_disc_radius / cell)))
-    vol, stats = preprocess_volume(counts, min_points=min_points, min_size=min_size,
-                                   closing=closing, closing_radius=closing_radius,
-                                   disc_radius=disc_radius, fill_slices=fill_slices)
+    vol, stats = preprocess_volume(
+        counts,
+        min_points=min_points,
+        min_size=min_size,
+        closing=closing,
+        closing_radius=closing_radius,
+        disc_radius=disc_radius,
+        fill_slices=fill_slices,
+    )
     if not vol.any():
-        raise InputError(f"{cloud.source or 'point cloud'}: no voxels left after removing "
-                         f"components smaller than {min_size} voxels (cell {cell:.3g} m); "
-                         "expected a connected tree -- lower min_size or raise cell_size")
+        raise InputError(
+            f"{cloud.source or 'point cloud'}: no voxels left after removing "
+            f"components smaller than {min_size} voxels (cell {cell:.3g} m); "
+            "expected a connected tree -- lower min_size or raise cell_size"
+        )
     check_not_only_leaves(cloud.xyz, cloud.source or "point cloud")
     t2 = time.perf_counter()
 
@@ -597,12 +651,18 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
     base = None
     if root_slice is not None:
         base = max(float(root_slice), 0.1 * float(np.ptp(cloud.xyz[:, 2]))) / cell
-    ijk, parent, comp = skeleton_graph(skel, keep_largest=keep_largest,
-                                       min_component_voxels=min_component_voxels,
-                                       bridge_gap=gap / cell, base_height=base)
+    ijk, parent, comp = skeleton_graph(
+        skel,
+        keep_largest=keep_largest,
+        min_component_voxels=min_component_voxels,
+        bridge_gap=gap / cell,
+        base_height=base,
+    )
     if ijk.shape[0] == 0:
-        raise InputError(f"{cloud.source or 'point cloud'}: no skeleton component has "
-                         f"{min_component_voxels} voxels or more; lower min_component_voxels")
+        raise InputError(
+            f"{cloud.source or 'point cloud'}: no skeleton component has "
+            f"{min_component_voxels} voxels or more; lower min_component_voxels"
+        )
     pos = origin + (ijk + 0.5) * cell
     rad = None
     if radius:
@@ -616,11 +676,23 @@ def skeletonize_voxel(cloud: PointCloud, *, cell_size: float | None = None,  # n
     if extend_tips and g.radius is not None:
         g = _extend_tips(g, cell)
     t4 = time.perf_counter()
-    timings = {"t1": t1 - t_start, "t2": t2 - t1, "t3": t3 - t2, "t4": t4 - t3,
-               "total": t4 - t_start}
-    grid = {"cell_size": cell, "origin": [float(v) for v in origin],
-            "shape": [int(s) for s in counts.shape], "disc_radius": float(disc_radius or 0),
-            "thinning_iterations": int(its), "skeleton_voxels": int(skel.sum()),
-            "graph_nodes_raw": int(n_raw), "graph_nodes": g.n_nodes,
-            "components": int(comp.max() + 1) if comp.size else 0, **stats}
+    timings = {
+        "t1": t1 - t_start,
+        "t2": t2 - t1,
+        "t3": t3 - t2,
+        "t4": t4 - t3,
+        "total": t4 - t_start,
+    }
+    grid = {
+        "cell_size": cell,
+        "origin": [float(v) for v in origin],
+        "shape": [int(s) for s in counts.shape],
+        "disc_radius": float(disc_radius or 0),
+        "thinning_iterations": int(its),
+        "skeleton_voxels": int(skel.sum()),
+        "graph_nodes_raw": int(n_raw),
+        "graph_nodes": g.n_nodes,
+        "components": int(comp.max() + 1) if comp.size else 0,
+        **stats,
+    }
     return VoxelSkeleton(graph=g, timings=timings, grid=grid)
