@@ -215,14 +215,12 @@ def check_memory(what: str, n_bytes: float) -> None:
 def _kill_children() -> None:
     """SIGKILL this process's descendants (batch workers, resource trackers): a hard exit
     must not leave them running or printing."""
-    try:
+    with contextlib.suppress(Exception):  # best effort on the way out
         import psutil
 
         for child in psutil.Process().children(recursive=True):
             with contextlib.suppress(Exception):
                 child.kill()
-    except Exception:  # noqa: BLE001 - best effort on the way out
-        pass
 
 
 def _hard_exit() -> None:

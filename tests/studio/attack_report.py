@@ -85,7 +85,7 @@ def browser_attacks(port: int, res: dict) -> None:
     page_bytes = evil_page(port)
 
     class Evil(http.server.BaseHTTPRequestHandler):
-        def do_GET(self):  # noqa: N802 - http.server's name
+        def do_GET(self):
             self.send_response(200)
             self.send_header("Content-Type", "text/html")
             self.end_headers()

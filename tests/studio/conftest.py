@@ -8,6 +8,7 @@ screenshot per tab (``studio_<tab>.png``) for the README.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import time
@@ -196,10 +197,8 @@ class Studio:
 
     def close_notifications(self) -> None:
         for btn in self.page.locator(".mantine-Notification-closeButton").all():
-            try:
+            with contextlib.suppress(Exception):  # already gone
                 btn.click(timeout=1000)
-            except Exception:  # noqa: BLE001 - already gone
-                pass
 
     def screenshot(self, tab: str) -> Path | None:
         """Full-page screenshot into $BIOMORPH_STUDIO_SCREENSHOTS (for the README) if set."""

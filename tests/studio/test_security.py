@@ -70,7 +70,7 @@ def shared_app(tmp_path_factory):
 class _Evil(http.server.BaseHTTPRequestHandler):
     page = b""
 
-    def do_GET(self):  # noqa: N802 - http.server's name
+    def do_GET(self):
         self.send_response(200)
         self.send_header("Content-Type", "text/html")
         self.end_headers()

@@ -17,6 +17,7 @@ numeric attributes become extra-bytes dimensions of their own dtype. Default sca
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 from typing import Any
@@ -347,7 +348,7 @@ def read_points(path: PathLike) -> PointCloud:
         UnicodeDecodeError,
     ) as exc:
         raise FormatError(path, f"not a readable LAS/LAZ file ({_short(exc)}){_where(p)}") from None
-    except Exception as exc:  # lazrs raises its own (pyo3) exception types
+    except Exception as exc:  # noqa: BLE001 - lazrs raises its own (pyo3) types
         raise FormatError(path, f"not a readable LAS/LAZ file ({_short(exc)}){_where(p)}") from None
     if xyz.shape[0] == 0:
         raise FormatError(path, "holds no points; expected at least one")
@@ -540,10 +541,9 @@ def write_points(
             )
         header.add_extra_dim(laspy.ExtraBytesParams(name=name, type=dtype))
     for vlr in meta.get("vlrs", []) or []:
-        try:
+        # a foreign VLR object is skipped: the coordinates are what matters
+        with contextlib.suppress(Exception):
             header.vlrs.append(vlr)
-        except Exception:  # pragma: no cover - a foreign VLR object; skip, coordinates matter
-            pass
     las = laspy.LasData(header)
     las.x = xyz[:, 0]
     las.y = xyz[:, 1]

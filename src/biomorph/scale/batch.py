@@ -136,7 +136,7 @@ def _call(func: Callable[[Any], Any], item: Any) -> tuple[bool, Any, float, str]
     t0 = time.perf_counter()
     try:
         result = func(item)
-    except Exception as exc:  # reported per item; the batch carries on
+    except Exception as exc:  # noqa: BLE001 - reported per item; the batch carries on
         return (
             False,
             f"{type(exc).__name__}: {exc}",
@@ -428,7 +428,7 @@ def _run_distributed(
             i = index[fut.key]
             try:
                 outcome = fut.result()
-            except Exception as exc:  # the worker died or the task was lost
+            except Exception as exc:  # noqa: BLE001 - the worker died or the task was lost
                 name = type(exc).__name__
                 msg = (
                     f"{name}: the worker process died while running this item "

@@ -289,8 +289,8 @@ class PreparedCloud:
 def prepare(
     cloud: PointCloud,
     *,
-    centre: bool = True,  # noqa: PLR0913
-    filter: dict[str, Any] | tuple | None = None,  # noqa: A002
+    centre: bool = True,
+    filter: dict[str, Any] | tuple | None = None,
     downsample: dict[str, Any] | float | None = None,
     outliers: bool | dict[str, Any] = True,
     ground: str | None = "auto",

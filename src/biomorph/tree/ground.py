@@ -149,7 +149,7 @@ def ground_surface_grid(
         try:
             lin = LinearNDInterpolator(pts[:, :2], pts[:, 2])
             h = lin(xyz[:, :2])
-        except Exception:  # degenerate triangulation (collinear candidates)
+        except Exception:  # noqa: BLE001 - degenerate triangulation (collinear candidates)
             h = np.full(xyz.shape[0], np.nan)
         bad = ~np.isfinite(h)
         if bad.any():

@@ -92,7 +92,7 @@ class CliField:
     short: str | None = None
 
 
-def _opt(default: Any, flag: str, help: str, **cli: Any) -> Any:  # noqa: A002
+def _opt(default: Any, flag: str, help: str, **cli: Any) -> Any:
     return field(default=default, metadata={"cli": CliField(flag, help, **cli)})
 
 
@@ -137,7 +137,7 @@ class PrepareOptions:
     """Cloud preparation (:func:`biomorph.tree.cloud.prepare`, foliage, clutter)."""
 
     centre: bool = True
-    filter: AttributeFilter | None = _opt(  # noqa: A003
+    filter: AttributeFilter | None = _opt(
         None,
         "--filter",
         "Keep points with attribute NAME <= MAX (NAME:MAX or NAME:MIN:MAX).",

@@ -484,7 +484,7 @@ def _surface_samples(
 def simulate_scan(
     truth: BranchGraph,
     *,
-    n_points: int = 20000,  # noqa: PLR0913, PLR0915
+    n_points: int = 20000,
     scanners: int = 3,
     noise: float = 0.005,
     occlusion: bool = True,

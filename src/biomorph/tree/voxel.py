@@ -547,7 +547,7 @@ def _extend_tips(g: BranchGraph, cell: float) -> BranchGraph:
 def skeletonize_voxel(
     cloud: PointCloud,
     *,
-    cell_size: float | None = None,  # noqa: PLR0913
+    cell_size: float | None = None,
     min_points: int = 1,
     min_size: int = 3,
     closing: str | int | None = "ball",

@@ -26,7 +26,7 @@ def read_gltf_summary(path: PathLike) -> dict[str, Any]:
         raise FormatError(path, "file does not exist")
     try:
         doc = g.GLTF2().load(os.fspath(p))
-    except Exception as exc:  # pygltflib raises many kinds on malformed input
+    except Exception as exc:  # noqa: BLE001 - pygltflib raises many kinds on bad input
         raise FormatError(
             path, f"not a readable glTF/GLB file ({type(exc).__name__}: {exc}); expected glTF 2.0"
         ) from None

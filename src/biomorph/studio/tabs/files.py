@@ -136,7 +136,7 @@ class FilesTab(StudioTab):
 
         try:
             mesh = trimesh.load(path, force="mesh")
-        except Exception as exc:  # noqa: BLE001 - any parser failure is a format error
+        except Exception as exc:
             raise FormatError(path, f"cannot read mesh: {exc}") from exc
         if len(mesh.faces) == 0:
             raise FormatError(path, "mesh has no faces")
