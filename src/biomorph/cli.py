@@ -88,6 +88,8 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    # plain click help: typer's rich help formatter costs ~0.1 s of start-up (bench/cli.py)
+    rich_markup_mode=None,
     help="Skeletons of living things: creatures, trees, motion, leaves.",
 )
 
@@ -175,6 +177,7 @@ def _add_pillar_apps() -> None:
     for pillar in PILLARS:
         mod = optional_module(pillar, "cli")
         if mod is not None:
+            mod.app.rich_markup_mode = None  # plain click help, as for the root (fast start)
             app.add_typer(mod.app, name=pillar)
     studio = optional_module("studio", "cli")
     if studio is not None:
