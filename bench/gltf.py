@@ -153,7 +153,7 @@ def _one_creature(args: tuple[int, str, bool]) -> tuple[float, int]:
     """(seconds, file bytes) for one seed: generate + ``write_glb`` (bone models, skin)."""
     seed, out, skin = args
     import biomorph.creature as bc
-    from biomorph.creature.export import write_glb
+    from biomorph.creature.exporters import write_glb
 
     t0 = time.perf_counter()
     path = write_glb(bc.generate(seed=seed), os.path.join(out, f"c{seed}.glb"), skin=skin)
@@ -242,7 +242,7 @@ def blender_bench(n: int) -> None:
     import subprocess
 
     import biomorph.creature as bc
-    from biomorph.creature.export import export
+    from biomorph.creature.exporters import export
     from biomorph.creature.rigify_setup import SCRIPT
 
     blender = shutil.which("blender")

@@ -189,3 +189,19 @@ def test_readme_layout_names_every_package_and_pillar_module():
             if path.stem not in block:
                 missing.append(f"{pillar}/{path.name}")
     assert not missing, f"README layout does not mention: {', '.join(missing)}"
+
+
+@pytest.mark.parametrize("package", ["core", "io", *PILLARS])
+def test_no_public_name_is_shadowed_by_a_submodule(package):
+    """A function exported under a submodule's name (``creature.export`` beside
+    ``creature/export.py``) is replaced by the module once anything imports that module."""
+    import importlib
+
+    mod = importlib.import_module(f"biomorph.{package}")
+    folder = PKG / package
+    clash = [
+        name
+        for name in getattr(mod, "__all__", [])
+        if (folder / f"{name}.py").exists() or (folder / name / "__init__.py").exists()
+    ]
+    assert not clash, f"biomorph.{package} exports {clash}, also submodule names"

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import biomorph.creature as bc
-from biomorph.creature.export import TO_GLTF, export, floor_bone_lengths
+from biomorph.creature.exporters import TO_GLTF, export, floor_bone_lengths
 
 BLENDER = shutil.which("blender")
 pytestmark = pytest.mark.skipif(

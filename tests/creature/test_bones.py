@@ -12,7 +12,7 @@ from biomorph.creature.bones import LODS, geometry, joint_meshes, world_mesh
 from biomorph.creature.bones import appendicular as ap
 from biomorph.creature.bones import axial as ax
 from biomorph.creature.bones.fit import parts_of
-from biomorph.creature.export import export
+from biomorph.creature.exporters import export
 from biomorph.errors import ParameterError
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from biomorph.cli import run
-from biomorph.creature.export import export
+from biomorph.creature.exporters import export
 from biomorph.creature.generator import generate
 
 

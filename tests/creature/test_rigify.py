@@ -8,7 +8,7 @@ import pygltflib
 import pytest
 
 import biomorph.creature as bc
-from biomorph.creature.export import TO_GLTF, export, floor_bone_lengths
+from biomorph.creature.exporters import TO_GLTF, export, floor_bone_lengths
 from biomorph.creature.rigify import build_metarig, retarget
 from biomorph.creature.walk import walk_cycle
 

@@ -61,7 +61,7 @@ def test_skin_weights_are_smooth_and_normalised(creature, dressed):
 
 
 def test_obj_with_skin_has_an_envelope_group(creature, tmp_path):
-    from biomorph.creature.export import export
+    from biomorph.creature.exporters import export
 
     plain = export(creature, tmp_path / "a.obj", lod=0).read_text()
     dressed = export(creature, tmp_path / "b.obj", lod=0, skin=True).read_text()

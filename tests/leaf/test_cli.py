@@ -288,10 +288,3 @@ def test_canopy_bad_numbers(tmp_path, capsys, args, match) -> None:
     assert run(["leaf", "canopy", *args, "-o", str(out)]) == 2
     assert match in capsys.readouterr().err
     assert not out.exists()
-
-
-def test_tables_output_that_is_an_input_is_refused(tmp_path, capsys):
-    dims = tmp_path / "dims.csv"
-    assert run(["leaf", "tables", "--dims", str(dims), "--phen", str(dims)]) == 2
-    assert "would be overwritten" in capsys.readouterr().err
-    assert not dims.exists()

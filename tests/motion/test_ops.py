@@ -11,7 +11,7 @@ from biomorph.core import transforms as tf
 from biomorph.errors import InputError, ParameterError
 from biomorph.io.bvh import read_bvh
 from biomorph.motion.align import dtw_path, local_maxima, peak_offset
-from biomorph.motion.blend import plan
+from biomorph.motion.blending import plan
 from biomorph.motion.equalizer import KERNEL, bands, equalize_signal
 from biomorph.motion.keys import parse_keys
 from biomorph.motion.synthetic import spin, walk
@@ -284,7 +284,7 @@ def test_equalizer_kernel_matches_numpy_reference(glast):
 def test_fused_blend_average_equals_reference(scales):
     """The fused sample-and-average kernel of N-clip blends equals sampling every clip on the
     whole timeline, stacking and averaging (the earlier path), to 1e-12."""
-    from biomorph.motion.blend import average_rotations
+    from biomorph.motion.blending import average_rotations
     from tests.motion.oracles import average_rotations_reference
 
     a = walk(300, 60, n_joints=12, noise_deg=2.0, seed=1)

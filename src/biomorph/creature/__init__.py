@@ -25,7 +25,7 @@ _LAZY = {
     "Creature": "creature",
     "SpeciesTable": "dataset",
     "load_species": "dataset",
-    "export": "export",
+    "export": "exporters",
     "STEPS": "options",
     "Options": "options",
     "Generator": "generator",

@@ -203,7 +203,7 @@ def generate(
     (``--pc 1=1.5 --pc 2=-0.8`` fixes the first two PCA component scores.)
     """
     from biomorph._cli import out_console, print_json
-    from biomorph.creature.export import check_extension, export
+    from biomorph.creature.exporters import check_extension, export
     from biomorph.creature.generator import Generator
     from biomorph.creature.mesh import SHAPES
 
@@ -256,7 +256,7 @@ def generate(
 
 def _batch_item(item: dict) -> dict:
     """Generate and write one chunk of seeds (module level so dask can pickle it)."""
-    from biomorph.creature.export import export
+    from biomorph.creature.exporters import export
     from biomorph.creature.generator import Generator, Options
 
     out = Path(item["out"])
@@ -290,7 +290,7 @@ def batch(
     Example: biomorph creature batch --count 10000 --out creatures --workers 2
     """
     from biomorph._cli import out_console, print_json
-    from biomorph.creature.export import check_extension
+    from biomorph.creature.exporters import check_extension
     from biomorph.scale.batch import run_batch
 
     ext = check_extension(f"x.{fmt.lstrip('.')}")

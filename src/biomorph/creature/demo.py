@@ -20,7 +20,7 @@ DEMO_SET = (
 
 def run_demo(out_dir: str | Path) -> list[Section]:
     """Generate the demo set, write GLB/BVH/JSON for each and the pictures; < 30 s."""
-    from biomorph.creature.export import export
+    from biomorph.creature.exporters import export
     from biomorph.creature.generator import generate
     from biomorph.creature.pca import SEED_SPECTRUM, fit_dataset, spectrum_summary
     from biomorph.creature.plots import pca_plot, side_by_side

@@ -704,8 +704,8 @@ def plant(
 
 @app.command()
 def tables(
-    dims: Annotated[Path, typer.Option("--dims", help="Write the dimension table here.")],
-    phen: Annotated[Path, typer.Option("--phen", help="Write the phenology table here.")],
+    dims: Annotated[str, typer.Option("--dims", help="Write the dimension table here.")],
+    phen: Annotated[str, typer.Option("--phen", help="Write the phenology table here.")],
     preset: Preset = "wheat",
     leaves: Annotated[int, typer.Option(help="Main-stem leaves.", callback=bounded(1, 60))] = 11,
     as_json: Json = False,

@@ -70,6 +70,8 @@ class LeafTimeline:
 
     Example
     -------
+    >>> from biomorph.leaf.growth import GrowthRates, LeafTimeline
+    >>> from biomorph.leaf.shape import LeafShape
     >>> tl = LeafTimeline(LeafShape.from_preset("wheat"), GrowthRates(age_rate=0.1), 10.0)
     >>> m = tl.mesh(5.0)        # mesh at t = 5 s
     """

@@ -19,8 +19,6 @@ import no numeric stack; ``Motion`` and its helpers live in :mod:`biomorph.core.
 """
 
 import importlib
-import sys
-import types
 from typing import Any
 
 _WHERE = {
@@ -33,7 +31,7 @@ _WHERE = {
     "to_y_up": "biomorph.core.motion",
     "transform_root": "biomorph.core.motion",
     "reorient": "biomorph.motion.align",
-    "blend": "biomorph.motion.blend",
+    "blend": "biomorph.motion.blending",
     "best_loop": "biomorph.motion.cycle",
     "make_cycle": "biomorph.motion.cycle",
     "Layer": "biomorph.motion.displacement",
@@ -61,17 +59,3 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
-
-
-class _Package(types.ModuleType):
-    """Keeps a lazily exported function when its same-named submodule loads: importing
-    ``biomorph.motion.blend`` sets the package attribute ``blend`` to the module, which
-    would shadow the function ``blend`` (the eager ``from … import`` used to overwrite it)."""
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if name in _WHERE and isinstance(value, types.ModuleType):
-            value = getattr(importlib.import_module(_WHERE[name]), name)
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package

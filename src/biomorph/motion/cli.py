@@ -424,7 +424,7 @@ def blend(
     Example: biomorph motion blend walk.bvh run.bvh -o walk2run.bvh --transition 40
     --align peaks --align-joint LeftUpLeg
     """
-    from biomorph.motion.blend import blend as bl
+    from biomorph.motion.blending import blend as bl
     from biomorph.motion.keys import parse_keys
     from biomorph.motion.partial import merge_below
 

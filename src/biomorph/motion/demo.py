@@ -21,7 +21,7 @@ def run_demo(out_dir: str | Path) -> list[Section]:
     import biomorph.motion as bm
     from biomorph.io.bvh import write_bvh
     from biomorph.motion import plots
-    from biomorph.motion.blend import plan
+    from biomorph.motion.blending import plan
     from biomorph.motion.synthetic import walk
     from biomorph.motion.timewarp import speed_values, time_warp
 

@@ -177,7 +177,7 @@ class MotionTab(StudioTab):
                 self.cycle_info = gui.add_markdown("")
         with gui.add_folder("Blend", expand_by_default=False):
             if _api("blend") is None:
-                gui.add_markdown("_waiting for `biomorph.motion.blend`_")
+                gui.add_markdown("_waiting for `biomorph.motion.blending`_")
                 self.blend_on = None
             else:
                 self.picker_b = FilePicker(
@@ -455,7 +455,7 @@ class MotionTab(StudioTab):
 
     def auto_align(self) -> None:
         """Place clip B so the last peak of A's plotted channel meets B's first peak."""
-        from biomorph.motion.blend import auto_offset
+        from biomorph.motion.blending import auto_offset
 
         a = self._need_clip()
         if self.clip_b is None:
