@@ -18,7 +18,6 @@ import warnings
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from biomorph.errors import ParameterError
 
@@ -190,6 +189,8 @@ def matrix_to_quat(m: ArrayLike) -> Array:
     """Unit quaternions (w >= 0) from 3x3 rotation matrices ``(..., 3, 3)``."""
     m = np.asarray(m, dtype=float)
     lead = m.shape[:-2]
+    from scipy.spatial.transform import Rotation  # lazy: scipy.spatial costs ~0.3 s to load
+
     q = Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat()
     q = np.where(q[:, 3:4] < 0, -q, q)
     return q.reshape(lead + (4,))
@@ -319,6 +320,8 @@ def quat_to_euler(q: ArrayLike, order: str, degrees: bool = False) -> Array:
         # at gimbal lock scipy picks one of the equivalent angle sets and warns; that
         # choice is fine for us (the rotation is exact) and the warning is noise to users
         warnings.filterwarnings("ignore", message="Gimbal lock detected")
+        from scipy.spatial.transform import Rotation
+
         eul = Rotation.from_quat(q.reshape(-1, 4)).as_euler(o, degrees=degrees)
     return eul.reshape(lead + (3,))
 
