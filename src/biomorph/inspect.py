@@ -23,9 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from biomorph.core.types import PathLike
 from biomorph.errors import UnsupportedFormatError, check_regular_file
-
-PathLike = str | os.PathLike[str]
 
 MESH_EXTENSIONS = {".obj", ".glb", ".gltf", ".stl", ".off"}
 MOTION_EXTENSIONS = {".bvh", ".htr", ".asf", ".amc"}

@@ -26,10 +26,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from biomorph.core.types import PathLike
 from biomorph.errors import InputError, ParameterError
 from biomorph.io.atomic import atomic_path
-
-PathLike = str | os.PathLike[str]
 
 #: screen-right, screen-up and toward-viewer axes of each orthographic view (Z-up frame)
 _VIEWS: dict[str, NDArray[np.float64]] = {

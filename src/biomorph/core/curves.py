@@ -12,12 +12,11 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.interpolate import CubicHermiteSpline, CubicSpline, PchipInterpolator
 
+from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
-
-Array = NDArray[np.float64]
 
 # 16-point Gauss–Legendre rule on [0, 1] for arc-length integrals of cubic segments
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(16)

@@ -43,9 +43,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from biomorph.core import transforms as tf
 from biomorph.core.skeleton import JointSkeleton
+from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
-
-Array = NDArray[np.float64]
 
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")

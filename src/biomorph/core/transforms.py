@@ -17,13 +17,12 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 
 EULER_ORDERS = ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX")
-
-Array = NDArray[np.float64]
 
 
 # --------------------------------------------------------------------------- 4x4 matrices

@@ -27,9 +27,8 @@ import os
 from pathlib import Path
 from typing import Any
 
+from biomorph.core.types import PathLike
 from biomorph.errors import FormatError, UnsupportedFormatError, check_regular_file
-
-PathLike = str | os.PathLike[str]
 
 POINT_FORMATS = {
     ".las": "las",

@@ -18,17 +18,15 @@ and those four id arrays.
 from __future__ import annotations
 
 import io
-import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from biomorph.core.mesh import Mesh
+from biomorph.core.types import PathLike
 from biomorph.errors import FormatError, ParameterError
 from biomorph.io.atomic import write_text
-
-PathLike = str | os.PathLike[str]
 
 _LIMITS = {"plant": 99999, "leaf": 999, "element": 999}
 

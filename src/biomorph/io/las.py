@@ -26,10 +26,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.pointcloud import PointCloud
+from biomorph.core.types import PathLike
 from biomorph.errors import FormatError, InputError
 from biomorph.io.atomic import atomic_path
-
-PathLike = str | os.PathLike[str]
 
 _COORD_DIMS = {"X", "Y", "Z", "x", "y", "z"}
 

@@ -10,16 +10,14 @@ test static stability: drop it on a plane, simulate, and see whether it tips ove
 
 from __future__ import annotations
 
-import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
+from biomorph.core.types import PathLike
 from biomorph.errors import InputError
 from biomorph.io.atomic import write_text
-
-PathLike = str | os.PathLike[str]
 
 
 def _vec(v) -> str:

@@ -38,10 +38,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.graph import BranchGraph
+from biomorph.core.types import PathLike
 from biomorph.errors import FormatError, InputError
 from biomorph.io.atomic import write_text
-
-PathLike = str | os.PathLike[str]
 
 _STEP = re.compile(r"([/<+])([A-Za-z$])(\d*)")
 

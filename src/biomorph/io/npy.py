@@ -18,10 +18,9 @@ from typing import Any
 import numpy as np
 
 from biomorph.core.pointcloud import PointCloud
+from biomorph.core.types import PathLike
 from biomorph.errors import FormatError, InputError
 from biomorph.io.atomic import atomic_path
-
-PathLike = str | os.PathLike[str]
 
 
 def read_points(path: PathLike) -> PointCloud:

@@ -10,7 +10,6 @@ float representation, so a read-back is bit-identical.
 
 from __future__ import annotations
 
-import os
 import re
 from pathlib import Path
 from typing import Any
@@ -19,10 +18,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.mesh import Mesh
+from biomorph.core.types import PathLike
 from biomorph.errors import BiomorphError, FormatError, InputError
 from biomorph.io.atomic import write_text
-
-PathLike = str | os.PathLike[str]
 
 
 def _rows(fmt: str, columns: list[NDArray]) -> str:

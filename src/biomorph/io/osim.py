@@ -11,17 +11,15 @@ rest orientation as body-fixed XYZ Euler angles (radians), as OpenSim expects.
 
 from __future__ import annotations
 
-import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from biomorph.core.types import PathLike
 from biomorph.errors import FormatError, InputError
 from biomorph.io.atomic import write_text
-
-PathLike = str | os.PathLike[str]
 
 
 def _vec(v) -> str:

@@ -38,16 +38,15 @@ error names the file, line, column and value.
 from __future__ import annotations
 
 import csv
-import os
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
+from biomorph.core.types import PathLike
 from biomorph.errors import FormatError, InputError
 from biomorph.io.atomic import write_text
 
-PathLike = str | os.PathLike[str]
 Table = dict[str, NDArray[np.float64]]
 
 DIM_COLUMNS = ("rank", "L_blade", "W_blade", "L_sheath", "W_sheath", "L_internode", "W_internode")

@@ -30,10 +30,9 @@ from numpy.typing import NDArray
 from biomorph.core.graph import BranchGraph
 from biomorph.core.mesh import Mesh
 from biomorph.core.pointcloud import PointCloud
+from biomorph.core.types import PathLike
 from biomorph.errors import BiomorphError, FormatError, InputError
 from biomorph.io.atomic import atomic_path
-
-PathLike = str | os.PathLike[str]
 
 _GRAPH_FIELDS = ("radius", "depth", "tree_id", "weight")
 

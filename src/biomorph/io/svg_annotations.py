@@ -17,16 +17,15 @@ creature pillar: :func:`biomorph.creature.dataset.annotations.species_row`.
 
 from __future__ import annotations
 
-import os
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
+from biomorph.core.types import PathLike
 from biomorph.errors import FormatError
 
-PathLike = str | os.PathLike[str]
 SPINE = ("neck", "back", "tail")
 LIMBS = ("upper_arm", "lower_arm", "hand", "upper_leg", "lower_leg", "foot")
 _INK = "{http://www.inkscape.org/namespaces/inkscape}label"

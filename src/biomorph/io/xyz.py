@@ -42,11 +42,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.pointcloud import PointCloud
+from biomorph.core.types import PathLike
 from biomorph.errors import FormatError, InputError
 from biomorph.io._fixed import emit_fixed
 from biomorph.io.atomic import write_bytes
-
-PathLike = str | os.PathLike[str]
 
 _NUMBER = re.compile(
     r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$", re.IGNORECASE

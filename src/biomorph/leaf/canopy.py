@@ -30,12 +30,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.mesh import Mesh
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 from biomorph.leaf.age import MIN_RELATIVE_LENGTH
 from biomorph.leaf.mesh import LeafBatch, concat_batches, mesh_batch, rest_on_soil
 from biomorph.leaf.shape import LeafShape, check_age
-
-Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -14,13 +14,10 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
+from biomorph.core.types import Array, PathLike
 from biomorph.errors import FormatError
 from biomorph.leaf.shape import LeafShape, MidribCollection
-
-Array = NDArray[np.float64]
-PathLike = str | os.PathLike[str]
 
 #: Environment variable naming the shared data folder (the one holding ``leaves/``).
 DATA_ENV = "BIOMORPH_SHARED_DATA"

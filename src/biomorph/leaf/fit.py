@@ -23,11 +23,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
 from biomorph.core.curves import integrate_angles
-
-Array = NDArray[np.float64]
+from biomorph.core.types import Array
 
 #: Arc-length fractions at which midribs are compared.
 COMPARE_S = np.linspace(0.0, 1.0, 101)

@@ -48,9 +48,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.mesh import Mesh
+from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
-
-Array = NDArray[np.float64]
 
 
 # --------------------------------------------------------------------------- options

@@ -21,10 +21,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from biomorph.core.curves import integrate_angles
 from biomorph.core.mesh import Mesh
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 from biomorph.leaf.age import state_at_age
-
-Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)

@@ -48,13 +48,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.mesh import Mesh
+from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
 from biomorph.leaf.canopy import Field, LeafCountWarning, batch_from_field, lod_samples
 from biomorph.leaf.mesh import mesh_batch
 from biomorph.leaf.shape import LeafShape, class_of_rank
 from biomorph.leaf.thermal import ThermalTime
 
-Array = NDArray[np.float64]
 Table = dict[str, Array]
 
 GREEN = (62, 130, 45, 255)

@@ -22,12 +22,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 from biomorph.leaf.shape import LeafShape
-
-Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

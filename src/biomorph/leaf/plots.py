@@ -3,7 +3,6 @@ figure 6), and leaf/canopy previews. Headless matplotlib (Agg); files written at
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -11,9 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from biomorph.core.mesh import Mesh
+from biomorph.core.types import PathLike
 from biomorph.io.atomic import atomic_path
-
-PathLike = str | os.PathLike[str]
 
 
 def _plt():

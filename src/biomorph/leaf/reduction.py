@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 
 from biomorph.core.curves import integrate_angles
 from biomorph.core.mesh import Mesh
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 from biomorph.leaf.age import state_at_age, visible_area
 from biomorph.leaf.mesh import (
@@ -45,8 +46,6 @@ from biomorph.leaf.mesh import (
     mesh_batch,
     split_boundary_edge,
 )
-
-Array = NDArray[np.float64]
 
 
 # --------------------------------------------------------------------------- numba core

@@ -31,7 +31,7 @@ from importlib import resources
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from biomorph.core.curves import (
     angles_from_points,
@@ -39,10 +39,9 @@ from biomorph.core.curves import (
     midrib_arc_length,
     solve_arc_length,
 )
+from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
 from biomorph.leaf.age import EXTENSION_END, check_age
-
-Array = NDArray[np.float64]
 
 PRESET_NAMES = ("maize", "wheat", "grass")
 

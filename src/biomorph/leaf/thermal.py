@@ -31,9 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
-
-Array = NDArray[np.float64]
 
 #: (base temperature °C, phyllochron °Cd) per preset; see the module docstring.
 DEFAULTS = {"wheat": (0.0, 100.0), "maize": (8.0, 50.0), "grass": (0.0, 100.0)}

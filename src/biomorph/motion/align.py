@@ -22,9 +22,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from biomorph.core import transforms as tf
 from biomorph.core.motion import Motion, to_y_up, transform_root
+from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
 
-Array = NDArray[np.float64]
 _UP = {"x": 0, "y": 1, "z": 2}
 
 

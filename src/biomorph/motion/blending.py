@@ -29,9 +29,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from biomorph.core.motion import Motion, frozen, same_skeleton, sample_arrays, sample_linear
+from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
 from biomorph.motion._kernels import blend_average_sampled, blend_slerp, ro, ro_int
 from biomorph.motion.align import (
@@ -43,8 +44,6 @@ from biomorph.motion.align import (
     pose_features,
 )
 from biomorph.motion.keys import Curve, Keys, curve_from_keys, smoothstep
-
-Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -45,9 +45,9 @@ from numpy.typing import NDArray
 
 from biomorph.core import transforms as tf
 from biomorph.core.motion import Motion, frozen, guess_up_axis
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 
-Array = NDArray[np.float64]
 _UP = {"x": 0, "y": 1, "z": 2}
 
 

@@ -21,10 +21,10 @@ velocity distance between the loop's first frame and the frame after its end.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from biomorph.core import transforms as tf
 from biomorph.core.motion import Motion, check_range, concatenate
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 from biomorph.motion.align import (
     _forward_axis,
@@ -34,8 +34,6 @@ from biomorph.motion.align import (
     transform_root,
 )
 from biomorph.motion.keys import smoothstep
-
-Array = NDArray[np.float64]
 
 
 def _offset_transform(seg: Motion, p: int, up: str) -> tuple[Array, Array, Array]:

@@ -28,16 +28,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from biomorph.core import transforms as tf
 from biomorph.core.motion import Motion, frozen
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 from biomorph.motion.align import reorient, transform_root
 from biomorph.motion.keys import Keys, key_arrays
 
-Array = NDArray[np.float64]
 KINDS = ("rotation", "position")
 
 

@@ -73,10 +73,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from biomorph.core.motion import Motion, frozen
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 from biomorph.motion._kernels import equalize_rotations, equalize_rows, lowpass_into, ro
 
-Array = NDArray[np.float64]
 KERNEL = np.array([1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16])
 DEFAULT_GAINS = (1.0, 1.0, 1.0, 1.0, 1.0)
 BOUNDARIES = ("edge", "reflect")

@@ -12,12 +12,12 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from biomorph.core.curves import MonotoneSpline, NaturalCubicSpline
+from biomorph.core.types import Array
 from biomorph.errors import FormatError, ParameterError
 
-Array = NDArray[np.float64]
 Keys = Sequence[tuple[float, ArrayLike]] | Mapping[float, ArrayLike]
 Curve = Callable[[ArrayLike], Array]
 

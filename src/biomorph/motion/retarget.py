@@ -34,15 +34,13 @@ import os
 
 import numpy as np
 from numba import njit
-from numpy.typing import NDArray
 
 from biomorph.core import transforms as tf
 from biomorph.core.motion import Motion, _qmul, fk_positions, frozen, ro, ro_int
 from biomorph.core.skeleton import JointSkeleton
+from biomorph.core.types import Array
 from biomorph.errors import InputError
 from biomorph.motion import names as nm
-
-Array = NDArray[np.float64]
 
 
 def _rest_world(sk: JointSkeleton) -> tuple[Array, Array]:

@@ -16,15 +16,14 @@
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from biomorph.core import transforms as tf
 from biomorph.core.motion import Motion, frozen, transform_root
 from biomorph.core.skeleton import JointSkeleton
+from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
 from biomorph.motion.align import _up_index, heading
-
-Array = NDArray[np.float64]
 
 
 def _yaw_quat(angle: Array, ui: int) -> Array:

@@ -11,13 +11,11 @@ every integer ``τ`` up to ``τ(f-1)``, sampled from the original at ``t = τ⁻
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from biomorph.core.motion import Motion
+from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 from biomorph.motion.keys import Curve, Keys, curve_from_keys
-
-Array = NDArray[np.float64]
 
 
 def speed_values(motion: Motion, speed: Keys | float | Curve) -> Array:

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -52,7 +51,7 @@ __all__ = [
     "FORMATS",
 ]
 
-PathLike = str | os.PathLike[str]
+from biomorph.core.types import PathLike
 
 FORMATS = ("ply", "mtg", "glb", "obj", "mesh_ply", "csv", "las", "trees", "json", "png")
 

@@ -15,7 +15,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +26,7 @@ from biomorph.errors import FormatError
 
 __all__ = ["read_qsm_csv", "read_reference", "compare_to_reference", "radius_profile"]
 
-PathLike = str | os.PathLike[str]
+from biomorph.core.types import PathLike
 
 
 def _columns(path: PathLike) -> tuple[list[str], NDArray[np.float64]]:

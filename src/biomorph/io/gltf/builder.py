@@ -4,7 +4,6 @@ atomic save (GLB chunks or JSON with an embedded base64 buffer)."""
 from __future__ import annotations
 
 import json
-import os
 import struct
 from pathlib import Path
 from typing import Any
@@ -12,9 +11,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from biomorph.core.types import PathLike
 from biomorph.io.atomic import atomic_path
-
-PathLike = str | os.PathLike[str]
 
 ARRAY_BUFFER = 34962
 ELEMENT_ARRAY_BUFFER = 34963
