@@ -34,12 +34,12 @@ def layer_of(module: str) -> int:
         return 0
     if top == "io":
         return 1
-    if top in ("_cli", "render", "report", "inspect", "pillars", "plotting"):
+    if top in ("_cli", "render", "report", "pillars"):
         return 2
     if top in PILLARS:
         # a pillar's command group and demo are front ends that live with their pillar
         return 4 if len(parts) > 2 and parts[2] in ("cli", "demo") else 3
-    if top in ("cli", "demo", "foundation_demo", "studio", "scale", "__main__"):
+    if top in ("cli", "demo", "foundation_demo", "inspect", "studio", "scale", "__main__"):
         return 4
     raise AssertionError(f"module {module} has no layer: add it to tests/test_layers.py")
 
@@ -87,8 +87,9 @@ def imports_of(module: str) -> list[tuple[str, int]]:
                 prefix = ".".join(base + ([node.module] if node.module else []))
             else:
                 prefix = node.module or ""
+            # ``from pkg import mod`` runs ``pkg/__init__`` too: an edge to both
             subs = [f"{prefix}.{a.name}" for a in node.names]
-            names = [n if n in MODULES else prefix for n in subs]
+            names = [prefix] + [n for n in subs if n in MODULES]
         for name in names:
             if name == "biomorph" or name.startswith("biomorph."):
                 target = _resolve(name)

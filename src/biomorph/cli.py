@@ -150,7 +150,7 @@ def render(
 
     Example: biomorph render skeleton.ply -o preview.png
     """
-    from biomorph.render import render_file
+    from biomorph.inspect import render_file
 
     out = render_file(path, output, up=up)
     out_console.print(f"wrote {out}")

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from biomorph.core.types import PathLike
-from biomorph.errors import UnsupportedFormatError, check_regular_file
+from biomorph.errors import ParameterError, UnsupportedFormatError, check_regular_file
 
 MESH_EXTENSIONS = {".obj", ".glb", ".gltf", ".stl", ".off"}
 MOTION_EXTENSIONS = {".bvh", ".htr", ".asf", ".amc"}
@@ -282,7 +282,36 @@ def describe(path: PathLike) -> dict[str, Any]:
     return head | describe_mesh(obj)
 
 
+def render_file(path: PathLike, out_png: PathLike, up: str | None = None) -> Path:
+    """Render any file biomorph reads (kind by extension / PLY header) to ``out_png``.
+
+    ``up`` defaults to ``"z"`` for clouds, graphs and meshes (``"y"`` for glTF, whose spec is
+    Y-up) and to the guessed up axis for motion."""
+    from biomorph.render import render_cloud, render_graph, render_mesh, render_motion
+
+    out = Path(out_png)
+    if out.suffix.lower() != ".png":
+        raise ParameterError(f"output {os.fspath(out_png)!r} must end with .png")
+    kind, obj = load(path)
+    name = Path(path).name
+    if kind == "points":
+        return render_cloud(obj, out, up=up or "z", title=f"{name}: {obj.n_points:,} points")
+    if kind == "graph":
+        return render_graph(
+            obj,
+            out,
+            up=up or "z",
+            title=f"{name}: {obj.n_nodes:,} nodes, {obj.leaves.size:,} tips, "
+            f"{obj.total_length:.2f} m",
+        )
+    if kind == "motion":
+        return render_motion(obj, out, up=up)
+    default_up = "y" if Path(path).suffix.lower() in (".glb", ".gltf") else "z"
+    return render_mesh(obj, out, up=up or default_up)
+
+
 __all__ = [
+    "render_file",
     "describe",
     "file_kind",
     "load",

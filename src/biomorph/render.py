@@ -12,8 +12,11 @@ seeded subset of their faces.
 
 Example
 -------
->>> from biomorph.render import render_file                        # doctest: +SKIP
+>>> from biomorph.inspect import render_file   # any file by kind  # doctest: +SKIP
 >>> render_file("scan.laz", "preview.png")                         # doctest: +SKIP
+
+``figure``/``subplots``/``save_png`` are pyplot's helpers on matplotlib's ``Figure`` API for
+the pillars' plots: no global backend or pyplot state is touched.
 """
 
 from __future__ import annotations
@@ -439,32 +442,33 @@ def render_mesh(
     return _draw(_Scene(triangles=[(tri, colors)]), out_png, label)
 
 
-def render_file(path: PathLike, out_png: PathLike, up: str | None = None) -> Path:
-    """Render any file biomorph reads (kind by extension / PLY header) to ``out_png``.
+# --------------------------------------------------------------------------- Figure API
+_FIG_KW = ("figsize", "dpi", "layout", "constrained_layout", "tight_layout", "facecolor")
 
-    ``up`` defaults to ``"z"`` for clouds, graphs and meshes (``"y"`` for glTF, whose spec is
-    Y-up) and to the guessed up axis for motion."""
-    from biomorph.inspect import load
 
-    out = Path(out_png)
-    if out.suffix.lower() != ".png":
-        raise ParameterError(f"output {os.fspath(out_png)!r} must end with .png")
-    kind, obj = load(path)
-    name = Path(path).name
-    if kind == "points":
-        return render_cloud(obj, out, up=up or "z", title=f"{name}: {obj.n_points:,} points")
-    if kind == "graph":
-        return render_graph(
-            obj,
-            out,
-            up=up or "z",
-            title=f"{name}: {obj.n_nodes:,} nodes, {obj.leaves.size:,} tips, "
-            f"{obj.total_length:.2f} m",
-        )
-    if kind == "motion":
-        return render_motion(obj, out, up=up)
-    default_up = "y" if Path(path).suffix.lower() in (".glb", ".gltf") else "z"
-    return render_mesh(obj, out, up=up or default_up)
+def figure(**kw: Any) -> Any:
+    """A new ``Figure`` (``figsize``, ``dpi``, ``layout`` … as for ``pyplot.figure``)."""
+    from matplotlib.figure import Figure
+
+    return Figure(**{k: v for k, v in kw.items() if k in _FIG_KW})
+
+
+def subplots(nrows: int = 1, ncols: int = 1, **kw: Any) -> tuple[Any, Any]:
+    """``(fig, axes)`` like ``pyplot.subplots``, without pyplot."""
+    fig = figure(**kw)
+    axes = fig.subplots(nrows, ncols, **{k: v for k, v in kw.items() if k not in _FIG_KW})
+    return fig, axes
+
+
+def close(fig: Any) -> None:
+    """Nothing to release: a ``Figure`` outside pyplot is freed with its last reference."""
+
+
+def save_png(fig: Any, path: PathLike, dpi: int = 110, **kw: Any) -> Path:
+    """Write ``fig`` as PNG through a temporary file and rename (no partial file)."""
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi, **kw)
+    return Path(path)
 
 
 __all__ = [
@@ -473,5 +477,8 @@ __all__ = [
     "render_skeleton",
     "render_mesh",
     "render_motion",
-    "render_file",
+    "close",
+    "figure",
+    "save_png",
+    "subplots",
 ]

@@ -24,9 +24,9 @@ from biomorph.io.atomic import atomic_path
 
 def _plt():
     """Figure-API stand-in for pyplot (no global backend or state): subplots/figure/close."""
-    from biomorph import plotting
+    from biomorph import render
 
-    return plotting
+    return render
 
 
 def _save(fig, path: str | os.PathLike[str]) -> Path:

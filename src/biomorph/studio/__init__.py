@@ -13,18 +13,17 @@ The names load lazily, so ``biomorph studio --help`` imports no numeric stack.
 
 from __future__ import annotations
 
+import importlib
 from typing import Any
 
-__all__ = ["Sandbox", "SandboxError", "StudioApp"]
+_WHERE = {"StudioApp": "server", "Sandbox": "sandbox", "SandboxError": "sandbox"}
+__all__ = sorted(_WHERE)
 
 
 def __getattr__(name: str) -> Any:
-    if name == "StudioApp":
-        from biomorph.studio.server import StudioApp
-
-        return StudioApp
-    if name in ("Sandbox", "SandboxError"):
-        from biomorph.studio import sandbox
-
-        return getattr(sandbox, name)
-    raise AttributeError(f"module 'biomorph.studio' has no attribute {name!r}")
+    mod = _WHERE.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'biomorph.studio' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"biomorph.studio.{mod}"), name)
+    globals()[name] = value
+    return value

@@ -29,6 +29,17 @@ Levels of detail: ``lod`` 0 (5-sided rings), 1 (8, default), 2 (14). Unit models
 
 from __future__ import annotations
 
-from biomorph.creature.bones.fit import LODS, SHAPES, geometry, joint_meshes, world_mesh
+import importlib
+from typing import Any
 
+# lazy, as every package here: the models load with the first name used (and the unit-model
+# modules never import this package back)
 __all__ = ["SHAPES", "LODS", "geometry", "joint_meshes", "world_mesh"]
+
+
+def __getattr__(name: str) -> Any:
+    if name not in __all__:
+        raise AttributeError(f"module 'biomorph.creature.bones' has no attribute {name!r}")
+    value = getattr(importlib.import_module("biomorph.creature.bones.fit"), name)
+    globals()[name] = value
+    return value

@@ -12,11 +12,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+import biomorph.creature.bones.appendicular as ap
+import biomorph.creature.bones.axial as ax
 from biomorph.core.mesh import Mesh
 from biomorph.creature import skulls
 from biomorph.creature.anatomy import limb_parts
-from biomorph.creature.bones import appendicular as ap
-from biomorph.creature.bones import axial as ax
 from biomorph.creature.creature import Creature
 from biomorph.errors import ParameterError
 

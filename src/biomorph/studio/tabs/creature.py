@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
+import biomorph.studio.draw as draw
 from biomorph.errors import InputError
-from biomorph.studio import draw
 from biomorph.studio.base import StudioTab, plain
 from biomorph.studio.widgets import ExportRow
 

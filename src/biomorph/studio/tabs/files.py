@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
+import biomorph.studio.draw as draw
 from biomorph.errors import FormatError, UnsupportedFormatError
-from biomorph.studio import draw
 from biomorph.studio.base import StudioTab, plain
 
 NO_FILE = "(no files in the data folder)"

@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
+import biomorph.studio.draw as draw
 from biomorph.errors import BiomorphError, InputError
-from biomorph.studio import draw
 from biomorph.studio.base import StudioTab, plain
 from biomorph.studio.widgets import ExportRow, FilePicker
 
