@@ -30,7 +30,6 @@ time, so ``biomorph --help`` stays fast.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import json
 import math
 import os
@@ -44,6 +43,7 @@ from typing import Any
 
 from rich.console import Console
 
+from biomorph.core.jsonable import dumps, to_jsonable
 from biomorph.errors import ParameterError, UnsupportedFormatError, require_memory
 
 err_console = Console(stderr=True, soft_wrap=True, highlight=False)
@@ -69,41 +69,6 @@ INTERRUPT_LINE = "interrupted; no partial output was written"
 EXIT_INTERRUPTED = 130
 #: seconds between the first Ctrl-C and the watchdog's hard exit
 INTERRUPT_GRACE = 0.5
-
-
-def to_jsonable(obj: Any) -> Any:
-    """``obj`` with numpy values, paths, sets, tuples and dataclasses turned into JSON types.
-
-    Non-finite floats become ``None`` so the output is strict JSON (``allow_nan=False``).
-
-    >>> to_jsonable({"a": float("nan"), "b": (1, 2.5)})
-    {'a': None, 'b': [1, 2.5]}
-    """
-    if isinstance(obj, Mapping):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple | set | frozenset):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, bool) or obj is None or isinstance(obj, str | int):
-        return obj
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, os.PathLike):
-        return os.fspath(obj)
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return to_jsonable({f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)})
-    if "numpy" in sys.modules:
-        import numpy as np
-
-        if isinstance(obj, np.ndarray):
-            return to_jsonable(obj.tolist())
-        if isinstance(obj, np.generic):
-            return to_jsonable(obj.item())
-    return obj
-
-
-def dumps(data: Any, indent: int | None = 2) -> str:
-    """Strict JSON text of ``data`` (through :func:`to_jsonable`)."""
-    return json.dumps(to_jsonable(data), indent=indent, allow_nan=False)
 
 
 def print_json(data: Any) -> None:

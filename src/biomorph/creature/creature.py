@@ -7,7 +7,6 @@ keep local Z lateral, limb frames follow the limb (Z is the flexion axis).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -15,6 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from biomorph.core.jsonable import dumps, to_jsonable
 from biomorph.core.skeleton import JointSkeleton
 from biomorph.creature.balance import BalanceReport
 
@@ -165,7 +165,7 @@ class Creature:
         return {
             "format": "biomorph-creature",
             "version": 1,
-            "params": _jsonable(self.params),
+            "params": to_jsonable(self.params),
             "n_joints": len(sk),
             "height_m": self.height,
             "length_m": self.length,
@@ -194,20 +194,8 @@ class Creature:
         }
 
 
-def _jsonable(o: Any) -> Any:
-    if isinstance(o, dict):
-        return {str(k): _jsonable(v) for k, v in o.items()}
-    if isinstance(o, list | tuple):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    return o
-
-
 def write_json(path, creature: Creature):
     """Write ``creature.to_dict()`` as JSON (atomically)."""
     from biomorph.io.atomic import write_text
 
-    return write_text(path, json.dumps(creature.to_dict(), indent=1))
+    return write_text(path, dumps(creature.to_dict(), indent=1))

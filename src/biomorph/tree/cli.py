@@ -217,9 +217,9 @@ def evaluate(
 
     Example: biomorph tree evaluate out/skeleton.ply --truth synth/truth.ply --json
     """
+    from biomorph.core.jsonable import to_jsonable
     from biomorph.io import read_graph, read_points
     from biomorph.tree.metrics import compare_to_truth, skeleton_metrics
-    from biomorph.tree.pipeline import _jsonable
 
     g = read_graph(skeleton)
     pc = read_points(cloud) if cloud is not None else None
@@ -227,7 +227,7 @@ def evaluate(
     if truth is not None:
         res["truth"] = str(truth)
         res["comparison"] = compare_to_truth(g, read_graph(truth), tolerance, cloud=pc)
-    res = _jsonable(res)
+    res = to_jsonable(res)
     if as_json:
         from biomorph._cli import print_json
 

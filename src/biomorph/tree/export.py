@@ -225,9 +225,9 @@ def write_summary(path: PathLike, skel: Any, extra: dict | None = None) -> Path:
     """Write ``skel.summary()`` (plus ``extra``) as pretty JSON."""
     data = skel.summary() if hasattr(skel, "summary") else {}
     if extra:
-        from biomorph.tree.pipeline import _jsonable
+        from biomorph.core.jsonable import to_jsonable
 
-        data.update(_jsonable(extra))
+        data.update(to_jsonable(extra))
     return write_text(path, json.dumps(data, indent=2, allow_nan=False) + "\n")
 
 

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.graph import BranchGraph
+from biomorph.core.jsonable import to_jsonable
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 from biomorph.tree.options import (
@@ -94,7 +95,7 @@ class TreeSkeleton:
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary: method, metrics, parameters, timings, info, offset."""
-        return _jsonable(
+        return to_jsonable(
             {
                 "method": self.method,
                 "metrics": self.metrics,
@@ -104,22 +105,6 @@ class TreeSkeleton:
                 "offset": self.offset,
             }
         )
-
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    if isinstance(obj, os.PathLike):
-        return os.fspath(obj)
-    return obj
 
 
 def load_cloud(cloud: PointCloud | str | os.PathLike | NDArray) -> PointCloud:
