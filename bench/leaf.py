@@ -314,36 +314,8 @@ def maize_lai_table(quick: bool) -> None:
         print(f"| {dens:g} | 0.75 | {spec.plants} | {leaf_area_index(fld, m):.2f} | 3–5 |")
 
 
-def _turbid(lai, size, leaf, seed, horizontal):
-    from biomorph.core.mesh import Mesh
-
-    rng = np.random.default_rng(seed)
-    n = int(round(lai * size * size / leaf**2))
-    c = np.column_stack(
-        [rng.uniform(0, size, n), rng.uniform(0, size, n), rng.uniform(0.2, 1.2, n)]
-    )
-    sq = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]]) * leaf
-    if horizontal:
-        rot = np.broadcast_to(np.eye(3), (n, 3, 3))
-    else:
-        q = rng.standard_normal((n, 4))
-        q /= np.linalg.norm(q, axis=1, keepdims=True)
-        w, x, y, z = q.T
-        rot = np.stack(
-            [
-                np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-                np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-                np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-            ],
-            1,
-        )
-    v = (np.einsum("nij,kj->nki", rot, sq) + c[:, None]).reshape(-1, 3)
-    f = (np.array([[0, 1, 2], [0, 2, 3]])[None] + 4 * np.arange(n)[:, None, None]).reshape(-1, 3)
-    return Mesh(v, f)
-
-
 def beer_lambert_table() -> None:
-    from biomorph.leaf.light import LightOptions, intercept
+    from biomorph.leaf.light import LightOptions, intercept, turbid_canopy
 
     print(
         "\n### Gap fraction vs Beer–Lambert, random turbid canopies (1 m² periodic tile, "
@@ -360,7 +332,7 @@ def beer_lambert_table() -> None:
     for lai in (0.5, 1.0, 2.0, 3.0, 5.0):
         diffs = []
         for hz in (True, False):
-            m = _turbid(lai, 1.0, 0.015, int(10 * lai) + hz, hz)
+            m = turbid_canopy(lai, 1.0, 0.015, int(10 * lai) + hz, hz)
             r = intercept(m, LightOptions(sky=46, ground=(0, 0, 1, 1), ray_spacing=0.006))
             cz = r.directions[:, 2]
             exp = np.exp(-lai) * np.ones_like(cz) if hz else np.exp(-0.5 * lai / cz)

@@ -13,37 +13,8 @@ from biomorph.cli import run
 from biomorph.core.mesh import Mesh
 from biomorph.errors import InputError, ParameterError
 from biomorph.leaf.light import LightOptions, intercept, sky_directions, sun_position
+from biomorph.leaf.light import turbid_canopy as turbid
 from tests.conftest import shared_file
-
-
-def turbid(
-    lai: float, size: float = 1.0, leaf: float = 0.03, seed: int = 0, horizontal: bool = True
-) -> Mesh:
-    """Square leaves at uniform random positions (a Poisson turbid medium) between 0.2 and
-    1.2 m, horizontal or uniformly (spherically) oriented."""
-    rng = np.random.default_rng(seed)
-    n = int(round(lai * size * size / leaf**2))
-    c = np.column_stack(
-        [rng.uniform(0, size, n), rng.uniform(0, size, n), rng.uniform(0.2, 1.2, n)]
-    )
-    sq = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]]) * leaf
-    if horizontal:
-        rot = np.broadcast_to(np.eye(3), (n, 3, 3))
-    else:
-        q = rng.standard_normal((n, 4))
-        q /= np.linalg.norm(q, axis=1, keepdims=True)
-        w, x, y, z = q.T
-        rot = np.stack(
-            [
-                np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-                np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-                np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-            ],
-            1,
-        )
-    v = (np.einsum("nij,kj->nki", rot, sq) + c[:, None]).reshape(-1, 3)
-    f = (np.array([[0, 1, 2], [0, 2, 3]])[None] + 4 * np.arange(n)[:, None, None]).reshape(-1, 3)
-    return Mesh(v, f)
 
 
 @pytest.mark.parametrize("lai,horizontal", [(0.5, False), (2.0, True), (5.0, False)])

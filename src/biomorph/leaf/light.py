@@ -515,6 +515,31 @@ def _per_leaf(
     }
 
 
+def turbid_canopy(
+    lai: float, size: float = 1.0, leaf: float = 0.03, seed: int = 0, horizontal: bool = True
+) -> Mesh:
+    """A Poisson turbid medium for validating a light model against Beer–Lambert: square
+    leaves of side ``leaf`` (m) at uniform random positions over a ``size`` × ``size`` m tile,
+    0.2–1.2 m above the soil, horizontal or uniformly (spherically) oriented, enough of them
+    for leaf area index ``lai``. Its gap fraction in direction θ is exp(−G·LAI / cos θ) with
+    G = 1 (horizontal) or 0.5 (spherical)."""
+    from biomorph.core.transforms import quat_to_matrix
+
+    rng = np.random.default_rng(seed)
+    n = int(round(lai * size * size / leaf**2))
+    c = np.column_stack(
+        [rng.uniform(0, size, n), rng.uniform(0, size, n), rng.uniform(0.2, 1.2, n)]
+    )
+    sq = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]]) * leaf
+    if horizontal:
+        rot = np.broadcast_to(np.eye(3), (n, 3, 3))
+    else:  # normalised Gaussian 4-vectors are uniform random rotations
+        rot = quat_to_matrix(rng.standard_normal((n, 4)))
+    v = (np.einsum("nij,kj->nki", rot, sq) + c[:, None]).reshape(-1, 3)
+    f = (np.array([[0, 1, 2], [0, 2, 3]])[None] + 4 * np.arange(n)[:, None, None]).reshape(-1, 3)
+    return Mesh(v, f)
+
+
 __all__ = [
     "LightOptions",
     "LightResult",
@@ -522,4 +547,5 @@ __all__ = [
     "intercept",
     "sky_directions",
     "sun_position",
+    "turbid_canopy",
 ]
