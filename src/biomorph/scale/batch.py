@@ -206,16 +206,20 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
             else:
                 try:
                     # scheduler, workers, nannies and dashboard listen on the loopback
-                    # only: a batch run must not open ports to the network
-                    cluster = LocalCluster(
-                        n_workers=workers,
-                        threads_per_worker=1,
-                        processes=True,
-                        host=LOOPBACK,
-                        dashboard_address=f"{LOOPBACK}:0",
-                        worker_dashboard_address=f"{LOOPBACK}:0",
-                        silence_logs=logging.ERROR,
-                    )
+                    # only: a batch run must not open ports to the network. SIGINT is
+                    # blocked meanwhile: the spawned workers inherit the mask, so a Ctrl-C
+                    # to the process group cannot interrupt their interpreter start-up (a
+                    # traceback per worker); here it stays pending and is handled below.
+                    with _blocked_sigint():
+                        cluster = LocalCluster(
+                            n_workers=workers,
+                            threads_per_worker=1,
+                            processes=True,
+                            host=LOOPBACK,
+                            dashboard_address=f"{LOOPBACK}:0",
+                            worker_dashboard_address=f"{LOOPBACK}:0",
+                            silence_logs=logging.ERROR,
+                        )
                 except (RuntimeError, OSError) as exc:
                     if interrupted():  # Ctrl-C reached the workers while they started
                         raise KeyboardInterrupt from None
@@ -239,6 +243,22 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
                     cluster.close()
         if interrupted():
             raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _blocked_sigint() -> Iterator[None]:
+    """Block SIGINT in this thread for the block (children started meanwhile inherit the
+    mask); a Ctrl-C that arrives is delivered when the block ends."""
+    import signal
+
+    if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 @contextlib.contextmanager
