@@ -26,7 +26,6 @@ from biomorph.leaf.reduction import (
     reduce_leaf,
     reduce_profile,
     reduced_mesh,
-    reduction_order_py,
 )
 from biomorph.leaf.shape import LeafShape
 
@@ -79,6 +78,9 @@ def main() -> None:
 
 
 def speed(quick: bool) -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests.leaf.oracles import reduction_order_py  # the pure-Python reference
+
     rows = []
     wheat = LeafShape.from_preset("wheat")
 
