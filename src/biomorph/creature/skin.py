@@ -21,10 +21,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.mesh import Mesh
+from biomorph.creature.bones.cage import trunk_sections
 from biomorph.creature.creature import Creature
 
 #: grid cells along the longest side per level of detail
@@ -33,8 +35,6 @@ RESOLUTION = (40, 64, 96)
 RES_MAX = (56, 96, 160)
 #: tissue over bone at the bony landmarks, as a share of the bone's half-width
 LANDMARK_TISSUE = 0.35
-#: radius classes of the distance-transform field (see :func:`_field`)
-RADIUS_CLASSES = 3
 #: smoothing of the field (grid cells)
 SMOOTH = 0.9
 
@@ -71,13 +71,13 @@ def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray
         b_s += [mid, ends[j]]
         ra_s += [end_r, mid_r]
         rb_s += [mid_r, end_r]
-        if c.kind[j] == "spine" and c.region[j] in ("back", "neck", "tail"):
-            # the trunk's soft tissue: from the vertebra to the centre of its mass
-            r = 0.42 * 0.5 * (c.mass_size[j, 0] + c.mass_size[j, 2])
-            a_s.append(c.mass_center[j])
-            b_s.append(c.mass_center[j])
-            ra_s.append(r)
-            rb_s.append(r)
+    # the trunk's soft tissue: one sphere per trunk section (the rib cage is built round
+    # the same sections, :mod:`biomorph.creature.bones.cage`)
+    _, centre, radius = trunk_sections(c)
+    a_s.extend(centre)
+    b_s.extend(centre)
+    ra_s.extend(radius)
+    rb_s.extend(radius)
     for m in ms:  # every second path point is enough for the smoothed field
         keep = np.unique(np.r_[np.arange(0, len(m.path), 2), len(m.path) - 1])
         path, rad = m.path[keep], m.radius[keep]
@@ -91,44 +91,43 @@ def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray
 def _field(
     caps: tuple[NDArray, NDArray, NDArray, NDArray], lo: NDArray, h: float, shape: tuple[int, ...]
 ) -> NDArray:
-    """``max_i (r_i(t) - |p - segment_i(t)|)`` on the grid, by Euclidean distance transforms:
-    every capsule axis is sampled every half cell and marked in its grid cell with its
-    radius; one ``distance_transform_edt`` per radius class (``RADIUS_CLASSES`` geometric
-    bins, so a thick trunk capsule is never hidden by a thin spine axis running beside it)
-    gives each cell its nearest axis cell, and the field is ``r(nearest) - distance``,
-    maximised over the classes. Exact for spheres centred on cells, within half a cell
-    otherwise; the Gaussian smoothing that follows is wider than that."""
-    from scipy.ndimage import distance_transform_edt
-
-    a, b, ra, rb = caps
-    length = np.linalg.norm(b - a, axis=1)
-    n = np.maximum(np.ceil(length / (0.5 * h)).astype(int), 1) + 1
-    seg = np.repeat(np.arange(len(a)), n)
-    start = np.repeat(np.cumsum(n) - n, n)
-    u = (np.arange(len(seg)) - start) / (n[seg] - 1)
-    pts = a[seg] + (b - a)[seg] * u[:, None]
-    rad = ra[seg] + (rb - ra)[seg] * u
-    cell = np.clip(np.rint((pts - lo) / h).astype(int), 0, np.array(shape) - 1)
-    edges = np.geomspace(rad.min(), rad.max() * 1.0001, RADIUS_CLASSES + 1)
-    cls = np.clip(np.searchsorted(edges, rad, side="right") - 1, 0, RADIUS_CLASSES - 1)
+    """``max_i (r_i(t) - |p - segment_i(t)|)`` on the grid (cells beyond every capsule's
+    radius + 2 cells hold the floor of -2 cells): exact at every cell centre, each capsule
+    visiting only the cells of its own bounding box (:func:`_capsule_field`)."""
+    a, b, ra, rb = (np.ascontiguousarray(x, np.float64) for x in caps)
     field = np.full(shape, -2.0 * h, np.float32)
-    dims = np.array(shape)
-    for k in range(RADIUS_CLASSES):
-        sel = cls == k
-        if not sel.any():
-            continue
-        # only the class's own box matters: beyond its largest radius + 2 cells the field
-        # is below the floor of -2 cells anyway
-        reach = int(np.ceil(rad[sel].max() / h)) + 3
-        lo_c = np.maximum(cell[sel].min(axis=0) - reach, 0)
-        hi_c = np.minimum(cell[sel].max(axis=0) + reach + 1, dims)
-        box = tuple(slice(a, b) for a, b in zip(lo_c, hi_c, strict=True))
-        r_grid = np.zeros(tuple(hi_c - lo_c), np.float32)
-        np.maximum.at(r_grid, tuple((cell[sel] - lo_c).T), rad[sel].astype(np.float32))
-        dist, (ix, iy, iz) = distance_transform_edt(r_grid <= 0, sampling=h, return_indices=True)
-        sub = field[box]
-        np.maximum(sub, r_grid[ix, iy, iz] - dist.astype(np.float32), out=sub)
+    _capsule_field(field, np.asarray(lo, np.float64), float(h), a, b, ra, rb)
     return field
+
+
+@numba.njit(cache=True, nogil=True)
+def _capsule_field(field, lo, h, a, b, ra, rb):  # pragma: no cover - compiled
+    nx, ny, nz = field.shape
+    for s in range(a.shape[0]):
+        r_max = max(ra[s], rb[s]) + 2.0 * h
+        lo_i = np.empty(3, np.int64)
+        hi_i = np.empty(3, np.int64)
+        dims = (nx, ny, nz)
+        for k in range(3):
+            m = min(a[s, k], b[s, k]) - r_max
+            M = max(a[s, k], b[s, k]) + r_max
+            lo_i[k] = max(int(np.floor((m - lo[k]) / h)), 0)
+            hi_i[k] = min(int(np.ceil((M - lo[k]) / h)) + 1, dims[k])
+        d0, d1, d2 = b[s, 0] - a[s, 0], b[s, 1] - a[s, 1], b[s, 2] - a[s, 2]
+        l2 = d0 * d0 + d1 * d1 + d2 * d2
+        inv = 1.0 / l2 if l2 > 1e-30 else 0.0
+        for i in range(lo_i[0], hi_i[0]):
+            px = lo[0] + i * h - a[s, 0]
+            for j in range(lo_i[1], hi_i[1]):
+                py = lo[1] + j * h - a[s, 1]
+                for k in range(lo_i[2], hi_i[2]):
+                    pz = lo[2] + k * h - a[s, 2]
+                    t = (px * d0 + py * d1 + pz * d2) * inv
+                    t = min(max(t, 0.0), 1.0)
+                    ex, ey, ez = px - t * d0, py - t * d1, pz - t * d2
+                    v = ra[s] + t * (rb[s] - ra[s]) - np.sqrt(ex * ex + ey * ey + ez * ez)
+                    if v > field[i, j, k]:
+                        field[i, j, k] = v
 
 
 def _weights(c: Creature, v: NDArray, h: float) -> tuple[NDArray, NDArray]:
@@ -168,8 +167,24 @@ def _weights(c: Creature, v: NDArray, h: float) -> tuple[NDArray, NDArray]:
 
 def envelope(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[Mesh, float]:
     """The envelope mesh over bones (and muscles ``ms``) and the grid cell size (m)."""
-    from scipy.ndimage import gaussian_filter
     from skimage.measure import marching_cubes
+
+    grid, lo, h = envelope_field(c, ms, lod)
+    verts, faces, _, _ = marching_cubes(grid, level=0.0, spacing=(h, h, h))
+    verts = verts + lo
+    faces = faces.astype(np.int64)
+    tri = verts[faces]
+    if (tri[:, 0] * np.cross(tri[:, 1], tri[:, 2])).sum() < 0:  # wind the faces outwards
+        faces = faces[:, ::-1]
+    return Mesh(verts, faces).compute_normals(), h
+
+
+def envelope_field(
+    c: Creature, ms: list | None = None, lod: int = 1
+) -> tuple[NDArray, NDArray, float]:
+    """The smoothed signed field whose 0-level is the envelope (positive inside), the world
+    position of its cell ``(0, 0, 0)`` and the cell size (m)."""
+    from scipy.ndimage import gaussian_filter
 
     caps = _capsules(c, ms or [])
     a, b, ra, rb = caps
@@ -182,17 +197,15 @@ def envelope(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[Mesh, f
     fine, coarse = ext / RES_MAX[lod], ext / RESOLUTION[lod]
     h = float(np.clip(np.median(np.minimum(ra, rb)) / 1.2, fine, coarse))
     # thin capsules would vanish between grid points: keep each at least a cell wide
-    caps = (a, b, np.maximum(ra, 1.4 * h), np.maximum(rb, 1.4 * h))
+    ra, rb = np.maximum(ra, 1.4 * h), np.maximum(rb, 1.4 * h)
+    # the Gaussian moves a convex surface of radius r inwards by about sigma^2 / r (the
+    # field's Laplacian 2 / r times sigma^2 / 2): each capsule is grown by that first, so
+    # the smoothed skin keeps the radii its rules give (the rib cage relies on it)
+    sig2 = (SMOOTH * h) ** 2
+    caps = (a, b, ra + sig2 / ra, rb + sig2 / rb)
     lo = lo - 3 * h
     shape = tuple((np.ceil((hi + 3 * h - lo) / h)).astype(int) + 1)
-    grid = gaussian_filter(_field(caps, lo, h, shape), SMOOTH)
-    verts, faces, _, _ = marching_cubes(grid, level=0.0, spacing=(h, h, h))
-    verts = verts + lo
-    faces = faces.astype(np.int64)
-    tri = verts[faces]
-    if (tri[:, 0] * np.cross(tri[:, 1], tri[:, 2])).sum() < 0:  # wind the faces outwards
-        faces = faces[:, ::-1]
-    return Mesh(verts, faces).compute_normals(), h
+    return gaussian_filter(_field(caps, lo, h, shape), SMOOTH), lo, h
 
 
 def body(c: Creature, lod: int = 1, with_muscles: bool = True) -> Body:

@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 import biomorph.creature.bones.appendicular as ap
 import biomorph.creature.bones.axial as ax
+import biomorph.creature.bones.cage as cage
 from biomorph.core.mesh import Mesh
 from biomorph.creature import skulls
 from biomorph.creature.anatomy import limb_parts
@@ -24,7 +25,7 @@ SHAPES = ("bone", "box")
 LODS = (0, 1, 2)
 VERTEBRAE = ("cervical", "thoracic", "lumbar", "sacral", "caudal")
 #: share of the thoracic vertebrae (from the front) whose ribs reach the sternum
-TRUE_RIBS = 0.6
+TRUE_RIBS = cage.TRUE_RIBS
 _SEG = {"girdle": 0, "upper": 1, "lower": 2, "distal": 3}
 
 
@@ -98,6 +99,9 @@ class _Context:
         skull = skulls.get(c.params.get("skull", skulls.CLASS_SKULL.get(self.cls, "mammal_long")))
         self.taper = round(float(skull.taper), 2)
         self.n_thoracic = sum(1 for p in self.parts if p == "thoracic")
+        thoracic = [j for j, p in enumerate(self.parts) if p == "thoracic"]
+        # the rib cage round the trunk's sections (world), one piece per thoracic joint
+        self.cage = cage.rib_cage(c, thoracic, lod, pleural=self.cls == "fish")
 
 
 class _Geometry:
@@ -216,7 +220,10 @@ def _axial(g: _Geometry, ctx: _Context, j: int, part: str) -> None:
     mirror, flip = (_MX, None) if head else (None, L)
     t_bin = int(round(ctx.rank[j] * (ax.BINS - 1)))
     g.unit(j, ax.vertebra(part, t_bin, lod), size, mirror, flip_y=flip)
-    if part == "thoracic" and ctx.n_thoracic:
+    if part == "thoracic" and j in ctx.cage:
+        v, f, _ = ctx.cage[j]
+        g.raw(j, (_local(c, j, v), f))
+    elif part == "thoracic" and ctx.n_thoracic:
         trunk = np.array([max(c.mass_size[j, 0], size[0]), L, max(c.mass_size[j, 2], size[2])])
         shift = np.array([-0.3 * size[0], 0.0, 0.0])  # ribs start at the centrum
         true = ctx.rank[j] <= TRUE_RIBS
@@ -224,6 +231,11 @@ def _axial(g: _Geometry, ctx: _Context, j: int, part: str) -> None:
         g.unit(j, ax.rib_pair(1.0 if true else 0.72, fish, lod), trunk, mirror, shift, flip)
         if true and not fish:
             g.unit(j, ax.sternebra(lod), trunk, mirror, shift, flip)
+
+
+def _local(c: Creature, j: int, p: NDArray) -> NDArray:
+    """World points ``p`` in joint ``j``'s frame."""
+    return (p - c.world[j, :3, 3]) @ c.world[j, :3, :3]
 
 
 _MX = np.array([-1.0, 1.0, 1.0])
@@ -248,7 +260,11 @@ def _girdle(g: _Geometry, ctx: _Context, j: int, part: str) -> None:
         g.raw(j, ap.rod(local(end), local(pubis), r, lod))
         g.raw(j, ap.rod(local(end), local(ischium), r * 1.1, lod))
         return
-    g.unit(j, ap.scapula(lod), size)
+    blade = cage.scapula_blade(c, j, ap.scapula(lod), ctx.cls)
+    if blade is None:
+        g.unit(j, ap.scapula(lod), size)
+    else:  # on the rib cage's side, the glenoid at the shoulder joint
+        g.raw(j, (local(blade[0]), blade[1]))
     if ctx.cls in ("bird", "reptile") or _child_kind(c, j) in ("arm", "wing"):
         # clavicle (a bird's furcula halves) from the shoulder to the front of the sternum
         manubrium = np.array([end[0] + 0.15 * L, end[1] - 0.3 * L, 0.0])

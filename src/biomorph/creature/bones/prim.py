@@ -214,3 +214,44 @@ def unit(vf: tuple[NDArray, NDArray]) -> tuple[NDArray, NDArray, NDArray]:
     for a in out:
         a.setflags(write=False)
     return out
+
+
+def tubes(
+    paths: ArrayLike,
+    radius: ArrayLike,
+    sides: int,
+    *,
+    radius2: ArrayLike | None = None,
+    ref: ArrayLike,
+) -> tuple[NDArray, NDArray]:
+    """Many capped tubes at once (the same as :func:`tube` on each): ``paths (r, k, 3)``,
+    radii ``(r, k)`` along the ring normal (towards ``ref (r, 3)``, one per tube) and
+    ``radius2`` along the binormal; one ``(vertices, faces)`` pair, tubes one after another."""
+    p = np.asarray(paths, float)
+    n_t, k = p.shape[:2]
+    r1 = np.broadcast_to(np.asarray(radius, float), (n_t, k))
+    r2 = r1 if radius2 is None else np.broadcast_to(np.asarray(radius2, float), (n_t, k))
+    t = np.gradient(p, axis=1)
+    t /= np.maximum(np.linalg.norm(t, axis=2, keepdims=True), 1e-12)
+    ref_a = np.broadcast_to(np.asarray(ref, float)[:, None, :], t.shape)
+    n = ref_a - (ref_a * t).sum(axis=2, keepdims=True) * t
+    n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-12)
+    b = np.cross(t, n)
+    a = np.linspace(0.0, 2 * np.pi, sides, endpoint=False)
+    ca, sa = np.cos(a), np.sin(a)
+    rings = (
+        p[:, :, None, :]
+        + (r1[..., None, None] * ca[None, None, :, None]) * n[:, :, None, :]
+        + (r2[..., None, None] * sa[None, None, :, None]) * b[:, :, None, :]
+    ).reshape(n_t, k * sides, 3)
+    v = np.concatenate([rings, p[:, :1], p[:, -1:]], axis=1)  # (r, k*sides + 2, 3)
+    per = k * sides + 2
+    f1 = np.concatenate(
+        [
+            _ring_faces(k, sides),
+            _cap(k * sides, 0, sides, flip=True),
+            _cap(k * sides + 1, (k - 1) * sides, sides, flip=False),
+        ]
+    )[:, ::-1]
+    f = (f1[None] + (np.arange(n_t) * per)[:, None, None]).reshape(-1, 3)
+    return v.reshape(-1, 3), f

@@ -1,0 +1,247 @@
+"""The trunk's cross-sections, the rib cage round them and the shoulder blade on its side.
+
+The trunk is the chain of soft-tissue masses of the trunk vertebrae: vertebra ``j`` has a
+section of centre ``Creature.mass_center[j]`` (a vertebra without mass of its own takes
+its nearest massive neighbour's offset) and radius ``TRUNK_SHARE`` × the mean
+half-size of its mass box (``Creature.mass_size``). The body envelope
+(:mod:`biomorph.creature.skin`) puts one sphere of that radius at that centre, and the rib
+cage is built round the same sections, so ribs follow the trunk's depth and stay inside the
+skin by construction (``BODY_WALL``):
+
+* each thoracic vertebra carries a pair of ribs in the plane across its spine: a curve from
+  the transverse process (``(0.3 × box width)`` out from the centrum), arching laterally
+  and ventrally round the section's centre at ``(1 − BODY_WALL) × radius``, to the
+  ventral midline (true ribs, the front ``TRUE_RIBS`` of the thoracic vertebrae: the
+  sternum joins them) or to ``FLOATING_REACH`` of the way round (false/floating ribs); each
+  rib slopes caudally by ``RIB_SLOPE`` vertebra lengths on the way down, as mammal ribs do;
+* the sternum: one sternebra per true-rib vertebra on the ventral midline;
+* fish: pleural ribs round the body cavity (no sternum), ``PLEURAL_REACH`` of the way;
+* the scapula: a blade from the glenoid (the shoulder joint, the girdle bone's far end)
+  dorsally and caudally at ``SCAPULA_INCLINATION`` of its class, ``SCAPULA_LENGTH`` ×
+  the humerus long, laid on the cage's side (its dorsal end pushed out to the section's
+  surface) and no higher than the tops of the neural spines.
+
+Constants and where they come from:
+
+* ``TRUNK_SHARE`` 0.42: the share of the mass box's mean half-size the envelope's trunk
+  sphere takes (the skin's own rule, kept from issue 14's first envelope);
+* ``BODY_WALL`` 0.16: the thoracic wall outside the ribs (intercostal muscles, fat, skin)
+  as a share of the chest radius — about 1.5–2 cm over a dog's 10–12 cm chest radius;
+* ``RIB_SLOPE`` 1.2 vertebra lengths: the caudal lean of a mid-thoracic rib in dog and horse
+  skeletons (the ventral end lies about one intercostal space behind its head);
+* ``SCAPULA_LENGTH`` 0.9 × humerus: dog and horse scapulae are 0.85–1.0 of the humerus;
+* ``SCAPULA_INCLINATION`` from the horizontal: mammals 58° (the scapular spine of dogs and
+  horses lies 50–65° from the horizontal), reptiles and amphibians 70° (an upright
+  plate), birds 12° (a sabre-shaped blade along the ribs, parallel to the spine).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from biomorph.creature.bones.prim import SIDES, tubes
+from biomorph.creature.creature import Creature
+
+TRUNK_SHARE = 0.42
+BODY_WALL = 0.16
+RIB_SLOPE = 1.2
+#: share of the thoracic vertebrae (from the front) whose ribs reach the sternum
+TRUE_RIBS = 0.6
+#: floating ribs end this far round (share of a half turn from the dorsal midline)
+FLOATING_REACH = 0.72
+#: fish pleural ribs line the body cavity this far round (share of a half turn)
+PLEURAL_REACH = 0.8
+SCAPULA_LENGTH = 0.9
+SCAPULA_INCLINATION = {"mammal": 58.0, "reptile": 70.0, "amphibian": 70.0, "bird": 12.0}
+_TRUNK_REGIONS = ("back", "neck", "tail")
+
+
+def trunk_sections(c: Creature) -> tuple[NDArray[np.int64], NDArray, NDArray]:
+    """Spine joints with a trunk section, their centres ``(s, 3)`` and radii ``(s,)``."""
+    idx = np.array(
+        [
+            j
+            for j in range(len(c))
+            if c.kind[j] == "spine" and c.region[j] in _TRUNK_REGIONS and c.bone_length[j] > 1e-9
+        ],
+        np.int64,
+    )
+    if not len(idx):
+        return idx, np.zeros((0, 3)), np.zeros(0)
+    r = TRUNK_SHARE * 0.5 * (c.mass_size[idx, 0] + c.mass_size[idx, 2])
+    centre = np.array(c.mass_center[idx], float)
+    # a vertebra without mass of its own (its tissue is counted on a neighbour) has no
+    # meaningful mass centre: it takes the nearest massive section's offset and radius
+    own = (c.mass[idx] > 0) & np.isfinite(centre).all(axis=1)
+    if own.any() and not own.all():
+        P = c.joint_positions[idx]
+        near = np.flatnonzero(own)[
+            np.argmin(np.linalg.norm(P[~own][:, None] - P[own][None], axis=2), axis=1)
+        ]
+        centre[~own] = P[~own] + centre[near] - P[near]
+        r[~own] = r[near]
+    return idx, centre, r
+
+
+def _section_frames(c: Creature, js: NDArray, centre: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """Per vertebra: headward spine tangent ``t``, right ``lat`` (⟂ t) and ``dorsal`` (⟂ both,
+    pointing from the section's centre towards the spine)."""
+    P = c.joint_positions[js]
+    t = c.bone_ends[js] - P
+    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
+    head = _headward(c)[js]
+    t[~head] *= -1
+    z = np.array([0.0, 0.0, 1.0])
+    lat = z - (t @ z)[:, None] * t
+    lat /= np.maximum(np.linalg.norm(lat, axis=1, keepdims=True), 1e-12)
+    dorsal = np.cross(lat, t)
+    off = P - centre
+    sign = np.where(np.abs((off * dorsal).sum(1)) > 1e-9, (off * dorsal).sum(1), dorsal[:, 1])
+    dorsal[sign < 0] *= -1
+    return t, lat, dorsal
+
+
+def _headward(c: Creature) -> NDArray[np.bool_]:
+    out = np.zeros(len(c), bool)
+    j = c.kind.index("skull") if "skull" in c.kind else -1
+    while j >= 0:
+        out[j] = True
+        j = int(c.skeleton.parent[j])
+    return out
+
+
+def _section_of(c: Creature) -> dict[int, tuple[NDArray, float]]:
+    idx, centre, r = trunk_sections(c)
+    return {int(j): (centre[k], float(r[k])) for k, j in enumerate(idx)}
+
+
+def rib_cage(
+    c: Creature, thoracic: list[int], lod: int, pleural: bool = False
+) -> dict[int, tuple[NDArray, NDArray, NDArray]]:
+    """Ribs (and a sternebra for true ribs) per thoracic joint: ``{joint: (vertices (world),
+    faces, rib_vertex_mask)}``. ``pleural`` (fish): no sternum, every rib ends free
+    ``PLEURAL_REACH`` of the way round the body cavity."""
+    sec = _section_of(c)
+    js = np.array([j for j in thoracic if j in sec], np.int64)
+    if not len(js):
+        return {}
+    centre = np.array([sec[int(j)][0] for j in js])
+    radius = np.array([sec[int(j)][1] for j in js])
+    _, all_c, all_r = trunk_sections(c)
+    t, lat, dorsal = _section_frames(c, js, centre)
+    P = c.joint_positions[js]
+    L = c.bone_length[js]
+    # centre moved into each vertebra's cross plane
+    cen = centre - ((centre - P) * t).sum(1, keepdims=True) * t
+    rho1 = (1.0 - BODY_WALL) * radius  # the sternum's depth below the centre
+    order = np.argsort(np.argsort(-((P - P.mean(0)) * t).sum(1)))  # 0 = most cranial
+    true = (order < max(1, int(round(TRUE_RIBS * len(js))))) & (not pleural)
+    reach = PLEURAL_REACH if pleural else FLOATING_REACH
+    k = 6 + 3 * lod
+    sides = max(4, SIDES[lod] // 2)
+    out = {}
+    for i, j in enumerate(js.tolist()):
+        w_half = 0.11 * L[i]  # rib half-width along the spine
+        th_half = min(0.07 * L[i] + 0.02 * radius[i], 0.25 * BODY_WALL * radius[i])
+        paths = []
+        for side in (1.0, -1.0):
+            la = side * lat[i]
+            head = P[i] + la * 0.3 * c.box_size[j, 2] - dorsal[i] * 0.15 * c.box_size[j, 0]
+            rel = head - cen[i]
+            rho0 = float(np.hypot(rel @ dorsal[i], rel @ la))
+            th0 = float(np.arctan2(rel @ la, rel @ dorsal[i]))
+            th1 = np.pi * (1.0 if true[i] else reach)
+            if true[i]:  # stop at the sternum's side
+                th1 -= float(np.arcsin(min(0.9, 1.6 * w_half / max(rho1[i], 1e-12))))
+            u = np.linspace(0.0, 1.0, k)
+            th = th0 + (th1 - th0) * u
+            # from the rib's head (inside the vertebra's own tissue) straight onto the
+            # cage's circle: never outside it, where the skin creases between spine and trunk
+            blend = np.clip(u / 0.35, 0, 1)
+            blend = blend * blend * (3 - 2 * blend)
+            dirs = np.cos(th)[:, None] * dorsal[i] + np.sin(th)[:, None] * la
+            origin = cen[i] - (RIB_SLOPE * L[i] * u)[:, None] * t[i]
+            # the trunk's surface along each rib ray (the sections overlap: their union)
+            inner = _exit_distance(origin, dirs, all_c, all_r) - BODY_WALL * radius[i]
+            rho = np.minimum(rho0 * (1 - blend) + inner * blend, inner)
+            rho[0] = rho0
+            pts = origin + rho[:, None] * dirs
+            paths.append(pts)
+        paths_a = np.stack(paths)
+        r_w = np.full((2, k), w_half)
+        r_t = np.full((2, k), th_half) * np.r_[1.3, np.ones(k - 1)]
+        v, f = tubes(paths_a, r_w, sides, radius2=r_t, ref=np.broadcast_to(t[i], (2, 3)))
+        mask = np.ones(len(v), bool)
+        if true[i]:
+            bottom = cen[i] - dorsal[i] * rho1[i] - (RIB_SLOPE * L[i]) * t[i]
+            path = np.stack([bottom + 0.55 * L[i] * t[i], bottom - 0.55 * L[i] * t[i]])[None]
+            sv, sf = tubes(
+                path, np.full((1, 2), 1.4 * w_half), sides, radius2=np.full((1, 2), th_half),
+                ref=lat[i][None],
+            )
+            f = np.concatenate([f, sf + len(v)])
+            v = np.concatenate([v, sv])
+            mask = np.r_[mask, np.zeros(len(sv), bool)]
+        out[j] = (v, f, mask)
+    return out
+
+
+def _exit_distance(origin: NDArray, dirs: NDArray, centre: NDArray, radius: NDArray) -> NDArray:
+    """Per ray ``origin (k, 3) + s · dirs (k, 3)``: the farthest ``s`` inside any of the
+    spheres (0 where the ray misses them all)."""
+    oc = centre[None, :, :] - origin[:, None, :]  # (k, n, 3)
+    b = (oc * dirs[:, None, :]).sum(axis=2)
+    disc = b * b - (oc * oc).sum(axis=2) + radius[None, :] ** 2
+    s = np.where(disc > 0, b + np.sqrt(np.maximum(disc, 0.0)), 0.0)
+    return np.maximum(s.max(axis=1), 0.0)
+
+
+def scapula_blade(
+    c: Creature, j: int, unit_model: tuple[NDArray, NDArray, NDArray], cls: str
+) -> tuple[NDArray, NDArray] | None:
+    """The scapula of girdle joint ``j`` in world coordinates: ``unit_model`` (y from the
+    dorsal border at 0 to the glenoid at 1, x across the blade, z its thickness) laid from
+    the glenoid at the shoulder joint up and back onto the side of the rib cage."""
+    par = int(c.skeleton.parent[j])
+    sec = _section_of(c)
+    kids = np.flatnonzero(c.skeleton.parent == j)
+    if par not in sec or not kids.size:
+        return None
+    centre, r = sec[par]
+    t, lat, dorsal = (a[0] for a in _section_frames(c, np.array([par]), centre[None]))
+    P = c.joint_positions[par]
+    glen = c.bone_ends[j]
+    side = 1.0 if (glen - P) @ lat >= 0 else -1.0
+    la = side * lat
+    humerus = float(c.bone_length[int(kids[0])])
+    ls = SCAPULA_LENGTH * max(humerus, float(c.bone_length[j]))
+    ang = np.radians(SCAPULA_INCLINATION.get(cls, 58.0))
+    top = (P - glen) @ dorsal + 0.45 * c.box_size[par, 0]  # up to the neural spines' tops
+    rise = min(ls * np.sin(ang), max(top, 0.0))
+    back = ls * np.cos(ang) if rise >= ls * np.sin(ang) else rise / np.tan(ang)
+    ls = float(np.hypot(rise, back))
+    if ls < 1e-9:
+        return None
+    d_pt = glen + rise * dorsal - back * t
+    thick = 0.05 * ls
+    # lie on the cage: the dorsal end's lateral offset at least the section's surface there
+    cen = centre - ((centre - P) * t).sum() * t
+    up = (d_pt - cen) @ dorsal
+    lateral_min = np.sqrt(max((r + thick) ** 2 - up**2, 0.0))
+    lateral_min = max(lateral_min, 0.35 * c.box_size[par, 2] + thick)
+    cur = (d_pt - cen) @ la
+    if cur < lateral_min:
+        d_pt = d_pt + (lateral_min - cur) * la
+    y_ax = glen - d_pt
+    y_ax /= np.linalg.norm(y_ax)
+    normal = la - (la @ y_ax) * y_ax
+    normal /= np.linalg.norm(normal)
+    x_ax = np.cross(y_ax, normal)
+    v0, _, f = unit_model
+    scale = np.array([0.55 * ls, ls, 2.0 * thick])
+    frame = np.stack([x_ax, y_ax, normal], axis=1)
+    v = (v0 * scale) @ frame.T + d_pt
+    if np.linalg.det(frame) < 0:
+        f = f[:, ::-1]
+    return v, f
