@@ -11,14 +11,14 @@ from biomorph.errors import ParameterError
 from biomorph.leaf.canopy import FieldSpec, LeafCountWarning, PlantSpec, build_field, field_mesh
 from biomorph.leaf.fit import curves_of, max_distances, unit_curve
 from biomorph.leaf.mesh import LeafBatch, mesh_batch, rest_on_soil
-from biomorph.leaf.shape import LeafShape, class_of_rank, preset_classes
+from biomorph.leaf.shape import LeafShape, class_of_rank, preset_classes, shape_classes
 from biomorph.leaf.thermal import ThermalTime
 from tests.conftest import shared_file
 
 
 def test_every_class_within_its_spread() -> None:
     for preset in ("wheat", "maize"):
-        classes = preset_classes(preset)
+        classes = shape_classes(preset)
         assert len(classes) >= (6 if preset == "wheat" else 5)
         for key, c in classes.items():
             assert c["median_maxdist"] < c["spread"], (preset, key)
@@ -41,9 +41,15 @@ def test_wheat_classes_recomputed_from_so99() -> None:
 
 
 def test_rank_to_class() -> None:
-    assert [class_of_rank("wheat", r, 12) for r in (1, 6, 12)] == ["1", "3", "6"]
-    assert class_of_rank("maize", 9, 16) == "8-10"
-    assert class_of_rank("maize", 20, 20) == "14-16"
+    # ADEL (geoLeaf Lindex = nf - n + 1): So99 class 1 is the flag leaf; lower leaves than
+    # the sixth from the top share class 6
+    assert [class_of_rank("wheat", r, 12) for r in (1, 6, 7, 11, 12)] == ["6", "6", "6", "2", "1"]
+    assert [class_of_rank("wheat", r, 3) for r in (1, 2, 3)] == ["3", "2", "1"]
+    # maize: one class per rank of the 16-rank mature table, read on the normalised rank
+    assert class_of_rank("maize", 9, 16) == "9"
+    assert class_of_rank("maize", 20, 20) == "16"
+    assert [class_of_rank("maize", r, 8) for r in (1, 8)] == ["1", "16"]
+    assert preset_classes("maize")["9"]["shape_class"] == "8-10"
     assert class_of_rank("grass", 1, 3) is None
     with pytest.raises(ParameterError, match="class"):
         LeafShape.from_preset("wheat", rank_class="9")
@@ -60,6 +66,10 @@ def test_fully_grown_leaf_equals_mature_preset() -> None:
     assert np.abs(grown.vertices - mature.vertices).max() < 1e-9
     young, old = wheat.midrib(51, age=0.0), wheat.midrib(51, age=1.0)
     assert old[-1, 2] < wheat.midrib(51)[-1, 2] < young[-1, 2]  # droops with age
+    # presets without a collection reach full length where the thermal axis says so
+    for preset in ("maize", "grass"):
+        tt = ThermalTime.for_preset(preset)
+        assert LeafShape.from_preset(preset).extension_end == pytest.approx(tt.full_extension())
 
 
 def test_thermal_time_axis() -> None:

@@ -39,8 +39,13 @@ def check_age(age: float) -> float:
     return a
 
 
-#: Normalised age at which the blade reaches its final length (default extension phase).
+#: Normalised age at which the blade reaches its final length (default extension phase of
+#: a bare shape; preset leaves use their thermal-time axis, see :data:`PHYLLOCHRON_RANGE`).
 EXTENSION_END = 0.5
+#: Leaf life on the thermal-time axis in phyllochrons from full extension, mapped onto the
+#: normalised age [0, 1] (the wheat Tremie12 collection's range; used for presets without a
+#: collection too): full extension at ``a = 2/14``.
+PHYLLOCHRON_RANGE = (-2.0, 12.0)
 #: Smallest relative length of a leaf (age 0): a just-visible tip.
 MIN_RELATIVE_LENGTH = 0.02
 
@@ -97,6 +102,7 @@ def visible_area(shape: ShapeLike, state: LeafState | None = None) -> float:
 
 __all__ = [
     "EXTENSION_END",
+    "PHYLLOCHRON_RANGE",
     "MIN_RELATIVE_LENGTH",
     "LeafState",
     "ShapeLike",

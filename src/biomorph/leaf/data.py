@@ -241,6 +241,63 @@ def _class_entry(leaves: list[LeafShape], s_r: Array, r: Array, n: int = 101) ->
     }
 
 
+#: Mature maize plant (literature figures, see docs/leaf.md "Mature maize"): ranks of the
+#: default plant, leaves above the ear leaf (the largest leaf), one-sided leaf area per plant
+#: (m²) and length/width of the largest blade.
+MAIZE_MATURE = {
+    "n_ranks": 16,
+    "leaves_above_ear": 5,
+    "plant_leaf_area_m2": 0.5,
+    "largest_length_to_width": 10.0,
+}
+
+
+def bell_leaf_fractions(n_ranks: int, largest_rank: float) -> Array:
+    """Fraction of the plant's leaf area carried by each rank ``1..n_ranks``.
+
+    Yang & Alley (2005, Agron. J. 97:41) reduced bell model of maize leaf area per rank:
+    ``F(n) = F0 · exp(−(F0 · (n − n0))² / 0.3542)`` with ``F = S/S_T`` (leaf area over the
+    plant's total); ``F0`` (the largest leaf's share) is solved so that ``Σ F = 1`` over the
+    ranks present (bisection; ``Σ F`` is monotone in ``F0`` on ``(0, 1]`` for these ranks).
+    """
+    n = np.arange(1, n_ranks + 1, dtype=float)
+
+    def total(f0: float) -> float:
+        return float(np.sum(f0 * np.exp(-((f0 * (n - largest_rank)) ** 2) / 0.3542)))
+
+    lo, hi = 1e-4, 1.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if total(mid) < 1.0 else (lo, mid)
+    f0 = 0.5 * (lo + hi)
+    return f0 * np.exp(-((f0 * (n - largest_rank)) ** 2) / 0.3542)
+
+
+def mature_maize_blades(
+    form_factors: Array, width_exponent: float, params: dict | None = None
+) -> dict[str, Array]:
+    """Per-rank blade length and width (m) of a mature maize plant.
+
+    Leaf area per rank: :func:`bell_leaf_fractions` × the plant's leaf area, the largest
+    leaf ``leaves_above_ear`` ranks below the top. Each area ``A = ff · L · W`` is split
+    with the width allometry ``W ∝ L^β`` (``β = width_exponent``, fitted on the digitised
+    mature leaves) and the largest blade's ``L/W``; ``ff`` is the form factor of the width
+    profile that rank's leaves use (so the meshed area equals the table's).
+    """
+    p = {**MAIZE_MATURE, **(params or {})}
+    n = int(p["n_ranks"])
+    ff = np.asarray(form_factors, float)
+    area = bell_leaf_fractions(n, n - p["leaves_above_ear"]) * p["plant_leaf_area_m2"]
+    k = int(np.argmax(area))
+    w0 = np.sqrt(area[k] / (ff[k] * p["largest_length_to_width"]))
+    l0 = area[k] / (ff[k] * w0)
+    # W = w0 (L/l0)^β and A = ff L W  =>  L = l0 (A ff0 / (A0 ff))^(1/(1+β))
+    length = l0 * (area * ff[k] / (area[k] * ff)) ** (1.0 / (1.0 + width_exponent))
+    width = area / (ff * length)
+    return {"rank": np.arange(1, n + 1, dtype=float), "L_blade": length, "W_blade": width,
+            "area": area}
+
+
 def _wheat_dims(root: Path) -> dict:
     cols = (
         "xn",
@@ -254,6 +311,54 @@ def _wheat_dims(root: Path) -> dict:
     )
     rows = np.array([v for _, v in _rows(root / "adel" / "Wheat_dimension_profiles.csv", cols)])
     return {c: _r6(rows[:, k] * (1 if c == "xn" else 0.01)) for k, c in enumerate(cols)}
+
+
+def _maize_rank_classes(maize: list[LeafShape], shapes: dict) -> tuple[dict, dict]:
+    """One class per rank of the mature maize plant: the rank's blade length and width
+    (:func:`mature_maize_blades`) and the shape class of the digitised leaves of that rank.
+
+    The digitised plant is young: its median blade length peaks at one rank and falls
+    above it while the widths still rise — the upper leaves are still extending in the
+    whorl (erect, chord 80–86°). Ranks above the longest one therefore take the shape
+    class of the longest (the highest fully extended leaves), ranks below the first
+    digitised rank the lowest class."""
+    ranks = np.array([_rank_of(lf) for lf in maize])
+    lengths = np.array([lf.length for lf in maize])
+    widths = np.array([lf.width for lf in maize])
+    med = {int(r): float(np.median(lengths[ranks == r])) for r in np.unique(ranks)}
+    r_mature = max(med, key=lambda r: med[r])
+    ok = ranks <= r_mature
+    beta = float(np.polyfit(np.log(lengths[ok]), np.log(widths[ok]), 1)[0])
+    of_rank = {r: k for k, c in shapes.items() for r in c["ranks"]}
+    n = int(MAIZE_MATURE["n_ranks"])
+    lowest = min(of_rank)
+    keys = []
+    for r in range(1, n + 1):
+        q = min(max(r, lowest), r_mature)
+        while q not in of_rank:  # a rank absent from the data: the next lower one
+            q -= 1
+        keys.append(of_rank[q])
+    ff = np.array([np.trapezoid(shapes[k]["r"], shapes[k]["s_r"]) for k in keys])
+    dims = mature_maize_blades(ff, beta)
+    classes = {
+        str(r): {
+            "ranks": [r],
+            "shape_class": k,
+            "length": float(f"{dims['L_blade'][r - 1]:.6g}"),
+            "width": float(f"{dims['W_blade'][r - 1]:.6g}"),
+            "area": float(f"{dims['area'][r - 1]:.6g}"),
+        }
+        for r, k in zip(range(1, n + 1), keys, strict=True)
+    }
+    info = {
+        **MAIZE_MATURE,
+        "width_exponent": round(beta, 4),
+        "longest_digitised_rank": r_mature,
+        "source": "per-rank leaf area: Yang & Alley 2005 bell model; plant leaf area, ear "
+        "position and largest L/W: literature figures (docs/leaf.md); width exponent and "
+        "form factors: maize_leaves_db",
+    }
+    return classes, info
 
 
 def derive_presets(root: PathLike | None = None) -> dict:
@@ -310,7 +415,7 @@ def derive_presets(root: PathLike | None = None) -> dict:
             "source": traj.source,
             "full_extension_age": 0.0,
         },
-        "class_rule": "normalised_rank",
+        "class_rule": "rank_from_top",
         "classes": classes,
         "dimensions": dims,
     }
@@ -320,13 +425,15 @@ def derive_presets(root: PathLike | None = None) -> dict:
     counts: dict[int, int] = {}
     for lf in maize:
         counts[_rank_of(lf)] = counts.get(_rank_of(lf), 0) + 1
-    m_classes = {}
-    for grp in _group_ranks(counts):
+    groups = _group_ranks(counts)
+    m_shapes = {}
+    for grp in groups:
         members = [lf for lf in maize if _rank_of(lf) in grp]
         r_m = np.median([lf.r_at(s) for lf in members], axis=0)
         entry = _class_entry(members, s, r_m)
         entry["ranks"] = grp
-        m_classes["-".join(map(str, (grp[0], grp[-1]))) if len(grp) > 1 else str(grp[0])] = entry
+        m_shapes["-".join(map(str, (grp[0], grp[-1]))) if len(grp) > 1 else str(grp[0])] = entry
+    m_classes, mature_info = _maize_rank_classes(maize, m_shapes)
     m_all = maize[medoid(curves_of(maize))]
     out["maize"] = {
         "source": f"maize_leaves_db (medoid of the {len(maize)} leaves; length and width: "
@@ -342,8 +449,10 @@ def derive_presets(root: PathLike | None = None) -> dict:
         "undulation": 0.004,
         "wavelength": 0.06,
         "hand_set": ["twist_deg", "undulation", "wavelength"],
-        "class_rule": "rank_groups",
+        "class_rule": "rank_table",
         "classes": m_classes,
+        "shape_classes": m_shapes,
+        "mature_dimensions": mature_info,
     }
     bent = min(sr, key=lambda k: np.median([lf.phi[-1] for lf in wheat if _rank_of(lf) == k]))
     cls_leaves = [lf for lf in wheat if _rank_of(lf) == bent]

@@ -41,7 +41,7 @@ from biomorph.core.curves import (
 )
 from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
-from biomorph.leaf.age import EXTENSION_END, check_age
+from biomorph.leaf.age import EXTENSION_END, PHYLLOCHRON_RANGE, check_age
 
 PRESET_NAMES = ("maize", "wheat", "grass")
 
@@ -305,14 +305,8 @@ class LeafShape:
             )
         label = name
         if rank_class is not None:
-            classes = p.get("classes", {})
             key = str(rank_class)
-            if key not in classes:
-                raise ParameterError(
-                    f"preset {name!r} has no shape class {rank_class!r}; "
-                    f"expected one of {', '.join(classes) or '(none)'}"
-                )
-            cp = classes[key]
+            cp = _class_entry(name, key)
             phis = cp["members_phi"]
             if not 0 <= member < len(phis):
                 raise ParameterError(
@@ -344,6 +338,10 @@ class LeafShape:
                 "source": p.get("source", ""),
                 "preset": name,
                 "rank_class": None if rank_class is None else str(rank_class),
+                # no collection: full extension where the thermal-time axis puts it
+                "full_extension": None
+                if coll is not None
+                else -PHYLLOCHRON_RANGE[0] / (PHYLLOCHRON_RANGE[1] - PHYLLOCHRON_RANGE[0]),
             },
         )
         return replace(shape, **overrides) if overrides else shape
@@ -423,7 +421,9 @@ class LeafShape:
         it records its full-extension age (wheat Tremie12: age 0 of −2..12 phyllochrons →
         2/14 = 0.143), else :data:`~biomorph.leaf.age.EXTENSION_END`."""
         ext = None if self.collection is None else self.collection.extension_end
-        return EXTENSION_END if ext is None else ext
+        if ext is None:
+            ext = self.meta.get("full_extension")
+        return EXTENSION_END if ext is None else float(ext)
 
     def phi_at(self, s: ArrayLike, age: float | None = None) -> Array:
         """Tangent angle (radians) at ``s``; at ``age`` when given.
@@ -524,29 +524,68 @@ def _presets() -> dict[str, Any]:
     return _presets_cached()
 
 
-def preset_classes(name: str) -> dict[str, dict[str, Any]]:
-    """Shape classes of a preset: ``{key: {n_leaves, median_maxdist, spread, ranks?...}}``."""
+def _preset_entry(name: str) -> dict[str, Any]:
     data = _presets()
     if name not in data:
         raise ParameterError(
             f"unknown leaf preset {name!r}; expected one of {', '.join(sorted(data))}"
         )
+    return data[name]
+
+
+def _class_entry(name: str, key: str) -> dict[str, Any]:
+    """Class ``key`` of a preset with its shape fields resolved: a rank class (maize)
+    names the shape class of its digitised leaves and carries its own length and width;
+    a shape class key (``shape_classes``) is accepted too."""
+    p = _preset_entry(name)
+    classes, shapes = p.get("classes", {}), p.get("shape_classes", {})
+    if key in classes:
+        cp = classes[key]
+        if "shape_class" in cp:
+            own = {f: cp[f] for f in ("length", "width") if f in cp}
+            cp = {**shapes[cp["shape_class"]], **cp, **own}
+        return cp
+    if key in shapes:
+        return shapes[key]
+    raise ParameterError(
+        f"preset {name!r} has no shape class {key!r}; expected one of "
+        f"{', '.join([*classes, *shapes]) or '(none)'}"
+    )
+
+
+def _summary(c: dict[str, Any]) -> dict[str, Any]:
     return {
-        k: {
-            **{f: v for f, v in c.items() if f not in ("members_phi", "phi", "s", "r", "s_r")},
-            "n_members": len(c["members_phi"]),
-        }
-        for k, c in data[name].get("classes", {}).items()
+        **{f: v for f, v in c.items() if f not in ("members_phi", "phi", "s", "r", "s_r")},
+        "n_members": len(c["members_phi"]),
     }
 
 
-def class_of_rank(name: str, rank: int, n_ranks: int) -> str | None:
-    """Shape class of leaf ``rank`` (1 = lowest) on a plant of ``n_ranks`` leaves.
+def preset_classes(name: str) -> dict[str, dict[str, Any]]:
+    """Classes a plant picks by rank (:func:`class_of_rank`): ``{key: {n_leaves,
+    median_maxdist, spread, ranks, length, width, n_members...}}``. Wheat: the So99 shape
+    classes; maize: one class per rank of the mature plant, each naming its
+    ``shape_class`` (see :func:`shape_classes`)."""
+    p = _preset_entry(name)
+    return {k: _summary(_class_entry(name, k)) for k in p.get("classes", {})}
 
-    * wheat (``normalised_rank``): the So99 classes split the leaves of a stem in six equal
-      parts from the bottom, class ``ceil(6 · rank / n_ranks)``;
-    * maize (``rank_groups``): the group holding that rank (the digitised ranks 2..16; a
-      rank outside falls in the nearest group).
+
+def shape_classes(name: str) -> dict[str, dict[str, Any]]:
+    """Shape classes fitted to the digitised leaves (medoid + member database each):
+    wheat the So99 classes, maize the rank groups of ``leaves_db``."""
+    p = _preset_entry(name)
+    src = p.get("shape_classes", p.get("classes", {}))
+    return {k: _summary(c) for k, c in src.items()}
+
+
+def class_of_rank(name: str, rank: int, n_ranks: int) -> str | None:
+    """Class of leaf ``rank`` (1 = lowest) on a main stem of ``n_ranks`` leaves.
+
+    * wheat (``rank_from_top``): ADEL's rule (``geoLeaf`` ``Lindex = nf − n + 1``): class 1
+      is the flag leaf, 2 the leaf below…; leaves lower than the last class share it (ADEL
+      takes the closest index of a too-small database);
+    * maize (``rank_table``): the rank class of the mature plant's table (16 ranks); a
+      stem with another leaf count maps rank ``r`` to ``round(1 + (r − 1)·15/(n − 1))``,
+      i.e. the profile is read on the normalised rank.
     Returns ``None`` for presets without classes.
     """
     p = _presets().get(name, {})
@@ -556,11 +595,11 @@ def class_of_rank(name: str, rank: int, n_ranks: int) -> str | None:
     if rank < 1 or n_ranks < 1 or rank > n_ranks:
         raise ParameterError(f"leaf rank {rank} is outside 1..{n_ranks}")
     keys = list(classes)
-    if p.get("class_rule") == "normalised_rank":
-        k = int(np.clip(np.ceil(len(keys) * rank / n_ranks), 1, len(keys)))
-        return keys[k - 1]
-    best = min(keys, key=lambda key: min(abs(rank - r) for r in classes[key]["ranks"]))
-    return best
+    if p.get("class_rule") == "rank_from_top":
+        return keys[min(n_ranks - rank, len(keys) - 1)]
+    m = len(keys)
+    q = 1 + (rank - 1) * (m - 1) / max(n_ranks - 1, 1) if n_ranks > 1 else m
+    return keys[int(np.clip(np.floor(q + 0.5), 1, m)) - 1]
 
 
 __all__ = [
@@ -574,5 +613,6 @@ __all__ = [
     "load_presets",
     "midrib_arc_length",
     "preset_classes",
+    "shape_classes",
     "solve_arc_length",
 ]

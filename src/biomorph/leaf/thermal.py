@@ -60,11 +60,12 @@ class ThermalTime:
         cls, preset: str, phyllochron: float | None = None, base_temperature: float | None = None
     ) -> ThermalTime:
         """Defaults of ``preset`` (see :data:`DEFAULTS`), age range from its collection."""
+        from biomorph.leaf.age import PHYLLOCHRON_RANGE
         from biomorph.leaf.shape import LeafShape
 
         tb, ph = DEFAULTS.get(preset, DEFAULTS["wheat"])
         coll = LeafShape.from_preset(preset).collection
-        lo, hi = (-2.0, 12.0) if coll is None else (float(coll.ages[0]), float(coll.ages[-1]))
+        lo, hi = PHYLLOCHRON_RANGE if coll is None else (float(coll.ages[0]), float(coll.ages[-1]))
         return cls(
             ph if phyllochron is None else float(phyllochron),
             tb if base_temperature is None else float(base_temperature),
