@@ -218,3 +218,46 @@ def test_plant_stand_to_light(tmp_path, capsys) -> None:
     )
     lit = json.loads(capsys.readouterr().out)
     assert 0 < lit["intercepted_fraction"] < 1 and lit["leaves"] == s["leaves"]
+
+
+def test_mature_maize_default_table_gives_field_lai() -> None:
+    from biomorph.leaf.shape import LeafShape, class_of_rank
+
+    d, p = default_tables("maize", 16)
+    ranks = d["rank"].astype(int)
+    ff = np.array(
+        [
+            LeafShape.from_preset("maize", rank_class=class_of_rank("maize", r, 16)).form_factor()
+            for r in ranks
+        ]
+    )
+    area = float(np.sum(d["L_blade"] * d["W_blade"] * ff))
+    assert 0.5 - 1e-3 <= area <= 0.7  # m² per mature plant
+    for density in (7.0, 8.5, 10.0):
+        assert 3.0 <= density * area <= 5.0 + 1e-3
+    # bell-shaped: the largest blade is the ear leaf, five ranks below the top
+    k = int(np.argmax(d["L_blade"]))
+    assert ranks[k] == 11 and np.all(np.diff(d["L_blade"][: k + 1]) > 0)
+    assert np.all(np.diff(d["L_blade"][k:]) < 0)
+    assert 0.85 <= d["L_blade"][k] <= 1.0 and 0.085 <= d["W_blade"][k] <= 0.1
+    # defaults: 16 leaves, thermal time of the last leaf's ligulation
+    opts = PlantOptions(preset="maize")
+    assert opts.leaves == 16 and opts.thermal_time == pytest.approx(16 * 50.0)
+    assert PlantOptions().thermal_time == pytest.approx(1100.0)  # wheat: 11 leaves
+
+
+@pytest.mark.parametrize("density", [7.0, 10.0])
+def test_mature_maize_field_lai(tmp_path, capsys, density) -> None:
+    out = tmp_path / "maize.glb"
+    code = run(
+        [
+            "leaf", "canopy", "--preset", "maize", "--plants", "60", "--rows", "6",
+            "--spacing", "0.75", "--density", str(density), "-o", str(out), "--json",
+        ]
+    )  # fmt: skip
+    assert code == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["missing_leaves_per_plant"] == 0 and s["leaves"] == 60 * 16
+    # the meshed field: the table's 0.5 m² per plant within the LOD and length jitter
+    assert 3.0 <= s["lai"] <= 5.1
+    assert s["lai"] == pytest.approx(0.5 * density, rel=0.03)

@@ -259,11 +259,23 @@ def canopy(
         typer.Option(help="Plants per m² (sets the spacing within rows).", callback=POS),
     ] = None,
     preset: Preset = "wheat",
-    leaves: Annotated[int, typer.Option(help="Leaves per plant.", callback=bounded(1, 100))] = 6,
+    leaves: Annotated[
+        int | None,
+        typer.Option(
+            help="Leaves per plant [default: maize 16, else 6].", callback=bounded(1, 100)
+        ),
+    ] = None,
     triangles: Annotated[
         int, typer.Option(help="Triangles per leaf (about).", callback=bounded(1))
     ] = 20,
-    age: Annotated[float, typer.Option(help="Plant age in [0, 1].", callback=AGE)] = 0.8,
+    age: Annotated[
+        float | None,
+        typer.Option(
+            help="Plant age in [0, 1] [default: 0.8; maize: the mature plant, last leaf "
+            "ligulated].",
+            callback=AGE,
+        ),
+    ] = None,
     thermal_time: Annotated[
         float | None,
         typer.Option(
@@ -303,6 +315,12 @@ def canopy(
     from biomorph.leaf.files import write_leaf_mesh
 
     _check_ext(output, MESH_EXT)
+    from biomorph.leaf.plant import DEFAULT_LEAVES, mature_thermal_time
+
+    if leaves is None:
+        leaves = DEFAULT_LEAVES.get(preset, 6)
+    if age is None and thermal_time is None and preset in DEFAULT_LEAVES:
+        thermal_time = mature_thermal_time(preset, leaves, phyllochron)
     spec = FieldSpec(
         plants=plants,
         rows=rows,
@@ -311,7 +329,7 @@ def canopy(
         plant=PlantSpec(
             preset=preset,
             leaves=leaves,
-            age=age,
+            age=0.8 if age is None else age,
             thermal_time=thermal_time,
             phyllochron=phyllochron,
             shape_classes=classes,
@@ -588,11 +606,19 @@ def plant(
     output: Annotated[Path, typer.Option("-o", "--output", help="plant.glb|.obj|.ply|.can")],
     preset: Preset = "wheat",
     leaves: Annotated[
-        int, typer.Option(help="Main-stem leaves (default tables).", callback=bounded(1, 60))
-    ] = 11,
+        int | None,
+        typer.Option(
+            help="Main-stem leaves (default tables) [default: maize 16, else 11].",
+            callback=bounded(1, 60),
+        ),
+    ] = None,
     thermal_time: Annotated[
-        float, typer.Option(help="Thermal time since emergence (°Cd).", callback=NONNEG)
-    ] = 1100.0,
+        float | None,
+        typer.Option(
+            help="Thermal time since emergence (°Cd) [default: the last leaf just ligulated].",
+            callback=NONNEG,
+        ),
+    ] = None,
     phyllochron: Annotated[
         float | None, typer.Option(help="Phyllochron (°Cd; default per preset).", callback=POS)
     ] = None,
@@ -707,7 +733,12 @@ def tables(
     dims: Annotated[str, typer.Option("--dims", help="Write the dimension table here.")],
     phen: Annotated[str, typer.Option("--phen", help="Write the phenology table here.")],
     preset: Preset = "wheat",
-    leaves: Annotated[int, typer.Option(help="Main-stem leaves.", callback=bounded(1, 60))] = 11,
+    leaves: Annotated[
+        int | None,
+        typer.Option(
+            help="Main-stem leaves [default: maize 16, else 11].", callback=bounded(1, 60)
+        ),
+    ] = None,
     as_json: Json = False,
 ) -> None:
     """Write the default dimension and phenology tables of a preset (to edit and pass to
@@ -717,10 +748,11 @@ def tables(
     """
     from biomorph._cli import check_suffix, emit
     from biomorph.io.plant_tables import DIM_COLUMNS, PHEN_COLUMNS, write_table
-    from biomorph.leaf.plant import default_tables
+    from biomorph.leaf.plant import default_leaves, default_tables
 
     check_suffix(dims, (".csv",), "--dims")
     check_suffix(phen, (".csv",), "--phen")
+    leaves = default_leaves(preset) if leaves is None else leaves
     d, p = default_tables(preset, leaves)
     emit(
         {

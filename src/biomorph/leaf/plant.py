@@ -12,11 +12,15 @@ Tables (see :mod:`biomorph.io.plant_tables` for the CSV schema): ``dimT``-like
   table does not say which ``xn`` is the flag leaf; we take the rank above the longest
   blade (``xn = 1``: in wheat the leaf below the flag is usually the longest), the rows
   beyond it are read as ear/peduncle and not used — an assumption, stated here;
-* maize dimensions — blade length and width: the medians of the digitised maize leaves
-  of the rank's shape class (``leaves_db``); sheath and internode: the shared files have
-  no maize stem data, so the wheat profiles at the same normalised rank are scaled by the
-  ratio of the longest maize to the longest wheat blade (lengths) and of the widest
-  blades (diameters) — borrowed shapes, not maize measurements;
+* maize dimensions — blade length and width of a **mature** plant (the digitised
+  ``leaves_db`` plant is young: blades ≤ 0.56 m): per-rank leaf area from the bell model of
+  Yang & Alley (2005), 0.5 m² per plant, the largest leaf (ear leaf) five ranks below the
+  top, split into length and width with the data's width allometry (see
+  :func:`biomorph.leaf.data.mature_maize_blades` and docs/leaf.md); 16 leaves by default
+  (:data:`DEFAULT_LEAVES`); sheath and internode: the shared files have no maize stem
+  data, so the wheat profiles at the same normalised rank are scaled by the ratio of the
+  longest maize to the longest wheat blade (lengths) and of the widest blades
+  (diameters) — borrowed shapes, not maize measurements;
 * phenology (both) — ``tip = rank − 2`` and ``col = rank`` (the Tremie12 midrib collection's
   own axis: it starts 2 phyllochrons before full extension), ``ssi = rank + 4`` (senescence
   starts 4 phyllochrons after ligulation — set by hand, the shared files do not time it),
@@ -63,6 +67,23 @@ ORGAN_BLADE, ORGAN_SHEATH, ORGAN_INTERNODE = 1, 2, 3
 
 
 # --------------------------------------------------------------------------- tables
+#: Main-stem leaves of a preset's default plant (maize: the 16 ranks of its mature table).
+DEFAULT_LEAVES = {"maize": 16}
+
+
+def default_leaves(preset: str) -> int:
+    """Main-stem leaf count of ``preset``'s default plant (11 unless set in
+    :data:`DEFAULT_LEAVES`)."""
+    return DEFAULT_LEAVES.get(preset, 11)
+
+
+def mature_thermal_time(preset: str, leaves: int, phyllochron: float | None = None) -> float:
+    """Thermal time (°Cd) at which the last of ``leaves`` main-stem leaves is ligulated
+    (fully extended): the plant a crop modeller calls mature (maize at tasselling)."""
+    tt = ThermalTime.for_preset(preset, phyllochron)
+    return float(tt.thermal_time_of(leaves, tt.full_extension()))
+
+
 def default_tables(preset: str = "wheat", leaves: int = 11) -> tuple[Table, Table]:
     """Default ``(dimensions, phenology)`` of a ``leaves``-leaf main stem (module docs)."""
     from biomorph.leaf.shape import _presets, preset_classes
@@ -126,8 +147,8 @@ class PlantOptions:
     """One ADEL-like plant (or a row of them): tables, time, tillers, jitter, seed."""
 
     preset: str = "wheat"
-    leaves: int = 11  # main-stem leaves (default tables)
-    thermal_time: float = 1100.0  # °Cd since emergence
+    leaves: int | None = None  # main-stem leaves (None: default_leaves(preset))
+    thermal_time: float | None = None  # °Cd since emergence (None: last leaf ligulated)
     phyllochron: float | None = None  # °Cd (default per preset)
     tillers: int = 0
     dimensions: Table | None = None  # None: default_tables(preset, leaves)
@@ -139,8 +160,16 @@ class PlantOptions:
     soil: bool = True
     meta: dict[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        if self.leaves is None:
+            n = self.dimensions["rank"].size if self.dimensions is not None else None
+            object.__setattr__(self, "leaves", int(n or default_leaves(self.preset)))
+        if self.thermal_time is None:
+            t = mature_thermal_time(self.preset, int(self.leaves), self.phyllochron)
+            object.__setattr__(self, "thermal_time", t)
+
     def tables(self) -> tuple[Table, Table]:
-        d0, p0 = default_tables(self.preset, self.leaves)
+        d0, p0 = default_tables(self.preset, int(self.leaves))
         dims = self.dimensions if self.dimensions is not None else d0
         phen = self.phenology if self.phenology is not None else p0
         _check_tables(dims, phen)
@@ -575,6 +604,9 @@ __all__ = [
     "PlantOptions",
     "build_plant_architecture",
     "build_plant_stand",
+    "DEFAULT_LEAVES",
+    "default_leaves",
     "default_tables",
+    "mature_thermal_time",
     "write_plant_mtg",
 ]
