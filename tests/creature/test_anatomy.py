@@ -81,10 +81,8 @@ def test_stance_rules_hold_over_seeds():
         for k, ok in anatomy_check(c).items():
             if not ok:
                 fails[k].append(seed)
-    # class coherence, weights, trunk and head pitch, digits: every seed
-    for k in ("class_legs", "weight_in_range", "head_pitch", "feet_have_digits", "withers_height"):
-        assert not fails[k], (k, fails[k])
-    assert sum(map(len, fails.values())) <= 2, fails
+    # every rule on every seed (issue 14: 100 %)
+    assert not any(fails.values()), fails
 
 
 def test_a_600_kg_ungulate_stands_about_1_2_m_at_the_withers():

@@ -393,7 +393,9 @@ def limb_digits(
     """Digit joints (right side, creature px) of one limb; a standing leg's digits lie on
     ``ground`` and carry its contact points (:mod:`biomorph.creature.feet`)."""
     role = "hind" if girdle == "hip" else "fore"
-    plan = feet.digit_plan(kind, role, spine.cls, foot_posture(spine, pose), spine.skull)
+    plan = feet.digit_plan(
+        kind, role, spine.cls, foot_posture(spine, pose), spine.skull, spine.hoof_digits
+    )
     if L3[2] <= 1e-6 * max(float(np.sum(L3)), 1e-30):
         plan = ()  # no hand / foot bone to carry digits
     rb = ms.BONE_FRACTION * ms.LIMB_RADIUS[kind] * np.asarray(L3, float)
@@ -544,6 +546,7 @@ def to_creature(
         wings="wing" in asm["kind"],
         weight_kg=spine.weight,
         stance=spine.stance,
+        hoof_digits=spine.hoof_digits if spine.stance == "unguligrade" else 0,
         posture=spine.posture,
         skull=skull.shape,
         vertebrae=spine.counts.tolist(),
@@ -598,6 +601,8 @@ def _options_dict(opts: Options) -> dict[str, Any]:
             "require_stable",
         )
     }
+    if opts.hoof_digits is not None:
+        d["hoof_digits"] = opts.hoof_digits
     if opts.scores is not None:
         d["scores"] = {str(i): float(v) for i, v in sorted(opts.scores.items())}
     d["descent"] = dict(vars(opts.descent))

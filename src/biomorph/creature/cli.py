@@ -71,6 +71,7 @@ def _options(
     dataset,
     pcs=None,
     allow_extrapolation=False,
+    hoof_digits=None,
 ):
     from biomorph.creature.generator import Options
 
@@ -92,6 +93,7 @@ def _options(
         dataset=None if dataset is None else str(dataset),
         scores=parse_pc(pcs, k),
         allow_extrapolation=allow_extrapolation,
+        hoof_digits=hoof_digits,
     ).validate()
 
 
@@ -144,6 +146,15 @@ def generate(
     ] = None,
     cls: Annotated[
         str | None, typer.Option("--class", help="fish, amphibian, reptile, bird or mammal.")
+    ] = None,
+    hoof_digits: Annotated[
+        int | None,
+        typer.Option(
+            "--hoof-digits",
+            help="Hoofed mammal on 1 digit (perissodactyl: horse) or 2 (artiodactyl: cattle, "
+            "deer); default: from the nearest species.",
+            callback=bounded(1, 2),
+        ),
     ] = None,
     k: Annotated[
         int | None,
@@ -233,6 +244,7 @@ def generate(
         dataset,
         pc,
         allow_extrapolation,
+        hoof_digits,
     )
     creature = Generator(opts).run()
     summary = creature.summary()

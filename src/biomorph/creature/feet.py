@@ -9,8 +9,9 @@ class and foot posture (:func:`digit_plan`):
 ======================  ================================  ===================================
 plan                    digits (anatomy's I..V)            source of the pattern
 ======================  ================================  ===================================
-unguligrade mammal      III, IV: pastern + hoof            cloven-hoofed ungulates (most
-                                                           unguligrade species in the data)
+unguligrade mammal      III, IV: pastern + hoof            artiodactyls (cattle, deer:
+                                                           cloven hooves; most species)
+unguligrade, 1 digit    III: pastern + hoof                perissodactyls (horse)
 digitigrade mammal      II..V: 2 phalanges + claw          dog, cat (I is a dew claw, left out)
 plantigrade mammal      I..V: I 1 phalanx, II..V 2 + claw  bear, human (primates: nails)
 bird foot               I backwards (hallux), II..IV       anisodactyl bird foot
@@ -67,8 +68,11 @@ def _spread(numbers, fracs, end, spread_deg, short=()) -> tuple[Digit, ...]:
     )
 
 
-def digit_plan(kind: str, role: str, cls: str, stance: str, skull: str = "") -> tuple[Digit, ...]:
-    """The digits of a limb (see the module table); ``()`` for fins."""
+def digit_plan(
+    kind: str, role: str, cls: str, stance: str, skull: str = "", hoof_digits: int = 2
+) -> tuple[Digit, ...]:
+    """The digits of a limb (see the module table); ``()`` for fins. ``hoof_digits`` (1 or
+    2) picks the single hoof of a horse or the cloven hoof of cattle and deer."""
     if kind == "fin":
         return ()
     if kind == "wing":
@@ -99,6 +103,8 @@ def digit_plan(kind: str, role: str, cls: str, stance: str, skull: str = "") -> 
         numbers = (2, 3, 4, 5) if (cls == "amphibian" and role == "fore") else (1, 2, 3, 4, 5)
         return _spread(numbers, (0.3, 0.25, 0.15), end, 30.0, short=(1, 5))
     if stance == "unguligrade":
+        if hoof_digits == 1:  # horse: digit III alone (long + short pastern, hoof)
+            return _spread((3,), (0.6, 0.3), "hoof", 0.0)
         return _spread((3, 4), (0.6, 0.3), "hoof", 4.0)
     if stance == "digitigrade":
         return _spread((2, 3, 4, 5), (0.4, 0.25, 0.2), "claw", 10.0, short=(2, 5))

@@ -33,6 +33,7 @@ from biomorph.creature.creature import Creature
 from biomorph.creature.dataset import CLASSES
 from biomorph.creature.model import species_model
 from biomorph.creature.options import LEG_COUNTS, MAX_SCORE, STEPS, Options
+from biomorph.creature.quality import anatomy_check
 from biomorph.creature.repair import finish
 from biomorph.creature.states import SpineState, step_rng
 from biomorph.creature.steps import step_girdles, step_limbs, step_skull, step_spine
@@ -163,14 +164,7 @@ class Generator:
             self.step()
         c = self.creature
         o = self.options
-        while (
-            o.require_stable
-            and self._attempt < o.max_resamples
-            and (
-                c.params.get("below_ground")
-                or (c.balance is not None and c.balance.applicable and not c.balance.stable)
-            )
-        ):
+        while o.require_stable and self._attempt < o.max_resamples and _needs_resample(c):
             self._attempt += 1
             self._states.clear()
             while self.next_step is not None:
@@ -306,6 +300,21 @@ class Generator:
                 f"the {girdle} girdle has {len(gs[girdle].pairs)} limb "
                 f"pair(s); pair {pair} does not exist"
             )
+
+
+#: Anatomical rules a returned creature must pass (:func:`quality.anatomy_check`); the
+#: generator meets them by construction and resamples the rare draw it cannot repair (a back
+#: too short to keep the hind knees behind the elbows, legs too heavy for their height).
+RESAMPLE_RULES = ("femur_angle", "knee_behind_elbow", "withers_height")
+
+
+def _needs_resample(c: Creature) -> bool:
+    if c.params.get("below_ground"):
+        return True
+    if c.balance is not None and c.balance.applicable and not c.balance.stable:
+        return True
+    rules = anatomy_check(c)
+    return not all(rules[k] for k in RESAMPLE_RULES)
 
 
 def _copy_edits(e: dict) -> dict:

@@ -335,9 +335,12 @@ def implausibility(
     contact: int,
     role: str,
     params: DescentParams = DescentParams(),
+    upper_max_deg: float | None = None,
 ) -> float:
     """Rise of distal joints plus lean against the anatomical side (see :data:`LEAN_SIDE`)
-    of a posed chain ``points (4, 3)``, in length units; 0 for a plausible standing leg."""
+    of a posed chain ``points (4, 3)``, in length units; 0 for a plausible standing leg.
+    ``upper_max_deg`` tightens the upper bone's largest tilt from the vertical (a standing
+    femur's class range, :mod:`biomorph.creature.stance`)."""
     return float(
         _implausible(
             np.asarray(points, float),
@@ -345,13 +348,17 @@ def implausibility(
             int(contact),
             LEAN_SIDE[role],
             np.sin(params.direction_slack_deg * DEG),
-            _drop(params),
+            _drop(params, upper_max_deg),
         )
     )
 
 
-def _drop(params: DescentParams) -> NDArray[np.float64]:
-    return np.cos(np.asarray(params.max_tilt_deg, float) * DEG)
+def _drop(params: DescentParams, upper_max_deg: float | None = None) -> NDArray[np.float64]:
+    """Cosines of the bones' largest tilts from the vertical (the least drop per length)."""
+    tilt = np.asarray(params.max_tilt_deg, float).copy()
+    if upper_max_deg is not None:
+        tilt[0] = min(tilt[0], upper_max_deg)
+    return np.cos(tilt * DEG)
 
 
 def descend(
@@ -366,6 +373,7 @@ def descend(
     params: DescentParams = DescentParams(),
     n_active: int = 3,
     role: str = "hind",
+    upper_max_deg: float | None = None,
 ) -> tuple[NDArray[np.float64], float, int]:
     """Run the seed's ground-contact descent for one 3-bone chain.
 
@@ -399,7 +407,7 @@ def descend(
         bool(params.plausible),
         LEAN_SIDE[role],
         float(np.sin(params.direction_slack_deg * DEG)),
-        _drop(params),
+        _drop(params, upper_max_deg),
     )
     return ang, float(dist), int(it)
 
@@ -467,7 +475,9 @@ def reground(
     Returns ``None`` if the leg cannot reach."""
     plant = pose.foot_flat
     contact, n_active = (2, 2) if plant else (3, 3)
-    box = STAND_LIMITS_DEG[pose.role] * DEG if params.plausible else pose.limits
+    box = pose.box if pose.box is not None else STAND_LIMITS_DEG[pose.role] * DEG
+    if not params.plausible:
+        box = pose.limits
     ang = _snap(
         np.asarray(base, float),
         np.asarray(lengths, float),
@@ -476,7 +486,7 @@ def reground(
         ground,
         contact,
         n_active,
-        _plausible_test(lengths, contact, pose.role, params),
+        _plausible_test(lengths, contact, pose.role, params, pose.upper_max_deg),
     )
     if ang is None:
         return None
@@ -499,6 +509,8 @@ def reground(
         float(c[1] - ground),
         0,
         np.asarray(lengths, float),
+        pose.box,
+        pose.upper_max_deg,
     )
 
 
@@ -525,12 +537,12 @@ def _relax(base, lengths, ang, box, ground, contact, n_active, role, accept, fra
     return cur
 
 
-def _plausible_test(lengths, contact, role, params):
+def _plausible_test(lengths, contact, role, params, upper_max_deg=None):
     """``accept(points)`` for :func:`_snap`: the chain is a plausible standing leg."""
     if not params.plausible:
         return None
     tol = 0.002 * float(np.sum(lengths))
-    return lambda p: implausibility(p, lengths, contact, role, params) <= tol
+    return lambda p: implausibility(p, lengths, contact, role, params, upper_max_deg) <= tol
 
 
 @dataclass(frozen=True)
@@ -548,6 +560,8 @@ class LimbPose:
     residual: float  # remaining contact distance (same units as input)
     iterations: int
     lengths: NDArray[np.float64] | None = None  # final segment lengths (if stretched)
+    box: NDArray[np.float64] | None = None  # (3, 3, 2) rad: the standing box searched
+    upper_max_deg: float | None = None  # the upper bone's largest tilt from the vertical
 
 
 def pose_leg(
@@ -561,8 +575,17 @@ def pose_leg(
     params: DescentParams = DescentParams(),
     foot_clearance: float = 0.0,
     hip_max_deg: float | None = None,
+    lean_max_deg: float | None = None,
+    hip_min_deg: float | None = None,
 ) -> LimbPose:
     """Pose a leg with ground contact by the seed's descent.
+
+    ``hip_max_deg`` (hind legs): the femur's largest tilt from the vertical, in 3-D (its
+    flexion and abduction together; a class range of :mod:`biomorph.creature.stance`).
+    ``lean_max_deg``: the upper bone's largest sagittal flexion to its anatomical side (hind
+    femur forward, fore humerus back) — the generator uses it to keep the hind knees behind
+    the front elbows. ``hip_min_deg`` (hind legs): the femur's least forward flexion (birds
+    hold the femur forward).
 
     Digitigrade/unguligrade: the tip of the distal bone comes down to ``ground +
     foot_clearance`` (the height its digits need to reach the ground, e.g. an ungulate's
@@ -573,11 +596,21 @@ def pose_leg(
     box = STAND_LIMITS_DEG[role] * DEG if params.plausible else limits
     # most bent flexion: hind thigh forward (max), shank back (min), foot forward (max)
     start = start_pose(role, posture, params.plausible)
-    if hip_max_deg is not None and role == "hind" and params.plausible:
-        # a standing femur stays this far from the vertical (class ranges, stance.py)
+    upper_max = hip_max_deg if role == "hind" and params.plausible else None
+    if params.plausible and (upper_max is not None or lean_max_deg is not None):
+        # a standing femur stays this far from the vertical (class ranges, stance.py), the
+        # upper bone leans at most lean_max_deg to its side
+        caps = [c for c in (upper_max, lean_max_deg) if c is not None]
         box = box.copy()
-        box[0, 0, 1] = min(box[0, 0, 1], hip_max_deg * DEG)
-        start[0, 0] = box[0, 0, 1]
+        if role == "hind":
+            box[0, 0, 1] = max(min(box[0, 0, 1], min(caps) * DEG), box[0, 0, 0])
+            start[0, 0] = box[0, 0, 1]
+        elif lean_max_deg is not None:
+            box[0, 0, 0] = min(max(box[0, 0, 0], -lean_max_deg * DEG), box[0, 0, 1])
+            start[0, 0] = box[0, 0, 0]
+    if params.plausible and hip_min_deg is not None and role == "hind":
+        box = box.copy()
+        box[0, 0, 0] = min(max(box[0, 0, 0], hip_min_deg * DEG), box[0, 0, 1])
     prob = np.array([[params.p_flex, params.p_abduct, params.p_twist]] * 3)
     plant = stance == "plantigrade"
     contact = 2 if plant else 3
@@ -589,12 +622,12 @@ def pose_leg(
         if p0[1:, 1].min() >= g:
             break
         lengths = lengths * 0.9
-    accept = _plausible_test(lengths, contact, role, params)
+    accept = _plausible_test(lengths, contact, role, params, upper_max)
     vtol = 0.002 * float(np.sum(lengths))
     best, best_key = None, None
     for _ in range(max(1, params.restarts)):
         ang, dist, it = descend(
-            base, lengths, start, box, prob, g, contact, rng, params, n_active, role
+            base, lengths, start, box, prob, g, contact, rng, params, n_active, role, upper_max
         )
         if dist > params.tolerance:
             snapped = _snap(
@@ -612,7 +645,9 @@ def pose_leg(
         _, p = forward(base, lengths, ang)
         gap = max(float(p[contact, 1] - g), 0.0)
         bad = (
-            implausibility(p, lengths, contact, role, params) > vtol if params.plausible else False
+            implausibility(p, lengths, contact, role, params, upper_max) > vtol
+            if params.plausible
+            else False
         )
         # plausible first, then on the ground, then least flexion away from neutral
         key = (bad, gap > params.tolerance, flexion_from_neutral(ang, role, n_active))
@@ -659,13 +694,27 @@ def pose_leg(
                 rng,
                 params,
                 hip_max_deg=hip_max_deg,
+                lean_max_deg=lean_max_deg,
+                hip_min_deg=hip_min_deg,
             )
         contact_pt = pts[2].copy()
     else:
         contact_pt = pts[3].copy()
     resid = float(contact_pt[1] - g)
     return LimbPose(
-        "leg", role, ang, limits, rot, pts, contact_pt, plant, resid, it, np.asarray(lengths, float)
+        "leg",
+        role,
+        ang,
+        limits,
+        rot,
+        pts,
+        contact_pt,
+        plant,
+        resid,
+        it,
+        np.asarray(lengths, float),
+        box if params.plausible else None,
+        upper_max,
     )
 
 

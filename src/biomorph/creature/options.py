@@ -42,6 +42,9 @@ class Options:
     require_stable : repair or resample until statically stable.
     allow_extrapolation : accept a weight more than :data:`EXTRAPOLATION` × outside the
     dataset's weight range (the PCA was fitted on 0.01 kg … 120 t animals).
+    hoof_digits : hoofed digits per foot, 1 (perissodactyl: horse) or 2 (artiodactyl:
+    cattle, deer); makes the creature a hoofed (unguligrade) mammal. ``None``: inherited from
+    the nearest unguligrade species (the body plan), 0 for other feet.
     """
 
     seed: int = 0
@@ -64,6 +67,7 @@ class Options:
     dataset: str | None = None
     scores: dict[int, float] | None = None
     allow_extrapolation: bool = False
+    hoof_digits: int | None = None
 
     def __post_init__(self) -> None:
         # own copy: later changes to the caller's dict do not leak into the options
@@ -146,6 +150,19 @@ class Options:
                 "six legs fill the shoulder girdle (two leg pairs); wings or "
                 "arms need a free shoulder slot (use --centaur for arms)"
             )
+        if self.hoof_digits is not None:
+            if isinstance(self.hoof_digits, bool) or self.hoof_digits not in (1, 2):
+                raise ParameterError(
+                    f"hoof_digits={self.hoof_digits!r}: expected 1 (perissodactyl: horse) or "
+                    "2 (artiodactyl: cattle, deer)"
+                )
+            if self.cls is not None and self.cls != "mammal":
+                raise ParameterError(
+                    f"hoof_digits with class {self.cls}: hooves are the feet of ungulate "
+                    "mammals; drop --class or ask for --class mammal"
+                )
+            if self.legs == 0:
+                raise ParameterError("hoof_digits with --legs 0: hooves need legs to stand on")
         if not 0 < self.stand_fraction <= 1:
             raise ParameterError(f"stand_fraction={self.stand_fraction}: expected 0 < f <= 1")
         if self.temperature < 0 or self.jitter < 0:

@@ -36,6 +36,7 @@ TARGET = {
     "trunk_pitch_biped": (0.0, 50.0),
     "head_pitch": (-60.0, 25.0),
     "femur_max": 58.0,
+    "femur_min_bird": 22.0,
 }
 
 #: ``(a, b)`` of the standing-height allometry ``h = a · M^b`` (m, kg) per class.

@@ -39,6 +39,7 @@ class SpineState:
     wings_value: float  # decoded (continuous) wings and legs values
     legs_value: float
     nearest: str
+    hoof_digits: int = 0  # hoofed digits per foot (unguligrade: 1 horse, 2 cattle), else 0
 
 
 @dataclass(frozen=True, eq=False)

@@ -8,6 +8,7 @@ coordinates (x forward, y up, z right).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -42,6 +43,8 @@ def to_creature_px(points_px: NDArray) -> NDArray:
 def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> SpineState:
     """Sample the PCA (conditioned on the options), read the discrete values as
     probabilities, inherit class/stance/skull/counts from the nearest species, C1-fix."""
+    if opts.hoof_digits is not None and opts.legs is None:
+        opts = replace(opts, legs=4)  # hoofed mammals stand on four legs
     m = species_model(opts.dataset)
     model: pc.PCA = m.pca
     table = m.table
@@ -142,6 +145,9 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> Spi
     ws = np.array([w[list(idx).index(i)] for i in same])
     ws = ws / ws.sum()
     stance = table.stance[same[0]] if cls != "bird" else "digitigrade"
+    hooves = int(table.hoof_digits[same[0]]) if stance == "unguligrade" else 0
+    if opts.hoof_digits is not None and cls == "mammal":
+        stance, hooves = "unguligrade", int(opts.hoof_digits)
     posture = table.posture[same[0]]
     skull_name = table.skull[same[0]] if table.cls[same[0]] == cls else sk.CLASS_SKULL[cls]
     back_chord = float(np.linalg.norm(pts[6] - pts[3]))
@@ -172,6 +178,7 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> Spi
         wings_value=wings_v,
         legs_value=legs_v,
         nearest=table.name[pick],
+        hoof_digits=hooves,
     )
 
 
@@ -182,6 +189,8 @@ CLASS_LEGS = {"bird": 2, "fish": 0}
 def _compatible(cls: str, opts: Options) -> bool:
     """May a sample of class ``cls`` carry the requested legs / wings (class coherence: no
     four-legged birds, no legged or winged fish unless the class is asked for)?"""
+    if opts.hoof_digits is not None and cls != "mammal":
+        return False  # hooves: an ungulate mammal
     if opts.legs is not None:
         if opts.legs >= 2 and cls == "fish":
             return False
@@ -320,8 +329,14 @@ def _allometric_ground(
 ) -> float | None:
     """Ground height (creature px) at which the withers (quadrupeds) or hip (bipeds) stand at
     the allometric height of :mod:`biomorph.creature.stance`, or ``None`` where none applies.
-    The metres-per-px scale is the one ``finish`` will use (weight / density / volume),
-    re-estimated twice as the resized legs change the limb volume."""
+
+    The metres-per-px scale is the one ``finish`` will use, ``(w / (ρ V))^(1/3)``, and the
+    volume ``V`` grows with the legs, which are resized so that each stands at
+    ``stand_fraction`` of its reach above the ground: ``V(y) = V_body + Σ V_leg,i · g_i(y)³``
+    with ``g_i = (a_i − y) / (f · reach_i)``. The standing height ``(top − y) · scale(y)`` is
+    solved for ``y`` by bisection (the smallest legs that reach it); where heavy legs keep the
+    height below the target at every size (their volume grows as fast as their length), the
+    tallest attainable stance is taken."""
     cls = spine.cls
     h_m = allometric_height(cls, spine.posture, spine.weight)
     if h_m is None:
@@ -334,27 +349,56 @@ def _allometric_ground(
     body = float(ms.slice_volumes(s, h, b).sum()) + ms.ellipsoid_volume(
         sk.box_size(sk.get(spine.skull), spine.skull_length)
     )
-    free = sum(
+    body += sum(
         2 * float(ms.limb_volume(lengths[i], p[2].kind).sum())
         for i, p in enumerate(places)
         if i not in legs
     )
-    legv = sum(2 * float(ms.limb_volume(lengths[i], "leg").sum()) for i in legs)
-    ground = None
-    for _ in range(3):
-        scale = ms.size_scale(spine.weight, body + free + legv, cls)
-        ground = float(top[0]) - h_m / scale
-        # leg volume ∝ length³: resize by the stand height the legs will get
-        grow = [
-            max(attach[i][1][1] - ground, 1e-6)
-            / (stand_fraction * lb.max_reach(lengths[i], spine.stance, spine.posture))
-            for i in legs
-        ]
-        legv = sum(
-            2 * float(ms.limb_volume(lengths[i] * g, "leg").sum())
-            for i, g in zip(legs, grow, strict=True)
-        )
-    return ground
+    a = np.array([attach[i][1][1] for i in legs], float)
+    reach = np.array(
+        [stand_fraction * lb.max_reach(lengths[i], spine.stance, spine.posture) for i in legs]
+    )
+    v1 = np.array([2 * float(ms.limb_volume(lengths[i], "leg").sum()) for i in legs])
+    k = (spine.weight / ms.density(cls)) ** (1.0 / 3.0)
+    top0 = float(top[0])
+
+    def excess(y: float) -> float:  # standing height (m) minus the allometric height
+        g = np.maximum(a - y, 1e-9) / np.maximum(reach, 1e-12)
+        return (top0 - y) * k / (body + float(v1 @ g**3)) ** (1.0 / 3.0) - h_m
+
+    # the height grows from 0 (legs of no length, ground at the lowest attachment) and
+    # approaches a limit as the legs grow; scan outwards for the first crossing
+    hi = float(a.min())  # ground at the attachment: no height
+    span = max(float(np.max(reach)), float(s[-1]), 1.0)
+    lo, best, f_best = hi, hi, -np.inf
+    for _ in range(40):
+        hi, lo = lo, lo - span
+        f_lo = excess(lo)
+        if f_lo > f_best:
+            best, f_best = lo, f_lo
+        if f_lo >= 0:
+            break
+        span *= 1.6
+    else:
+        return best  # the legs' own weight keeps it below the target: tallest stance found
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if excess(mid) >= 0:
+            lo = mid
+        else:
+            hi = mid
+    return float(lo)
+
+
+def _girdle_rise(spine: SpineState, places, attach, previous: LimbsState) -> float:
+    """Height change (px) of the withers (quadrupeds: shoulder) or hip (bipeds) spine point
+    between ``previous`` and the new placement — the girdle
+    :func:`biomorph.creature.quality.standing_height` measures."""
+    girdle = "shoulder" if spine.legs >= 4 else "hip"
+    for i, p in enumerate(places):
+        if p[0] == girdle and p[1] == 0 and p[2].kind == "leg":
+            return float(attach[i][0][1] - previous.attach[i][0][1])
+    return 0.0
 
 
 def step_limbs(
@@ -403,6 +447,13 @@ def step_limbs(
     ]
     legs = [i for i, p in enumerate(places) if p[2].kind == "leg"]
     lengths = [np.array(p[2].lengths, float) for p in places]
+    if previous is not None and ground is not None and len(previous.places) == len(places):
+        # balance repair: the legs keep the lengths they were sized to (allometric height),
+        # and the ground follows the girdle the standing height is measured at, so a girdle
+        # moved along a pitched spine carries its legs instead of stretching them
+        for i in legs:
+            lengths[i] = np.array(previous.lengths[i], float)
+        ground = ground + _girdle_rise(spine, places, attach, previous)
     h_all, _, off_all = ms.profile(s, rl, spine.girth, cls, skull_h, legless)
     body_bottom = xy[:, 1] - np.where(region == 1, 0.35, 0.2) * h_all
     if legs:
@@ -457,7 +508,7 @@ def step_limbs(
         base = attach[i][1]
         if spec.kind == "leg":
             role = "hind" if gname == "hip" else "fore"
-            plan = feet.digit_plan("leg", role, cls, stance, spine.skull)
+            plan = feet.digit_plan("leg", role, cls, stance, spine.skull, spine.hoof_digits)
             pose = None
             if previous is not None:  # balance repair: keep the pose, re-ground continuously
                 prev = previous.poses[i]
@@ -466,22 +517,12 @@ def step_limbs(
                 if pose is not None:
                     lengths[i] = previous.lengths[i]
             if pose is None:
-                pose = lb.pose_leg(
-                    base,
-                    lengths[i],
-                    ground,
-                    role,
-                    stance,
-                    posture,
-                    rng,
-                    opts.descent,
-                    feet.clearance(plan, float(lengths[i][2])),
-                    None if cls == "bird" else TARGET["femur_max"],
-                )
+                pose = _pose_leg(spine, opts, rng, base, lengths[i], ground, role, plan)
             lengths[i] = pose.lengths
         else:
             pose = lb.pose_free(spec.kind, base, lengths[i], rng)
         poses.append(pose)
+    _knees_behind_elbows(spine, opts, rng, places, attach, lengths, poses, ground)
     if ground is None:
         lows = [xy[:, 1].min() - 0.5 * float(h_all.min())]
         lows += [p.points[:, 1].min() for p in poses]
@@ -501,6 +542,70 @@ def step_limbs(
         poses=poses,
         shifts=dict(shifts),
     )
+
+
+def _pose_leg(spine, opts, rng, base, lengths, ground, role, plan, lean_max=None):
+    return lb.pose_leg(
+        base,
+        lengths,
+        ground,
+        role,
+        spine.stance,
+        spine.posture,
+        rng,
+        opts.descent,
+        feet.clearance(plan, float(lengths[2])),
+        None if spine.cls == "bird" else TARGET["femur_max"],
+        lean_max,
+        TARGET["femur_min_bird"] if spine.cls == "bird" else None,
+    )
+
+
+#: Gap kept between the hind knees and the front elbows when they would overlap, as a
+#: fraction of the distance between the hip and shoulder attachments.
+KNEE_GAP = 0.05
+
+
+def _knees_behind_elbows(spine, opts, rng, places, attach, lengths, poses, ground) -> None:
+    """Quadrupeds: every hind knee stands behind every front elbow (the femur leans
+    forward, the humerus back). Where the posed legs overlap, the femur's forward and the
+    humerus' backward lean are capped so each upper bone stays on its side of a split
+    point between the attachments (shared in proportion to the bones' lengths), and those
+    legs are posed again (in place, ``poses`` and ``lengths`` updated)."""
+    hind = [i for i, p in enumerate(places) if p[2].kind == "leg" and p[0] == "hip"]
+    fore = [i for i, p in enumerate(places) if p[2].kind == "leg" and p[0] != "hip"]
+    if not hind or not fore:
+        return
+    knee = max(poses[i].points[1, 0] for i in hind)
+    elbow = min(poses[i].points[1, 0] for i in fore)
+    if knee < elbow:
+        return
+    xh = max(attach[i][1][0] for i in hind)
+    xf = min(attach[i][1][0] for i in fore)
+    gap = xf - xh
+    if gap <= 0:
+        return  # hips ahead of the shoulders: nothing to split (balance repair resamples)
+    lh = max(float(lengths[i][0]) for i in hind)
+    lf = max(float(lengths[i][0]) for i in fore)
+    usable = (1.0 - KNEE_GAP) * gap
+    split = xh + usable * lh / max(lh + lf, 1e-12)
+    for idx, end, L in ((hind, split, lh), (fore, split + KNEE_GAP * gap, lf)):
+        for i in idx:
+            reach = abs(end - attach[i][1][0]) if i in hind else abs(attach[i][1][0] - end)
+            cap = float(np.degrees(np.arcsin(np.clip(reach / max(L, 1e-12), 0.0, 1.0))))
+            if (i in hind and poses[i].points[1, 0] < end) or (
+                i in fore and poses[i].points[1, 0] > end
+            ):
+                continue  # this leg already clears the split point
+            role = "hind" if i in hind else "fore"
+            plan = feet.digit_plan(
+                "leg", role, spine.cls, spine.stance, spine.skull, spine.hoof_digits
+            )
+            pose = _pose_leg(
+                spine, opts, rng, attach[i][1], lengths[i], ground, role, plan, lean_max=cap
+            )
+            poses[i] = pose
+            lengths[i] = pose.lengths
 
 
 # --------------------------------------------------------------------------- step: skull

@@ -4,8 +4,9 @@ Per species: the spine as ten 2-D control points of three cubic Béziers (neck h
 back shoulder→hip, tail hip→tip) in a 1000×1000 px side-view frame (y up, head on the left,
 skeleton at the bottom centre), six limb-segment lengths in px, wings (0/1), number of legs
 with ground contact (0/2/4), weight in kg and class — the seed's 29 PCA dimensions plus the
-class — and, beyond the seed, stance, posture, skull type and length, trunk girth and
-vertebra counts per region. See ``README.md`` beside this file for how the numbers were made.
+class — and, beyond the seed, stance, posture, skull type and length, trunk girth,
+vertebra counts per region and the hoofed digits of unguligrade species. See ``README.md``
+beside this file for how the numbers were made.
 
 Example
 -------
@@ -103,6 +104,7 @@ class SpeciesTable:
     skull_length: NDArray[np.float64]  # px
     girth: NDArray[np.float64]  # trunk depth / back chord
     counts: NDArray[np.int64]  # (n, 3) cervical, trunk, caudal vertebrae
+    hoof_digits: NDArray[np.int64]  # hoofed digits per foot (unguligrade: 1 or 2, else 0)
 
     def __len__(self) -> int:
         return len(self.name)
@@ -139,6 +141,7 @@ class SpeciesTable:
                 cervical=int(self.counts[i, 0]),
                 trunk=int(self.counts[i, 1]),
                 caudal=int(self.counts[i, 2]),
+                hoof_digits=int(self.hoof_digits[i]) if self.hoof_digits[i] else "",
             )
             out.append(row)
         return out
@@ -195,6 +198,7 @@ def _row_values(path: Path, line: int, row: dict[str, str]) -> dict[str, object]
         raise FormatError(
             path, f"posture {posture!r}; expected one of {', '.join(POSTURES)}", line=line
         )
+    hooves = _hoof_digits(path, line, row, stance)
     back_chord = float(np.linalg.norm(pts[6] - pts[3]))
     skull_len = opt("skull_length", float)
     if skull_len is None:
@@ -214,7 +218,35 @@ def _row_values(path: Path, line: int, row: dict[str, str]) -> dict[str, object]
         skull_length=float(skull_len),
         girth=float(opt("girth", float)),
         counts=[int(opt(k, float)) for k in ("cervical", "trunk", "caudal")],
+        hoof_digits=hooves,
     )
+
+
+#: Hoofed digits per foot: perissodactyls stand on one (horse: digit III), artiodactyls on
+#: two (cattle, deer: III + IV). An unguligrade row without the column is an artiodactyl
+#: (most hoofed species).
+HOOF_DIGITS = (1, 2)
+
+
+def _hoof_digits(path: Path, line: int, row: dict[str, str], stance: str) -> int:
+    raw = (row.get("hoof_digits") or "").strip()
+    if stance != "unguligrade":
+        if raw and _num(path, line, row, "hoof_digits") != 0:
+            raise FormatError(
+                path, f"hoof_digits {raw} on a {stance} species; expected it empty or 0", line=line
+            )
+        return 0
+    if not raw:
+        return 2
+    v = _num(path, line, row, "hoof_digits")
+    if v not in HOOF_DIGITS:
+        raise FormatError(
+            path,
+            f"hoof_digits {raw}; expected 1 (perissodactyl: horse) or 2 (artiodactyl: cattle, "
+            "deer)",
+            line=line,
+        )
+    return int(v)
 
 
 def load_species(path: str | os.PathLike[str] | None = None) -> SpeciesTable:
@@ -252,6 +284,7 @@ def load_species(path: str | os.PathLike[str] | None = None) -> SpeciesTable:
         skull_length=np.array([v["skull_length"] for v in vals]),
         girth=np.array([v["girth"] for v in vals]),
         counts=np.array([v["counts"] for v in vals], dtype=np.int64),
+        hoof_digits=np.array([v["hoof_digits"] for v in vals], dtype=np.int64),
     )
 
 
@@ -300,4 +333,5 @@ __all__ = [
     "STANCES",
     "POSTURES",
     "LIMB_COLUMNS",
+    "HOOF_DIGITS",
 ]

@@ -114,7 +114,13 @@ CSV_COLUMNS = (
     + tuple(f"p{i}{c}" for i in range(10) for c in "xy")
     + ("upper_arm", "lower_arm", "hand", "upper_leg", "lower_leg", "foot")
     + ("stance", "posture", "skull", "skull_length", "girth", "cervical", "trunk", "caudal")
+    + ("hoof_digits",)
 )
+
+#: Hoofed digits of the unguligrade species (the others' column stays empty): the horse is a
+#: perissodactyl on digit III alone; buffalo, red deer, chamois, wildebeest and giraffe are
+#: artiodactyls on III + IV.
+HOOF_DIGITS = {"horse": 1}
 
 
 def descriptors() -> list[dict[str, str]]:
@@ -215,6 +221,7 @@ def layout(desc: dict[str, str]) -> dict[str, object]:
         cervical=desc["cervical"],
         trunk=desc["trunk"],
         caudal=desc["caudal"],
+        hoof_digits=HOOF_DIGITS.get(desc["name"], 2) if stance == "unguligrade" else "",
     )
     return out
 
