@@ -262,7 +262,7 @@ def test_long_take_euler_blocks_equal_sequential_reference(tmp_path):
     the blocks' signs afterwards; on a 9,000-frame take whose joints spin (hemisphere flips
     everywhere, also across block boundaries) it equals the sequential reference
     (euler_to_quat per frame + quat_continuous) to 1e-12."""
-    from biomorph.io.bvh import _EULER_CHUNK
+    from biomorph.io._bvh_kernels import _EULER_CHUNK
 
     f = 2 * _EULER_CHUNK + 808
     t = np.arange(f)
@@ -350,9 +350,11 @@ def parallel_scan(monkeypatch):
     import biomorph.io.bvh as bvh_module
 
     monkeypatch.setattr(bvh_module, "_PARALLEL_MIN_BYTES", 1)
+    monkeypatch.setattr(bvh_module, "_COMPILED_MIN_VALUES", 0)  # not the small-file path
 
 
 def test_parallel_scan_equals_the_sequential_one(tmp_path, parallel_scan):
+    import biomorph.io._bvh_kernels as kernels
     import biomorph.io.bvh as bvh_module
     from biomorph.motion.synthetic import walk
 
@@ -365,13 +367,13 @@ def test_parallel_scan_equals_the_sequential_one(tmp_path, parallel_scan):
     a = np.empty(400 * n_ch)
     b = np.empty(400 * n_ch)
     assert bvh_module._scan_floats_parallel(buf, start, a, n_ch)[:2] == (a.size, 0)
-    assert bvh_module._scan_floats(buf, start, b, n_ch)[:2] == (b.size, 0)
+    assert kernels._scan_floats(buf, start, b, n_ch)[:2] == (b.size, 0)
     assert np.array_equal(a, b)
     # the chunked kernel itself succeeds on a clean split (no silent fallback)
     mid = raw.index(b"\n", (start + len(raw)) // 2) + 1
     c = np.empty(400 * n_ch)
     cuts = np.array([start, mid, len(raw)], dtype=np.int64)
-    assert bvh_module._scan_floats_chunks(buf, cuts, c, n_ch)
+    assert kernels._scan_floats_chunks(buf, cuts, c, n_ch)
     assert np.array_equal(c, b)
     mo = read_bvh(p)
     assert mo.n_frames == 400

@@ -3,8 +3,10 @@
 Lives in ``core/`` beside :class:`~biomorph.core.skeleton.JointSkeleton` so the readers in
 ``io/`` (BVH, ASF/AMC, HTR) and shared services (``render``) build motions without importing
 the motion pillar (issue 12); ``biomorph.motion`` re-exports every name here. The two
-compiled kernels the type needs (forward kinematics and slerp sampling) live here too; the
-operators' kernels stay in ``biomorph.motion._kernels``.
+compiled kernels the type needs (forward kinematics and slerp sampling) live in
+:mod:`biomorph.core._motion_kernels`, loaded only for large work (:func:`use_compiled`): a
+small file is read, described and converted without importing numba; the operators'
+kernels stay in ``biomorph.motion._kernels``.
 
 Data layout (structure of arrays, one row per frame):
 
@@ -33,12 +35,12 @@ data are Y-up by convention; :func:`guess_up_axis` detects Z-up files and
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, overload
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from biomorph.core import transforms as tf
@@ -266,14 +268,19 @@ class Motion:
         trans = np.ascontiguousarray(self.local_translations(sel)).reshape(-1, self.n_joints, 3)
         pos = np.empty(trans.shape)
         quat = np.empty(rot.shape)
-        fk_positions(
-            ro(self.skeleton.rest_rotation),
-            ro(rot),
-            ro(trans),
-            ro_int(self.skeleton.parent),
-            pos,
-            quat,
-        )
+        if use_compiled(rot.shape[0] * rot.shape[1]):
+            from biomorph.core._motion_kernels import fk_positions
+
+            fk_positions(
+                ro(self.skeleton.rest_rotation),
+                ro(rot),
+                ro(trans),
+                ro_int(self.skeleton.parent),
+                pos,
+                quat,
+            )
+        else:
+            fk_numpy(self.skeleton.rest_rotation, rot, trans, self.skeleton.parent, pos, quat)
         return pos.reshape(lead + pos.shape[1:]), quat.reshape(lead + quat.shape[1:])
 
     def world_positions(self, frames: ArrayLike | slice | None = None) -> Array:
@@ -360,7 +367,12 @@ def sample_arrays(motion: Motion, t: Array) -> tuple[Array, Array, Array | None]
     """Rotations (slerp), root positions and joint translations (linear) at frames ``t``."""
     i0, frac, pos, jt = sample_linear(motion, t)
     rot = np.empty((t.size,) + motion.rotation.shape[1:])
-    sample_slerp(ro(motion.rotation), ro_int(i0), ro(frac), rot)
+    if use_compiled(rot.shape[0] * rot.shape[1]):
+        from biomorph.core._motion_kernels import sample_slerp
+
+        sample_slerp(ro(motion.rotation), ro_int(i0), ro(frac), rot)
+    else:
+        slerp_numpy(motion.rotation, i0, frac, rot)
     return frozen(rot), pos, jt
 
 
@@ -553,8 +565,26 @@ def ro_int(a: np.ndarray) -> np.ndarray:
     return v
 
 
-@njit(cache=True, inline="always")
-def _qmul(ax, ay, az, aw, bx, by, bz, bw):  # pragma: no cover - compiled
+#: Joint-frames (frames × joints) from which the compiled kernels are used even when they
+#: are not loaded yet. Measured with ``bench/cli.py --crossover`` (2-core VM, load 7.7):
+#: importing numba and loading the cached kernels costs 0.6 s of CPU once per process; the
+#: NumPy paths cost 0.30 µs (FK) and 0.15 µs (slerp) more per joint-frame than the compiled
+#: ones, so they break even near 2 M and 4 M joint-frames. 1 M (a 2.3-minute 60-joint take
+#: at 120 fps) keeps the NumPy path's extra cost below ~0.3 s.
+COMPILED_MIN_WORK = 1_000_000
+
+
+def use_compiled(work: int) -> bool:
+    """Whether to run a compiled kernel for ``work`` joint-frames: always once the kernels
+    are loaded in this process (the studio, batch jobs, the operators), otherwise only from
+    :data:`COMPILED_MIN_WORK` on. Both paths give the same bits."""
+    return work >= COMPILED_MIN_WORK or "biomorph.core._motion_kernels" in sys.modules
+
+
+def _qmul_np(a: tuple[Array, ...], b: tuple[Array, ...]) -> tuple[Array, ...]:
+    """Hamilton product of component tuples, the compiled ``_qmul``'s expression order."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
     return (
         aw * bx + ax * bw + ay * bz - az * by,
         aw * by - ax * bz + ay * bw + az * bx,
@@ -563,126 +593,69 @@ def _qmul(ax, ay, az, aw, bx, by, bz, bw):  # pragma: no cover - compiled
     )
 
 
-@njit(cache=True, inline="always")
-def _slerp(ax, ay, az, aw, bx, by, bz, bw, t):  # pragma: no cover - compiled
-    if t == 0.0:
-        return ax, ay, az, aw
-    d = ax * bx + ay * by + az * bz + aw * bw
-    if d < 0:
-        bx, by, bz, bw, d = -bx, -by, -bz, -bw, -d
-    if t == 1.0:
-        return bx, by, bz, bw
-    if d > 0.9999999:
-        w0 = 1.0 - t
-        w1 = t
-    else:
-        th = np.arccos(min(d, 1.0))
+def fk_numpy(
+    rest: Array, rot: Array, trans: Array, parent: ArrayLike, pos_out: Array, quat_out: Array
+) -> None:
+    """NumPy forward kinematics, vectorised over frames, joint by joint (parents first):
+    the same arithmetic as ``_motion_kernels.fk_positions`` in the same order (same bits)."""
+    par = np.asarray(parent, dtype=np.int64)
+    for j in range(rot.shape[1]):
+        r = rest[j]
+        q = rot[:, j]
+        loc = _qmul_np((r[0], r[1], r[2], r[3]), (q[:, 0], q[:, 1], q[:, 2], q[:, 3]))
+        p = int(par[j])
+        if p < 0:
+            quat_out[:, j] = np.stack(loc, axis=-1)
+            pos_out[:, j] = trans[:, j]
+            continue
+        pq = quat_out[:, p]
+        px, py, pz, pw = pq[:, 0], pq[:, 1], pq[:, 2], pq[:, 3]
+        quat_out[:, j] = np.stack(_qmul_np((px, py, pz, pw), loc), axis=-1)
+        vx, vy, vz = trans[:, j, 0], trans[:, j, 1], trans[:, j, 2]
+        tx = 2.0 * (py * vz - pz * vy)
+        ty = 2.0 * (pz * vx - px * vz)
+        tz = 2.0 * (px * vy - py * vx)
+        pos_out[:, j, 0] = pos_out[:, p, 0] + (vx + pw * tx + (py * tz - pz * ty))
+        pos_out[:, j, 1] = pos_out[:, p, 1] + (vy + pw * ty + (pz * tx - px * tz))
+        pos_out[:, j, 2] = pos_out[:, p, 2] + (vz + pw * tz + (px * ty - py * tx))
+
+
+def slerp_numpy(rot: Array, i0: NDArray[np.int64], frac: Array, out: Array) -> None:
+    """NumPy ``_motion_kernels.sample_slerp``: ``out[k] = slerp(rot[i0[k]], rot[i0[k]+1],
+    frac[k])``, exact at frac 0 and 1, hemisphere-continuous along k (same bits)."""
+    a = rot[i0]
+    b = rot[np.minimum(i0 + 1, rot.shape[0] - 1)]
+    t = frac[:, None]
+    d = a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+    d = d + a[..., 3] * b[..., 3]
+    neg = d < 0
+    b = np.where(neg[..., None], -b, b)
+    d = np.where(neg, -d, d)
+    near = d > 0.9999999
+    with np.errstate(invalid="ignore", divide="ignore"):
+        th = np.arccos(np.minimum(d, 1.0))
         s = np.sin(th)
-        w0 = np.sin((1.0 - t) * th) / s
-        w1 = np.sin(t * th) / s
-    x = w0 * ax + w1 * bx
-    y = w0 * ay + w1 * by
-    z = w0 * az + w1 * bz
-    w = w0 * aw + w1 * bw
-    n = np.sqrt(x * x + y * y + z * z + w * w)
-    return x / n, y / n, z / n, w / n
+        w0 = np.where(near, 1.0 - t, np.sin((1.0 - t) * th) / s)
+        w1 = np.where(near, t, np.sin(t * th) / s)
+    q = w0[..., None] * a + w1[..., None] * b
+    n2 = q[..., 0] * q[..., 0] + q[..., 1] * q[..., 1] + q[..., 2] * q[..., 2]
+    n = np.sqrt(n2 + q[..., 3] * q[..., 3])
+    q = q / n[..., None]
+    q = np.where((t == 1.0)[..., None], b, q)
+    q = np.where((t == 0.0)[..., None], a, q)
+    q[1:][_store_flips(np.sum(q[1:] * q[:-1], axis=-1))] *= -1.0
+    out[...] = q
 
 
-@njit(cache=True, inline="always")
-def _store_continuous(out, k, j, x, y, z, w):  # pragma: no cover - compiled
-    """``out[k, j] = ±(x, y, z, w)``, the sign that keeps joint ``j`` in the hemisphere of
-    frame ``k - 1`` (continuity along k)."""
-    if (
-        k > 0
-        and (
-            x * out[k - 1, j, 0]
-            + y * out[k - 1, j, 1]
-            + z * out[k - 1, j, 2]
-            + w * out[k - 1, j, 3]
-        )
-        < 0
-    ):
-        x, y, z, w = -x, -y, -z, -w
-    out[k, j, 0] = x
-    out[k, j, 1] = y
-    out[k, j, 2] = z
-    out[k, j, 3] = w
-
-
-@njit(cache=True)
-def sample_slerp(rot, i0, frac, out):  # pragma: no cover - compiled
-    """``out[k, j] = slerp(rot[i0[k], j], rot[i0[k]+1, j], frac[k])`` (exact at frac 0/1),
-    hemisphere-continuous along k."""
-    f = rot.shape[0]
-    for k in range(i0.size):
-        a = i0[k]
-        b = min(a + 1, f - 1)
-        t = frac[k]
-        for j in range(rot.shape[1]):
-            x, y, z, w = _slerp(
-                rot[a, j, 0],
-                rot[a, j, 1],
-                rot[a, j, 2],
-                rot[a, j, 3],
-                rot[b, j, 0],
-                rot[b, j, 1],
-                rot[b, j, 2],
-                rot[b, j, 3],
-                t,
-            )
-            _store_continuous(out, k, j, x, y, z, w)
-
-
-@njit(cache=True)
-def fk_positions(rest, rot, trans, parent, pos_out, quat_out):  # pragma: no cover - compiled
-    """Forward kinematics with quaternions: world positions ``(f, n, 3)`` and orientations
-    ``(f, n, 4)`` from rest rotations ``(n, 4)``, pose rotations ``(f, n, 4)``, local
-    translations ``(f, n, 3)`` and ``parent`` (parents first)."""
-    f, n = rot.shape[0], rot.shape[1]
-    for t in range(f):
-        for j in range(n):
-            lx, ly, lz, lw = _qmul(
-                rest[j, 0],
-                rest[j, 1],
-                rest[j, 2],
-                rest[j, 3],
-                rot[t, j, 0],
-                rot[t, j, 1],
-                rot[t, j, 2],
-                rot[t, j, 3],
-            )
-            p = parent[j]
-            if p < 0:
-                quat_out[t, j, 0] = lx
-                quat_out[t, j, 1] = ly
-                quat_out[t, j, 2] = lz
-                quat_out[t, j, 3] = lw
-                pos_out[t, j, 0] = trans[t, j, 0]
-                pos_out[t, j, 1] = trans[t, j, 1]
-                pos_out[t, j, 2] = trans[t, j, 2]
-                continue
-            px, py, pz, pw = (
-                quat_out[t, p, 0],
-                quat_out[t, p, 1],
-                quat_out[t, p, 2],
-                quat_out[t, p, 3],
-            )
-            wx, wy, wz, ww = _qmul(px, py, pz, pw, lx, ly, lz, lw)
-            quat_out[t, j, 0] = wx
-            quat_out[t, j, 1] = wy
-            quat_out[t, j, 2] = wz
-            quat_out[t, j, 3] = ww
-            # rotate the local translation by the parent's world orientation
-            vx, vy, vz = trans[t, j, 0], trans[t, j, 1], trans[t, j, 2]
-            tx = 2.0 * (py * vz - pz * vy)
-            ty = 2.0 * (pz * vx - px * vz)
-            tz = 2.0 * (px * vy - py * vx)
-            rx = vx + pw * tx + (py * tz - pz * ty)
-            ry = vy + pw * ty + (pz * tx - px * tz)
-            rz = vz + pw * tz + (px * ty - py * tx)
-            pos_out[t, j, 0] = pos_out[t, p, 0] + rx
-            pos_out[t, j, 1] = pos_out[t, p, 1] + ry
-            pos_out[t, j, 2] = pos_out[t, p, 2] + rz
+def _store_flips(dots: Array) -> NDArray[np.bool_]:
+    """Which samples the compiled ``_store_continuous`` negates, from the dot products of
+    consecutive *unflipped* samples ``(f - 1, ...)``: it compares each sample with the stored
+    (possibly negated) previous one, so the sign flips at every negative dot and resets to +
+    at a dot of exactly 0 or NaN (``-0 < 0`` is false)."""
+    neg = dots < 0
+    count = np.cumsum(neg, axis=0)
+    base = np.maximum.accumulate(np.where(neg | (dots > 0), 0, count), axis=0)
+    return (count - base) % 2 == 1
 
 
 __all__ = [
@@ -701,6 +674,9 @@ __all__ = [
     "sample_linear",
     "transform_root",
     "to_y_up",
+    "use_compiled",
+    "ro",
+    "ro_int",
     "ROTATION_CHANNELS",
     "POSITION_CHANNELS",
     "DEFAULT_ORDER",

@@ -17,7 +17,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from biomorph.core import transforms as tf
-from biomorph.core import treeops
 from biomorph.errors import InputError
 
 
@@ -117,6 +116,8 @@ class JointSkeleton:
     def depth(self) -> NDArray[np.int64]:
         """Number of ancestors of each joint (root 0)."""
         # parents precede children, so index order is a topological order
+        from biomorph.core import treeops  # numba + scipy.sparse: loaded on first use
+
         return treeops.depth(self.parent, np.arange(len(self), dtype=np.int64))
 
     @cached_property
@@ -136,6 +137,8 @@ class JointSkeleton:
         j = self.index(joint) if isinstance(joint, str) else int(joint)
         mark = np.zeros(len(self))
         mark[j] = 1.0
+        from biomorph.core import treeops  # numba + scipy.sparse: loaded on first use
+
         mask = treeops.accumulate_down(self.parent, mark, np.arange(len(self), dtype=np.int64)) > 0
         if not include_self:
             mask[j] = False

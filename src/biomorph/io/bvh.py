@@ -35,16 +35,15 @@ import math
 import mmap
 import os
 import re
+import sys
 import warnings
 from pathlib import Path
 
 import numpy as np
-from numba import njit, prange
 
 from biomorph.core import transforms as tf
 from biomorph.core.skeleton import JointSkeleton
 from biomorph.errors import FormatError, InputError, ParameterError
-from biomorph.io._fixed import emit_fixed
 from biomorph.io.atomic import atomic_path
 
 _CHANNELS = {
@@ -56,170 +55,15 @@ _DEFAULT_ROOT = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation"
 _DEFAULT_JOINT = ("Zrotation", "Xrotation", "Yrotation")
 
 
-# --------------------------------------------------------------------------- compiled kernels
-@njit(cache=True)
-def _scan_floats(buf, start, out, n_per_line):  # pragma: no cover - compiled
-    """Parse whitespace-separated decimal numbers from ``buf[start:]`` into ``out``.
-
-    Not shared with :mod:`biomorph.io.xyz`'s ``_scan_table`` (issue 12 asked for one scanner
-    if it costs neither reader speed): the contracts differ — XYZ takes a delimiter,
-    ``#`` comments and converts tokens beyond 2^53 / 1e±22 exactly through a slow path,
-    while this scanner counts values per line for BVH's frame diagnostics, refuses
-    overflow and never leaves the compiled loop. A common kernel would need both sets of
-    branches in the innermost per-byte loop of each reader, so both are kept.
-
-    Returns ``(count, status, err_pos, bad_line_pos, bad_line_count)``: status 0 ok,
-    1 more values than ``out`` holds, 2 a malformed token starting at ``err_pos``.
-    3 a value overflowing to infinity starting at ``err_pos``.
-    ``bad_line_pos`` is the byte offset of the first line whose value count differs from
-    ``n_per_line`` (-1 if none)."""
-    n = out.size
-    pow10 = np.empty(23)
-    p = 1.0
-    for e in range(23):
-        pow10[e] = p  # 1e0 .. 1e22, each exact (products of exact values below 2**53 * 2**e)
-        p *= 10.0
-    k = 0
-    i = start
-    size = buf.size
-    line_start = start
-    line_count = 0
-    bad_line = -1
-    bad_count = 0
-    while i < size:
-        c = buf[i]
-        if c == 10:  # newline closes a line
-            if line_count != 0 and line_count != n_per_line and bad_line < 0:
-                bad_line = line_start
-                bad_count = line_count
-            line_count = 0
-            i += 1
-            line_start = i
-            continue
-        if c == 32 or c == 9 or c == 13 or c == 11 or c == 12:
-            i += 1
-            continue
-        tok = i
-        if k >= n:
-            return k, 1, tok, bad_line, bad_count
-        neg = False
-        if c == 45:
-            neg = True
-            i += 1
-        elif c == 43:
-            i += 1
-        mant = 0
-        nd = 0
-        exp10 = 0
-        digits = 0
-        while i < size and 48 <= buf[i] <= 57:
-            if nd < 18:
-                mant = mant * 10 + (buf[i] - 48)
-                if mant > 0:
-                    nd += 1
-            else:
-                exp10 += 1
-            digits += 1
-            i += 1
-        if i < size and buf[i] == 46:
-            i += 1
-            while i < size and 48 <= buf[i] <= 57:
-                if nd < 18:
-                    mant = mant * 10 + (buf[i] - 48)
-                    exp10 -= 1
-                    if mant > 0:
-                        nd += 1
-                digits += 1
-                i += 1
-        if digits == 0:
-            return k, 2, tok, bad_line, bad_count
-        if i < size and (buf[i] == 101 or buf[i] == 69):
-            i += 1
-            eneg = False
-            if i < size and (buf[i] == 45 or buf[i] == 43):
-                eneg = buf[i] == 45
-                i += 1
-            ed = 0
-            ev = 0
-            while i < size and 48 <= buf[i] <= 57:
-                if ev < 10000:
-                    ev = ev * 10 + (buf[i] - 48)
-                ed += 1
-                i += 1
-            if ed == 0:
-                return k, 2, tok, bad_line, bad_count
-            exp10 += -ev if eneg else ev
-        if i < size:
-            c2 = buf[i]
-            if not (c2 == 32 or c2 == 9 or c2 == 10 or c2 == 13 or c2 == 11 or c2 == 12):
-                return k, 2, tok, bad_line, bad_count
-        v = float(mant)
-        # powers of ten up to 1e22 are exact doubles: a table lookup gives the same value as
-        # 10.0 ** k without a pow() call per number (most of the scan's time before)
-        if exp10 > 0:
-            v = v * (pow10[exp10] if exp10 <= 22 else 10.0**exp10)
-        elif exp10 < 0:
-            if exp10 >= -22:
-                v = v / pow10[-exp10]
-            else:
-                v = v / 1e22 / 10.0 ** (-exp10 - 22)
-        if v > 1.7976931348623157e308:  # overflow (e.g. 1e999): not a finite number
-            return k, 3, tok, bad_line, bad_count
-        out[k] = -v if neg else v
-        k += 1
-        line_count += 1
-    if line_count != 0 and line_count != n_per_line and bad_line < 0:
-        bad_line = line_start
-        bad_count = line_count
-    return k, 0, -1, bad_line, bad_count
-
-
-@njit(cache=True)
-def _count_tokens(buf, lo, hi):  # pragma: no cover - compiled
-    """Whitespace-separated words in ``buf[lo:hi]`` (the values a well-formed chunk holds)."""
-    n = 0
-    prev_space = True
-    for i in range(lo, hi):
-        c = buf[i]
-        space = c == 32 or c == 10 or c == 9 or c == 13 or c == 11 or c == 12
-        if prev_space and not space:
-            n += 1
-        prev_space = space
-    return n
-
-
 _PARALLEL_MIN_BYTES = 8 << 20  #: below this the sequential scan is as fast
-
-
-@njit(cache=True, parallel=True)
-def _scan_floats_chunks(buf, bounds, out, n_per_line):  # pragma: no cover - compiled
-    """:func:`_scan_floats` over chunks ``bounds[i]..bounds[i+1]`` (each starting at a line
-    start) in parallel: count the words of every chunk, prefix-sum them into output offsets,
-    parse every chunk into its slice. Returns ``ok``: False when any chunk is not clean
-    (a malformed value, a short line, or a total other than ``out.size``) — the caller then
-    runs the sequential scan for its exact diagnostics."""
-    nc = bounds.size - 1
-    counts = np.zeros(nc, dtype=np.int64)
-    for i in prange(nc):
-        counts[i] = _count_tokens(buf, bounds[i], bounds[i + 1])
-    if counts.sum() != out.size:
-        return False
-    offs = np.zeros(nc + 1, dtype=np.int64)
-    for i in range(nc):
-        offs[i + 1] = offs[i] + counts[i]
-    good = np.ones(nc, dtype=np.bool_)
-    for i in prange(nc):
-        k, status, _e, bad_line, _b = _scan_floats(
-            buf[: bounds[i + 1]], bounds[i], out[offs[i] : offs[i + 1]], n_per_line
-        )
-        good[i] = status == 0 and bad_line < 0 and k == counts[i]
-    return good.all()
 
 
 def _scan_floats_parallel(buf: np.ndarray, start: int, out: np.ndarray, n_per_line: int):
     """:func:`_scan_floats` with the same result, MOTION sections of 8 MB and more parsed by
     all cores (2 cores: an 11 MB file 39 → 31 ms, a 47 MB one 242 → 191 ms; larger
     sections are streamed, :func:`_stream_motion`)."""
+    from biomorph.io._bvh_kernels import _scan_floats, _scan_floats_chunks
+
     size = buf.size
     if size - start >= _PARALLEL_MIN_BYTES:
         from numba import get_num_threads
@@ -239,130 +83,145 @@ def _scan_floats_parallel(buf: np.ndarray, start: int, out: np.ndarray, n_per_li
     return _scan_floats(buf, start, out, n_per_line)
 
 
-@njit(cache=True, inline="always")
-def _euler_quat(data, t, j, rot_cols, rot_axes, d2r):  # pragma: no cover - compiled
-    """Quaternion of joint j's Euler channels (degrees) at frame t: product in listed order."""
-    x = 0.0
-    y = 0.0
-    z = 0.0
-    w = 1.0
-    for m in range(3):
-        col = rot_cols[j, m]
-        if col < 0:
-            continue
-        h = 0.5 * data[t, col] * d2r
-        s = np.sin(h)
-        c = np.cos(h)
-        ax = rot_axes[j, m]
-        # (x,y,z,w) * (axis*s, c)
-        if ax == 0:
-            bx, by, bz = s, 0.0, 0.0
-        elif ax == 1:
-            bx, by, bz = 0.0, s, 0.0
-        else:
-            bx, by, bz = 0.0, 0.0, s
-        nx = w * bx + x * c + y * bz - z * by
-        ny = w * by - x * bz + y * c + z * bx
-        nz = w * bz + x * by - y * bx + z * c
-        nw = w * c - x * bx - y * by - z * bz
-        x, y, z, w = nx, ny, nz, nw
-    return x, y, z, w
+# --------------------------------------------------------------------------- small files
+#: MOTION values from which the compiled kernels (:mod:`biomorph.io._bvh_kernels`) are used
+#: even when numba is not loaded yet. Importing numba and loading the cached kernels costs
+#: 0.6 s of CPU once per process; the NumPy read costs 0.33 µs and the NumPy write 0.10 µs
+#: more per value than the compiled ones (``bench/cli.py --crossover``, load 7.7), so they
+#: break even near 1.9 M and 6.6 M values; 1 M values (a 2.3-minute 60-joint take at
+#: 120 fps, ~8 MB of text) keeps the NumPy read under ~0.35 s.
+_COMPILED_MIN_VALUES = 1_000_000
+_KERNELS = "biomorph.io._bvh_kernels"
+_SCAN_CHARS = b"0123456789.+- \t\n\r\x0b\x0c"  #: bytes the NumPy value path accepts
 
 
-_EULER_CHUNK = 4096
+def _compiled(n_values: int) -> bool:
+    """Use the compiled kernels for ``n_values`` MOTION values: from
+    :data:`_COMPILED_MIN_VALUES` on, or whenever they are loaded in this process already."""
+    return n_values >= _COMPILED_MIN_VALUES or _KERNELS in sys.modules
 
 
-@njit(cache=True, parallel=True)
-def _euler_kernel(data, rot_cols, rot_axes, out):  # pragma: no cover - compiled
-    """Pose quaternions from Euler columns (degrees) with hemisphere continuity.
+def _count_words(buf: np.ndarray, lo: int, hi: int) -> int:
+    """Whitespace-separated words in ``buf[lo:hi]``."""
+    if _compiled((hi - lo) // 4):
+        from biomorph.io._bvh_kernels import _count_tokens
 
-    ``rot_cols[j, m]`` is the data column of joint j's m-th rotation channel (-1 none),
-    ``rot_axes[j, m]`` its axis 0/1/2; the rotation is the product in listed order.
+        return int(_count_tokens(buf, lo, hi))
+    return len(buf[lo:hi].tobytes().split())
 
-    Parallel over blocks of frames (each thread streams its rows of ``data`` and ``out``
-    once, all joints per row), continuity first within each block; then one sign per block
-    and joint chains the blocks. Negation is exact, so the result equals the sequential
-    frame-by-frame continuity bit for bit."""
-    f, n = out.shape[0], out.shape[1]
+
+def _values_numpy(raw: bytes, data_start: int, n_frames: int, n_ch: int) -> np.ndarray | None:
+    """The MOTION values ``(n_frames, n_ch)`` of a clean section with Python's float parser,
+    or ``None`` (then the compiled scanner reads it, with its exact diagnostics).
+
+    Same bits as the scanner: only tokens of at most 15 characters without an exponent are
+    taken (mantissa below 10^15 < 2^53 and at most 15 decimals: the scanner's one division
+    by an exact power of ten is then correctly rounded, like ``float``); anything else — a
+    letter, an exponent, a longer token, a line with another number of values, a count other
+    than ``Frames × channels`` or a malformed number — returns ``None``."""
+    data = raw[data_start:]
+    if n_ch <= 0 or data.translate(None, _SCAN_CHARS):
+        return None
+    words: list[bytes] = []
+    for line in data.split(b"\n"):
+        w = line.split()
+        if w:
+            if len(w) != n_ch:
+                return None
+            words.extend(w)
+    if len(words) != n_frames * n_ch or max(map(len, words)) > 15:
+        return None
+    try:
+        vals = np.array(list(map(float, words)), dtype=np.float64)
+    except ValueError:
+        return None
+    return vals.reshape(n_frames, n_ch)
+
+
+def _euler_numpy(data: np.ndarray, rot_cols: np.ndarray, rot_axes: np.ndarray, out) -> None:
+    """NumPy ``_bvh_kernels._euler_kernel``: per joint, the product of its Euler channels'
+    quaternions in listed order, hemisphere-continuous over frames; the same arithmetic in
+    the same order (same bits)."""
+    from biomorph.core.motion import _store_flips
+
     d2r = np.pi / 180.0
-    ch = _EULER_CHUNK
-    nb = (f + ch - 1) // ch
-    for b in prange(nb):
-        t0 = b * ch
-        t1 = min(t0 + ch, f)
-        for t in range(t0, t1):
-            for j in range(n):
-                x, y, z, w = _euler_quat(data, t, j, rot_cols, rot_axes, d2r)
-                if t > t0:
-                    dot = (
-                        x * out[t - 1, j, 0]
-                        + y * out[t - 1, j, 1]
-                        + z * out[t - 1, j, 2]
-                        + w * out[t - 1, j, 3]
-                    )
-                    if dot < 0:
-                        x, y, z, w = -x, -y, -z, -w
-                out[t, j, 0] = x
-                out[t, j, 1] = y
-                out[t, j, 2] = z
-                out[t, j, 3] = w
-    if nb == 1:
-        return
-    sign = np.ones((nb, n))
-    for b in range(1, nb):
-        t0 = b * ch
-        for j in range(n):
-            dot = sign[b - 1, j] * (
-                out[t0 - 1, j, 0] * out[t0, j, 0]
-                + out[t0 - 1, j, 1] * out[t0, j, 1]
-                + out[t0 - 1, j, 2] * out[t0, j, 2]
-                + out[t0 - 1, j, 3] * out[t0, j, 3]
+    f = data.shape[0]
+    for j in range(rot_cols.shape[0]):
+        x: np.ndarray | float = 0.0
+        y: np.ndarray | float = 0.0
+        z: np.ndarray | float = 0.0
+        w: np.ndarray | float = 1.0
+        for m in range(3):
+            col = rot_cols[j, m]
+            if col < 0:
+                continue
+            h = 0.5 * data[:, col] * d2r
+            s_ = np.sin(h)
+            c = np.cos(h)
+            ax = rot_axes[j, m]
+            bx = s_ if ax == 0 else 0.0
+            by = s_ if ax == 1 else 0.0
+            bz = s_ if ax == 2 else 0.0
+            x, y, z, w = (
+                w * bx + x * c + y * bz - z * by,
+                w * by - x * bz + y * c + z * bx,
+                w * bz + x * by - y * bx + z * c,
+                w * c - x * bx - y * by - z * bz,
             )
-            sign[b, j] = -1.0 if dot < 0 else 1.0
-    for b in prange(1, nb):
-        t0 = b * ch
-        t1 = min(t0 + ch, f)
-        for j in range(n):
-            if sign[b, j] < 0:
-                for t in range(t0, t1):
-                    for c in range(4):
-                        out[t, j, c] = -out[t, j, c]
+        out[:, j, 0] = x
+        out[:, j, 1] = y
+        out[:, j, 2] = z
+        out[:, j, 3] = w
+    if f > 1:
+        q = out
+        dots = (
+            q[1:, :, 0] * q[:-1, :, 0]
+            + q[1:, :, 1] * q[:-1, :, 1]
+            + q[1:, :, 2] * q[:-1, :, 2]
+            + q[1:, :, 3] * q[:-1, :, 3]
+        )
+        q[1:][_store_flips(dots)] *= -1.0
 
 
-@njit(cache=True)
-def _count_wraps(data, cols):  # pragma: no cover - compiled
-    """Number of jumps larger than 180 between consecutive rows in the given columns."""
-    n = 0
-    for t in range(1, data.shape[0]):
-        for c in cols:
-            if abs(data[t, c] - data[t - 1, c]) > 180.0:
-                n += 1
-    return n
-
-
-@njit(cache=True)
-def _format_fixed(values, precision, out):  # pragma: no cover - compiled
-    """Write ``values (f, c)`` as fixed-point text rows into byte buffer ``out``; return the
-    number of bytes used (-1 if a value is too large)."""
+def _format_numpy(values: np.ndarray, precision: int) -> bytes | None:
+    """NumPy ``_bvh_kernels._format_fixed``: ``values (f, c)`` as fixed-point text rows
+    (half-up on the scaled magnitude, ``-`` unless it rounds to 0), the same bytes; ``None``
+    if a value is too large."""
+    a = np.abs(values)
+    if not (a < 1e12).all():
+        return None
+    p10 = 10**precision
+    x = np.floor(a * 10.0**precision + 0.5).astype(np.int64)
+    ip = x // p10
+    fp = x - ip * p10
+    neg = (values < 0) & (x != 0)
+    nd = len(str(int(ip.max()))) if ip.size else 1  # integer digits of the largest value
+    n_digits = 1 + sum((ip >= 10**k).astype(np.int64) for k in range(1, nd))
     f, c = values.shape
-    scale = 10.0**precision
-    p10 = np.int64(1)
-    for _ in range(precision):
-        p10 *= 10
-    pos = 0
-    digits = np.empty(24, dtype=np.uint8)
-    for t in range(f):
-        for j in range(c):
-            v = values[t, j]
-            a = abs(v)
-            if not a < 1e12:
-                return -1
-            x = np.int64(np.floor(a * scale + 0.5))  # half-up on the scaled value
-            ip = x // p10
-            pos = emit_fixed(out, pos, v < 0 and x != 0, ip, x - ip * p10, precision, digits)
-            out[pos] = 32 if j < c - 1 else 10
-            pos += 1
-    return pos
+    width = 1 + nd + (precision + 1 if precision > 0 else 0) + 1
+    cells = np.zeros((f, c, width), dtype=np.uint8)
+    keep = np.zeros((f, c, width), dtype=bool)
+    cells[..., 0] = 45  # '-'
+    keep[..., 0] = neg
+    rest = ip.copy()
+    for k in range(nd - 1, -1, -1):
+        cells[..., 1 + k] = 48 + rest % 10
+        rest //= 10
+        keep[..., 1 + k] = (nd - k) <= n_digits  # no leading zeros
+    col = 1 + nd
+    if precision > 0:
+        cells[..., col] = 46
+        keep[..., col] = True
+        rest = fp.copy()
+        for k in range(precision - 1, -1, -1):
+            cells[..., col + 1 + k] = 48 + rest % 10
+            rest //= 10
+        keep[..., col + 1 : col + 1 + precision] = True
+        col += 1 + precision
+    cells[..., col] = 32
+    cells[:, -1, col] = 10
+    keep[..., col] = True
+    return cells[keep].tobytes()
 
 
 # --------------------------------------------------------------------------- reading
@@ -565,7 +424,7 @@ def _complete_rows(buf: np.ndarray, data_start: int, n_ch: int) -> tuple[int, in
     """``(rows, end, partial)``: complete frame rows in ``buf[data_start:end]`` when only the
     last line may be short (``partial``: it was cut off); ``rows = -1`` when the values do not
     split into whole rows for another reason (the strict diagnostics then apply)."""
-    total = int(_count_tokens(buf, data_start, buf.size))
+    total = _count_words(buf, data_start, buf.size)
     if n_ch <= 0:
         return -1, buf.size, False
     if total % n_ch == 0:
@@ -575,7 +434,7 @@ def _complete_rows(buf: np.ndarray, data_start: int, n_ch: int) -> tuple[int, in
         text_end -= 1
     nl = np.flatnonzero(buf[data_start:text_end] == 10)
     end = data_start + (int(nl[-1]) + 1 if nl.size else 0)
-    head = int(_count_tokens(buf, data_start, end))
+    head = _count_words(buf, data_start, end)
     if head % n_ch:
         return -1, buf.size, False
     return head // n_ch, end, True
@@ -628,6 +487,12 @@ def _parse_motion(
                 f"{os.fspath(path)}: {what}; read {rows} frames (--strict refuses)",
             )
             return got
+    if not _compiled(n_frames * n_ch):
+        vals = _values_numpy(raw, data_start, n_frames, n_ch)
+        if vals is not None:
+            conv = _MotionRows(n_frames, rot_cols, rot_axes, pos_cols, offset)
+            conv.add(vals)
+            return conv.result()
     out = _empty((n_frames * n_ch,))
     count, status, err, bad_line, bad_count = _scan_floats_parallel(
         buf, data_start, out, max(n_ch, 1)
@@ -713,9 +578,15 @@ class _MotionRows:
 
     def add(self, vals):
         t0, t1 = self.t, self.t + vals.shape[0]
-        _euler_kernel(vals, self.rot_cols, self.rot_axes, self.rotation[t0:t1])
-        if t0 > 0:
-            _chain_block(self.rotation, t0)
+        compiled = _compiled(vals.size) or t0 > 0
+        if compiled:
+            from biomorph.io._bvh_kernels import _chain_block, _count_wraps, _euler_kernel
+
+            _euler_kernel(vals, self.rot_cols, self.rot_axes, self.rotation[t0:t1])
+            if t0 > 0:
+                _chain_block(self.rotation, t0)
+        else:
+            _euler_numpy(vals, self.rot_cols, self.rot_axes, self.rotation[t0:t1])
         pc = self.pos_cols
         for a in range(3):
             self.root_pos[t0:t1, a] = vals[:, pc[0, a]] if pc[0, a] >= 0 else self.offset[0, a]
@@ -724,7 +595,11 @@ class _MotionRows:
                 if pc[j, a] >= 0:
                     self.translation[t0:t1, j, a] = vals[:, pc[j, a]]
         if self.rc.size:
-            self.wraps += int(_count_wraps(vals, self.rc))
+            self.wraps += (
+                int(_count_wraps(vals, self.rc))
+                if compiled
+                else int(np.count_nonzero(np.abs(np.diff(vals[:, self.rc], axis=0)) > 180.0))
+            )
             if self.last is not None:
                 self.wraps += int(
                     np.count_nonzero(np.abs(vals[0, self.rc] - self.last[self.rc]) > 180.0)
@@ -742,21 +617,6 @@ _STREAM_MIN_BYTES = 64 << 20  #: MOTION sections with more values than this are 
 _STREAM_FRAMES = 16384  #: frames per streamed block
 
 
-@njit(cache=True)
-def _chain_block(rotation, t0):  # pragma: no cover - compiled
-    """Negate joints of the block starting at frame ``t0`` whose first quaternion is in the
-    other hemisphere than frame ``t0 - 1`` (continuity across blocks; negation is exact)."""
-    f, n = rotation.shape[0], rotation.shape[1]
-    for j in range(n):
-        dot = 0.0
-        for c in range(4):
-            dot += rotation[t0 - 1, j, c] * rotation[t0, j, c]
-        if dot < 0:
-            for t in range(t0, f):
-                for c in range(4):
-                    rotation[t, j, c] = -rotation[t, j, c]
-
-
 def _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols, offset):
     """The MOTION section of a big file in blocks of ``_STREAM_FRAMES`` frames through one
     reused value buffer, so the ``frames × channels`` table of values is never held whole
@@ -764,6 +624,8 @@ def _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols
     large part of the read time). Equal to :func:`_parse_motion` bit for bit; returns
     ``None`` at the first irregularity (a malformed value, a short line, too many or too
     few values), and the caller re-reads with :func:`_parse_motion` for its diagnostics."""
+    from biomorph.io._bvh_kernels import _scan_floats
+
     conv = _MotionRows(n_frames, rot_cols, rot_axes, pos_cols, offset)
     block = np.empty((min(_STREAM_FRAMES, n_frames), n_ch))
     pos = data_start
@@ -927,6 +789,22 @@ read_motion = read_bvh
 
 
 # --------------------------------------------------------------------------- writing
+def _format_rows(data: np.ndarray, precision: int) -> bytes:
+    """The MOTION rows as fixed-point text (compiled for big tables, else NumPy: same bytes)."""
+    f, c = data.shape
+    if _compiled(data.size):
+        from biomorph.io._bvh_kernels import _format_fixed
+
+        buf = np.empty(f * c * (precision + 16), dtype=np.uint8)
+        used = _format_fixed(np.ascontiguousarray(data), precision, buf)
+        body = None if used < 0 else buf[:used].tobytes()
+    else:
+        body = _format_numpy(data, precision)
+    if body is None:
+        raise InputError("cannot write BVH: a channel value exceeds 1e12 in magnitude")
+    return body
+
+
 def _children_lists(parent: np.ndarray) -> list[list[int]]:
     kids: list[list[int]] = [[] for _ in range(len(parent))]
     for j, p in enumerate(parent):
@@ -1027,11 +905,12 @@ def write_bvh(
             lines.append(f"{ind}\t}}")
         lines.append(f"{ind}}}")
 
-    import sys
-
     limit = sys.getrecursionlimit()
-    if int(sk.depth.max()) + 50 > limit:
-        sys.setrecursionlimit(int(sk.depth.max()) + 100)
+    depth = [0] * n  # parents precede children
+    for j in range(n):
+        depth[j] = depth[sk.parent[j]] + 1 if sk.parent[j] >= 0 else 0
+    if max(depth) + 50 > limit:
+        sys.setrecursionlimit(max(depth) + 100)
     for r in np.flatnonzero(sk.parent < 0):
         emit(int(r), 0)
     lines.append("MOTION")
@@ -1039,12 +918,7 @@ def write_bvh(
     lines.append(f"Frame Time: {float(mo.frame_time)!r}")
     head = ("\n".join(lines) + "\n").encode("utf-8")
     if data.shape[1]:
-        c = data.shape[1]
-        buf = np.empty(f * c * (precision + 16), dtype=np.uint8)
-        used = _format_fixed(np.ascontiguousarray(data), int(precision), buf)
-        if used < 0:
-            raise InputError("cannot write BVH: a channel value exceeds 1e12 in magnitude")
-        body = buf[:used].tobytes()
+        body = _format_rows(data, int(precision))
     else:
         body = b"\n" * f
     with atomic_path(path) as tmp:

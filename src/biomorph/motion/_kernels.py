@@ -11,15 +11,14 @@ import numpy as np
 from numba import njit, prange
 
 # Kernels the Motion type itself needs live in core (re-exported here for the operators).
-from biomorph.core.motion import (  # noqa: F401
+from biomorph.core._motion_kernels import (  # noqa: F401
     _qmul,
     _slerp,
     _store_continuous,
     fk_positions,
-    ro,
-    ro_int,
     sample_slerp,
 )
+from biomorph.core.motion import ro, ro_int  # noqa: F401
 
 
 @njit(cache=True, inline="always")
@@ -470,3 +469,38 @@ def blend_average_sampled(rot, start, length, i0, frac, w, out):  # pragma: no c
                 nrm = np.sqrt(x * x + y * y + z * z + ww * ww)
                 x, y, z, ww = x / nrm, y / nrm, z / nrm, ww / nrm
             _store_continuous(out, k, j, x, y, z, ww)
+
+
+@njit(cache=True)
+def dtw(cost):  # pragma: no cover - compiled
+    """Accumulated-cost DTW over ``cost (n, m)`` and its backtracked path (see
+    :func:`biomorph.motion.align.dtw_path`)."""
+    n, m = cost.shape
+    acc = np.full((n + 1, m + 1), np.inf)
+    acc[0, 0] = 0.0
+    for i in range(1, n + 1):
+        for j in range(1, m + 1):
+            best = acc[i - 1, j - 1]
+            if acc[i - 1, j] < best:
+                best = acc[i - 1, j]
+            if acc[i, j - 1] < best:
+                best = acc[i, j - 1]
+            acc[i, j] = cost[i - 1, j - 1] + best
+    # backtrack
+    path = np.empty((n + m, 2), dtype=np.int64)
+    i, j, k = n, m, 0
+    while i > 0 and j > 0:
+        path[k, 0] = i - 1
+        path[k, 1] = j - 1
+        k += 1
+        d = acc[i - 1, j - 1]
+        u = acc[i - 1, j]
+        l = acc[i, j - 1]
+        if d <= u and d <= l:
+            i -= 1
+            j -= 1
+        elif u <= l:
+            i -= 1
+        else:
+            j -= 1
+    return path[:k][::-1].copy(), acc[n, m]

@@ -17,7 +17,6 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from biomorph.core import transforms as tf
@@ -148,39 +147,6 @@ def peak_offset(
 
 
 # --------------------------------------------------------------------------- DTW
-@njit(cache=True)
-def _dtw(cost):  # pragma: no cover - compiled
-    n, m = cost.shape
-    acc = np.full((n + 1, m + 1), np.inf)
-    acc[0, 0] = 0.0
-    for i in range(1, n + 1):
-        for j in range(1, m + 1):
-            best = acc[i - 1, j - 1]
-            if acc[i - 1, j] < best:
-                best = acc[i - 1, j]
-            if acc[i, j - 1] < best:
-                best = acc[i, j - 1]
-            acc[i, j] = cost[i - 1, j - 1] + best
-    # backtrack
-    path = np.empty((n + m, 2), dtype=np.int64)
-    i, j, k = n, m, 0
-    while i > 0 and j > 0:
-        path[k, 0] = i - 1
-        path[k, 1] = j - 1
-        k += 1
-        d = acc[i - 1, j - 1]
-        u = acc[i - 1, j]
-        l = acc[i, j - 1]
-        if d <= u and d <= l:
-            i -= 1
-            j -= 1
-        elif u <= l:
-            i -= 1
-        else:
-            j -= 1
-    return path[:k][::-1].copy(), acc[n, m]
-
-
 def pose_features(motion: Motion) -> Array:
     """Per-frame pose feature ``float[f, 4(n-1)]``: non-root joint quaternions (sign fixed to
     w >= 0) — the root is excluded so position and heading do not matter."""
@@ -202,7 +168,9 @@ def dtw_path(cost: ArrayLike) -> tuple[NDArray[np.int64], float]:
     c = np.ascontiguousarray(cost, dtype=float)
     if c.ndim != 2 or 0 in c.shape:
         raise ParameterError(f"DTW cost matrix of shape {c.shape}; expected a non-empty 2-D array")
-    return _dtw(c)
+    from biomorph.motion._kernels import dtw  # numba: loaded only when DTW runs
+
+    return dtw(c)
 
 
 __all__ = [

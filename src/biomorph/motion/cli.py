@@ -93,7 +93,6 @@ def _finish(
     import warnings
 
     from biomorph._cli import check_suffix, err_console
-    from biomorph.motion.contact import ContactWarning, lock_feet
 
     if euler not in ("wrap", "continuous"):
         raise ParameterError(f"--euler {euler!r}; expected wrap or continuous")
@@ -105,6 +104,8 @@ def _finish(
                 "install ffmpeg); write a .gif instead"
             )
     if lock:
+        from biomorph.motion.contact import ContactWarning, lock_feet  # numba: only to lock
+
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ContactWarning)
             mo = lock_feet(mo, reference)

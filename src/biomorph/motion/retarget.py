@@ -36,11 +36,12 @@ import numpy as np
 from numba import njit
 
 from biomorph.core import transforms as tf
-from biomorph.core.motion import Motion, _qmul, fk_positions, frozen, ro, ro_int
+from biomorph.core.motion import Motion, frozen, ro, ro_int
 from biomorph.core.skeleton import JointSkeleton
 from biomorph.core.types import Array
 from biomorph.errors import InputError
 from biomorph.motion import names as nm
+from biomorph.motion._kernels import _qmul, fk_positions
 
 
 def _rest_world(sk: JointSkeleton) -> tuple[Array, Array]:
