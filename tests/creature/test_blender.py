@@ -17,7 +17,13 @@ import numpy as np
 import pytest
 
 import biomorph.creature as bc
-from biomorph.creature.exporters import TO_GLTF, export, floor_bone_lengths
+from biomorph.creature.exporters import (
+    TO_GLTF,
+    export,
+    floor_bone_lengths,
+    ground_point,
+    with_ground_root,
+)
 
 BLENDER = shutil.which("blender")
 pytestmark = pytest.mark.skipif(
@@ -133,23 +139,29 @@ def test_plain_import_faces_minus_y_with_exact_heads(blender_run):
     creatures, results, _ = blender_run
     for c, res in zip(creatures, results[0::2], strict=True):
         bones = res["bones"]
-        assert len(bones) == len(c)
-        sk, _ = floor_bone_lengths(c.skeleton)
+        assert len(bones) == len(c) + 1
+        # a ground-level root bone under the centre of mass, parent of the old root
+        sk, _ = with_ground_root(floor_bone_lengths(c.skeleton)[0], None, ground_point(c))
+        root = np.array(bones["root"][0])
+        assert abs(root[2]) < 1e-6  # on the ground (Blender Z up)
+        assert np.allclose(root, _blender_xyz(ground_point(c)), atol=1e-5)
+        names = sk.names
         world = sk.world_matrices()
         heads = _blender_xyz(world[:, :3, 3])
-        got = np.array([bones[n][0] for n in c.names])
+        got = np.array([bones[n][0] for n in names])
         assert np.abs(got - heads).max() < 1e-4 * max(c.height, 1e-3) + 2e-6
         # facing -Y: the skull lies at lower Blender y than the tail-most joint
-        skull = c.names.index("skull")
+        skull = names.index("skull")
         assert got[skull, 1] < got[:, 1].max()
-        assert got[skull, 1] == pytest.approx(got[:, 1].min(), abs=0.3 * c.length)
+        axial = 1 + np.flatnonzero([k in ("spine", "skull") for k in c.kind])
+        assert got[skull, 1] == pytest.approx(got[axial, 1].min(), abs=0.3 * c.length)
         # left (-z in the creature) is Blender +X: mirror partners swap the sign of x
         for j in np.flatnonzero(c.side < 0):
-            if abs(heads[j, 0]) > 1e-6:
-                assert got[j, 0] > 0 and got[c.mirror[j], 0] < 0
+            if abs(heads[j + 1, 0]) > 1e-6:
+                assert got[j + 1, 0] > 0 and got[c.mirror[j] + 1, 0] < 0
         # bone-length floor: no bone comes in shorter than Blender's 4 mm child cut-off,
         # and every bone with a child points along its joint's +Y (no 90 deg flips)
-        tails = np.array([bones[n][1] for n in c.names])
+        tails = np.array([bones[n][1] for n in names])
         y = _blender_xyz(world[:, :3, 1])
         d = tails - got
         length = np.linalg.norm(d, axis=1)
@@ -157,13 +169,13 @@ def test_plain_import_faces_minus_y_with_exact_heads(blender_run):
         # (Blender aims a bone at the centroid of its children: only bones whose children
         # all lie along their +Y can come in exact; the skull with its jaw hinge below does
         # not -- `biomorph creature rigify-setup` restores those from the node extras)
-        along = np.ones(len(c), bool)
-        for i in range(1, len(c)):
+        along = np.ones(len(sk), bool)
+        for i in range(1, len(sk)):
             off = sk.offset[i]
             n_off = np.linalg.norm(off)
             if n_off > 0.004 and off[1] < 0.99 * n_off:
                 along[sk.parent[i]] = False
-        has_child = np.bincount(sk.parent[sk.parent >= 0], minlength=len(c)) > 0
+        has_child = np.bincount(sk.parent[sk.parent >= 0], minlength=len(sk)) > 0
         cos = (d * y).sum(axis=1) / length
         check = has_child & along
         assert check.sum() > 0.8 * has_child.sum()
@@ -179,6 +191,9 @@ def test_rigify_metarig_generates(blender_run):
         names = list(meta)
         by_name = {n: meta[n] for n in names}
         assert "spine" in by_name and "head" in by_name
+        # Rigify's root convention: a bone flat on the ground, pointing forward (-Y)
+        head, tail = np.array(by_name["root"][0]), np.array(by_name["root"][1])
+        assert abs(head[2]) < 1e-6 and abs(tail[2]) < 1e-6 and tail[1] < head[1]
         # one connected chain from the pelvis bone (spine) forward; neck/head chain connected
         for n in names:
             if n.startswith(("spine.", "neck.", "tail.")):

@@ -8,7 +8,8 @@ import pygltflib
 import pytest
 
 import biomorph.creature as bc
-from biomorph.creature.exporters import TO_GLTF, export, floor_bone_lengths
+from biomorph.core.transforms import quat_to_matrix
+from biomorph.creature.exporters import TO_GLTF, export, floor_bone_lengths, ground_point
 from biomorph.creature.rigify import build_metarig, retarget
 from biomorph.creature.walk import walk_cycle
 
@@ -99,8 +100,14 @@ def test_glb_axes_and_bone_floor(tmp_path):
     assert d[d > 1e-12].min() >= 0.0045 - 1e-12
     p = export(c, tmp_path / "t.glb")
     doc = pygltflib.GLTF2().load(str(p))
-    root = next(n for n in doc.nodes if n.name == c.names[0])
-    assert np.allclose(root.translation, c.skeleton.offset[0] @ TO_GLTF.T)
+    # the ground-level root bone under the centre of mass carries the old root
+    ground = next(n for n in doc.nodes if n.name == "root")
+    assert np.allclose(ground.translation, ground_point(c) @ TO_GLTF.T)
+    assert ground.translation[1] == 0.0
+    hips = next(n for n in doc.nodes if n.name == c.names[0])
+    assert doc.nodes.index(hips) in ground.children
+    world = np.asarray(ground.translation) + quat_to_matrix(ground.rotation) @ hips.translation
+    assert np.allclose(world, c.skeleton.offset[0] @ TO_GLTF.T)
     assert np.allclose(TO_GLTF @ [1, 0, 0], [0, 0, 1])  # forward -> +Z
     assert np.allclose(TO_GLTF @ [0, 0, -1], [1, 0, 0])  # the creature's left -> +X
 

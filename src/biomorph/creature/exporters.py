@@ -134,6 +134,79 @@ def _to_gltf_axes(skeleton, motion):
     return sk, motion.with_(skeleton=sk, root_position=np.asarray(motion.root_position) @ TO_GLTF.T)
 
 
+#: name of the ground-level root bone of the GLB (game engines' and Rigify's ``root``)
+ROOT_NAME = "root"
+#: Rigify metarigs: the root bone lies on the ground, pointing forward, this share of the
+#: creature's length long (Rigify's own root is drawn at about the rig's size)
+ROOT_LENGTH_SHARE = 0.3
+
+
+def ground_point(creature: Creature) -> np.ndarray:
+    """The ground under the creature's centre of mass (creature frame, y = 0)."""
+    com = np.asarray(creature.center_of_mass, float)
+    return np.array([com[0], 0.0, com[2]])
+
+
+def with_ground_root(skeleton, motion, ground: np.ndarray):
+    """``skeleton`` (and ``motion``) under a new root joint :data:`ROOT_NAME` at ``ground``
+    (creature frame), bone +Y pointing at the old root (so importers that aim a bone at its
+    child keep it). The old root becomes its child; a motion's root travel moves to the new
+    root along the ground (x, z) and its height change stays on the old root (a translation
+    channel), so root motion rides on the ground bone. Returns ``(skeleton, motion)``."""
+    from biomorph.core import transforms as tf
+    from biomorph.core.motion import Motion
+    from biomorph.core.skeleton import JointSkeleton
+    from biomorph.creature.walk import _rot_between
+
+    if ROOT_NAME in skeleton.names:
+        raise ValueError(f"skeleton already has a joint named {ROOT_NAME!r}")
+    off0 = np.asarray(skeleton.offset[0], float)
+    aim = off0 - ground
+    aim = aim / np.linalg.norm(aim) if np.linalg.norm(aim) > 1e-12 else np.array([0, 1.0, 0])
+    R0 = _rot_between(np.array([0.0, 1.0, 0.0]), aim[None])[0]
+    q0 = tf.matrix_to_quat(R0)
+    q0_inv = q0 * np.array([-1.0, -1.0, -1.0, 1.0])
+    par = np.asarray(skeleton.parent)
+    offset = np.concatenate([ground[None], skeleton.offset])
+    offset[1] = (off0 - ground) @ R0  # R0^T (off0 - ground)
+    rest = np.concatenate([q0[None], skeleton.rest_rotation])
+    rest[1] = tf.quat_multiply(q0_inv, skeleton.rest_rotation[0])
+    sk = JointSkeleton(
+        (ROOT_NAME, *skeleton.names),
+        np.r_[-1, np.where(par >= 0, par + 1, 0)],
+        offset,
+        rest_rotation=rest,
+        limits=np.concatenate([np.tile([-np.pi, np.pi], (1, 3, 1)), skeleton.limits]),
+        end_site=np.concatenate([np.full((1, 3), np.nan), skeleton.end_site]),
+    )
+    if motion is None:
+        return sk, None
+    f = motion.n_frames
+    rp = np.asarray(motion.root_position, float)
+    travel = rp - off0
+    ground_path = ground + travel * np.array([1.0, 0.0, 1.0])
+    jt0 = getattr(motion, "joint_translation", None)
+    jt = np.empty((f, len(sk), 3))
+    jt[:, 1:] = np.broadcast_to(skeleton.offset, (f, len(skeleton), 3)) if jt0 is None else jt0
+    jt[:, 0] = ground_path
+    jt[:, 1] = (rp - ground_path) @ R0
+    ident = np.broadcast_to(np.array([0.0, 0.0, 0.0, 1.0]), (f, 1, 4))
+    rot = np.concatenate([ident, np.asarray(motion.rotation, float)], axis=1)
+    return sk, Motion(sk, rot, ground_path, motion.frame_time, joint_translation=jt)
+
+
+def _root_extras(creature: Creature, ground: np.ndarray) -> dict:
+    """Rigify metarig extras of the root bone: on the ground, pointing forward, Z up."""
+    to_blender = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]) @ TO_GLTF
+    tail = ground + np.array([ROOT_LENGTH_SHARE * max(creature.length, 1e-3), 0.0, 0.0])
+    return {
+        "biomorph_head": np.round(ground @ to_blender.T, 9).tolist(),
+        "biomorph_tail": np.round(tail @ to_blender.T, 9).tolist(),
+        "biomorph_z": np.round(np.array([0.0, 1.0, 0.0]) @ to_blender.T, 9).tolist(),
+        "biomorph_connect": 0,
+    }
+
+
 def floor_bone_lengths(skeleton, floor: float = BONE_FLOOR_M):
     """``skeleton`` with non-zero child offsets shorter than ``floor`` stretched to it (the
     subtree moves along the offset); returns ``(skeleton, number changed)``."""
@@ -181,6 +254,14 @@ def write_glb(
         if motion is None:
             skeleton, _ = floor_bone_lengths(skeleton)
     skinned = _skin_arrays(creature, skeleton, lod, owner_of) if skin else None
+    # the ground-level root bone: every joint index moves up by one
+    ground = ground_point(creature)
+    skeleton, motion = with_ground_root(skeleton, motion, ground)
+    geo = (geo[0], geo[1], geo[2] + 1, geo[3])
+    if skinned is not None:
+        skinned = (*skinned[:2], skinned[2] + 1, *skinned[3:])
+    if extras is not None:
+        extras = [_root_extras(creature, ground), *extras]
     skeleton, motion = _to_gltf_axes(skeleton, motion)
     if skinned is not None:
         skinned = (skinned[0] @ TO_GLTF.T, skinned[1] @ TO_GLTF.T, *skinned[2:])

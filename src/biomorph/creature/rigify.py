@@ -250,42 +250,48 @@ def _spine_bones(c: Creature, bones: list[_Bone], rig_of: dict[int, int]) -> int
 def _tail_bones(
     c: Creature, bones: list[_Bone], rig_of: dict[int, int], hips: int, on_path: set[int]
 ) -> None:
+    """The tail chain from the hips away from the torso path, following the spine through
+    children and parents alike (hips mid-back leave the caudal vertebrae above them in the
+    joint tree); coincident joints give no segment."""
     par, pos, world = c.skeleton.parent, c.joint_positions, c.world
     left = _left(c)
-    kids = [
-        int(k)
-        for k in np.flatnonzero(par == hips)
-        if c.kind[k] == "spine" and int(k) not in on_path
-    ]
-    start = hips if kids else None
-    chain: list[int] = []
-    j = start
-    while j is not None:
+
+    def onward(j: int, seen: set[int]) -> int | None:
+        near = [int(k) for k in np.flatnonzero(par == j)] + ([int(par[j])] if par[j] >= 0 else [])
+        nxt = [k for k in near if c.kind[k] == "spine" and k not in on_path and k not in seen]
+        return nxt[0] if nxt else None
+
+    chain, seen = [hips], {hips}
+    while (j := onward(chain[-1], seen)) is not None:
         chain.append(j)
-        nxt = [
-            int(k)
-            for k in np.flatnonzero(par == j)
-            if c.kind[k] == "spine" and int(k) not in on_path
-        ]
-        j = nxt[0] if nxt else None
+        seen.add(j)
+    if len(chain) == 1:
+        chain.append(-1)  # no caudal spine: nothing to add
     first = len(bones)
-    for k, j in enumerate(chain):
-        nxt = chain[k + 1] if k + 1 < len(chain) else None
-        tail = pos[nxt] if nxt is not None else pos[j] + world[j, :3, 1] * c.bone_length[j]
-        if np.linalg.norm(tail - pos[j]) <= 1e-9:
+    k = 0
+    for a, b in zip(chain[:-1], chain[1:], strict=True):
+        if b < 0:
             break
+        owner = a if par[b] == a else b
+        if np.linalg.norm(pos[b] - pos[a]) <= 1e-9:
+            if len(bones) > first:
+                rig_of.setdefault(owner, len(bones) - 1)
+            continue
         bones.append(
-            _Bone(
-                _numbered("tail", k),
-                pos[j],
-                tail,
-                left,
-                0 if k == 0 else len(bones) - 1,
-                j,
-                connect=k > 0,
-            )
+            _Bone(_numbered("tail", k), pos[a], pos[b], left, 0 if k == 0 else len(bones) - 1,
+                  owner, connect=k > 0)
         )
-        rig_of.setdefault(j, len(bones) - 1)
+        rig_of.setdefault(owner, len(bones) - 1)
+        k += 1
+    last = chain[-1]
+    if last >= 0 and len(bones) > first and par[last] == chain[-2]:
+        end = pos[last] + world[last, :3, 1] * c.bone_length[last]
+        if np.linalg.norm(end - pos[last]) > 1e-9:  # the last vertebra's own bone
+            bones.append(
+                _Bone(_numbered("tail", k), pos[last], end, left, len(bones) - 1, last,
+                      connect=True)
+            )
+            rig_of.setdefault(last, len(bones) - 1)
     n = len(bones) - first
     if n >= 2:
         bones[first].rigify_type = "spines.basic_tail"

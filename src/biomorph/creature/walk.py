@@ -90,6 +90,106 @@ def _reach_stride(creature: Creature, legs: list[dict], duty: float, drop: float
     return float(best)
 
 
+def _leg_lengths(P0: NDArray, g: dict) -> tuple[float, float]:
+    return (
+        float(np.linalg.norm(P0[g["lower"]] - P0[g["upper"]])),
+        float(np.linalg.norm(P0[g["distal"]] - P0[g["lower"]])),
+    )
+
+
+def _leg_lift(P0: NDArray, g: dict, drop: float, lift: float) -> float:
+    """Swing lift of one leg: a short femur under a long shank cannot fold its foot close to
+    the hip, so its lift stays inside that (else IK would push the foot into the ground)."""
+    l1, l2 = _leg_lengths(P0, g)
+    dy = float(P0[g["upper"], 1] - drop - P0[g["distal"], 1])  # the foot may pass under
+    return float(np.clip(0.9 * (dy - 1.05 * abs(l1 - l2)), 0.0, lift))
+
+
+def knee_clearance(creature: Creature, g: dict) -> float:
+    """Lowest height a leg's knee/elbow may take: its shank bone's half-thickness (so the
+    bone model, not only the joint, stays above the ground)."""
+    return 0.5 * float(max(creature.box_size[g["lower"], 0], creature.box_size[g["lower"], 2]))
+
+
+def _knee_circle(
+    hip: NDArray, target: NDArray, l1: float, l2: float
+) -> tuple[NDArray, NDArray, NDArray]:
+    """The circle of knee positions of a two-bone chain from ``hip (f, 3)`` reaching for
+    ``target (f, 3)`` (clamped into reach): centre ``(f, 3)``, radius ``(f,)``, axis ``(f, 3)``."""
+    d = target - hip
+    dist = np.linalg.norm(d, axis=1)
+    lo, hi = abs(l1 - l2) * 1.0001 + 1e-12, (l1 + l2) * 0.9999
+    dist_c = np.clip(dist, lo, hi)
+    u = d / np.maximum(dist, 1e-12)[:, None]
+    cos_a = np.clip((l1**2 + dist_c**2 - l2**2) / (2 * l1 * dist_c), -1.0, 1.0)
+    return hip + (l1 * cos_a)[:, None] * u, l1 * np.sqrt(1.0 - cos_a**2), u
+
+
+def _highest_knee(hip: NDArray, target: NDArray, l1: float, l2: float) -> NDArray:
+    """Highest knee position's height ``(f,)`` over the chain's knee circle."""
+    centre, rho, u = _knee_circle(hip, target, l1, l2)
+    return centre[:, 1] + rho * np.sqrt(np.clip(1.0 - u[:, 1] ** 2, 0.0, 1.0))
+
+
+def _knee_safe_stride(
+    creature: Creature,
+    legs: list[dict],
+    offsets: list[float],
+    duty: float,
+    drop: float,
+    stride: float,
+    lift: float,
+) -> float:
+    """The longest stride up to ``stride`` with which every leg's knee can stay at or above
+    its :func:`knee_clearance` through a whole cycle (bisection over the stride on the
+    leg's actual foot path, 48 phases): a sprawling leg with a long femur over a short shank
+    must not bring its foot so close under the hip that the knee has to go down."""
+    P0 = creature.joint_positions
+    t = np.linspace(0.0, 1.0, 48, endpoint=False)
+
+    def ok(s: float) -> bool:
+        for g, off in zip(legs, offsets, strict=True):
+            l1, l2 = _leg_lengths(P0, g)
+            if l1 < 1e-12 or l2 < 1e-12:
+                continue
+            lift_i = _leg_lift(P0, g, drop, lift)
+            tgt, _ = foot_targets(P0[g["distal"]], t, 1.0, s, off, duty, lift_i)
+            hip = np.tile(P0[g["upper"]] - [0.0, drop, 0.0], (len(t), 1))
+            hip[:, 0] += s * t  # the body moves on at one stride per cycle
+            if _highest_knee(hip, tgt, l1, l2).min() < knee_clearance(creature, g):
+                return False
+        return True
+
+    if ok(stride):
+        return stride
+    lo, hi = 0.0, stride
+    for _ in range(12):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo
+
+
+def _raise_knee(
+    hip: NDArray, target: NDArray, l1: float, l2: float, pole: NDArray, clear: float
+) -> NDArray:
+    """Knee positions ``(f, 3)`` on the chain's knee circle: the one nearest the ``pole``
+    side whose height is at least ``clear`` (the highest one where none is)."""
+    centre, rho, u = _knee_circle(hip, target, l1, l2)
+    e1 = pole[None, :] - (u @ pole)[:, None] * u
+    bad = np.linalg.norm(e1, axis=1) < 1e-9
+    e1[bad] = np.cross(u[bad], [0.0, 0.0, 1.0])
+    e1 /= np.maximum(np.linalg.norm(e1, axis=1), 1e-12)[:, None]
+    e2 = np.cross(u, e1)
+    amp = np.hypot(e1[:, 1], e2[:, 1])
+    phi_star = np.arctan2(e2[:, 1], e1[:, 1])  # direction of the highest point
+    kappa = (clear - centre[:, 1]) / np.maximum(rho * amp, 1e-12)
+    half = np.arccos(np.clip(kappa, -1.0, 1.0))  # allowed: |phi - phi_star| <= half
+    dev = (0.0 - phi_star + np.pi) % (2 * np.pi) - np.pi  # wrap phi = 0 about phi_star
+    phi = phi_star + np.clip(dev, -half, half)
+    phi = np.where(kappa <= -1.0, 0.0, phi)
+    return centre + rho[:, None] * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
+
+
 def plan_walk(
     creature: Creature,
     frames: int = 32,
@@ -119,6 +219,8 @@ def plan_walk(
     stride = (
         min(stride_factor * h, 0.95 * _reach_stride(creature, legs, duty, drop)) if legs else 0.0
     )
+    if legs:  # no knee or elbow below the ground anywhere in the cycle
+        stride = _knee_safe_stride(creature, legs, offs, duty, drop, stride, lift * h)
     return WalkPlan(
         tuple(legs),
         tuple(offs),
@@ -270,10 +372,7 @@ def walk_cycle(
         l2 = float(np.linalg.norm(P0[idd] - P0[il]))
         if l1 < 1e-12 or l2 < 1e-12:
             continue
-        # a leg with a short femur under a long shank cannot fold its foot close to the hip:
-        # its swing lift stays inside that (else IK would push the foot into the ground)
-        dy = float(P0[iu, 1] - plan.drop - P0[idd, 1])  # the foot may pass under the hip
-        lift_i = float(np.clip(0.9 * (dy - 1.05 * abs(l1 - l2)), 0.0, plan.lift))
+        lift_i = _leg_lift(P0, g, plan.drop, plan.lift)
         tgt, _ = foot_targets(P0[idd], t, period, stride, off, duty, lift_i)
         u0 = (P0[idd] - P0[iu]) / max(np.linalg.norm(P0[idd] - P0[iu]), 1e-12)
         pole = (P0[il] - P0[iu]) - ((P0[il] - P0[iu]) @ u0) * u0
@@ -283,12 +382,10 @@ def walk_cycle(
         d2 = (P0[idd] - P0[il]) / l2
         hip = P0[iu] + shift
         knee, _ = two_bone_ik(hip, tgt, l1, l2, pole)
-        for k in (0.5, 1.0, 2.0, 4.0):  # a splayed knee that dips below the ground turns up
-            low = knee[:, 1] < 0.0
-            if not low.any():
-                break
-            up = pole + k * np.array([0.0, 1.0, 0.0])
-            knee[low] = two_bone_ik(hip[low], tgt[low], l1, l2, up / np.linalg.norm(up))[0]
+        clear = knee_clearance(creature, g)
+        low = knee[:, 1] < clear
+        if low.any():  # a splayed knee that would dip turns up round the hip-foot line
+            knee[low] = _raise_knee(hip[low], tgt[low], l1, l2, pole, clear)
         ankle_dir = tgt - knee
         ankle_dir = ankle_dir / np.maximum(np.linalg.norm(ankle_dir, axis=1), 1e-12)[:, None]
         Wt[:, iu] = _rot_between(d1, (knee - hip) / l1) @ W0[iu]
