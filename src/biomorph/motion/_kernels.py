@@ -504,3 +504,66 @@ def dtw(cost):  # pragma: no cover - compiled
         else:
             j -= 1
     return path[:k][::-1].copy(), acc[n, m]
+
+
+@njit(cache=True)
+def mirror_rotations(rest, rot, parent, other, sign, out):  # pragma: no cover - compiled
+    """Local pose rotations of the mirrored motion, one frame at a time: the world rotation
+    of every joint (FK, as ``fk_positions``), reflected (``sign`` ±1 per component) and
+    taken from the mirror joint ``other[j]``, then ``out[t, j] = rest[j]⁻¹ · M[parent]⁻¹ ·
+    M[j]``, hemisphere-continuous along t. Fuses FK, the ``[:, other] * sign`` gather and
+    ``retarget._local_from_world`` without any ``(f, n, 4)`` temporaries (same bits)."""
+    f, n = rot.shape[0], rot.shape[1]
+    world = np.empty((n, 4))
+    mw = np.empty((n, 4))
+    for t in range(f):
+        for j in range(n):
+            lx, ly, lz, lw = _qmul(
+                rest[j, 0],
+                rest[j, 1],
+                rest[j, 2],
+                rest[j, 3],
+                rot[t, j, 0],
+                rot[t, j, 1],
+                rot[t, j, 2],
+                rot[t, j, 3],
+            )
+            p = parent[j]
+            if p >= 0:
+                lx, ly, lz, lw = _qmul(
+                    world[p, 0], world[p, 1], world[p, 2], world[p, 3], lx, ly, lz, lw
+                )
+            world[j, 0], world[j, 1], world[j, 2], world[j, 3] = lx, ly, lz, lw
+        for j in range(n):
+            o = other[j]
+            for c in range(4):
+                mw[j, c] = world[o, c] * sign[c]
+        for j in range(n):
+            p = parent[j]
+            x, y, z, w = mw[j, 0], mw[j, 1], mw[j, 2], mw[j, 3]
+            if p >= 0:
+                x, y, z, w = _qmul(-mw[p, 0], -mw[p, 1], -mw[p, 2], mw[p, 3], x, y, z, w)
+            x, y, z, w = _qmul(-rest[j, 0], -rest[j, 1], -rest[j, 2], rest[j, 3], x, y, z, w)
+            _store_continuous(out, t, j, x, y, z, w)
+
+
+@njit(cache=True)
+def continuous_inplace(q):  # pragma: no cover - compiled
+    """``transforms.quat_continuous(q, axis=0)`` in place for ``q (f, n, 4)``: joint j's
+    sample t is negated when an odd number of the dots of consecutive *input* samples up to
+    t are negative (the same dots, summed in the same order, as the NumPy version)."""
+    f, n = q.shape[0], q.shape[1]
+    prev = np.empty((n, 4))
+    neg = np.zeros(n, dtype=np.bool_)
+    for j in range(n):
+        for c in range(4):
+            prev[j, c] = q[0, j, c]
+    for t in range(1, f):
+        for j in range(n):
+            x, y, z, w = q[t, j, 0], q[t, j, 1], q[t, j, 2], q[t, j, 3]
+            d = x * prev[j, 0] + y * prev[j, 1] + z * prev[j, 2] + w * prev[j, 3]
+            prev[j, 0], prev[j, 1], prev[j, 2], prev[j, 3] = x, y, z, w
+            if d < 0:
+                neg[j] = not neg[j]
+            if neg[j]:
+                q[t, j, 0], q[t, j, 1], q[t, j, 2], q[t, j, 3] = -x, -y, -z, -w

@@ -41,7 +41,7 @@ from biomorph.core.skeleton import JointSkeleton
 from biomorph.core.types import Array
 from biomorph.errors import InputError
 from biomorph.motion import names as nm
-from biomorph.motion._kernels import _qmul, fk_positions
+from biomorph.motion._kernels import _qmul, fk_positions, mirror_rotations
 
 
 def _rest_world(sk: JointSkeleton) -> tuple[Array, Array]:
@@ -255,34 +255,6 @@ def retarget(
     return out
 
 
-@njit(cache=True)
-def _local_from_world(world, rest, parent, out):  # pragma: no cover - compiled
-    """``out[t, j] = rest[j]⁻¹ · world[t, parent]⁻¹ · world[t, j]``, hemisphere-continuous
-    along t."""
-    f, n = world.shape[0], world.shape[1]
-    for t in range(f):
-        for j in range(n):
-            p = parent[j]
-            x, y, z, w = world[t, j, 0], world[t, j, 1], world[t, j, 2], world[t, j, 3]
-            if p >= 0:
-                x, y, z, w = _qmul(
-                    -world[t, p, 0], -world[t, p, 1], -world[t, p, 2], world[t, p, 3], x, y, z, w
-                )
-            x, y, z, w = _qmul(-rest[j, 0], -rest[j, 1], -rest[j, 2], rest[j, 3], x, y, z, w)
-            if (
-                t > 0
-                and (
-                    x * out[t - 1, j, 0]
-                    + y * out[t - 1, j, 1]
-                    + z * out[t - 1, j, 2]
-                    + w * out[t - 1, j, 3]
-                )
-                < 0
-            ):
-                x, y, z, w = -x, -y, -z, -w
-            out[t, j, 0], out[t, j, 1], out[t, j, 2], out[t, j, 3] = x, y, z, w
-
-
 def _lateral_axis(sk: JointSkeleton, pairs: list[tuple[int, int]]) -> int:
     pos, _ = _rest_world(sk)
     d = np.abs(np.array([pos[a] - pos[b] for a, b in pairs])).sum(axis=0)
@@ -306,10 +278,11 @@ def mirror(motion: Motion, axis: int | None = None) -> Motion:
     sign = -np.ones(4)
     sign[a] = 1.0
     sign[3] = 1.0
-    _, wq = motion._fk(None)
-    mw = wq[:, other] * sign  # world rotation of the mirror joint, reflected
     rot = np.empty(motion.rotation.shape)
-    _local_from_world(ro(mw), ro(sk.rest_rotation), ro_int(sk.parent), rot)
+    # per frame: world rotations (FK), the mirror joint's reflected, back to local poses
+    mirror_rotations(
+        ro(sk.rest_rotation), ro(motion.rotation), ro_int(sk.parent), ro_int(other), ro(sign), rot
+    )
     pos = np.array(motion.root_position)
     pos[:, a] = -pos[:, a]
     jt = None

@@ -23,6 +23,7 @@ from biomorph.core.motion import Motion, frozen, transform_root
 from biomorph.core.skeleton import JointSkeleton
 from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
+from biomorph.motion._kernels import continuous_inplace
 from biomorph.motion.align import _up_index, heading
 
 
@@ -93,10 +94,17 @@ def extract_root_motion(
     hips = tf.quat_multiply(
         inv(rest_h), tf.quat_multiply(inv(q), tf.quat_multiply(rest_h, motion.rotation[:, 0]))
     )
-    rot = np.concatenate([q[:, None], motion.rotation], axis=1)
+    f, n = motion.n_frames, sk.n_joints
+    rot = np.empty((f, n + 1, 4))
+    rot[:, 0] = q
     rot[:, 1] = hips
-    jt = np.concatenate([path[:, None], motion.local_translations()], axis=1)
+    rot[:, 2:] = motion.rotation[:, 1:]
+    continuous_inplace(rot)
+    jt = np.empty((f, n + 1, 3))
+    jt[:, 0] = path
     jt[:, 1] = tf.quat_rotate(inv(q), motion.root_position - path)
+    inner = motion.joint_translation
+    jt[:, 2:] = sk.offset[1:] if inner is None else inner[:, 1:]
     parent = np.concatenate([[-1], np.where(sk.parent >= 0, sk.parent + 1, 0)])
     chans = None
     if sk.channels is not None:
@@ -121,8 +129,8 @@ def extract_root_motion(
     )
     out = Motion(
         new,
-        frozen(tf.quat_continuous(rot, axis=0)),
-        frozen(np.array(path)),
+        frozen(rot),
+        frozen(path),
         motion.frame_time,
         frozen(jt),
         dict(motion.meta),
