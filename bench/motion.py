@@ -215,8 +215,8 @@ def skate_table() -> None:
         return
     warnings.simplefilter("ignore")
 
-    def sk(mo) -> str:
-        return f"{foot_skate(mo)['skate_per_body_scale']:.3f}"
+    def sk(mo) -> float:
+        return float(foot_skate(mo)["skate_per_body_scale"])
 
     print("\nFoot skate (body scales / s in contact frames; operator → operator + lock)\n")
     print(
@@ -224,21 +224,36 @@ def skate_table() -> None:
         "speed ×1.3 | blend with itself |"
     )
     print("|---|---|---|---|---|---|---|")
+    met, total, rows = 0, 0, {}
     for name in WALKS:
         m = read_bvh(data / name)
         e1 = bm.equalize(m, [0, 0.5, 1, 1, 1])
         e2 = bm.equalize(m, [1, 1.5, 1.5, 1, 1])
         sp = bm.change_speed(m, 1.3)
         bl = bm.blend([m, m[m.n_frames // 3 :]], transition=min(30, m.n_frames // 4))
-        cells = [
-            sk(m),
-            sk(lock_feet(m)),
-            f"{sk(e1)} → {sk(lock_feet(e1, m))}",
-            f"{sk(e2)} → {sk(lock_feet(e2, m))}",
-            f"{sk(sp)} → {sk(lock_feet(sp))}",
-            f"{sk(bl)} → {sk(lock_feet(bl))}",
-        ]
+        base = sk(m)
+        pairs = [(e1, lock_feet(e1, m)), (e2, lock_feet(e2, m)), (sp, lock_feet(sp))]
+        pairs.append((bl, lock_feet(bl)))
+        after = [sk(b) for _, b in pairs]
+        rows[name] = (base, sk(lock_feet(m)))
+        # targets: every operator + lock at or below the input (speed x1.3: below 1.3x input,
+        # every foot moves 1.3x faster per second)
+        for k, v in enumerate(after):
+            total += 1
+            met += v <= (1.3 * base if k == 2 else base) + 1e-12
+        cells = [f"{base:.3f}", f"{rows[name][1]:.3f}"]
+        cells += [f"{sk(a):.3f} → {v:.3f}" for (a, _), v in zip(pairs, after, strict=True)]
         print(f"| {name} | " + " | ".join(cells) + " |")
+    print(
+        f"\nOperator + lock at or below the input (speed ×1.3: below 1.3× input): "
+        f"{met} of {total}"
+    )
+    raw, fixed = rows.get("dme_comp_3d_2_raw.bvh"), rows.get("dme_comp_3d_2_fixed.bvh")
+    if raw and fixed:
+        print(
+            f"dme raw cleaned {raw[1]:.3f} vs its fixed counterpart {fixed[0]:.3f} "
+            f"(target: at or below) — {'met' if raw[1] <= fixed[0] else 'not met'}"
+        )
 
 
 BLENDER_SCRIPT = """

@@ -2,12 +2,13 @@
 
 Detection (:func:`detect_contacts`), per foot (a joint named ``*foot*``/``*ankle*``) and its
 toe (a child named ``*toe*``): a point is *planted* when it is low and slow — height above
-the ground below ``height`` × body scale and horizontal speed below ``speed`` × body scale
-per second — and stays planted until it rises above ``height × hysteresis`` or moves faster
-than ``speed × hysteresis`` (Schmitt trigger, so noise at the threshold does not flicker).
-Ground and body scale are measured on the clip exactly as the foot-skate metric of
-:mod:`biomorph.motion.quality` measures them (2nd height percentile of the feet; median hip
-height above it), so the constants are fractions of the character, not of a file's units:
+its own resting height below ``height`` × body scale and horizontal speed below ``speed`` ×
+body scale per second — and stays planted until it rises above ``height × hysteresis`` or
+moves faster than ``speed × hysteresis`` (Schmitt trigger, so noise at the threshold does
+not flicker). Ground and body scale are measured on the clip exactly as the foot-skate
+metric of :mod:`biomorph.motion.quality` measures them (2nd height percentile of the feet;
+median hip height above it), so the constants are fractions of the character, not of a
+file's units:
 
 * ``height = 0.04`` above the point's own resting height (its 2nd height percentile): half
   the metric's 8 % band (which is measured from the floor), ≈ 3.5 cm on an adult — an ankle
@@ -18,24 +19,41 @@ height above it), so the constants are fractions of the character, not of a file
 * ``blend_s = 0.2`` s fade in/out (≥ 1 frame): **chosen on the shared captures** (0.1 / 0.2 /
   0.3 s compared with ``bench/motion.py --skate``; 0.1 s released a held slide within 3
   frames at 30 fps and raised the skate metric of the Xia walk above its input), so it is a
-  fitted value to check on other captures.
+  fitted value to check on other captures. Spreading the release over the whole swing
+  instead (the offset interpolated between consecutive contacts, by time or by the foot's
+  own travel) was measured worse on every shared walk: it keeps the held offset on the
+  low, fast frames right after toe-off and before heel strike.
 
 Locking (:func:`lock_feet`), ``mode="hold"``: during each contact the planted point is held
-at the median position of its slower half of frames — cleaning a clip that skates;
-with a *reference* clip (the input of an operator that keeps timing: equalize, edit,
-layers) the contacts and their held positions come from the reference, so an edit cannot
-lift the feet or push them through the floor. ``mode="follow"``: the point follows where
-the reference had it frame by frame (the input's own slide is kept; measured worse on the
-shared walks than holding, so not the default). ``"auto"`` (default) = ``"hold"``.
-In both modes the leg (hip → knee → ankle) is solved analytically so the
-ankle lands on the target with the knee kept in its plane (the knee's side of the hip–ankle
-line is kept), the foot keeps its world orientation (so the toe follows), and the weight
-fades in and out over ``blend_s``. Targets out of reach are clamped to the leg's length
-with one :class:`ContactWarning` (never NaN).
+at one place: horizontally the median position of the contact's slower half of frames (a
+foot still gliding in at the first frame is not frozen mid-glide, and a slide is split
+between the fade in and the fade out instead of released all at once), vertically the
+**lowest height the point reaches during that contact** — a planted heel or toe rests on
+the floor; a capture's (or a generated clip's) contact floats above it by noise and drift
+(the dme raw clip's left heel wanders between 0.076 and 0.112 hip heights while planted),
+and holding it at its median height left it floating (measured: every shared walk skates
+less with the lowest height, dme raw 0.654 → 0.614 hip heights/s). With a *reference* clip
+(the input of an operator that keeps timing: equalize, edit, layers) the contacts and their
+held positions come from the reference, so an edit cannot lift the feet or push them
+through the floor. ``mode="follow"``: the point follows where the reference had it frame
+by frame (the input's own slide is kept; measured worse on the shared walks than holding,
+so not the default). ``"auto"`` (default) = ``"hold"``.
+
+In both modes the leg (hip → knee → ankle) is solved analytically so the ankle lands on the
+target with the knee kept in its plane (the knee's side of the hip–ankle line is kept), the
+foot keeps its world orientation (so the toe follows; while both the heel and the toe are
+planted the foot turns so the toe lands on its held place), and the weight fades in and out
+over ``blend_s``. Targets out of reach are clamped to the leg's length with one
+:class:`ContactWarning` (never NaN).
+
+Cost: forward kinematics runs once per clip and only over the legs' chains (root → toes:
+11 of 60 joints on the benchmark skeleton), detection and the IK of every frame and both
+legs are compiled loops; ``bench/motion.py --quick`` has the figures.
 """
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, replace
 
@@ -43,7 +61,6 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from biomorph.core import transforms as tf
 from biomorph.core.motion import Motion, frozen, guess_up_axis
 from biomorph.core.types import Array
 from biomorph.errors import ParameterError
@@ -107,8 +124,105 @@ def find_legs(motion: Motion) -> list[Leg]:
     return legs
 
 
-def _ground_and_scale(w: Array, legs: list[Leg], ui: int) -> tuple[float, float]:
-    pts = [lg.ankle for lg in legs] + [lg.toe for lg in legs if lg.toe >= 0]
+# --------------------------------------------------------------------------- leg-chain FK
+def _leg_chain(motion: Motion, legs: list[Leg]) -> NDArray[np.int64]:
+    """The joints the legs hang from, parents first: the root, every ancestor of each
+    hip, the leg joints and toes."""
+    par = motion.skeleton.parent
+    need: set[int] = {0}
+    for lg in legs:
+        for j in (lg.toe, lg.ankle, lg.knee, lg.hip):
+            while j >= 0 and j not in need:
+                need.add(j)
+                j = int(par[j])
+    return np.array(sorted(need), dtype=np.int64)
+
+
+@njit(cache=True, inline="always")
+def _qmul(ax, ay, az, aw, bx, by, bz, bw):  # pragma: no cover - compiled
+    return (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
+
+
+@njit(cache=True, inline="always")
+def _qrot(qx, qy, qz, qw, vx, vy, vz):  # pragma: no cover - compiled
+    tx = 2.0 * (qy * vz - qz * vy)
+    ty = 2.0 * (qz * vx - qx * vz)
+    tz = 2.0 * (qx * vy - qy * vx)
+    return (
+        vx + qw * tx + (qy * tz - qz * ty),
+        vy + qw * ty + (qz * tx - qx * tz),
+        vz + qw * tz + (qx * ty - qy * tx),
+    )
+
+
+@njit(cache=True)
+def _fk_chain(rest, rot, offset, root_pos, jt, chain, cpar, pos, quat):  # pragma: no cover
+    """World positions ``pos (f, k, 3)`` and orientations ``quat (f, k, 4)`` of the joints
+    ``chain`` (parents first; ``cpar`` = index of each one's parent in ``chain`` or -1).
+    Local translation: ``jt[t, j]`` when ``jt`` has frames, else ``root_pos[t]`` for joint 0
+    and the OFFSET for the others (the :class:`Motion` convention)."""
+    f = rot.shape[0]
+    has_jt = jt.shape[0] == f
+    for t in range(f):
+        for c in range(chain.size):
+            j = chain[c]
+            lx, ly, lz, lw = _qmul(
+                rest[j, 0], rest[j, 1], rest[j, 2], rest[j, 3],
+                rot[t, j, 0], rot[t, j, 1], rot[t, j, 2], rot[t, j, 3],
+            )  # fmt: skip
+            if has_jt:
+                vx, vy, vz = jt[t, j, 0], jt[t, j, 1], jt[t, j, 2]
+            elif j == 0:
+                vx, vy, vz = root_pos[t, 0], root_pos[t, 1], root_pos[t, 2]
+            else:
+                vx, vy, vz = offset[j, 0], offset[j, 1], offset[j, 2]
+            p = cpar[c]
+            if p < 0:
+                quat[t, c, 0], quat[t, c, 1], quat[t, c, 2], quat[t, c, 3] = lx, ly, lz, lw
+                pos[t, c, 0], pos[t, c, 1], pos[t, c, 2] = vx, vy, vz
+                continue
+            px, py, pz, pw = quat[t, p, 0], quat[t, p, 1], quat[t, p, 2], quat[t, p, 3]
+            wx, wy, wz, ww = _qmul(px, py, pz, pw, lx, ly, lz, lw)
+            quat[t, c, 0], quat[t, c, 1], quat[t, c, 2], quat[t, c, 3] = wx, wy, wz, ww
+            rx, ry, rz = _qrot(px, py, pz, pw, vx, vy, vz)
+            pos[t, c, 0] = pos[t, p, 0] + rx
+            pos[t, c, 1] = pos[t, p, 1] + ry
+            pos[t, c, 2] = pos[t, p, 2] + rz
+
+
+def _chain_fk(motion: Motion, chain: NDArray[np.int64]) -> tuple[Array, Array]:
+    """World positions and orientations of the ``chain`` joints only (one compiled pass)."""
+    sk = motion.skeleton
+    where = {int(j): c for c, j in enumerate(chain)}
+    cpar = np.array([where.get(int(sk.parent[j]), -1) for j in chain], dtype=np.int64)
+    f = motion.n_frames
+    jt = motion.joint_translation
+    jt = np.zeros((0, 1, 3)) if jt is None else np.ascontiguousarray(jt, dtype=np.float64)
+    pos = np.empty((f, chain.size, 3))
+    quat = np.empty((f, chain.size, 4))
+    _fk_chain(
+        np.ascontiguousarray(sk.rest_rotation, dtype=np.float64),
+        np.ascontiguousarray(motion.rotation, dtype=np.float64),
+        np.ascontiguousarray(sk.offset, dtype=np.float64),
+        np.ascontiguousarray(motion.root_position, dtype=np.float64),
+        jt,
+        chain,
+        cpar,
+        pos,
+        quat,
+    )
+    return pos, quat
+
+
+# --------------------------------------------------------------------------- detection
+def _ground_and_scale(w: Array, pts: list[int], ui: int) -> tuple[float, float]:
+    """Ground (2nd height percentile of the contact points ``pts``, columns of ``w``) and
+    body scale (median height of column 0, the root, above it)."""
     h = w[:, pts, ui]
     ground = float(np.percentile(h, 2))
     scale = float(np.median(w[:, 0, ui] - ground))
@@ -126,29 +240,53 @@ def _schmitt(low_on, low_off):  # pragma: no cover - compiled
     return out
 
 
-def detect_contacts(
-    motion: Motion, options: ContactOptions | None = None, world: Array | None = None
+def _contact_points(legs: list[Leg]) -> list[int]:
+    return sorted({p for lg in legs for p in (lg.ankle, lg.toe) if p >= 0})
+
+
+def _detect(
+    w: Array, col: dict[int, int], legs: list[Leg], fps: float, o: ContactOptions, ui: int
 ) -> dict[int, NDArray[np.bool_]]:
-    """Planted frames per contact point (joint index → ``bool[f]``), ankles and toes."""
-    o = options or ContactOptions()
-    legs = find_legs(motion)
-    if not legs or motion.n_frames < 2:
-        return {}
-    ui = _UP[(o.up or motion.meta.get("up_guess") or guess_up_axis(motion)).lower()]
-    w = motion.world_positions() if world is None else world
-    ground, scale = _ground_and_scale(w, legs, ui)
+    """Planted frames of every contact point; ``w[:, col[j]]`` is joint ``j``'s path and
+    ``w[:, 0]`` the root's."""
+    pts = _contact_points(legs)
+    ground, scale = _ground_and_scale(w, [col[j] for j in pts], ui)
     horiz = [a for a in range(3) if a != ui]
+    min_len = max(1, round(o.min_s * fps))
     out = {}
-    for j in {p for lg in legs for p in (lg.ankle, lg.toe) if p >= 0}:
+    for j in pts:
+        p = w[:, col[j]]
         # each point against its own resting height (an ankle stands above the floor)
-        h = (w[:, j, ui] - max(ground, float(np.percentile(w[:, j, ui], 2)))) / scale
-        v = np.linalg.norm(np.gradient(w[:, j][:, horiz], axis=0), axis=-1) * motion.fps / scale
+        h = (p[:, ui] - max(ground, float(np.percentile(p[:, ui], 2)))) / scale
+        v = np.hypot(*np.gradient(p[:, horiz], axis=0).T) * (fps / scale)
         on = _schmitt(
             (h < o.height) & (v < o.speed),
             (h < o.height * o.hysteresis) & (v < o.speed * o.hysteresis),
         )
-        out[j] = _drop_short(on, max(1, round(o.min_s * motion.fps)))
+        out[j] = _drop_short(on, min_len)
     return out
+
+
+def _up_of(motion: Motion, o: ContactOptions) -> int:
+    return _UP[(o.up or motion.meta.get("up_guess") or guess_up_axis(motion)).lower()]
+
+
+def detect_contacts(
+    motion: Motion, options: ContactOptions | None = None, world: Array | None = None
+) -> dict[int, NDArray[np.bool_]]:
+    """Planted frames per contact point (joint index → ``bool[f]``), ankles and toes.
+    ``world`` (all joints' world positions, ``(f, n, 3)``) saves the forward kinematics
+    when the caller has them; otherwise only the legs' chains are evaluated."""
+    o = options or ContactOptions()
+    legs = find_legs(motion)
+    if not legs or motion.n_frames < 2:
+        return {}
+    ui = _up_of(motion, o)
+    if world is not None:
+        return _detect(world, {j: j for j in range(motion.n_joints)}, legs, motion.fps, o, ui)
+    chain = _leg_chain(motion, legs)
+    w, _ = _chain_fk(motion, chain)
+    return _detect(w, {int(j): c for c, j in enumerate(chain)}, legs, motion.fps, o, ui)
 
 
 def _drop_short(on: NDArray[np.bool_], min_len: int) -> NDArray[np.bool_]:
@@ -164,25 +302,25 @@ def _runs(on: NDArray[np.bool_]) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
 
 
+# --------------------------------------------------------------------------- targets
 def _targets(
-    on: NDArray[np.bool_], pts: Array, blend: int, follow: bool = False
+    on: NDArray[np.bool_], pts: Array, blend: int, ui: int, follow: bool = False
 ) -> tuple[Array, Array]:
     """Per frame the held position of the nearest contact and its weight (1 inside a
     contact, smoothstep fade over ``blend`` frames outside, 0 elsewhere). The held position
-    is the median position of the contact's slower half of frames: a foot still gliding in
-    at the first frame is not frozen mid-glide, and a slide is split between the fade in
-    and the fade out instead of released all at once."""
+    is the median position of the contact's slower half of frames at the lowest height the
+    point reaches in that contact (see the module docstring)."""
     pts = np.ascontiguousarray(pts, dtype=np.float64)
     step = np.linalg.norm(np.gradient(pts, axis=0), axis=-1) if on.size > 1 else np.zeros(on.size)
     runs = np.asarray(_runs(on), dtype=np.int64).reshape(-1, 2)
     tgt = np.array(pts)
     wgt = np.zeros(on.size)
-    _targets_kernel(pts, step, runs, int(blend), bool(follow), tgt, wgt)
+    _targets_kernel(pts, step, runs, int(blend), int(ui), bool(follow), tgt, wgt)
     return tgt, wgt
 
 
 @njit(cache=True)
-def _targets_kernel(pts, step, runs, blend, follow, tgt, wgt):  # pragma: no cover - compiled
+def _targets_kernel(pts, step, runs, blend, ui, follow, tgt, wgt):  # pragma: no cover
     f = pts.shape[0]
     dist = np.full(f, np.inf)
     for r in range(runs.shape[0]):
@@ -193,6 +331,7 @@ def _targets_kernel(pts, step, runs, blend, follow, tgt, wgt):  # pragma: no cov
         p = np.empty(3)
         for a in range(3):
             p[a] = np.median(sel[:, a])
+        p[ui] = pts[s:e, ui].min()
         for k in range(max(0, s - blend), min(f, e + blend)):
             d = float(s - k) if k < s else (float(k - e + 1) if k >= e else 0.0)
             if d >= dist[k]:
@@ -206,21 +345,82 @@ def _targets_kernel(pts, step, runs, blend, follow, tgt, wgt):  # pragma: no cov
                     tgt[k, a] = pts[k, a] if follow else p[a]
 
 
-def _unit(v: Array) -> Array:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.where(n > 1e-12, n, 1.0)
+# --------------------------------------------------------------------------- two-bone IK
+@njit(cache=True, inline="always")
+def _unit3(x, y, z):  # pragma: no cover - compiled
+    n = math.sqrt(x * x + y * y + z * z)
+    if n > 1e-12:
+        return x / n, y / n, z / n
+    return x, y, z
 
 
-def _arc(a: Array, b: Array) -> Array:
-    """Shortest-arc quaternions rotating unit vectors ``a`` onto ``b`` (per row)."""
-    c = np.cross(a, b)
-    d = np.einsum("ij,ij->i", a, b)
-    q = np.concatenate([c, (1.0 + d)[:, None]], axis=1)
-    anti = q[:, 3] < 1e-9  # opposite vectors: any perpendicular axis, 180°
-    if anti.any():
-        perp = np.cross(a[anti], np.eye(3)[np.argmin(np.abs(a[anti]), axis=1)])
-        q[anti] = np.concatenate([_unit(perp), np.zeros((anti.sum(), 1))], axis=1)
-    return tf.quat_normalize(q)
+@njit(cache=True)
+def _arc3(ax, ay, az, bx, by, bz):  # pragma: no cover - compiled
+    """Shortest-arc quaternion turning unit ``a`` onto unit ``b``."""
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    w = 1.0 + ax * bx + ay * by + az * bz
+    if w < 1e-9:  # opposite: 180° about any perpendicular axis
+        m = min(abs(ax), abs(ay), abs(az))
+        ex, ey, ez = 0.0, 0.0, 1.0
+        if m == abs(ax):
+            ex, ey, ez = 1.0, 0.0, 0.0
+        elif m == abs(ay):
+            ex, ey, ez = 0.0, 1.0, 0.0
+        px, py, pz = _unit3(ay * ez - az * ey, az * ex - ax * ez, ax * ey - ay * ex)
+        return px, py, pz, 0.0
+    n = math.sqrt(cx * cx + cy * cy + cz * cz + w * w)
+    return cx / n, cy / n, cz / n, w / n
+
+
+@njit(cache=True)
+def _ik_frame(hip, knee, ankle, target, r_hip, r_knee):  # pragma: no cover - compiled
+    """One frame of :func:`two_bone_ik`; writes ``r_hip``/``r_knee`` (4,), returns True
+    when the target was more than 1 % beyond the leg's reach (or inside its inner limit)."""
+    k0, k1, k2 = knee[0] - hip[0], knee[1] - hip[1], knee[2] - hip[2]
+    s0, s1, s2 = ankle[0] - knee[0], ankle[1] - knee[1], ankle[2] - knee[2]
+    a0, a1, a2 = ankle[0] - hip[0], ankle[1] - hip[1], ankle[2] - hip[2]
+    t0, t1, t2 = target[0] - hip[0], target[1] - hip[1], target[2] - hip[2]
+    l1 = math.sqrt(k0 * k0 + k1 * k1 + k2 * k2)
+    l2 = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    d = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    lo = abs(l1 - l2) + 1e-9 * (l1 + l2)
+    hi = (l1 + l2) * (1 - 1e-9)
+    clamped = d > 1.01 * (l1 + l2) or d < 0.99 * lo
+    dc = min(max(d, lo), hi)
+    u0, u1, u2 = _unit3(t0, t1, t2) if d > 1e-12 else _unit3(a0, a1, a2)
+    kd = k0 * u0 + k1 * u1 + k2 * u2
+    b0, b1, b2 = k0 - kd * u0, k1 - kd * u1, k2 - kd * u2
+    if math.sqrt(b0 * b0 + b1 * b1 + b2 * b2) > 1e-9 * l1:
+        v0, v1, v2 = _unit3(b0, b1, b2)
+    else:  # straight leg: bend in the plane of the current leg
+        n0 = a1 * k2 - a2 * k1 + 1e-12
+        n1 = a2 * k0 - a0 * k2 + 1e-12
+        n2 = a0 * k1 - a1 * k0 + 1e-12
+        v0, v1, v2 = _unit3(u1 * n2 - u2 * n1, u2 * n0 - u0 * n2, u0 * n1 - u1 * n0)
+    cos_a = min(max((l1 * l1 + dc * dc - l2 * l2) / (2 * l1 * dc), -1.0), 1.0)
+    sin_a = math.sqrt(1 - cos_a * cos_a)
+    nk0 = l1 * (cos_a * u0 + sin_a * v0)
+    nk1 = l1 * (cos_a * u1 + sin_a * v1)
+    nk2 = l1 * (cos_a * u2 + sin_a * v2)
+    e0, e1, e2 = _unit3(k0, k1, k2)
+    f0, f1, f2 = _unit3(nk0, nk1, nk2)
+    hx, hy, hz, hw = _arc3(e0, e1, e2, f0, f1, f2)
+    r_hip[0], r_hip[1], r_hip[2], r_hip[3] = hx, hy, hz, hw
+    sx, sy, sz = _qrot(hx, hy, hz, hw, s0, s1, s2)
+    g0, g1, g2 = _unit3(sx, sy, sz)
+    w0, w1, w2 = _unit3(dc * u0 - nk0, dc * u1 - nk1, dc * u2 - nk2)
+    qx, qy, qz, qw = _arc3(g0, g1, g2, w0, w1, w2)
+    r_knee[0], r_knee[1], r_knee[2], r_knee[3] = qx, qy, qz, qw
+    return clamped
+
+
+@njit(cache=True)
+def _ik_frames(hip, knee, ankle, target, r_hip, r_knee):  # pragma: no cover - compiled
+    c = 0
+    for t in range(hip.shape[0]):
+        if _ik_frame(hip[t], knee[t], ankle[t], target[t], r_hip[t], r_knee[t]):
+            c += 1
+    return c
 
 
 def two_bone_ik(hip: Array, knee: Array, ankle: Array, target: Array) -> tuple[Array, Array, int]:
@@ -230,28 +430,110 @@ def two_bone_ik(hip: Array, knee: Array, ankle: Array, target: Array) -> tuple[A
     knee). The knee stays in the plane of hip, knee and ankle on its side. Returns the count
     of frames whose target was more than 1 % out of reach (every target is clamped to the
     reachable distance)."""
-    l1 = np.linalg.norm(knee - hip, axis=-1)
-    l2 = np.linalg.norm(ankle - knee, axis=-1)
-    to_t = target - hip
-    d = np.linalg.norm(to_t, axis=-1)
-    lo = np.abs(l1 - l2) + 1e-9 * (l1 + l2)
-    hi = (l1 + l2) * (1 - 1e-9)
-    # a stance leg is often straight: count only targets more than 1 % beyond its reach
-    clamped = int(np.count_nonzero((d > 1.01 * (l1 + l2)) | (d < 0.99 * lo)))
-    dc = np.clip(d, lo, hi)
-    u = _unit(np.where(d[:, None] > 1e-12, to_t, ankle - hip))
-    bend = (knee - hip) - np.einsum("ij,ij->i", knee - hip, u)[:, None] * u
-    fallback = _unit(np.cross(u, np.cross(ankle - hip, knee - hip) + 1e-12))
-    v = np.where(
-        np.linalg.norm(bend, axis=-1, keepdims=True) > 1e-9 * l1[:, None], _unit(bend), fallback
-    )
-    cos_a = np.clip((l1**2 + dc**2 - l2**2) / (2 * l1 * dc), -1.0, 1.0)
-    new_knee = hip + l1[:, None] * (cos_a[:, None] * u + np.sqrt(1 - cos_a**2)[:, None] * v)
-    new_ankle = hip + dc[:, None] * u
-    r_hip = _arc(_unit(knee - hip), _unit(new_knee - hip))
-    shin = tf.quat_rotate(r_hip, ankle - knee)
-    r_knee = _arc(_unit(shin), _unit(new_ankle - new_knee))
-    return r_hip, r_knee, clamped
+    args = [np.ascontiguousarray(a, dtype=np.float64) for a in (hip, knee, ankle, target)]
+    r_hip = np.empty((args[0].shape[0], 4))
+    r_knee = np.empty_like(r_hip)
+    c = _ik_frames(*args, r_hip, r_knee)
+    return r_hip, r_knee, int(c)
+
+
+@njit(cache=True)
+def _lock_leg(P, Q, leg, goal, act, tt, wt, rest, joints, rot):  # pragma: no cover
+    """Solve one leg on the frames ``act`` and write the new local rotations of its hip,
+    knee and ankle into ``rot (f, n, 4)``. ``P``/``Q``: chain world positions/orientations;
+    ``leg`` = chain columns of (hip's parent, hip, knee, ankle, toe or -1); ``joints`` =
+    skeleton indices of (hip, knee, ankle); ``goal`` the ankle target; ``tt``/``wt`` the toe's
+    held place and weight (the foot turns toward it where ``wt > 0``)."""
+    cp, ch, ck, ca, ct = leg[0], leg[1], leg[2], leg[3], leg[4]
+    jh, jk, ja = joints[0], joints[1], joints[2]
+    r_hip = np.empty(4)
+    r_knee = np.empty(4)
+    clamped = 0
+    for i in range(act.size):
+        t = act[i]
+        if _ik_frame(P[t, ch], P[t, ck], P[t, ca], goal[t], r_hip, r_knee):
+            clamped += 1
+        qh = Q[t, ch]
+        hx, hy, hz, hw = _qmul(r_hip[0], r_hip[1], r_hip[2], r_hip[3], qh[0], qh[1], qh[2], qh[3])
+        qk = Q[t, ck]
+        kx, ky, kz, kw = _qmul(r_hip[0], r_hip[1], r_hip[2], r_hip[3], qk[0], qk[1], qk[2], qk[3])
+        kx, ky, kz, kw = _qmul(r_knee[0], r_knee[1], r_knee[2], r_knee[3], kx, ky, kz, kw)
+        x, y, z, w = hx, hy, hz, hw
+        if cp >= 0:
+            qp = Q[t, cp]
+            x, y, z, w = _qmul(-qp[0], -qp[1], -qp[2], qp[3], hx, hy, hz, hw)
+        rh = rest[jh]
+        rot[t, jh, 0], rot[t, jh, 1], rot[t, jh, 2], rot[t, jh, 3] = _qmul(
+            -rh[0], -rh[1], -rh[2], rh[3], x, y, z, w
+        )
+        x, y, z, w = _qmul(-hx, -hy, -hz, hw, kx, ky, kz, kw)
+        rk = rest[jk]
+        rot[t, jk, 0], rot[t, jk, 1], rot[t, jk, 2], rot[t, jk, 3] = _qmul(
+            -rk[0], -rk[1], -rk[2], rk[3], x, y, z, w
+        )
+        fx, fy, fz, fw = Q[t, ca, 0], Q[t, ca, 1], Q[t, ca, 2], Q[t, ca, 3]
+        if ct >= 0 and wt[t] > 0:  # turn the foot so the toe lands on its held place
+            pt, pa, g, wk = P[t, ct], P[t, ca], goal[t], wt[t]
+            c0, c1, c2 = _unit3(pt[0] - pa[0], pt[1] - pa[1], pt[2] - pa[2])
+            g0, g1, g2 = _unit3(tt[t, 0] - g[0], tt[t, 1] - g[1], tt[t, 2] - g[2])
+            g0, g1, g2 = _unit3(c0 + wk * (g0 - c0), c1 + wk * (g1 - c1), c2 + wk * (g2 - c2))
+            ax, ay, az, aw = _arc3(c0, c1, c2, g0, g1, g2)
+            fx, fy, fz, fw = _qmul(ax, ay, az, aw, fx, fy, fz, fw)
+        x, y, z, w = _qmul(-kx, -ky, -kz, kw, fx, fy, fz, fw)
+        ra = rest[ja]
+        rot[t, ja, 0], rot[t, ja, 1], rot[t, ja, 2], rot[t, ja, 3] = _qmul(
+            -ra[0], -ra[1], -ra[2], ra[3], x, y, z, w
+        )
+    for j in (jh, jk, ja):  # hemisphere-continuous over time
+        for t in range(1, rot.shape[0]):
+            if (
+                rot[t, j, 0] * rot[t - 1, j, 0]
+                + rot[t, j, 1] * rot[t - 1, j, 1]
+                + rot[t, j, 2] * rot[t - 1, j, 2]
+                + rot[t, j, 3] * rot[t - 1, j, 3]
+            ) < 0:
+                for a in range(4):
+                    rot[t, j, a] = -rot[t, j, a]
+    return clamped
+
+
+# --------------------------------------------------------------------------- locking
+def _leg_goals(
+    lg: Leg, col: dict[int, int], pos: Array, w_ref: Array, contacts, blend: int, ui: int,
+    follow: bool,
+) -> tuple[Array, Array, Array, NDArray[np.int64]] | None:  # fmt: skip
+    """Ankle goal per frame, the toe's held place and weight, and the frames to solve
+    (``None`` when the leg has no contact)."""
+    f = pos.shape[0]
+    none = np.zeros(f, bool)
+    on_a = contacts.get(lg.ankle, none)
+    on_t = contacts.get(lg.toe, none) if lg.toe >= 0 else none
+    if not (on_a.any() or on_t.any()):
+        return None
+    ca = col[lg.ankle]
+    # the ankle target: held ankle while the ankle is planted; while only the toe is
+    # planted (heel off), the held toe minus the toe's current offset from the ankle
+    ta, wa = _targets(on_a, w_ref[:, ca], blend, ui, follow)
+    goal = pos[:, ca] + wa[:, None] * (ta - pos[:, ca])
+    tt, wt = np.zeros((f, 3)), np.zeros(f)
+    if lg.toe >= 0:
+        ct = col[lg.toe]
+        tt, wt = _targets(on_t, w_ref[:, ct], blend, ui, follow)
+        only_toe = (wt > wa) & ~on_a
+        g2 = pos[:, ca] + wt[:, None] * (tt - pos[:, ct])
+        goal = np.where(only_toe[:, None], g2, goal)
+    act = np.flatnonzero(np.maximum(wa, wt) > 0).astype(np.int64)
+    return goal, tt, wt, act
+
+
+def _reference(motion: Motion, reference: Motion | None) -> Motion:
+    if (
+        reference is not None
+        and reference.n_frames == motion.n_frames
+        and reference.names == motion.names
+    ):
+        return reference
+    return motion
 
 
 def lock_feet(
@@ -267,82 +549,38 @@ def lock_feet(
     legs = find_legs(motion)
     if not o.enabled or not legs or motion.n_frames < 2:
         return motion
-    ref = motion
-    if (
-        reference is not None
-        and reference.n_frames == motion.n_frames
-        and reference.names == motion.names
-    ):
-        ref = reference
+    ref = _reference(motion, reference)
     opts = o if o.up is not None else replace(o, up=ref.meta.get("up_guess") or guess_up_axis(ref))
-    follow = o.mode == "follow"
-    pos, wq = motion._fk(None)
-    w_ref = pos if ref is motion else ref.world_positions()
-    contacts = detect_contacts(ref, opts, w_ref)
+    ui = _UP[opts.up.lower()]
+    chain = _leg_chain(motion, legs)
+    col = {int(j): c for c, j in enumerate(chain)}
+    pos, wq = _chain_fk(motion, chain)
+    w_ref = pos if ref is motion else _chain_fk(ref, chain)[0]
+    contacts = _detect(w_ref, col, legs, motion.fps, opts, ui)
     blend = max(1, round(o.blend_s * motion.fps))
-    changed: list[int] = []
-    rot = np.array(motion.rotation)
-    rest = motion.skeleton.rest_rotation
+    follow = o.mode == "follow"
+    goals = [_leg_goals(lg, col, pos, w_ref, contacts, blend, ui, follow) for lg in legs]
+    rot = np.array(motion.rotation, dtype=np.float64)
+    rest = np.ascontiguousarray(motion.skeleton.rest_rotation, dtype=np.float64)
     par = motion.skeleton.parent
     clamped = 0
-    for lg in legs:
-        on_a = contacts.get(lg.ankle, np.zeros(motion.n_frames, bool))
-        on_t = (
-            contacts.get(lg.toe, np.zeros(motion.n_frames, bool))
-            if lg.toe >= 0
-            else np.zeros(motion.n_frames, bool)
-        )
-        if not (on_a.any() or on_t.any()):
+    for i, lg in enumerate(legs):
+        g = goals[i]
+        if g is None or g[3].size == 0:
             continue
-        # the ankle target: held ankle while the ankle is planted; while only the toe is
-        # planted (heel off), the held toe minus the toe's current offset from the ankle
-        ta, wa = _targets(on_a, w_ref[:, lg.ankle], blend, follow)
-        goal = pos[:, lg.ankle] + wa[:, None] * (ta - pos[:, lg.ankle])
-        if lg.toe >= 0:
-            tt, wt = _targets(on_t, w_ref[:, lg.toe], blend, follow)
-            only_toe = (wt > wa) & ~on_a
-            toe_goal = tt - (pos[:, lg.toe] - pos[:, lg.ankle])
-            g2 = pos[:, lg.ankle] + wt[:, None] * (toe_goal - pos[:, lg.ankle])
-            goal = np.where(only_toe[:, None], g2, goal)
-        act = np.flatnonzero(np.maximum(wa, wt if lg.toe >= 0 else 0) > 0)
-        if act.size == 0:
-            continue
-        r_hip, r_knee, c = two_bone_ik(
-            pos[act, lg.hip], pos[act, lg.knee], pos[act, lg.ankle], goal[act]
+        goal, tt, wt, act = g
+        cp = col[int(par[lg.hip])] if par[lg.hip] >= 0 else -1  # -1: the hip is a root
+        cols = np.array(
+            [cp, col[lg.hip], col[lg.knee], col[lg.ankle], col.get(lg.toe, -1)], dtype=np.int64
         )
-        clamped += c
-        hip_w = tf.quat_multiply(r_hip, wq[act, lg.hip])
-        knee_w = tf.quat_multiply(r_knee, tf.quat_multiply(r_hip, wq[act, lg.knee]))
-        parent_w = wq[act, par[lg.hip]] if par[lg.hip] >= 0 else tf.quat_identity((act.size,))
-        inv = tf.quat_conjugate
-        rot[act, lg.hip] = tf.quat_multiply(
-            inv(rest[lg.hip]), tf.quat_multiply(inv(parent_w), hip_w)
-        )
-        rot[act, lg.knee] = tf.quat_multiply(
-            inv(rest[lg.knee]), tf.quat_multiply(inv(hip_w), knee_w)
-        )
-        foot_w = wq[act, lg.ankle]
-        if lg.toe >= 0:  # both planted: turn the foot so the toe lands on its held place
-            both = np.flatnonzero(wt[act] > 0)
-            if both.size:
-                a_new = goal[act][both]
-                cur = _unit(pos[act[both], lg.toe] - pos[act[both], lg.ankle])
-                want = tt[act[both]] - a_new
-                want = cur + wt[act[both], None] * (_unit(want) - cur)
-                foot_w = np.array(foot_w)
-                foot_w[both] = tf.quat_multiply(_arc(cur, _unit(want)), foot_w[both])
-        rot[act, lg.ankle] = tf.quat_multiply(
-            inv(rest[lg.ankle]), tf.quat_multiply(inv(knee_w), foot_w)
-        )
-        changed += [lg.hip, lg.knee, lg.ankle]
+        joints = np.array([lg.hip, lg.knee, lg.ankle], dtype=np.int64)
+        clamped += _lock_leg(pos, wq, cols, goal, act, tt, wt, rest, joints, rot)
     if clamped:
         warnings.warn(
             f"{clamped} foot-contact target(s) out of the leg's reach; clamped to the leg length",
             ContactWarning,
             stacklevel=2,
         )
-    if changed:
-        rot[:, changed] = tf.quat_continuous(rot[:, changed], axis=0)
     meta = dict(motion.meta)
     meta["feet_locked"] = {
         "contacts": {motion.names[j]: int(v.sum()) for j, v in contacts.items()},

@@ -1,0 +1,115 @@
+"""Issue 15 foot-skate targets: locking never leaves a clip skating more than its input, the
+compiled leg-chain kinematics agree with the full forward kinematics, and the held height
+of a contact is where the point rests on the floor."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import biomorph.motion as bm
+from biomorph.io.bvh import read_bvh
+from biomorph.motion import contact as C
+from biomorph.motion.quality import foot_skate
+from biomorph.motion.synthetic import walk
+from tests.conftest import shared_file
+
+
+def _skate(m):
+    return foot_skate(m)["skate_per_body_scale"]
+
+
+def _lock(m, ref=None):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", C.ContactWarning)
+        return C.lock_feet(m, ref)
+
+
+@pytest.fixture(scope="module")
+def slid():
+    """The built-in walk with a slide injected: the hips pushed back and forth (5 cm along
+    the walk at 1.7 Hz, 3 cm sideways at 0.9 Hz), so every planted foot slides."""
+    m = walk(480, 60)
+    t = np.arange(m.n_frames) / m.fps
+    rp = np.array(m.root_position)
+    rp[:, 2] += 0.05 * np.sin(2 * np.pi * 1.7 * t)
+    rp[:, 0] += 0.03 * np.sin(2 * np.pi * 0.9 * t + 1.0)
+    return m.with_(root_position=rp)
+
+
+def _planted_speed(m, contacts):
+    w = m.world_positions()
+    v = []
+    for j, on in contacts.items():
+        idx = np.flatnonzero(on[1:] & on[:-1])
+        v.append(np.linalg.norm(np.diff(w[:, j], axis=0)[idx][:, [0, 2]], axis=1).mean())
+    return float(np.mean(v))
+
+
+def test_locking_a_walk_with_injected_slide_lowers_its_skate(slid):
+    locked = _lock(slid)
+    assert _skate(locked) < _skate(slid)
+    c = C.detect_contacts(slid)
+    assert len(c) == 4
+    # the built-in walk stands on straight knees: the held targets are often just out of
+    # the leg's reach (clamped), so planted points keep ~1/6 of their slide (measured 0.17)
+    assert _planted_speed(locked, c) < 0.3 * _planted_speed(slid, c)
+
+
+def test_operators_with_locking_stay_at_or_below_the_slid_input(slid):
+    base = _skate(slid)
+    e = bm.equalize(slid, [0, 0.5, 1, 1, 1])
+    assert _skate(_lock(e, slid)) <= base
+    e2 = bm.equalize(slid, [1, 1.5, 1.5, 1, 1])
+    assert _skate(_lock(e2, slid)) <= base
+    b = bm.blend([slid, slid[160:]], transition=30)
+    assert _skate(_lock(b)) <= base
+
+
+def test_held_height_is_the_lowest_of_the_contact():
+    f = 40
+    pts = np.zeros((f, 3))
+    pts[:, 1] = 0.02 + 0.01 * np.sin(np.arange(f))  # a contact floating 1-3 cm up
+    pts[:, 2] = np.linspace(0.0, 0.05, f)  # and sliding 5 cm
+    on = np.zeros(f, bool)
+    on[10:30] = True
+    tgt, wgt = C._targets(on, pts, 4, 1)
+    assert np.allclose(tgt[10:30, 1], pts[10:30, 1].min())
+    assert np.ptp(tgt[10:30], axis=0).max() == 0.0  # one place for the whole contact
+    assert (wgt[10:30] == 1).all() and wgt[5] == 0 and 0 < wgt[8] < 1
+
+
+@pytest.mark.parametrize("translated", [False, True])
+def test_leg_chain_kinematics_match_the_full_forward_kinematics(translated):
+    m = walk(200, 60, noise_deg=2.0)
+    if translated:  # position channels on inner joints (BVH 6-channel joints, HTR)
+        jt = np.array(m.local_translations())
+        jt[:, 1:] *= 1.0 + 0.1 * np.sin(np.arange(m.n_frames))[:, None, None]
+        m = m.with_(joint_translation=jt)
+    legs = C.find_legs(m)
+    chain = C._leg_chain(m, legs)
+    pos, quat = C._chain_fk(m, chain)
+    full_p, full_q = m.world_positions(), m.world_rotations()
+    assert np.abs(pos - full_p[:, chain]).max() < 1e-12
+    assert np.abs(np.abs(np.sum(quat * full_q[:, chain], axis=-1)) - 1).max() < 1e-12
+    assert set(C.detect_contacts(m)) == set(C.detect_contacts(m, world=full_p))
+
+
+def _shared(name):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return read_bvh(shared_file("motion", name))
+
+
+def test_dme_raw_clip_cleans_toward_its_fixed_counterpart():
+    raw = _shared("dme_comp_3d_2_raw.bvh")
+    fixed = _shared("dme_comp_3d_2_fixed.bvh")
+    cleaned = _skate(_lock(raw))
+    # measured: raw 0.874 -> 0.614 hip heights/s (was 0.654 holding the median height);
+    # the authors' fixed file is 0.571 (see docs/motion.md for why that is not reached)
+    assert cleaned < 0.72 * _skate(raw)
+    assert _skate(_lock(fixed)) <= _skate(fixed)
+    for gains in ([0, 0.5, 1, 1, 1], [1, 1.5, 1.5, 1, 1]):
+        assert _skate(_lock(bm.equalize(raw, gains), raw)) <= _skate(raw)
