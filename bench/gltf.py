@@ -149,15 +149,46 @@ def cases() -> list[tuple[str, Callable[[ModuleType, str], object]]]:
     ]
 
 
-def _one_creature(args: tuple[int, str, bool]) -> tuple[float, int]:
-    """(seconds, file bytes) for one seed: generate + ``write_glb`` (bone models, skin)."""
+def _one_creature(args: tuple[int, str, bool]) -> tuple[float, float, int]:
+    """(wall s, CPU s, file bytes) for one seed: generate + ``write_glb`` (bone models,
+    skin)."""
     seed, out, skin = args
     import biomorph.creature as bc
     from biomorph.creature.exporters import write_glb
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     path = write_glb(bc.generate(seed=seed), os.path.join(out, f"c{seed}.glb"), skin=skin)
-    return time.perf_counter() - t0, os.path.getsize(path)
+    return time.perf_counter() - t0, time.process_time() - c0, os.path.getsize(path)
+
+
+_START = """
+import os, tempfile, time
+c0 = time.process_time()
+import biomorph.creature as bc
+from biomorph.creature.exporters import write_glb
+with tempfile.TemporaryDirectory() as tmp:
+    write_glb(bc.generate(seed=0), os.path.join(tmp, "w.glb"), skin=True)
+print(time.process_time() - c0)
+"""
+
+
+def _worker_start() -> float:
+    """CPU s a fresh process spends on imports, kernel-cache loads and its first creature
+    (what each pool worker pays once)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _START], capture_output=True, text=True)
+    return float(out.stdout.split()[-1])
+
+
+def _warm() -> None:
+    """Pool initializer: imports and compiled kernels loaded before the timed jobs."""
+    import biomorph.creature as bc
+    from biomorph.creature.exporters import write_glb
+
+    with tempfile.TemporaryDirectory() as tmp:
+        write_glb(bc.generate(seed=0), os.path.join(tmp, "w.glb"), skin=True)
 
 
 def _peer_trimesh(seed: int, out: str, skin: bool) -> tuple[float, ...]:
@@ -172,13 +203,13 @@ def _peer_trimesh(seed: int, out: str, skin: bool) -> tuple[float, ...]:
     from biomorph.creature.skin import body
     from biomorph.io.gltf import write_gltf
 
-    s0 = time.perf_counter()
+    s0 = time.process_time()
     c = bc.generate(seed=seed)
-    t1 = time.perf_counter()
+    t1 = time.process_time()
     geo = geometry(c)
-    t2 = time.perf_counter()
+    t2 = time.process_time()
     b = body(c) if skin else None
-    t3 = time.perf_counter()
+    t3 = time.process_time()
     w = world_mesh(c)
     meshes = [trimesh.Trimesh(w.vertices, w.faces, vertex_normals=w.normals, process=False)]
     skinned = None
@@ -186,10 +217,10 @@ def _peer_trimesh(seed: int, out: str, skin: bool) -> tuple[float, ...]:
         e = b.envelope
         skinned = (e.vertices, e.normals, b.joints, b.weights, e.faces)
         meshes.append(trimesh.Trimesh(e.vertices, e.faces, vertex_normals=e.normals, process=False))
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     trimesh.Scene(meshes).export(os.path.join(out, "peer.glb"))
-    t_peer = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    t_peer = time.process_time() - t0
+    t0 = time.process_time()
     write_gltf(
         os.path.join(out, "ours.glb"),
         c.skeleton,
@@ -197,30 +228,42 @@ def _peer_trimesh(seed: int, out: str, skin: bool) -> tuple[float, ...]:
         joint_geometry=geo,
         skinned_mesh=skinned,
     )
-    return time.perf_counter() - t0, t_peer, t1 - s0, t2 - t1, t3 - t2
+    return time.process_time() - t0, t_peer, t1 - s0, t2 - t1, t3 - t2
 
 
 def creatures_bench(n: int, workers: int, skin: bool) -> None:
     from multiprocessing import get_context
 
+    load0 = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         jobs = [(s, tmp, skin) for s in range(n)]
         w0 = time.perf_counter()
-        with get_context("spawn").Pool(workers) as pool:
+        with get_context("spawn").Pool(workers, initializer=_warm) as pool:
             res = pool.map(_one_creature, jobs, chunksize=max(1, n // (workers * 8)))
         wall = time.perf_counter() - w0
         r = np.array(res, float)
         peer = np.array([_peer_trimesh(s, tmp, skin) for s in range(min(20, n))])
-    print(f"load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} CPUs, {workers} workers\n")
+    load1 = os.getloadavg()[0]
+    start = [_worker_start() for _ in range(workers)]
+    cpu = float(r[:, 1].sum())
+    print(
+        f"load average {load0:.2f} -> {load1:.2f}, {os.cpu_count()} CPUs, {workers} workers\n"
+    )
     print(
         f"{n} creatures with bone models{' and skin' if skin else ''} written as GLB: "
         f"{wall:.1f} s wall ({wall / n * 1e3:.0f} ms per creature; target 1,000 in 60 s)"
     )
     print(
-        f"median {np.median(r[:, 0]) * 1e3:.0f} ms per creature on one worker, file "
-        f"{np.median(r[:, 1]) / 1e6:.2f} MB"
+        f"CPU {cpu:.1f} s in the workers ({cpu / n * 1e3:.0f} ms per creature, median "
+        f"{np.median(r[:, 1]) * 1e3:.0f} ms) + {sum(start):.1f} s worker start-up: on "
+        f"{workers} otherwise idle cores {(cpu + sum(start)) / workers:.1f} s, 1,000 "
+        f"creatures {(cpu / n * 1000 + sum(start)) / workers:.1f} s"
     )
-    print(f"\n| stage (median of {len(peer)} seeds, one process) | ms |\n|---|---:|")
+    print(
+        f"median {np.median(r[:, 0]) * 1e3:.0f} ms wall per creature on one worker, file "
+        f"{np.median(r[:, 2]) / 1e6:.2f} MB"
+    )
+    print(f"\n| stage (median of {len(peer)} seeds, one process) | ms CPU |\n|---|---:|")
     for k, label in (
         (2, "generate"),
         (3, "bone models"),

@@ -170,18 +170,36 @@ def _dorsal_point(c: Creature, j: int) -> NDArray:
 
 
 def muscle_mesh(ms: list[Muscle], lod: int = 1) -> Mesh | None:
-    """All muscles as one closed mesh (world), faces labelled ``face_ids["muscle"]``."""
-    from biomorph.creature.bones.prim import SIDES, tube
+    """All muscles as one closed mesh (world), faces labelled ``face_ids["muscle"]``: the
+    muscles with the same number of path points swept in one batch."""
+    from biomorph.creature.bones.prim import SIDES, tubes
 
     if not ms:
         return None
     vs, fs, ids = [], [], []
     base = 0
+    groups: dict[int, list[int]] = {}
     for i, m in enumerate(ms):
-        v, f = tube(m.path, m.radius, SIDES[lod])
+        groups.setdefault(len(m.path), []).append(i)
+    for members in groups.values():
+        paths = np.stack([ms[i].path for i in members])
+        radii = np.stack([ms[i].radius for i in members])
+        v, f = tubes(paths, radii, SIDES[lod], ref=_ring_refs(paths))
+        per_f = len(f) // len(members)
         vs.append(v)
         fs.append(f + base)
-        ids.append(np.full(len(f), i))
+        ids.append(np.repeat(np.asarray(members), per_f))
         base += len(v)
-    mesh = Mesh(np.concatenate(vs), np.concatenate(fs), face_ids={"muscle": np.concatenate(ids)})
+    ids_all = np.concatenate(ids)
+    mesh = Mesh(np.concatenate(vs), np.concatenate(fs), face_ids={"muscle": ids_all})
     return mesh.compute_normals()
+
+
+def _ring_refs(paths: NDArray) -> NDArray:
+    """Per path the ring reference of :func:`~biomorph.creature.bones.prim.tube` (x unless
+    the path runs mostly along x, then z)."""
+    t = np.gradient(paths, axis=1)
+    t /= np.maximum(np.linalg.norm(t, axis=2, keepdims=True), 1e-12)
+    mean = t.mean(axis=1)
+    along_x = np.abs(mean[:, 0]) >= 0.8 * np.linalg.norm(mean, axis=1) + 1e-9
+    return np.where(along_x[:, None], [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])

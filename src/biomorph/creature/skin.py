@@ -52,40 +52,41 @@ class Body:
 
 
 def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-    """Tapered capsules of the field: start/end points ``(s, 3)`` and radii ``(s,)``."""
-    a_s, b_s, ra_s, rb_s = [], [], [], []
-    ends = c.bone_ends
-    pos = c.joint_positions
-    for j in np.flatnonzero(c.bone_length > 1e-9).tolist():
-        bone_hw = 0.5 * max(c.box_size[j, 0], c.box_size[j, 2])
-        soft_hw = 0.25 * (c.mass_size[j, 0] + c.mass_size[j, 2])
-        end_r = bone_hw * (1 + LANDMARK_TISSUE)
-        if c.kind[j] == "skull":  # thin tissue over the skull: its narrower half-width
-            end_r = mid_r = 0.5 * min(c.box_size[j, 0], c.box_size[j, 2]) * (1 + LANDMARK_TISSUE)
-        elif c.kind[j] == "spine":
-            mid_r = end_r
-        else:
-            mid_r = max(end_r, 0.8 * soft_hw)
-        mid = 0.5 * (pos[j] + ends[j])
-        a_s += [pos[j], mid]
-        b_s += [mid, ends[j]]
-        ra_s += [end_r, mid_r]
-        rb_s += [mid_r, end_r]
+    """Tapered capsules of the field: start/end points ``(s, 3)`` and radii ``(s,)``: two
+    per bone (joint to mid-bone, mid-bone to end), one sphere per trunk section, and the
+    muscles' swept paths."""
+    js = np.flatnonzero(c.bone_length > 1e-9)
+    box, mass = c.box_size[js], c.mass_size[js]
+    kind = np.asarray(c.kind, dtype=object)[js]
+    bone_hw = 0.5 * np.maximum(box[:, 0], box[:, 2])
+    soft_hw = 0.25 * (mass[:, 0] + mass[:, 2])
+    end_r = bone_hw * (1 + LANDMARK_TISSUE)
+    mid_r = np.where(kind == "spine", end_r, np.maximum(end_r, 0.8 * soft_hw))
+    skull = kind == "skull"  # thin tissue over the skull: its narrower half-width
+    end_r[skull] = mid_r[skull] = 0.5 * np.minimum(box[skull, 0], box[skull, 2]) * (
+        1 + LANDMARK_TISSUE
+    )
+    pos, ends = c.joint_positions[js], c.bone_ends[js]
+    mid = 0.5 * (pos + ends)
+    a_s = [np.stack([pos, mid], 1).reshape(-1, 3)]
+    b_s = [np.stack([mid, ends], 1).reshape(-1, 3)]
+    ra_s = [np.stack([end_r, mid_r], 1).reshape(-1)]
+    rb_s = [np.stack([mid_r, end_r], 1).reshape(-1)]
     # the trunk's soft tissue: one sphere per trunk section (the rib cage is built round
     # the same sections, :mod:`biomorph.creature.bones.cage`)
     _, centre, radius = trunk_sections(c)
-    a_s.extend(centre)
-    b_s.extend(centre)
-    ra_s.extend(radius)
-    rb_s.extend(radius)
+    a_s.append(centre)
+    b_s.append(centre)
+    ra_s.append(radius)
+    rb_s.append(radius)
     for m in ms:  # every second path point is enough for the smoothed field
         keep = np.unique(np.r_[np.arange(0, len(m.path), 2), len(m.path) - 1])
         path, rad = m.path[keep], m.radius[keep]
-        a_s.extend(path[:-1])
-        b_s.extend(path[1:])
-        ra_s.extend(rad[:-1])
-        rb_s.extend(rad[1:])
-    return np.array(a_s), np.array(b_s), np.array(ra_s), np.array(rb_s)
+        a_s.append(path[:-1])
+        b_s.append(path[1:])
+        ra_s.append(rad[:-1])
+        rb_s.append(rad[1:])
+    return np.concatenate(a_s), np.concatenate(b_s), np.concatenate(ra_s), np.concatenate(rb_s)
 
 
 def _field(
@@ -131,38 +132,45 @@ def _capsule_field(field, lo, h, a, b, ra, rb):  # pragma: no cover - compiled
 
 
 def _weights(c: Creature, v: NDArray, h: float) -> tuple[NDArray, NDArray]:
-    """Four nearest bone segments per vertex, inverse-square distance weights. Candidate
-    bones come from a k-d tree over points sampled along every bone (8 nearest samples),
-    exact point-to-segment distances are taken only for those."""
-    from scipy.spatial import cKDTree
-
+    """Four nearest bone segments per vertex (exact point-to-segment distances to every
+    bone, :func:`_nearest_segments`), inverse-square distance weights ``1 / (d + h)²``
+    normalised."""
     bones = np.flatnonzero(c.bone_length > 1e-9)
-    a = c.joint_positions[bones]
-    ab = c.bone_ends[bones] - a
-    u = np.linspace(0.0, 1.0, 5)
-    samples = (a[:, None, :] + u[None, :, None] * ab[:, None, :]).reshape(-1, 3)
-    owner = np.repeat(np.arange(len(bones)), len(u))
-    kq = min(8, len(samples))
-    _, idx = cKDTree(samples).query(v, k=kq)
-    cand = owner[np.atleast_2d(idx).reshape(len(v), kq)]  # (k, kq) bone numbers
-    ca, cab = a[cand], ab[cand]
-    L2 = np.maximum((cab**2).sum(axis=2), 1e-18)
-    tt = np.clip(((v[:, None, :] - ca) * cab).sum(axis=2) / L2, 0, 1)
-    d = np.linalg.norm(v[:, None, :] - (ca + tt[..., None] * cab), axis=2)
-    # the same bone may appear several times among the candidates: keep it once
-    order = np.argsort(d, axis=1, kind="stable")
-    cs = np.take_along_axis(cand, order, axis=1)
-    ds = np.take_along_axis(d, order, axis=1)
-    dup = np.zeros_like(cs, bool)
-    for k in range(1, kq):
-        dup[:, k] = (cs[:, :k] == cs[:, k : k + 1]).any(axis=1)
-    ds = np.where(dup, np.inf, ds)
-    order = np.argsort(ds, axis=1, kind="stable")[:, :4]
-    near = np.take_along_axis(cs, order, axis=1)
-    dn = np.take_along_axis(ds, order, axis=1)
+    a = np.ascontiguousarray(c.joint_positions[bones], np.float64)
+    ab = np.ascontiguousarray(c.bone_ends[bones] - a, np.float64)
+    near, dn = _nearest_segments(np.ascontiguousarray(v, np.float64), a, ab)
     w = np.where(np.isfinite(dn), 1.0 / (np.where(np.isfinite(dn), dn, 0) + h) ** 2, 0.0)
     w /= w.sum(axis=1, keepdims=True)
     return bones[near], w
+
+
+@numba.njit(cache=True, nogil=True)
+def _nearest_segments(v, a, ab):  # pragma: no cover - compiled
+    """Indices ``(k, 4)`` and distances of the four segments ``a + t·ab`` nearest to each
+    point (ascending; ``inf`` and index 0 where there are fewer than four)."""
+    k, m = v.shape[0], a.shape[0]
+    idx = np.zeros((k, 4), np.int64)
+    dist = np.full((k, 4), np.inf)
+    l2 = np.empty(m)
+    for b in range(m):
+        l2[b] = max(ab[b, 0] ** 2 + ab[b, 1] ** 2 + ab[b, 2] ** 2, 1e-18)
+    for i in range(k):
+        for b in range(m):
+            px, py, pz = v[i, 0] - a[b, 0], v[i, 1] - a[b, 1], v[i, 2] - a[b, 2]
+            t = (px * ab[b, 0] + py * ab[b, 1] + pz * ab[b, 2]) / l2[b]
+            t = min(max(t, 0.0), 1.0)
+            ex, ey, ez = px - t * ab[b, 0], py - t * ab[b, 1], pz - t * ab[b, 2]
+            d = np.sqrt(ex * ex + ey * ey + ez * ez)
+            if d >= dist[i, 3]:
+                continue
+            s = 3
+            while s > 0 and dist[i, s - 1] > d:
+                dist[i, s] = dist[i, s - 1]
+                idx[i, s] = idx[i, s - 1]
+                s -= 1
+            dist[i, s] = d
+            idx[i, s] = b
+    return idx, dist
 
 
 def envelope(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[Mesh, float]:
@@ -170,13 +178,17 @@ def envelope(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[Mesh, f
     from skimage.measure import marching_cubes
 
     grid, lo, h = envelope_field(c, ms, lod)
-    verts, faces, _, _ = marching_cubes(grid, level=0.0, spacing=(h, h, h))
+    # normals: the field's gradient at each vertex (pointing down the field, outwards)
+    verts, faces, normals, _ = marching_cubes(grid, level=0.0, spacing=(h, h, h))
     verts = verts + lo
     faces = faces.astype(np.int64)
     tri = verts[faces]
     if (tri[:, 0] * np.cross(tri[:, 1], tri[:, 2])).sum() < 0:  # wind the faces outwards
         faces = faces[:, ::-1]
-    return Mesh(verts, faces).compute_normals(), h
+    normals = normals.astype(np.float64)
+    norm = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.divide(normals, norm, out=np.zeros_like(normals), where=norm > 0)
+    return Mesh(verts, faces, normals=normals), h
 
 
 def envelope_field(

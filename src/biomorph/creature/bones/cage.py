@@ -132,58 +132,68 @@ def rib_cage(
     t, lat, dorsal = _section_frames(c, js, centre)
     P = c.joint_positions[js]
     L = c.bone_length[js]
+    n = len(js)
     # centre moved into each vertebra's cross plane
     cen = centre - ((centre - P) * t).sum(1, keepdims=True) * t
     rho1 = (1.0 - BODY_WALL) * radius  # the sternum's depth below the centre
     order = np.argsort(np.argsort(-((P - P.mean(0)) * t).sum(1)))  # 0 = most cranial
-    true = (order < max(1, int(round(TRUE_RIBS * len(js))))) & (not pleural)
+    true = (order < max(1, int(round(TRUE_RIBS * n)))) & (not pleural)
     reach = PLEURAL_REACH if pleural else FLOATING_REACH
     k = 6 + 3 * lod
     sides = max(4, SIDES[lod] // 2)
+    w_half = 0.11 * L  # rib half-width along the spine
+    th_half = np.minimum(0.07 * L + 0.02 * radius, 0.25 * BODY_WALL * radius)
+    # both ribs of every vertebra at once: arrays (n, 2 sides, k points along the rib)
+    la = np.stack([lat, -lat], axis=1)  # (n, 2, 3)
+    bz, bx = c.box_size[js, 2], c.box_size[js, 0]
+    head = (
+        P[:, None] + la * (0.3 * bz)[:, None, None] - (dorsal * (0.15 * bx)[:, None])[:, None]
+    )
+    rel = head - cen[:, None]
+    r_d, r_l = (rel * dorsal[:, None]).sum(2), (rel * la).sum(2)
+    rho0, th0 = np.hypot(r_d, r_l), np.arctan2(r_l, r_d)
+    th1 = np.pi * np.where(true, 1.0, reach)
+    # true ribs stop at the sternum's side
+    th1 = th1 - np.where(true, np.arcsin(np.minimum(0.9, 1.6 * w_half / rho1)), 0.0)
+    u = np.linspace(0.0, 1.0, k)
+    th = th0[..., None] + (th1[:, None, None] - th0[..., None]) * u
+    dirs = np.cos(th)[..., None] * dorsal[:, None, None] + np.sin(th)[..., None] * la[:, :, None]
+    origin = cen[:, None, None] - (RIB_SLOPE * L[:, None] * u)[:, None, :, None] * t[:, None, None]
+    origin = np.broadcast_to(origin, dirs.shape)
+    # the trunk's surface along each rib ray (the sections overlap: their union)
+    inner = _exit_distance(origin.reshape(-1, 3), dirs.reshape(-1, 3), all_c, all_r)
+    inner = inner.reshape(n, 2, k) - (BODY_WALL * radius)[:, None, None]
+    # from the rib's head (inside the vertebra's own tissue) straight onto the cage's
+    # circle: never outside it, where the skin creases between spine and trunk
+    blend = np.clip(u / 0.35, 0, 1)
+    blend = blend * blend * (3 - 2 * blend)
+    rho = np.minimum(rho0[..., None] * (1 - blend) + inner * blend, inner)
+    rho[..., 0] = rho0
+    paths = (origin + rho[..., None] * dirs).reshape(2 * n, k, 3)
+    r_w = np.repeat(np.broadcast_to(w_half[:, None], (n, k)), 2, axis=0)
+    r_t = np.repeat(th_half[:, None] * np.r_[1.3, np.ones(k - 1)], 2, axis=0)
+    v, f = tubes(paths, r_w, sides, radius2=r_t, ref=np.repeat(t, 2, axis=0))
+    per_v, per_f = 2 * (k * sides + 2), 2 * len(f) // (2 * n)
+    # sternebrae below the true ribs' vertebrae
+    bottom = cen - dorsal * rho1[:, None] - (RIB_SLOPE * L)[:, None] * t
+    st_path = np.stack([bottom + (0.55 * L)[:, None] * t, bottom - (0.55 * L)[:, None] * t], 1)
+    sv, sf = tubes(
+        st_path, np.repeat(1.4 * w_half[:, None], 2, 1), sides,
+        radius2=np.repeat(th_half[:, None], 2, 1), ref=lat,
+    )
+    st_v, st_f = 2 * sides + 2, len(sf) // n
     out = {}
     for i, j in enumerate(js.tolist()):
-        w_half = 0.11 * L[i]  # rib half-width along the spine
-        th_half = min(0.07 * L[i] + 0.02 * radius[i], 0.25 * BODY_WALL * radius[i])
-        paths = []
-        for side in (1.0, -1.0):
-            la = side * lat[i]
-            head = P[i] + la * 0.3 * c.box_size[j, 2] - dorsal[i] * 0.15 * c.box_size[j, 0]
-            rel = head - cen[i]
-            rho0 = float(np.hypot(rel @ dorsal[i], rel @ la))
-            th0 = float(np.arctan2(rel @ la, rel @ dorsal[i]))
-            th1 = np.pi * (1.0 if true[i] else reach)
-            if true[i]:  # stop at the sternum's side
-                th1 -= float(np.arcsin(min(0.9, 1.6 * w_half / max(rho1[i], 1e-12))))
-            u = np.linspace(0.0, 1.0, k)
-            th = th0 + (th1 - th0) * u
-            # from the rib's head (inside the vertebra's own tissue) straight onto the
-            # cage's circle: never outside it, where the skin creases between spine and trunk
-            blend = np.clip(u / 0.35, 0, 1)
-            blend = blend * blend * (3 - 2 * blend)
-            dirs = np.cos(th)[:, None] * dorsal[i] + np.sin(th)[:, None] * la
-            origin = cen[i] - (RIB_SLOPE * L[i] * u)[:, None] * t[i]
-            # the trunk's surface along each rib ray (the sections overlap: their union)
-            inner = _exit_distance(origin, dirs, all_c, all_r) - BODY_WALL * radius[i]
-            rho = np.minimum(rho0 * (1 - blend) + inner * blend, inner)
-            rho[0] = rho0
-            pts = origin + rho[:, None] * dirs
-            paths.append(pts)
-        paths_a = np.stack(paths)
-        r_w = np.full((2, k), w_half)
-        r_t = np.full((2, k), th_half) * np.r_[1.3, np.ones(k - 1)]
-        v, f = tubes(paths_a, r_w, sides, radius2=r_t, ref=np.broadcast_to(t[i], (2, 3)))
-        mask = np.ones(len(v), bool)
+        vi = v[i * per_v : (i + 1) * per_v]
+        fi = f[i * per_f : (i + 1) * per_f] - i * per_v
+        mask = np.ones(len(vi), bool)
         if true[i]:
-            bottom = cen[i] - dorsal[i] * rho1[i] - (RIB_SLOPE * L[i]) * t[i]
-            path = np.stack([bottom + 0.55 * L[i] * t[i], bottom - 0.55 * L[i] * t[i]])[None]
-            sv, sf = tubes(
-                path, np.full((1, 2), 1.4 * w_half), sides, radius2=np.full((1, 2), th_half),
-                ref=lat[i][None],
-            )
-            f = np.concatenate([f, sf + len(v)])
-            v = np.concatenate([v, sv])
-            mask = np.r_[mask, np.zeros(len(sv), bool)]
-        out[j] = (v, f, mask)
+            svi = sv[i * st_v : (i + 1) * st_v]
+            sfi = sf[i * st_f : (i + 1) * st_f] - i * st_v + len(vi)
+            fi = np.concatenate([fi, sfi])
+            vi = np.concatenate([vi, svi])
+            mask = np.r_[mask, np.zeros(len(svi), bool)]
+        out[j] = (vi, fi, mask)
     return out
 
 

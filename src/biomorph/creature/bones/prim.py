@@ -235,6 +235,11 @@ def tubes(
     t /= np.maximum(np.linalg.norm(t, axis=2, keepdims=True), 1e-12)
     ref_a = np.broadcast_to(np.asarray(ref, float)[:, None, :], t.shape)
     n = ref_a - (ref_a * t).sum(axis=2, keepdims=True) * t
+    bad = np.linalg.norm(n, axis=2) < 1e-6
+    if bad.any():  # a tangent along the reference: as tube()
+        tb = t[bad]
+        alt = np.where(np.abs(tb[:, 1:2]) < 0.9, [[0.0, 1, 0]], [[1.0, 0, 0]])
+        n[bad] = alt - (alt * tb).sum(axis=1, keepdims=True) * tb
     n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-12)
     b = np.cross(t, n)
     a = np.linspace(0.0, 2 * np.pi, sides, endpoint=False)
