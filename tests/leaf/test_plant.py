@@ -98,7 +98,9 @@ def test_plant_organs_tillers_senescence_and_soil() -> None:
     # collars climb where internodes have elongated (the profiles' lowest sheaths shrink
     # slightly, so the lowest collars are not strictly ordered, as in the data)
     assert tops[-1] > 3 * tops[0] and np.all(np.diff(tops[-5:]) > 0)
-    assert np.all((lv["insertion_deg"] > 0) & (lv["insertion_deg"] < 180))
+    # insertion from the vertical: the digitised So99 bases of the upper classes lean up
+    # to ~20° past the vertical (over the stem) before the blade arches out
+    assert np.all((lv["insertion_deg"] > -45) & (lv["insertion_deg"] < 180))
 
 
 def test_young_plant_warns_and_grows() -> None:

@@ -133,6 +133,20 @@ def drop_duplicate_points(x: Array, y: Array) -> tuple[Array, Array]:
     return x[keep], y[keep]
 
 
+def drop_basal_backstep(x: Array, y: Array) -> tuple[Array, Array]:
+    """Remove the first digitised point after the base when the midrib turns back by more
+    than 90° there: a blade cannot reverse within its first segment, so that point is a
+    digitising slip at the collar (83 of the 450 So99 midribs have one; the shape and its
+    insertion angle are then read from the base to the next point)."""
+    if x.size < 4:
+        return x, y
+    a = np.arctan2(np.diff(y[:3]), np.diff(x[:3]))
+    turn = abs((a[1] - a[0] + np.pi) % (2 * np.pi) - np.pi)
+    if turn > np.pi / 2:
+        return np.delete(x, 1), np.delete(y, 1)
+    return x, y
+
+
 def wheat_leaves(root: PathLike | None = None, width_ratio: float = 0.07) -> list[LeafShape]:
     """The 450 digitised wheat leaves of ``adel/So99.csv`` with their class width profiles
     (``adel/SRSo.csv``), in metres; maximal width = ``width_ratio · L``."""
@@ -142,7 +156,7 @@ def wheat_leaves(root: PathLike | None = None, width_ratio: float = 0.07) -> lis
     leaves = []
     for (rank, lindex), (x, y) in xy.items():
         s, r = sr[rank]
-        x, y = drop_duplicate_points(x, y)
+        x, y = drop_basal_backstep(*drop_duplicate_points(x, y))
         tmp = LeafShape.from_points(x, y, s, r, width=1.0, name=f"wheat r{rank} #{lindex}")
         leaves.append(tmp.with_(width=width_ratio * tmp.length))
     return leaves
@@ -159,7 +173,7 @@ def maize_leaves(root: PathLike | None = None, db: str = "leaves_db") -> list[Le
         if key not in sr:
             continue
         s, r = sr[key]
-        x, y = drop_duplicate_points(x, y)
+        x, y = drop_basal_backstep(*drop_duplicate_points(x, y))
         L = float((s[-1] - s[0]) * 0.01)
         leaves.append(
             LeafShape.from_points(x, y, s, r, length=L, name=f"maize r{key[0]} #{key[1]}")
@@ -213,31 +227,72 @@ def _group_ranks(counts: dict[int, int]) -> list[list[int]]:
     return groups
 
 
+def _class_insertion(curves: Array, ref: Array) -> float:
+    """Turn (radians) of the class shape about the leaf base that minimises its median
+    distance to the leaves as digitised (0.25° grid over ±90°)."""
+    cz = curves[..., 0] + 1j * curves[..., 1]
+    rz = ref[:, 0] + 1j * ref[:, 1]
+    best = (np.inf, 0.0)
+    for a in np.radians(np.arange(-90.0, 90.0 + 1e-9, 0.25)):
+        med = float(np.median(np.abs(cz - np.exp(1j * a) * rz).max(-1)))
+        if med < best[0]:
+            best = (med, float(a))
+    return best[1]
+
+
 def _class_entry(leaves: list[LeafShape], s_r: Array, r: Array, n: int = 101) -> dict:
-    """Medoid shape, ADEL-like member database and figures of one class of leaves."""
-    from biomorph.leaf.fit import class_figures, class_members, curves_of, pairwise, unit_curve
+    """Shape, ADEL-like member database and figures of one class of leaves.
+
+    The class shape is the medoid of the class under the insertion-aligned distance
+    (:func:`~biomorph.leaf.fit.aligned_distances`: the shape with the smallest median
+    distance once each leaf's insertion angle is fitted), turned to the median of those
+    fitted insertion angles (so it also sits where the class's leaves sit). Member 0 is
+    that shape; members 1.. are the greedy medoids of the leaves as digitised (insertion
+    angles included), which plants draw from like ADEL's database."""
+    from biomorph.leaf.fit import (
+        aligned_distances,
+        aligned_pairwise,
+        class_figures,
+        class_members,
+        curves_of,
+        max_distances,
+        medoid,
+        pairwise,
+        unit_curve,
+    )
 
     curves = curves_of(leaves)
-    dist = pairwise(curves)
-    members = class_members(curves, dist=dist)
+    raw = pairwise(curves)
+    dist = aligned_pairwise(curves)
+    m = medoid(curves, dist)
+    offsets = aligned_distances(curves, curves[m])[1]
     s = np.linspace(0, 1, n)
-    best = leaves[members[0]]
-    phi = np.array(_r6(best.phi_at(s)))  # the stored shape, as it will be read back
-    fig = class_figures(curves, unit_curve(lambda q: np.interp(q, s, phi)), dist)
+    turn = _class_insertion(curves, curves[m])
+    phi = np.array(_r6(leaves[m].phi_at(s) + turn))  # as read back
+    ref = unit_curve(lambda q: np.interp(q, s, phi))
+    fig = class_figures(curves, ref, dist, aligned=True)
+    fig_raw = class_figures(curves, ref, raw)
+    members = class_members(curves, dist=raw)
+    phis = [list(phi)] + [_r6(leaves[k].phi_at(s)) for k in members]
+    near = np.minimum(max_distances(curves, ref), raw[:, members].min(axis=1))
+    q25, q75 = np.percentile(np.degrees(offsets), [25, 75])
     return {
         "n_leaves": fig["n"],
-        "medoid": best.name,
+        "medoid": leaves[m].name,
         "s": _r6(s),
-        "phi": _r6(best.phi_at(s)),
+        "phi": list(phi),
         "s_r": _r6(s_r),
         "r": _r6(r / r.max()),
         "length": float(f"{np.median([lf.length for lf in leaves]):.6g}"),
         "width": float(f"{np.median([lf.width for lf in leaves]):.6g}"),
         "median_maxdist": round(fig["median_maxdist"], 4),
         "spread": round(fig["spread"], 4),
+        "median_maxdist_raw": round(fig_raw["median_maxdist"], 4),
+        "spread_raw": round(fig_raw["spread"], 4),
+        "insertion_iqr_deg": [round(float(q25), 2), round(float(q75), 2)],
         "chord_deg": round(fig["chord_deg"], 2),
-        "members_phi": [_r6(leaves[m].phi_at(s)) for m in members],
-        "members_maxdist": round(float(np.median(dist[:, members].min(axis=1))), 4),
+        "members_phi": phis,
+        "members_maxdist": round(float(np.median(near)), 4),
     }
 
 
@@ -473,4 +528,4 @@ def derive_presets(root: PathLike | None = None) -> dict:
     return out
 
 
-__all__ += ["derive_presets", "drop_duplicate_points"]
+__all__ += ["derive_presets", "drop_basal_backstep", "drop_duplicate_points"]

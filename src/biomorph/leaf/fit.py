@@ -79,24 +79,104 @@ def class_members(
     return members
 
 
-def class_figures(curves: Array, ref: Array, dist: Array | None = None) -> dict[str, float]:
-    """Median / 90th percentile distance of the class to ``ref`` and the class spread."""
-    d = pairwise(curves) if dist is None else dist
-    e = max_distances(curves, ref)
+#: Insertion angles (radians) tried when a shape is aligned to a leaf: a 2° grid over
+#: ±90°, then a 0.05° grid around the best one.
+_COARSE = np.radians(np.arange(-90.0, 90.0 + 1e-9, 2.0))
+_FINE = np.radians(np.arange(-2.0, 2.0 + 1e-9, 0.05))
+
+
+def aligned_distances(curves: Array, ref: Array) -> tuple[Array, Array]:
+    """Max point distance (units of L) of each curve to ``ref`` once ``ref`` is turned
+    about the leaf base by the insertion angle that fits that curve best, and that angle
+    (radians, counter-clockwise; adding it to ``ref``'s tangent angles gives the fitted
+    midrib). The insertion angle is a separate per-leaf parameter of a plant (ADEL's
+    ``incline_leaf``/``Linc``), so this compares the *shape* (curvature) of the midribs."""
+    cur = np.asarray(curves, float)
+    cz = cur[..., 0] + 1j * cur[..., 1]  # (N, K)
+    rz = ref[:, 0] + 1j * ref[:, 1]  # (K,)
+    i = np.arange(len(cz))
+    # coarse grid shared by all curves
+    d = np.abs(cz[:, None, :] - np.exp(1j * _COARSE)[None, :, None] * rz).max(-1)  # (N, A)
+    a0 = _COARSE[d.argmin(1)]
+    a = a0[:, None] + _FINE[None, :]  # (N, F)
+    d = np.abs(cz[:, None, :] - np.exp(1j * a)[:, :, None] * rz).max(-1)
+    j = d.argmin(1)
+    return d[i, j], a[i, j]
+
+
+def aligned_pairwise(curves: Array) -> Array:
+    """Symmetrised matrix of :func:`aligned_distances` between all curves ``(n, n)``."""
+    n = curves.shape[0]
+    out = np.zeros((n, n))
+    for i in range(n):
+        out[:, i] = aligned_distances(curves, curves[i])[0]
+    return np.minimum(out, out.T)
+
+
+def class_figures(
+    curves: Array, ref: Array, dist: Array | None = None, aligned: bool = False
+) -> dict[str, float]:
+    """Median / 90th percentile distance of the class to ``ref`` and the class spread
+    (median pairwise distance); ``aligned``: with one fitted insertion angle per leaf
+    (:func:`aligned_distances`), else as digitised (:func:`max_distances`)."""
+    if dist is None:
+        dist = aligned_pairwise(curves) if aligned else pairwise(curves)
+    e = aligned_distances(curves, ref)[0] if aligned else max_distances(curves, ref)
     iu = np.triu_indices(len(curves), 1)
     return {
         "n": int(len(curves)),
         "median_maxdist": float(np.median(e)),
         "p90_maxdist": float(np.percentile(e, 90)),
-        "spread": float(np.median(d[iu])) if iu[0].size else 0.0,
+        "spread": float(np.median(dist[iu])) if iu[0].size else 0.0,
         "chord_deg": float(np.degrees(np.arctan2(ref[-1, 1], ref[-1, 0]))),
     }
 
 
+def kmedoids(dist: Array, k: int, iters: int = 100) -> tuple[list[int], Array]:
+    """k-medoids (alternating assignment / medoid update, deterministic greedy start:
+    the overall medoid, then the leaf that lowers the summed distance most) on a distance
+    matrix; returns the medoid indices and each item's family label."""
+    n = len(dist)
+    med = [int(np.argmin(dist.sum(0)))]
+    while len(med) < min(k, n):
+        near = dist[:, med].min(1)
+        gain = np.maximum(near[:, None] - dist, 0.0).sum(0)
+        gain[med] = -1.0
+        med.append(int(np.argmax(gain)))
+    for _ in range(iters):
+        lab = np.argmin(dist[:, med], 1)
+        new = []
+        for j in range(len(med)):
+            idx = np.flatnonzero(lab == j)
+            new.append(int(idx[np.argmin(dist[np.ix_(idx, idx)].sum(0))]) if idx.size else med[j])
+        if new == med:
+            break
+        med = new
+    return med, np.argmin(dist[:, med], 1)
+
+
+def shape_families(
+    dist: Array, target: float = 0.1, k_max: int = 4
+) -> tuple[list[int], Array, list[float]]:
+    """Fewest k-medoids families (k <= ``k_max``) whose members' median distance to
+    their family medoid is ``<= target`` each (the last k tried when none reaches it):
+    medoids, labels, per-family medians."""
+    for k in range(1, k_max + 1):
+        med, lab = kmedoids(dist, k)
+        meds = [float(np.median(dist[lab == j, m])) for j, m in enumerate(med)]
+        if max(meds) <= target:
+            break
+    return med, lab, meds
+
+
 __all__ = [
     "COMPARE_S",
+    "aligned_distances",
+    "aligned_pairwise",
     "class_figures",
     "class_members",
+    "kmedoids",
+    "shape_families",
     "curves_of",
     "max_distances",
     "medoid",
