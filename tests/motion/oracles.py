@@ -5,11 +5,20 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 
 from biomorph.core import transforms as tf
 from biomorph.core.motion import Motion, _store_flips, sample_arrays
 from biomorph.core.types import Array
-from biomorph.motion._kernels import blend_average, ro
+from biomorph.motion._kernels import (
+    _filter_rows,
+    _qexp,
+    _qlog,
+    _qmul,
+    _store_continuous,
+    blend_average,
+    ro,
+)
 
 
 def average_rotations_reference(clips: Sequence[Motion], us: Sequence[Array], w: Array) -> Array:
@@ -46,3 +55,36 @@ def mirror_rotations_reference(motion: Motion, other: Array, sign: Array) -> Arr
 def continuous_reference(q: Array) -> Array:
     """``transforms.quat_continuous`` along axis 0 (parity of the negative dots)."""
     return tf.quat_continuous(q, axis=0)
+
+
+@njit(cache=True)
+def _mean_log_joint(q, gains, mode, out):  # pragma: no cover - compiled
+    """The equalizer's mean-log path for one joint ``q (f, 4)``, frame by frame with the
+    scalar log/exp (the loop the vectorised passes replaced)."""
+    f = q.shape[0]
+    m = np.zeros(4)
+    for i in range(f):
+        for c in range(4):
+            m[c] += q[i, c]
+    mn = np.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2] + m[3] * m[3])
+    mx, my, mz, mw = m[0] / mn, m[1] / mn, m[2] / mn, m[3] / mn
+    xs = np.empty((3, f))
+    xo = np.empty((3, f))
+    for i in range(f):
+        a, b, cc, d = _qmul(-mx, -my, -mz, mw, q[i, 0], q[i, 1], q[i, 2], q[i, 3])
+        xs[0, i], xs[1, i], xs[2, i] = _qlog(a, b, cc, d)
+    _filter_rows(xs, xo, gains, mode, np.empty(f), np.empty(f))
+    for i in range(f):
+        ex, ey, ez, ew = _qexp(xo[0, i], xo[1, i], xo[2, i])
+        x, y, z, w = _qmul(mx, my, mz, mw, ex, ey, ez, ew)
+        _store_continuous(out, i, 0, x, y, z, w)
+
+
+def equalize_mean_log_reference(q: Array, gains: Array, mode: int) -> Array:
+    """Reference for ``equalize_rotations`` on joints that take the mean-log path."""
+    out = np.empty(q.shape)
+    for j in range(q.shape[1]):
+        col = np.empty((q.shape[0], 1, 4))
+        _mean_log_joint(ro(q[:, j]), ro(gains), mode, col)
+        out[:, j] = col[:, 0]
+    return out

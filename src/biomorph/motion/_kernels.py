@@ -207,6 +207,110 @@ def _box_edge4(src, dst, r):  # pragma: no cover - compiled
 MEAN_LOG_COS = 0.7071067811865476  #: cos(45°): the mean-log path needs angles ≤ 90° about M
 
 
+@njit(cache=True, error_model="numpy")  # no zero-division checks: vectorises
+def _log_about(mx, my, mz, mw, qs, xs, big):  # pragma: no cover - compiled
+    """``xs[:, i] = log(M⁻¹ q_i)`` for the quaternions ``qs (4, f)`` (rows x, y, z, w).
+
+    The series branch of :func:`_qlog` is evaluated for every frame without branches (the
+    hemisphere sign as a product by ±1, exact), so the loop vectorises; frames outside the
+    series' range (``big``) are redone with :func:`_qlog` itself. Same bits as calling
+    :func:`_qlog` on every frame."""
+    f = qs.shape[1]
+    q0, q1, q2, q3 = qs[0], qs[1], qs[2], qs[3]
+    x0, x1, x2 = xs[0], xs[1], xs[2]
+    nbig = 0
+    for i in range(f):
+        a, b, cc, d = _qmul(-mx, -my, -mz, mw, q0[i], q1[i], q2[i], q3[i])
+        sg = 1.0 - 2.0 * (d < 0)  # -1 or 1 without a branch (vectorises)
+        a = a * sg
+        b = b * sg
+        cc = cc * sg
+        d = d * sg
+        s2 = a * a + b * b + cc * cc
+        u = s2 / (d * d)
+        p = 1.0 / 17.0
+        p = 1.0 / 15.0 - u * p
+        p = 1.0 / 13.0 - u * p
+        p = 1.0 / 11.0 - u * p
+        p = 1.0 / 9.0 - u * p
+        p = 1.0 / 7.0 - u * p
+        p = 1.0 / 5.0 - u * p
+        p = 1.0 / 3.0 - u * p
+        p = 1.0 - u * p
+        k = 2.0 * p / d
+        x0[i] = k * a
+        x1[i] = k * b
+        x2[i] = k * cc
+        far = not (s2 < 0.01 * d * d)
+        big[i] = far
+        nbig += far
+    if nbig:
+        for i in range(f):
+            if big[i]:
+                a, b, cc, d = _qmul(-mx, -my, -mz, mw, q0[i], q1[i], q2[i], q3[i])
+                x0[i], x1[i], x2[i] = _qlog(a, b, cc, d)
+
+
+@njit(cache=True, error_model="numpy")  # no zero-division checks: vectorises
+def _exp_about(mx, my, mz, mw, xs, qs, big):  # pragma: no cover - compiled
+    """``qs[:, i] = M · exp(xs[:, i])`` (not yet hemisphere-continuous): the series branch
+    of :func:`_qexp` for every frame without branches (vectorises), frames outside its range
+    redone with :func:`_qexp`. Same bits as calling :func:`_qexp` on every frame."""
+    f = xs.shape[1]
+    x0, x1, x2 = xs[0], xs[1], xs[2]
+    q0, q1, q2, q3 = qs[0], qs[1], qs[2], qs[3]
+    nbig = 0
+    for i in range(f):
+        rx, ry, rz = x0[i], x1[i], x2[i]
+        a2 = rx * rx + ry * ry + rz * rz
+        u = 0.25 * a2
+        c = 1.0 - u / 182.0
+        c = 1.0 - u / 132.0 * c
+        c = 1.0 - u / 90.0 * c
+        c = 1.0 - u / 56.0 * c
+        c = 1.0 - u / 30.0 * c
+        c = 1.0 - u / 12.0 * c
+        c = 1.0 - u / 2.0 * c
+        sh = 1.0 - u / 210.0
+        sh = 1.0 - u / 156.0 * sh
+        sh = 1.0 - u / 110.0 * sh
+        sh = 1.0 - u / 72.0 * sh
+        sh = 1.0 - u / 42.0 * sh
+        sh = 1.0 - u / 20.0 * sh
+        sh = 1.0 - u / 6.0 * sh
+        k = 0.5 * sh
+        x, y, z, w = _qmul(mx, my, mz, mw, k * rx, k * ry, k * rz, c)
+        q0[i] = x
+        q1[i] = y
+        q2[i] = z
+        q3[i] = w
+        far = not (u < 0.25)
+        big[i] = far
+        nbig += far
+    if nbig:
+        for i in range(f):
+            if big[i]:
+                ex, ey, ez, ew = _qexp(x0[i], x1[i], x2[i])
+                q0[i], q1[i], q2[i], q3[i] = _qmul(mx, my, mz, mw, ex, ey, ez, ew)
+
+
+@njit(cache=True, inline="always")
+def _store_joint_continuous(qs, out, j):  # pragma: no cover - compiled
+    """``out[:, j] = ±qs.T`` with the sign of each frame chosen like
+    :func:`_store_continuous` (the dot with the stored previous frame, ``s·d`` exactly)."""
+    s = 1.0
+    px, py, pz, pw = 0.0, 0.0, 0.0, 0.0
+    for i in range(qs.shape[1]):
+        x, y, z, w = qs[0, i], qs[1, i], qs[2, i], qs[3, i]
+        if i > 0:
+            s = -1.0 if s * (x * px + y * py + z * pz + w * pw) < 0 else 1.0
+        px, py, pz, pw = x, y, z, w
+        out[i, j, 0] = s * x
+        out[i, j, 1] = s * y
+        out[i, j, 2] = s * z
+        out[i, j, 3] = s * w
+
+
 @njit(cache=True, parallel=True)
 def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compiled
     """The equalizer's rotation path for every joint of ``q (f, J, 4)`` (each joint's column
@@ -229,18 +333,18 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
         xo = np.empty((3, f))
         cur = np.empty(f)
         nxt = np.empty(f)
-        qj = np.empty((f, 4))
+        qs = np.empty((4, f))  # the joint's column, one row per component (vectorisable)
         mx = 0.0
         my = 0.0
         mz = 0.0
         mw = 0.0
         for i in range(f):
             for c in range(4):
-                qj[i, c] = q[i, j, c]
-            mx += qj[i, 0]
-            my += qj[i, 1]
-            mz += qj[i, 2]
-            mw += qj[i, 3]
+                qs[c, i] = q[i, j, c]
+            mx += qs[0, i]
+            my += qs[1, i]
+            mz += qs[2, i]
+            mw += qs[3, i]
         mn = np.sqrt(mx * mx + my * my + mz * mz + mw * mw)
         mean_log = mn > 0.5 * f
         if mean_log:
@@ -249,30 +353,21 @@ def equalize_rotations(q, gains, mode, radius, out):  # pragma: no cover - compi
             mz /= mn
             mw /= mn
             for i in range(f):
-                d = abs(mx * qj[i, 0] + my * qj[i, 1] + mz * qj[i, 2] + mw * qj[i, 3])
+                d = abs(mx * qs[0, i] + my * qs[1, i] + mz * qs[2, i] + mw * qs[3, i])
                 if d < MEAN_LOG_COS:
                     mean_log = False
                     break
         if mean_log:
-            for i in range(f):
-                a, b, cc, d = _qmul(-mx, -my, -mz, mw, qj[i, 0], qj[i, 1], qj[i, 2], qj[i, 3])
-                rx, ry, rz = _qlog(a, b, cc, d)
-                xs[0, i] = rx
-                xs[1, i] = ry
-                xs[2, i] = rz
+            big = np.empty(f, dtype=np.bool_)
+            _log_about(mx, my, mz, mw, qs, xs, big)
             _filter_rows(xs, xo, gains, mode, cur, nxt)
-            ox, oy, oz, ow = 0.0, 0.0, 0.0, 0.0
-            for i in range(f):
-                ex, ey, ez, ew = _qexp(xo[0, i], xo[1, i], xo[2, i])
-                x, y, z, w = _qmul(mx, my, mz, mw, ex, ey, ez, ew)
-                if i > 0 and (x * ox + y * oy + z * oz + w * ow) < 0:
-                    x, y, z, w = -x, -y, -z, -w
-                ox, oy, oz, ow = x, y, z, w
-                out[i, j, 0] = x
-                out[i, j, 1] = y
-                out[i, j, 2] = z
-                out[i, j, 3] = w
+            _exp_about(mx, my, mz, mw, xo, qs, big)
+            _store_joint_continuous(qs, out, j)
             continue
+        qj = np.empty((f, 4))
+        for i in range(f):
+            for c in range(4):
+                qj[i, c] = qs[c, i]
         tmp4 = np.empty((f, 4))
         ref = np.empty((f, 4))
         _box_edge4(qj, tmp4, radius)
