@@ -230,7 +230,9 @@ def skate_table() -> None:
         e1 = bm.equalize(m, [0, 0.5, 1, 1, 1])
         e2 = bm.equalize(m, [1, 1.5, 1.5, 1, 1])
         sp = bm.change_speed(m, 1.3)
-        bl = bm.blend([m, m[m.n_frames // 3 :]], transition=min(30, m.n_frames // 4))
+        # the clip's own up axis (the fair1 captures are Z-up; blend aligns roots about it)
+        up = m.meta.get("up_guess") or "y"
+        bl = bm.blend([m, m[m.n_frames // 3 :]], transition=min(30, m.n_frames // 4), up=up)
         base = sk(m)
         pairs = [(e1, lock_feet(e1, m)), (e2, lock_feet(e2, m)), (sp, lock_feet(sp))]
         pairs.append((bl, lock_feet(bl)))
