@@ -11,6 +11,7 @@ import biomorph.creature as bc
 from biomorph.creature.bones import LODS, geometry, joint_meshes, world_mesh
 from biomorph.creature.bones import appendicular as ap
 from biomorph.creature.bones import axial as ax
+from biomorph.creature.bones import skull as sk
 from biomorph.creature.bones.fit import parts_of
 from biomorph.creature.exporters import export
 from biomorph.errors import ParameterError
@@ -42,8 +43,8 @@ def test_limb_and_vertebra_models_fit_their_boxes(creature):
     meshes = joint_meshes(creature)
     parts = parts_of(creature)
     for j, m in meshes.items():
-        if parts[j] in ("thoracic", "scapula", "pelvis"):  # ribs/clavicle/pubis reach out
-            continue
+        if parts[j] in ("thoracic", "scapula", "pelvis", "mandible"):
+            continue  # ribs/blade/clavicle/pubis reach out; the coronoid rises into the skull
         L = creature.bone_length[j]
         half = np.array([creature.box_size[j, 0], 0, creature.box_size[j, 2]]) / 2
         tol = 0.08 * max(L, half.max())
@@ -84,11 +85,35 @@ def test_rib_cage_wraps_the_trunk(creature):
 
 
 def test_skull_has_orbits_and_a_separate_mandible():
-    with_jaw = ax.skull(0.5, 1, True)
-    without = ax.skull(0.5, 1, False)
-    jaw = ax.mandible(0.5, 1)
+    with_jaw = sk.skull("mammal", 1, True)
+    without = sk.skull("mammal", 1, False)
+    jaw = sk.mandible("mammal", 1)
     assert len(with_jaw[0]) == len(without[0]) + len(jaw[0])
-    assert jaw[0][:, 0].min() < without[0][:, 0].min()  # the jaw hangs below the cranium
+    placed = with_jaw[0][len(without[0]) :]
+    assert placed[:, 0].min() < without[0][:, 0].min() + 0.05  # the jaw at the skull's base
+
+
+def _profile(v, y0, y1):
+    """(height, width) of a unit skull's vertices with y in [y0, y1]."""
+    sel = v[(v[:, 1] >= y0) & (v[:, 1] <= y1)]
+    return np.ptp(sel[:, 0]), np.ptp(sel[:, 2])
+
+
+def test_skull_shapes_per_class():
+    mammal, bird, croc = (sk.skull(p, 1, False)[0] for p in ("mammal", "bird", "reptile_long"))
+    # a bird's beak closes to a point; a mammal's muzzle keeps a blunt end
+    assert _profile(bird, 0.93, 1.0)[0] < 0.5 * _profile(mammal, 0.93, 1.0)[0]
+    # facial part: crocodylian snout longer than a dog's muzzle, a primate's shortest
+    assert sk.PLANS["reptile_long"].snout > sk.PLANS["mammal"].snout > sk.PLANS["primate"].snout
+    # a crocodylian skull is flat: its snout wider than deep, a dog's deeper than a croc's
+    h_c, w_c = _profile(croc, 0.6, 0.9)
+    assert w_c > h_c
+    assert _profile(mammal, 0.6, 0.9)[0] > h_c
+    # birds' orbits are the largest openings (share of the skull height)
+    assert sk.PLANS["bird"].orbit[2] > sk.PLANS["mammal"].orbit[2]
+    # plans by skull type, falling back to the class
+    assert sk.plan_for("mammal_long", "mammal") == "mammal"
+    assert sk.plan_for("unknown", "bird") == "bird"
 
 
 def test_autopods_have_digits_per_class():

@@ -9,13 +9,16 @@ tapered skull); ``shape="bone"`` (default) dresses each joint by its anatomical 
 =================  =======================================================================
 cervical … caudal  vertebra: centrum, neural arch and spine, transverse processes, caudal
                    chevrons; spine height and process span vary along each region
-thoracic           + a pair of ribs round the trunk (the joint's soft-tissue box) and a
-                   sternebra on the front 60 % (true ribs); fish: straight pleural ribs
-skull / mandible   cranium, orbits, zygomatic arches, snout by the skull type's taper; the
-                   mandible on its own joint when the creature has one, else as a separate
-                   piece of the skull mesh
-scapula / pelvis   blade + spine + glenoid / ilium blade + acetabulum, pubis and ischium
-                   meeting at the midline; clavicle where the class has one
+thoracic           + a pair of ribs arching round the trunk's cross-section to the sternum
+                   (a barrel cage sized by the trunk's depth, inside the skin; floating
+                   ribs behind; fish: pleural ribs), :mod:`.cage`
+skull / mandible   per class (mammal muzzle, bird beak, reptile snout, amphibian, fish):
+                   cranium, orbits, zygomatic arches or jugal bar, palate at the jaw's top;
+                   the mandible on its own joint when the creature has one (coronoid,
+                   angular / retroarticular processes), else part of the skull, :mod:`.skull`
+scapula / pelvis   blade on the rib cage's side with the glenoid at the shoulder joint /
+                   ilium blade + acetabulum, pubis and ischium meeting at the midline;
+                   clavicle where the class has one
 long bones         shaft with epiphyses (humerus, femur), paired shafts (radius + ulna,
                    tibia + fibula)
 metapodials        hands/feet/wing hands: metapodials + phalanges per class, claws, hooves

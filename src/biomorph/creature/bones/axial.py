@@ -1,5 +1,6 @@
-"""Axial bone models: vertebrae by region, the rib cage (ribs + sternum; fish: pleural ribs),
-skulls with cranium, orbits and a separate mandible.
+"""Axial bone models: vertebrae by region and the unit rib pair / sternebra (used where a
+thoracic vertebra has no trunk section; the rib cage proper is :mod:`.cage`, the skulls
+:mod:`.skull`).
 
 Unit models live in the joint's box normalised to a unit cube — x dorsal (+) to ventral
 (−) in [−0.5, 0.5], y along the bone in [0, 1], z lateral in [−0.5, 0.5] — and are scaled
@@ -18,7 +19,7 @@ from functools import cache
 import numpy as np
 from numpy.typing import NDArray
 
-from biomorph.creature.bones.prim import SIDES, Parts, box, ellipsoid, torus, tube, unit
+from biomorph.creature.bones.prim import SIDES, Parts, box, ellipsoid, tube, unit
 
 #: neural-spine height (share of the dorsal half), transverse-process span (share of the
 #: width), centrum length (share of the bone) per vertebra region, at the region's start and
@@ -96,48 +97,3 @@ def sternebra(lod: int) -> tuple[NDArray, NDArray, NDArray]:
     """One segment of the sternum at the ventral midline below the vertebra (trunk unit
     box as for :func:`rib_pair`)."""
     return _freeze(ellipsoid([-1.0, -0.3, 0.0], [0.03, 0.5, 0.05], SIDES[lod]))
-
-
-@cache
-def skull(taper: float, lod: int, with_mandible: bool) -> tuple[NDArray, NDArray, NDArray]:
-    """Unit skull: cranium at the back, orbits, snout tapering by ``taper`` towards y = 1,
-    and (``with_mandible``) the lower jaw as its own closed piece."""
-    s = SIDES[lod] + 2
-    parts = Parts()
-    parts.add(ellipsoid([0.08, 0.24, 0.0], [0.42, 0.25, 0.5], s))  # cranium
-    k = 5 + lod
-    u = np.linspace(0, 1, k)
-    sc = 1 - (1 - taper) * u  # snout cross-section shrinks to the tip
-    path = np.stack([0.05 - (1 - taper) * 0.3 * u, 0.3 + 0.68 * u, np.zeros(k)], axis=1)
-    parts.add(tube(path, 0.32 * sc, s, radius2=0.4 * sc, ref=[1.0, 0, 0]))
-    for side in (1, -1):  # orbits: bony rings on the sides of the skull, facing out
-        parts.add(torus([0.18, 0.4, 0.38 * side], 2, 0.13, 0.035, s))
-        parts.add(ellipsoid([0.18, 0.4, 0.36 * side], [0.02, 0.045, 0.02], max(4, s // 2)))
-    # zygomatic arches below the orbits
-    for side in (1, -1):
-        za = np.array([[-0.05, 0.2, 0.42 * side], [-0.02, 0.5, 0.36 * side]])
-        parts.add(tube(za, 0.035, max(4, s // 2), ref=[1.0, 0, 0]))
-    if with_mandible:
-        m_v, _, m_f = mandible(taper, lod)
-        parts.add((m_v, m_f))
-    return _freeze(parts.mesh())
-
-
-@cache
-def mandible(taper: float, lod: int) -> tuple[NDArray, NDArray, NDArray]:
-    """Unit lower jaw in the skull's cube: two rami from the jaw joints below the cranium
-    to the symphysis under the snout tip, each with a coronoid process."""
-    s = max(4, SIDES[lod] // 2 + 1)
-    parts = Parts()
-    k = 4 + lod
-    u = np.linspace(0, 1, k)
-    tip_x = 0.05 - (1 - taper) * 0.3 - 0.32 * taper - 0.05  # below the snout's tip
-    for side in (1, -1):
-        path = np.stack(
-            [-0.36 + (tip_x + 0.36) * u, 0.18 + 0.78 * u, side * (0.36 * (1 - u) + 0.05 * u)],
-            axis=1,
-        )
-        parts.add(tube(path, 0.06 * (1 - 0.4 * u), s, radius2=0.03, ref=[1.0, 0, 0]))
-        cor = np.array([[-0.33, 0.28, 0.34 * side], [-0.05, 0.26, 0.3 * side]])
-        parts.add(tube(cor, [0.04, 0.015], s, ref=[0, 1.0, 0]))
-    return _freeze(parts.mesh())

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 import biomorph.creature.bones.appendicular as ap
 import biomorph.creature.bones.axial as ax
 import biomorph.creature.bones.cage as cage
+import biomorph.creature.bones.skull as sk
 from biomorph.core.mesh import Mesh
 from biomorph.creature import skulls
 from biomorph.creature.anatomy import limb_parts
@@ -84,6 +85,22 @@ def _spine_rank(c: Creature, parts: tuple[str, ...]) -> NDArray[np.float64]:
     return t
 
 
+def _palate(c: Creature) -> float:
+    """The top of the lower jaw in the skull's unit cube (x dorsal): where the snout's floor
+    (the palate) lies; rounded to 0.02 so the unit models stay cached."""
+    default = -0.5 + 1.45 * sk.JAW_SHARE
+    if "skull" not in c.kind or "jaw" not in c.names:
+        return default
+    s, j = c.kind.index("skull"), c.names.index("jaw")
+    height = c.box_size[s, 0]
+    if height <= 1e-12:
+        return default
+    ventral = (c.joint_positions[j] - c.joint_positions[s]) @ c.world[s, :3, 0]
+    dorsal = -ventral if _headward(c)[s] else ventral
+    top = (dorsal + 0.5 * c.box_size[j, 0]) / height
+    return float(np.round(np.clip(top, -0.45, 0.1) / 0.02) * 0.02)
+
+
 class _Context:
     """Per-creature facts the models need (computed once)."""
 
@@ -96,8 +113,10 @@ class _Context:
         self.cls = str(c.params.get("class", "mammal"))
         self.stance = str(c.params.get("stance", ""))
         self.has_mandible = "mandible" in self.parts
-        skull = skulls.get(c.params.get("skull", skulls.CLASS_SKULL.get(self.cls, "mammal_long")))
-        self.taper = round(float(skull.taper), 2)
+        skull_type = str(c.params.get("skull", skulls.CLASS_SKULL.get(self.cls, "mammal_long")))
+        self.taper = round(float(skulls.get(skull_type).taper), 2)
+        self.skull_plan = sk.plan_for(skull_type, self.cls)
+        self.palate = _palate(c)
         self.n_thoracic = sum(1 for p in self.parts if p == "thoracic")
         thoracic = [j for j, p in enumerate(self.parts) if p == "thoracic"]
         # the rib cage round the trunk's sections (world), one piece per thoracic joint
@@ -210,9 +229,9 @@ def _axial(g: _Geometry, ctx: _Context, j: int, part: str) -> None:
     size = _size(c, j)
     if part in ("skull", "mandible"):
         model = (
-            ax.skull(ctx.taper, lod, not ctx.has_mandible)
+            sk.skull(ctx.skull_plan, lod, not ctx.has_mandible, ctx.palate)
             if part == "skull"
-            else ax.mandible(ctx.taper, lod)
+            else sk.mandible(ctx.skull_plan, lod)
         )
         g.unit(j, model, size, mirror=_MX)
         return
