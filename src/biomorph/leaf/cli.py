@@ -92,7 +92,11 @@ def mesh(
     preset: Preset = "maize",
     rank_class: Annotated[
         str | None,
-        typer.Option("--class", help="Shape class of the preset (wheat 1..6, maize e.g. 12)."),
+        typer.Option(
+            "--class",
+            help="Class of the preset (wheat So99 1..6, 1 = flag leaf; maize rank 1..16 of "
+            "the mature plant, or shape group e.g. g8-10).",
+        ),
     ] = None,
     length: Annotated[float | None, typer.Option(help="Leaf length L (m).", callback=POS)] = None,
     width: Annotated[float | None, typer.Option(help="Maximal width (m).", callback=POS)] = None,

@@ -487,7 +487,10 @@ def derive_presets(root: PathLike | None = None) -> dict:
         r_m = np.median([lf.r_at(s) for lf in members], axis=0)
         entry = _class_entry(members, s, r_m)
         entry["ranks"] = grp
-        m_shapes["-".join(map(str, (grp[0], grp[-1]))) if len(grp) > 1 else str(grp[0])] = entry
+        # "g" keys: shape groups of digitised ranks, distinct from the per-rank classes
+        m_shapes["g" + ("-".join(map(str, (grp[0], grp[-1]))) if len(grp) > 1 else str(grp[0]))] = (
+            entry
+        )
     m_classes, mature_info = _maize_rank_classes(maize, m_shapes)
     m_all = maize[medoid(curves_of(maize))]
     out["maize"] = {
