@@ -152,3 +152,24 @@ def test_equalizer_vectorised_mean_log_path_equals_the_scalar_loop(boundary):
     got = bm.equalize(m, g, boundary=boundary).rotation
     ref = equalize_mean_log_reference(m.rotation, g, ["edge", "reflect"].index(boundary))
     assert np.array_equal(got, ref)
+
+
+def test_pure_translation_of_the_root_shares_the_rotations(clips):
+    """``transform_root`` with the identity rotation (blend's alignment step) keeps the pose
+    rotations without the rest⁻¹·I·rest round trip: equal to the general formula, and the
+    rotation array is shared, not copied."""
+    from biomorph.core import transforms as tf
+    from biomorph.core.motion import transform_root
+
+    ident = np.array([0.0, 0.0, 0.0, 1.0])
+    for m in clips:
+        shift, pivot = np.array([0.3, 0.0, -1.2]), np.array([0.5, 0.0, 0.25])
+        out = transform_root(m, ident, shift, pivot)
+        pos = tf.quat_rotate(ident, m.root_position - pivot) + pivot + shift
+        rest = m.skeleton.rest_rotation[0]
+        turned = tf.quat_multiply(ident, tf.quat_multiply(rest, m.rotation[:, 0]))
+        root = tf.quat_multiply(tf.quat_conjugate(rest), turned)
+        assert np.array_equal(out.root_position, pos)
+        assert np.array_equal(out.rotation[:, 0], tf.quat_continuous(root, axis=0))
+        assert np.array_equal(out.rotation[:, 1:], m.rotation[:, 1:])
+        assert out.rotation is m.rotation

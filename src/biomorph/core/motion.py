@@ -511,18 +511,33 @@ def transform_root(
         )
     q = tf.quat_normalize(q)
     pivot = np.asarray(pivot, dtype=float)
-    pos = tf.quat_rotate(q, motion.root_position - pivot) + pivot + np.asarray(translation, float)
     rest = motion.skeleton.rest_rotation[0]
-    rot = np.array(motion.rotation)
-    root = tf.quat_multiply(
-        tf.quat_conjugate(rest), tf.quat_multiply(q, tf.quat_multiply(rest, rot[:, 0]))
-    )
-    rot[:, 0] = tf.quat_continuous(root, axis=0)
+    ident = np.array([0.0, 0.0, 0.0, 1.0])
+    if q.shape == (4,) and np.array_equal(q, ident) and np.array_equal(rest, ident):
+        # a pure translation of a root without rest rotation: R·v and rest⁻¹·I·rest·q are
+        # exact identities (up to the sign of zeros), so the pose rotations are kept and the
+        # rotation array shared instead of copied (blend's root alignment ends with one)
+        pos = (motion.root_position - pivot) + pivot + np.asarray(translation, float)
+        root = tf.quat_continuous(motion.rotation[:, 0], axis=0)
+        rot = motion.rotation
+        if not np.array_equal(root, rot[:, 0]):
+            rot = np.array(rot)
+            rot[:, 0] = root
+    else:
+        pos = tf.quat_rotate(q, motion.root_position - pivot) + pivot
+        pos = pos + np.asarray(translation, float)
+        rot = np.array(motion.rotation)
+        root = tf.quat_multiply(
+            tf.quat_conjugate(rest), tf.quat_multiply(q, tf.quat_multiply(rest, rot[:, 0]))
+        )
+        rot[:, 0] = tf.quat_continuous(root, axis=0)
     jt = None
     if motion.joint_translation is not None:
         jt = np.array(motion.joint_translation)
         jt[:, 0] = pos
-    return motion.with_(rotation=frozen(rot), root_position=frozen(pos), joint_translation=jt)
+    return motion.with_(
+        rotation=frozen(rot), root_position=frozen(pos), joint_translation=frozen(jt)
+    )
 
 
 def to_y_up(motion: Motion, up: str = "z") -> Motion:

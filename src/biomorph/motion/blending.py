@@ -223,7 +223,7 @@ def blend(
     p = plan(clips, offsets, sc, transition, curve)
     t = np.arange(p.n_frames, dtype=float)
     # sample every clip on the output timeline
-    rots, poss, jts, us = [], [], [], []
+    rots, poss, jts, us, samples = [], [], [], [], []
     aligned: list[Motion] = []
     for i, c in enumerate(clips):
         if align_root and i > 0:
@@ -241,7 +241,8 @@ def blend(
             r, pos, jt = sample_arrays(c, u)
             rots.append(r)
         else:  # rotations are sampled inside the averaging kernel
-            _, _, pos, jt = sample_linear(c, u)
+            i0, frac, pos, jt = sample_linear(c, u)
+            samples.append((i0, frac))
         us.append(u)
         poss.append(pos)
         jts.append(jt)
@@ -252,7 +253,7 @@ def blend(
         rot = np.empty_like(qa)
         blend_slerp(ro(qa), ro(qb), ro(b), rot)
     else:
-        rot = average_rotations(aligned, us, w)
+        rot = average_rotations(aligned, us, w, samples)
     pos = np.einsum("fi,ifk->fk", w, np.stack(poss))
     exact = w == 1.0
     for i in range(len(clips)):
@@ -271,16 +272,23 @@ def blend(
     return Motion(clips[0].skeleton, frozen(rot), frozen(pos), clips[0].frame_time, jt, meta)
 
 
-def average_rotations(clips: Sequence[Motion], us: Sequence[Array], w: Array) -> Array:
+def average_rotations(
+    clips: Sequence[Motion],
+    us: Sequence[Array],
+    w: Array,
+    samples: Sequence[tuple[Array, Array]] | None = None,
+) -> Array:
     """Normalised weighted quaternion average of the clips sampled (slerp) at frames
     ``us[i]`` with weights ``w (f, N)``: one fused kernel that samples a clip only where it
-    has weight (equals the stack-then-average oracle in tests/motion/oracles.py, to 1e-12)."""
+    has weight (equals the stack-then-average oracle in tests/motion/oracles.py, to 1e-12).
+    ``samples``: each clip's ``(i0, frac)`` from :func:`sample_linear` at ``us[i]`` when the
+    caller has them already."""
     start = np.cumsum([0] + [c.n_frames for c in clips[:-1]])
     length = np.array([c.n_frames for c in clips])
     i0 = np.empty((len(clips), w.shape[0]), dtype=np.int64)
     frac = np.empty((len(clips), w.shape[0]))
     for i, (c, u) in enumerate(zip(clips, us, strict=True)):
-        i0[i], frac[i] = sample_linear(c, u)[:2]
+        i0[i], frac[i] = sample_linear(c, u)[:2] if samples is None else samples[i]
     rot = np.empty((w.shape[0],) + clips[0].rotation.shape[1:])
     blend_average_sampled(
         ro(np.concatenate([c.rotation for c in clips])),
