@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -26,6 +27,7 @@ from biomorph.creature import spine as sp
 from biomorph.creature import vertebrae as vt
 from biomorph.creature.creature import Creature
 from biomorph.creature.options import Options
+from biomorph.creature.quality import rules_hold
 from biomorph.creature.states import LimbsState, SkullState, SpineState
 
 _M = np.diag([1.0, 1.0, -1.0])
@@ -49,22 +51,32 @@ SPINE_RANGE = {
 
 def _frames_from_dirs(d: NDArray) -> NDArray:
     """World rotations ``(m, 3, 3)`` with +Y along each sagittal direction and Z = +z."""
-    d = np.asarray(d, float)
-    n = np.linalg.norm(d, axis=1, keepdims=True)
-    y = np.where(n > 1e-12, d / np.where(n > 1e-12, n, 1.0), [[-1.0, 0.0, 0.0]])
-    z = np.zeros_like(y)
-    z[:, 2] = 1.0
-    z = z - (y[:, 2:3]) * y
-    z = z / np.linalg.norm(z, axis=1, keepdims=True)
-    x = np.stack(
-        [
-            y[:, 1] * z[:, 2] - y[:, 2] * z[:, 1],
-            y[:, 2] * z[:, 0] - y[:, 0] * z[:, 2],
-            y[:, 0] * z[:, 1] - y[:, 1] * z[:, 0],
-        ],
-        axis=1,
-    )
-    return np.stack([x, y, z], axis=2)
+    return _frames_kernel(np.ascontiguousarray(d, dtype=np.float64))
+
+
+@numba.njit(cache=True)
+def _frames_kernel(d: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """:func:`_frames_from_dirs` compiled (the same operations in the same order: a norm is
+    ``sqrt((a² + b²) + c²)``; a degenerate direction becomes −x)."""
+    m = d.shape[0]
+    out = np.empty((m, 3, 3))
+    for i in range(m):
+        n = np.sqrt((d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1]) + d[i, 2] * d[i, 2])
+        if n > 1e-12:
+            y0, y1, y2 = d[i, 0] / n, d[i, 1] / n, d[i, 2] / n
+        else:
+            y0, y1, y2 = -1.0, 0.0, 0.0
+        z0 = 0.0 - y2 * y0
+        z1 = 0.0 - y2 * y1
+        z2 = 1.0 - y2 * y2
+        nz = np.sqrt((z0 * z0 + z1 * z1) + z2 * z2)
+        z0, z1, z2 = z0 / nz, z1 / nz, z2 / nz
+        out[i, 0, 0] = y1 * z2 - y2 * z1
+        out[i, 1, 0] = y2 * z0 - y0 * z2
+        out[i, 2, 0] = y0 * z1 - y1 * z0
+        out[i, 0, 1], out[i, 1, 1], out[i, 2, 1] = y0, y1, y2
+        out[i, 0, 2], out[i, 1, 2], out[i, 2, 2] = z0, z1, z2
+    return out
 
 
 _RZ_PI = np.diag([-1.0, -1.0, 1.0])
@@ -388,10 +400,17 @@ def balance_px(asm: dict, opts: Options) -> bal.BalanceReport:
 
 
 def limb_digits(
-    pose: lb.LimbPose, L3: NDArray, kind: str, girdle: str, spine: SpineState, ground: float | None
+    pose: lb.LimbPose,
+    L3: NDArray,
+    kind: str,
+    girdle: str,
+    spine: SpineState,
+    ground: float | None,
+    frames: bool = True,
 ) -> feet.Digits:
     """Digit joints (right side, creature px) of one limb; a standing leg's digits lie on
-    ``ground`` and carry its contact points (:mod:`biomorph.creature.feet`)."""
+    ``ground`` and carry its contact points (:mod:`biomorph.creature.feet`); ``frames=False``
+    for the contacts only."""
     role = "hind" if girdle == "hip" else "fore"
     plan = feet.digit_plan(
         kind, role, spine.cls, foot_posture(spine, pose), spine.skull, spine.hoof_digits
@@ -410,6 +429,7 @@ def limb_digits(
         width,
         ground,
         heel,
+        frames,
     )
 
 
@@ -421,22 +441,47 @@ def foot_posture(spine: SpineState, pose: lb.LimbPose) -> str:
     return "unguligrade" if spine.stance == "unguligrade" else "digitigrade"
 
 
+@numba.njit(cache=True)
+def _preorder(par: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """Depth-first pre-order of a forest given by parent indices (-1 = root): roots and
+    children in index order."""
+    n = par.shape[0]
+    nkids = np.zeros(n + 1, np.int64)
+    for j in range(n):
+        if par[j] >= 0:
+            nkids[par[j] + 1] += 1
+    start = np.cumsum(nkids)  # children of j at kids[start[j]:start[j + 1]]
+    kids = np.empty(max(start[n], 1), np.int64)
+    fill = start[:n].copy()
+    for j in range(n):
+        if par[j] >= 0:
+            kids[fill[par[j]]] = j
+            fill[par[j]] += 1
+    stack = np.empty(n, np.int64)
+    top = 0
+    for j in range(n - 1, -1, -1):
+        if par[j] < 0:
+            stack[top] = j
+            top += 1
+    order = np.empty(n, np.int64)
+    k = 0
+    while top > 0:
+        top -= 1
+        j = stack[top]
+        order[k] = j
+        k += 1
+        for c in range(start[j + 1] - 1, start[j] - 1, -1):
+            stack[top] = kids[c]
+            top += 1
+    return order
+
+
 def depth_first(asm: dict) -> dict:
     """Reorder joints depth-first (children after their parent, subtrees contiguous) — the
     order BVH files and most DCC tools use — remapping parent, mirror and contact indices."""
     par = asm["parent"]
     n = asm["n"]
-    kids: list[list[int]] = [[] for _ in range(n)]
-    for j in range(n):
-        if par[j] >= 0:
-            kids[par[j]].append(j)
-    order: list[int] = []
-    stack = [j for j in range(n) if par[j] < 0][::-1]
-    while stack:
-        j = stack.pop()
-        order.append(j)
-        stack.extend(kids[j][::-1])
-    perm = np.array(order)
+    perm = _preorder(np.asarray(par, np.int64))
     inv = np.empty(n, np.int64)
     inv[perm] = np.arange(n)
     out = dict(asm)
@@ -507,13 +552,15 @@ def to_creature(
     quat = tf.matrix_to_quat(local_r)
     # stored limits: anatomical range minus the rest angle, in the joint's local axes
     lim = asm["lim"].copy()
-    limb = np.isin(np.array(asm["kind"]), ("leg", "arm", "wing", "fin"))
+    limb = np.array([k in ("leg", "arm", "wing", "fin") for k in asm["kind"]], bool)
     rel = asm["anat_l"] - asm["anat_a"][:, :, None]  # (n, 3[z,x,y], 2)
     # limb frame -> joint frame flips x and y (rotation by pi about z)
     lz, lx, ly = rel[:, 0], -rel[:, 1, ::-1], -rel[:, 2, ::-1]
     lim[limb] = np.stack([lx, ly, lz], axis=1)[limb]
     end_site = np.full((asm["n"], 3), np.nan)
-    leaf = np.setdiff1d(np.arange(asm["n"]), par[par >= 0])
+    has_child = np.zeros(asm["n"], bool)
+    has_child[par[par >= 0]] = True
+    leaf = np.flatnonzero(~has_child)
     end_site[leaf] = np.array([[0.0, 1.0, 0.0]]) * (asm["blen"][leaf, None] * scale)
     skel = JointSkeleton(asm["names"], par, offset, quat, lim, end_site=end_site)
     dens = asm["density"]
@@ -558,6 +605,18 @@ def to_creature(
         girdles=[{"name": g.name, "pairs": [p.kind for p in g.pairs]} for g in girdles],
         descent_residual_px=[float(p.residual) for p in limbs.poses if p.kind == "leg"],
         below_ground=below,
+        anatomy_rules=rules_hold(
+            asm["names"],
+            asm["kind"],
+            asm["part"],
+            asm["side"],
+            W[:, :, 1],
+            pos,
+            spine.cls,
+            spine.posture,
+            spine.legs,
+            total,
+        ),
     )
     return Creature(
         skeleton=skel,

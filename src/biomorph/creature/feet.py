@@ -38,6 +38,7 @@ Hands and wing digits continue the distal bone, spread in the palm plane.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -68,6 +69,7 @@ def _spread(numbers, fracs, end, spread_deg, short=()) -> tuple[Digit, ...]:
     )
 
 
+@lru_cache(maxsize=512)
 def digit_plan(
     kind: str, role: str, cls: str, stance: str, skull: str = "", hoof_digits: int = 2
 ) -> tuple[Digit, ...]:
@@ -141,13 +143,82 @@ class Digits:
     contact_local: NDArray[np.int64]
 
 
+def _cross(a: NDArray, b: NDArray) -> NDArray:
+    """Row-wise cross product (the formula of ``np.cross`` without its per-call overhead)."""
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
+
+
 def _frames(u: NDArray, lateral: NDArray) -> NDArray:
     """World rotations ``(m, 3, 3)``: +Y along each ``u``, Z towards ``lateral`` (⟂ part)."""
-    y = u / np.linalg.norm(u, axis=1, keepdims=True)
-    z = lateral - np.einsum("ij,ij->i", lateral, y)[:, None] * y
-    nz = np.linalg.norm(z, axis=1, keepdims=True)
+    y = u / np.sqrt((u * u).sum(axis=1))[:, None]
+    z = lateral - (lateral * y).sum(axis=1)[:, None] * y
+    nz = np.sqrt((z * z).sum(axis=1))[:, None]
     z = np.where(nz > 1e-9, z / np.where(nz > 1e-9, nz, 1.0), [[0.0, 0.0, 1.0]])
-    return np.stack([np.cross(y, z), y, z], axis=2)
+    return np.stack([_cross(y, z), y, z], axis=2)
+
+
+@dataclass(frozen=True, eq=False)
+class _Layout:
+    """What a digit plan fixes (joint bookkeeping), computed once per plan."""
+
+    n: int
+    m: int
+    counts: NDArray[np.int64]
+    dig: NDArray[np.int64]  # digit of each joint
+    first: NDArray[np.int64]
+    j_in: NDArray[np.int64]  # index within the digit
+    last: NDArray[np.bool_]
+    frac: NDArray[np.float64]  # length fractions of the metapodial per joint
+    side: NDArray[np.float64]
+    splay: NDArray[np.float64]
+    back: NDArray[np.bool_]
+    parent: NDArray[np.int64]
+    rad_end: NDArray[np.float64]  # bone radius factors per joint (end bone, taper)
+    rad_taper: NDArray[np.float64]
+    names: tuple[str, ...]
+    parts: tuple[str, ...]
+    numbers: NDArray[np.int64]
+    slot: NDArray[np.int64]  # joint k -> flat index in the (n, depth) digit grid
+
+
+@lru_cache(maxsize=256)
+def _layout(plan: tuple[Digit, ...]) -> _Layout:
+    n = len(plan)
+    counts = np.array([len(d.fractions) for d in plan], np.int64)
+    m = int(counts.sum())
+    dig = np.repeat(np.arange(n), counts)
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64) if n else counts
+    j_in = np.arange(m) - np.repeat(first, counts)
+    last = j_in == np.repeat(counts - 1, counts)
+    frac = np.concatenate([np.asarray(d.fractions, float) for d in plan]) if n else np.zeros(0)
+    depth = int(counts.max()) + 1 if n else 1
+    return _Layout(
+        n=n,
+        m=m,
+        counts=counts,
+        dig=dig,
+        first=first,
+        j_in=j_in,
+        last=last,
+        frac=frac,
+        side=(np.arange(n) - (n - 1) / 2) / max(n - 1, 1),
+        splay=np.radians([d.splay_deg for d in plan]),
+        back=np.array([d.backward for d in plan], bool),
+        parent=np.where(j_in == 0, -1, np.arange(m) - 1).astype(np.int64),
+        rad_end=np.where(last, 0.55, 0.7),
+        rad_taper=1.0 - 0.1 * j_in,
+        names=tuple(f"digit{plan[dig[k]].number}_{j_in[k] + 1}" for k in range(m)),
+        parts=tuple(plan[dig[k]].end if last[k] else "phalanx" for k in range(m)),
+        numbers=np.array([plan[dig[k]].number for k in range(m)], np.int64),
+        slot=dig * depth + j_in,
+    )
 
 
 def build(
@@ -159,42 +230,34 @@ def build(
     width: float,
     ground: float | None,
     heel: NDArray | None = None,
+    frames: bool = True,
 ) -> Digits:
     """Digit joints for a limb whose metapodial ends at ``tip`` (px). ``ground`` is the
     ground height for a standing foot (digits laid on the ground) or ``None`` for a free
     hand / wing (digits continue the distal bone ``W_distal[:, 1]``, spread about its
-    ``W_distal[:, 0]`` axis). ``heel`` (a plantigrade ankle on the ground) is a contact."""
+    ``W_distal[:, 0]`` axis). ``heel`` (a plantigrade ankle on the ground) is a contact.
+    ``frames=False`` leaves the joints' rotations out (``W`` empty): for the contacts only."""
     tip = np.asarray(tip, float)
     eps = 1e-6 * max(metapodial, 1e-9)
-    n = len(plan)
-    counts = np.array([len(d.fractions) for d in plan], np.int64)
-    m = int(counts.sum())
-    dig = np.repeat(np.arange(n), counts)  # digit of each joint
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]]) if n else np.zeros(0, np.int64)
-    j_in = np.arange(m) - np.repeat(first, counts)  # index within the digit
-    last = j_in == np.repeat(counts - 1, counts)
-    seg = (
-        np.concatenate([np.asarray(d.fractions, float) for d in plan]) * metapodial
-        if n
-        else np.zeros(0)
-    )
-    side = (np.arange(n) - (n - 1) / 2) / max(n - 1, 1)
-    start = tip[None, :] + np.outer(side, [0.0, 0.0, 1.0]) * width  # (n, 3)
-    splay = np.radians([d.splay_deg for d in plan])
-    back = np.array([d.backward for d in plan], bool)
+    lay = _layout(tuple(plan))
+    n, m, dig, last = lay.n, lay.m, lay.dig, lay.last
+    seg = lay.frac * metapodial
+    start = tip[None, :] + np.outer(lay.side, [0.0, 0.0, 1.0]) * width  # (n, 3)
+    splay = lay.splay
     if ground is None:
         axis, u0 = W_distal[:, 0], W_distal[:, 1]
         c, s_ = np.cos(splay)[:, None], np.sin(splay)[:, None]
-        ud = u0 * c + np.cross(axis, u0) * s_ + axis * (axis @ u0) * (1 - c)  # Rodrigues
+        ud = u0 * c + _cross(axis, u0) * s_ + axis * (axis @ u0) * (1 - c)  # Rodrigues
         dirs = ud[dig]
         lateral = np.broadcast_to(W_distal[:, 2], (m, 3))
     else:
         fwd = np.stack([np.cos(splay), np.zeros(n), np.sin(splay)], axis=1)
-        fwd[back] *= -1.0
+        fwd[lay.back] *= -1.0
         h = np.maximum(start[:, 1] - ground, 0.0)
+        first, counts = lay.first, lay.counts
         lp = np.array([float(seg[first[k] : first[k] + counts[k] - 1].sum()) for k in range(n)])
         sin_max = np.sin(np.radians(80.0))
-        incl = (h > eps) & (counts > 1)
+        incl = (h > eps) & (lay.counts > 1)
         sin_a = np.where(incl, np.minimum(h / np.maximum(lp, 1e-300), sin_max), 0.0)
         grow = np.where(incl & (lp * sin_max < h), h / np.maximum(lp * sin_a, 1e-300), 1.0)
         seg = seg * np.where(last, 1.0, grow[dig])  # too short to reach: lengthen
@@ -202,45 +265,43 @@ def build(
         down = fwd * cos_a[:, None] - np.outer(sin_a, [0.0, 1.0, 0.0])
         dirs = np.where(last[:, None], fwd[dig], down[dig])
         lateral = np.broadcast_to([0.0, 0.0, 1.0], (m, 3))
-    step = dirs / np.linalg.norm(dirs, axis=1, keepdims=True) * seg[:, None] if m else dirs
-    # joint positions: each digit's start plus its earlier steps, added one level at a time
-    pos = np.zeros((m, 3))
-    p = start.copy()
-    for j in range(int(counts.max()) if n else 0):
-        sel = j_in == j
-        pos[sel] = p[dig[sel]]
-        p[dig[sel]] = p[dig[sel]] + step[sel]
-    end_tip = p[dig[last]]
-    parent = np.where(j_in == 0, -1, np.arange(m) - 1)
-    rad = bone_radius * np.where(last, 0.55, 0.7) * (1.0 - 0.1 * j_in)
+    step = dirs / np.sqrt((dirs * dirs).sum(axis=1))[:, None] * seg[:, None] if m else dirs
+    # joint positions: each digit's start plus its earlier steps (a running sum per digit,
+    # added in the digit's order)
+    depth = int(lay.counts.max()) + 1 if n else 1
+    grid = np.zeros((n, depth, 3))
+    grid[:, 0] = start
+    grid.reshape(-1, 3)[lay.slot + 1] = step
+    grid = np.cumsum(grid, axis=1)
+    flat = grid.reshape(-1, 3)
+    pos = flat[lay.slot]
+    end_tip = flat[lay.slot + 1][last]
     contacts, clocal = [], []
     if heel is not None:
-        contacts.append(np.asarray(heel, float))
-        clocal.append(-1)
+        contacts.append(np.asarray(heel, float)[None])
+        clocal.append(np.array([-1]))
     if ground is not None:
         if tip[1] - ground <= eps:
-            contacts.append(np.array([tip[0], ground, tip[2]]))
-            clocal.append(-1)
-        on = (j_in > 0) & (pos[:, 1] - ground <= eps)
-        tips = dict(zip(np.flatnonzero(last).tolist(), end_tip, strict=True))
-        for k in range(m):  # per digit: its joints on the ground, then the end bone's tip
-            if on[k]:
-                contacts.append(np.array([pos[k, 0], ground, pos[k, 2]]))
-                clocal.append(k)
-            if last[k]:
-                contacts.append(np.array([tips[k][0], ground, tips[k][2]]))
-                clocal.append(k)
-    names = tuple(f"digit{plan[dig[k]].number}_{j_in[k] + 1}" for k in range(m))
-    parts = tuple(plan[dig[k]].end if last[k] else "phalanx" for k in range(m))
+            contacts.append(np.array([[tip[0], ground, tip[2]]]))
+            clocal.append(np.array([-1]))
+        # per digit: its joints on the ground, then the end bone's tip
+        on = (lay.j_in > 0) & (pos[:, 1] - ground <= eps)
+        pts = np.concatenate([pos, np.zeros((m, 3))], axis=1).reshape(2 * m, 3)
+        pts[1::2][last] = end_tip
+        keep = np.stack([on, last], axis=1).reshape(-1)
+        c3 = pts[keep]
+        c3[:, 1] = ground
+        contacts.append(c3)
+        clocal.append(np.repeat(np.arange(m), 2)[keep])
     return Digits(
-        names,
-        parent.astype(np.int64),
-        _frames(dirs, np.asarray(lateral, float)) if m else np.zeros((0, 3, 3)),
+        lay.names,
+        lay.parent,
+        _frames(dirs, np.asarray(lateral, float)) if m and frames else np.zeros((0, 3, 3)),
         pos,
         seg.astype(float),
-        rad.astype(float),
-        parts,
-        np.array([plan[dig[k]].number for k in range(m)], np.int64),
-        np.array(contacts, float).reshape(-1, 3),
-        np.array(clocal, np.int64),
+        bone_radius * lay.rad_end * lay.rad_taper,
+        lay.parts,
+        lay.numbers,
+        np.concatenate(contacts).reshape(-1, 3) if contacts else np.zeros((0, 3)),
+        np.concatenate(clocal).astype(np.int64) if clocal else np.zeros(0, np.int64),
     )

@@ -33,7 +33,6 @@ from biomorph.creature.creature import Creature
 from biomorph.creature.dataset import CLASSES
 from biomorph.creature.model import species_model
 from biomorph.creature.options import LEG_COUNTS, MAX_SCORE, STEPS, Options
-from biomorph.creature.quality import anatomy_check
 from biomorph.creature.repair import finish
 from biomorph.creature.states import SpineState, step_rng
 from biomorph.creature.steps import step_girdles, step_limbs, step_skull, step_spine
@@ -302,19 +301,15 @@ class Generator:
             )
 
 
-#: Anatomical rules a returned creature must pass (:func:`quality.anatomy_check`); the
-#: generator meets them by construction and resamples the rare draw it cannot repair (a back
-#: too short to keep the hind knees behind the elbows, legs too heavy for their height).
-RESAMPLE_RULES = ("femur_angle", "knee_behind_elbow", "withers_height")
-
-
 def _needs_resample(c: Creature) -> bool:
-    if c.params.get("below_ground"):
+    """Below the ground, unstable, or breaking the femur, knee/elbow or withers rule
+    (``params["anatomy_rules"]``, :func:`biomorph.creature.quality.rules_hold`): the
+    generator meets those rules by construction and resamples the rare draw it cannot
+    repair (a back too short to keep the hind knees behind the elbows, legs too heavy for
+    their height)."""
+    if c.params.get("below_ground") or c.params.get("anatomy_rules") is False:
         return True
-    if c.balance is not None and c.balance.applicable and not c.balance.stable:
-        return True
-    rules = anatomy_check(c)
-    return not all(rules[k] for k in RESAMPLE_RULES)
+    return bool(c.balance is not None and c.balance.applicable and not c.balance.stable)
 
 
 def _copy_edits(e: dict) -> dict:

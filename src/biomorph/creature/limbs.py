@@ -422,39 +422,58 @@ def forward(
     return rot, pts
 
 
+@numba.njit(cache=True)
+def _contact_height(base, lengths, ang, j, a, contact, ground, rot, pts):  # pragma: no cover
+    """Height of the chain's ``contact`` point above ``ground`` with flexion ``j`` set to ``a``
+    (``ang`` is left as it was)."""
+    old = ang[j, 0]
+    ang[j, 0] = a
+    _fk(base, lengths, ang, rot, pts)
+    ang[j, 0] = old
+    return pts[contact, 1] - ground
+
+
+@numba.njit(cache=True)
+def _bisect_flexion(base, lengths, ang, j, a0, target, f0, contact, ground):  # pragma: no cover
+    """48 bisection steps of flexion ``j`` between ``a0`` (height ``f0``) and ``target``;
+    returns the end on or above the ground (the compiled inner loop of :func:`_snap`)."""
+    rot = np.zeros((3, 3, 3))
+    pts = np.zeros((4, 3))
+    a, b = a0, target
+    fa = f0
+    for _ in range(48):
+        m = 0.5 * (a + b)
+        fm = _contact_height(base, lengths, ang, j, m, contact, ground, rot, pts)
+        if (fm > 0) == (fa > 0):
+            a, fa = m, fm
+        else:
+            b = m
+    return a if fa >= 0 else b
+
+
 def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None):
     """Close the remaining gap exactly: bisect one flexion angle (knee first, then hip, then
     ankle) so the contact point lies on the ground with no bone end below it (and, given
     ``accept(points)``, the result accepted). Works from above or below the ground. Returns
     new angles or ``None``."""
+    base = np.asarray(base, float)
+    lengths = np.asarray(lengths, float)
+    ang = np.ascontiguousarray(ang, dtype=float)
     scale = max(float(np.sum(lengths)), 1e-9)
+    rot = np.zeros((3, 3, 3))
+    pts = np.zeros((4, 3))
+    ground = float(ground)
     for j in [1, 0, 2] if n_active == 3 else [1, 0]:
         lo, hi = limits[j, 0]
-        a0 = ang[j, 0]
-
-        def h(a, j=j):
-            t = ang.copy()
-            t[j, 0] = a
-            _, p = forward(base, lengths, t)
-            return p[contact, 1] - ground
-
-        f0 = h(a0)
+        a0 = float(ang[j, 0])
+        f0 = _contact_height(base, lengths, ang, j, a0, contact, ground, rot, pts)
         if f0 == 0.0:
             return ang
-        for target in (lo, hi):
-            ft = h(target)
+        for target in (float(lo), float(hi)):
+            ft = _contact_height(base, lengths, ang, j, target, contact, ground, rot, pts)
             if (ft <= 0 <= f0) or (f0 <= 0 <= ft):
-                a, b = a0, target
-                fa = f0
-                for _ in range(48):
-                    m = 0.5 * (a + b)
-                    fm = h(m)
-                    if (fm > 0) == (fa > 0):
-                        a, fa = m, fm
-                    else:
-                        b = m
                 t = ang.copy()
-                t[j, 0] = a if fa >= 0 else b
+                t[j, 0] = _bisect_flexion(base, lengths, ang, j, a0, target, f0, contact, ground)
                 _, p = forward(base, lengths, t)
                 if np.all(p[1 : contact + 1, 1] >= ground - 1e-6 * scale) and (
                     accept is None or accept(p)

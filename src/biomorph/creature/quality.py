@@ -122,30 +122,66 @@ def head_pitch_deg(c: Creature) -> float:
 
 def femur_angles_deg(c: Creature) -> list[float]:
     """Each standing hind leg's femur from the vertical (deg)."""
+    return femur_angles_of(c.kind, c.part, c.side, c.world[:, :3, 1])
+
+
+def femur_angles_of(kind, part, side, bone_y: NDArray) -> list[float]:
+    """:func:`femur_angles_deg` on joint arrays (``bone_y (n, 3)``: each bone's world +Y)."""
     out = []
-    for j in range(len(c)):
-        if c.kind[j] == "leg" and c.part and c.part[j] == "femur" and c.side[j] > 0:
-            y = c.world[j, :3, 1]
-            out.append(float(np.degrees(np.arccos(np.clip(-y[1], -1, 1)))))
+    for j in range(len(kind)):
+        if kind[j] == "leg" and part and part[j] == "femur" and side[j] > 0:
+            out.append(float(np.degrees(np.arccos(np.clip(-bone_y[j, 1], -1, 1)))))
     return out
 
 
 def knee_behind_elbow(c: Creature) -> bool:
     """Quadrupeds: every hind knee lies behind (−x of) every front elbow."""
-    knees = [j for j, p in enumerate(c.part) if p == "tibia" and c.kind[j] == "leg"]
-    elbows = [j for j, p in enumerate(c.part) if p == "radius" and c.kind[j] == "leg"]
+    return knee_behind_elbow_of(c.kind, c.part, c.joint_positions[:, 0])
+
+
+def knee_behind_elbow_of(kind, part, x: NDArray) -> bool:
+    """:func:`knee_behind_elbow` on joint arrays (``x``: joint positions along +x)."""
+    knees = [j for j, p in enumerate(part) if p == "tibia" and kind[j] == "leg"]
+    elbows = [j for j, p in enumerate(part) if p == "radius" and kind[j] == "leg"]
     if not knees or not elbows:
         return True
-    x = c.joint_positions[:, 0]
     return bool(x[knees].max() < x[elbows].min())
+
+
+def standing_joint(names, legs: int) -> int | None:
+    """Index of the joint :func:`standing_height` measures (withers / hip girdle)."""
+    name = "shoulder1_girdle_r" if legs >= 4 else "hip1_girdle_r" if legs == 2 else None
+    if name is None:
+        return None
+    try:
+        return list(names).index(name)
+    except ValueError:
+        return None
 
 
 def standing_height(c: Creature) -> float | None:
     """Withers (shoulder girdle on the spine) of a quadruped, hip of a biped (m)."""
-    legs = c.params.get("legs", 0)
-    name = "shoulder1_girdle_r" if legs >= 4 else "hip1_girdle_r" if legs == 2 else None
-    j = None if name is None else _joint(c, name)
+    j = standing_joint(c.names, c.params.get("legs", 0))
     return None if j is None else float(c.joint_positions[j, 1])
+
+
+def rules_hold(
+    names, kind, part, side, bone_y, pos, cls: str, posture: str, legs: int, mass: float
+) -> bool:
+    """The femur, knee/elbow and withers rules of :func:`anatomy_check` on joint arrays in
+    metres (``pos (n, 3)`` with the ground at y = 0) — what the generator checks before it
+    returns a creature, without building the skeleton's world transforms."""
+    fr = RANGES["femur_from_vertical_bird" if cls == "bird" else "femur_from_vertical"]
+    if not all(fr[0] <= a <= fr[1] for a in femur_angles_of(kind, part, side, bone_y)):
+        return False
+    if not knee_behind_elbow_of(kind, part, pos[:, 0]):
+        return False
+    j = standing_joint(names, legs)
+    pred = _allometric(cls, posture, mass)
+    if j is None or not pred:
+        return True
+    lo, hi = RANGES["withers_ratio"]
+    return bool(lo <= float(pos[j, 1]) / pred <= hi)
 
 
 def allometric_height(c: Creature) -> float | None:

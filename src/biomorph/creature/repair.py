@@ -31,9 +31,18 @@ from biomorph.errors import ParameterError
 
 
 def repair_shift(
-    asm: dict, report: bal.BalanceReport, limbs: dict, min_margin: float = 0.02
+    asm: dict,
+    report: bal.BalanceReport,
+    limbs: dict,
+    min_margin: float = 0.02,
+    history: dict | None = None,
 ) -> dict[str, float] | None:
-    """Girdle shifts (arc length, px) that move the feet under the centre of mass."""
+    """Girdle shifts (arc length, px) that move the feet under the centre of mass.
+
+    The first shift is 1.2 × the missing distance; with ``history`` (updated in place: the
+    last shift and missing distance per girdle) later shifts are secant steps on the
+    measured response — the feet move less than their girdle along a curved, pitched spine
+    and the centre of mass moves with the legs — so the repair converges in a few steps."""
     if not report.applicable:
         return None
     com_x = report.com[0]
@@ -47,16 +56,46 @@ def repair_shift(
     if com_x > x1 - target_margin:  # too far forward: move the front-most legs forward
         delta = com_x - (x1 - target_margin)
         g = "shoulder" if "shoulder" in leg_girdles and len(leg_girdles) > 1 else leg_girdles[0]
-        shifts[g] = shifts.get(g, 0.0) - 1.2 * delta  # arc length grows tailwards
+        shifts[g] = shifts.get(g, 0.0) - _step(history, g, -1.0, shifts.get(g, 0.0), delta)
     elif com_x < x0 + target_margin:  # too far back: move the hind-most legs back
         delta = (x0 + target_margin) - com_x
         g = "hip" if "hip" in leg_girdles else leg_girdles[-1]
-        shifts[g] = shifts.get(g, 0.0) + 1.2 * delta
-    elif report.margin < min_margin * body and shifts.get("width", 1.0) < 3.0:
-        shifts["width"] = shifts.get("width", 1.0) * 1.35  # lateral margin: widen the stance
+        shifts[g] = shifts.get(g, 0.0) + _step(history, g, 1.0, shifts.get(g, 0.0), delta)
+    elif (
+        report.margin < min_margin * body
+        and shifts.get("width", 1.0) < 3.0
+        and 0.5 * span >= _required(report, min_margin)
+    ):
+        # lateral margin: widen the stance (useless when the feet are too short fore-aft:
+        # the margin can never exceed half their length, and the creature is resampled)
+        shifts["width"] = shifts.get("width", 1.0) * 1.35
     else:
         return None
     return shifts
+
+
+def _required(report: bal.BalanceReport, min_margin: float) -> float:
+    """The margin (px) the balance check asks for: ``min_margin`` × its body length."""
+    if abs(report.margin_fraction) < 1e-15:
+        return 0.0
+    return min_margin * report.margin / report.margin_fraction
+
+
+def _step(history: dict | None, girdle: str, sign: float, now: float, delta: float) -> float:
+    """Size of the next shift of ``girdle`` (in the direction ``sign``) for a missing
+    distance ``delta``: 1.2 × delta first, then a secant step (delta ÷ the measured response
+    per unit shift, clamped to 0.6..1.5 — a re-posed leg may jump — × 1.1)."""
+    step = 1.2 * delta
+    if history is None:
+        return step
+    prev = history.get((girdle, sign))
+    if prev is not None:
+        moved = sign * (now - prev[0])
+        if moved > 1e-9:
+            response = float(np.clip((prev[1] - delta) / moved, 0.6, 1.5))
+            step = 1.1 * delta / response
+    history[(girdle, sign)] = (now, delta)
+    return step
 
 
 #: Lean iterations for bipeds (the rotation is solved analytically; re-posed free limbs and
@@ -117,7 +156,8 @@ def limb_mass_and_patches(limbs: LimbsState, spine: SpineState) -> tuple[float, 
         vol += 2 * v.sum()
         mom += 2 * (v[:, None] * mid * [1, 1, 0]).sum(axis=0)
         if pose.contact is not None:
-            c = limb_digits(pose, L3, spec.kind, g, spine, limbs.ground).contacts[:, [0, 2]]
+            dg = limb_digits(pose, L3, spec.kind, g, spine, limbs.ground, frames=False)
+            c = dg.contacts[:, [0, 2]]
             patches += [c, c * [1.0, -1.0]]
     return vol, mom, (np.concatenate(patches) if patches else np.zeros((0, 2)))
 
@@ -173,8 +213,9 @@ def finish(
         ends = asm["pos"] + asm["W"][:, :, 1] * asm["blen"][:, None]
         bl = float(np.ptp(np.concatenate([asm["pos"], ends])[:, 0]))
         work = dict(asm)
+        history: dict = {}
         while repairs < 10:
-            shifts = repair_shift(work, report, limbs, opts.min_margin_fraction)
+            shifts = repair_shift(work, report, limbs, opts.min_margin_fraction, history)
             if shifts is None:
                 break
             try:

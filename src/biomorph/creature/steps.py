@@ -308,6 +308,30 @@ def _attach(
     return np.array([g[0], g[1], 0.0]), np.array([a2[0], a2[1], half])
 
 
+_DROP = {"leg": 0.35, "arm": 0.3, "wing": 0.12, "fin": 0.3}
+
+
+def _attach_all(xy, s, rl, spine, skull_h, legless, places, width: float) -> list:
+    """:func:`_attach` for every placement at once (the same arithmetic, element-wise)."""
+    if not places:
+        return []
+    at = np.array([p[3] for p in places], float)
+    g = sp.point_at(xy, s, at)
+    t = sp.tangent_at(xy, s, at)
+    n = np.stack([t[:, 1], -t[:, 0]], axis=1)
+    n = np.where(n[:, 1:2] < 0, -n, n)
+    h, b, _ = ms.profile(at, rl, spine.girth, spine.cls, skull_h, legless)
+    drop = np.array([_DROP[p[2].kind] for p in places]) * h
+    drop = np.where([p[0] == "hip" for p in places], drop * 0.75, drop)
+    half = 0.45 * b * (1.35 if spine.posture == "sprawling" else 1.0)
+    half = half * np.array([width if p[2].kind == "leg" else 1.0 for p in places])
+    a2 = g - drop[:, None] * n
+    return [
+        (np.array([g[i, 0], g[i, 1], 0.0]), np.array([a2[i, 0], a2[i, 1], half[i]]))
+        for i in range(len(places))
+    ]
+
+
 def _flatten(points: NDArray, which: str, floor: float) -> NDArray:
     """Raise a drooping tail (or neck) above ``floor`` keeping the join's tangent (C1)."""
     base, inner, outer = (6, 7, (8, 9)) if which == "tail" else (3, 2, (1, 0))
@@ -428,23 +452,7 @@ def step_limbs(
                 at = at + step if g.name in ("shoulder", "centaur") else at - step
             at = float(np.clip(at, 0.0, s[-1]))
             places.append((g.name, k, spec, at))
-    attach = [
-        _attach(
-            xy,
-            s,
-            rl,
-            spine.girth,
-            cls,
-            skull_h,
-            legless,
-            gname,
-            at,
-            spec.kind,
-            posture,
-            shifts.get("width", 1.0) if spec.kind == "leg" else 1.0,
-        )
-        for gname, k, spec, at in places
-    ]
+    attach = _attach_all(xy, s, rl, spine, skull_h, legless, places, shifts.get("width", 1.0))
     legs = [i for i, p in enumerate(places) if p[2].kind == "leg"]
     lengths = [np.array(p[2].lengths, float) for p in places]
     if previous is not None and ground is not None and len(previous.places) == len(places):
