@@ -362,21 +362,41 @@ def run_pytlidar(xyz: NDArray) -> dict:
     return out
 
 
-def run_biomorph(cloud, method: str) -> dict:
+def run_biomorph(cloud, method: str, graph_kw: dict | None = None) -> dict:
+    """One pipeline run; ``graph_kw`` are extra keywords of ``livny.skeletonize_graph``
+    not yet in the options (``level_merge``, ``reach``: the issue-13 variants)."""
+    import functools
+
+    from biomorph.tree import livny
     from biomorph.tree.pipeline import skeletonize
 
     t0, c0 = time.perf_counter(), time.process_time()
+    orig = livny.skeletonize_graph
+    if graph_kw:
+        livny.skeletonize_graph = functools.partial(orig, **graph_kw)
     try:
         skel = skeletonize(cloud, method=method)
         out: dict = {"graph": skel.world_graph(), "trees": skel.metrics.get("n_trees")}
+        if skel.cloud is not None:
+            out["wood"] = skel.cloud.xyz + skel.offset  # above ground, no foliage/outliers
     except Exception as exc:  # noqa: BLE001 - reported in the table
         out = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
+    finally:
+        livny.skeletonize_graph = orig
     out.update(wall=time.perf_counter() - t0, cpu=time.process_time() - c0)
     return out
 
 
-def model_measures(graph, xyz: NDArray, refs: dict) -> dict:
-    """The peer-table measures of one model (tree A's metrics; F1 against each reference)."""
+#: the opt-in graph variant of issue 13 (docs/tree.md "Topology, peers and speed")
+VARIANT = {"level_merge": "overlap", "reach": 1.0}
+
+
+def model_measures(graph, xyz: NDArray, refs: dict, wood: NDArray | None = None) -> dict:
+    """The peer-table measures of one model (tree A's metrics; F1 against each reference).
+
+    ``wood``: the points the biomorph graph run kept as wood (above the ground, foliage and
+    outliers removed); the far share is reported on them too, the same set for every model.
+    """
     from biomorph.tree.metrics import class_labels, cylinder_fit, tree_attributes, volume_by_class
     from biomorph.tree.reference import compare_to_reference
 
@@ -391,6 +411,8 @@ def model_measures(graph, xyz: NDArray, refs: dict) -> dict:
         "max_order": max(a["max_order"] for a in attrs),
         "far": 100 * fit["far_share"],
     }
+    if wood is not None and len(wood):
+        row["far wood"] = 100 * cylinder_fit(graph, wood)["far_share"]
     for lab in class_labels():
         row[f"V {lab}"] = vc[lab]["volume"] * 1e3
         res = fit["classes"][lab]["residual"]
@@ -415,7 +437,7 @@ def _fmt(v, f: str) -> str:
     return f.format(int(v)) if "d" in f else f.format(v)
 
 
-def peers(names: tuple[str, ...], with_pytlidar: bool = True) -> None:
+def peers(names: tuple[str, ...], with_pytlidar: bool = True, variant: bool = False) -> None:
     from biomorph.io import read_graph, read_points
     from biomorph.tree.metrics import class_labels
     from biomorph.tree.reference import read_qsm_csv
@@ -437,6 +459,8 @@ def peers(names: tuple[str, ...], with_pytlidar: bool = True) -> None:
             k: {"graph": g, "wall": None, "cpu": None} for k, g in refs.items()
         }
         cols["biomorph graph"] = run_biomorph(cloud, "graph")
+        if variant:
+            cols["graph overlap+reach"] = run_biomorph(cloud, "graph", VARIANT)
         cols["biomorph voxel"] = run_biomorph(cloud, "voxel")
         if with_pytlidar and name not in SINGLE_TREE_ONLY:
             cols["pytlidar"] = run_pytlidar(xyz)
@@ -444,7 +468,9 @@ def peers(names: tuple[str, ...], with_pytlidar: bool = True) -> None:
         for k, c in cols.items():
             if "graph" in c:
                 try:
-                    meas[k] = model_measures(c["graph"], xyz, refs)
+                    meas[k] = model_measures(
+                        c["graph"], xyz, refs, cols["biomorph graph"].get("wood")
+                    )
                 except Exception as exc:  # noqa: BLE001 - reported in the table
                     c["error"] = f"{type(exc).__name__}: {str(exc)[:80]}"
         print(f"\n### {name} ({cloud.n_points:,} points)\n")
@@ -454,6 +480,7 @@ def peers(names: tuple[str, ...], with_pytlidar: bool = True) -> None:
         rows += [(f"F1 vs {r}", f"F1@5 cm vs {r}", "{:.3f}") for r in refs]
         rows += [(f"V {lab}", f"volume {lab} L", "{:.2f}") for lab in class_labels()]
         rows += [("far", "points > 10 cm from every cylinder %", "{:.1f}")]
+        rows += [("far wood", "wood points > 10 cm from every cylinder %", "{:.1f}")]
         rows += [
             (f"res {lab}", f"median signed residual {lab} % of r", "{:+.0f}")
             for lab in class_labels()
@@ -560,6 +587,9 @@ def main() -> None:
     )
     ap.add_argument("--no-pytlidar", action="store_true", help="peer table without pytlidar")
     ap.add_argument(
+        "--variant", action="store_true", help="peer table: also the overlap+reach graph variant"
+    )
+    ap.add_argument(
         "--sizes",
         type=int,
         nargs="*",
@@ -588,7 +618,7 @@ def main() -> None:
     if a.only in (None, "real"):
         real()
     if a.only in (None, "peers"):
-        peers(tuple(a.clouds), not a.no_pytlidar)
+        peers(tuple(a.clouds), not a.no_pytlidar, a.variant)
     if a.only in (None, "truth"):
         truth_table(a.seeds, tuple(a.sizes), tuple(a.methods))
 

@@ -50,6 +50,25 @@ def test_rule1_merges_a_spur_lying_inside_the_stem_cylinder():
     assert out2.leaves.size == 2
 
 
+def test_a_chain_running_back_down_inside_the_stem_is_merged():
+    """Rule 1b: a fork's child lying inside the cylinder of the fork's own incoming edge
+    (a chain on the far side of a thick stem, hanging down from a higher vertex) merges;
+    rule 1 never sees it (it compares the children only). A drooping branch that leaves
+    the stem's cylinder stays."""
+    # stem 0 -> 1 -> 2 -> 3 up the z axis (r = 0.1); at 2 a chain 4 -> 5 back down 8 cm off
+    pos = np.array(
+        [[0, 0, 0], [0, 0, 0.5], [0, 0, 1.0], [0, 0, 1.5], [0.08, 0, 0.8], [0.08, 0, 0.6]]
+    )
+    par = np.array([-1, 0, 1, 2, 2, 4])
+    rad = np.array([0.1, 0.1, 0.1, 0.1, 0.02, 0.02])
+    g = BranchGraph(pos, par, radius=rad)
+    out = cl.collapse_overlaps(g)
+    assert out.leaves.size == 1 and out.n_nodes <= 4
+    droop = pos.copy()
+    droop[4:] = [[0.4, 0, 0.8], [0.7, 0, 0.6]]
+    assert cl.collapse_overlaps(g.with_(position=droop)).leaves.size == 2
+
+
 def test_rule2_collapses_straight_chains_and_keeps_bends():
     z = np.linspace(0, 1, 11)
     pos = np.column_stack([np.zeros(11), np.zeros(11), z])

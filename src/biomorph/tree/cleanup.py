@@ -156,6 +156,23 @@ def _candidates(
         keeps.append(tgt)
         drops.append(w)
         dists.append(np.minimum(du, dvw))
+    # ---- rule 1b: a child w of a fork u lying inside the cylinder of u's own incoming
+    # edge (u -> parent p): a chain running back along the stem it left (the far side of
+    # a thick stem's ring, a level behind) -- rule 1 only compares the children
+    w = np.flatnonzero(par >= 0)
+    u = par[w]
+    ok = (nch[u] >= 2) & (par[u] >= 0)
+    w, u = w[ok], u[ok]
+    if w.size:
+        p = par[u]
+        d1, l1 = _unit(pos[p] - pos[u])
+        d2, l2 = _unit(pos[w] - pos[u])
+        rad = np.maximum(0.5 * (r[p] + r[u]), min_radius)
+        frac = axis_inside_fraction(pos[u], d1, l1, rad, pos[u], d2, l2)
+        hit = (frac > overlap) & (l1 > 0) & (l2 > 0)
+        keeps.append(u[hit])
+        drops.append(w[hit])
+        dists.append(l2[hit])
     # ---- rule 2: chains u -> v -> w
     chain = np.flatnonzero((nch == 1) & (par >= 0))
     if chain.size:

@@ -21,7 +21,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-from biomorph.errors import InputError
+from biomorph.errors import InputError, ParameterError
 
 __all__ = [
     "estimate_spacing",
@@ -39,6 +39,7 @@ __all__ = [
     "NODE_SPACING",
     "NODE_SPACING_MIN",
     "LEVEL_CELL",
+    "LEVEL_MERGE",
 ]
 
 
@@ -388,7 +389,9 @@ def shortest_path_forest(
 @dataclass
 class Contraction:
     """Vertices of the contracted graph: ``label`` per point (-1 = dropped), centroids,
-    tree of each vertex, root vertex per tree, and the contracted neighbour graph Q."""
+    tree of each vertex, root vertex per tree, the contracted neighbour graph Q, the point
+    count per vertex and its ``spread``: the RMS distance of its points from the centroid
+    (m), how far from the centroid the vertex's own points reach."""
 
     label: NDArray[np.int64]
     position: NDArray[np.float64]
@@ -396,6 +399,7 @@ class Contraction:
     roots: NDArray[np.int64]
     graph: sparse.csr_matrix
     count: NDArray[np.int64]
+    spread: NDArray[np.float64] | None = None
 
 
 def _voxel_level_edges(xyz, level, tree, ok, cell):
@@ -445,6 +449,41 @@ NODE_SPACING = 3.0  #: default contraction level width, in median point spacings
 #: twigs (F1 0.88 on noisy scans), 0.2 % gives F1 ≥ 0.91, 0.15 % adds spurious tips
 NODE_SPACING_MIN = 0.002
 LEVEL_CELL = 1.5  #: voxel size of the level-set connectivity, in node spacings
+LEVEL_MERGE = ("adjacent", "overlap")  #: how adjacent pieces of one level join (contract)
+
+
+def _merge_overlapping(
+    xyz: NDArray[np.float64], lab: NDArray[np.int64], vr: NDArray, vc: NDArray, floor: float
+) -> NDArray[np.int64]:
+    """Join level pieces that the voxel adjacency ``(vr, vc)`` links when the gap between
+    them is smaller than their extents: the shortest linking point pair is shorter than the
+    sum of the two pieces' RMS spreads (each at least ``floor``, the point spacing). Arcs of
+    a partly scanned stem ring, several cm long and a few cm apart, become one ring (one
+    vertex on the axis); two twigs side by side in one level, each a few cm across and
+    farther apart than that, stay two vertices."""
+    la, lb = lab[vr], lab[vc]
+    cand = la != lb
+    if not cand.any():
+        return lab
+    m = int(lab.max()) + 1
+    la, lb = np.minimum(la[cand], lb[cand]), np.maximum(la[cand], lb[cand])
+    gap = np.linalg.norm(xyz[vr[cand]] - xyz[vc[cand]], axis=1)
+    key, inv = np.unique(la * m + lb, return_inverse=True)
+    g = np.full(key.size, np.inf)
+    np.minimum.at(g, inv.reshape(-1), gap)
+    pa, pb = key // m, key % m
+    cnt = np.bincount(lab, minlength=m).astype(float)
+    cen = np.stack([np.bincount(lab, weights=xyz[:, d], minlength=m) for d in range(3)], 1)
+    cen /= np.maximum(cnt, 1)[:, None]
+    d2 = np.sum((xyz - cen[lab]) ** 2, axis=1)
+    spread = np.sqrt(np.bincount(lab, weights=d2, minlength=m) / np.maximum(cnt, 1))
+    spread = np.maximum(spread, floor)
+    join = g < spread[pa] + spread[pb]
+    if not join.any():
+        return lab
+    j = sparse.coo_matrix((np.ones(int(join.sum()), np.int8), (pa[join], pb[join])), shape=(m, m))
+    _, plab = connected_components(j, directed=False)
+    return plab[lab]
 
 
 def contract(
@@ -454,12 +493,21 @@ def contract(
     point_tree: NDArray[np.int64],
     spacing: float,
     cell: float | None = None,
+    point_spacing: float | None = None,
+    merge: str = "adjacent",
 ) -> Contraction:
     """Contract points into geodesic level-set pieces of width ``spacing`` (see module doc).
 
     ``path_length`` is the distance along the shortest-path forest from the root set;
-    ``point_tree`` the tree of each point (-1 unreachable: dropped).
+    ``point_tree`` the tree of each point (-1 unreachable: dropped). ``merge``: how the
+    kNN pieces of one level that are 26-adjacent in voxels of ``cell`` (default
+    ``LEVEL_CELL`` node spacings) join: ``"adjacent"`` (default) all of them (closes the
+    sparse rings of thick stems, but also merges twigs up to ~2 cells apart into one
+    vertex between them), ``"overlap"`` only when the gap is smaller than their spreads
+    (:func:`_merge_overlapping`; ``point_spacing`` is the floor of a spread).
     """
+    if merge not in LEVEL_MERGE:
+        raise ParameterError(f"merge {merge!r}; expected one of {', '.join(LEVEL_MERGE)}")
     n = xyz.shape[0]
     ok = np.isfinite(path_length) & (point_tree >= 0)
     if spacing <= 0:
@@ -479,14 +527,20 @@ def contract(
         first[t0[::-1]] = lvl0[::-1]
         r = np.concatenate([r, lvl0])
         c = np.concatenate([c, first[t0]])
+    a = sparse.csr_matrix((np.ones(r.size, dtype=np.int8), (r, c)), shape=(n, n))
+    _, lab = connected_components(a, directed=False)
     if spacing > 0:
         vr, vc = _voxel_level_edges(
             xyz, level, point_tree, ok, cell if cell else LEVEL_CELL * spacing
         )
-        r = np.concatenate([r, vr])
-        c = np.concatenate([c, vc])
-    a = sparse.csr_matrix((np.ones(r.size, dtype=np.int8), (r, c)), shape=(n, n))
-    _, lab = connected_components(a, directed=False)
+        if merge == "overlap":
+            floor = spacing / NODE_SPACING if point_spacing is None else point_spacing
+            lab = _merge_overlapping(xyz, lab, vr, vc, floor)
+        else:  # "adjacent": every voxel-adjacent piece of a level joins
+            a = a + sparse.csr_matrix(
+                (np.ones(vr.size, dtype=np.int8), (vr, vc)), shape=(n, n)
+            )
+            _, lab = connected_components(a, directed=False)
     lab = np.where(ok, lab, -1)
     uniq, lab_c = np.unique(lab[ok], return_inverse=True)
     label = np.full(n, -1, dtype=np.int64)
@@ -499,6 +553,8 @@ def contract(
         )
         / count[:, None]
     )
+    d2 = np.sum((xyz[ok] - pos[label[ok]]) ** 2, axis=1)
+    spread = np.sqrt(np.bincount(label[ok], weights=d2, minlength=m) / np.maximum(count, 1))
     vtree = np.zeros(m, dtype=np.int64)
     vtree[label[ok]] = point_tree[ok]
     vlevel = np.zeros(m, dtype=np.int64)
@@ -517,4 +573,4 @@ def contract(
     w = np.maximum(np.sum((pos[qr] - pos[qc]) ** 2, axis=1), 1e-18)
     q = sparse.coo_matrix((w, (qr, qc)), shape=(m, m)).tocsr()
     q = q.maximum(q.T).tocsr()
-    return Contraction(label, pos, vtree, roots[roots >= 0], q, count)
+    return Contraction(label, pos, vtree, roots[roots >= 0], q, count, spread)
