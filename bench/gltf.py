@@ -3,6 +3,7 @@
 Usage: .venv/bin/python bench/gltf.py [--repeat 7] [--baseline OLD_gltf.py]
        .venv/bin/python bench/gltf.py --creatures 1000 [--workers 2] [--no-skin]
        .venv/bin/python bench/gltf.py --blender 20
+       .venv/bin/python bench/gltf.py --render demo-out/blender
 
 ``--creatures N``: N seeds generated and written as GLB with procedural bone models and the
 skinned body envelope (``biomorph creature generate --skin``), on ``--workers`` processes;
@@ -348,6 +349,80 @@ def blender_bench(n: int) -> None:
             print("  ", os.path.basename(r["path"]), r["error"][:200])
 
 
+RENDER = r"""
+import math, sys, warnings
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    import numpy
+    if "bool" not in numpy.__dict__:
+        numpy.bool = bool
+import addon_utils, bpy
+from mathutils import Vector
+glb, out = sys.argv[sys.argv.index("--") + 1:][:2]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+addon_utils.enable("io_scene_gltf2", default_set=True)
+bpy.ops.import_scene.gltf(filepath=glb)
+meshes = [o for o in bpy.data.objects if o.type == "MESH"]
+pts = [o.matrix_world @ Vector(c) for o in meshes for c in o.bound_box]
+lo = Vector([min(p[i] for p in pts) for i in range(3)])
+hi = Vector([max(p[i] for p in pts) for i in range(3)])
+mid, size = (lo + hi) / 2, max(hi - lo)
+for o in meshes:  # the envelope translucent over the bones
+    if "skin" in o.name.lower() or "envelope" in o.name.lower():
+        o.display.show_shadows = False
+        o.color = (0.85, 0.6, 0.5, 0.35)
+scene = bpy.context.scene
+scene.render.engine = "BLENDER_WORKBENCH"
+scene.display.shading.light = "STUDIO"
+scene.display.shading.color_type = "OBJECT"
+scene.display.shading.show_xray = False
+scene.render.resolution_x, scene.render.resolution_y = 900, 600
+cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
+scene.collection.objects.link(cam)
+scene.camera = cam
+cam.data.type = "ORTHO"
+cam.data.ortho_scale = 1.25 * size
+for name, az, el in (("side", 0.0, 0.0), ("three_quarter", 35.0, 20.0)):
+    # the creature faces -Y, its right side on -X: the side view looks from -X
+    a, e = math.radians(az), math.radians(el)
+    d = Vector((-math.cos(a) * math.cos(e), -math.sin(a) * math.cos(e), math.sin(e)))
+    cam.location = mid + d * 3 * size
+    cam.rotation_euler = (-d).to_track_quat("-Z", "Y").to_euler()
+    scene.render.filepath = f"{out}_{name}.png"
+    bpy.ops.render.render(write_still=True)
+"""
+
+
+def blender_render(out_dir: str) -> None:
+    """The demo set exported with bone models (and one with skin) and rendered in Debian's
+    Blender (Workbench, orthographic) from the side and three-quarter views."""
+    import shutil
+    import subprocess
+
+    import biomorph.creature as bc
+    from biomorph.creature.demo import DEMO_SET
+    from biomorph.creature.exporters import export
+
+    blender = shutil.which("blender")
+    if blender is None:
+        print("blender not installed (apt-get install -y blender python3-numpy)")
+        return
+    os.makedirs(out_dir, exist_ok=True)
+    script = os.path.join(out_dir, "render.py")
+    with open(script, "w") as fh:
+        fh.write(RENDER)
+    for title, opts in DEMO_SET:
+        for skin in (False, True):
+            stem = os.path.join(out_dir, f"{title}{'_skin' if skin else ''}")
+            export(bc.generate(**opts), stem + ".glb", skin=skin)
+            subprocess.run(
+                [blender, "-b", "--factory-startup", "--python", script, "--", stem + ".glb", stem],
+                capture_output=True,
+                check=True,
+            )
+            print("wrote", stem + "_side.png", stem + "_three_quarter.png")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=7)
@@ -356,7 +431,10 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-skin", action="store_true")
     ap.add_argument("--blender", type=int, help="N seeds through Blender + Rigify")
+    ap.add_argument("--render", metavar="DIR", help="render the demo set in Blender into DIR")
     args = ap.parse_args()
+    if args.render:
+        return blender_render(args.render)
     if args.creatures:
         return creatures_bench(args.creatures, args.workers, not args.no_skin)
     if args.blender:
