@@ -46,6 +46,7 @@ from biomorph.leaf.mesh import (
     mesh_batch,
     split_boundary_edge,
 )
+from biomorph.leaf.refine import adaptive_faces, make_nodes, point_triangle_distance
 
 
 # --------------------------------------------------------------------------- numba core
@@ -176,64 +177,6 @@ def _seg_dist3(p, a, b):  # pragma: no cover - compiled
     e1 = p[1] - (a[1] + t * d1)
     e2 = p[2] - (a[2] + t * d2)
     return np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-
-
-@njit(cache=True)
-def _err_surface(i, a, b, rows, s, w):  # pragma: no cover - compiled
-    worst = 0.0
-    for r in range(rows.shape[1]):
-        d = _seg_dist3(rows[i, r], rows[a, r], rows[b, r])
-        if d > worst:
-            worst = d
-    er = _seg_dist(s[i], w[i], s[a], w[a], s[b], w[b])
-    return np.sqrt(worst * worst + er * er)
-
-
-@njit(cache=True)
-def reduction_order_surface(rows, s, w, cols):  # pragma: no cover - compiled
-    """Like :func:`reduction_order`, with the error of removing point ``i`` measured on
-    the surface: the largest 3D distance of its surface points ``rows[i, r]`` (margins and
-    midrib, units of L) to the chords between its neighbours' points, combined with the
-    width error. ``cols`` triangles columns per strip (1: margins only, 2: with midrib)."""
-    n = s.size
-    prev = np.arange(n) - 1
-    nxt = np.arange(n) + 1
-    ver = np.zeros(n, np.int64)
-    alive = np.ones(n, np.bool_)
-    cap = 3 * n + 8
-    hk = np.empty(cap)
-    hi = np.empty(cap, np.int64)
-    hv = np.empty(cap, np.int64)
-    size = 0
-    for i in range(1, n - 1):
-        size = _push(hk, hi, hv, size, _err_surface(i, i - 1, i + 1, rows, s, w), i, 0)
-    tri = 0
-    for i in range(n - 1):
-        tri += cols * _strip(w[i], w[i + 1])
-    order = np.empty(max(n - 2, 0), np.int64)
-    errs = np.empty(max(n - 2, 0))
-    tris = np.empty(max(n - 2, 0), np.int64)
-    k = 0
-    while size > 0:
-        key, i, v, size = _pop(hk, hi, hv, size)
-        if not alive[i] or v != ver[i]:
-            continue
-        a, b = prev[i], nxt[i]
-        tri += cols * (_strip(w[a], w[b]) - _strip(w[a], w[i]) - _strip(w[i], w[b]))
-        alive[i] = False
-        nxt[a] = b
-        prev[b] = a
-        order[k] = i
-        errs[k] = key
-        tris[k] = tri
-        k += 1
-        if a > 0:
-            ver[a] += 1
-            size = _push(hk, hi, hv, size, _err_surface(a, prev[a], b, rows, s, w), a, ver[a])
-        if b < n - 1:
-            ver[b] += 1
-            size = _push(hk, hi, hv, size, _err_surface(b, a, nxt[b], rows, s, w), b, ver[b])
-    return order, errs, tris
 
 
 # --------------------------------------------------------------------------- API
@@ -391,12 +334,12 @@ def reduced_mesh(
 ) -> Mesh:
     """Mesh of ``shape`` with exactly ``triangles`` triangles (see module docstring).
 
-    ``surface`` (default): points are removed by their error on the surface (margins and
-    midrib in 3D, so twist and undulation count), and undulated leaves keep a midrib
-    vertex in every cross-section (their margins move out of the midrib's plane, which a
-    single quad across the blade cannot follow) when the budget allows it (at least twice
-    the smallest midrib-less mesh). ``surface=False`` is the paper's 2D error (midrib in
-    its plane + width profile)."""
+    A flat leaf (no twist, no undulation) is reduced as the paper does (strips between
+    kept cross-sections, 2D midrib + width error, exact flat area). A twisted or undulated
+    leaf (with ``surface``, the default, and no ``reduction`` given) gets an adaptive mesh
+    refined on its 3-D surface (:func:`adaptive_mesh`): vertices on the midrib and inside
+    the blade where twist and waves need them. ``surface=False`` keeps the paper's strips
+    for those too."""
     triangles = int(triangles)
     if triangles < 1:
         raise ParameterError(
@@ -406,38 +349,26 @@ def reduced_mesh(
     s, prof = _fine_profile(shape, n_pts, age, twist, undulation, state)
     st = state if state is not None else (None if age is None else state_at_age(shape, age))
     exact = visible_area(shape, st)
-    if reduction is not None or not surface:
-        red = reduction or _reduce_prof(s, prof)
-        mesh = _coarse_mesh(s, prof, red, triangles, plant, leaf, exact)
-    else:
-        wavy = bool(np.any(prof[4] > 0))
-        best = None
-        for cols in (1, 2, 4) if wavy else (1,):
-            red = _reduce_surface(s, prof, cols)
-            if triangles < red.min_triangles or (cols > 1 and triangles < 2 * red.min_triangles):
-                continue
-            cand = _coarse_mesh(s, prof, red, triangles, plant, leaf, exact)
-            err = (
-                surface_error(
-                    shape,
-                    cand,
-                    age=age,
-                    n_s=200,
-                    n_u=5,
-                    twist=twist,
-                    undulation=undulation,
-                    state=st,
-                )
-                if wavy
-                else 0.0
-            )
-            if best is None or err < best[0]:
-                best = (err, cand, red)
-        if best is None:
-            red = _reduce_surface(s, prof, 1)
-            mesh = _coarse_mesh(s, prof, red, triangles, plant, leaf, exact)
-        else:
-            _, mesh, red = best
+    red = reduction or _reduce_prof(s, prof)
+    mesh = _strip_mesh(s, prof, red, triangles, plant, leaf, exact)
+    curved = bool(np.any(prof[3] != 0) or np.any(prof[4] > 0))  # twisted or undulated
+    if surface and reduction is None and curved:
+        # keep whichever follows the surface better: the adaptive mesh (always, with
+        # undulation) or the paper's strips (a twisted blade is a ruled surface they can
+        # follow well at high budgets); judged on samples other than the nodes'
+        adapt = adaptive_mesh(shape, triangles, st, n_pts, twist, undulation, plant, leaf)
+        kw = {"state": st, "n_s": 2 * n_pts - 1, "n_u": 9, "twist": twist}
+        kw["undulation"] = undulation
+        if surface_error(shape, adapt, **kw) <= surface_error(shape, mesh, **kw):
+            mesh = adapt
+    return mesh
+
+
+def _strip_mesh(
+    s: Array, prof, red: Reduction, triangles: int, plant: int, leaf: int, exact: float
+) -> Mesh:
+    """Strips between the kept cross-sections, split at a margin to meet the budget."""
+    mesh = _coarse_mesh(s, prof, red, triangles, plant, leaf, exact)
     while mesh.n_faces < triangles:
         # short of the budget: split a left-margin edge (a, a+n_u) of a strip's first
         # triangle (one more triangle each, area and shape unchanged)
@@ -460,24 +391,45 @@ def _coarse_mesh(
     return mesh_batch(LeafBatch(*batch), n_u=red.cols + 1)
 
 
-def _reduce_surface(s: Array, prof, cols: int) -> Reduction:
-    """Reduction with the 3D surface error (rows: margins, and the midrib when cols=2)."""
-    phi, seg, width = prof[0], prof[1], prof[2]
-    L = max(float(seg.sum()), 1e-12)
-    batch = LeafBatch(
-        *[np.asarray(a)[None] for a in prof],
-        np.zeros((1, 3)),
-        np.zeros(1),
-        np.zeros(1, np.int64),
-        np.zeros(1, np.int64),
+def adaptive_mesh(
+    shape,
+    triangles: int,
+    state=None,
+    n_points: int = 200,
+    twist: bool = True,
+    undulation: bool = True,
+    plant: int = 0,
+    leaf: int = 0,
+    n_u: int = 33,
+) -> Mesh:
+    """Mesh of exactly ``triangles`` triangles refined on the leaf's 3-D surface.
+
+    Candidate vertices are ``2·n_points + 1`` cross-sections × ``n_u`` points across (33:
+    a 32nd of the blade width apart, so between two nodes an undulation of amplitude A
+    bends by at most A/32² off their chord; cross-sections twice as dense as the strip
+    reduction's samples); :func:`biomorph.leaf.refine.adaptive_faces` picks and connects
+    them by error-driven greedy insertion, decimation and local moves."""
+    n_s = 2 * int(n_points) + 1
+    s = np.linspace(0.0, 1.0, n_s)
+    u = np.linspace(-0.5, 0.5, n_u)
+    batch = LeafBatch.from_shapes(
+        [shape], states=[state], s=s, twist=twist, undulation=undulation, plant=[plant],
+        leaf=[leaf],
     )
-    u = np.linspace(-0.5, 0.5, max(cols, 2) + 1)
-    rows = np.ascontiguousarray(leaf_grid(batch, u)[0] / L)  # (n, rows, 3)
-    xz = integrate_angles(phi, seg) / L
-    w = np.ascontiguousarray(width / L)
-    order, errs, tris = reduction_order_surface(rows, np.ascontiguousarray(s), w, cols)
-    return Reduction(
-        np.asarray(s, float), xz[:, 0].copy(), xz[:, 1].copy(), w, order, errs, tris, cols
+    pts, nrm = leaf_grid(batch, u, with_normals=True)
+    nodes = make_nodes(pts[0], s, u, batch.width[0])
+    faces = adaptive_faces(nodes, triangles)
+    used, faces = np.unique(faces, return_inverse=True)
+    faces = faces.reshape(-1, 3)
+    normals = make_nodes(np.ascontiguousarray(nrm[0]), s, u, batch.width[0]).points[used]
+    uv = np.column_stack([nodes.grid[used, 1] + 0.5, nodes.grid[used, 0]])
+    ids = np.zeros(len(faces), np.int64)
+    return Mesh(
+        nodes.points[used],
+        faces,
+        normals=normals,
+        uv=uv,
+        face_ids={"plant": ids + plant, "leaf": ids + leaf},
     )
 
 
@@ -500,39 +452,6 @@ def surface_error(
     pts = leaf_grid(batch, np.linspace(-0.5, 0.5, n_u))[0].reshape(-1, 3)
     tri = np.asarray(mesh.vertices)[np.asarray(mesh.faces)]
     return float(point_triangle_distance(pts, tri).max())
-
-
-def point_triangle_distance(points: Array, triangles: Array, chunk: int = 256) -> Array:
-    """Distance of each point ``(n, 3)`` to the nearest of ``triangles`` ``(m, 3, 3)``
-    (exact: closest point in the face, on an edge or at a corner)."""
-    p_all = np.asarray(points, float)
-    a, b, c = (triangles[None, :, k] for k in range(3))
-    ab, ac, bc = b - a, c - a, c - b
-    nrm = np.cross(ab, ac)
-    n2 = (nrm * nrm).sum(-1)
-    out = np.empty(len(p_all))
-    for s0 in range(0, len(p_all), chunk):
-        p = p_all[s0 : s0 + chunk, None, :]
-        best = np.full(p.shape[0], np.inf)
-        for x, e in ((a, ab), (a, ac), (b, bc)):
-            e2 = np.maximum((e * e).sum(-1), 1e-300)
-            tt = np.clip(((p - x) * e).sum(-1) / e2, 0.0, 1.0)
-            d = np.linalg.norm(p - (x + tt[..., None] * e), axis=-1)
-            best = np.minimum(best, d.min(axis=1))
-        # projection inside the face (barycentric test)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            h = ((p - a) * nrm).sum(-1) / n2
-            q = p - h[..., None] * nrm
-            v0, v1, v2 = ab, ac, q - a
-            d00, d01, d11 = (v0 * v0).sum(-1), (v0 * v1).sum(-1), (v1 * v1).sum(-1)
-            d20, d21 = (v2 * v0).sum(-1), (v2 * v1).sum(-1)
-            den = d00 * d11 - d01 * d01
-            bv = (d11 * d20 - d01 * d21) / den
-            bw = (d00 * d21 - d01 * d20) / den
-        inside = (bv >= 0) & (bw >= 0) & (bv + bw <= 1) & (n2 > 0)
-        d_in = np.where(inside, np.abs(h) * np.sqrt(n2), np.inf)
-        out[s0 : s0 + chunk] = np.minimum(best, d_in.min(axis=1))
-    return out
 
 
 def coarse_batch(
@@ -605,6 +524,7 @@ def mesh_leaf(
 
 __all__ = [
     "Reduction",
+    "adaptive_mesh",
     "coarse_batch",
     "mesh_leaf",
     "point_triangle_distance",
@@ -612,6 +532,5 @@ __all__ = [
     "reduce_profile",
     "reduced_mesh",
     "reduction_order",
-    "reduction_order_surface",
     "surface_error",
 ]
