@@ -104,6 +104,7 @@ def main() -> None:
         ("re-orient", lambda: bm.reorient(m, 0.5, (1, 0, 2))),
         ("blend 2 clips (120-frame transition)", lambda: bm.blend([a, b], transition=120)),
         ("blend 3 clips", lambda: bm.blend([a, b, c], transition=120)),
+        ("blend 3 clips, DTW timing", lambda: bm.blend([a, b, c], transition=120, align="dtw")),
         ("speed curve (3 keys)", lambda: bm.change_speed(m, {0: 1, 3600: 2, 7199: 1})),
         ("cycle (400-frame range, ×10)", lambda: bm.make_cycle(m, 100, 500, 60, cycles=10)),
         (
@@ -126,6 +127,8 @@ def main() -> None:
         target = (
             "≤ 50 ms"
             if name.startswith("retarget")
+            else "≤ 100 ms"
+            if "DTW" in name
             else "≤ 30 ms"
             if not name.startswith(("resample", "world"))
             else "—"

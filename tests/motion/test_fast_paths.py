@@ -173,3 +173,13 @@ def test_pure_translation_of_the_root_shares_the_rotations(clips):
         assert np.array_equal(out.rotation[:, 0], tf.quat_continuous(root, axis=0))
         assert np.array_equal(out.rotation[:, 1:], m.rotation[:, 1:])
         assert out.rotation is m.rotation
+
+
+def test_dtw_features_of_a_window_equal_the_sliced_clip_features(clips):
+    """DTW alignment computes pose features of the matched windows only."""
+    from biomorph.motion.align import pose_features
+
+    for m in clips:
+        k = m.n_frames // 3
+        assert np.array_equal(pose_features(m[k:]), pose_features(m)[k:])
+        assert np.array_equal(pose_features(m[:k]), pose_features(m)[:k])

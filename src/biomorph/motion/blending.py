@@ -86,8 +86,8 @@ def auto_offset(
     if method == "dtw":
         wa = min(window, a.n_frames)
         wb = min(window, b.n_frames)
-        fa = pose_features(a)[a.n_frames - wa :]
-        fb = pose_features(b)[:wb]
+        fa = pose_features(a[a.n_frames - wa :])  # only the matched windows
+        fb = pose_features(b[:wb])
         path, _ = dtw_path(pose_distance(fa, fb))
         lag = np.median((path[:, 0] + a.n_frames - wa) * a_scale - path[:, 1] * b_scale)
         return a_offset + float(lag)
