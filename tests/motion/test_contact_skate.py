@@ -68,6 +68,27 @@ def test_operators_with_locking_stay_at_or_below_the_slid_input(slid):
     assert _skate(_lock(b)) <= base
 
 
+def test_an_operator_cannot_lower_a_foot_near_the_floor(slid):
+    # the hips 3 cm lower for the whole clip: every foot would run 3 cm lower
+    low = slid.with_(root_position=slid.root_position - [0.0, 0.03, 0.0])
+    out = _lock(low, slid)
+    c = C.detect_contacts(slid)
+    blend = round(0.2 * slid.fps)
+    w_in, w_low, w_out = slid.world_positions(), low.world_positions(), out.world_positions()
+    checked = 0
+    for lg in C.find_legs(slid):
+        on = c[lg.ankle] | c[lg.toe]  # the leg's contacts (a held heel carries the toe)
+        near_contact = np.convolve(on, np.ones(2 * blend + 3), mode="same") > 0
+        foot = np.linalg.norm(slid.skeleton.offset[lg.toe])
+        for j in (lg.ankle, lg.toe):
+            h = w_in[:, j, 1]
+            free = ~near_contact & (h < np.percentile(h, 2) + 0.5 * foot)
+            assert (w_low[free, j, 1] < h[free] - 0.02).all()  # the operator lowered them
+            assert (w_out[free, j, 1] >= h[free] - 1e-6).all()  # locking kept the clearance
+            checked += int(free.sum())
+    assert checked > 20
+
+
 def test_held_height_is_the_lowest_of_the_contact():
     f = 40
     pts = np.zeros((f, 3))
