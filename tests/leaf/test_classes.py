@@ -80,7 +80,10 @@ def test_rank_to_class() -> None:
     assert class_of_rank("maize", 9, 16) == "9"
     assert class_of_rank("maize", 20, 20) == "16"
     assert [class_of_rank("maize", r, 8) for r in (1, 8)] == ["1", "16"]
-    assert preset_classes("maize")["9"]["shape_class"] == "g8-10"
+    # shapes matched by time since ligulation: rank 11 (ear leaf) is 5 phyllochrons past it,
+    # like the digitised rank 5; the top three take the youngest fully extended group
+    assert preset_classes("maize")["11"]["shape_class"] == "g5"
+    assert preset_classes("maize")["16"]["shape_class"] == "g8-10"
     assert class_of_rank("grass", 1, 3) is None
     with pytest.raises(ParameterError, match="class"):
         LeafShape.from_preset("wheat", rank_class="9")

@@ -374,9 +374,12 @@ def _maize_rank_classes(maize: list[LeafShape], shapes: dict) -> tuple[dict, dic
 
     The digitised plant is young: its median blade length peaks at one rank and falls
     above it while the widths still rise — the upper leaves are still extending in the
-    whorl (erect, chord 80–86°). Ranks above the longest one therefore take the shape
-    class of the longest (the highest fully extended leaves), ranks below the first
-    digitised rank the lowest class."""
+    whorl (erect, chord 80–86°); take the longest rank as its last ligulated leaf. Maize
+    has no midrib collection, but a single-date plant is an age series: its rank ``q``
+    has been ligulated for ``r_lig − q`` phyllochrons. The mature plant (last leaf ``n``
+    just ligulated) gives rank ``r`` the shape of the digitised rank with the same time
+    since ligulation, ``q = r − (n − r_lig)``, clipped to the digitised ranks (older
+    leaves take the oldest group)."""
     ranks = np.array([_rank_of(lf) for lf in maize])
     lengths = np.array([lf.length for lf in maize])
     widths = np.array([lf.width for lf in maize])
@@ -389,7 +392,7 @@ def _maize_rank_classes(maize: list[LeafShape], shapes: dict) -> tuple[dict, dic
     lowest = min(of_rank)
     keys = []
     for r in range(1, n + 1):
-        q = min(max(r, lowest), r_mature)
+        q = min(max(r - (n - r_mature), lowest), r_mature)
         while q not in of_rank:  # a rank absent from the data: the next lower one
             q -= 1
         keys.append(of_rank[q])
