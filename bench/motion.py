@@ -5,7 +5,8 @@
 
 Usage: .venv/bin/python bench/motion.py [--quick]     (--quick skips the 1-hour take)
        .venv/bin/python bench/motion.py --skate     (foot skate of the shared captures
-                                                     through every operator, with locking)
+                                                     through every operator, with locking;
+                                                     --plot DIR: height/speed/contact PNGs)
        .venv/bin/python bench/motion.py --blender   (our BVH outputs imported by Blender)
 
 Prints a markdown table. Every figure is the median of several runs after one warm-up call
@@ -253,6 +254,15 @@ def skate_table() -> None:
         f"\nOperator + lock at or below the input (speed ×1.3: below 1.3× input): "
         f"{met} of {total}"
     )
+    if "--plot" in sys.argv:  # foot height/speed with the contacts, before and after locking
+        from biomorph.motion.plots import plot_contacts
+
+        out = Path(sys.argv[sys.argv.index("--plot") + 1])
+        out.mkdir(parents=True, exist_ok=True)
+        for name in WALKS:
+            m = read_bvh(data / name)
+            plot_contacts(m, out / f"{Path(name).stem}_contacts.png", lock_feet(m))
+        print(f"contact plots in {out}")
     raw, fixed = rows.get("dme_comp_3d_2_raw.bvh"), rows.get("dme_comp_3d_2_fixed.bvh")
     if raw and fixed:
         print(

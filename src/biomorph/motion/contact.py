@@ -332,9 +332,17 @@ def _targets_kernel(pts, step, runs, blend, ui, follow, tgt, wgt):  # pragma: no
     dist = np.full(f, np.inf)
     for r in range(runs.shape[0]):
         s, e = runs[r, 0], runs[r, 1]
-        st = step[s:e]
+        # a contact cut by the clip's start (end) is held where it meets the rest of the
+        # clip: only its last (first) ``blend`` frames choose the place, since nothing
+        # before frame 0 (after the last) needs a fade, so no slide is released into the clip
+        a0, a1 = s, e
+        if s == 0 and e < f:
+            a0 = max(s, e - blend)
+        elif e == f and s > 0:
+            a1 = min(e, s + blend)
+        st = step[a0:a1]
         cut = np.median(st)
-        sel = pts[s:e][st <= cut]
+        sel = pts[a0:a1][st <= cut]
         p = np.empty(3)
         for a in range(3):
             p[a] = np.median(sel[:, a])

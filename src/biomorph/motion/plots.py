@@ -7,6 +7,8 @@
 * :func:`plot_speed` – speed curve and the resulting time warp.
 * :func:`plot_cycle` – a channel of the looped clip over several cycles with seams marked.
 * :func:`plot_poses` – stick-figure strip of poses (side view) for one or more motions.
+* :func:`plot_contacts` – per foot point, height and horizontal speed (body scales) with the
+  detected contacts and the foot-skate metric's band, before and after locking.
 """
 
 from __future__ import annotations
@@ -214,3 +216,54 @@ def plot_poses(
 
 
 __all__ = ["plot_bands", "plot_blend", "plot_speed", "plot_cycle", "plot_poses"]
+
+
+def plot_contacts(
+    motion: Motion,
+    path: str | os.PathLike[str],
+    locked: Motion | None = None,
+    title: str = "",
+) -> Path:
+    """For every contact point (ankles and toes): height above the floor and horizontal
+    speed, both in body scales (hip heights; per second for speed), the frames
+    :func:`~biomorph.motion.contact.detect_contacts` plants (green) and the frames the
+    foot-skate metric counts (red, below 8 % of hip height); ``locked`` (the same clip after
+    :func:`~biomorph.motion.contact.lock_feet`) is drawn dashed."""
+    from biomorph.motion.contact import detect_contacts, find_legs
+    from biomorph.motion.quality import foot_skate
+
+    plt = _plt()
+    fs = foot_skate(motion)
+    ui = "xyz".index(fs["up"].lower())
+    horiz = [a for a in range(3) if a != ui]
+    g, scale = fs["ground_height"], fs["body_scale"]
+    pts = sorted({p for lg in find_legs(motion) for p in (lg.ankle, lg.toe) if p >= 0})
+    contacts = detect_contacts(motion)
+    t = np.arange(motion.n_frames) / motion.fps
+    fig, axes = plt.subplots(max(len(pts), 1), 1, figsize=(10, 1.9 * max(len(pts), 1)), sharex=True)
+    axes = np.atleast_1d(axes)
+    runs = [(motion, "-", "clip")] + ([(locked, "--", "locked")] if locked is not None else [])
+    for ax, j in zip(axes, pts, strict=False):
+        for mo, ls, label in runs:
+            w = mo.world_positions()[:, j]
+            h = (w[:, ui] - g) / scale
+            v = np.hypot(*np.gradient(w[:, horiz], axis=0).T) * mo.fps / scale
+            ax.plot(t, 10 * h, ls, color="tab:blue", lw=1.1, label=f"height ×10 ({label})")
+            ax.plot(t, v, ls, color="tab:orange", lw=1.1, label=f"speed ({label})")
+            if mo is motion:
+                ax.fill_between(t, -0.4, 0, where=h < 0.08, color="tab:red", alpha=0.3, lw=0)
+        on = contacts.get(j)
+        if on is not None:
+            top = ax.get_ylim()[1]
+            ax.fill_between(t, 0, top, where=on, color="tab:green", alpha=0.15, lw=0)
+        ax.axhline(0.8, color="0.5", ls=":", lw=0.8)
+        ax.set_ylabel(motion.names[j], fontsize=8)
+    axes[0].legend(fontsize=7, ncol=4, loc="upper right")
+    axes[0].set_title(
+        title or f"foot points: height ×10 and speed (hip heights, /s); green planted, "
+        f"red counted by the skate metric (skate {fs['skate_per_body_scale']:.3f})",
+        fontsize=9,
+    )
+    axes[-1].set_xlabel("s")
+    fig.tight_layout()
+    return _save(fig, path)
