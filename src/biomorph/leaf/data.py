@@ -240,6 +240,22 @@ def _class_insertion(curves: Array, ref: Array) -> float:
     return best[1]
 
 
+def _insertion_sd(curves: Array, family: Array, dist: Array) -> float:
+    """Robust standard deviation (degrees; IQR / 1.349) of the leaves' insertion angles
+    about their shape family's medoid (pooled over families, so two families of a class
+    do not count as insertion spread)."""
+    from biomorph.leaf.fit import aligned_distances, medoid
+
+    dev = []
+    for j in np.unique(family):
+        idx = np.flatnonzero(family == j)
+        m = idx[medoid(curves[idx], dist[np.ix_(idx, idx)])]
+        a = aligned_distances(curves[idx], curves[m])[1]
+        dev.extend(np.degrees(a - np.median(a)))
+    q25, q75 = np.percentile(dev, [25, 75])
+    return float((q75 - q25) / 1.349)
+
+
 def _class_entry(leaves: list[LeafShape], s_r: Array, r: Array, n: int = 101) -> dict:
     """Shape, ADEL-like member database and figures of one class of leaves.
 
@@ -258,6 +274,7 @@ def _class_entry(leaves: list[LeafShape], s_r: Array, r: Array, n: int = 101) ->
         max_distances,
         medoid,
         pairwise,
+        shape_families,
         unit_curve,
     )
 
@@ -272,6 +289,8 @@ def _class_entry(leaves: list[LeafShape], s_r: Array, r: Array, n: int = 101) ->
     ref = unit_curve(lambda q: np.interp(q, s, phi))
     fig = class_figures(curves, ref, dist, aligned=True)
     fig_raw = class_figures(curves, ref, raw)
+    _, fam, _ = shape_families(dist)
+    spread_deg = _insertion_sd(curves, fam, dist)
     members = class_members(curves, dist=raw)
     phis = [list(phi)] + [_r6(leaves[k].phi_at(s)) for k in members]
     near = np.minimum(max_distances(curves, ref), raw[:, members].min(axis=1))
@@ -290,6 +309,7 @@ def _class_entry(leaves: list[LeafShape], s_r: Array, r: Array, n: int = 101) ->
         "median_maxdist_raw": round(fig_raw["median_maxdist"], 4),
         "spread_raw": round(fig_raw["spread"], 4),
         "insertion_iqr_deg": [round(float(q25), 2), round(float(q75), 2)],
+        "insertion_sd_deg": round(spread_deg, 2),
         "chord_deg": round(fig["chord_deg"], 2),
         "members_phi": phis,
         "members_maxdist": round(float(np.median(near)), 4),

@@ -154,7 +154,7 @@ class PlantOptions:
     dimensions: Table | None = None  # None: default_tables(preset, leaves)
     phenology: Table | None = None
     azimuth_jitter_deg: float = 15.0
-    insertion_jitter_deg: float = 5.0
+    insertion_jitter_deg: float | None = None  # None: the leaf's class spread in the data
     triangles_per_leaf: int = 20
     tube_sides: int = 8
     soil: bool = True
@@ -298,8 +298,8 @@ def build_plant_architecture(
             )
         for i in ranks:
             az = az0 + np.pi * i + np.radians(opts.azimuth_jitter_deg) * rng.standard_normal()
-            incl = np.radians(opts.insertion_jitter_deg) * rng.standard_normal()
             key = class_of_rank(opts.preset, int(i) + 1, n)
+            incl = np.radians(_insertion_sd(opts, key)) * rng.standard_normal()
             leaf_rows.append(
                 {
                     "axis": axis,
@@ -331,6 +331,18 @@ def build_plant_architecture(
         )
     mesh, leaves = _mesh_plant(opts, base, leaf_rows, tubes, tt, plant_id)
     return Plant(mesh, organs, leaves, hs_main, float(opts.thermal_time), missing)
+
+
+def _insertion_sd(opts: PlantOptions, key: str | None) -> float:
+    """Insertion-angle jitter (degrees): the option, else the spread of the fitted
+    insertion angles of the class's digitised leaves (``insertion_sd_deg``; 5° without)."""
+    if opts.insertion_jitter_deg is not None:
+        return float(opts.insertion_jitter_deg)
+    if key is None:
+        return 5.0
+    from biomorph.leaf.shape import preset_classes
+
+    return float(preset_classes(opts.preset)[key].get("insertion_sd_deg", 5.0))
 
 
 def _organ_rows(axis, st, dims, n, pos, hs, phen) -> list[dict[str, Any]]:
