@@ -263,3 +263,21 @@ def test_mature_maize_field_lai(tmp_path, capsys, density) -> None:
     # the meshed field: the table's 0.5 m² per plant within the LOD and length jitter
     assert 3.0 <= s["lai"] <= 5.1
     assert s["lai"] == pytest.approx(0.5 * density, rel=0.03)
+
+
+def test_insertion_jitter_comes_from_the_class_spread() -> None:
+    from biomorph.leaf.shape import class_of_rank, preset_classes
+
+    def ins(seed, jitter=None):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            opts = PlantOptions(preset="maize", insertion_jitter_deg=jitter)
+            return build_plant_architecture(opts, seed=seed).leaves["insertion_deg"]
+
+    assert np.allclose(ins(1, 0.0), ins(2, 0.0))  # no jitter: the class shapes' own angle
+    dev = np.array([ins(s) - ins(0, 0.0) for s in range(1, 13)])  # (seeds, leaves)
+    ranks = build_plant_architecture(PlantOptions(preset="maize"), seed=0).leaves["rank"]
+    sd = [preset_classes("maize")[class_of_rank("maize", int(r), 16)]["insertion_sd_deg"]
+          for r in ranks]  # fmt: skip
+    ratio = dev.std(axis=0) / np.array(sd)
+    assert 0.5 < np.median(ratio) < 1.6
