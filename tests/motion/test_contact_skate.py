@@ -89,6 +89,29 @@ def test_an_operator_cannot_lower_a_foot_near_the_floor(slid):
     assert checked > 20
 
 
+def test_contact_cut_by_the_clip_start_is_held_where_it_meets_the_clip():
+    f = 40
+    pts = np.zeros((f, 3))
+    pts[:, 2] = np.linspace(0.0, 0.2, f)  # sliding from the first frame on
+    on = np.zeros(f, bool)
+    on[:20] = True
+    tgt, _ = C._targets(on, pts, 4, 1)
+    # the place comes from the contact's last 4 frames (16-19), not from frames 0-19
+    assert pts[16, 2] <= tgt[0, 2] <= pts[19, 2]
+    on[:] = False
+    on[25:] = True  # cut by the clip's end: its first 4 frames
+    tgt, _ = C._targets(on, pts, 4, 1)
+    assert pts[25, 2] <= tgt[-1, 2] <= pts[28, 2]
+
+
+def test_contact_plot_is_written(tmp_path, slid):
+    from biomorph.motion.plots import plot_contacts
+
+    m = slid[:120]
+    out = plot_contacts(m, tmp_path / "c.png", _lock(m))
+    assert out.stat().st_size > 10_000 and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 def test_held_height_is_the_lowest_of_the_contact():
     f = 40
     pts = np.zeros((f, 3))
@@ -128,9 +151,9 @@ def test_dme_raw_clip_cleans_toward_its_fixed_counterpart():
     raw = _shared("dme_comp_3d_2_raw.bvh")
     fixed = _shared("dme_comp_3d_2_fixed.bvh")
     cleaned = _skate(_lock(raw))
-    # measured: raw 0.874 -> 0.614 hip heights/s (was 0.654 holding the median height);
-    # the authors' fixed file is 0.571 (see docs/motion.md for why that is not reached)
-    assert cleaned < 0.72 * _skate(raw)
+    # measured: raw 0.874 -> 0.573 hip heights/s (0.654 last session); the authors' fixed
+    # file is 0.571 (see docs/motion.md for what remains)
+    assert cleaned < 0.7 * _skate(raw)
     assert _skate(_lock(fixed)) <= _skate(fixed)
     for gains in ([0, 0.5, 1, 1, 1], [1, 1.5, 1.5, 1, 1]):
         assert _skate(_lock(bm.equalize(raw, gains), raw)) <= _skate(raw)

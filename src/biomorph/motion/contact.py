@@ -32,7 +32,11 @@ between the fade in and the fade out instead of released all at once), verticall
 the floor; a capture's (or a generated clip's) contact floats above it by noise and drift
 (the dme raw clip's left heel wanders between 0.076 and 0.112 hip heights while planted),
 and holding it at its median height left it floating (measured: every shared walk skates
-less with the lowest height, dme raw 0.654 → 0.614 hip heights/s). With a *reference* clip
+less with the lowest height, dme raw 0.654 → 0.614 hip heights/s). A contact cut by the
+clip's start (end) takes its place from its last (first) ``blend`` frames only: nothing
+before frame 0 needs a fade, so the place where it meets the clip releases no slide into the
+first swing (dme raw 0.614 → 0.573; its very last frame instead: 0.601, and the zombie walk's
+3-second opening stance pinned out of the leg's reach). With a *reference* clip
 (the input of an operator that keeps timing: equalize, edit, layers) the contacts and their
 held positions come from the reference, so an edit cannot lift the feet or push them
 through the floor; and outside the contacts no foot point is left lower than the reference
