@@ -31,6 +31,7 @@ may exceed 180°: up to 543° on the Rokoko dance). The file is written atomical
 
 from __future__ import annotations
 
+import itertools
 import math
 import mmap
 import os
@@ -122,17 +123,14 @@ def _values_numpy(raw: bytes, data_start: int, n_frames: int, n_ch: int) -> np.n
     data = raw[data_start:]
     if n_ch <= 0 or data.translate(None, _SCAN_CHARS):
         return None
-    words: list[bytes] = []
-    for line in data.split(b"\n"):
-        w = line.split()
-        if w:
-            if len(w) != n_ch:
-                return None
-            words.extend(w)
-    if len(words) != n_frames * n_ch or max(map(len, words)) > 15:
+    rows = [w for w in map(bytes.split, data.split(b"\n")) if w]
+    if len(rows) != n_frames or any(len(w) != n_ch for w in rows):
+        return None
+    words = itertools.chain.from_iterable
+    if max(map(len, words(rows))) > 15:
         return None
     try:
-        vals = np.array(list(map(float, words)), dtype=np.float64)
+        vals = np.fromiter(map(float, words(rows)), dtype=np.float64, count=n_frames * n_ch)
     except ValueError:
         return None
     return vals.reshape(n_frames, n_ch)
