@@ -81,6 +81,7 @@ def _frames_kernel(d: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
 
 _RZ_PI = np.diag([-1.0, -1.0, 1.0])
 _RANGES = {k: np.stack([-np.radians(v), np.radians(v)], axis=1) for k, v in SPINE_RANGE.items()}
+_REGION_RANGES = np.stack([_RANGES["neck"], _RANGES["back"], _RANGES["tail"]])
 
 
 def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[str, Any]:
@@ -155,7 +156,7 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
         "vol": [vmass[vi]],
         "mass_c": [np.concatenate([vcen[vi], np.zeros((m, 1))], axis=1)],
         "mass_sz": [np.stack([vh[vi], np.maximum(Lv, 1e-9), vb[vi]], axis=1)],
-        "lim": [np.stack([_RANGES[rname[r]] for r in vreg[vi]])],
+        "lim": [_REGION_RANGES[vreg[vi]]],
         "anat_a": [np.zeros((m, 3))],
         "anat_l": [np.zeros((m, 3, 2))],
     }
@@ -233,6 +234,7 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
         ["skull", "mandible"],
     )
     n_now = m + 2
+    pairs: list[tuple[int, int]] = []
     contacts, contact_joint = [], []
     seg_names = ("girdle", "upper", "lower", "distal")
     for (gname, k, spec, at), (gpt, apt), pose, L3 in zip(
@@ -279,6 +281,7 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
             vv = vv.copy()
             vv[3] *= 1.0 - DIGIT_MASS_SHARE
         dlim = np.stack([_RANGES["digit"]] * nd) if nd else np.zeros((0, 3, 2))
+        pairs.append((n_now, 4 + nd))  # right block, then its mirror image on the left
         for sd, sgn in (("r", 1), ("l", -1)):
             base = n_now
             par = [slot[vidx], base, base + 1, base + 2]
@@ -338,14 +341,10 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
             n_now += nd
     names = blocks["names"]
     side = np.concatenate(blocks["side"])
-    idx_of = {nm: i for i, nm in enumerate(names)}
-    mirror = np.array(
-        [
-            idx_of[nm[:-1] + ("l" if nm.endswith("r") else "r")] if side[i] != 0 else i
-            for i, nm in enumerate(names)
-        ],
-        dtype=np.int64,
-    )
+    mirror = np.arange(len(names), dtype=np.int64)  # right ↔ left limb blocks, spine itself
+    for start, k in pairs:
+        mirror[start : start + k] = np.arange(start + k, start + 2 * k)
+        mirror[start + k : start + 2 * k] = np.arange(start, start + k)
     cat = {
         k: np.concatenate(blocks[k])
         for k in (

@@ -40,6 +40,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -178,6 +179,8 @@ class _Layout:
     frac: NDArray[np.float64]  # length fractions of the metapodial per joint
     side: NDArray[np.float64]
     splay: NDArray[np.float64]
+    cos_splay: NDArray[np.float64]
+    sin_splay: NDArray[np.float64]
     back: NDArray[np.bool_]
     parent: NDArray[np.int64]
     rad_end: NDArray[np.float64]  # bone radius factors per joint (end bone, taper)
@@ -210,6 +213,8 @@ def _layout(plan: tuple[Digit, ...]) -> _Layout:
         frac=frac,
         side=(np.arange(n) - (n - 1) / 2) / max(n - 1, 1),
         splay=np.radians([d.splay_deg for d in plan]),
+        cos_splay=np.cos(np.radians([d.splay_deg for d in plan])),
+        sin_splay=np.sin(np.radians([d.splay_deg for d in plan])),
         back=np.array([d.backward for d in plan], bool),
         parent=np.where(j_in == 0, -1, np.arange(m) - 1).astype(np.int64),
         rad_end=np.where(last, 0.55, 0.7),
@@ -218,6 +223,102 @@ def _layout(plan: tuple[Digit, ...]) -> _Layout:
         parts=tuple(plan[dig[k]].end if last[k] else "phalanx" for k in range(m)),
         numbers=np.array([plan[dig[k]].number for k in range(m)], np.int64),
         slot=dig * depth + j_in,
+    )
+
+
+@numba.njit(cache=True)
+def _frames_kernel(u, lateral):  # pragma: no cover - compiled
+    """:func:`_frames` compiled (same operations, same order)."""
+    m = u.shape[0]
+    out = np.empty((m, 3, 3))
+    for i in range(m):
+        nu = np.sqrt((u[i, 0] * u[i, 0] + u[i, 1] * u[i, 1]) + u[i, 2] * u[i, 2])
+        y0, y1, y2 = u[i, 0] / nu, u[i, 1] / nu, u[i, 2] / nu
+        d = (lateral[i, 0] * y0 + lateral[i, 1] * y1) + lateral[i, 2] * y2
+        z0, z1, z2 = lateral[i, 0] - d * y0, lateral[i, 1] - d * y1, lateral[i, 2] - d * y2
+        nz = np.sqrt((z0 * z0 + z1 * z1) + z2 * z2)
+        if nz > 1e-9:
+            z0, z1, z2 = z0 / nz, z1 / nz, z2 / nz
+        else:
+            z0, z1, z2 = 0.0, 0.0, 1.0
+        out[i, 0, 0] = y1 * z2 - y2 * z1
+        out[i, 1, 0] = y2 * z0 - y0 * z2
+        out[i, 2, 0] = y0 * z1 - y1 * z0
+        out[i, 0, 1], out[i, 1, 1], out[i, 2, 1] = y0, y1, y2
+        out[i, 0, 2], out[i, 1, 2], out[i, 2, 2] = z0, z1, z2
+    return out
+
+
+@numba.njit(cache=True)
+def _stand_kernel(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
+    start, seg, counts, first, dig, last, cos_s, sin_s, back, ground, eps, sin_max
+):  # pragma: no cover - compiled
+    """The standing branch of :func:`build` compiled: digit directions on the ground
+    (inclined phalanges reaching down, lengthened when too short), segment lengths, joint
+    positions (running sums per digit) and the end bones' tips."""
+    n = start.shape[0]
+    m = seg.shape[0]
+    seg = seg.copy()
+    fwd = np.empty((n, 3))
+    down = np.empty((n, 3))
+    grow = np.ones(n)
+    for k in range(n):
+        sgn = -1.0 if back[k] else 1.0
+        fwd[k, 0], fwd[k, 1], fwd[k, 2] = cos_s[k] * sgn, 0.0 * sgn, sin_s[k] * sgn
+        h = max(start[k, 1] - ground, 0.0)
+        lp = 0.0
+        for q in range(first[k], first[k] + counts[k] - 1):
+            lp = seg[q] if q == first[k] else lp + seg[q]
+        incl = (h > eps) and (counts[k] > 1)
+        sin_a = min(h / max(lp, 1e-300), sin_max) if incl else 0.0
+        if incl and lp * sin_max < h:
+            grow[k] = h / max(lp * sin_a, 1e-300)
+        cos_a = np.sqrt(1.0 - sin_a * sin_a)
+        down[k, 0] = fwd[k, 0] * cos_a - sin_a * 0.0
+        down[k, 1] = fwd[k, 1] * cos_a - sin_a * 1.0
+        down[k, 2] = fwd[k, 2] * cos_a - sin_a * 0.0
+    dirs = np.empty((m, 3))
+    for q in range(m):
+        k = dig[q]
+        if not last[q]:
+            seg[q] = seg[q] * grow[k]
+            dirs[q] = down[k]
+        else:
+            seg[q] = seg[q] * 1.0
+            dirs[q] = fwd[k]
+    pos = np.empty((m, 3))
+    tips = np.empty((n, 3))
+    for k in range(n):
+        p0, p1, p2 = start[k, 0], start[k, 1], start[k, 2]
+        for q in range(first[k], first[k] + counts[k]):
+            pos[q, 0], pos[q, 1], pos[q, 2] = p0, p1, p2
+            d0, d1, d2 = dirs[q, 0], dirs[q, 1], dirs[q, 2]
+            nd = np.sqrt((d0 * d0 + d1 * d1) + d2 * d2)
+            p0 = p0 + dirs[q, 0] / nd * seg[q]
+            p1 = p1 + dirs[q, 1] / nd * seg[q]
+            p2 = p2 + dirs[q, 2] / nd * seg[q]
+        tips[k, 0], tips[k, 1], tips[k, 2] = p0, p1, p2
+    return dirs, seg, pos, tips
+
+
+#: Sine of the steepest a phalanx may stand (80°).
+_SIN_MAX = float(np.sin(np.radians(80.0)))
+
+
+def _build_standing(lay: _Layout, start, metapodial, ground, eps):
+    return _stand_kernel(
+        start,
+        lay.frac * metapodial,
+        lay.counts,
+        lay.first,
+        lay.dig,
+        lay.last,
+        lay.cos_splay,
+        lay.sin_splay,
+        lay.back,
+        float(ground),
+        float(eps),
+        _SIN_MAX,
     )
 
 
@@ -250,32 +351,23 @@ def build(
         ud = u0 * c + _cross(axis, u0) * s_ + axis * (axis @ u0) * (1 - c)  # Rodrigues
         dirs = ud[dig]
         lateral = np.broadcast_to(W_distal[:, 2], (m, 3))
-    else:
-        fwd = np.stack([np.cos(splay), np.zeros(n), np.sin(splay)], axis=1)
-        fwd[lay.back] *= -1.0
-        h = np.maximum(start[:, 1] - ground, 0.0)
-        first, counts = lay.first, lay.counts
-        lp = np.array([float(seg[first[k] : first[k] + counts[k] - 1].sum()) for k in range(n)])
-        sin_max = np.sin(np.radians(80.0))
-        incl = (h > eps) & (lay.counts > 1)
-        sin_a = np.where(incl, np.minimum(h / np.maximum(lp, 1e-300), sin_max), 0.0)
-        grow = np.where(incl & (lp * sin_max < h), h / np.maximum(lp * sin_a, 1e-300), 1.0)
-        seg = seg * np.where(last, 1.0, grow[dig])  # too short to reach: lengthen
-        cos_a = np.sqrt(1.0 - sin_a**2)
-        down = fwd * cos_a[:, None] - np.outer(sin_a, [0.0, 1.0, 0.0])
-        dirs = np.where(last[:, None], fwd[dig], down[dig])
+    if ground is None or not m:
+        if ground is not None:
+            dirs = np.zeros((0, 3))
+        step = dirs / np.sqrt((dirs * dirs).sum(axis=1))[:, None] * seg[:, None] if m else dirs
+        # joint positions: each digit's start plus its earlier steps (a running sum per
+        # digit, added in the digit's order)
+        depth = int(lay.counts.max()) + 1 if n else 1
+        grid = np.zeros((n, depth, 3))
+        grid[:, 0] = start
+        grid.reshape(-1, 3)[lay.slot + 1] = step
+        grid = np.cumsum(grid, axis=1)
+        flat = grid.reshape(-1, 3)
+        pos = flat[lay.slot]
+        end_tip = flat[lay.slot + 1][last]
+    else:  # standing: digits on the ground (compiled)
+        dirs, seg, pos, end_tip = _build_standing(lay, start, metapodial, ground, eps)
         lateral = np.broadcast_to([0.0, 0.0, 1.0], (m, 3))
-    step = dirs / np.sqrt((dirs * dirs).sum(axis=1))[:, None] * seg[:, None] if m else dirs
-    # joint positions: each digit's start plus its earlier steps (a running sum per digit,
-    # added in the digit's order)
-    depth = int(lay.counts.max()) + 1 if n else 1
-    grid = np.zeros((n, depth, 3))
-    grid[:, 0] = start
-    grid.reshape(-1, 3)[lay.slot + 1] = step
-    grid = np.cumsum(grid, axis=1)
-    flat = grid.reshape(-1, 3)
-    pos = flat[lay.slot]
-    end_tip = flat[lay.slot + 1][last]
     contacts, clocal = [], []
     if heel is not None:
         contacts.append(np.asarray(heel, float)[None])
@@ -296,7 +388,9 @@ def build(
     return Digits(
         lay.names,
         lay.parent,
-        _frames(dirs, np.asarray(lateral, float)) if m and frames else np.zeros((0, 3, 3)),
+        _frames_kernel(dirs, np.ascontiguousarray(lateral, dtype=float))
+        if m and frames
+        else np.zeros((0, 3, 3)),
         pos,
         seg.astype(float),
         bone_radius * lay.rad_end * lay.rad_taper,

@@ -117,6 +117,9 @@ def jaw(shape: SkullShape, length: float, W: NDArray, origin: NDArray) -> Jaw:
     L = float(np.hypot(*v))
     y = W[:, 0] * v[0] / L + W[:, 1] * v[1] / L
     z = W[:, 2]
-    Wj = np.stack([np.cross(y, z), y, z], axis=1)
+    x = np.array(
+        [y[1] * z[2] - y[2] * z[1], y[2] * z[0] - y[0] * z[2], y[0] * z[1] - y[1] * z[0]]
+    )  # y × z (np.cross's formula)
+    Wj = np.stack([x, y, z], axis=1)
     pos = np.asarray(origin, float) + W[:, 0] * start[0] + W[:, 1] * start[1]
     return Jaw(Wj, pos, L, np.array([0.18 * h, L, 0.8 * w]))

@@ -386,9 +386,17 @@ def _allometric_ground(
     k = (spine.weight / ms.density(cls)) ** (1.0 / 3.0)
     top0 = float(top[0])
 
+    legs_av = [
+        (float(ai), max(float(ri), 1e-12), float(vi))
+        for ai, ri, vi in zip(a, reach, v1, strict=True)
+    ]
+
     def excess(y: float) -> float:  # standing height (m) minus the allometric height
-        g = np.maximum(a - y, 1e-9) / np.maximum(reach, 1e-12)
-        return (top0 - y) * k / (body + float(v1 @ g**3)) ** (1.0 / 3.0) - h_m
+        vol = 0.0  # Σ v1_i · g_i³ in order (plain floats: the same IEEE operations)
+        for q, (ai, ri, vi) in enumerate(legs_av):
+            term = vi * (max(ai - y, 1e-9) / ri) ** 3.0
+            vol = term if q == 0 else vol + term
+        return (top0 - y) * k / (body + vol) ** (1.0 / 3.0) - h_m
 
     # the height grows from 0 (legs of no length, ground at the lowest attachment) and
     # approaches a limit as the legs grow; scan outwards for the first crossing
