@@ -157,3 +157,17 @@ def test_dme_raw_clip_cleans_toward_its_fixed_counterpart():
     assert _skate(_lock(fixed)) <= _skate(fixed)
     for gains in ([0, 0.5, 1, 1, 1], [1, 1.5, 1.5, 1, 1]):
         assert _skate(_lock(bm.equalize(raw, gains), raw)) <= _skate(raw)
+
+
+def test_a_foot_joint_below_the_ankle_is_part_of_that_foot():
+    # the HTR character's R_ankle -> R_football -> R_toe: two legs, not four
+    import biomorph as bm
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = bm.io.read_motion(shared_file("motion", "animal3d_egnaro_skel_anim.htr"))
+    legs = C.find_legs(m)
+    assert sorted((m.names[lg.knee], m.names[lg.ankle], m.names[lg.toe]) for lg in legs) == [
+        ("L_knee", "L_ankle", "L_football"),
+        ("R_knee", "R_ankle", "R_football"),
+    ]

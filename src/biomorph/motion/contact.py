@@ -120,14 +120,20 @@ class Leg:
 
 def find_legs(motion: Motion) -> list[Leg]:
     """Every foot joint (``foot``/``ankle`` in the name, not ``toe``) with a parent and a
-    grandparent; the toe is its first child named ``toe`` (else its first child)."""
+    grandparent; the toe is its first child named ``toe`` (else its first child). A foot
+    joint below another one (HTR's ``R_ankle → R_football → R_toe``) belongs to that leg's
+    foot, it does not start a leg of its own."""
     par = motion.skeleton.parent
     names = [s.lower() for s in motion.names]
+
+    def is_foot(s: str) -> bool:
+        return ("foot" in s or "ankle" in s) and "toe" not in s and "index" not in s
+
     legs = []
     for j, s in enumerate(names):
-        if ("foot" in s or "ankle" in s) and "toe" not in s and "index" not in s:
+        if is_foot(s):
             knee = int(par[j])
-            if knee < 0 or par[knee] < 0:
+            if knee < 0 or par[knee] < 0 or is_foot(names[knee]):
                 continue
             kids = [int(c) for c in np.flatnonzero(par == j)]
             toes = [c for c in kids if "toe" in names[c]] or kids
