@@ -14,7 +14,15 @@ First set (the seed's section 3.2 asks for "the major muscles"):
   upper bone acting on the middle joint (biceps–triceps / quadriceps–hamstrings) and the
   back of the lower bone to the distal one (forearm flexors / gastrocnemius);
 * along the spine: the epaxial muscles (longissimus) above the trunk and tail vertebrae, the
-  neck's dorsal muscles above the cervical vertebrae.
+  neck's dorsal muscles above the cervical vertebrae;
+* the jaw closers, where the jaw is its own joint: the temporalis from the braincase's
+  temporal fossa to the coronoid process and the masseter from the zygomatic arch to the
+  mandible's angle (the points of :mod:`biomorph.creature.bones.skull`'s models);
+* per standing limb with a metapodial: the digital flexors down the back of the lower bone
+  to the far end of the metapodial.
+
+Left out: the wing membranes (a patagium is a skin fold, not a swept muscle) and the
+intrinsic muscles of hands and feet.
 """
 
 from __future__ import annotations
@@ -30,7 +38,17 @@ from biomorph.creature.creature import Creature
 #: tendon radius as a share of the belly radius
 TENDON = 0.1
 #: belly radius as a share of the soft-tissue half-width of the bone it lies along
-BELLY = {"girdle": 0.55, "front": 0.45, "back": 0.5, "distal": 0.4, "epaxial": 0.22, "neck": 0.3}
+BELLY = {
+    "girdle": 0.55,
+    "front": 0.45,
+    "back": 0.5,
+    "distal": 0.4,
+    "epaxial": 0.22,
+    "neck": 0.3,
+    "temporalis": 0.35,
+    "masseter": 0.25,
+    "flexor": 0.22,
+}
 
 
 @dataclass(frozen=True)
@@ -103,7 +121,37 @@ def muscles(c: Creature, lod: int = 1) -> list[Muscle]:
             bulge = c.world[along, :3, 0] * bx * belly * 1.2
             path, r = _sweep(a, b, bulge, belly, k)
             out.append(Muscle(f"{tag}_{role}", oj, ij, a, b, path, r))
+        if c.kind[up] == "leg" and c.bone_length[di] > 1e-9:  # digital flexors
+            a, b = attachment(c, lo, (-0.45, 0.55, 0.0)), attachment(c, di, (-0.45, 0.92, 0.0))
+            belly = BELLY["flexor"] * _half_width(c, lo)
+            bulge = c.world[lo, :3, 0] * -0.5 * belly
+            path, r = _sweep(a, b, bulge, belly, k)
+            out.append(Muscle(f"{tag}_flexor", lo, di, a, b, path, r))
     out.extend(_axial(c, k))
+    out.extend(_jaw(c, k))
+    return out
+
+
+def _jaw(c: Creature, k: int) -> list[Muscle]:
+    """Temporalis and masseter on both sides (skull and jaw unit models have x dorsal and
+    are mirrored into their joints' frames, whose local X is ventral)."""
+    if "skull" not in c.kind or "jaw" not in c.names:
+        return []
+    s, j = c.kind.index("skull"), c.names.index("jaw")
+    if c.bone_length[s] <= 1e-9 or c.bone_length[j] <= 1e-9:
+        return []
+    hw = 0.5 * float(min(c.box_size[s, 0], c.box_size[s, 2]))
+    out = []
+    for side, tag in ((1.0, "r"), (-1.0, "l")):
+        for name, o, ins in (  # (x dorsal, y, z) on the skull / the jaw
+            ("temporalis", (0.44, 0.1, 0.22), (1.6, 0.12, 0.42)),  # from the crown
+            ("masseter", (-0.14, 0.3, 0.47), (-0.4, 0.1, 0.44)),  # arch to angle
+        ):
+            a = attachment(c, s, (-o[0], o[1], side * o[2]))
+            b = attachment(c, j, (-ins[0], ins[1], side * ins[2]))
+            belly = BELLY[name] * hw
+            path, r = _sweep(a, b, np.zeros(3), belly, k)
+            out.append(Muscle(f"{name}_{tag}", s, j, a, b, path, r))
     return out
 
 
