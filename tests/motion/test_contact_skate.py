@@ -58,6 +58,19 @@ def test_locking_a_walk_with_injected_slide_lowers_its_skate(slid):
     assert _planted_speed(locked, c) < 0.3 * _planted_speed(slid, c)
 
 
+@pytest.mark.parametrize(("fps", "speed", "stride_hz"), [(24, 1.2, 0.9), (120, 2.5, 1.4)])
+def test_locking_holds_across_frame_rates_and_gaits(fps, speed, stride_hz):
+    m = walk(8 * fps, fps, speed=speed, stride_hz=stride_hz, noise_deg=0.5)
+    t = np.arange(m.n_frames) / m.fps
+    rp = np.array(m.root_position)
+    rp[:, 2] += 0.05 * np.sin(2 * np.pi * 1.7 * t)
+    s = m.with_(root_position=rp)
+    base = _skate(s)
+    assert _skate(_lock(s)) < base
+    assert _skate(_lock(bm.equalize(s, [0, 0.5, 1, 1, 1]), s)) <= base
+    assert _skate(_lock(bm.blend([s, s[m.n_frames // 3 :]], transition=fps // 4))) <= base
+
+
 def test_operators_with_locking_stay_at_or_below_the_slid_input(slid):
     base = _skate(slid)
     e = bm.equalize(slid, [0, 0.5, 1, 1, 1])
