@@ -60,8 +60,8 @@ def test_twigs_side_by_side_stay_two_vertices():
 
 def test_reach_keeps_refined_twigs_on_their_points():
     xyz = _twins(gap=0.3)
-    free = livny.skeletonize_graph(xyz)
-    bound = livny.skeletonize_graph(xyz, reach=livny.REACH)
+    free = livny.skeletonize_graph(xyz, reach=None)
+    bound = livny.skeletonize_graph(xyz)  # reach=REACH by default
     d_free, _ = skeleton_distance(xyz, free.graph.parent, free.graph.position)
     d_bound, _ = skeleton_distance(xyz, bound.graph.parent, bound.graph.position)
     twig = xyz[:, 2] > 0.7

@@ -140,11 +140,9 @@ __all__ = [
 #: refinement swung twigs up to 20-40 cm off their points (AdTree tree1: median vertex
 #: shift 4 cm, 10 % over 21 cm; 28 % of the points then lay > 10 cm from every cylinder).
 #: One spread keeps every vertex inside the points it stands for (1.0: the spread itself,
-#: no tuning; 0.5 measured the same within 1 % on the real clouds here). Opt-in
-#: (``skeletonize_graph(reach=REACH)``): on clean dense thick stems the same bound keeps
-#: surface pieces of the stem on the surface, where the unbounded solve pulls them onto
-#: the axis, and they survive the cleanup as spurs (the 10 cm Y test: 3 → 5 tips;
-#: synthetic presets NOB +4-11 %), so it is not the default yet (docs/tree.md).
+#: no tuning; 0.5 measured the same within 1 % on the real clouds here). On clean dense
+#: thick stems the bound keeps stray surface pieces on the surface (the unbounded solve
+#: pulls them onto the axis); cleanup rule 1b merges them there.
 REACH = 1.0
 
 
@@ -219,7 +217,7 @@ def skeletonize_graph(
     progress=None,
     source: str = "point cloud",
     bridge_gap: float | None = None,
-    reach: float | None = None,
+    reach: float | None = REACH,
     level_merge: str = "adjacent",
 ) -> LivnyResult:
     """Livny et al. 2010 steps i–vii on a point cloud (cleanup is :mod:`~biomorph.tree.cleanup`).
@@ -248,8 +246,8 @@ def skeletonize_graph(
         than that piece). Default ``GAP_SHORT`` (4) node spacings; ``inf`` bridges every
         gap (the earlier behaviour). Unbridged pieces drop out (``info["unbridged_points"]``).
     reach : step v keeps each vertex within ``reach`` RMS spreads of its own points (at
-        least one point spacing) from their centroid (:data:`REACH`); ``None`` = the
-        unbounded Livny refinement.
+        least one point spacing) from their centroid (default :data:`REACH`); ``None`` =
+        the unbounded refinement of the paper.
     level_merge : how adjacent pieces of one contraction level join:
         ``"adjacent"`` (default) or ``"overlap"`` (:func:`~biomorph.tree.neighbours.contract`).
 

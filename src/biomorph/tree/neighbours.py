@@ -486,6 +486,36 @@ def _merge_overlapping(
     return plab[lab]
 
 
+MIN_PIECE = 3  #: pieces with fewer points are no cross-section (see _absorb_fragments)
+
+
+def _absorb_fragments(g, label, ok, m):
+    """Pieces of fewer than :data:`MIN_PIECE` points (a point whose path length lags its
+    neighbours' by a level is alone in its level) join the neighbouring piece they share
+    the most kNN edges with; returns the new labels and piece count."""
+    count = np.bincount(label[ok], minlength=m)
+    small = count < MIN_PIECE
+    if not small.any():
+        return label, m
+    e = ok[g.row] & ok[g.col]
+    la, lb = label[g.row[e]], label[g.col[e]]
+    la, lb = np.concatenate([la, lb]), np.concatenate([lb, la])
+    keep = small[la] & (la != lb)
+    key, cnt = np.unique(la[keep] * m + lb[keep], return_counts=True)
+    src, dst = key // m, key % m
+    best = np.lexsort((-cnt, src))  # per source, the most shared edges first
+    first = np.unique(src[best], return_index=True)[1]
+    target = np.arange(m)
+    target[src[best[first]]] = dst[best[first]]
+    # follow chains of fragments to a real piece (a few hops at most)
+    for _ in range(4):
+        target = target[target]
+    new = np.where(label >= 0, target[np.maximum(label, 0)], -1)
+    uniq, inv = np.unique(new[ok], return_inverse=True)
+    new[ok] = inv.reshape(-1)
+    return new, uniq.size
+
+
 def contract(
     xyz: NDArray[np.float64],
     graph: sparse.csr_matrix,
@@ -535,6 +565,11 @@ def contract(
         )
         if merge == "overlap":
             floor = spacing / NODE_SPACING if point_spacing is None else point_spacing
+            # fine scale first: points of a level within ~2 point spacings always join
+            # (a kNN graph leaves points at a level's edge alone in their level)
+            fr, fc = _voxel_level_edges(xyz, level, point_tree, ok, floor)
+            a = a + sparse.csr_matrix((np.ones(fr.size, dtype=np.int8), (fr, fc)), shape=(n, n))
+            _, lab = connected_components(a, directed=False)
             lab = _merge_overlapping(xyz, lab, vr, vc, floor)
         else:  # "adjacent": every voxel-adjacent piece of a level joins
             a = a + sparse.csr_matrix(
@@ -546,6 +581,8 @@ def contract(
     label = np.full(n, -1, dtype=np.int64)
     label[ok] = lab_c.reshape(-1)
     m = uniq.size
+    if merge == "overlap" and spacing > 0:
+        label, m = _absorb_fragments(g, label, ok, m)
     count = np.bincount(label[ok], minlength=m)
     pos = (
         np.stack(
