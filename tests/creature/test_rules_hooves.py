@@ -123,3 +123,30 @@ def test_cli_single_hoof(tmp_path):
 
     d = json.loads(out.read_text())
     assert d["params"]["hoof_digits"] == 1
+
+
+def test_dataset_spectrum_is_the_model_the_generator_samples(capsys, monkeypatch):
+    """`creature dataset` prints the eigenvalues of the very PCA object that step_spine
+    samples from (plain and conditional draws), also with the hoof column in the table."""
+    import json
+
+    from biomorph.creature.model import species_model
+    from biomorph.creature.pca import PCA
+
+    used = []
+    for name in ("sample", "sample_conditional"):
+        orig = getattr(PCA, name)
+
+        def spy(self, *a, _orig=orig, **k):
+            used.append(self)
+            return _orig(self, *a, **k)
+
+        monkeypatch.setattr(PCA, name, spy)
+    generate(3)
+    generate(4, legs=4, hoof_digits=1)
+    assert used and all(p is species_model(None).pca for p in used)
+    assert run(["creature", "dataset", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    ev = species_model(None).pca.eigenvalues
+    assert d["spectrum"]["first"] == pytest.approx(float(ev[0]), rel=1e-12)
+    assert d["spectrum"]["total"] == pytest.approx(float(ev.sum()), rel=1e-12)
