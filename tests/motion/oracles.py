@@ -88,3 +88,27 @@ def equalize_mean_log_reference(q: Array, gains: Array, mode: int) -> Array:
         _mean_log_joint(ro(q[:, j]), ro(gains), mode, col)
         out[:, j] = col[:, 0]
     return out
+
+
+def retarget_rotations_reference(
+    ws: Array, src_of: Array, pre: Array, post: Array, rest_t: Array, parent: Array
+) -> Array:
+    """Reference for the retarget kernel given the source's world rotations ``ws``: target
+    world rotations joint by joint (mapped: ``ws[src]·pre·post``, unmapped: parent's world
+    times rest), then local poses ``rest⁻¹ · parent⁻¹ · world``, continuous over frames."""
+    f, n = ws.shape[0], parent.size
+    world = np.empty((f, n, 4))
+    ident = np.broadcast_to([0.0, 0.0, 0.0, 1.0], (f, 4))
+    for j in range(n):
+        par = world[:, parent[j]] if parent[j] >= 0 else ident
+        if src_of[j] >= 0:
+            world[:, j] = tf.quat_multiply(tf.quat_multiply(ws[:, src_of[j]], pre[j]), post[j])
+        else:
+            world[:, j] = tf.quat_multiply(par, rest_t[j])
+    local = np.empty((f, n, 4))
+    for j in range(n):
+        par = world[:, parent[j]] if parent[j] >= 0 else ident
+        lq = tf.quat_multiply(tf.quat_conjugate(par), world[:, j])
+        local[:, j] = tf.quat_multiply(tf.quat_conjugate(rest_t[j]), lq)
+    local[1:][_store_flips(np.sum(local[1:] * local[:-1], axis=-1))] *= -1.0
+    return local

@@ -183,3 +183,34 @@ def test_dtw_features_of_a_window_equal_the_sliced_clip_features(clips):
         k = m.n_frames // 3
         assert np.array_equal(pose_features(m[k:]), pose_features(m)[k:])
         assert np.array_equal(pose_features(m[:k]), pose_features(m)[:k])
+
+
+def test_retarget_kernel_with_fused_source_fk_equals_the_reference(clips):
+    """The retarget kernel computes the source's world rotations per frame itself (no
+    ``(f, n, 4)`` FK array): equal to the reference fed with ``world_rotations()``."""
+    from biomorph.core import transforms as tf
+    from biomorph.motion.retarget import _retarget_kernel
+    from tests.motion.oracles import retarget_rotations_reference
+
+    rng = np.random.default_rng(2)
+    for m in clips:
+        sk = m.skeleton
+        n = sk.n_joints + 3  # a target with a few extra (unmapped) joints
+        parent = np.concatenate([sk.parent, [1, n - 3, 0]])
+        src_of = np.concatenate([np.arange(sk.n_joints), [-1, -1, -1]])
+        src_of[rng.choice(sk.n_joints, 3, replace=False)] = -1
+        pre, post, rest_t = (tf.quat_normalize(rng.normal(size=(n, 4))) for _ in range(3))
+        got = np.empty((m.n_frames, n, 4))
+        _retarget_kernel(
+            cm.ro(sk.rest_rotation),
+            cm.ro(m.rotation),
+            cm.ro_int(sk.parent),
+            cm.ro_int(src_of),
+            cm.ro(pre),
+            cm.ro(post),
+            cm.ro(rest_t),
+            cm.ro_int(parent),
+            got,
+        )
+        ref = retarget_rotations_reference(m.world_rotations(), src_of, pre, post, rest_t, parent)
+        assert np.array_equal(got, ref)

@@ -60,14 +60,33 @@ def _rest_world(sk: JointSkeleton) -> tuple[Array, Array]:
 
 
 @njit(cache=True)
-def _retarget_kernel(ws, src_of, pre, post, rest_t, parent, rot_out):  # pragma: no cover
-    """Per frame and target joint (parents first): mapped joints get the world rotation
+def _retarget_kernel(
+    rest_s, rot_s, parent_s, src_of, pre, post, rest_t, parent, rot_out
+):  # pragma: no cover
+    """Per frame: the source's world rotations (FK, as ``fk_positions``) into a per-frame
+    buffer, then per target joint (parents first): mapped joints get the world rotation
     ``ws[src] · pre[j] · post[j]`` (source delta from rest, then the aligned target rest:
     ``pre = qs⁻¹``, ``post = align · qt``), unmapped ones their parent's world times their
     rest; the local pose is ``rest⁻¹ · parent⁻¹ · world``."""
-    f, n = ws.shape[0], parent.size
+    f, n = rot_s.shape[0], parent.size
     world = np.empty((n, 4))
+    ws = np.empty((rot_s.shape[1], 4))
     for t in range(f):
+        for j in range(rot_s.shape[1]):
+            lx, ly, lz, lw = _qmul(
+                rest_s[j, 0],
+                rest_s[j, 1],
+                rest_s[j, 2],
+                rest_s[j, 3],
+                rot_s[t, j, 0],
+                rot_s[t, j, 1],
+                rot_s[t, j, 2],
+                rot_s[t, j, 3],
+            )
+            p = parent_s[j]
+            if p >= 0:
+                lx, ly, lz, lw = _qmul(ws[p, 0], ws[p, 1], ws[p, 2], ws[p, 3], lx, ly, lz, lw)
+            ws[j, 0], ws[j, 1], ws[j, 2], ws[j, 3] = lx, ly, lz, lw
         for j in range(n):
             p = parent[j]
             if p >= 0:
@@ -77,10 +96,10 @@ def _retarget_kernel(ws, src_of, pre, post, rest_t, parent, rot_out):  # pragma:
             s = src_of[j]
             if s >= 0:
                 x, y, z, w = _qmul(
-                    ws[t, s, 0],
-                    ws[t, s, 1],
-                    ws[t, s, 2],
-                    ws[t, s, 3],
+                    ws[s, 0],
+                    ws[s, 1],
+                    ws[s, 2],
+                    ws[s, 3],
                     pre[j, 0],
                     pre[j, 1],
                     pre[j, 2],
@@ -217,7 +236,6 @@ def retarget(
             if q[3] > 1e-9
             else tf.quat_from_axis_angle(np.cross(a, np.eye(3)[np.argmin(np.abs(a))]), np.pi)
         )
-    wpos, ws = source._fk(None)
     f, n = source.n_frames, target.n_joints
     src_of = np.full(n, -1, dtype=np.int64)
     pre = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
@@ -228,7 +246,9 @@ def retarget(
         post[t] = tf.quat_multiply(align[t], qt[t])
     rot = np.empty((f, n, 4))
     _retarget_kernel(
-        ro(ws),
+        ro(source.skeleton.rest_rotation),
+        ro(source.rotation),
+        ro_int(source.skeleton.parent),
         ro_int(src_of),
         ro(pre),
         ro(post),
@@ -237,7 +257,8 @@ def retarget(
         rot,
     )
     hips_s, hips_t = s_can["hips"], t_can["hips"]
-    src_hips = wpos[:, hips_s]
+    # the root's world position is its translation; other hips need the FK positions
+    src_hips = source.root_position if hips_s == 0 else source.world_positions()[:, hips_s]
     root = src_hips * scale
     if t_can["hips"] != 0:  # joints above the target's hips: keep them at rest, move the root
         root = root - (pt[hips_t] - pt[0])
