@@ -27,3 +27,19 @@ def test_curve_helpers_live_in_core() -> None:
 
     assert shape.integrate_angles is curves.integrate_angles
     assert shape.angles_from_points is curves.angles_from_points
+
+
+def test_basal_backstep_dropped_only_when_the_midrib_reverses() -> None:
+    import numpy as np
+
+    from biomorph.leaf.data import drop_basal_backstep
+
+    # So99 1,35: the first point steps back over the stem, then the blade rises to +x
+    x = np.array([0.0, -0.53, 1.08, 2.76, 4.10])
+    y = np.array([0.0, 0.67, 1.41, 2.34, 2.69])
+    bx, by = drop_basal_backstep(x, y)
+    assert bx.tolist() == [0.0, 1.08, 2.76, 4.10] and by.tolist() == [0.0, 1.41, 2.34, 2.69]
+    # a blade that rises and bends (turns < 90°) keeps every point
+    x2, y2 = np.array([0.0, 0.1, 0.6, 1.5, 2.5]), np.array([0.0, 1.0, 1.8, 2.3, 2.4])
+    kx, ky = drop_basal_backstep(x2, y2)
+    assert kx.tolist() == x2.tolist() and ky.tolist() == y2.tolist()
