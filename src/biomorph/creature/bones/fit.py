@@ -133,7 +133,11 @@ class _Geometry:
         self.n: list[NDArray | None] = []
         self.f: list[NDArray] = []
         self.j: list[int] = []
-        self.xf: list[NDArray] = []  # per piece: scale(3), shift(3), sign(3), flip_y
+        # per piece: scale (3), shift (3), sign (3), flip_y
+        self.scale: list[NDArray] = []
+        self.shift: list[NDArray] = []
+        self.sign: list[NDArray] = []
+        self.flip: list[float] = []
 
     def unit(
         self,
@@ -169,16 +173,10 @@ class _Geometry:
         self.n.append(n)
         self.f.append(f)
         self.j.append(j)
-        self.xf.append(
-            np.concatenate(
-                [
-                    scale,
-                    _ZERO if shift is None else shift,
-                    sign,
-                    [0.0 if flip_y is None else flip_y],
-                ]
-            )
-        )
+        self.scale.append(scale)
+        self.shift.append(_ZERO if shift is None else shift)
+        self.sign.append(sign)
+        self.flip.append(0.0 if flip_y is None else flip_y)
 
     def arrays(self) -> tuple[NDArray, NDArray, NDArray, NDArray]:
         """``(vertices, unit normals, joint, faces)`` over all pieces."""
@@ -193,8 +191,10 @@ class _Geometry:
             )
         counts = np.fromiter((len(v) for v in self.v), np.int64, len(self.v))
         base = np.cumsum(counts) - counts
-        xf = np.repeat(np.asarray(self.xf), counts, axis=0)
-        scale, shift, sign, flip = xf[:, 0:3], xf[:, 3:6], xf[:, 6:9], xf[:, 9]
+        scale = np.repeat(np.array(self.scale), counts, axis=0)
+        shift = np.repeat(np.array(self.shift), counts, axis=0)
+        sign = np.repeat(np.array(self.sign), counts, axis=0)
+        flip = np.repeat(np.array(self.flip), counts)
         raw = [i for i, n in enumerate(self.n) if n is None]
         if raw:  # one normal pass over every one-off piece (they never share vertices)
             rc = counts[raw]
@@ -204,7 +204,8 @@ class _Geometry:
             rn = vertex_normals(rv, rf)
             for i, b, c in zip(raw, rb, rc, strict=True):
                 self.n[i] = rn[b : b + c]
-        faces = np.concatenate([f + b for f, b in zip(self.f, base, strict=True)])
+        f_counts = np.fromiter((len(f) for f in self.f), np.int64, len(self.f))
+        faces = np.concatenate(self.f) + np.repeat(base, f_counts)[:, None]
         verts = (np.concatenate(self.v) * scale + shift) * sign
         verts[:, 1] += flip
         normals = np.concatenate(self.n) / np.where(scale > 0, scale, 1.0) * sign
