@@ -135,7 +135,7 @@ def test_light_cli_end_to_end(tmp_path, capsys) -> None:
         == 0
     )
     s = json.loads(capsys.readouterr().out)
-    assert 0 < s["gap_fraction"] < 1 and s["engine"] in ("embree", "trimesh")
+    assert 0 < s["gap_fraction"] < 1 and s["engine"] == "zbuffer"
     assert s["intercepted_fraction"] == pytest.approx(1 - s["gap_fraction"], abs=1e-9)
     assert png.stat().st_size > 1000
     assert "_PAR_ABSORBED" in read_gltf_summary(lit)["attributes"]
@@ -156,6 +156,7 @@ def small_field(tmp_path_factory):
         (["--sun", "2026-06-21T23:00"], "below the horizon"),
         (["--sun", "noon"], "ISO 8601"),
         (["--sky", "12"], "0, 16 or 46"),
+        (["--engine", "optix"], "--engine"),
         (["--latitude", "95"], "--latitude"),
         (["--par", "-1"], "--par"),
         (["--ground", "1,1,0,0"], "--ground"),
@@ -189,6 +190,7 @@ def test_fallback_engine_warns_and_agrees(monkeypatch) -> None:
         diffuse_fraction=0.0,
         ground=(0, 0, 0.3, 0.3),
         ray_spacing=0.005,
+        engine="embree",
     )
     fast = intercept(m, opts)
 
@@ -200,6 +202,8 @@ def test_fallback_engine_warns_and_agrees(monkeypatch) -> None:
         slow = intercept(m, opts)
     assert slow.engine == "trimesh" and fast.engine == "embree"
     assert np.abs(slow.gap_by_direction - fast.gap_by_direction).max() < 0.005
+    zbuf = intercept(m, LightOptions(**{**opts.__dict__, "engine": "zbuffer"}))
+    assert np.abs(zbuf.gap_by_direction - fast.gap_by_direction).max() < 0.005
 
 
 def test_light_reads_every_canopy_format(small_field, tmp_path, capsys) -> None:

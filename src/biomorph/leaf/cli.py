@@ -459,6 +459,10 @@ def light(
     ] = None,
     table: Annotated[str | None, typer.Option(help="Per-leaf results as CSV.")] = None,
     seed: Annotated[int, typer.Option(help="Random seed of the ray jitter.")] = 0,
+    engine: Annotated[
+        str,
+        typer.Option(help="First hits: zbuffer (numba, all cores), embree or trimesh."),
+    ] = "zbuffer",
     as_json: Json = False,
 ) -> None:
     """Light intercepted by a canopy: sun + standard overcast sky by ray casting.
@@ -469,8 +473,10 @@ def light(
 
     from biomorph._cli import check_suffix, emit
     from biomorph.leaf.files import read_canopy
-    from biomorph.leaf.light import LightOptions
+    from biomorph.leaf.light import ENGINES, LightOptions
 
+    if engine not in ENGINES:
+        raise ParameterError(f"--engine {engine!r}: expected one of {', '.join(ENGINES)}")
     if sky not in (0, 16, 46):
         raise ParameterError(f"--sky {sky}: expected 0, 16 or 46 directions")
     when = None
@@ -503,6 +509,7 @@ def light(
         periodic=periodic,
         ground=rect,
         seed=seed,
+        engine=engine,
     )
     opts.validate()
     mesh = read_canopy(canopy_file)

@@ -51,8 +51,10 @@ from biomorph.core.mesh import Mesh
 from biomorph.core.types import Array
 from biomorph.errors import InputError, ParameterError
 
-
 # --------------------------------------------------------------------------- options
+ENGINES = ("zbuffer", "embree", "trimesh")
+
+
 @dataclass(frozen=True)
 class LightOptions:
     """Options of :func:`intercept` (angles in degrees, PAR in µmol m⁻² s⁻¹)."""
@@ -69,6 +71,7 @@ class LightOptions:
     periodic: bool = True
     ground: tuple[float, float, float, float] | None = None  # xmin, ymin, xmax, ymax
     seed: int = 0
+    engine: str = "zbuffer"  # zbuffer (numba, both cores), embree (embreex), trimesh
 
     def validate(self) -> None:
         if not -90 <= self.latitude <= 90:
@@ -87,6 +90,10 @@ class LightOptions:
             raise ParameterError(f"ray spacing {self.ray_spacing} must be > 0 m")
         if self.max_rays < 1:
             raise ParameterError(f"max rays {self.max_rays} must be >= 1")
+        if self.engine not in ENGINES:
+            raise ParameterError(
+                f"light engine {self.engine!r}: expected one of {', '.join(ENGINES)}"
+            )
         if self.when is None and self.sky == 0:
             raise ParameterError("no light: give a sun time or a sky of 16 or 46 directions")
 
@@ -303,17 +310,18 @@ class _Trimesh:
         return prim, dist
 
 
-def _intersector(tri: Array) -> tuple[Any, str]:
-    try:
-        return _Embree(tri), "embree"
-    except ImportError:
-        warnings.warn(
-            "embreex is not installed: using trimesh's pure-Python ray engine "
-            "(much slower); pip install embreex",
-            RuntimeWarning,
-            stacklevel=3,
-        )
-        return _Trimesh(tri), "trimesh"
+def _intersector(tri: Array, engine: str = "embree") -> tuple[Any, str]:
+    if engine == "embree":
+        try:
+            return _Embree(tri), "embree"
+        except ImportError:
+            warnings.warn(
+                "embreex is not installed: using trimesh's pure-Python ray engine "
+                "(much slower); pip install embreex",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+    return _Trimesh(tri), "trimesh"
 
 
 def _ground_rect(mesh: Mesh, opts: LightOptions) -> tuple[float, float, float, float]:
@@ -404,34 +412,17 @@ def intercept(mesh: Mesh, options: LightOptions | None = None, progress=None) ->
         raise InputError("canopy has no triangles; expected a mesh of leaves")
     D, E, n_sun, sun, fd = _sources(opts)
     rect = _ground_rect(mesh, opts)
-    x0, y0, x1, y1 = rect
-    area = (x1 - x0) * (y1 - y0)
-    zmax = float(mesh.vertices[:, 2].max())
-    top = zmax + 1e-3 + 1e-6 * max(x1 - x0, y1 - y0)
-    tri, src = (
-        _tiled(mesh, rect)
-        if opts.periodic
-        else (mesh.vertices[mesh.faces], np.arange(mesh.n_faces))
-    )
-    engine, name = _intersector(tri)
     face_area = mesh.face_areas()
-    spacing = opts.ray_spacing or 0.5 * float(np.sqrt(np.median(face_area[face_area > 0])))
-    spacing = max(spacing, float(np.sqrt(area / opts.max_rays)))
-    nx = max(1, int(np.ceil((x1 - x0) / spacing)))
-    ny = max(1, int(np.ceil((y1 - y0) / spacing)))
-    dx, dy = (x1 - x0) / nx, (y1 - y0) / ny
-    rng = np.random.default_rng(opts.seed)
-    gx, gy = np.meshgrid(x0 + (np.arange(nx) + 0.5) * dx, y0 + (np.arange(ny) + 0.5) * dy)
+    nx, ny = _cells(rect, face_area, opts)
+    dx, dy = (rect[2] - rect[0]) / nx, (rect[3] - rect[1]) / ny
+    area = (rect[2] - rect[0]) * (rect[3] - rect[1])
     energy = np.zeros(mesh.n_faces)
     gaps = np.zeros(len(D))
-    for k, (d, e) in enumerate(zip(D, E, strict=True)):
-        px = gx.ravel() + (rng.random(gx.size) - 0.5) * dx
-        py = gy.ravel() + (rng.random(gy.size) - 0.5) * dy
-        ground = np.stack([px, py, np.zeros(px.size)], axis=1)
-        hit = _cast(engine, ground, d, top, rect, opts.periodic)
+    hits, name = _engine_hits(mesh, D, rect, (nx, ny), opts)
+    for k, hit in hits:
         ok = hit >= 0
         gaps[k] = 1.0 - ok.mean()
-        energy += np.bincount(src[hit[ok]], minlength=mesh.n_faces) * (e * dx * dy)
+        energy += np.bincount(hit[ok], minlength=mesh.n_faces) * (E[k] * dx * dy)
         if progress is not None:
             progress(k + 1, len(D))
     irr = np.divide(energy, face_area, out=np.zeros_like(energy), where=face_area > 0)
@@ -463,6 +454,59 @@ def intercept(mesh: Mesh, options: LightOptions | None = None, progress=None) ->
             "par": opts.par,
         },
     )
+
+
+def _cells(rect, face_area: Array, opts: LightOptions) -> tuple[int, int]:
+    """Ray grid: spacing ``ray_spacing`` or ½·√(median triangle area), coarsened so one
+    direction casts at most ``max_rays``."""
+    x0, y0, x1, y1 = rect
+    area = (x1 - x0) * (y1 - y0)
+    spacing = opts.ray_spacing or 0.5 * float(np.sqrt(np.median(face_area[face_area > 0])))
+    spacing = max(spacing, float(np.sqrt(area / opts.max_rays)))
+    return max(1, int(np.ceil((x1 - x0) / spacing))), max(1, int(np.ceil((y1 - y0) / spacing)))
+
+
+def _engine_hits(mesh: Mesh, D: Array, rect, cells: tuple[int, int], opts: LightOptions):
+    """``(iterator of (direction index, first hit per ray), engine name)``."""
+    if opts.engine == "zbuffer":
+        return _zbuffer_hits(mesh, D, rect, cells, opts), "zbuffer"
+    tri, src = (
+        _tiled(mesh, rect)
+        if opts.periodic
+        else (mesh.vertices[mesh.faces], np.arange(mesh.n_faces))
+    )
+    engine, name = _intersector(tri, opts.engine)
+    return _ray_hits(engine, src, mesh, D, rect, cells, opts), name
+
+
+def _zbuffer_hits(mesh: Mesh, D: Array, rect, cells: tuple[int, int], opts: LightOptions):
+    from biomorph.leaf.raster import first_hits
+
+    tri = mesh.vertices[mesh.faces]
+    chunk = 4  # directions per call: both cores busy, progress and Ctrl-C between calls
+    for k0 in range(0, len(D), chunk):
+        hits = first_hits(tri, D[k0 : k0 + chunk], rect, cells, opts.seed, opts.periodic, k0)
+        for k, hit in enumerate(hits):
+            yield k0 + k, hit
+
+
+def _ray_hits(engine, src, mesh: Mesh, D: Array, rect, cells: tuple[int, int], opts):
+    """Rays cast one direction at a time from the same jittered ground points as the
+    z-buffer's (:func:`biomorph.leaf.raster.jitter`)."""
+    from biomorph.leaf.raster import jitter
+
+    x0, y0, x1, y1 = rect
+    nx, ny = cells
+    dx, dy = (x1 - x0) / nx, (y1 - y0) / ny
+    top = float(mesh.vertices[:, 2].max()) + 1e-3 + 1e-6 * max(x1 - x0, y1 - y0)
+    gx, gy = np.meshgrid(x0 + (np.arange(nx) + 0.5) * dx, y0 + (np.arange(ny) + 0.5) * dy)
+    for k, d in enumerate(D):
+        j = jitter(opts.seed, k, nx, ny)
+        ground = np.column_stack(
+            [gx.ravel() + j[:, 0] * dx, gy.ravel() + j[:, 1] * dy, np.zeros(gx.size)]
+        )
+        hit = _cast(engine, ground, d, top, rect, opts.periodic)
+        yield k, np.where(hit >= 0, src[np.maximum(hit, 0)], -1)
 
 
 def _sources(opts: LightOptions):
