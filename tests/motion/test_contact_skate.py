@@ -184,3 +184,15 @@ def test_a_foot_joint_below_the_ankle_is_part_of_that_foot():
         ("L_knee", "L_ankle", "L_football"),
         ("R_knee", "R_ankle", "R_football"),
     ]
+
+
+def test_short_runs_are_dropped_like_the_run_list_says():
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        on = rng.random(int(rng.integers(1, 60))) < 0.6
+        min_len = int(rng.integers(1, 6))
+        ref = on.copy()
+        for s, e in C._runs(ref):
+            if e - s < min_len:
+                ref[s:e] = False
+        assert (C._drop_short(on, min_len) == ref).all()

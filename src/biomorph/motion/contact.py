@@ -307,11 +307,25 @@ def detect_contacts(
 
 
 def _drop_short(on: NDArray[np.bool_], min_len: int) -> NDArray[np.bool_]:
-    on = on.copy()
-    for s, e in _runs(on):
-        if e - s < min_len:
-            on[s:e] = False
-    return on
+    """``on`` without its runs shorter than ``min_len`` frames."""
+    out = np.array(on, dtype=np.bool_)
+    _drop_short_kernel(out, int(min_len))
+    return out
+
+
+@njit(cache=True)
+def _drop_short_kernel(on, min_len):  # pragma: no cover - compiled
+    k, f = 0, on.size
+    while k < f:
+        if not on[k]:
+            k += 1
+            continue
+        e = k
+        while e < f and on[e]:
+            e += 1
+        if e - k < min_len:
+            on[k:e] = False
+        k = e
 
 
 def _runs(on: NDArray[np.bool_]) -> list[tuple[int, int]]:
