@@ -99,6 +99,7 @@ def _raster_one(tri, d, grid, nx, ny, jit, periodic, hit, depth):  # pragma: no 
             i0, i1 = max(i0, 0), min(i1, nx - 1)
             j0, j1 = max(j0, 0), min(j1, ny - 1)
         inv = 1.0 / det
+        e1x, e1y, e2x, e2y = bx - ax, by - ay, cx - ax, cy - ay
         ta, tb, tc = za * iz, zb * iz, zc * iz
         wrap = i0 < 0 or j0 < 0 or i1 >= nx or j1 >= ny
         for j in range(j0, j1 + 1):
@@ -107,11 +108,9 @@ def _raster_one(tri, d, grid, nx, ny, jit, periodic, hit, depth):  # pragma: no 
                 c = jj * nx + (i % nx if wrap else i)
                 sx = i + 0.5 + jit[c, 0] - ax
                 sy = j + 0.5 + jit[c, 1] - ay
-                w1 = (sx * (cy - ay) - (cx - ax) * sy) * inv
-                if w1 < 0.0:
-                    continue
-                w2 = ((bx - ax) * sy - sx * (by - ay)) * inv
-                if w2 < 0.0 or w1 + w2 > 1.0:
+                w1 = (sx * e2y - e2x * sy) * inv
+                w2 = (e1x * sy - sx * e1y) * inv
+                if min(w1, w2, 1.0 - w1 - w2) < 0.0:
                     continue
                 tt = ta + w1 * (tb - ta) + w2 * (tc - ta)
                 if tt > depth[c]:
