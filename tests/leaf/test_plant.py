@@ -248,16 +248,16 @@ def test_mature_maize_default_table_gives_field_lai() -> None:
     assert PlantOptions().thermal_time == pytest.approx(1100.0)  # wheat: 11 leaves
 
 
-@pytest.mark.parametrize("density", [7.0, 10.0])
+@pytest.mark.parametrize("density", [7.0, 10.0, None])
 def test_mature_maize_field_lai(tmp_path, capsys, density) -> None:
     out = tmp_path / "maize.glb"
+    field = ["--spacing", "0.75", "--density", str(density)] if density else []
     code = run(
-        [
-            "leaf", "canopy", "--preset", "maize", "--plants", "60", "--rows", "6",
-            "--spacing", "0.75", "--density", str(density), "-o", str(out), "--json",
-        ]
+        ["leaf", "canopy", "--preset", "maize", "--plants", "60", "--rows", "6", *field,
+         "-o", str(out), "--json"]
     )  # fmt: skip
     assert code == 0
+    density = density or 8.0  # the maize default: 0.75 m rows, 8 plants/m²
     s = json.loads(capsys.readouterr().out)
     assert s["missing_leaves_per_plant"] == 0 and s["leaves"] == 60 * 16
     # the meshed field: the table's 0.5 m² per plant within the LOD and length jitter

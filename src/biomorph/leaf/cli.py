@@ -257,10 +257,17 @@ def canopy(
         int, typer.Option(help="Number of plants.", callback=bounded(1, 10_000_000))
     ] = 20,
     rows: Annotated[int, typer.Option(help="Number of rows.", callback=bounded(1))] = 4,
-    spacing: Annotated[float, typer.Option(help="Row spacing (m).", callback=POS)] = 0.15,
+    spacing: Annotated[
+        float | None,
+        typer.Option(help="Row spacing (m) [default: maize 0.75, else 0.15].", callback=POS),
+    ] = None,
     density: Annotated[
         float | None,
-        typer.Option(help="Plants per m² (sets the spacing within rows).", callback=POS),
+        typer.Option(
+            help="Plants per m² (sets the spacing within rows) [default: maize 8, else "
+            "spacing / 3 within rows].",
+            callback=POS,
+        ),
     ] = None,
     preset: Preset = "wheat",
     leaves: Annotated[
@@ -323,7 +330,12 @@ def canopy(
 
     if leaves is None:
         leaves = DEFAULT_LEAVES.get(preset, 6)
-    if age is None and thermal_time is None and preset in DEFAULT_LEAVES:
+    mature = preset in DEFAULT_LEAVES  # maize: a mature field at a usual row spacing/density
+    if spacing is None:
+        spacing = 0.75 if mature else 0.15
+    if density is None and mature:
+        density = 8.0
+    if age is None and thermal_time is None and mature:
         thermal_time = mature_thermal_time(preset, leaves, phyllochron)
     spec = FieldSpec(
         plants=plants,
