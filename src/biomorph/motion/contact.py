@@ -43,12 +43,13 @@ through the floor; and outside the contacts no foot point is left lower than the
 had it while the reference's point is within a foot's length (ankle → toe) of its resting
 height (fading out over the upper half of that band): a filter or an edit cannot make the
 toes scrape (denoising the dme fixed clip lowered its swing toe from 0.088 to 0.071 hip
-heights above the floor; with the rule that clip's skate after equalize + lock is 0.544
-against its input's 0.571 — with the detection's exit height, 0.06 L, as the band instead
-of the foot's 0.13 L: 0.598; unlimited: 0.526, but an unlimited rule would also undo
-deliberate leg edits in the air). ``mode="follow"``: the point follows where the reference
-had it frame by frame (the input's own slide is kept; measured worse on the shared walks
-than holding, so not the default). ``"auto"`` (default) = ``"hold"``.
+heights above the floor; the rule took that clip's skate after equalize + lock from 0.608
+to 0.544 against its input's 0.571, 0.518 with the cut-contact rule above — with the
+detection's exit height, 0.06 L, as the band instead of the foot's 0.13 L: 0.598; unlimited:
+0.526, but an unlimited rule would also undo deliberate leg edits in the air).
+``mode="follow"``: the point follows where the reference had it frame by frame (the input's
+own slide is kept; measured worse on the shared walks than holding, so not the default).
+``"auto"`` (default) = ``"hold"``.
 
 In both modes the leg (hip → knee → ankle) is solved analytically so the ankle lands on the
 target with the knee kept in its plane (the knee's side of the hip–ankle line is kept), the
@@ -58,7 +59,7 @@ over ``blend_s``. Targets out of reach are clamped to the leg's length with one
 :class:`ContactWarning` (never NaN).
 
 Cost: forward kinematics runs once per clip and only over the legs' chains (root → toes:
-11 of 60 joints on the benchmark skeleton), detection and the IK of every frame and both
+9 of 60 joints on the benchmark skeleton), detection and the IK of every frame and both
 legs are compiled loops; ``bench/motion.py --quick`` has the figures.
 """
 
