@@ -207,7 +207,8 @@ def info(
         elif k == "foot_skate":
             v = (
                 f"{v['skate_speed']:.4g} units/s ({v['skate_per_body_scale']:.3g} body/s), "
-                f"contact {100 * v['contact_fraction']:.0f}%, ground {v['ground_height']:.3g}"
+                f"contact {100 * v['contact_fraction']:.0f}%, ground {v['ground_height']:.3g}, "
+                f"band travel {v['band_travel']:.3g} body/s"
             )
         elif k == "tolerated":
             v = "; ".join(v) if v else "nothing"
