@@ -44,6 +44,23 @@ def test_no_rib_vertex_outside_the_skin(creature, lod):
     assert (inside <= 0).sum() == 0, f"{(inside <= 0).sum()} of {len(v)} rib vertices outside"
 
 
+@pytest.mark.parametrize("lod", [0, 1])
+def test_no_scapula_vertex_outside_the_skin(creature, lod):
+    parts = parts_of(creature)
+    blades = [
+        cage.scapula_blade(creature, j, scapula(lod), creature.params["class"])
+        for j in range(len(creature))
+        if parts[j] == "scapula"
+    ]
+    blades = [b for b in blades if b is not None]
+    if not blades:
+        pytest.skip("no shoulder blade (fish)")
+    v = np.concatenate([b[0] for b in blades])
+    grid, lo, h = envelope_field(creature, muscles(creature, lod), lod)
+    inside = map_coordinates(grid, ((v - lo) / h).T, order=1)
+    assert (inside <= 0).sum() == 0, f"{(inside <= 0).sum()} of {len(v)} blade vertices outside"
+
+
 def test_ribs_arch_round_the_trunk_to_the_sternum():
     c = bc.generate(seed=11, legs=4, wings=False, cls="mammal")
     th = thoracic(c)

@@ -19,7 +19,10 @@ First set (the seed's section 3.2 asks for "the major muscles"):
   temporal fossa to the coronoid process and the masseter from the zygomatic arch to the
   mandible's angle (the points of :mod:`biomorph.creature.bones.skull`'s models);
 * per standing limb with a metapodial: the digital flexors down the back of the lower bone
-  to the far end of the metapodial.
+  to the far end of the metapodial;
+* over each shoulder blade (:func:`biomorph.creature.bones.cage.scapula_frame`): the
+  supraspinatus and infraspinatus as one volume from the dorsal border to the shoulder,
+  as wide as the blade, so the skin covers the scapula as muscle does.
 
 Left out: the wing membranes (a patagium is a skin fold, not a swept muscle) and the
 intrinsic muscles of hands and feet.
@@ -129,6 +132,43 @@ def muscles(c: Creature, lod: int = 1) -> list[Muscle]:
             out.append(Muscle(f"{tag}_flexor", lo, di, a, b, path, r))
     out.extend(_axial(c, k))
     out.extend(_jaw(c, k))
+    out.extend(_scapular(c, k))
+    return out
+
+
+def _scapular(c: Creature, k: int) -> list[Muscle]:
+    """Supra- and infraspinatus over each scapula: a volume along the blade from its
+    dorsal border to the glenoid, its radius the blade's half-width (the plate narrows to
+    the neck), lying on the blade's outer face."""
+    from biomorph.creature.bones.cage import SCAPULA_WIDTH, scapula_frame
+    from biomorph.creature.bones.fit import parts_of
+
+    cls = str(c.params.get("class", "mammal"))
+    parts = parts_of(c)
+    out = []
+    for j in range(len(c)):
+        if parts[j] != "scapula":
+            continue
+        fr = scapula_frame(c, j, cls)
+        if fr is None:
+            continue
+        frame, d_pt, ls = fr
+        u = np.linspace(0.0, 1.0, k)
+        # a flat sheet: three bellies side by side across the blade (the blade narrows to
+        # the neck), each about a tenth of the blade's length thick
+        half = 0.5 * SCAPULA_WIDTH * ls * (1.0 - 0.7 * u**0.8)
+        thick = 0.11 * ls * (1.0 - 0.4 * u) + 0.02 * ls
+        ins = int(np.flatnonzero(c.skeleton.parent == j)[0])
+        for n_sheet, share in enumerate((-0.66, 0.0, 0.66)):
+            path = (
+                d_pt
+                + np.outer(u * 0.95, frame[:, 1] * ls)
+                + np.outer(share * half, frame[:, 0])
+                + np.outer(0.5 * thick, frame[:, 2])
+            )
+            out.append(
+                Muscle(f"{c.names[j]}_spinati{n_sheet}", j, ins, path[0], path[-1], path, thick)
+            )
     return out
 
 

@@ -74,28 +74,19 @@ def long_bone(kind: str, lod: int) -> tuple[NDArray, NDArray, NDArray]:
 
 @cache
 def scapula(lod: int) -> tuple[NDArray, NDArray, NDArray]:
-    """Unit shoulder blade: a triangular plate from the dorsal border (y = 0) to the neck,
-    a ridge (the scapular spine) down its middle and the glenoid cup at y = 1."""
+    """Unit shoulder blade: a flat plate (x across it, z its thickness) widest at the dorsal
+    border (y = 0) and narrowing to the neck, a ridge (the scapular spine) standing out of
+    its lateral face (+z) down the middle, and the glenoid cup at y = 1."""
     s = SIDES[lod]
     parts = Parts()
-    # plate: two triangles fanned from the border to the neck, thickness in z
-    k = 3 + lod
-    xs = np.linspace(-0.5, 0.5, k)
-    for x0, x1 in zip(xs[:-1], xs[1:], strict=True):
-        xm = 0.5 * (x0 + x1)
-        path = np.array([[xm, 0.02, 0.0], [xm * 0.25, 0.82, 0.0]])
-        parts.add(
-            tube(
-                path,
-                [0.5 * (x1 - x0) + 0.02, 0.1],
-                max(4, s // 2),
-                radius2=[0.3, 0.35],
-                ref=[1.0, 0, 0],
-            )
-        )
-    ridge = np.array([[0.05, 0.05, 0.0], [0.0, 0.8, 0.0]])
-    parts.add(tube(ridge, 0.04, max(4, s // 2), radius2=0.5, ref=[1.0, 0, 0]))
-    parts.add(ellipsoid([0.0, 0.92, 0.0], [0.16, 0.08, 0.5], s))
+    k = 4 + lod
+    y = np.linspace(0.02, 0.86, k)
+    width = 0.5 - 0.38 * (y / 0.86) ** 0.8  # broad dorsal border, narrow neck
+    path = np.stack([0.04 * np.sin(np.pi * y), y, np.zeros(k)], axis=1)
+    parts.add(tube(path, width, s, radius2=np.full(k, 0.08), ref=[1.0, 0, 0]))
+    ridge = np.stack([np.zeros(k), y * 0.95 + 0.03, 0.08 + 0.22 * np.sin(np.pi * y * 0.9)], 1)
+    parts.add(tube(ridge, 0.04, max(4, s // 2), radius2=0.06, ref=[0, 0, 1.0]))
+    parts.add(ellipsoid([0.0, 0.93, 0.0], [0.16, 0.08, 0.3], s))
     return _freeze(parts.mesh())
 
 

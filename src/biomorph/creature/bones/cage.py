@@ -207,12 +207,12 @@ def _exit_distance(origin: NDArray, dirs: NDArray, centre: NDArray, radius: NDAr
     return np.maximum(s.max(axis=1), 0.0)
 
 
-def scapula_blade(
-    c: Creature, j: int, unit_model: tuple[NDArray, NDArray, NDArray], cls: str
-) -> tuple[NDArray, NDArray] | None:
-    """The scapula of girdle joint ``j`` in world coordinates: ``unit_model`` (y from the
-    dorsal border at 0 to the glenoid at 1, x across the blade, z its thickness) laid from
-    the glenoid at the shoulder joint up and back onto the side of the rib cage."""
+def scapula_frame(c: Creature, j: int, cls: str) -> tuple[NDArray, NDArray, float] | None:
+    """The scapula of girdle joint ``j``: its frame (world, columns x across the blade, y
+    from the dorsal border to the glenoid, z out of the cage), the dorsal border's middle
+    (world) and its length (m): the glenoid at the shoulder joint, the blade rising up and
+    back at :data:`SCAPULA_INCLINATION`, its dorsal end laid in the thoracic wall (half way
+    between the ribs and the skin), never above the neural spines' tops."""
     par = int(c.skeleton.parent[j])
     sec = _section_of(c)
     kids = np.flatnonzero(c.skeleton.parent == j)
@@ -234,12 +234,13 @@ def scapula_blade(
     if ls < 1e-9:
         return None
     d_pt = glen + rise * dorsal - back * t
-    thick = 0.05 * ls
-    # lie on the cage: the dorsal end's lateral offset at least the section's surface there
+    # in the thoracic wall: the dorsal end's lateral offset puts it half way between the
+    # ribs and the trunk's surface there
     cen = centre - ((centre - P) * t).sum() * t
     up = (d_pt - cen) @ dorsal
-    lateral_min = np.sqrt(max((r + thick) ** 2 - up**2, 0.0))
-    lateral_min = max(lateral_min, 0.35 * c.box_size[par, 2] + thick)
+    wall = (1.0 - 0.5 * BODY_WALL) * r
+    lateral_min = np.sqrt(max(wall**2 - up**2, 0.0))
+    lateral_min = max(lateral_min, 0.35 * c.box_size[par, 2])
     cur = (d_pt - cen) @ la
     if cur < lateral_min:
         d_pt = d_pt + (lateral_min - cur) * la
@@ -248,9 +249,27 @@ def scapula_blade(
     normal = la - (la @ y_ax) * y_ax
     normal /= np.linalg.norm(normal)
     x_ax = np.cross(y_ax, normal)
+    return np.stack([x_ax, y_ax, normal], axis=1), d_pt, float(np.linalg.norm(glen - d_pt))
+
+
+#: the blade's width and thickness as shares of its length (dog and horse scapulae are
+#: about half as wide as long)
+SCAPULA_WIDTH = 0.55
+SCAPULA_THICKNESS = 0.1
+
+
+def scapula_blade(
+    c: Creature, j: int, unit_model: tuple[NDArray, NDArray, NDArray], cls: str
+) -> tuple[NDArray, NDArray] | None:
+    """The scapula of girdle joint ``j`` in world coordinates: ``unit_model`` (y from the
+    dorsal border at 0 to the glenoid at 1, x across the blade, z its thickness) laid in
+    :func:`scapula_frame`."""
+    fr = scapula_frame(c, j, cls)
+    if fr is None:
+        return None
+    frame, d_pt, ls = fr
     v0, _, f = unit_model
-    scale = np.array([0.55 * ls, ls, 2.0 * thick])
-    frame = np.stack([x_ax, y_ax, normal], axis=1)
+    scale = np.array([SCAPULA_WIDTH * ls, ls, SCAPULA_THICKNESS * ls])
     v = (v0 * scale) @ frame.T + d_pt
     if np.linalg.det(frame) < 0:
         f = f[:, ::-1]
