@@ -154,7 +154,6 @@ def with_ground_root(skeleton, motion, ground: np.ndarray):
     root along the ground (x, z) and its height change stays on the old root (a translation
     channel), so root motion rides on the ground bone. Returns ``(skeleton, motion)``."""
     from biomorph.core import transforms as tf
-    from biomorph.core.motion import Motion
     from biomorph.core.skeleton import JointSkeleton
     from biomorph.creature.walk import _rot_between
 
@@ -181,6 +180,8 @@ def with_ground_root(skeleton, motion, ground: np.ndarray):
     )
     if motion is None:
         return sk, None
+    from biomorph.core.motion import Motion
+
     f = motion.n_frames
     rp = np.asarray(motion.root_position, float)
     travel = rp - off0
