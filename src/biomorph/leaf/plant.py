@@ -33,9 +33,10 @@ internode below the next node elongates during the phyllochron after ``col``. Se
 runs from the tip: the senescent fraction of the blade is ``(HS − ssi)/(disp − ssi)``
 (clipped); a leaf past ``disp`` has disappeared. Leaves are inserted at their collar (top
 of the sheath), distichous (180° + jitter), with the class shape's own insertion angle
-(jittered). Tiller ``k`` grows in the axil of main-stem leaf ``k`` and starts when the main
-stem is at Haun stage ``k + 2`` (the usual "tiller n appears with leaf n + 3" rule of
-grasses, set by hand); tillers are vertical axes beside the main stem (no tiller lean).
+(jittered by the class's insertion spread in the data, ``insertion_sd_deg``). Tiller ``k``
+grows in the axil of main-stem leaf ``k`` and starts when the main stem is at Haun stage
+``k + 2`` (the usual "tiller n appears with leaf n + 3" rule of grasses, set by hand);
+tillers are vertical axes beside the main stem (no tiller lean).
 
 Face ids of the mesh: ``plant``, ``leaf`` (rank, 0 = stem tube), ``axis`` (0 main stem,
 k tiller k), ``organ`` (1 blade, 2 sheath, 3 internode); blade vertices are coloured green
