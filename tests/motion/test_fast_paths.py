@@ -68,9 +68,31 @@ def test_store_flips_match_the_sequential_rule():
 
 
 def test_use_compiled_thresholds(monkeypatch):
+    """NumPy below the threshold, compiled from it on — per call, and once the NumPy calls
+    of the process add up to it (many small clips do not stay on the slower path)."""
     monkeypatch.delitem(__import__("sys").modules, "biomorph.core._motion_kernels")
-    assert not cm.use_compiled(cm.COMPILED_MIN_WORK - 1)
+    monkeypatch.setattr(cm, "_numpy_work", [0])
     assert cm.use_compiled(cm.COMPILED_MIN_WORK)
+    half = cm.COMPILED_MIN_WORK // 2 + 1
+    assert not cm.use_compiled(half) and not cm.use_compiled(half)
+    assert cm.use_compiled(10)
+
+
+def test_bvh_numpy_paths_add_up_to_the_kernels(monkeypatch, tmp_path):
+    import biomorph.io.bvh as bvh
+    from biomorph.io.bvh import read_bvh, write_bvh
+
+    monkeypatch.delitem(__import__("sys").modules, "biomorph.io._bvh_kernels", raising=False)
+    monkeypatch.setattr(bvh, "_numpy_values", [0])
+    monkeypatch.setattr(bvh, "_COMPILED_MIN_VALUES", 5000)
+    p = tmp_path / "w.bvh"
+    mo = walk(30, 30, n_joints=20)
+    write_bvh(p, mo)  # one write and two reads of 30 frames × n_ch values: all NumPy
+    n_ch = sum(len(c) for c in mo.skeleton.channels)
+    assert not bvh._compiled(10)
+    for _ in range(2):
+        read_bvh(p)
+    assert bvh._numpy_values[0] == 3 * 30 * n_ch and bvh._compiled(10)
 
 
 def _mirror_setup(m):

@@ -589,11 +589,23 @@ def ro_int(a: np.ndarray) -> np.ndarray:
 COMPILED_MIN_WORK = 1_000_000
 
 
+_numpy_work = [0]  #: joint-frames done by the NumPy paths in this process so far
+
+
 def use_compiled(work: int) -> bool:
     """Whether to run a compiled kernel for ``work`` joint-frames: always once the kernels
-    are loaded in this process (the studio, batch jobs, the operators), otherwise only from
-    :data:`COMPILED_MIN_WORK` on. Both paths give the same bits."""
-    return work >= COMPILED_MIN_WORK or "biomorph.core._motion_kernels" in sys.modules
+    are loaded in this process (the studio, batch jobs, the operators); otherwise from
+    :data:`COMPILED_MIN_WORK` on, for one call or summed over the calls so far (rent, then
+    buy: a script calling FK on many clips pays at most about the kernels' load time in
+    NumPy overhead before switching). Both paths give the same bits."""
+    if (
+        work >= COMPILED_MIN_WORK
+        or _numpy_work[0] >= COMPILED_MIN_WORK
+        or "biomorph.core._motion_kernels" in sys.modules
+    ):
+        return True
+    _numpy_work[0] += work  # this call takes the NumPy path: count it
+    return False
 
 
 def _qmul_np(a: tuple[Array, ...], b: tuple[Array, ...]) -> tuple[Array, ...]:

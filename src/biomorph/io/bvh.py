@@ -96,10 +96,19 @@ _KERNELS = "biomorph.io._bvh_kernels"
 _SCAN_CHARS = b"0123456789.+- \t\n\r\x0b\x0c"  #: bytes the NumPy value path accepts
 
 
+_numpy_values = [0]  #: MOTION values handled by the NumPy paths in this process so far
+
+
 def _compiled(n_values: int) -> bool:
-    """Use the compiled kernels for ``n_values`` MOTION values: from
-    :data:`_COMPILED_MIN_VALUES` on, or whenever they are loaded in this process already."""
-    return n_values >= _COMPILED_MIN_VALUES or _KERNELS in sys.modules
+    """Use the compiled kernels for ``n_values`` MOTION values: whenever they are loaded in
+    this process already, else from :data:`_COMPILED_MIN_VALUES` on, for one call or summed
+    over the calls so far (reading many small files switches once the NumPy overhead has
+    cost about the kernels' load time)."""
+    return (
+        n_values >= _COMPILED_MIN_VALUES
+        or _numpy_values[0] >= _COMPILED_MIN_VALUES
+        or _KERNELS in sys.modules
+    )
 
 
 def _count_words(buf: np.ndarray, lo: int, hi: int) -> int:
@@ -488,6 +497,7 @@ def _parse_motion(
     if not _compiled(n_frames * n_ch):
         vals = _values_numpy(raw, data_start, n_frames, n_ch)
         if vals is not None:
+            _numpy_values[0] += vals.size  # counts towards loading the kernels
             conv = _MotionRows(n_frames, rot_cols, rot_axes, pos_cols, offset)
             conv.add(vals)
             return conv.result()
@@ -798,6 +808,7 @@ def _format_rows(data: np.ndarray, precision: int) -> bytes:
         body = None if used < 0 else buf[:used].tobytes()
     else:
         body = _format_numpy(data, precision)
+        _numpy_values[0] += data.size
     if body is None:
         raise InputError("cannot write BVH: a channel value exceeds 1e12 in magnitude")
     return body

@@ -42,8 +42,9 @@ joint:
 
 Both reproduce the input at unity gains (to 1e-15) and never produce a wrap spike. The
 mean-log path also costs one log and one exp per frame and joint instead of two of each
-when the last gain is not 1 (the 1-minute 60-joint benchmark clip: 25 ms CPU either way,
-was 56–70 ms with the reference path for every joint).
+when the last gain is not 1 (the 1-minute 60-joint benchmark clip: 21–25 ms CPU either way,
+was 56–70 ms with the reference path for every joint); its log and exp are evaluated as
+vectorised series passes over all frames (``_kernels._log_about`` / ``_exp_about``).
 
 Translations (root-aware, issue 15)
 -----------------------------------
