@@ -198,3 +198,11 @@ def test_short_runs_are_dropped_like_the_run_list_says():
             if e - s < min_len:
                 ref[s:e] = False
         assert (C._drop_short(on, min_len) == ref).all()
+
+
+def test_compiled_median_equals_numpy():
+    rng = np.random.default_rng(1)
+    for n in [*range(1, 25), 100, 101]:
+        for k in range(6):
+            x = rng.random(n) if k % 2 else rng.integers(0, 4, n).astype(float)  # ties
+            assert C._median(x.copy()) == np.median(x)

@@ -156,7 +156,7 @@ def _leg_chain(motion: Motion, legs: list[Leg]) -> NDArray[np.int64]:
     return np.array(sorted(need), dtype=np.int64)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _qmul(ax, ay, az, aw, bx, by, bz, bw):  # pragma: no cover - compiled
     return (
         aw * bx + ax * bw + ay * bz - az * by,
@@ -166,7 +166,7 @@ def _qmul(ax, ay, az, aw, bx, by, bz, bw):  # pragma: no cover - compiled
     )
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _qrot(qx, qy, qz, qw, vx, vy, vz):  # pragma: no cover - compiled
     tx = 2.0 * (qy * vz - qz * vy)
     ty = 2.0 * (qz * vx - qx * vz)
@@ -352,6 +352,44 @@ def _targets(
 
 
 @njit(cache=True)
+def _select(y, k):  # pragma: no cover - compiled
+    """The ``k``-th smallest value of ``y`` (reordered in place; Hoare's selection)."""
+    lo, hi = 0, y.size - 1
+    while lo < hi:
+        pivot = y[(lo + hi) // 2]
+        i, j = lo, hi
+        while i <= j:
+            while y[i] < pivot:
+                i += 1
+            while y[j] > pivot:
+                j -= 1
+            if i <= j:
+                y[i], y[j] = y[j], y[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            break
+    return y[k]
+
+
+@njit(cache=True)
+def _median(x):  # pragma: no cover - compiled
+    """``np.median`` of a 1-D array, reordering it (a selection compiles in a fraction of the
+    time numba's median or sort takes)."""
+    n = x.size
+    if n == 0:
+        return np.nan
+    hi = _select(x, n // 2)
+    if n % 2:
+        return hi
+    return 0.5 * (hi + _select(x[: n // 2], n // 2 - 1))
+
+
+@njit(cache=True)
 def _targets_kernel(pts, step, runs, blend, ui, follow, tgt, wgt):  # pragma: no cover
     f = pts.shape[0]
     dist = np.full(f, np.inf)
@@ -365,13 +403,23 @@ def _targets_kernel(pts, step, runs, blend, ui, follow, tgt, wgt):  # pragma: no
             a0 = max(s, e - blend)
         elif e == f and s > 0:
             a1 = min(e, s + blend)
-        st = step[a0:a1]
-        cut = np.median(st)
-        sel = pts[a0:a1][st <= cut]
+        cut = _median(step[a0:a1].copy())
+        n = 0
+        for k in range(a0, a1):
+            n += step[k] <= cut
         p = np.empty(3)
+        col = np.empty(n)
         for a in range(3):
-            p[a] = np.median(sel[:, a])
-        p[ui] = pts[s:e, ui].min()
+            i = 0
+            for k in range(a0, a1):
+                if step[k] <= cut:
+                    col[i] = pts[k, a]
+                    i += 1
+            p[a] = _median(col.copy())
+        low = pts[s, ui]
+        for k in range(s + 1, e):
+            low = min(low, pts[k, ui])
+        p[ui] = low
         for k in range(max(0, s - blend), min(f, e + blend)):
             d = float(s - k) if k < s else (float(k - e + 1) if k >= e else 0.0)
             if d >= dist[k]:
@@ -386,7 +434,7 @@ def _targets_kernel(pts, step, runs, blend, ui, follow, tgt, wgt):  # pragma: no
 
 
 # --------------------------------------------------------------------------- two-bone IK
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _unit3(x, y, z):  # pragma: no cover - compiled
     n = math.sqrt(x * x + y * y + z * z)
     if n > 1e-12:
