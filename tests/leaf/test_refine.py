@@ -7,7 +7,7 @@ import pytest
 
 from biomorph.errors import ParameterError
 from biomorph.leaf.mesh import LeafBatch, leaf_grid
-from biomorph.leaf.reduction import reduced_mesh, surface_error
+from biomorph.leaf.reduction import adaptive_mesh, reduced_mesh, surface_error
 from biomorph.leaf.refine import (
     _orient,
     adaptive_faces,
@@ -47,9 +47,10 @@ def _check_triangulation(nodes, faces) -> None:
     "shape",
     [
         LeafShape.from_preset("maize"),  # open base, closed tip
+        LeafShape.parametric(0.4, 0.05, base_width=0.0, twist=1.0),
         LeafShape.parametric(0.4, 0.05, base_width=0.0, twist=1.0, undulation=0.003),
     ],
-    ids=["closed-tip", "both-closed"],
+    ids=["closed-tip", "both-closed", "wavy-zero-width-base"],
 )
 def test_budgets_are_exact_and_meshes_valid(shape) -> None:
     nodes = _nodes(shape)
@@ -61,6 +62,17 @@ def test_budgets_are_exact_and_meshes_valid(shape) -> None:
         adaptive_faces(nodes, 0)
     with pytest.raises(ParameterError, match="exceeds"):
         adaptive_faces(nodes, 10 * len(nodes.points))
+
+
+def test_zero_width_base_with_waves_converges() -> None:
+    # the margin wave does not vanish where the blade has no width: that row is kept open
+    # (its points differ), so the error keeps falling with the budget
+    leaf = LeafShape.parametric(0.3, 0.03, base_width=0.0, twist=2.0, undulation=0.001)
+    assert _nodes(leaf).kind == 1  # tip closed, base open
+    assert _nodes(LeafShape.parametric(0.3, 0.03, base_width=0.0)).kind == 3
+    meshes = [adaptive_mesh(leaf, b, n_points=60) for b in (30, 120)]
+    errs = [surface_error(leaf, m, n_s=301, n_u=11) for m in meshes]
+    assert errs[1] < 0.5 * errs[0]
 
 
 def test_open_ends_start_with_two_triangles() -> None:

@@ -207,7 +207,7 @@ def make_nodes(points: Array, s: Array, u: Array, width: Array) -> Nodes:
         raise ParameterError(f"node grid {n_s} × {n_u}: need >= 2 along and an odd >= 3 across")
     if not (np.allclose(s, np.linspace(0, 1, n_s)) and np.allclose(u, np.linspace(-0.5, 0.5, n_u))):
         raise ParameterError("node grid: s and u must be evenly spaced over [0, 1] and [-0.5, 0.5]")
-    closed0, closed1 = bool(width[0] <= 0), bool(width[-1] <= 0)
+    closed0, closed1 = (_collapsed(points[k], width[k]) for k in (0, -1))
     if closed0 and closed1:
         rho = 1.0 - np.abs(2.0 * s - 1.0)
     elif closed1:
@@ -241,6 +241,13 @@ def make_nodes(points: Array, s: Array, u: Array, width: Array) -> Nodes:
         np.ascontiguousarray(points, float),
         (1 if closed1 else 0) + (2 if closed0 else 0),
     )
+
+
+def _collapsed(row: Array, width: float) -> bool:
+    """A closed end: zero width and every point of the row at the same place (an
+    undulation that does not vanish there keeps the row open)."""
+    spread = float(np.abs(row - row[len(row) // 2]).max())
+    return bool(width <= 0 and spread <= 1e-12 * max(1.0, float(np.abs(row).max())))
 
 
 def _start(rows, s: Array, closed0: bool, closed1: bool) -> NDArray[np.int64]:
