@@ -30,6 +30,7 @@ standing pose (:data:`NEUTRAL_DEG`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numba
 import numpy as np
@@ -355,10 +356,17 @@ def implausibility(
 
 def _drop(params: DescentParams, upper_max_deg: float | None = None) -> NDArray[np.float64]:
     """Cosines of the bones' largest tilts from the vertical (the least drop per length)."""
-    tilt = np.asarray(params.max_tilt_deg, float).copy()
+    return _drop_cached(tuple(params.max_tilt_deg), upper_max_deg)
+
+
+@lru_cache(maxsize=64)
+def _drop_cached(max_tilt_deg: tuple, upper_max_deg: float | None) -> NDArray[np.float64]:
+    tilt = np.asarray(max_tilt_deg, float).copy()
     if upper_max_deg is not None:
         tilt[0] = min(tilt[0], upper_max_deg)
-    return np.cos(tilt * DEG)
+    out = np.cos(tilt * DEG)
+    out.setflags(write=False)
+    return out
 
 
 def descend(
