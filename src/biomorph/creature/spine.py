@@ -93,10 +93,16 @@ def sample(
     return out
 
 
+_BASIS: dict[int, NDArray] = {}
+
+
 def _sample(points: NDArray, per_curve: int) -> tuple:
     c = curves(points)
-    t = np.linspace(0.0, 1.0, per_curve + 1)
-    pts = bezier_eval(c, t)  # (3, per_curve+1, 2)
+    basis = _BASIS.get(per_curve)
+    if basis is None:  # the Bernstein basis at the samples (bezier_eval of the identity)
+        basis = bezier_eval(np.eye(4), np.linspace(0.0, 1.0, per_curve + 1))
+        _BASIS[per_curve] = basis
+    pts = np.einsum("mk,...kd->...md", basis, c)  # bezier_eval(c, t): (3, per_curve+1, 2)
     xy = np.concatenate([pts[0], pts[1, 1:], pts[2, 1:]])
     region = np.concatenate(
         [
