@@ -579,9 +579,8 @@ def decimate(mesh: _Mesh, triangles: int) -> None:
             interior_only = True
         else:
             raise ParameterError(f"cannot reduce the leaf mesh to {triangles} triangles")
-        dirty = set()
-        for x in mesh.touched:
-            dirty |= mesh.neighbours(x) | {x}
+        # a vertex's collapse cost depends only on its star: recompute where a face changed
+        dirty = set(mesh.touched)
 
 
 def _same_side(a, b, index: dict[tuple[int, int], int]) -> bool:
