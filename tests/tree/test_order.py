@@ -126,3 +126,53 @@ def test_second_order_branches():
     d = order.with_order(g2).depth
     assert d.max() == 2 or d[-1] >= 1
     assert d[0] == 0
+
+
+def _stem_into_limb():
+    """A vertical 3 m stem (0.1 m edges) whose heaviest child bends over into a 1.5 m
+    horizontal limb (with side twigs, so it carries the most wood), while a thin 0.3 m
+    twig continues upwards: a decurrent crown's top, as on rTwig's coffee tree."""
+    pos = [[0.0, 0.0, 0.1 * i] for i in range(31)]
+    parent = [-1] + list(range(30))
+    top = 30
+    for i in range(1, 16):  # the limb, 85° off the vertical
+        pos.append([0.1 * i * np.sin(np.radians(85)), 0, 3 + 0.1 * i * np.cos(np.radians(85))])
+        parent.append(top if i == 1 else len(pos) - 2 - (1 if i > 2 else 0))
+        if i > 1:  # a 0.2 m side twig at every limb node
+            pos.append([pos[-1][0], 0.2, pos[-1][2]])
+            parent.append(len(pos) - 2)
+    for i in range(1, 4):  # the thin leader
+        pos.append([0, 0, 3 + 0.1 * i])
+        parent.append(top if i == 1 else len(pos) - 2)
+    return BranchGraph(np.array(pos), np.array(parent))
+
+
+def test_the_trunk_ends_where_the_stem_bends_over_into_a_limb():
+    g = _stem_into_limb()
+    d = order.branch_order(g)
+    assert (d[:31] == 0).all() and (d[31:] >= 1).all()  # the limb and the twig are branches
+    # without the axis rule the trunk follows the most wood along the limb
+    d_free = order.branch_order(g, trunk_angle=None)
+    assert d_free[31] == 0 and d_free[32] == 0
+    with pytest.raises(ParameterError):
+        order.branch_order(g, trunk_angle=0.0)
+
+
+def test_a_short_skeleton_detour_does_not_end_the_trunk():
+    """At 4 m the skeleton's stem steps 0.3 m sideways and back (a kink at a whorl) with a
+    lighter side branch there; the trunk stays on the stem up to the top at 8 m."""
+    pos = [[0.0, 0.0, 0.1 * i] for i in range(41)]
+    parent = [-1] + list(range(40))
+    for dx in (0.1, 0.2, 0.3, 0.3, 0.2, 0.1):  # the detour, nearly horizontal
+        pos.append([dx, 0, pos[-1][2] + 0.02])
+        parent.append(len(pos) - 2)
+    z0 = pos[-1][2]
+    for i in range(1, 40):  # and up again
+        pos.append([0, 0, z0 + 0.1 * i])
+        parent.append(len(pos) - 2)
+    for i in range(1, 11):  # a 1 m side branch at the kink
+        pos.append([0, 0.1 * i, 4.0])
+        parent.append(40 if i == 1 else len(pos) - 2)
+    g = BranchGraph(np.array(pos), np.array(parent))
+    d = order.branch_order(g)
+    assert (d[: 41 + 6 + 39] == 0).all() and (d[41 + 6 + 39 :] == 1).all()

@@ -298,6 +298,14 @@ class RadiusOptions:
         kind="enabled",
     )
     min_radius: float = _opt(0.001, "--min-radius", "Radius floor of the taper model, m.", lo=0)
+    taper_exponent: float = _opt(
+        2.0,
+        "--taper-exponent",
+        "Pipe-model exponent e of the taper model, r^e ∝ supported length "
+        "(2: da Vinci's area-preserving branching).",
+        lo=1,
+        hi=4,
+    )
 
 
 @dataclass(frozen=True)
@@ -327,6 +335,16 @@ class OrderOptions:
         hi=1,
         lo_open=True,
     )
+    trunk_angle: float = _opt(
+        math.radians(60.0),
+        "--trunk-angle",
+        "The trunk continues only into children within this angle of its axis "
+        "(base to 1.3 m), degrees; 180 = follow the most wood (rule supported).",
+        lo=0,
+        hi=180,
+        lo_open=True,
+        kind="degrees",
+    )
     share: float = _opt(
         0.5, "--order-share", "Branch-order weight share (rule angle).", lo=0, hi=1, hi_open=True
     )
@@ -347,6 +365,7 @@ class OrderOptions:
             "max_angle": self.angle,
             "rule": self.rule,
             "tie": self.tie,
+            "trunk_angle": self.trunk_angle if self.trunk_angle < math.pi else None,
         }
 
 

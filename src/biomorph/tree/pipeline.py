@@ -464,6 +464,7 @@ def radius_phase(run: _Run) -> None:
             allometry_exponent=exponent,
             taper=ro.taper,
             min_radius=ro.min_radius,
+            taper_exponent=ro.taper_exponent,
             seed=run.opts.seed,
         )
         run.fit = fit
@@ -498,6 +499,7 @@ def radius_phase(run: _Run) -> None:
         smooth=ro.smooth,
         taper=ro.taper,
         min_radius=ro.min_radius,
+        taper_exponent=ro.taper_exponent,
     )
     run.timings["radius_fit"] = time.perf_counter() - t0
     run.tick("radii")
@@ -523,6 +525,7 @@ def order_phase(run: _Run) -> None:
         order_tie=oo.tie,
         order_share=oo.share,
         order_angle_deg=float(np.degrees(oo.angle)),
+        trunk_angle_deg=float(np.degrees(oo.trunk_angle)),
     )
     run.timings["order"] = time.perf_counter() - t0
     run.tick("order")

@@ -5,7 +5,11 @@
   as written by :func:`biomorph.tree.export.write_cylinders` also works) → BranchGraph
   whose nodes are the cylinder end points (radius = the cylinder's radius) plus one base
   node per root cylinder.
-* :func:`read_reference` — a QSM CSV or any graph ``bm.io.read_graph`` reads (MTG, PLY),
+* :func:`read_treeqsm_mat` — TreeQSM's MATLAB ``OptQSM`` (``.mat``, its ``cylinder``
+  struct: ``start``, ``axis``, ``length``, ``radius``, 1-based ``parent``, ``BranchOrder``)
+  → the same kind of BranchGraph.
+* :func:`read_reference` — a QSM CSV, a TreeQSM ``.mat`` or any graph ``bm.io.read_graph``
+  reads (MTG, PLY),
   optionally shifted into the cloud's frame. plantscan3d's ``A3B4.mtg`` is the ``.asc``
   cloud minus its mean (see ``../shared/data/trees/README.md``): pass
   ``shift=mean(asc points)``.
@@ -24,7 +28,13 @@ from numpy.typing import NDArray
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import FormatError
 
-__all__ = ["read_qsm_csv", "read_reference", "compare_to_reference", "radius_profile"]
+__all__ = [
+    "read_qsm_csv",
+    "read_treeqsm_mat",
+    "read_reference",
+    "compare_to_reference",
+    "radius_profile",
+]
 
 from biomorph.core.types import PathLike
 
@@ -102,11 +112,58 @@ def read_qsm_csv(path: PathLike) -> BranchGraph:
     return BranchGraph(position, par, radius=rad, depth=dep)
 
 
+def _cylinders_to_graph(start, axis, length, radius, parent, order) -> BranchGraph:
+    """Cylinders (``parent`` 0-based, -1 = none) as a BranchGraph: a node at the end of
+    every cylinder plus one at the start of every root cylinder, each with its cylinder's
+    radius and branch order."""
+    start = np.asarray(start, float).reshape(-1, 3)
+    end = start + np.asarray(axis, float).reshape(-1, 3) * np.asarray(length, float)[:, None]
+    parent = np.asarray(parent, np.int64)
+    m = parent.size
+    roots = np.flatnonzero(parent < 0)
+    par = np.where(parent >= 0, parent, m + np.searchsorted(roots, np.arange(m)))
+    rad = np.asarray(radius, float)
+    dep = np.asarray(order, np.int64)
+    return BranchGraph(
+        np.vstack([end, start[roots]]),
+        np.concatenate([par, np.full(roots.size, -1)]),
+        radius=np.concatenate([rad, rad[roots]]),
+        depth=np.concatenate([dep, dep[roots]]),
+    )
+
+
+def read_treeqsm_mat(path: PathLike) -> BranchGraph:
+    """TreeQSM's ``OptQSM`` MATLAB file (v5, as TreeQSM and rTwig ship it) as a BranchGraph
+    of its cylinders (metres)."""
+    import scipy.io
+
+    try:
+        mat = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)
+    except (ValueError, OSError, TypeError) as exc:
+        raise FormatError(path, f"not a readable MATLAB v5 file ({exc})") from None
+    q = mat.get("OptQSM", mat.get("QSM"))
+    cyl = getattr(q, "cylinder", None)
+    need = ("start", "axis", "length", "radius", "parent")
+    if cyl is None or any(not hasattr(cyl, k) for k in need):
+        raise FormatError(
+            path,
+            "no OptQSM.cylinder with start, axis, length, radius, parent; "
+            "expected a TreeQSM model",
+        )
+    order = getattr(cyl, "BranchOrder", np.zeros(np.size(cyl.radius)))
+    return _cylinders_to_graph(
+        cyl.start, cyl.axis, cyl.length, cyl.radius, np.asarray(cyl.parent, np.int64) - 1, order
+    )
+
+
 def read_reference(path: PathLike, shift: NDArray | None = None) -> BranchGraph:
-    """A reference skeleton: ``.csv`` QSM or any ``bm.io.read_graph`` format, plus ``shift``
-    (added to positions) to bring it into the cloud's frame."""
-    if Path(path).suffix.lower() == ".csv":
+    """A reference skeleton: ``.csv`` QSM, TreeQSM ``.mat`` or any ``bm.io.read_graph``
+    format, plus ``shift`` (added to positions) to bring it into the cloud's frame."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".csv":
         g = read_qsm_csv(path)
+    elif suffix == ".mat":
+        g = read_treeqsm_mat(path)
     else:
         from biomorph.io import read_graph
 
