@@ -555,3 +555,125 @@ def derive_presets(root: PathLike | None = None) -> dict:
 
 
 __all__ += ["derive_presets", "drop_basal_backstep", "drop_duplicate_points"]
+
+
+#: Mature maize stem (literature figures, see docs/leaf.md "Mature maize stem"). Lengths in
+#: metres, on the 16-rank plant of :data:`MAIZE_MATURE`; other leaf counts read the profile
+#: on the normalised rank (as the blades do).
+MAIZE_STEM = {
+    # nodes 1..5 stay in the crown at the soil: the growing point is below ground until
+    # V5-V6 and stalk elongation starts after (Ritchie, Hanway & Benson 1993)
+    "unelongated_internodes": 5,
+    "unelongated_internode_m": 0.01,
+    # final internode length rises steeply over the first ~3 elongated phytomers to a
+    # plateau of 0.17-0.20 m around the ear, slightly shorter above it (Fournier &
+    # Andrieu 2000, cv. Dea)
+    "rise_phytomers": 3,
+    "max_internode_m": 0.185,
+    "top_internode_fraction": 0.8,
+    # sheaths lengthen from the base to the ear region (~0.15-0.17 m) and shorten slightly
+    # above (Andrieu, Hillier & Birch 2006)
+    "sheath_lowest_m": 0.04,
+    "sheath_ear_m": 0.16,
+    "sheath_top_m": 0.13,
+    # stem diameter 2.5 cm at the base to 1.5 cm under the tassel (Morrison et al. 1994:
+    # internodes 1.5-2.5 cm); the sheath wraps the internode (+2 mm)
+    "internode_base_diameter_m": 0.025,
+    "internode_top_diameter_m": 0.015,
+    "sheath_wall_m": 0.002,
+}
+
+
+def _ramp(x: Array, xp: list[float], fp: list[float]) -> Array:
+    return np.interp(x, xp, fp)
+
+
+def mature_maize_stem(
+    params: dict | None = None, blade_params: dict | None = None
+) -> dict[str, Array]:
+    """Per-rank internode and sheath length and diameter (m) of the mature maize plant.
+
+    Profile (16 ranks by default, ear leaf ``leaves_above_ear`` below the top, see
+    :data:`MAIZE_MATURE` and :data:`MAIZE_STEM`): internodes of the crown nodes stay at
+    ``unelongated_internode_m``; above them the final length rises linearly over
+    ``rise_phytomers`` above the crown to ``max_internode_m``, holds it up to the ear and
+    falls linearly to ``top_internode_fraction`` of it at the top rank; sheaths rise
+    linearly from ``sheath_lowest_m`` at rank 1 to ``sheath_ear_m`` at the ear and fall
+    to ``sheath_top_m`` at the top; diameters taper linearly from base to top.
+    Internode ``r`` spans node ``r`` to node ``r + 1`` (the plant's convention)."""
+    p = {**MAIZE_STEM, **(params or {})}
+    b = {**MAIZE_MATURE, **(blade_params or {})}
+    n = int(b["n_ranks"])
+    rank = np.arange(1, n + 1, dtype=float)
+    ear = float(max(n - b["leaves_above_ear"], 1))
+    k = float(min(p["unelongated_internodes"], ear - 1))
+    lmax, l0 = p["max_internode_m"], p["unelongated_internode_m"]
+    internode = np.where(
+        rank <= k,
+        l0,
+        _ramp(rank, [k, min(k + p["rise_phytomers"], ear), max(ear, k + 1), float(max(n, ear + 1))],
+              [l0, lmax, lmax, lmax * p["top_internode_fraction"]]),
+    )  # fmt: skip
+    sheath = _ramp(rank, [1.0, ear, float(max(n, ear + 1))],
+                   [p["sheath_lowest_m"], p["sheath_ear_m"], p["sheath_top_m"]])  # fmt: skip
+    w_int = _ramp(rank, [1.0, float(max(n, 2))],
+                  [p["internode_base_diameter_m"], p["internode_top_diameter_m"]])  # fmt: skip
+    return {
+        "rank": rank,
+        "L_internode": internode,
+        "L_sheath": sheath,
+        "W_internode": w_int,
+        "W_sheath": w_int + 2 * p["sheath_wall_m"],
+    }
+
+
+#: Maize leaf senescence (see docs/leaf.md "Maize senescence"). Thermal times in °Cd above
+#: the maize base temperature (8 °C).
+MAIZE_SENESCENCE = {
+    # silking: 2-3 days after the tassel is out (Ritchie, Hanway & Benson 1993, VT -> R1),
+    # taken as one 50 °Cd phyllochron after the last ligule
+    "silking_after_last_ligule_cd": 50.0,
+    # plant leaf senescence is bilinear in thermal time, starting ~500 °Cd (base 8 °C)
+    # before silking, 1.4 then 5.5 cm² per plant per °Cd (Borrás, Maddonni & Otegui 2003)
+    "onset_before_silking_cd": 500.0,
+    "rate1_m2_per_cd": 1.4e-4,
+    "rate2_m2_per_cd": 5.5e-4,
+    # the fast phase starts half-way through grain filling (Valentinuz & Tollenaar 2004:
+    # 0.44 %/d in the first half, 1.87 %/d in the second); silking to physiological
+    # maturity 750 °Cd (CERES-Maize P5, base 8 °C: 680-850 °Cd)
+    "grain_filling_cd": 750.0,
+    "fast_phase_after_silking": 0.5,
+    # the rates are per plant of this leaf area (our mature plant, MAIZE_MATURE); another
+    # plant's rates scale with its leaf area
+    "reference_plant_area_m2": 0.5,
+}
+
+
+def maize_senescence_stages(
+    areas: Array, phyllochron: float, params: dict | None = None
+) -> tuple[Array, Array]:
+    """Haun stages ``(ssi, disp)`` per rank of a maize main stem whose blades have one-sided
+    ``areas`` (m², rank 1 first) and whose last leaf ligulates at Haun stage ``n``.
+
+    The plant's senescent leaf area ``S(t)`` follows the bilinear course of
+    :data:`MAIZE_SENESCENCE` (onset before silking, slow then fast rate); as in ADEL's
+    senescent-stage index the leaves senesce from the bottom up, one after the other, so
+    leaf ``r`` starts when ``S`` reaches the area of the leaves below it and has died when
+    ``S`` reaches the area up to it. ``ssi`` is held at or after ligulation."""
+    p = {**MAIZE_SENESCENCE, **(params or {})}
+    a = np.asarray(areas, float)
+    n = a.size
+    k = a.sum() / p["reference_plant_area_m2"]
+    r1, r2 = k * p["rate1_m2_per_cd"], k * p["rate2_m2_per_cd"]
+    silk = n * phyllochron + p["silking_after_last_ligule_cd"]
+    t0 = silk - p["onset_before_silking_cd"]
+    tb = silk + p["fast_phase_after_silking"] * p["grain_filling_cd"]
+    sb = r1 * (tb - t0)
+    cum = np.concatenate([[0.0], np.cumsum(a)])
+    t = np.where(cum <= sb, t0 + cum / r1, tb + (cum - sb) / r2) / phyllochron
+    col = np.arange(1, n + 1, dtype=float)
+    ssi = np.maximum(t[:-1], col)
+    return ssi, np.maximum(t[1:], ssi + 1e-3)
+
+
+__all__ += ["MAIZE_SENESCENCE", "MAIZE_STEM", "maize_senescence_stages", "mature_maize_stem"]

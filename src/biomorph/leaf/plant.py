@@ -85,8 +85,11 @@ def mature_thermal_time(preset: str, leaves: int, phyllochron: float | None = No
     return float(tt.thermal_time_of(leaves, tt.full_extension()))
 
 
-def default_tables(preset: str = "wheat", leaves: int = 11) -> tuple[Table, Table]:
-    """Default ``(dimensions, phenology)`` of a ``leaves``-leaf main stem (module docs)."""
+def default_tables(
+    preset: str = "wheat", leaves: int = 11, phyllochron: float | None = None
+) -> tuple[Table, Table]:
+    """Default ``(dimensions, phenology)`` of a ``leaves``-leaf main stem (module docs);
+    ``phyllochron`` (°Cd, default per preset) converts maize senescence times to stages."""
     from biomorph.leaf.shape import _presets, preset_classes
 
     if leaves < 1:
@@ -108,23 +111,38 @@ def default_tables(preset: str = "wheat", leaves: int = 11) -> tuple[Table, Tabl
     if preset == "maize":
         classes = preset_classes("maize")
         keys = [class_of_rank("maize", int(r), leaves) for r in rank]
-        lb = np.array([classes[k]["length"] for k in keys])
-        wb = np.array([classes[k]["width"] for k in keys])
-        kl = lb.max() / wheat["L_blade"].max()
-        kw = wb.max() / wheat["W_blade"].max()
         dims = {
-            "L_blade": lb,
-            "W_blade": wb,
-            "L_sheath": wheat["L_sheath"] * kl,
-            "W_sheath": wheat["W_sheath"] * kw,
-            "L_internode": wheat["L_internode"] * kl,
-            "W_internode": wheat["W_internode"] * kw,
+            "L_blade": np.array([classes[k]["length"] for k in keys]),
+            "W_blade": np.array([classes[k]["width"] for k in keys]),
+            **_maize_stem(rank),
         }
+        ssi, disp = _maize_senescence([classes[k]["area"] for k in keys], phyllochron)
     else:
         dims = wheat
+        ssi, disp = rank + 4.0, rank + 12.0
     dims = {"rank": rank, **dims}
-    phen = {"rank": rank, "tip": rank - 2.0, "col": rank, "ssi": rank + 4.0, "disp": rank + 12.0}
+    phen = {"rank": rank, "tip": rank - 2.0, "col": rank, "ssi": ssi, "disp": disp}
     return dims, phen
+
+
+def _maize_stem(rank: Array) -> Table:
+    """Mature maize internodes and sheaths (:func:`biomorph.leaf.data.mature_maize_stem`)
+    read on the normalised rank of an ``n``-leaf stem, as the blade classes are."""
+    from biomorph.leaf.data import mature_maize_stem
+
+    stem = mature_maize_stem()
+    m, n = stem["rank"].size, rank.size
+    q = 1 + (rank - 1) * (m - 1) / max(n - 1, 1) if n > 1 else np.array([float(m)])
+    cols = ("L_sheath", "W_sheath", "L_internode", "W_internode")
+    return {c: np.interp(q, stem["rank"], stem[c]) for c in cols}
+
+
+def _maize_senescence(areas: list[float], phyllochron: float | None) -> tuple[Array, Array]:
+    """Maize senescence stages from the blade areas (data.maize_senescence_stages)."""
+    from biomorph.leaf.data import maize_senescence_stages
+
+    ph = ThermalTime.for_preset("maize", phyllochron).phyllochron
+    return maize_senescence_stages(np.asarray(areas, float), ph)
 
 
 def _check_tables(dims: Table, phen: Table) -> None:
@@ -170,7 +188,7 @@ class PlantOptions:
             object.__setattr__(self, "thermal_time", t)
 
     def tables(self) -> tuple[Table, Table]:
-        d0, p0 = default_tables(self.preset, int(self.leaves))
+        d0, p0 = default_tables(self.preset, int(self.leaves), self.phyllochron)
         dims = self.dimensions if self.dimensions is not None else d0
         phen = self.phenology if self.phenology is not None else p0
         _check_tables(dims, phen)
