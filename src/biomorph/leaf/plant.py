@@ -17,14 +17,16 @@ Tables (see :mod:`biomorph.io.plant_tables` for the CSV schema): ``dimT``-like
   Yang & Alley (2005), 0.5 m² per plant, the largest leaf (ear leaf) five ranks below the
   top, split into length and width with the data's width allometry (see
   :func:`biomorph.leaf.data.mature_maize_blades` and docs/leaf.md); 16 leaves by default
-  (:data:`DEFAULT_LEAVES`); sheath and internode: the shared files have no maize stem
-  data, so the wheat profiles at the same normalised rank are scaled by the ratio of the
-  longest maize to the longest wheat blade (lengths) and of the widest blades
-  (diameters) — borrowed shapes, not maize measurements;
+  (:data:`DEFAULT_LEAVES`); sheaths and internodes from published maize profiles
+  (:func:`biomorph.leaf.data.mature_maize_stem`: five short crown internodes, 0.185 m
+  internodes around the ear, sheaths longest at the ear; 2.3 m plant), read on the
+  normalised rank for other leaf counts;
 * phenology (both) — ``tip = rank − 2`` and ``col = rank`` (the Tremie12 midrib collection's
-  own axis: it starts 2 phyllochrons before full extension), ``ssi = rank + 4`` (senescence
-  starts 4 phyllochrons after ligulation — set by hand, the shared files do not time it),
-  ``disp = rank + 12`` (the collection's last age).
+  own axis: it starts 2 phyllochrons before full extension); wheat ``ssi = rank + 4``
+  (senescence starts 4 phyllochrons after ligulation — set by hand, the shared files do not
+  time it), ``disp = rank + 12`` (the collection's last age); maize ``ssi``/``disp`` from the
+  published bilinear course of plant leaf senescence around silking, leaves senescing
+  bottom-up (:func:`biomorph.leaf.data.maize_senescence_stages`).
 
 Growth with the Haun stage ``HS = TT / phyllochron`` (:mod:`biomorph.leaf.thermal`): a blade
 extends linearly from ``tip`` to ``col`` (then equals its mature class shape, see
