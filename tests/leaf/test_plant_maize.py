@@ -118,3 +118,14 @@ def test_maize_plant_cli_reports_height_and_green_area(tmp_path, capsys) -> None
     s = json.loads(capsys.readouterr().out)
     assert 2.0 <= s["height_m"] <= 2.5 and s["leaves"] >= 9
     assert s["green_area_m2"] >= 0.4 and 0 <= s["senescent_area_m2"] < 0.05
+
+
+def test_user_maize_table_times_senescence_on_its_own_blades() -> None:
+    d0, p0 = default_tables("maize", 16)
+    flat = {**d0, "L_blade": np.full(16, 0.8), "W_blade": np.full(16, 0.08)}  # no bell
+    _, phen = PlantOptions(preset="maize", dimensions=flat).tables()
+    check_phenology(phen)
+    assert phen["ssi"][0] == pytest.approx(p0["ssi"][0])  # same onset ...
+    assert phen["disp"][0] > p0["disp"][0] + 1  # ... but a large lowest leaf lasts longer
+    given = PlantOptions(preset="maize", dimensions=flat, phenology=p0).tables()[1]
+    assert np.allclose(given["disp"], p0["disp"])  # a given phenology is kept as is

@@ -139,6 +139,26 @@ def _maize_stem(rank: Array) -> Table:
     return {c: np.interp(q, stem["rank"], stem[c]) for c in cols}
 
 
+def _maize_phenology_of(dims: Table, phen: Table, phyllochron: float | None) -> Table:
+    """Default maize phenology with senescence timed on a user table's own blade areas
+    (``L_blade · W_blade`` × the form factor of each rank's class); rank order as given."""
+    from biomorph.leaf.shape import preset_classes
+
+    if np.asarray(dims["rank"]).size != phen["rank"].size:
+        return phen  # _check_tables reports the mismatch
+    classes = preset_classes("maize")
+    order = np.argsort(dims["rank"])
+    rank = np.asarray(dims["rank"], float)[order]
+    n = rank.size
+    ff = []
+    for r in rank.astype(int):
+        c = classes[class_of_rank("maize", int(np.clip(r, 1, n)), n)]
+        ff.append(c["area"] / (c["length"] * c["width"]))
+    area = np.asarray(dims["L_blade"], float)[order] * np.asarray(dims["W_blade"], float)[order]
+    ssi, disp = _maize_senescence(list(np.maximum(area, 0.0) * np.array(ff)), phyllochron)
+    return {**phen, "ssi": ssi, "disp": disp}
+
+
 def _maize_senescence(areas: list[float], phyllochron: float | None) -> tuple[Array, Array]:
     """Maize senescence stages from the blade areas (data.maize_senescence_stages)."""
     from biomorph.leaf.data import maize_senescence_stages
@@ -193,6 +213,8 @@ class PlantOptions:
         d0, p0 = default_tables(self.preset, int(self.leaves), self.phyllochron)
         dims = self.dimensions if self.dimensions is not None else d0
         phen = self.phenology if self.phenology is not None else p0
+        if self.preset == "maize" and self.phenology is None and self.dimensions is not None:
+            phen = _maize_phenology_of(dims, p0, self.phyllochron)
         _check_tables(dims, phen)
         order_d, order_p = np.argsort(dims["rank"]), np.argsort(phen["rank"])
         return (
