@@ -165,3 +165,20 @@ def test_requested_limbs_win_over_sampled_wings():
         check_quality(c)
     c = generate(0, legs=6, cls="bird")
     assert long_bones(c, "leg") == 18 and not c.params["wings"]
+
+
+def test_massless_vertebrae_have_their_section_centre(creatures):
+    """A vertebra shorter than one body slice has no mass of its own; its ``mass_center``
+    is still its body section's centre: above the ground, within one body depth of its joint
+    (it used to be the px origin, e.g. 1.5 m below a reptile's tail)."""
+    seen = 0
+    for c in creatures:
+        P = c.joint_positions
+        depth = c.mass_size[:, 0].max()
+        for j in range(len(c)):
+            if c.kind[j] != "spine" or c.mass[j] > 0:
+                continue
+            seen += 1
+            assert c.mass_center[j][1] > 0, (c.params["seed"], c.skeleton.names[j])
+            assert np.linalg.norm(c.mass_center[j] - P[j]) < depth, (c.params["seed"], j)
+    assert seen > 50  # the sample does contain massless vertebrae

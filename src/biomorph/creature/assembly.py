@@ -129,6 +129,11 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
         / np.maximum(vmass, 1e-30)[:, None]
     )
     emid = 0.5 * (edges[1:] + edges[:-1])
+    # a vertebra shorter than one body slice owns no slice (no mass of its own): its centre
+    # is the body section's centre at its own midpoint, interpolated between the slices
+    empty = vmass <= 0
+    if empty.any():
+        vcen[empty] = np.stack([np.interp(emid[empty], smid, cen2[:, k]) for k in range(2)], 1)
     vh = np.interp(emid, s, h)
     vb = np.interp(emid, s, b)
     # vertebra i: joint at the end nearer the root, bone towards the other end
