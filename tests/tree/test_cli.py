@@ -274,3 +274,25 @@ def test_batch_reports_failures_and_resumes(tmp_path, good_xyz, capsys):
     code = run(["tree", "batch", str(good_xyz), "--out", str(out), "--workers", "0", "--json"])
     rep = json.loads(capsys.readouterr().out)
     assert code == 0 and rep["n_skipped"] == 1
+
+
+@pytest.mark.parametrize(
+    ("flag", "value", "name"),
+    [("--trunk-angle", "0", "--trunk-angle"), ("--taper-exponent", "5", "--taper-exponent")],
+)
+def test_trunk_angle_and_taper_exponent_are_checked(flag, value, name, good_xyz, tmp_path, capsys):
+    out = tmp_path / "o"
+    code = run(["tree", "skeletonize", str(good_xyz), flag, value, "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and name in err and "Traceback" not in err, err
+    assert _nothing_written(out)
+
+
+def test_trunk_angle_and_taper_exponent_reach_the_summary(good_xyz, tmp_path, capsys):
+    out = tmp_path / "o"
+    args = ["tree", "skeletonize", str(good_xyz), "--no-ground", "--json", "--out", str(out)]
+    code = run([*args, "--trunk-angle", "50", "--taper-exponent", "2.5"])
+    assert code == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["params"]["trunk_angle_deg"] == pytest.approx(50.0)
+    assert all(m["b"] == pytest.approx(0.4) for m in data["info"]["taper_model"].values())
