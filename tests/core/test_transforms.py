@@ -113,6 +113,31 @@ def test_quat_euler_round_trip(order, q):
     assert same_rotation(tf.euler_to_quat(deg, order, degrees=True), q, atol=1e-7)
 
 
+@pytest.mark.parametrize("order", tf.EULER_ORDERS)
+def test_quat_to_euler_matches_scipy_and_holds_at_gimbal_lock(order):
+    """The NumPy decomposition equals scipy's away from lock, rebuilds the rotation to
+    rounding near lock (where scipy loses 1e-9), and is its own fixed point at lock."""
+    rng = np.random.default_rng(7)
+    q = unit(rng.standard_normal((2000, 4)))
+    e = tf.quat_to_euler(q, order)
+    d = np.abs(e - Rotation.from_quat(q).as_euler(order))
+    assert np.minimum(d, 2 * np.pi - d).max() < 1e-12
+    ang = rng.uniform(-np.pi, np.pi, (400, 3))
+    ang[:, 1] = (
+        np.pi / 2 * np.sign(rng.standard_normal(400)) * (1 - np.repeat([0, 1e-4, 3e-3, 1e-9], 100))
+    )
+    q_lock = tf.euler_to_quat(ang, order)
+    e_lock = tf.quat_to_euler(q_lock, order)
+    assert np.abs(e_lock[:, 1]).max() <= np.pi / 2
+    near = slice(100, 300)
+    assert same_rotation(tf.euler_to_quat(e_lock[near], order), q_lock[near], atol=1e-12)
+    assert same_rotation(tf.euler_to_quat(e_lock, order), q_lock, atol=1e-8)
+    exact = slice(0, 100)
+    assert np.allclose(e_lock[exact, 2], 0.0, atol=1e-12)  # at lock c = 0 (scipy's choice)
+    again = tf.quat_to_euler(tf.euler_to_quat(e_lock[exact], order), order)
+    assert np.allclose(again, e_lock[exact], atol=1e-9)
+
+
 def test_euler_rejects_unknown_order():
     with pytest.raises(ParameterError, match="XXY"):
         tf.euler_to_quat([0, 0, 0], "XXY")
