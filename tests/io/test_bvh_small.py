@@ -57,8 +57,21 @@ def test_numpy_format_equals_the_compiled_one(precision):
     vals = np.concatenate([rng.normal(0, 1, 600), rng.normal(0, 1e4, 600), edge, [7.0]])
     vals = vals.reshape(-1, 6)
     buf = np.empty(vals.size * (precision + 16), dtype=np.uint8)
-    used = _format_fixed(np.ascontiguousarray(vals), precision, buf)
+    used = _format_fixed(np.ascontiguousarray(vals), precision, bvh._value_limit(precision), buf)
     assert buf[:used].tobytes() == bvh._format_numpy(vals, precision)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_values_too_large_for_the_precision_are_refused_not_garbled(
+    tmp_path, monkeypatch, compiled
+):
+    # 1e11 at 8 decimals is 1e19 once scaled: beyond int64, so refuse it (was garbage text)
+    monkeypatch.setattr(bvh, "_compiled", lambda n: compiled)
+    big = np.array([[1e11, 0.0, 0.0]])
+    with pytest.raises(bvh.InputError, match="exceeds 4.61e\\+10 in magnitude"):
+        bvh._format_rows(big, 8)
+    ok = np.array([[4e10, -3.25, 0.0]])
+    assert bvh._format_rows(ok, 8).split()[0] == b"40000000000.00000000"
 
 
 @pytest.mark.parametrize(

@@ -272,9 +272,9 @@ def _count_wraps(data, cols):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _format_fixed(values, precision, out):  # pragma: no cover - compiled
+def _format_fixed(values, precision, limit, out):  # pragma: no cover - compiled
     """Write ``values (f, c)`` as fixed-point text rows into byte buffer ``out``; return the
-    number of bytes used (-1 if a value is too large)."""
+    number of bytes used (-1 if a value is not below ``limit`` in magnitude)."""
     f, c = values.shape
     scale = 10.0**precision
     p10 = np.int64(1)
@@ -286,7 +286,7 @@ def _format_fixed(values, precision, out):  # pragma: no cover - compiled
         for j in range(c):
             v = values[t, j]
             a = abs(v)
-            if not a < 1e12:
+            if not a < limit:
                 return -1
             x = np.int64(np.floor(a * scale + 0.5))  # half-up on the scaled value
             ip = x // p10

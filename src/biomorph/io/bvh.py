@@ -190,12 +190,18 @@ def _euler_numpy(data: np.ndarray, rot_cols: np.ndarray, rot_axes: np.ndarray, o
         q[1:][_store_flips(dots)] *= -1.0
 
 
+def _value_limit(precision: int) -> float:
+    """Largest magnitude the fixed-point writer takes: 1e12, and below 2**62 once scaled by
+    ``10**precision`` (the digits are formed in int64; 1e11 at 8 decimals would overflow)."""
+    return min(1e12, 2.0**62 / 10.0**precision)
+
+
 def _format_numpy(values: np.ndarray, precision: int) -> bytes | None:
     """NumPy ``_bvh_kernels._format_fixed``: ``values (f, c)`` as fixed-point text rows
     (half-up on the scaled magnitude, ``-`` unless it rounds to 0), the same bytes; ``None``
     if a value is too large."""
     a = np.abs(values)
-    if not (a < 1e12).all():
+    if not (a < _value_limit(precision)).all():
         return None
     p10 = 10**precision
     x = np.floor(a * 10.0**precision + 0.5).astype(np.int64)
@@ -804,13 +810,16 @@ def _format_rows(data: np.ndarray, precision: int) -> bytes:
         from biomorph.io._bvh_kernels import _format_fixed
 
         buf = np.empty(f * c * (precision + 16), dtype=np.uint8)
-        used = _format_fixed(np.ascontiguousarray(data), precision, buf)
+        used = _format_fixed(np.ascontiguousarray(data), precision, _value_limit(precision), buf)
         body = None if used < 0 else buf[:used].tobytes()
     else:
         body = _format_numpy(data, precision)
         _numpy_values[0] += data.size
     if body is None:
-        raise InputError("cannot write BVH: a channel value exceeds 1e12 in magnitude")
+        raise InputError(
+            f"cannot write BVH: a channel value exceeds {_value_limit(precision):.3g} in "
+            f"magnitude (the most {precision} decimals can hold)"
+        )
     return body
 
 
