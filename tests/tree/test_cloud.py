@@ -104,6 +104,23 @@ def test_remove_outliers_drops_far_points():
     assert not keep[-1] and not keep[-2] and keep[:-2].mean() > 0.9
 
 
+def test_remove_outliers_keeps_a_sparsely_sampled_twig():
+    """A twig sampled every 5 cm beside a stem sampled every 1 cm fails the global
+    statistic but is as sparse as its own neighbours: kept. Isolated returns are not."""
+    rng = np.random.default_rng(0)
+    th, z = rng.uniform(0, 2 * np.pi, 6000), rng.uniform(0, 2, 6000)
+    stem = np.column_stack([0.08 * np.cos(th), 0.08 * np.sin(th), z])
+    s = np.arange(1, 25) * 0.05
+    twig = np.column_stack([0.08 + s, np.zeros_like(s), 1.0 + 0.5 * s])
+    stray = np.array([[0.5, 0.5, 0.3], [-0.6, 0.2, 1.7], [0.3, -0.7, 0.9]])
+    xyz = np.vstack([stem, twig, stray])
+    _, keep = remove_outliers(PointCloud(xyz), return_mask=True, local_ratio=2.0)
+    assert keep[6000:6024].mean() >= 0.9
+    assert not keep[-3:].any()
+    _, keep = remove_outliers(PointCloud(xyz), return_mask=True)  # default: global only
+    assert keep[6000:6024].mean() < 0.5
+
+
 def test_point_spacing_grid():
     g = np.stack(np.meshgrid(*[np.arange(10) * 0.02] * 3), -1).reshape(-1, 3)
     assert point_spacing(PointCloud(g)) == pytest.approx(0.02)

@@ -491,8 +491,8 @@ MIN_PIECE = 3  #: pieces with fewer points are no cross-section (see _absorb_fra
 
 def _absorb_fragments(g, label, ok, m):
     """Pieces of fewer than :data:`MIN_PIECE` points (a point whose path length lags its
-    neighbours' by a level is alone in its level) join the neighbouring piece they share
-    the most kNN edges with; returns the new labels and piece count."""
+    neighbours' by a level is alone in its level) join the neighbouring piece of at least
+    that size they share the most kNN edges with; returns the new labels and piece count."""
     count = np.bincount(label[ok], minlength=m)
     small = count < MIN_PIECE
     if not small.any():
@@ -500,16 +500,14 @@ def _absorb_fragments(g, label, ok, m):
     e = ok[g.row] & ok[g.col]
     la, lb = label[g.row[e]], label[g.col[e]]
     la, lb = np.concatenate([la, lb]), np.concatenate([lb, la])
-    keep = small[la] & (la != lb)
+    keep = small[la] & ~small[lb]  # into a real cross-section only (a sparse twig's
+    # pieces are small one after another and stay)
     key, cnt = np.unique(la[keep] * m + lb[keep], return_counts=True)
     src, dst = key // m, key % m
     best = np.lexsort((-cnt, src))  # per source, the most shared edges first
     first = np.unique(src[best], return_index=True)[1]
     target = np.arange(m)
     target[src[best[first]]] = dst[best[first]]
-    # follow chains of fragments to a real piece (a few hops at most)
-    for _ in range(4):
-        target = target[target]
     new = np.where(label >= 0, target[np.maximum(label, 0)], -1)
     uniq, inv = np.unique(new[ok], return_inverse=True)
     new[ok] = inv.reshape(-1)
