@@ -182,3 +182,47 @@ def test_massless_vertebrae_have_their_section_centre(creatures):
             assert c.mass_center[j][1] > 0, (c.params["seed"], c.skeleton.names[j])
             assert np.linalg.norm(c.mass_center[j] - P[j]) < depth, (c.params["seed"], j)
     assert seen > 50  # the sample does contain massless vertebrae
+
+
+def test_free_arms_rest_behind_the_snout():
+    """Bipeds' free arms hang (mammals) or fold (others) instead of reaching out like a
+    zombie: no finger ahead of the snout tip, no arm bone end below the ground, and a
+    mammal's humerus within 30° of vertical with the elbow flexed 30-90°."""
+    armed = 0
+    for seed in range(120):
+        c = generate(seed)
+        K = np.array(c.kind)
+        if "arm" not in c.kind:
+            continue
+        armed += 1
+        E = c.bone_ends
+        snout = E[K == "skull"][:, 0].max()
+        assert E[K == "arm"][:, 0].max() <= snout + 1e-9, seed
+        assert E[K == "arm"][:, 1].min() >= -1e-9, seed
+        if c.params["class"] != "mammal":
+            continue
+        names = c.skeleton.names
+        j = {p: names.index(f"shoulder1_{p}_r") for p in ("upper", "lower")}
+        d = {p: E[j[p]] - c.joint_positions[j[p]] for p in j}
+        hum = np.degrees(np.arctan2(abs(d["upper"][0]), -d["upper"][1]))
+        cosang = d["upper"] @ d["lower"] / np.linalg.norm(d["upper"]) / np.linalg.norm(d["lower"])
+        elbow = np.degrees(np.arccos(np.clip(cosang, -1, 1)))
+        assert hum <= 30.5 and 29.5 <= elbow <= 90.5, (seed, hum, elbow)
+    assert armed >= 20
+
+
+def test_free_arm_rest_pose_by_class():
+    from biomorph.creature import limbs as lb
+
+    deg = np.degrees
+    up = deg(lb.free_arm_rest("mammal", 0.0))
+    assert up[0] == 0 and 30 <= up[1] <= 90  # humerus down, elbow flexed
+    theropod = deg(lb.free_arm_rest("reptile", np.pi / 2))  # horizontal trunk
+    assert theropod[0] < 0 and theropod[1] >= 90 and theropod[2] < 0  # folded back
+    # a long arm whose rest pose reaches ahead of ``front`` folds behind it, above the floor
+    base, L = np.array([0.0, 1.0, 0.0]), np.array([0.3, 0.3, 0.3])
+    assert (L * np.sin(np.cumsum(np.radians(up)))).sum() > 0.1  # the rest pose reaches out
+    a = lb.free_arm_rest("mammal", 0.0, base, L, front=0.1, floor=0.0)
+    c = np.cumsum(a)
+    assert base[0] + (L * np.sin(c)).sum() <= 0.1
+    assert (base[1] - np.cumsum(L * np.cos(c))).min() >= 0.0

@@ -7,11 +7,12 @@ bone's frame; at zero angles a bone points straight down (world −y), z is the 
 (flexion/extension in the sagittal plane), x the forward axis (abduction), y the bone's own
 axis (twist). Angles here are for the **right** limb (+z side); left limbs are mirrored.
 
-Limbs without ground contact follow the seed's rules: fins straight back, arms with the upper
-arm straight down, forearm 90° forward and the hand continuing it, wings with a random angle
-per joint from a per-joint interval. Legs with ground contact use the seed's iterative
-descent (:func:`descend`): start with every flexion DOF at its most bent limit; each
-iteration, for each joint and each DOF chosen with its probability, rotate by the current
+Limbs without ground contact follow the seed's rules: fins straight back, wings with a random
+angle per joint from a per-joint interval; arms rest as their class does (mammals: humerus
+along the trunk, elbow flexed; others folded against the body, :data:`FREE_ARM_REST_DEG`)
+instead of the seed's upper arm down and forearm 90° forward. Legs with ground contact use
+the seed's iterative descent (:func:`descend`): start with every flexion DOF at its most bent
+limit; each iteration, for each joint and each DOF chosen with its probability, rotate by the current
 step towards the orientation where the bone points straight down (the seed's comparison of
 the child's negative local y with world y), clamp at vertical ("gerade noch erlaubt"),
 reject a rotation that puts any bone end below the ground, then multiply the step by 4/5 —
@@ -745,10 +746,99 @@ def pose_leg(
     )
 
 
+#: Resting pose of a free arm (degrees of flexion z at shoulder, elbow, wrist; + swings
+#: forward): ``humerus`` is added to the trunk's own lean (the humerus lies along the trunk,
+#: from the shoulder towards the hip) and clipped to ``humerus_range`` (from vertical).
+#: Mammals (primates, kangaroos standing): humerus near vertical along the trunk, elbow
+#: flexed 40° (the middle of the 30–90° users see in standing primates and kangaroos;
+#: a relaxed human elbow rests at ~15–30°), hand continuing the forearm. Other classes
+#: (theropods, birds without wings, amphibians): the arm folded against the body as in
+#: theropod resting poses (Senter & Robins 2005; Senter 2006): humerus retracted 30° behind
+#: the trunk line, elbow flexed 100°, wrist folded 60° back towards the forearm.
+#: Where the rest pose would put the fingertips ahead of ``front`` (the head), the arm takes
+#: the pose nearest to it (5° grid) inside the class's ranges (``elbow_range``,
+#: ``wrist_range``) whose fingertips stay behind: a long arm folds rather than reaching out.
+FREE_ARM_REST_DEG = {
+    "mammal": {
+        "humerus": 0.0,
+        "humerus_range": (-30.0, 10.0),
+        "elbow": 40.0,
+        "elbow_range": (30.0, 90.0),
+        "wrist": 0.0,
+        "wrist_range": (-45.0, 0.0),
+    },
+    "folded": {
+        "humerus": -30.0,
+        "humerus_range": (-60.0, 0.0),
+        "elbow": 100.0,
+        "elbow_range": (60.0, 150.0),
+        "wrist": -60.0,
+        "wrist_range": (-60.0, 0.0),
+    },
+}
+
+
+def free_arm_rest(
+    cls: str,
+    trunk_lean: float,
+    base: NDArray | None = None,
+    lengths: NDArray | None = None,
+    front: float | None = None,
+    floor: float | None = None,
+) -> NDArray[np.float64]:
+    """Resting flexion angles ``(3,)`` rad of a free arm for class ``cls`` whose trunk leans
+    forward by ``trunk_lean`` rad (the shoulder ahead of the hip; 0 for an upright trunk,
+    π/2 for a horizontal one). With ``base``, ``lengths`` (upper, lower, hand + fingers),
+    ``front`` and ``floor``, the arm keeps every joint and its fingertips at y ≥ ``floor``
+    and the fingertips at x ≤ ``front``: the pose nearest the rest pose on a 5° grid of the
+    class's ranges that does (above the floor first, then the least far forward)."""
+    r = FREE_ARM_REST_DEG["mammal" if cls == "mammal" else "folded"]
+    lo, hi = r["humerus_range"]
+    rest = np.array([np.clip(r["humerus"] - trunk_lean / DEG, lo, hi), r["elbow"], r["wrist"]])
+    if base is None or lengths is None or (front is None and floor is None):
+        return rest * DEG
+    L = np.asarray(lengths, float)
+    front = np.inf if front is None else float(front)
+    floor = -np.inf if floor is None else float(floor)
+
+    def chain(a):  # sagittal chain: bone k points at the summed flexion from straight down
+        c = np.cumsum(a * DEG, axis=-1)
+        x = float(base[0]) + np.cumsum(L * np.sin(c), axis=-1)
+        y = float(base[1]) - np.cumsum(L * np.cos(c), axis=-1)
+        return x[..., -1], y.min(axis=-1)
+
+    x, low = chain(rest)
+    if x <= front and low >= floor:
+        return rest * DEG
+    ranges = (r["humerus_range"], r["elbow_range"], r["wrist_range"])
+    grid = [np.arange(a, b + 1e-9, 5.0) for a, b in ranges]
+    cand = np.stack(np.meshgrid(*grid, indexing="ij"), axis=-1).reshape(-1, 3)
+    x, low = chain(cand)
+    above = low >= floor
+    if not above.any():
+        return rest * DEG  # nothing in the ranges clears the ground: lift_clear folds it
+    cost = np.where(above & (x <= front), np.abs(cand - rest).sum(axis=1), np.inf)
+    best = np.argmin(cost) if np.isfinite(cost).any() else np.argmin(np.where(above, x, np.inf))
+    return cand[best] * DEG
+
+
 def pose_free(
-    kind: str, base: NDArray, lengths: NDArray, rng: np.random.Generator, splay_deg: float = 12.0
+    kind: str,
+    base: NDArray,
+    lengths: NDArray,
+    rng: np.random.Generator,
+    splay_deg: float = 12.0,
+    cls: str = "mammal",
+    trunk_lean: float = 0.0,
+    front: float | None = None,
+    finger_share: float = 0.0,
+    floor: float | None = None,
 ) -> LimbPose:
-    """Pose a limb without ground contact: ``fin``, ``arm`` or ``wing`` (seed §5.1)."""
+    """Pose a limb without ground contact: ``fin``, ``arm`` or ``wing`` (seed §5.1); an arm
+    takes its class's resting pose (:func:`free_arm_rest`) instead of the seed's
+    forearm-90°-forward, which held long arms straight out ahead of the head; ``front`` is
+    the x its fingertips (``finger_share`` × the hand beyond the hand) stay behind and
+    ``floor`` the height they and the joints stay above."""
     role = {"fin": "fin", "arm": "arm", "wing": "wing"}[kind]
     limits = LIMITS_DEG[role] * DEG
     ang = np.zeros((3, 3))
@@ -756,7 +846,8 @@ def pose_free(
         ang[0, 0] = -np.pi / 2  # straight back (world -x)
         ang[0, 1] = -splay_deg * DEG  # a little outwards
     elif kind == "arm":
-        ang[1, 0] = np.pi / 2  # upper arm down, forearm 90° forward, hand on
+        reach = np.asarray(lengths, float) * [1.0, 1.0, 1.0 + finger_share]
+        ang[:, 0] = free_arm_rest(cls, trunk_lean, base, reach, front, floor)
     else:
         iv = WING_INTERVALS_DEG * DEG
         ang = rng.uniform(iv[..., 0], iv[..., 1])

@@ -519,6 +519,7 @@ def step_limbs(
         ground = None
     if legs and any(attach[i][1][1] <= ground for i in legs):
         raise ParameterError("a leg attachment lies below the ground")  # repair path only
+    lean = _trunk_lean(places, attach)
     poses = []
     for i, (gname, _k, spec, _at) in enumerate(places):
         base = attach[i][1]
@@ -536,7 +537,8 @@ def step_limbs(
                 pose = _pose_leg(spine, opts, rng, base, lengths[i], ground, role, plan)
             lengths[i] = pose.lengths
         else:
-            pose = lb.pose_free(spec.kind, base, lengths[i], rng)
+            floor = None if ground is None else ground + 0.01 * max(s[-1], 1.0)
+            pose = _pose_free(spine, spec.kind, base, lengths[i], rng, lean, xy, floor)
         poses.append(pose)
     _knees_behind_elbows(spine, opts, rng, places, attach, lengths, poses, ground)
     if ground is None:
@@ -544,7 +546,7 @@ def step_limbs(
         lows += [p.points[:, 1].min() for p in poses]
         ground = float(min(lows))
     else:
-        clear = ground + 0.01 * max(s[-1], 1.0)
+        clear = 0.01 * max(s[-1], 1.0)  # lift_clear's clearance is above ``ground``
         poses = [
             lb.lift_clear(p, attach[i][1], lengths[i], ground, clear) if p.kind != "leg" else p
             for i, p in enumerate(poses)
@@ -558,6 +560,40 @@ def step_limbs(
         poses=poses,
         shifts=dict(shifts),
     )
+
+
+def _pose_free(spine, kind, base, lengths, rng, lean, xy, floor) -> lb.LimbPose:
+    """A free limb; an arm keeps its fingertips behind the head's front: the atlas plus the
+    skull at its steepest allowed pitch (``TARGET['head_pitch']``); with the head behind the
+    shoulder, as far back as the arm folds."""
+    if kind != "arm":
+        return lb.pose_free(kind, base, lengths, rng, cls=spine.cls)
+    pitch = max(abs(v) for v in TARGET["head_pitch"]) * np.pi / 180.0
+    front = float(xy[0, 0]) + float(spine.skull_length) * np.cos(pitch)
+    plan = feet.digit_plan("arm", "fore", spine.cls, spine.stance, spine.skull)
+    share = max((sum(d.fractions) for d in plan), default=0.0)
+    return lb.pose_free(
+        kind,
+        base,
+        lengths,
+        rng,
+        cls=spine.cls,
+        trunk_lean=lean,
+        front=front,
+        finger_share=share,
+        floor=floor,
+    )
+
+
+def _trunk_lean(places, attach) -> float:
+    """Forward lean (rad) of the trunk line from the hip girdle to the first shoulder girdle
+    (0 upright, π/2 horizontal with the head ahead); π/2 without both girdles."""
+    hip = [attach[i][0] for i, p in enumerate(places) if p[0] == "hip"]
+    sho = [attach[i][0] for i, p in enumerate(places) if p[0] == "shoulder"]
+    if not hip or not sho:
+        return float(np.pi / 2)
+    d = np.asarray(sho[0], float) - np.asarray(hip[0], float)
+    return float(np.arctan2(d[0], d[1]))
 
 
 def _pose_leg(spine, opts, rng, base, lengths, ground, role, plan, lean_max=None):
