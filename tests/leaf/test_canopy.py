@@ -69,3 +69,19 @@ def test_density_sets_ground_area() -> None:
     assert 40 / fld.ground_area == pytest.approx(250.0)
     with pytest.raises(ParameterError, match="density"):
         build_field(FieldSpec(density=-1.0))
+
+
+def test_maize_canopy_stem_is_the_mature_plant_stem() -> None:
+    """A maize field is as tall as a `leaf plant` maize plant (2–2.5 m), not 2.5 × a blade."""
+    from biomorph.leaf.data import mature_maize_stem
+    from biomorph.leaf.plant import mature_thermal_time
+
+    spec = PlantSpec(preset="maize", leaves=16, thermal_time=mature_thermal_time("maize", 16, None))
+    plant = build_plant(spec, seed=3)
+    internodes = mature_maize_stem(blade_params={"n_ranks": 16})["L_internode"]
+    assert plant.stem_height[0] == pytest.approx(internodes.sum())
+    assert plant.origin[:, 2].min() < 0.05  # crown leaves emerge near the soil
+    top = field_mesh(plant, triangles_per_leaf=12).vertices[:, 2].max()
+    assert 2.0 <= top <= 2.6
+    wheat = build_plant(PlantSpec(preset="wheat", leaves=5, stem_height=0.4), seed=3)
+    assert wheat.stem_height[0] == pytest.approx(0.4)

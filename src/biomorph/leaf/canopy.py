@@ -44,7 +44,9 @@ class PlantSpec:
     preset: str = "wheat"
     leaves: int = 6
     age: float = 0.8
-    stem_height: float | None = None  # default: 2.5 × the preset leaf length
+    # default: maize, the mature stem's internodes (data.mature_maize_stem, the same
+    # profile `leaf plant` uses); other presets 2.5 × the preset leaf length
+    stem_height: float | None = None
     stem_radius: float = 0.002
     appearance: float = 0.1  # plant-age interval between two leaves
     lifespan: float = 0.5  # leaf life as a fraction of the plant's life
@@ -181,6 +183,24 @@ def build_plant(
     return build_field(fs, seed=seed, origin=origin, age=age)
 
 
+def _stem_profile(ps: PlantSpec, leaf_length: float) -> tuple[float, Array]:
+    """Stem height (m) and each rank's insertion height as a share of it.
+
+    Maize (unless ``stem_height`` is given): the mature stem of
+    :func:`biomorph.leaf.data.mature_maize_stem` — leaf ``r`` at the top of internode ``r``,
+    so the crown leaves sit near the soil and the canopy is as tall as a ``leaf plant``
+    maize plant. Otherwise ``stem_height`` (default 2.5 × the preset leaf length) with
+    insertion heights ``(r / n)^1.3``."""
+    n = ps.leaves
+    if ps.stem_height is None and ps.preset == "maize":
+        from biomorph.leaf.data import mature_maize_stem
+
+        nodes = np.cumsum(mature_maize_stem(blade_params={"n_ranks": n})["L_internode"])
+        return float(nodes[-1]), nodes / nodes[-1]
+    H = ps.stem_height or 2.5 * leaf_length
+    return H, ((np.arange(n) + 1) / n) ** 1.3
+
+
 def build_field(
     spec: FieldSpec,
     seed: int | np.random.Generator = 0,
@@ -205,7 +225,8 @@ def build_field(
     pos = np.stack([col * dx, row * spec.row_spacing, np.zeros(spec.plants)], axis=1)
     pos[:, :2] += spec.position_jitter * rng.standard_normal((spec.plants, 2))
     pos += np.asarray(origin, float)
-    H = ps.stem_height or 2.5 * shape.length
+    n = ps.leaves
+    H, rel_h = _stem_profile(ps, shape.length)
     elong = np.clip(plant_age / 0.8, 0.1, 1.0)
     if ps.thermal_time is not None:
         from biomorph.leaf.thermal import ThermalTime
@@ -213,8 +234,6 @@ def build_field(
         tt = ThermalTime.for_preset(ps.preset, ps.phyllochron)
         elong = float(np.clip(tt.haun_stage(ps.thermal_time) / ps.leaves, 0.1, 1.0))
     stem_h = np.full(spec.plants, H * elong)
-    n = ps.leaves
-    rel_h = ((np.arange(n) + 1) / n) ** 1.3
     present, a, ls, az, incl = _plant_leaves(ps, plant_age, spec.plants, rng)
     pp, kk = np.nonzero(present)  # plant-major order, ranks ascending
     org = pos[pp].copy()
