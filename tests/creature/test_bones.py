@@ -147,3 +147,25 @@ def test_glb_with_bone_models_and_skin_is_valid(creature, tmp_path):
     names = [m.name for m in doc.meshes]
     assert names == ["creature_bones", "creature_skin_mesh"]
     assert all(n.skin == 0 for n in doc.nodes if n.mesh is not None)
+
+
+def test_hooved_foot_without_digit_joints_follows_hoof_digits():
+    """A metapodial without digit joints of its own gets an autopod with the creature's
+    hoof count: one centred hoof for a horse, a cloven pair otherwise."""
+    from types import SimpleNamespace
+
+    from biomorph.creature.bones import fit
+
+    def model(hoof_digits):
+        c = SimpleNamespace(skeleton=SimpleNamespace(parent=np.array([-1])), kind=("leg",))
+        ctx = SimpleNamespace(
+            c=c, lod=1, cls="mammal", stance="unguligrade", hoof_digits=hoof_digits
+        )
+        return fit._limb_model(ctx, 0, "metatarsal")
+
+    horse, cattle = model(1), model(2)
+    assert horse is ap.autopod(1, 0.0, "hoof", 1, 0.62)
+    assert cattle is ap.autopod(2, 0.18, "hoof", 1, 0.62)
+    # one hoof on the midline vs two side by side
+    assert np.ptp(horse[0][:, 2]) < np.ptp(cattle[0][:, 2])
+    assert ap.ungulate(1) == (1, 0.0, "hoof") and ap.ungulate(2)[0] == 2

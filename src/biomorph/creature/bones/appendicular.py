@@ -33,8 +33,16 @@ DIGITS = {
     ("mammal", "wing"): (5, 1.4, "nail"),
     ("bird", "wing"): (3, 0.15, "nail"),
 }
-#: hooved mammals (unguligrade stance) bear on two digits ending in hooves
+#: hooved mammals (unguligrade stance): cattle and deer bear on two digits ending in hooves
+#: (the cloven default); a horse on one (:func:`ungulate` follows ``hoof_digits``)
 UNGULATE = (2, 0.18, "hoof")
+
+
+def ungulate(hoof_digits: int) -> tuple[int, float, str]:
+    """Autopod of a hooved foot with ``hoof_digits`` hooves (horse 1, others 2): digits,
+    fan spread (none for a single centred digit) and end."""
+    n = max(1, int(hoof_digits))
+    return (n, UNGULATE[1] if n > 1 else 0.0, UNGULATE[2])
 
 
 def _freeze(vf: tuple[NDArray, NDArray]) -> tuple[NDArray, NDArray, NDArray]:
@@ -271,6 +279,7 @@ __all__ = [
     "unit_box_model",
     "DIGITS",
     "UNGULATE",
+    "ungulate",
     "ellipsoid",
     "torus",
 ]

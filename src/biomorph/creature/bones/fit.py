@@ -112,6 +112,7 @@ class _Context:
         self.rank = _spine_rank(c, self.parts)
         self.cls = str(c.params.get("class", "mammal"))
         self.stance = str(c.params.get("stance", ""))
+        self.hoof_digits = int(c.params.get("hoof_digits") or ap.UNGULATE[0])
         self.has_mandible = "mandible" in self.parts
         skull_type = str(c.params.get("skull", skulls.CLASS_SKULL.get(self.cls, "mammal_long")))
         self.taper = round(float(skulls.get(skull_type).taper), 2)
@@ -310,7 +311,7 @@ def _limb_model(ctx: _Context, j: int, part: str):
         role = "wing" if kind == "wing" else "foot" if part == "metatarsal" else "hand"
         n, spread, end = ap.DIGITS.get((ctx.cls, role), (5, 0.4, "claw"))
         if ctx.stance == "unguligrade" and ctx.cls == "mammal" and kind == "leg":
-            n, spread, end = ap.UNGULATE
+            n, spread, end = ap.ungulate(ctx.hoof_digits)
         digits_from = 0.3 if role == "wing" and ctx.cls == "mammal" else 0.62
         return ap.autopod(n, spread, end, lod, digits_from)
     return None
