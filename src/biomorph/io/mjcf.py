@@ -24,6 +24,33 @@ def _vec(v) -> str:
     return " ".join(f"{float(x):.9g}" for x in np.ravel(v))
 
 
+#: MuJoCo's default contact (solref timeconst 0.02 s, solimp width 1 mm, timestep 1 ms) is
+#: tuned for models about a metre tall (its humanoid). The steady sinking of a soft contact
+#: under gravity is ≈ (1 − d)/d · g · timeconst² (d the impedance), independent of mass, so a
+#: 7-cm creature would sink by most of its 0.3-mm foot pads and fall through. Below
+#: ``CONTACT_REF_SIZE`` the contact is scaled by Froude similarity — time as
+#: √(size / ref), lengths (solimp width, margin) as size / ref — so a creature sinks by the
+#: same share of its size at any scale; MuJoCo keeps ``timeconst`` ≥ 2 timesteps, so the
+#: timestep shrinks with it (to ``timeconst / 4``).
+CONTACT_REF_SIZE = 1.0
+CONTACT_TIMECONST = 0.02
+CONTACT_WIDTH = 0.001
+TIMESTEP = 0.001
+
+
+def contact_scale(creature) -> dict[str, float]:
+    """Contact parameters for ``creature`` (size = the larger of its height and length, m):
+    ``timeconst`` (s), ``width`` (solimp transition width, m) and ``timestep`` (s)."""
+    size = max(float(creature.height), float(creature.length), 1e-4)
+    k = min(1.0, size / CONTACT_REF_SIZE)
+    tc = CONTACT_TIMECONST * np.sqrt(k)
+    return {
+        "timeconst": float(tc),
+        "width": float(CONTACT_WIDTH * k),
+        "timestep": float(min(TIMESTEP, tc / 4)),
+    }
+
+
 def creature_to_mjcf(
     creature,
     name: str = "creature",
@@ -43,9 +70,17 @@ def creature_to_mjcf(
     inertia = creature.inertia()
     root = ET.Element("mujoco", model=name)
     ET.SubElement(root, "compiler", angle="radian", autolimits="true")
-    ET.SubElement(root, "option", timestep="0.001", gravity="0 -9.81 0")
+    cs = contact_scale(creature)
+    ET.SubElement(root, "option", timestep=f"{cs['timestep']:.9g}", gravity="0 -9.81 0")
     default = ET.SubElement(root, "default")
-    ET.SubElement(default, "geom", friction="1.0 0.01 0.001", condim="3")
+    ET.SubElement(
+        default,
+        "geom",
+        friction="1.0 0.01 0.001",
+        condim="3",
+        solref=f"{cs['timeconst']:.9g} 1",
+        solimp=f"0.9 0.95 {cs['width']:.9g}",
+    )
     world = ET.SubElement(root, "worldbody")
     size = max(creature.length, creature.height, 0.1) * 4
     ET.SubElement(
