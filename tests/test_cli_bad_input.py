@@ -25,8 +25,10 @@ from pathlib import Path
 import pytest
 import typer
 
-from biomorph.cli import app, run
+from biomorph.cli import full_app, run
 from tests.conftest import SHARED_DATA
+
+app = full_app()
 
 BVH = SHARED_DATA / "motion" / "fairmotion_sinusoidal.bvh"
 

@@ -173,18 +173,48 @@ def demo(
     out_console.print(f"wrote {report}")
 
 
-def _add_pillar_apps() -> None:
+#: pillar groups already added to :data:`app` (``"studio"`` included)
+_ADDED: set[str] = set()
+#: the root's own commands: running one of them needs no pillar group
+_ROOT_COMMANDS = frozenset({"info", "render", "demo"})
+
+
+def _add_pillar_apps(only: str | None = None) -> None:
+    """Add the pillar groups (and the studio) to :data:`app`; ``only`` adds just that one.
+
+    ``biomorph motion info FILE`` then imports and builds one pillar's CLI, not four (about
+    0.1 s of a call); ``--help`` and anything else get them all.
+    """
     for pillar in PILLARS:
-        mod = optional_module(pillar, "cli")
-        if mod is not None:
-            mod.app.rich_markup_mode = None  # plain click help, as for the root (fast start)
-            app.add_typer(mod.app, name=pillar)
-    studio = optional_module("studio", "cli")
-    if studio is not None:
-        studio.register(app)
+        if (only is None or only == pillar) and pillar not in _ADDED:
+            mod = optional_module(pillar, "cli")
+            _ADDED.add(pillar)
+            if mod is not None:
+                mod.app.rich_markup_mode = None  # plain click help, as for the root (fast start)
+                app.add_typer(mod.app, name=pillar)
+    if (only is None or only == "studio") and "studio" not in _ADDED:
+        _ADDED.add("studio")
+        studio = optional_module("studio", "cli")
+        if studio is not None:
+            studio.register(app)
 
 
-_add_pillar_apps()
+def full_app() -> typer.Typer:
+    """:data:`app` with every pillar group and the studio added (for tools and tests that
+    walk the whole command tree; ``biomorph`` itself adds only the group a call runs)."""
+    _add_pillar_apps()
+    return app
+
+
+def _selected_group(argv: list[str]) -> str | None:
+    """The one group ``argv`` runs (a pillar, ``"studio"``, or ``""`` for a root command),
+    or ``None`` when it needs every group (no command, ``--help``, a typo)."""
+    first = next((a for a in argv if not a.startswith("-")), None)
+    if first in PILLARS or first == "studio":
+        return first
+    if first in _ROOT_COMMANDS and "--help" not in argv[:1]:
+        return ""
+    return None
 
 
 #: generic ranges of every numeric option (on top of each option's own ``bounded`` range):
@@ -389,8 +419,11 @@ def _wrap_commands(group: Any, path: tuple[str, ...] = ()) -> None:
 
 
 @functools.cache
-def _command() -> Any:
-    """The click command tree of :data:`app`, every command wrapped by :func:`_guarded`."""
+def _command(group: str | None = None) -> Any:
+    """The click command tree of :data:`app` with ``group``'s commands (all when ``None``,
+    see :func:`_selected_group`), every command wrapped by :func:`_guarded`."""
+    if group != "":
+        _add_pillar_apps(group)
     command = typer.main.get_command(app)
     _wrap_commands(command)
     return command
@@ -438,7 +471,9 @@ def run(argv: list[str] | None = None) -> int:
 def _run(argv: list[str] | None) -> int:
     with interrupt_guard() as interrupted:
         try:
-            result = _command().main(args=argv, prog_name="biomorph", standalone_mode=False)
+            args = sys.argv[1:] if argv is None else list(argv)
+            command = _command(_selected_group(args))
+            result = command.main(args=args, prog_name="biomorph", standalone_mode=False)
         except BiomorphError as exc:
             _error(str(exc))
             return 2
