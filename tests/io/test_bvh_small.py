@@ -103,13 +103,16 @@ try:
 except SystemExit as e:
     assert not e.code, e.code
 print('NUMBA=' + str('numba' in sys.modules))
+other = ('biomorph.tree', 'biomorph.creature', 'biomorph.leaf', 'scipy.spatial')
+print('OTHER=' + ','.join(sorted(m for m in sys.modules if m.startswith(other))))
 """
 
 
 @pytest.mark.parametrize("command", ["info", "convert"])
 def test_motion_info_and_convert_of_a_small_file_load_no_numba(command, tmp_path):
     """``biomorph motion info/convert`` on a small BVH runs without numba (its import and
-    cached-kernel loads were 0.9 s of the 1.4 s start-up); checks the cause, not a time."""
+    cached-kernel loads were 0.9 s of the 1.4 s start-up), scipy.spatial or another pillar;
+    checks the cause, not a time."""
     src = tmp_path / "walk.bvh"
     write_bvh(src, walk(240, 120, n_joints=30))
     argv = ["motion", command, str(src)]
@@ -124,6 +127,9 @@ def test_motion_info_and_convert_of_a_small_file_load_no_numba(command, tmp_path
     )
     marks = [ln for ln in out.stdout.splitlines() if ln.startswith("NUMBA=")]
     assert marks == ["NUMBA=False"], out.stdout + out.stderr
+    # nor the other pillars' CLIs (cli builds only the group it runs) or scipy.spatial
+    # (quat_to_euler is NumPy): together ~0.4 s of the call
+    assert "OTHER=" in out.stdout.splitlines(), out.stdout
     if command == "convert":
         a, b = read_bvh(src), read_bvh(tmp_path / "out.bvh")
         assert np.abs(a.world_positions() - b.world_positions()).max() < 1e-5
