@@ -682,7 +682,7 @@ def _store_flips(dots: Array) -> NDArray[np.bool_]:
     neg = dots < 0
     count = np.cumsum(neg, axis=0)
     base = np.maximum.accumulate(np.where(neg | (dots > 0), 0, count), axis=0)
-    return (count - base) % 2 == 1
+    return np.equal((count - base) % 2, 1)
 
 
 __all__ = [
