@@ -216,9 +216,7 @@ def main() -> None:
     print("|---|---:|---:|---:|---:|---:|")
     for name, t, target, cpu in rows:
         tgt = "" if target is None else f"{target:g} ({'met' if t <= target else 'MISSED'})"
-        print(
-            f"| {name} | {t:.3f} | {cpu:.3f} | {t / floor:.1f} | {t / numpy_floor:.2f} | {tgt} |"
-        )
+        print(f"| {name} | {t:.3f} | {cpu:.3f} | {t / floor:.1f} | {t / numpy_floor:.2f} | {tgt} |")
 
 
 if __name__ == "__main__":

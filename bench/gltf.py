@@ -247,9 +247,7 @@ def creatures_bench(n: int, workers: int, skin: bool) -> None:
     load1 = os.getloadavg()[0]
     start = [_worker_start() for _ in range(workers)]
     cpu = float(r[:, 1].sum())
-    print(
-        f"load average {load0:.2f} -> {load1:.2f}, {os.cpu_count()} CPUs, {workers} workers\n"
-    )
+    print(f"load average {load0:.2f} -> {load1:.2f}, {os.cpu_count()} CPUs, {workers} workers\n")
     print(
         f"{n} creatures with bone models{' and skin' if skin else ''} written as GLB: "
         f"{wall:.1f} s wall ({wall / n * 1e3:.0f} ms per creature; target 1,000 in 60 s)"

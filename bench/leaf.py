@@ -424,9 +424,7 @@ def big_field_light(quick: bool) -> None:
     print("|---|---|---|---|---|---|---|---|---|")
     results = {}
     for engine, rays in runs:
-        opts = LightOptions(
-            when=when, sky=46, ground=fld.tile, max_rays=rays, engine=engine
-        )
+        opts = LightOptions(when=when, sky=46, ground=fld.tile, max_rays=rays, engine=engine)
         load = os.getloadavg()[0]
         r, wall, cpu = _timed(lambda o=opts: intercept(mesh, o))
         results[(engine, rays)] = (r, wall, cpu)

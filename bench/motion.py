@@ -251,8 +251,7 @@ def skate_table() -> None:
         cells += [f"{sk(a):.3f} → {v:.3f}" for (a, _), v in zip(pairs, after, strict=True)]
         print(f"| {name} | " + " | ".join(cells) + " |")
     print(
-        f"\nOperator + lock at or below the input (speed ×1.3: below 1.3× input): "
-        f"{met} of {total}"
+        f"\nOperator + lock at or below the input (speed ×1.3: below 1.3× input): {met} of {total}"
     )
     if "--plot" in sys.argv:  # foot height/speed with the contacts, before and after locking
         from biomorph.motion.plots import plot_contacts

@@ -615,9 +615,7 @@ def sparse_twigs(seeds: int, voxel: float = 0.05) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also time 1,000,000 points")
-    ap.add_argument(
-        "--only", choices=("speed", "accuracy", "real", "peers", "truth", "sparse")
-    )
+    ap.add_argument("--only", choices=("speed", "accuracy", "real", "peers", "truth", "sparse"))
     ap.add_argument(
         "--clouds",
         nargs="*",

@@ -278,8 +278,15 @@ def _tail_bones(
                 rig_of.setdefault(owner, len(bones) - 1)
             continue
         bones.append(
-            _Bone(_numbered("tail", k), pos[a], pos[b], left, 0 if k == 0 else len(bones) - 1,
-                  owner, connect=k > 0)
+            _Bone(
+                _numbered("tail", k),
+                pos[a],
+                pos[b],
+                left,
+                0 if k == 0 else len(bones) - 1,
+                owner,
+                connect=k > 0,
+            )
         )
         rig_of.setdefault(owner, len(bones) - 1)
         k += 1
@@ -288,8 +295,9 @@ def _tail_bones(
         end = pos[last] + world[last, :3, 1] * c.bone_length[last]
         if np.linalg.norm(end - pos[last]) > 1e-9:  # the last vertebra's own bone
             bones.append(
-                _Bone(_numbered("tail", k), pos[last], end, left, len(bones) - 1, last,
-                      connect=True)
+                _Bone(
+                    _numbered("tail", k), pos[last], end, left, len(bones) - 1, last, connect=True
+                )
             )
             rig_of.setdefault(last, len(bones) - 1)
     n = len(bones) - first

@@ -63,8 +63,8 @@ def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray
     end_r = bone_hw * (1 + LANDMARK_TISSUE)
     mid_r = np.where(kind == "spine", end_r, np.maximum(end_r, 0.8 * soft_hw))
     skull = kind == "skull"  # thin tissue over the skull: its narrower half-width
-    end_r[skull] = mid_r[skull] = 0.5 * np.minimum(box[skull, 0], box[skull, 2]) * (
-        1 + LANDMARK_TISSUE
+    end_r[skull] = mid_r[skull] = (
+        0.5 * np.minimum(box[skull, 0], box[skull, 2]) * (1 + LANDMARK_TISSUE)
     )
     pos, ends = c.joint_positions[js], c.bone_ends[js]
     mid = 0.5 * (pos + ends)

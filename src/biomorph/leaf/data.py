@@ -369,8 +369,12 @@ def mature_maize_blades(
     # W = w0 (L/l0)^β and A = ff L W  =>  L = l0 (A ff0 / (A0 ff))^(1/(1+β))
     length = l0 * (area * ff[k] / (area[k] * ff)) ** (1.0 / (1.0 + width_exponent))
     width = area / (ff * length)
-    return {"rank": np.arange(1, n + 1, dtype=float), "L_blade": length, "W_blade": width,
-            "area": area}
+    return {
+        "rank": np.arange(1, n + 1, dtype=float),
+        "L_blade": length,
+        "W_blade": width,
+        "area": area,
+    }
 
 
 def _wheat_dims(root: Path) -> dict:

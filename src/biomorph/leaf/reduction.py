@@ -413,7 +413,12 @@ def adaptive_mesh(
     s = np.linspace(0.0, 1.0, n_s)
     u = np.linspace(-0.5, 0.5, n_u)
     batch = LeafBatch.from_shapes(
-        [shape], states=[state], s=s, twist=twist, undulation=undulation, plant=[plant],
+        [shape],
+        states=[state],
+        s=s,
+        twist=twist,
+        undulation=undulation,
+        plant=[plant],
         leaf=[leaf],
     )
     pts, nrm = leaf_grid(batch, u, with_normals=True)

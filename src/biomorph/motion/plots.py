@@ -260,7 +260,8 @@ def plot_contacts(
         ax.set_ylabel(motion.names[j], fontsize=8)
     axes[0].legend(fontsize=7, ncol=4, loc="upper right")
     axes[0].set_title(
-        title or f"foot points: height ×10 and speed (hip heights, /s); green planted, "
+        title
+        or f"foot points: height ×10 and speed (hip heights, /s); green planted, "
         f"red counted by the skate metric (skate {fs['skate_per_body_scale']:.3f})",
         fontsize=9,
     )

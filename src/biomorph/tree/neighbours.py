@@ -570,9 +570,7 @@ def contract(
             _, lab = connected_components(a, directed=False)
             lab = _merge_overlapping(xyz, lab, vr, vc, floor)
         else:  # "adjacent": every voxel-adjacent piece of a level joins
-            a = a + sparse.csr_matrix(
-                (np.ones(vr.size, dtype=np.int8), (vr, vc)), shape=(n, n)
-            )
+            a = a + sparse.csr_matrix((np.ones(vr.size, dtype=np.int8), (vr, vc)), shape=(n, n))
             _, lab = connected_components(a, directed=False)
     lab = np.where(ok, lab, -1)
     uniq, lab_c = np.unique(lab[ok], return_inverse=True)

@@ -147,8 +147,7 @@ def read_treeqsm_mat(path: PathLike) -> BranchGraph:
     if cyl is None or any(not hasattr(cyl, k) for k in need):
         raise FormatError(
             path,
-            "no OptQSM.cylinder with start, axis, length, radius, parent; "
-            "expected a TreeQSM model",
+            "no OptQSM.cylinder with start, axis, length, radius, parent; expected a TreeQSM model",
         )
     order = getattr(cyl, "BranchOrder", np.zeros(np.size(cyl.radius)))
     return _cylinders_to_graph(

@@ -146,9 +146,7 @@ def rib_cage(
     # both ribs of every vertebra at once: arrays (n, 2 sides, k points along the rib)
     la = np.stack([lat, -lat], axis=1)  # (n, 2, 3)
     bz, bx = c.box_size[js, 2], c.box_size[js, 0]
-    head = (
-        P[:, None] + la * (0.3 * bz)[:, None, None] - (dorsal * (0.15 * bx)[:, None])[:, None]
-    )
+    head = P[:, None] + la * (0.3 * bz)[:, None, None] - (dorsal * (0.15 * bx)[:, None])[:, None]
     rel = head - cen[:, None]
     r_d, r_l = (rel * dorsal[:, None]).sum(2), (rel * la).sum(2)
     rho0, th0 = np.hypot(r_d, r_l), np.arctan2(r_l, r_d)
@@ -178,8 +176,11 @@ def rib_cage(
     bottom = cen - dorsal * rho1[:, None] - (RIB_SLOPE * L)[:, None] * t
     st_path = np.stack([bottom + (0.55 * L)[:, None] * t, bottom - (0.55 * L)[:, None] * t], 1)
     sv, sf = tubes(
-        st_path, np.repeat(1.4 * w_half[:, None], 2, 1), sides,
-        radius2=np.repeat(th_half[:, None], 2, 1), ref=lat,
+        st_path,
+        np.repeat(1.4 * w_half[:, None], 2, 1),
+        sides,
+        radius2=np.repeat(th_half[:, None], 2, 1),
+        ref=lat,
     )
     st_v, st_f = 2 * sides + 2, len(sf) // n
     out = {}
