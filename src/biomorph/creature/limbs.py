@@ -11,13 +11,14 @@ Limbs without ground contact follow the seed's rules: fins straight back, wings 
 angle per joint from a per-joint interval; arms rest as their class does (mammals: humerus
 along the trunk, elbow flexed; others folded against the body, :data:`FREE_ARM_REST_DEG`)
 instead of the seed's upper arm down and forearm 90° forward. Legs with ground contact use
-the seed's iterative descent (:func:`descend`): start with every flexion DOF at its most bent
-limit; each iteration, for each joint and each DOF chosen with its probability, rotate by the current
-step towards the orientation where the bone points straight down (the seed's comparison of
-the child's negative local y with world y), clamp at vertical ("gerade noch erlaubt"),
-reject a rotation that puts any bone end below the ground, then multiply the step by 4/5 —
-and halve it when the contact point moved less than ``stall`` (0.1 frame px) — down to a
-minimum step. All constants are :class:`DescentParams` fields with the seed's values.
+the seed's iterative descent (:func:`descend`): start with every flexion DOF at its most
+bent limit; each iteration, for each joint and each DOF chosen with its probability, rotate
+by the current step towards the orientation where the bone points straight down (the
+seed's comparison of the child's negative local y with world y), clamp at vertical ("gerade
+noch erlaubt"), reject a rotation that puts any bone end below the ground, then multiply
+the step by 4/5 — and halve it when the contact point moved less than ``stall`` (0.1 frame
+px) — down to a minimum step. All constants are :class:`DescentParams` fields with the
+seed's values.
 
 Beyond the seed, standing legs get anatomical preferences (``DescentParams.plausible``): the
 descent searches a standing box per segment type (:data:`STAND_LIMITS_DEG`; knee, hock and
