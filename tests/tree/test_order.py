@@ -176,3 +176,67 @@ def test_a_short_skeleton_detour_does_not_end_the_trunk():
     g = BranchGraph(np.array(pos), np.array(parent))
     d = order.branch_order(g)
     assert (d[: 41 + 6 + 39] == 0).all() and (d[41 + 6 + 39 :] == 1).all()
+
+
+def _whorl_fork():
+    """A 6 m stem (0.1 m edges) forking at a whorl: the leader kinks 0.3 m sideways (45°
+    for three edges, the skeleton routed through the whorl) and climbs to 10 m; a limb
+    leaves straighter (35°) and carries about as much (3.5 m) but tops out at 8.9 m."""
+    pos = [[0.0, 0.0, 0.1 * i] for i in range(61)]
+    parent = [-1] + list(range(60))
+    for i in range(1, 4):  # the kink
+        pos.append([0.07 * i, 0, 6 + 0.07 * i])
+        parent.append(60 if i == 1 else len(pos) - 2)
+    z0 = pos[-1][2]
+    for i in range(1, 39):  # and the leader up to the top
+        pos.append([0.21, 0, z0 + 0.1 * i])
+        parent.append(len(pos) - 2)
+    n_leader = len(pos)
+    a = np.radians(35)
+    for i in range(1, 36):  # the limb
+        pos.append([-0.1 * i * np.sin(a), 0, 6 + 0.1 * i * np.cos(a)])
+        parent.append(60 if i == 1 else len(pos) - 2)
+    return BranchGraph(np.array(pos), np.array(parent)), n_leader
+
+
+def test_the_trunk_follows_the_leader_to_the_top_through_a_whorl():
+    """Issue 13, pine plot: at a codominant whorl fork the trunk continues into the child
+    that climbs to the top, not the one turning least over its first edges."""
+    g, n_leader = _whorl_fork()
+    d = order.branch_order(g)
+    assert (d[:n_leader] == 0).all() and (d[n_leader:] == 1).all()
+    assert metrics_top_gap(g, d) == pytest.approx(0.0)
+    # without the axis rule the supported rule's angle tie-break takes the limb
+    d_free = order.branch_order(g, trunk_angle=None)
+    assert (d_free[n_leader:] == 0).all()
+
+
+def test_the_trunk_reaches_a_top_held_by_a_child_heading_off_at_first():
+    """The stem's skeleton leaves a whorl nearly horizontally for 1.5 m (further than a
+    heading's reach) through a limb's wood and only then climbs to the top: the child holds
+    the tree's top, so the trunk continues into it."""
+    pos = [[0.0, 0.0, 0.1 * i] for i in range(51)]
+    parent = [-1] + list(range(50))
+    for i in range(1, 16):  # out along the whorl
+        pos.append([0.1 * i, 0, 5 + 0.01 * i])
+        parent.append(50 if i == 1 else len(pos) - 2)
+    elbow = len(pos) - 1
+    for i in range(1, 46):  # the limb goes on 4.5 m, drooping a little (the heavier path)
+        pos.append([1.5 + 0.1 * i, 0, 5.15 - 0.01 * i])
+        parent.append(elbow if i == 1 else len(pos) - 2)
+    for i in range(1, 41):  # the stem climbs back up from the elbow to 9.15 m
+        pos.append([1.5 - 0.03 * i, 0.0, 5.15 + 0.1 * i])
+        parent.append(elbow if i == 1 else len(pos) - 2)
+    for i in range(1, 8):  # a short twig at the whorl, the other child
+        pos.append([0, -0.1 * i, 5.0])
+        parent.append(50 if i == 1 else len(pos) - 2)
+    g = BranchGraph(np.array(pos), np.array(parent))
+    d = order.branch_order(g)
+    climb = np.arange(elbow + 46, elbow + 86)
+    assert metrics_top_gap(g, d) == pytest.approx(0.0) and (d[climb] == 0).all()
+    assert (d[elbow + 1 : elbow + 46] == 1).all()  # the limb is a branch
+
+
+def metrics_top_gap(g: BranchGraph, d: np.ndarray) -> float:
+    """The tree's top minus the trunk's highest node (``trunk_top_gap``)."""
+    return float(g.position[:, 2].max() - g.position[d == 0, 2].max())

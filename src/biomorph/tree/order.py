@@ -17,11 +17,16 @@ all other children start a new branch with order + 1. Two rules choose it:
     half its length along its axis): above breast height the trunk
     (order 0) continues only into children heading within ``trunk_angle`` of the trunk's
     own axis (base to breast height, 1.3 m; the whole trunk on trees under 2.6 m) and
-    carrying at least ``tie`` × the heaviest child's length, the heaviest of them; with
-    none, the trunk ends there (a thin twig pointing up does not carry it on). A heading
-    is the direction to the node :data:`TRUNK_LOOK` edges or :data:`TRUNK_REACH` of the
-    height down the child's heaviest path, or to that path's highest node (a skeleton that
-    detours through a whorl still climbs to the top). Step by step the heaviest child
+    carrying at least ``tie`` × the heaviest child's length; with none, the trunk ends
+    there (a thin twig pointing up does not carry it on). A heading is the direction to
+    the node :data:`TRUNK_LOOK` edges or :data:`TRUNK_REACH` of the height (``reach``)
+    down the child's heaviest path, or to that path's highest node, or to the tree's top
+    if the child's subtree holds it (a skeleton that detours through a whorl, or routes
+    the stem out along a limb and back, still climbs to the top). Among the children
+    passing, the trunk follows the *leader*: those whose subtree climbs within ``reach``
+    of the highest along the axis, then the supported rule's choice or the heaviest (on
+    the pine plot the least-turning child of a whorl fork topped out 1–2 m below the
+    leader on 4 of 16 pines). Step by step the heaviest child
     turns only a little, but on a decurrent crown those steps add up: rTwig's coffee
     tree's trunk bent over into a horizontal limb for 1.2 m (4.14 m of trunk for
     TreeQSM's 3.46 m). The axis, not the vertical, so a leaning stem stays one trunk.
@@ -257,36 +262,58 @@ def _ahead(v: int, indptr, idx, carried, el, reach: float) -> int:
     return v
 
 
-def _highest_ahead(v: int, indptr, idx, carried, pos, axis) -> int:
-    """The node of ``v``'s heaviest path (to its tip) highest along ``axis``."""
-    best, hb = v, float(pos[v] @ axis)
+@numba.njit(cache=True)
+def _subtree_top(parent, order, h):
+    """For every node, the node of its subtree (itself included) highest in ``h``."""
+    top = np.arange(parent.size)
+    for k in range(order.size - 1, -1, -1):
+        v = order[k]
+        p = parent[v]
+        if p >= 0 and h[top[v]] > h[top[p]]:
+            top[p] = top[v]
+    return top
+
+
+def _highest_ahead(v: int, indptr, idx, carried, h) -> int:
+    """The node of ``v``'s heaviest path (to its tip) highest in ``h``."""
+    best = v
     while True:
         kids = idx[indptr[v] : indptr[v + 1]]
         if kids.size == 0:
             return best
         v = int(kids[np.argmax(carried[kids])])
-        h = float(pos[v] @ axis)
-        if h > hb:
-            best, hb = v, h
+        if h[v] > h[best]:
+            best = v
+
+
+def _trunk_axis(graph: BranchGraph, root: int, cont) -> NDArray[np.float64] | None:
+    """The trunk's axis: base to breast height; the whole trunk on a tree under 2 x 1.3 m."""
+    pos = graph.position
+    path = _trunk_path(root, cont)
+    z = pos[path, 2] - pos[root, 2]
+    at = np.flatnonzero(z >= BREAST_HEIGHT)
+    ref = path[int(at[0])] if at.size and z.max() >= 2 * BREAST_HEIGHT else path[-1]
+    axis = pos[ref] - pos[root]
+    n = float(np.linalg.norm(axis))
+    return axis / n if n > 0 else None
 
 
 def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float) -> None:
-    """End each root's trunk where no child heads within ``angle`` of the trunk's axis
-    (see the module doc); ``cont`` is changed in place."""
+    """Lead each root's trunk to the top along its axis (see the module doc): above breast
+    height, among the children carrying at least ``TRUNK_TIE`` x the heaviest and heading
+    within ``angle`` of the axis, the trunk continues into one whose subtree climbs highest
+    (within ``reach``: then the supported rule's choice, else the heaviest); with none it
+    ends. ``cont`` is changed in place."""
     pos = graph.position
     el = graph.edge_length
     med_edge = float(np.median(el[el > 0])) if (el > 0).any() else 0.0
     cos_max = np.cos(angle)
     for root in graph.roots:
-        path = _trunk_path(int(root), cont)
-        z = pos[path, 2] - pos[root, 2]
-        at = np.flatnonzero(z >= BREAST_HEIGHT)
-        # the axis: base to breast height; the whole trunk on a tree under 2 x 1.3 m
-        ref = path[int(at[0])] if at.size and z.max() >= 2 * BREAST_HEIGHT else path[-1]
-        axis = pos[ref] - pos[root]
-        if np.linalg.norm(axis) == 0:
+        axis = _trunk_axis(graph, int(root), cont)
+        if axis is None:
             continue
-        axis = axis / np.linalg.norm(axis)
+        h = pos @ axis
+        top = _subtree_top(graph.parent, graph.order, h)
         height = float(pos[graph.trees == graph.trees[root], 2].max() - pos[root, 2])
         reach = max(TRUNK_LOOK * med_edge, TRUNK_REACH * height)
         v = int(root)
@@ -295,26 +322,43 @@ def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float
             if kids.size == 0:
                 break
             if kids.size > 1 and pos[v, 2] - pos[root, 2] >= BREAST_HEIGHT:
-                heavy = float(carried[kids].max())
-                ok = []
-                for w in kids:
-                    if carried[w] < TRUNK_TIE * heavy:
-                        continue
-                    # near, or to the end of its heaviest path: a skeleton detour through a
-                    # whorl (a kink, a stem routed out along a limb and back) ends up high
-                    near = _ahead(int(w), indptr, idx, carried, el, reach)
-                    top = _highest_ahead(int(w), indptr, idx, carried, pos, axis)
-                    for x in (near, top):
-                        d = pos[x] - pos[v]
-                        ln = np.linalg.norm(d)
-                        if ln > 0 and d @ axis / ln >= cos_max:
-                            ok.append(int(w))
-                            break
+                ctx = (carried, indptr, idx, el, pos, h, top, int(top[root]))
+                ok = _trunk_candidates(v, kids, ctx, axis, reach, cos_max)
+                if ok:  # the leaders: children climbing within ``reach`` of the highest
+                    hi = max(h[top[w]] for w in ok)
+                    ok = [w for w in ok if h[top[w]] >= hi - reach]
                 if int(cont[v]) not in ok:
                     cont[v] = max(ok, key=lambda w: carried[w]) if ok else -1
             if cont[v] < 0:
                 break
             v = int(cont[v])
+
+
+def _trunk_candidates(v, kids, ctx, axis, reach: float, cos_max: float) -> list[int]:
+    """The children of trunk node ``v`` that may carry the trunk on: carrying at least
+    ``TRUNK_TIE`` x the heaviest and heading within ``arccos(cos_max)`` of the axis; ``ctx``
+    is ``(carried, indptr, idx, edge_length, position, height along the axis,``
+    :func:`_subtree_top` ``, the tree's top node)``."""
+    carried, indptr, idx, el, pos, h, top, tree_top = ctx
+    heavy = float(carried[kids].max())
+    ok = []
+    for w in kids:
+        if carried[w] < TRUNK_TIE * heavy:
+            continue
+        # near, or to the highest node of its heaviest path: a skeleton detour through a
+        # whorl (a kink, a stem routed out along a limb and back) ends up high; or to the
+        # tree's top if this child holds it (the leader, however the skeleton routes wood)
+        heads = [_ahead(int(w), indptr, idx, carried, el, reach)]
+        heads.append(_highest_ahead(int(w), indptr, idx, carried, h))
+        if top[w] == tree_top:
+            heads.append(int(top[w]))
+        for x in heads:
+            d = pos[x] - pos[v]
+            ln = np.linalg.norm(d)
+            if ln > 0 and d @ axis / ln >= cos_max:
+                ok.append(int(w))
+                break
+    return ok
 
 
 def continuation_from_segments(graph: BranchGraph, segment: NDArray[np.int64]) -> NDArray[np.int64]:
