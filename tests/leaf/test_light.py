@@ -143,6 +143,33 @@ def test_light_cli_end_to_end(tmp_path, capsys) -> None:
     assert rows[0].startswith("plant,leaf,area_m2") and len(rows) > 8
 
 
+def test_light_takes_the_ground_tile_the_canopy_glb_stores(tmp_path, capsys) -> None:
+    """`leaf canopy` stores its ground tile in the GLB's scene extras and `leaf light` uses
+    it: the gap fraction is that of the field (LAI over its tile), not of the leaves'
+    bounding box (which overhangs the tile and dilutes the LAI)."""
+    from biomorph.leaf.files import read_canopy_ground
+
+    field = tmp_path / "field.glb"
+    assert run(["leaf", "canopy", "--plants", "24", "--rows", "3", "-o", str(field), "--json"]) == 0
+    made = json.loads(capsys.readouterr().out)
+    tile = read_canopy_ground(field)
+    assert tile is not None and ",".join(f"{v:.6g}" for v in tile) == made["ground"]
+    args = ["leaf", "light", str(field), "--sky", "16", "--json"]
+    assert run(args) == 0
+    lit = json.loads(capsys.readouterr().out)
+    assert lit["ground_from"] == "file"
+    assert lit["ground_area_m2"] == pytest.approx(made["ground_area_m2"])
+    bbox = tmp_path / "bbox.obj"
+    assert run(["leaf", "canopy", "--plants", "24", "--rows", "3", "-o", str(bbox)]) == 0
+    capsys.readouterr()
+    assert read_canopy_ground(bbox) is None
+    assert run(["leaf", "light", str(bbox), "--sky", "16", "--json"]) == 0
+    loose = json.loads(capsys.readouterr().out)
+    assert loose["ground_from"] == "canopy extent"
+    assert loose["ground_area_m2"] > lit["ground_area_m2"]
+    assert lit["gap_fraction"] < loose["gap_fraction"]
+
+
 @pytest.fixture(scope="module")
 def small_field(tmp_path_factory):
     field = tmp_path_factory.mktemp("light") / "field.glb"

@@ -323,7 +323,6 @@ def canopy(
         field_mesh,
         leaf_area_index,
     )
-    from biomorph.leaf.files import write_leaf_mesh
 
     _check_ext(output, MESH_EXT)
     from biomorph.leaf.plant import DEFAULT_LEAVES, mature_thermal_time
@@ -359,7 +358,7 @@ def canopy(
     for w in caught:
         err_console.print(f"warning: {w.message}")
     m = field_mesh(fld, triangles_per_leaf=triangles)
-    write_leaf_mesh(output, m)
+    _write_with_tile(output, m, fld.tile)
     lai = leaf_area_index(fld, m)
     summary = {
         "file": str(output),
@@ -375,6 +374,17 @@ def canopy(
         "seed": seed,
     }
     emit(summary, as_json, title="leaf canopy")
+
+
+def _write_with_tile(output: Path, mesh, tile) -> None:
+    """Write a field's mesh; a GLB also carries the ground tile in its scene extras, so
+    `leaf light` uses the field's tile by default (not the leaves' overhanging extent)."""
+    from biomorph.leaf.files import GROUND_TILE_KEY, write_leaf_mesh
+
+    if tile and Path(output).suffix.lower() == ".glb":
+        write_leaf_mesh(output, mesh, extras={GROUND_TILE_KEY: [float(v) for v in tile]})
+    else:
+        write_leaf_mesh(output, mesh)
 
 
 @app.command("reduce-curve")
@@ -456,7 +466,10 @@ def light(
     ] = 300_000,
     ground: Annotated[
         str | None,
-        typer.Option(help="Ground tile xmin,ymin,xmax,ymax (m); default: the canopy's extent."),
+        typer.Option(
+            help="Ground tile xmin,ymin,xmax,ymax (m); default: the tile a `leaf canopy` GLB "
+            "stores, else the canopy's extent."
+        ),
     ] = None,
     periodic: Annotated[
         bool, typer.Option(help="Treat the ground tile as one tile of an infinite field.")
@@ -500,6 +513,12 @@ def light(
                 f"--sun {sun!r}: expected an ISO 8601 date and time such as 2026-06-21T12:00 (UTC)"
             ) from None
     rect = _parse_ground(ground)
+    ground_from = "--ground" if rect is not None else "canopy extent"
+    if rect is None:
+        from biomorph.leaf.files import read_canopy_ground
+
+        rect = read_canopy_ground(canopy_file)  # the tile `leaf canopy` stored in the GLB
+        ground_from = "file" if rect is not None else ground_from
     table_path = None if table is None else Path(table)
     for path, allowed, opt in (
         (plot, (".png",), "--plot"),
@@ -526,7 +545,7 @@ def light(
     opts.validate()
     mesh = read_canopy(canopy_file)
     result = _run_light(mesh, opts)
-    summary = {"file": str(canopy_file), **result.summary()}
+    summary = {"file": str(canopy_file), **result.summary(), "ground_from": ground_from}
     if table_path is not None and table_path.resolve() == canopy_file.resolve():
         raise ParameterError(f"--table {table}: is the input canopy; choose another file")
     summary.update(_light_outputs(mesh, result, plot, output, table_path))
@@ -676,7 +695,6 @@ def plant(
     from biomorph._cli import check_suffix, emit, err_console
     from biomorph.io.plant_tables import read_dimensions, read_phenology
     from biomorph.leaf.canopy import LeafCountWarning
-    from biomorph.leaf.files import write_leaf_mesh
     from biomorph.leaf.plant import (
         PlantOptions,
         build_plant_architecture,
@@ -711,7 +729,7 @@ def plant(
             built = stand[0]
     for w in caught[:1]:
         err_console.print(f"warning: {w.message}")
-    write_leaf_mesh(output, mesh)
+    _write_with_tile(output, mesh, tile)
     summary = {
         "file": str(output),
         "preset": preset,

@@ -155,4 +155,37 @@ def read_canopy(path: str | Path) -> Any:
     )
 
 
-__all__ = ["MESH_EXT", "read_canopy", "read_points_csv", "write_leaf_mesh"]
+#: scene ``extras`` key of the ground tile a ``leaf canopy`` GLB carries (Z-up metres)
+GROUND_TILE_KEY = "biomorph_ground_tile"
+
+
+def read_canopy_ground(path: str | Path) -> tuple[float, float, float, float] | None:
+    """The ground tile ``(xmin, ymin, xmax, ymax)`` (Z-up metres) stored in a canopy GLB's
+    scene extras by ``leaf canopy``, or ``None`` (other formats, or none stored)."""
+    path = Path(path)
+    if path.suffix.lower() != ".glb":
+        return None
+    import pygltflib
+
+    try:
+        gltf = pygltflib.GLTF2().load_binary(str(path))
+        extras = gltf.scenes[gltf.scene or 0].extras or {}
+        tile = extras.get(GROUND_TILE_KEY) if isinstance(extras, dict) else None
+        if tile is None:
+            return None
+        vals = tuple(float(v) for v in tile)
+    except (OSError, ValueError, TypeError, IndexError, AttributeError):
+        return None
+    if len(vals) != 4 or not (vals[2] > vals[0] and vals[3] > vals[1]):
+        return None
+    return vals  # type: ignore[return-value]
+
+
+__all__ = [
+    "GROUND_TILE_KEY",
+    "MESH_EXT",
+    "read_canopy",
+    "read_canopy_ground",
+    "read_points_csv",
+    "write_leaf_mesh",
+]

@@ -64,7 +64,8 @@ def write_gltf(
         ``bone_width`` is given in the input's units and scaled too.
     joint_extras : one JSON-ready mapping (or ``None``) per joint, written as that joint
         node's ``extras`` (Blender's importer makes them bone custom properties).
-    extras : JSON-ready mapping written as the armature node's ``extras``.
+    extras : JSON-ready mapping written as the armature node's ``extras`` (with a skeleton),
+        else as the scene's ``extras`` (e.g. a canopy's ground tile).
     joint_geometry : ``(vertices (k, 3), normals (k, 3), joint (k,), faces (m, 3))``: bone
         models already concatenated, each vertex in its joint's local frame, rigidly skinned
         to that joint (the fast path for many small per-joint meshes).
@@ -145,6 +146,8 @@ def write_gltf(
                 name=name,
                 vertex_attributes=vertex_attributes,
             )
+            if extras:
+                builder.doc["scenes"][0]["extras"] = dict(extras)
         elif frames is None:
             raise InputError(
                 "nothing to write: expected a JointSkeleton, a motion, meshes or frames"
