@@ -31,7 +31,10 @@ def _lock(m, ref=None):
 def slid():
     """The built-in walk with a slide injected: the hips pushed back and forth (5 cm along
     the walk at 1.7 Hz, 3 cm sideways at 0.9 Hz), so every planted foot slides."""
-    m = walk(480, 60)
+    return _slide(walk(480, 60))
+
+
+def _slide(m):
     t = np.arange(m.n_frames) / m.fps
     rp = np.array(m.root_position)
     rp[:, 2] += 0.05 * np.sin(2 * np.pi * 1.7 * t)
@@ -99,7 +102,9 @@ def test_an_operator_cannot_lower_a_foot_near_the_floor(slid):
             assert (w_low[free, j, 1] < h[free] - 0.02).all()  # the operator lowered them
             assert (w_out[free, j, 1] >= h[free] - 1e-6).all()  # locking kept the clearance
             checked += int(free.sum())
-    assert checked > 20
+    # the built-in walk plants its feet (issue 15): a foot is low away from a contact's
+    # fades only at the clip's ends now (4 frames; the skating walk had > 20)
+    assert checked > 0
 
 
 def test_contact_cut_by_the_clip_start_is_held_where_it_meets_the_clip():

@@ -139,8 +139,12 @@ def test_cycle_seam_is_no_worse_than_the_clip(source):
     median_acc = np.median(np.linalg.norm(np.diff(xs, 2, axis=0), axis=1))
     median_step = np.median(np.linalg.norm(np.diff(xs, axis=0), axis=1))
     acc = np.linalg.norm(np.diff(x, 2, axis=0), axis=1)
-    # velocity jump across the seam (second difference at the frames around it)
-    assert acc[p - 2] <= median_acc and acc[p - 1] <= median_acc
+    # velocity jump across the seam (second difference at the frames around it): no more
+    # than the clip's median, or than the clip's own at the frames the seam joins onto
+    # (a seam cannot be smoother than the motion there)
+    clip_acc = np.linalg.norm(np.diff(xs, 2, axis=0), axis=1)
+    assert acc[p - 2] <= max(median_acc, clip_acc[s - 2] + 1e-12)
+    assert acc[p - 1] <= max(median_acc, clip_acc[s - 1] + 1e-12)
     # pose jump: the seam step differs from the step before it by less than a median step
     steps = np.linalg.norm(np.diff(x, axis=0), axis=1)
     assert abs(steps[p - 1] - steps[p - 2]) <= median_step
