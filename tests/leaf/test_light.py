@@ -147,12 +147,12 @@ def test_light_takes_the_ground_tile_the_canopy_glb_stores(tmp_path, capsys) -> 
     """`leaf canopy` stores its ground tile in the GLB's scene extras and `leaf light` uses
     it: the gap fraction is that of the field (LAI over its tile), not of the leaves'
     bounding box (which overhangs the tile and dilutes the LAI)."""
-    from biomorph.leaf.files import read_canopy_ground
+    from biomorph.leaf.files import read_canopy_scene
 
     field = tmp_path / "field.glb"
     assert run(["leaf", "canopy", "--plants", "24", "--rows", "3", "-o", str(field), "--json"]) == 0
     made = json.loads(capsys.readouterr().out)
-    tile = read_canopy_ground(field)
+    tile = read_canopy_scene(field)[1]
     assert tile is not None and ",".join(f"{v:.6g}" for v in tile) == made["ground"]
     args = ["leaf", "light", str(field), "--sky", "16", "--json"]
     assert run(args) == 0
@@ -162,7 +162,7 @@ def test_light_takes_the_ground_tile_the_canopy_glb_stores(tmp_path, capsys) -> 
     bbox = tmp_path / "bbox.obj"
     assert run(["leaf", "canopy", "--plants", "24", "--rows", "3", "-o", str(bbox)]) == 0
     capsys.readouterr()
-    assert read_canopy_ground(bbox) is None
+    assert read_canopy_scene(bbox)[1] is None
     assert run(["leaf", "light", str(bbox), "--sky", "16", "--json"]) == 0
     loose = json.loads(capsys.readouterr().out)
     assert loose["ground_from"] == "canopy extent"

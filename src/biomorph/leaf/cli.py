@@ -494,10 +494,11 @@ def light(
 
     Example: biomorph leaf light field.glb --sun 2026-06-21T12:00 --latitude 48.8 --json
     """
+    from dataclasses import replace
     from datetime import datetime
 
     from biomorph._cli import check_suffix, emit
-    from biomorph.leaf.files import read_canopy
+    from biomorph.leaf.files import read_canopy_scene
     from biomorph.leaf.light import ENGINES, LightOptions
 
     if engine not in ENGINES:
@@ -513,12 +514,6 @@ def light(
                 f"--sun {sun!r}: expected an ISO 8601 date and time such as 2026-06-21T12:00 (UTC)"
             ) from None
     rect = _parse_ground(ground)
-    ground_from = "--ground" if rect is not None else "canopy extent"
-    if rect is None:
-        from biomorph.leaf.files import read_canopy_ground
-
-        rect = read_canopy_ground(canopy_file)  # the tile `leaf canopy` stored in the GLB
-        ground_from = "file" if rect is not None else ground_from
     table_path = None if table is None else Path(table)
     for path, allowed, opt in (
         (plot, (".png",), "--plot"),
@@ -543,7 +538,10 @@ def light(
         engine=engine,
     )
     opts.validate()
-    mesh = read_canopy(canopy_file)
+    mesh, stored = read_canopy_scene(canopy_file)
+    ground_from = "--ground" if rect is not None else "file" if stored else "canopy extent"
+    if rect is None and stored is not None:  # the tile `leaf canopy` stored in the GLB
+        opts = replace(opts, ground=stored)
     result = _run_light(mesh, opts)
     summary = {"file": str(canopy_file), **result.summary(), "ground_from": ground_from}
     if table_path is not None and table_path.resolve() == canopy_file.resolve():

@@ -19,6 +19,8 @@ import numpy as np
 from biomorph.errors import FormatError
 
 MESH_EXT = (".obj", ".ply", ".glb", ".can")
+#: scene ``extras`` key of the ground tile a ``leaf canopy`` GLB carries (Z-up metres)
+GROUND_TILE_KEY = "biomorph_ground_tile"
 
 
 def write_leaf_mesh(path: str | Path, mesh: Any, **gltf: Any) -> Path:
@@ -100,6 +102,14 @@ def read_canopy(path: str | Path) -> Any:
     :func:`write_leaf_mesh`: glTF Y-up turned back to Z-up, ids from the ``_PLANT_ID`` /
     ``_LEAF_ID`` vertex attributes), ``.obj`` (face-id groups), ``.ply`` or a CARIBU
     ``.can`` scene (plant and leaf ids from the labels; metres)."""
+    return read_canopy_scene(path)[0]
+
+
+def read_canopy_scene(path: str | Path) -> tuple[Any, tuple[float, float, float, float] | None]:
+    """:func:`read_canopy`'s mesh and the ground tile ``(xmin, ymin, xmax, ymax)`` (Z-up
+    metres) that ``leaf canopy`` / a ``leaf plant`` stand stores in a GLB's scene extras
+    (:data:`GROUND_TILE_KEY`), or ``None`` (other formats, or no tile stored); the file is
+    read once."""
     from biomorph.core.mesh import Mesh
 
     path = Path(path)
@@ -109,11 +119,11 @@ def read_canopy(path: str | Path) -> Any:
     if ext in (".obj", ".ply"):
         from biomorph import io
 
-        return io.read_mesh(path)
+        return io.read_mesh(path), None
     if ext == ".can":
         from biomorph.io.caribu import read_can
 
-        return read_can(path)
+        return read_can(path), None
     if ext != ".glb":
         raise FormatError(path, f"extension {ext or '(none)'!r}: expected .glb, .obj, .ply or .can")
     import pygltflib
@@ -148,44 +158,32 @@ def read_canopy(path: str | Path) -> Any:
         raise FormatError(path, f"broken glTF accessor ({exc})") from None
     if not faces:
         raise FormatError(path, "holds no triangles; expected a canopy mesh")
-    return Mesh(
+    mesh = Mesh(
         np.concatenate(verts),
         np.concatenate(faces),
         face_ids={k: np.concatenate(v) for k, v in ids.items()},
     )
+    return mesh, _ground_tile(gltf)
 
 
-#: scene ``extras`` key of the ground tile a ``leaf canopy`` GLB carries (Z-up metres)
-GROUND_TILE_KEY = "biomorph_ground_tile"
-
-
-def read_canopy_ground(path: str | Path) -> tuple[float, float, float, float] | None:
-    """The ground tile ``(xmin, ymin, xmax, ymax)`` (Z-up metres) stored in a canopy GLB's
-    scene extras by ``leaf canopy``, or ``None`` (other formats, or none stored)."""
-    path = Path(path)
-    if path.suffix.lower() != ".glb":
-        return None
-    import pygltflib
-
+def _ground_tile(gltf: Any) -> tuple[float, float, float, float] | None:
+    """The valid ground tile in a loaded glTF's scene extras, or ``None``."""
     try:
-        gltf = pygltflib.GLTF2().load_binary(str(path))
         extras = gltf.scenes[gltf.scene or 0].extras or {}
         tile = extras.get(GROUND_TILE_KEY) if isinstance(extras, dict) else None
-        if tile is None:
-            return None
-        vals = tuple(float(v) for v in tile)
-    except (OSError, ValueError, TypeError, IndexError, AttributeError):
+        vals = tuple(float(v) for v in tile) if tile is not None else ()
+    except (ValueError, TypeError, IndexError, AttributeError):
         return None
     if len(vals) != 4 or not (vals[2] > vals[0] and vals[3] > vals[1]):
         return None
-    return vals  # type: ignore[return-value]
+    return vals[0], vals[1], vals[2], vals[3]
 
 
 __all__ = [
     "GROUND_TILE_KEY",
     "MESH_EXT",
     "read_canopy",
-    "read_canopy_ground",
+    "read_canopy_scene",
     "read_points_csv",
     "write_leaf_mesh",
 ]
