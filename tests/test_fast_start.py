@@ -61,3 +61,21 @@ def test_help_loads_no_numeric_stack(argv):
     assert marks, out.stdout + out.stderr
     heavy = marks[-1].removeprefix("HEAVY=")
     assert heavy == "", f"biomorph {' '.join(argv)} imported {heavy}"
+
+
+@pytest.mark.parametrize(
+    "argv,group",
+    [
+        (["motion", "info", "x.bvh"], "motion"),
+        (["studio", "--help"], "studio"),
+        (["info", "x.bvh"], ""),
+        (["--help"], None),
+        (["--help", "info"], None),
+        ([], None),
+        (["nope"], None),
+    ],
+)
+def test_a_call_builds_only_the_group_it_runs(argv, group):
+    from biomorph.cli import _selected_group
+
+    assert _selected_group(argv) == group

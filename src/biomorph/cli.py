@@ -208,13 +208,14 @@ def full_app() -> typer.Typer:
 
 def _selected_group(argv: list[str]) -> str | None:
     """The one group ``argv`` runs (a pillar, ``"studio"``, or ``""`` for a root command),
-    or ``None`` when it needs every group (no command, ``--help``, a typo)."""
-    first = next((a for a in argv if not a.startswith("-")), None)
+    or ``None`` when it needs every group (no command, a root option such as ``--help``
+    first, a typo)."""
+    if not argv or argv[0].startswith("-"):
+        return None
+    first = argv[0]
     if first in PILLARS or first == "studio":
         return first
-    if first in _ROOT_COMMANDS and "--help" not in argv[:1]:
-        return ""
-    return None
+    return "" if first in _ROOT_COMMANDS else None
 
 
 #: generic ranges of every numeric option (on top of each option's own ``bounded`` range):
