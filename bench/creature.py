@@ -2,6 +2,13 @@
 
     .venv/bin/python bench/creature.py                    # 1,000 creatures + 10,000 GLB batch
     .venv/bin/python bench/creature.py --count 200 --batch 0   # quick
+    .venv/bin/python bench/creature.py --compare HEAD~3 --speed-only --count 300
+        # speed before/after: REF's src/ (git archive) and this tree's src/ timed in two
+        # worker processes, alternating blocks of seeds in the same window
+
+``--compare`` interleaves the two codes block by block (25 seeds of one condition in one
+worker, then the same seeds in the other, the order swapped every block), so both see the
+same machine load; each worker reports ``time.process_time`` per creature.
 
 Prints markdown tables. Timings: CPU time (``time.process_time``) beside the wall clock, and
 the ratio to a baseline measured in the same run — the seed's plain pipeline (its descent
@@ -13,7 +20,11 @@ not runnable here) — because the machine is shared and its load moves every fi
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import shutil
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -54,7 +65,20 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--settle", type=int, default=100, help="MuJoCo settle checks")
     ap.add_argument("--walk", type=int, default=300, help="walk cycles checked")
+    ap.add_argument(
+        "--compare",
+        metavar="REF",
+        help="time REF's src/ against this tree's, interleaved (before/after table)",
+    )
+    ap.add_argument("--speed-only", action="store_true", help="only the speed table(s)")
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.worker:
+        return _worker()
+    if args.compare:
+        compare_table(args.compare, args.count)
+        if args.speed_only:
+            return
 
     generate(0)  # JIT compile / load caches outside the timing
     times, cpu, creatures = [], [], []
@@ -144,6 +168,106 @@ def main() -> None:
             f"| {files} | {args.workers} | {dt:.1f} | {dt / max(files, 1) * 1e3:.1f} ms | {code} |"
         )
         shutil.rmtree(out, ignore_errors=True)
+
+
+#: The conditions of the issue-14 speed target (defaults first).
+SPEED_CONDITIONS = {"defaults": {}, **CONDITIONS}
+
+
+def _worker() -> None:
+    """Compare worker: read ``{"kw": {...}, "seeds": [...]}`` lines, answer each with the CPU
+    ms per creature (``time.process_time``)."""
+    generate(0)  # JIT compile / load caches outside the timing
+    for kw in SPEED_CONDITIONS.values():
+        generate(0, **kw)
+    print(json.dumps({"ready": True}), flush=True)
+    for line in sys.stdin:
+        job = json.loads(line)
+        out = []
+        for seed in job["seeds"]:
+            c0 = time.process_time()
+            generate(seed, **job["kw"])
+            out.append((time.process_time() - c0) * 1e3)
+        print(json.dumps(out), flush=True)
+
+
+def _spawn(src: Path) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(src))
+    p = subprocess.Popen(
+        [sys.executable, __file__, "--worker"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=str(src.parent),
+    )
+    assert p.stdin and p.stdout
+    json.loads(p.stdout.readline())
+    return p
+
+
+def _ask(p: subprocess.Popen, kw: dict, seeds: list[int]) -> list[float]:
+    assert p.stdin and p.stdout
+    p.stdin.write(json.dumps({"kw": kw, "seeds": seeds}) + "\n")
+    p.stdin.flush()
+    return json.loads(p.stdout.readline())
+
+
+def compare_table(ref: str, n: int, block: int = 25) -> None:
+    """Median CPU ms per creature, REF's code against this tree's, per speed condition,
+    interleaved in blocks of seeds in the same run (``--compare``)."""
+    root = Path(__file__).resolve().parents[1]
+    tmp = Path(tempfile.mkdtemp(prefix="creature_ref_"))
+    arch = subprocess.run(
+        ["git", "-C", str(root), "archive", ref, "src"], check=True, capture_output=True
+    ).stdout
+    subprocess.run(["tar", "-x", "-C", str(tmp)], input=arch, check=True)
+    sha = subprocess.run(
+        ["git", "-C", str(root), "rev-parse", "--short", ref],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
+    with open("/proc/loadavg") as fh:
+        load0 = fh.read().split()[0]
+    before, after = _spawn(tmp / "src"), _spawn(root / "src")
+    res: dict[str, tuple[list[float], list[float]]] = {}
+    try:
+        for label, kw in SPEED_CONDITIONS.items():
+            b_, a_ = [], []
+            for i, start in enumerate(range(0, n, block)):
+                seeds = list(range(start, min(start + block, n)))
+                if i % 2 == 0:
+                    b_ += _ask(before, kw, seeds)
+                    a_ += _ask(after, kw, seeds)
+                else:
+                    a_ += _ask(after, kw, seeds)
+                    b_ += _ask(before, kw, seeds)
+            res[label] = (b_, a_)
+    finally:
+        for p in (before, after):
+            p.kill()
+            p.wait()
+        shutil.rmtree(tmp, ignore_errors=True)
+    with open("/proc/loadavg") as fh:
+        load1 = fh.read().split()[0]
+    print(f"## Speed before/after (`--compare {ref}` = {sha}; seeds 0..{n - 1} per condition)\n")
+    print(
+        "| condition | n | before CPU median ms | after CPU median ms | after ÷ before | "
+        "before p90 | after p90 | after ≤ 5 ms |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for label, (b_, a_) in res.items():
+        mb, ma = float(np.median(b_)), float(np.median(a_))
+        print(
+            f"| {label} | {len(a_)} | {mb:.2f} | {ma:.2f} | {ma / mb:.2f} | "
+            f"{np.percentile(b_, 90):.2f} | {np.percentile(a_, 90):.2f} | "
+            f"{'yes' if ma <= 5.0 else 'no'} |"
+        )
+    print(
+        f"\nload average {load0} before, {load1} after (2 cores); blocks of {block} seeds "
+        "alternate between the two worker processes\n"
+    )
 
 
 def _timed(n: int, **kw) -> tuple[np.ndarray, np.ndarray]:

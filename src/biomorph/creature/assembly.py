@@ -8,7 +8,9 @@ reordered depth-first before the conversion to local rest transforms.
 
 from __future__ import annotations
 
-from dataclasses import replace
+import bisect
+from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Any
 
 import numba
@@ -84,14 +86,49 @@ _RANGES = {k: np.stack([-np.radians(v), np.radians(v)], axis=1) for k, v in SPIN
 _REGION_RANGES = np.stack([_RANGES["neck"], _RANGES["back"], _RANGES["tail"]])
 
 
-def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[str, Any]:
-    """Joint arrays in creature px (world rotations, positions, masses, contacts).
+def _body(spine: SpineState, pts: NDArray, skull: SkullState) -> _Body:
+    """The vertebrae and skull blocks of :func:`assemble` (memoised on their inputs: balance
+    repair re-assembles the same spine and skull with shifted legs)."""
+    o = np.asarray(skull.origin, float)
+    key = (
+        np.ascontiguousarray(pts, dtype=float).tobytes(),
+        np.asarray(spine.counts).tobytes(),
+        float(spine.girth),
+        spine.cls,
+        spine.legs == 0,
+        skull.shape,
+        float(skull.length),
+        float(skull.angle),
+        o.tobytes(),
+    )
+    hit = _BODY_CACHE.get(key)
+    if hit is not None:
+        return hit
+    out = _body_blocks(spine, pts, skull)
+    if len(_BODY_CACHE) > 64:
+        _BODY_CACHE.clear()
+    _BODY_CACHE[key] = out
+    return out
 
-    Vertebrae and skull are built as whole arrays; limbs per pair (right side, then the
-    exact mirror image for the left)."""
+
+@dataclass(frozen=True, eq=False)
+class _Body:
+    """Vertebra + skull joint arrays (creature px), in joint order, and what the limbs need
+    of the spine (vertebra boundaries, joint index of each vertebra)."""
+
+    m: int
+    edges: list[float]
+    slot: NDArray[np.int64]
+    names: tuple[str, ...]
+    kind: tuple[str, ...]
+    region: tuple[str, ...]
+    part: tuple[str, ...]
+    arrays: dict[str, NDArray]
+
+
+def _body_blocks(spine: SpineState, pts: NDArray, skull: SkullState) -> _Body:
     cls = spine.cls
     legless = spine.legs == 0
-    pts = limbs.points
     xy, s, region = sp.sample(pts)
     rl = sp.region_lengths(s, region)
     shape = sk.get(skull.shape)
@@ -109,7 +146,8 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
     for r in range(3):
         sel = vreg == r
         within[sel] = np.arange(1, sel.sum() + 1)
-    vnames = [f"{rname[vreg[i]]}_{within[i]:02d}" for i in order]
+    vl, wl = vreg.tolist(), within.tolist()
+    vnames = [f"{rname[vl[i]]}_{wl[i]:02d}" for i in order.tolist()]
     vparts = an.vertebra_parts(vreg, cls)
     # body slices (volume, centre, owning vertebra)
     h, b, off = ms.profile(s, rl, spine.girth, cls, skull_h, legless)
@@ -146,73 +184,7 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
     )
     d3 = np.concatenate([e - a, np.zeros((m, 1))], axis=1)
     Lv = np.linalg.norm(d3, axis=1)
-    blocks = {
-        "names": vnames,
-        "parent": [par_v],
-        "kind": ["spine"] * m,
-        "part": [vparts[i] for i in vi],
-        "digit": [np.zeros(m, np.int64)],
-        "region": [rname[r] for r in vreg[vi]],
-        "side": [np.zeros(m, np.int64)],
-        "W": [_frames_from_dirs(d3)],
-        "pos": [np.concatenate([a, np.zeros((m, 1))], axis=1)],
-        "blen": [Lv],
-        "box": [np.stack([0.35 * vh[vi], Lv, 0.3 * vb[vi]], axis=1)],
-        "vol": [vmass[vi]],
-        "mass_c": [np.concatenate([vcen[vi], np.zeros((m, 1))], axis=1)],
-        "mass_sz": [np.stack([vh[vi], np.maximum(Lv, 1e-9), vb[vi]], axis=1)],
-        "lim": [_REGION_RANGES[vreg[vi]]],
-        "anat_a": [np.zeros((m, 3))],
-        "anat_l": [np.zeros((m, 3, 2))],
-    }
-
-    def put(
-        names,
-        parent,
-        kind,
-        region,
-        side,
-        W,
-        pos,
-        blen,
-        box,
-        volv,
-        mc,
-        msz,
-        lim,
-        aa,
-        al,
-        part,
-        digit=None,
-    ):
-        blocks["names"] += names
-        blocks["kind"] += kind
-        blocks["region"] += region
-        blocks["part"] += list(part)
-        blocks["digit"].append(
-            np.zeros(len(names), np.int64) if digit is None else np.asarray(digit, np.int64)
-        )
-        for key, val in (
-            ("parent", parent),
-            ("side", side),
-            ("W", W),
-            ("pos", pos),
-            ("blen", blen),
-            ("box", box),
-            ("vol", volv),
-            ("mass_c", mc),
-            ("mass_sz", msz),
-            ("lim", lim),
-            ("anat_a", aa),
-            ("anat_l", al),
-        ):
-            blocks[key].append(
-                np.asarray(val, float)
-                if key not in ("parent", "side")
-                else np.asarray(val, np.int64)
-            )
-
-    # skull
+    # skull and jaw
     ang = skull.angle
     d = np.array([np.cos(ang), np.sin(ang), 0.0])
     org = np.array([skull.origin[0], skull.origin[1], 0.0])
@@ -220,160 +192,186 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
     Wsk = _frames_from_dirs(d[None])
     jaw = sk.jaw(shape, skull.length, Wsk[0], org)
     vsk = ms.ellipsoid_volume(sbox)
-    put(
-        ["skull", "jaw"],
-        [slot[0], m],
-        ["skull"] * 2,
-        ["head"] * 2,
-        [0, 0],
-        np.concatenate([Wsk, jaw.W[None]]),
-        [org, jaw.pos],
-        [skull.length, jaw.length],
-        [sbox, jaw.box],
-        [(1 - sk.JAW_MASS_FRACTION) * vsk, sk.JAW_MASS_FRACTION * vsk],
-        [org + d * skull.length / 2, jaw.pos + jaw.W[:, 1] * jaw.length / 2],
-        [sbox, jaw.box],
-        [_RANGES["head"], _RANGES["jaw"]],
-        np.zeros((2, 3)),
-        np.zeros((2, 3, 2)),
-        ["skull", "mandible"],
+    sk_box = np.array([sbox, jaw.box], float)
+    arrays = {
+        "parent": np.concatenate([par_v, [slot[0], m]]).astype(np.int64),
+        "side": np.zeros(m + 2, np.int64),
+        "digit": np.zeros(m + 2, np.int64),
+        "W": np.concatenate([_frames_from_dirs(d3), Wsk, jaw.W[None]]),
+        "pos": np.concatenate(
+            [np.concatenate([a, np.zeros((m, 1))], axis=1), np.array([org, jaw.pos], float)]
+        ),
+        "blen": np.concatenate([Lv, [skull.length, jaw.length]]),
+        "box": np.concatenate([np.stack([0.35 * vh[vi], Lv, 0.3 * vb[vi]], axis=1), sk_box]),
+        "vol": np.concatenate(
+            [vmass[vi], [(1 - sk.JAW_MASS_FRACTION) * vsk, sk.JAW_MASS_FRACTION * vsk]]
+        ),
+        "mass_c": np.concatenate(
+            [
+                np.concatenate([vcen[vi], np.zeros((m, 1))], axis=1),
+                np.array(
+                    [org + d * skull.length / 2, jaw.pos + jaw.W[:, 1] * jaw.length / 2], float
+                ),
+            ]
+        ),
+        "mass_sz": np.concatenate(
+            [np.stack([vh[vi], np.maximum(Lv, 1e-9), vb[vi]], axis=1), sk_box]
+        ),
+        "lim": np.concatenate([_REGION_RANGES[vreg[vi]], [_RANGES["head"], _RANGES["jaw"]]]),
+        "anat_a": np.zeros((m + 2, 3)),
+        "anat_l": np.zeros((m + 2, 3, 2)),
+    }
+    for v in arrays.values():
+        v.setflags(write=False)
+    return _Body(
+        m=m,
+        edges=edges.tolist(),
+        slot=slot,
+        names=tuple(vnames) + ("skull", "jaw"),
+        kind=("spine",) * m + ("skull", "skull"),
+        region=tuple(rname[r] for r in vreg[vi].tolist()) + ("head", "head"),
+        part=tuple(vparts[i] for i in vi.tolist()) + ("skull", "mandible"),
+        arrays=arrays,
+    )
+
+
+_BODY_CACHE: dict[tuple, _Body] = {}
+_SEG_NAMES = ("girdle", "upper", "lower", "distal")
+_MIRROR3 = np.array([1.0, 1.0, -1.0])
+_MIRROR_ANG = np.array([1.0, -1.0, -1.0])
+_KEYS = ("parent", "side", "digit", "W", "pos", "blen", "box", "vol", "mass_c", "mass_sz")
+_KEYS2 = ("lim", "anat_a", "anat_l")
+
+
+def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[str, Any]:
+    """Joint arrays in creature px (world rotations, positions, masses, contacts).
+
+    Vertebrae and skull are built as whole arrays (memoised, :func:`_body`); limbs per pair
+    (right side, then the exact mirror image for the left)."""
+    body = _body(spine, limbs.points, skull)
+    m, edges, slot = body.m, body.edges, body.slot
+    blocks: dict[str, list] = {k: [v] for k, v in body.arrays.items()}
+    names, kinds, regions, parts = (
+        list(body.names),
+        list(body.kind),
+        list(body.region),
+        list(body.part),
     )
     n_now = m + 2
     pairs: list[tuple[int, int]] = []
     contacts, contact_joint = [], []
-    seg_names = ("girdle", "upper", "lower", "distal")
+    nedge = len(edges)
     for (gname, k, spec, at), (gpt, apt), pose, L3 in zip(
         limbs.places, limbs.attach, limbs.poses, limbs.lengths, strict=True
     ):
-        vidx = int(np.clip(np.searchsorted(edges, at, side="right") - 1, 0, m - 1))
+        vidx = min(max(bisect.bisect_right(edges, at) - 1, 0), m - 1) if nedge else 0
         tag = f"{gname}{k + 1}"
         gvec = apt - gpt
         gl = float(np.linalg.norm(gvec))
         radius = ms.LIMB_RADIUS[spec.kind] * L3
         rb = ms.BONE_FRACTION * radius
         vols = ms.limb_volume(L3, spec.kind)
-        # right side (4 joints: girdle, upper, lower, distal)
-        Wr = np.concatenate(
-            [
-                _frames_from_dirs(gvec[None]) if gl > 1e-9 else np.eye(3)[None],
-                pose.rotations @ _RZ_PI,
-            ]
-        )
-        pr = np.concatenate([gpt[None], pose.points[:3]])
-        bl = np.concatenate([[gl], L3])
-        bx = np.concatenate([[[0.3 * gl, gl, 0.06 * gl]], np.stack([2 * rb, L3, 2 * rb], axis=1)])
-        vv = np.concatenate([[0.0], vols])
-        mc = np.concatenate([[0.5 * (gpt + apt)], 0.5 * (pose.points[:3] + pose.points[1:])])
-        msz = np.concatenate(
-            [
-                [[0.3 * gl, max(gl, 1e-9), 0.06 * gl]],
-                np.stack([2 * radius, np.maximum(L3, 1e-9), 2 * radius], axis=1),
-            ]
-        )
-        lim = np.stack([_RANGES["girdle"]] * 4)
-        aa = np.concatenate([np.zeros((1, 3)), pose.angles])
-        al = np.concatenate([np.zeros((1, 3, 2)), pose.limits])
-        kinds = ["girdle"] + [spec.kind] * 3
         dg = limb_digits(
             pose, L3, spec.kind, gname, spine, limbs.ground if pose.contact is not None else None
         )
         nd = len(dg.name)
+        q = 4 + nd
+        # right side (4 joints: girdle, upper, lower, distal; then the digits)
+        W = np.concatenate(
+            [
+                _frames_from_dirs(gvec[None]) if gl > 1e-9 else _EYE3,
+                pose.rotations @ _RZ_PI,
+                dg.W,
+            ]
+        )
+        pos = np.concatenate([gpt[None], pose.points[:3], dg.pos])
         dbox = np.stack([2 * dg.radius, np.maximum(dg.length, 1e-9), 2 * dg.radius], axis=1)
-        dmc = dg.pos + dg.W[:, :, 1] * (0.5 * dg.length)[:, None]
-        dvol = np.zeros(nd)
+        blen = np.concatenate([[gl], L3, dg.length])
+        box = np.concatenate(
+            [[[0.3 * gl, gl, 0.06 * gl]], np.stack([2 * rb, L3, 2 * rb], axis=1), dbox]
+        )
+        vv = np.concatenate([[0.0], vols, np.zeros(nd)])
         if nd:  # the digits carry their share of the hand / foot (mass unchanged in total)
-            dvol = DIGIT_MASS_SHARE * vols[2] * dg.length / max(dg.length.sum(), 1e-30)
-            vv = vv.copy()
+            vv[4:] = DIGIT_MASS_SHARE * vols[2] * dg.length / max(dg.length.sum(), 1e-30)
             vv[3] *= 1.0 - DIGIT_MASS_SHARE
-        dlim = np.stack([_RANGES["digit"]] * nd) if nd else np.zeros((0, 3, 2))
-        pairs.append((n_now, 4 + nd))  # right block, then its mirror image on the left
+        mc = np.concatenate(
+            [
+                [0.5 * (gpt + apt)],
+                0.5 * (pose.points[:3] + pose.points[1:]),
+                dg.pos + dg.W[:, :, 1] * (0.5 * dg.length)[:, None],
+            ]
+        )
+        msz = np.concatenate(
+            [
+                [[0.3 * gl, max(gl, 1e-9), 0.06 * gl]],
+                np.stack([2 * radius, np.maximum(L3, 1e-9), 2 * radius], axis=1),
+                dbox,
+            ]
+        )
+        lim, aa0, al0 = _limb_consts(nd)
+        aa = aa0.copy()
+        aa[1:4] = pose.angles
+        al = al0.copy()
+        al[1:4] = pose.limits
+        alm = al.copy()
+        alm[:4, 1:] = -al[:4, 1:, ::-1]
+        aam = aa.copy()
+        aam[:4] *= _MIRROR_ANG
+        dpar = np.asarray(dg.parent, np.int64)
+        dig = np.concatenate([_ZERO4, np.asarray(dg.digit, np.int64)])
+        lparts = list(an.limb_parts(spec.kind, gname)) + list(dg.part)
+        lkinds = ["girdle"] + [spec.kind] * (q - 1)
+        pairs.append((n_now, q))  # right block, then its mirror image on the left
+        cl = np.asarray(dg.contact_local, np.int64)
         for sd, sgn in (("r", 1), ("l", -1)):
             base = n_now
-            par = [slot[vidx], base, base + 1, base + 2]
+            names += [f"{tag}_{sn}_{sd}" for sn in _SEG_NAMES]
+            names += [f"{tag}_{nm}_{sd}" for nm in dg.name]
+            kinds += lkinds
+            regions += [gname] * q
+            parts += lparts
+            par = np.empty(q, np.int64)
+            par[:4] = (slot[vidx], base, base + 1, base + 2)
+            par[4:] = np.where(dpar < 0, base + 3, base + 4 + dpar)
+            blocks["parent"].append(par)
+            blocks["side"].append(np.full(q, sgn, np.int64))
+            blocks["digit"].append(dig)
+            blocks["blen"].append(blen)
+            blocks["box"].append(box)
+            blocks["vol"].append(vv)
+            blocks["mass_sz"].append(msz)
+            blocks["lim"].append(lim)
             if sgn > 0:
-                Ws, ps, mcs, aas, als = Wr, pr, mc, aa, al
+                blocks["W"].append(W)
+                blocks["pos"].append(pos)
+                blocks["mass_c"].append(mc)
+                blocks["anat_a"].append(aa)
+                blocks["anat_l"].append(al)
             else:
-                Ws = _M @ Wr @ _M
-                ps, mcs = pr * [1, 1, -1], mc * [1, 1, -1]
-                aas = aa * [1, -1, -1]
-                als = al.copy()
-                als[:, 1:] = -al[:, 1:, ::-1]
-            put(
-                [f"{tag}_{sn}_{sd}" for sn in seg_names],
-                par,
-                kinds,
-                [gname] * 4,
-                [sgn] * 4,
-                Ws,
-                ps,
-                bl,
-                bx,
-                vv,
-                mcs,
-                msz,
-                lim,
-                aas,
-                als,
-                an.limb_parts(spec.kind, gname),
-            )
-            n_now += 4
-            if nd:
-                M = np.array([1.0, 1.0, float(sgn)])
-                dW = dg.W if sgn > 0 else _M @ dg.W @ _M
-                dpar = np.where(dg.parent < 0, n_now - 1, n_now + dg.parent)
-                put(
-                    [f"{tag}_{nm}_{sd}" for nm in dg.name],
-                    dpar,
-                    [spec.kind] * nd,
-                    [gname] * nd,
-                    [sgn] * nd,
-                    dW,
-                    dg.pos * M,
-                    dg.length,
-                    dbox,
-                    dvol,
-                    dmc * M,
-                    dbox,
-                    dlim,
-                    np.zeros((nd, 3)),
-                    np.zeros((nd, 3, 2)),
-                    dg.part,
-                    dg.digit,
-                )
-            for cp, cl in zip(dg.contacts, dg.contact_local, strict=True):
-                contacts.append(cp * [1.0, 1.0, float(sgn)])
-                contact_joint.append(n_now - 1 if cl < 0 else n_now + int(cl))
-            n_now += nd
-    names = blocks["names"]
-    side = np.concatenate(blocks["side"])
-    mirror = np.arange(len(names), dtype=np.int64)  # right ↔ left limb blocks, spine itself
+                blocks["W"].append(_M @ W @ _M)
+                blocks["pos"].append(pos * _MIRROR3)
+                blocks["mass_c"].append(mc * _MIRROR3)
+                blocks["anat_a"].append(aam)
+                blocks["anat_l"].append(alm)
+            if len(cl):
+                contacts.append(dg.contacts * (_MIRROR3 if sgn < 0 else _ONE3))
+                contact_joint.append(np.where(cl < 0, base + 3, base + 4 + cl))
+            n_now += q
+    n = len(names)
+    mirror = np.arange(n, dtype=np.int64)  # right ↔ left limb blocks, spine itself
     for start, k in pairs:
         mirror[start : start + k] = np.arange(start + k, start + 2 * k)
         mirror[start + k : start + 2 * k] = np.arange(start, start + k)
-    cat = {
-        k: np.concatenate(blocks[k])
-        for k in (
-            "parent",
-            "W",
-            "pos",
-            "blen",
-            "box",
-            "vol",
-            "mass_c",
-            "mass_sz",
-            "lim",
-            "anat_a",
-            "anat_l",
-        )
-    }
+    cat = {k: np.concatenate(blocks[k]) for k in _KEYS + _KEYS2}
+    con = np.concatenate(contacts) if contacts else np.zeros((0, 3))
     return dict(
         names=names,
         parent=cat["parent"],
-        kind=blocks["kind"],
-        region=blocks["region"],
-        part=blocks["part"],
-        digit=np.concatenate(blocks["digit"]),
-        side=side,
+        kind=kinds,
+        region=regions,
+        part=parts,
+        digit=cat["digit"],
+        side=cat["side"],
         W=cat["W"],
         pos=cat["pos"],
         blen=cat["blen"],
@@ -385,13 +383,25 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
         anat_a=cat["anat_a"],
         anat_l=cat["anat_l"],
         mirror=mirror,
-        n=len(names),
-        contacts=np.array(contacts).reshape(-1, 3),
-        contact_joint=np.array(contact_joint, dtype=np.int64),
-        patches=np.array(contacts).reshape(-1, 3)[:, [0, 2]],
-        density=ms.density(cls),
+        n=n,
+        contacts=con,
+        contact_joint=(np.concatenate(contact_joint) if contact_joint else np.zeros(0, np.int64)),
+        patches=con[:, [0, 2]],
+        density=ms.density(spine.cls),
         ground=limbs.ground,
     )
+
+
+_EYE3 = np.eye(3)[None]
+_ZERO4 = np.zeros(4, np.int64)
+_ONE3 = np.ones(3)
+
+
+@lru_cache(maxsize=64)
+def _limb_consts(nd: int) -> tuple[NDArray, NDArray, NDArray]:
+    """Limits, zero anatomical angles and limits of a limb block with ``nd`` digit joints."""
+    lim = np.stack([_RANGES["girdle"]] * 4 + [_RANGES["digit"]] * nd)
+    return lim, np.zeros((4 + nd, 3)), np.zeros((4 + nd, 3, 2))
 
 
 def balance_px(asm: dict, opts: Options) -> bal.BalanceReport:
