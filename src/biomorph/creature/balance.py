@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -44,22 +45,32 @@ def convex_hull(points: NDArray) -> NDArray[np.float64]:
     pts = sorted(set(map(tuple, np.asarray(points, float).round(12).tolist())))
     if len(pts) <= 2:
         return np.array(pts, float).reshape(-1, 2)
-    p = pts
+    return _monotone_chain(np.array(pts, float))
 
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
-    lower: list = []
-    for q in p:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], q) <= 0:
-            lower.pop()
-        lower.append(q)
-    upper: list = []
-    for q in p[::-1]:
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], q) <= 0:
-            upper.pop()
-        upper.append(q)
-    return np.array(lower[:-1] + upper[:-1])
+@numba.njit(cache=True)
+def _monotone_chain(p: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """Andrew's monotone chain on sorted, distinct points ``p (n, 2)``: the lower hull then
+    the upper one, each without its last point (the same cross products as the plain loop)."""
+    n = p.shape[0]
+    out = np.empty((2 * n, 2))
+    k = 0
+    for half in range(2):
+        start = k
+        for t in range(n):
+            i = t if half == 0 else n - 1 - t
+            qx, qy = p[i, 0], p[i, 1]
+            while k - start >= 2:
+                ox, oy = out[k - 2, 0], out[k - 2, 1]
+                ax, ay = out[k - 1, 0], out[k - 1, 1]
+                if (ax - ox) * (qy - oy) - (ay - oy) * (qx - ox) <= 0:
+                    k -= 1
+                else:
+                    break
+            out[k, 0], out[k, 1] = qx, qy
+            k += 1
+        k -= 1  # drop the last point of this half
+    return out[:k].copy()
 
 
 def edge_distances(poly: NDArray, q: NDArray) -> NDArray[np.float64]:

@@ -811,16 +811,31 @@ def free_arm_rest(
     x, low = chain(rest)
     if x <= front and low >= floor:
         return rest * DEG
-    ranges = (r["humerus_range"], r["elbow_range"], r["wrist_range"])
-    grid = [np.arange(a, b + 1e-9, 5.0) for a, b in ranges]
-    cand = np.stack(np.meshgrid(*grid, indexing="ij"), axis=-1).reshape(-1, 3)
-    x, low = chain(cand)
+    cand, sin_c, cos_c = _arm_grid("mammal" if cls == "mammal" else "folded")
+    # chain(cand) with the grid's sines and cosines computed once per class
+    x = float(base[0]) + np.cumsum(L * sin_c, axis=-1)[..., -1]
+    low = (float(base[1]) - np.cumsum(L * cos_c, axis=-1)).min(axis=-1)
     above = low >= floor
     if not above.any():
         return rest * DEG  # nothing in the ranges clears the ground: lift_clear folds it
     cost = np.where(above & (x <= front), np.abs(cand - rest).sum(axis=1), np.inf)
     best = np.argmin(cost) if np.isfinite(cost).any() else np.argmin(np.where(above, x, np.inf))
     return cand[best] * DEG
+
+
+@lru_cache(maxsize=4)
+def _arm_grid(rest: str) -> tuple[NDArray, NDArray, NDArray]:
+    """The 5° grid of a free arm's flexion ranges (:func:`free_arm_rest`), ``(k, 3)`` degrees,
+    with the sines and cosines of its cumulative angles (what ``chain`` computes)."""
+    r = FREE_ARM_REST_DEG[rest]
+    ranges = (r["humerus_range"], r["elbow_range"], r["wrist_range"])
+    grid = [np.arange(a, b + 1e-9, 5.0) for a, b in ranges]
+    cand = np.stack(np.meshgrid(*grid, indexing="ij"), axis=-1).reshape(-1, 3)
+    c = np.cumsum(cand * DEG, axis=-1)
+    out = (cand, np.sin(c), np.cos(c))
+    for a in out:
+        a.setflags(write=False)
+    return out
 
 
 def pose_free(
