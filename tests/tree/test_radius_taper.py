@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from biomorph.core.graph import BranchGraph
-from biomorph.tree.radius import MIN_RADIUS, PIPE_EXPONENT, RadiusFit, taper_radii
+from biomorph.tree.radius import (
+    MIN_RADIUS,
+    PIPE_EXPONENT,
+    WITHIN_SLOPE_BOUNDS,
+    RadiusFit,
+    branch_ids,
+    taper_radii,
+)
 
 
 def _tree():
@@ -71,7 +78,8 @@ def test_a_measured_limb_passes_its_ratio_to_the_model_down_to_its_twigs():
     ok = np.zeros(g.n_nodes, dtype=bool)
     ok[:40] = True
     ok[51:54] = True
-    r, fit = taper_radii(g, _fit(g, fitted, ok))
+    # no tip floor here: the ratio to a pure power law is the claim
+    r, fit = taper_radii(g, _fit(g, fitted, ok), min_radius=0.0)
     assert fit.reliable[51:54].all()
     assert np.allclose(r[56:] / model[56:], 0.7, rtol=0.1)  # not back to 1.0
     assert np.allclose(r[:20], fitted[:20], rtol=0.3)  # the stem follows its fits
@@ -85,3 +93,94 @@ def test_the_slope_follows_the_exponent():
     _, fit = taper_radii(g, _fit(g, truth, ok), exponent=2.5)
     assert fit.model[0]["b"] == 0.4
     assert fit.model[0]["b_free"] is not None and abs(fit.model[0]["b_free"] - 0.4) < 0.02
+
+
+def _crown(n_branches=6, seg=12, step=0.1):
+    """A 6 m stem (61 nodes) with ``n_branches`` straight side branches of ``seg`` nodes,
+    one every 0.6 m from 1.5 m up (shorter than the stem above them), each leaving
+    horizontally in its own direction."""
+    z = np.arange(61) * step
+    pos = [np.column_stack([np.zeros(61), np.zeros(61), z])]
+    parent = [np.concatenate([[-1], np.arange(60)])]
+    nxt = 61
+    for k in range(n_branches):
+        at = 15 + 6 * k
+        ang = 2.1 * k
+        d = np.array([np.cos(ang), np.sin(ang), 0.0])
+        pts = z[at] * np.array([0, 0, 1.0]) + step * np.arange(1, seg + 1)[:, None] * d
+        pos.append(pts)
+        parent.append(np.concatenate([[at], nxt + np.arange(seg - 1)]))
+        nxt += seg
+    return BranchGraph(np.vstack(pos), np.concatenate(parent))
+
+
+def test_branch_ids_follow_the_heaviest_child():
+    g = _crown()
+    bid, cont = branch_ids(g)
+    assert np.unique(bid[:61]).size == 1  # the stem is one branch
+    assert np.unique(bid).size == 7  # six side branches
+    assert not cont[61] and cont[62:73].all()  # a side branch starts at its first node
+
+
+def test_the_within_branch_slope_is_fitted_and_carried_to_unmeasured_nodes():
+    """Stem and side branches taper as L^0.8 along themselves (the branches' levels differ
+    branch to branch); the inner halves are measured, the outer halves not: the fitted
+    slope reaches the tips where the fixed pipe slope 1/2 would leave them too thick."""
+    g = _crown()
+    carried = g.subtree_length() + g.edge_length
+    bid, _ = branch_ids(g)
+    truth = 0.01 * carried**0.8
+    rng = np.random.default_rng(1)
+    for b in np.unique(bid[61:]):
+        m = np.flatnonzero(bid == b)
+        base = m[0]
+        # the pipe rule at the fork, give or take 5 %
+        ratio = (carried[base] / carried[g.parent[base]]) ** 0.5
+        level = ratio * truth[g.parent[base]] * np.exp(0.05 * rng.standard_normal())
+        truth[m] = level * (carried[m] / carried[base]) ** 0.8
+    ok = np.zeros(g.n_nodes, dtype=bool)
+    ok[:40] = True
+    for b in np.unique(bid[61:]):
+        ok[np.flatnonzero(bid == b)[:6]] = True  # inner halves measured
+    fitted = truth * np.exp(rng.normal(0.0, 0.05, g.n_nodes))  # 5 % fit scatter
+    r, fit = taper_radii(g, _fit(g, fitted, ok), min_radius=0.0)
+    info = fit.model[0]
+    assert abs(info["b_within"] - 0.8) < 0.05 and info["branches_fitted"] >= 6
+    assert info["b"] == 1 / PIPE_EXPONENT  # the fork rule stays the pipe rule
+    outer = np.concatenate([np.flatnonzero(bid == b)[7:] for b in np.unique(bid[61:])])
+    assert np.allclose(r[outer], truth[outer], rtol=0.2)
+    # the fixed slope (within=False) leaves the outer halves thicker than the truth
+    r_fixed, fit_fixed = taper_radii(g, _fit(g, fitted, ok), min_radius=0.0, within=False)
+    assert fit_fixed.model[0]["b_within"] == 1 / PIPE_EXPONENT
+    assert np.median(r_fixed[outer] / truth[outer]) > 1.3
+
+
+def test_few_measured_branches_keep_the_pipe_slope_and_slopes_are_bounded():
+    g = _crown(n_branches=2)
+    carried = g.subtree_length() + g.edge_length
+    truth = 0.02 * carried**0.5
+    ok = np.zeros(g.n_nodes, dtype=bool)
+    ok[:40] = True
+    _, fit = taper_radii(g, _fit(g, truth, ok))
+    assert fit.model[0]["b_within_raw"] is None  # the stem alone: no within-branch fit
+    assert fit.model[0]["b_within"] == 1 / PIPE_EXPONENT
+    g = _crown()
+    flat = np.full(g.n_nodes, 0.01)  # no taper at all
+    ok = np.ones(g.n_nodes, dtype=bool)
+    _, fit = taper_radii(g, _fit(g, flat, ok))
+    assert fit.model[0]["b_within"] == WITHIN_SLOPE_BOUNDS[0]
+
+
+def test_tips_taper_towards_the_twig_radius():
+    """The model describes r − min_radius: unmeasured tips end near ``min_radius`` (rTwig's
+    twig radius), never below it, and measured radii stay as measured."""
+    g = _tree()
+    carried = g.subtree_length() + g.edge_length
+    twig = 0.004
+    truth = twig + 0.02 * carried**0.5
+    ok = np.zeros(g.n_nodes, dtype=bool)
+    ok[:40] = True
+    r, _ = taper_radii(g, _fit(g, truth, ok), min_radius=twig)
+    assert r.min() >= twig
+    assert np.allclose(r[:30], truth[:30], rtol=0.02)
+    assert np.allclose(r[60], truth[60], rtol=0.15)  # the branch tip, not 0.02·L^0.5

@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree.livny import allometric_radii, skeleton_distance, solve_tree_system
@@ -50,6 +51,8 @@ __all__ = [
     "PIPE_EXPONENT",
     "RELIABLE_COVERAGE",
     "RELIABLE_MAD",
+    "WITHIN_SLOPE_BOUNDS",
+    "branch_ids",
 ]
 
 #: a circle fit is kept as measured only where at least a third of the circumference holds
@@ -71,6 +74,16 @@ MIN_RADIUS = 0.001
 #: (Shinozaki's unit pipes) ``r ∝ L^(1/2)``; Livny's 2.5 (step vii) made the thin branches of
 #: every synthetic preset 1.3–1.9× too thick when anchored on the stem (docs/tree.md)
 PIPE_EXPONENT = 2.0
+#: bounds of the within-branch taper slope ``b_w`` (``r ∝ L^b_w`` along one branch) fitted
+#: from the reliable cross-sections: 1/3 is Murray's cube law (West, Brown & Enquist's
+#: e = 3), the slowest taper a branch of the pipe family shows; 1 a cone-like taper whose
+#: radius falls in proportion to the wood carried (the Weber–Penn / TreeQSM cone). Outside
+#: it the fitted slope is fit noise (birch scans, 8 mm noise: 1.2–6)
+WITHIN_SLOPE_BOUNDS = (1 / 3, 1.0)
+#: a branch's own taper slope (from its own reliable fits) is shrunk towards the tree's as
+#: if the tree's slope were this many extra fits on the branch (a branch with three fits
+#: gets half of each)
+BRANCH_PRIOR_FITS = 3
 
 
 def node_axes(graph: BranchGraph) -> NDArray[np.float64]:
@@ -638,6 +651,7 @@ def taper_radii(
     decay: float = 0.1,
     support: str = "length",
     slack: float = 1.1,
+    within: bool = True,
 ) -> tuple[NDArray[np.float64], RadiusFit]:
     """Final radii: reliable circle fits where the scan measured the cross-section, a
     taper (pipe) model fitted on them elsewhere.
@@ -645,36 +659,50 @@ def taper_radii(
     1. **Fit quality**: a fit is *reliable* when usable (``fit.ok``), covering at least
        :data:`RELIABLE_COVERAGE` of the circumference and scattering by at most
        :data:`RELIABLE_MAD` of its radius.
-    2. **Taper model** per tree, as rTwig / SimpleForest do: ``log r = a + b log L`` with
-       ``L`` the supported length (the length of wood the node carries, its subtree plus
-       its own edge). The slope is ``b = 1 / exponent`` from the pipe model
-       (:data:`PIPE_EXPONENT` = 2, da Vinci's area-preserving rule: ``b = 1/2``). Fitting it
-       freely is unstable: the reliable fits sit on the stem and thick limbs, whose radius
-       spans too little of ``L`` (free slopes 0.06–0.54 on the synthetic scans; reported
-       as ``b_free``). The scale ``a`` is fitted robustly on the reliable fits of the
-       lower half of the stem (the root's path into the child carrying most length):
-       the best-seen sections of every scan; on a needled spruce, fits on branches are
-       needle envelopes and anchoring on all fits made the stem 0.9 m thick. A tree
-       with fewer than three stem fits (an understorey fragment of a plot) takes the
-       model of all trees' stems (its own fits — stumps, ground bumps — gave a 1.4 m
-       fragment 1.7 m³), then its own reliable fits, then 1 cm at L = 1 m.
-    3. **Blend**: reliable fits within 3 model scatters of the model are kept; their
+    2. **Branches**: each fork continues into the child carrying the most length
+       (:func:`branch_ids`); the other children start branches of their own.
+    3. **Taper model** per tree, in log space of the supported length ``L`` (the length of
+       wood a node carries, its subtree plus its own edge), as rTwig / SimpleForest /
+       TreeQSM model radius on growth length, with two slopes:
+
+       * *at a fork* a side branch starts at ``r_parent (L_child / L_parent)^(1/e)``, the
+         pipe rule with ``e = exponent`` (:data:`PIPE_EXPONENT` = 2, da Vinci's
+         area-preserving rule; reported as ``b``);
+       * *along a branch* the radius falls as ``L^b_w``. ``b_w`` is fitted on the reliable
+         fits of all branches and orders with one free level per branch (the variation of
+         radius *within* each branch; between branches the levels differ, which a single
+         line through all fits confounds — free slopes 0.06–0.54 on the synthetic scans,
+         ``b_free``), robustly (3-MAD trimming) and clipped to
+         :data:`WITHIN_SLOPE_BOUNDS`; with fewer than three branches of three fits (or
+         ``within=False``) ``b_w = 1/e``. A branch with reliable fits of its own spanning
+         a factor 2 in ``L`` uses its own slope, shrunk towards ``b_w``
+         (:data:`BRANCH_PRIOR_FITS`). The synthetic presets' branches (linear taper to a
+         4 mm tip) give ``b_w`` 0.5–1, the real clouds 0.33–0.39: both are what their own
+         cross-sections say, where a fixed 1/2 made the outer halves of the presets'
+         branches 1.2–1.7× too thick and the real ones thinner than measured.
+
+       The scale is fitted robustly on the reliable fits of the lower half of the stem (the
+       best-seen sections of every scan; on a needled spruce, fits on branches are needle
+       envelopes and anchoring on all fits made the stem 0.9 m thick). A tree with fewer
+       than three stem fits (an understorey fragment of a plot) takes the model of all
+       trees' stems (its own fits — stumps, ground bumps — gave a 1.4 m fragment 1.7 m³),
+       then its own reliable fits, then 1 cm at L = 1 m.
+    4. **Blend**: reliable fits within 3 model scatters of the model are kept; their
        log-ratio to the model is spread along the graph (:func:`smooth_log_ratio` with a
        pull ``decay`` over about ``1/sqrt(decay)`` ≈ 3 nodes). The pull is not towards the
        model but towards the ratio of the nearest measured cross-section *upstream* (the
        pipe model flows from the base to the tips: a limb measured 30 % thinner than the
        stem's model carries that to its twigs, where no circle can be fitted); nodes with
        no measured ancestor take the model.
-    4. **Pipe rule**: a branch leaving a fork is never thicker than its parent node (the
-       continuation at most ``slack`` × it, as :func:`cap_down`), and no radius is below
-       ``min_radius`` (:data:`MIN_RADIUS`). ``support="tips"`` models the radius on the
-       number of tips carried instead (Shinozaki's pipe model, slope 1/2): on the synthetic
-       presets (60,000 points, 8 scans) it gave 104–146 % of the true volume against
-       100–139 % for the supported length, whose counts suffer less from missed or
-       spurious tips, hence the default.
+    5. **Tips and the pipe rule**: the model describes ``r − min_radius``: the radius tends
+       to ``min_radius`` at the tips (rTwig's twig radius; :data:`MIN_RADIUS` by default)
+       instead of to zero, and reliable fits are kept as measured. A branch leaving a fork
+       is never thicker than its parent node (the continuation at most ``slack`` × it, as
+       :func:`cap_down`). ``support="tips"`` models the radius on the number of tips
+       carried instead (Shinozaki's pipe model, slope 1/2 at forks and along branches).
 
     Returns the radii and ``fit`` with ``reliable`` and ``model`` (per tree ``a``, ``b``,
-    ``scatter``, ``fits``) filled in.
+    ``b_within``, ``branch_slopes``, ``scatter``, ``fits``) filled in.
     """
     n = graph.n_nodes
     mad = fit.mad if fit.mad is not None else np.zeros(n)
@@ -687,43 +715,90 @@ def taper_radii(
     if support == "tips":
         x = np.log(graph.subtree_sum((graph.n_children == 0).astype(float)))
         exponent = 2.0
+        within = False
     else:
         x = np.log(carried)
-    y = np.log(np.maximum(fit.radius, 1e-12))
+    floor = float(min_radius)
+    r_fit = np.maximum(fit.radius, 1e-12)
+    # the model describes r - floor; a fit barely above the floor keeps half its radius
+    y = np.log(np.maximum(r_fit - floor, 0.5 * r_fit))
+    bid, cont = branch_ids(graph, carried)
+    par = graph.parent
     trees = graph.trees
-    model = np.zeros(n)
-    keep = np.zeros(n, dtype=bool)
-    info: dict = {}
-    stem = _stem_mask(graph, carried)
     uniq = np.unique(trees)
-    pooled = None
-    pool = reliable & stem if (reliable & stem).sum() >= 3 else reliable
-    if pool.sum() >= 3:
-        pooled = _robust_line(x[pool], y[pool], 1.0 / exponent)
+    b_fork = 1.0 / exponent
+    ch = np.flatnonzero(par >= 0)
+    info: dict = {}
+    tree_bw: dict[int, tuple[float, float | None, int]] = {}
+    for t in uniq:
+        rm = (trees == t) & reliable
+        bw, raw, nb = b_fork, None, 0
+        if within:
+            raw, nb = _within_slope(x[rm], y[rm], bid[rm])
+            if raw is not None:
+                bw = float(np.clip(raw, *WITHIN_SLOPE_BOUNDS))
+        tree_bw[int(t)] = (bw, raw, nb)
+    bw_node = np.array([tree_bw[int(t)][0] for t in uniq])[np.searchsorted(uniq, trees)]
+    stem = _stem_mask(graph, carried)
+
+    def scaled(own: dict[int, float]) -> tuple[NDArray, NDArray, NDArray, dict]:
+        """The model with the given per-branch slopes, its scale fitted per tree, and the
+        reliable fits it keeps."""
+        b_edge = bw_node.copy()
+        for b, sb in own.items():
+            b_edge[bid == b] = sb
+        step = np.zeros(n)
+        step[ch] = np.where(cont[ch], b_edge[ch], b_fork) * (x[ch] - x[par[ch]])
+        cum = treeops.accumulate_down(par, step, graph.order)  # up to the tree's scale
+        model = np.zeros(n)
+        keep = np.zeros(n, dtype=bool)
+        pooled = None
+        pool = reliable & stem if (reliable & stem).sum() >= 3 else reliable
+        if pool.sum() >= 3:
+            pooled = _robust_line(cum[pool], y[pool], 1.0)
+        scale: dict = {}
+        for t in uniq:
+            m = trees == t
+            rm = m & reliable
+            sm_ = rm & stem
+            if sm_.sum() >= 3:  # anchored on the stem: its sections are the best seen
+                a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0)
+                src = "stem"
+            elif pooled is not None:  # a fragment without a measured stem: the plot's stems
+                a, _, sc = pooled
+                src = "all trees"
+            elif rm.sum() >= 3:
+                a, _, sc = _robust_line(cum[rm], y[rm], 1.0)
+                src = "tree"
+            else:
+                a, sc = np.log(0.01), 1.0  # no fit at all: 1 cm at the root
+                src = "none"
+            model[m] = a + cum[m]
+            keep[rm] = np.abs(y[rm] - model[rm]) <= 3 * sc
+            scale[int(t)] = (a, sc, src, int(sm_.sum()))
+        return model, keep, cum, scale
+
+    # first the tree slopes alone, to tell which fits the model keeps; then each branch's own
+    # slope from its kept fits (a needle-clump branch must not set its own taper)
+    model, keep, _, scale = scaled({})
+    own = _branch_slopes(x, y, bid, keep, bw_node) if within else {}
+    if own:
+        model, keep, _, scale = scaled(own)
     for t in uniq:
         m = trees == t
         rm = m & reliable
-        sm_ = rm & stem
-        if sm_.sum() >= 3:  # anchored on the stem: its sections are the best seen
-            a, b, sc = _robust_line(x[sm_], y[sm_], 1.0 / exponent)
-            src = "stem"
-        elif pooled is not None:  # a fragment without a measured stem: the plot's stems
-            a, b, sc = pooled
-            src = "all trees"
-        elif rm.sum() >= 3:
-            a, b, sc = _robust_line(x[rm], y[rm], 1.0 / exponent)
-            src = "tree"
-        else:
-            a, b, sc = np.log(0.01), 1.0 / exponent, 1.0  # no fit at all: 1 cm at L = 1 m
-            src = "none"
-        model[m] = a + b * x[m]
-        keep[rm] = np.abs(y[rm] - model[rm]) <= 3 * sc
+        a, sc, src, nstem = scale[int(t)]
+        bw, raw, nb = tree_bw[int(t)]
         info[int(t)] = {
             "a": a,
-            "b": b,
+            "b": b_fork,
+            "b_within": bw,
+            "b_within_raw": raw,
+            "branches_fitted": nb,
+            "branch_slopes": int(np.isin(np.unique(bid[m]), list(own)).sum()),
             "scatter": sc,
             "fits": int(rm.sum()),
-            "stem_fits": int(sm_.sum()),
+            "stem_fits": nstem,
             "kept": int(keep[rm].sum()),
             "anchor": src,
             "b_free": _free_slope(x[rm], y[rm]),
@@ -733,19 +808,114 @@ def taper_radii(
     anc = _kept_ancestor(graph.parent, graph.order, keep)
     upstream = np.where(anc >= 0, near[np.maximum(anc, 0)], 0.0)
     sm = _smooth_with_decay(graph, delta, keep, decay, prior=upstream)
-    radius = np.maximum(np.exp(model + sm), min_radius)
-    indptr, idx = graph.children_csr
-    par = graph.parent
-    slack_v = np.full(n, float(slack))
-    ch = np.flatnonzero(par >= 0)
-    heavy = np.full(n, -1)
-    if ch.size:
-        order_c = ch[np.lexsort((carried[ch], par[ch]))]  # by parent, heaviest last
-        heavy[par[order_c]] = order_c
-    side = ch[heavy[par[ch]] != ch]
-    slack_v[side] = 1.0
+    radius = floor + np.exp(model + sm)
+    slack_v = np.where(cont, float(slack), 1.0)
     radius = _cap_down_slack(par, graph.order, radius, slack_v)
     return radius, dataclasses.replace(fit, reliable=reliable & keep, model=info)
+
+
+@numba.njit(cache=True)
+def _branch_kernel(parent, order, heavy):
+    n = parent.size
+    bid = np.full(n, -1, dtype=np.int64)
+    nb = 0
+    for k in range(order.size):  # parents first
+        v = order[k]
+        p = parent[v]
+        if p >= 0 and heavy[p] == v:
+            bid[v] = bid[p]
+        else:
+            bid[v] = nb
+            nb += 1
+    return bid
+
+
+def branch_ids(
+    graph: BranchGraph, carried: NDArray | None = None
+) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+    """Branch label per node and the mask of nodes continuing their parent's branch: at
+    every fork the child carrying the most length (``carried``, default the supported
+    length) continues, the others start branches of their own (as the order rule
+    ``supported`` and TreeQSM's branch segmentation)."""
+    n = graph.n_nodes
+    par = graph.parent
+    if carried is None:
+        carried = graph.subtree_length() + graph.edge_length
+    ch = np.flatnonzero(par >= 0)
+    heavy = np.full(n, -1, dtype=np.int64)
+    if ch.size:
+        oc = ch[np.lexsort((carried[ch], par[ch]))]  # by parent, heaviest last
+        heavy[par[oc]] = oc
+    bid = _branch_kernel(
+        np.asarray(par, dtype=np.int64), np.asarray(graph.order, dtype=np.int64), heavy
+    )
+    cont = np.zeros(n, dtype=bool)
+    cont[ch] = heavy[par[ch]] == ch
+    return bid, cont
+
+
+def _within_slope(
+    x: NDArray, y: NDArray, group: NDArray, min_fits: int = 3, min_groups: int = 3
+) -> tuple[float | None, int]:
+    """Common slope of ``y`` on ``x`` with one free level per group (fixed effects), by least
+    squares on the group-centred values with two rounds of 3-MAD trimming. Groups with
+    fewer than ``min_fits`` points do not count; None with fewer than ``min_groups``
+    groups or less than a factor e of spread in ``x``. Returns ``(slope, groups used)``."""
+    keep = np.ones(x.size, dtype=bool)
+    b = None
+    ng = 0
+    for _ in range(3):
+        _, inv, cnt = np.unique(group[keep], return_inverse=True, return_counts=True)
+        use = cnt[inv] >= min_fits
+        ng = int((cnt >= min_fits).sum())
+        if ng < min_groups:
+            return None, ng
+        gi = np.unique(inv[use], return_inverse=True)[1]
+        xs, ys = x[keep][use], y[keep][use]
+        w = np.bincount(gi)
+        dx = xs - (np.bincount(gi, xs) / w)[gi]
+        dy = ys - (np.bincount(gi, ys) / w)[gi]
+        sxx = float(dx @ dx)
+        if np.ptp(dx) < 1.0 or sxx <= 0:
+            return None, ng
+        b = float(dx @ dy) / sxx
+        res = dy - b * dx
+        mad = 1.4826 * float(np.median(np.abs(res)))
+        idx = np.flatnonzero(keep)[use]
+        new = keep.copy()
+        new[idx[np.abs(res) > 3 * max(mad, 1e-3)]] = False
+        if (new == keep).all():
+            break
+        keep = new
+    return b, ng
+
+
+def _branch_slopes(
+    x: NDArray, y: NDArray, bid: NDArray, reliable: NDArray, prior: NDArray
+) -> dict[int, float]:
+    """A branch's own taper slope where it holds at least three reliable fits spanning a
+    factor 2 in ``x``: its least-squares slope, shrunk towards the tree's ``prior`` as if
+    that were :data:`BRANCH_PRIOR_FITS` more fits, clipped to :data:`WITHIN_SLOPE_BOUNDS`."""
+    out: dict[int, float] = {}
+    ids = bid[reliable]
+    if ids.size == 0:
+        return out
+    order = np.argsort(ids, kind="stable")
+    idx = np.flatnonzero(reliable)[order]
+    ids = ids[order]
+    cuts = np.flatnonzero(np.diff(ids)) + 1
+    for grp in np.split(idx, cuts):
+        if grp.size < 3 or np.ptp(x[grp]) < np.log(2.0):
+            continue
+        own = float(np.polyfit(x[grp], y[grp], 1)[0])
+        pri = float(prior[grp[0]])
+        k = grp.size
+        out[int(bid[grp[0]])] = float(
+            np.clip(
+                (k * own + BRANCH_PRIOR_FITS * pri) / (k + BRANCH_PRIOR_FITS), *WITHIN_SLOPE_BOUNDS
+            )
+        )
+    return out
 
 
 def _stem_mask(graph: BranchGraph, carried: NDArray) -> NDArray[np.bool_]:
