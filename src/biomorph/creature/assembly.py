@@ -563,7 +563,7 @@ def to_creature(
     pp = np.where(par[:, None] >= 0, pos[np.maximum(par, 0)], 0.0)
     local_r = np.einsum("nji,njk->nik", pw, W)
     offset = np.einsum("nji,nj->ni", pw, pos - pp)
-    quat = tf.matrix_to_quat(local_r)
+    quat = _matrix_to_quat(local_r)
     # stored limits: anatomical range minus the rest angle, in the joint's local axes
     lim = asm["lim"].copy()
     limb = np.array([k in ("leg", "arm", "wing", "fin") for k in asm["kind"]], bool)
@@ -653,6 +653,59 @@ def to_creature(
         part=tuple(asm["part"]),
         digit=asm["digit"].astype(np.int64),
     )
+
+
+def _matrix_to_quat(m: NDArray) -> NDArray[np.float64]:
+    """:func:`biomorph.core.transforms.matrix_to_quat` (w ≥ 0) for the creature's rest
+    rotations: compiled with SciPy's algorithm (the largest of the diagonal and the trace
+    picks the formula, then normalised); matrices not orthonormal to 1e-12 (SciPy would
+    orthogonalise them first) go to SciPy."""
+    m = np.ascontiguousarray(m, dtype=np.float64)
+    if not _orthonormal(m):
+        return tf.matrix_to_quat(m)
+    return _quat_kernel(m)
+
+
+@numba.njit(cache=True)
+def _orthonormal(m: np.ndarray) -> bool:  # pragma: no cover - compiled
+    for i in range(m.shape[0]):
+        for r in range(3):
+            for c in range(3):
+                g = m[i, r, 0] * m[i, c, 0] + m[i, r, 1] * m[i, c, 1] + m[i, r, 2] * m[i, c, 2]
+                if abs(g - (1.0 if r == c else 0.0)) > 1e-12:
+                    return False
+    return True
+
+
+@numba.njit(cache=True)
+def _quat_kernel(m: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    n = m.shape[0]
+    out = np.empty((n, 4))
+    q = np.empty(4)
+    for i in range(n):
+        a = m[i]
+        tr = a[0, 0] + a[1, 1] + a[2, 2]
+        c, best = 0, a[0, 0]
+        for k, v in ((1, a[1, 1]), (2, a[2, 2]), (3, tr)):
+            if v > best:
+                c, best = k, v
+        if c != 3:
+            j = (c + 1) % 3
+            k = (j + 1) % 3
+            q[c] = 1 - tr + 2 * a[c, c]
+            q[j] = a[j, c] + a[c, j]
+            q[k] = a[k, c] + a[c, k]
+            q[3] = a[k, j] - a[j, k]
+        else:
+            q[0] = a[2, 1] - a[1, 2]
+            q[1] = a[0, 2] - a[2, 0]
+            q[2] = a[1, 0] - a[0, 1]
+            q[3] = 1 + tr
+        nrm = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+        sgn = -1.0 if q[3] / nrm < 0 else 1.0
+        for k in range(4):
+            out[i, k] = sgn * (q[k] / nrm) if sgn < 0 else q[k] / nrm
+    return out
 
 
 def _options_dict(opts: Options) -> dict[str, Any]:
