@@ -94,13 +94,14 @@ class ContactOptions:
     hysteresis: float = 1.5
     blend_s: float = 0.2
     min_s: float = 0.05
+    swing: float = 0.8
     up: str | None = None
     mode: str = "auto"
 
     def __post_init__(self) -> None:
         if self.mode not in ("auto", "hold", "follow"):
             raise ParameterError(f"contact mode {self.mode!r}; expected auto, hold or follow")
-        for name in ("height", "speed", "hysteresis", "blend_s", "min_s"):
+        for name in ("height", "speed", "hysteresis", "blend_s", "min_s", "swing"):
             v = float(getattr(self, name))
             if not np.isfinite(v) or v < 0 or (name == "hysteresis" and v < 1):
                 raise ParameterError(
@@ -336,18 +337,26 @@ def _runs(on: NDArray[np.bool_]) -> list[tuple[int, int]]:
 
 # --------------------------------------------------------------------------- targets
 def _targets(
-    on: NDArray[np.bool_], pts: Array, blend: int, ui: int, follow: bool = False
+    on: NDArray[np.bool_],
+    pts: Array,
+    blend: int,
+    ui: int,
+    follow: bool = False,
+    swing: NDArray[np.bool_] | None = None,
 ) -> tuple[Array, Array]:
     """Per frame the held position of the nearest contact and its weight (1 inside a
     contact, smoothstep fade over ``blend`` frames outside, 0 elsewhere). The held position
     is the median position of the contact's slower half of frames at the lowest height the
-    point reaches in that contact (see the module docstring)."""
+    point reaches in that contact (see the module docstring). ``swing``: frames where the
+    point is in full swing; a fade-out ends before the first of them after its contact (the
+    smoothstep compressed into the frames left)."""
     pts = np.ascontiguousarray(pts, dtype=np.float64)
     step = np.linalg.norm(np.gradient(pts, axis=0), axis=-1) if on.size > 1 else np.zeros(on.size)
     runs = np.asarray(_runs(on), dtype=np.int64).reshape(-1, 2)
     tgt = np.array(pts)
     wgt = np.zeros(on.size)
-    _targets_kernel(pts, step, runs, int(blend), int(ui), bool(follow), tgt, wgt)
+    fast = np.zeros(on.size, np.bool_) if swing is None else np.asarray(swing, dtype=np.bool_)
+    _targets_kernel(pts, step, runs, int(blend), int(ui), bool(follow), fast, tgt, wgt)
     return tgt, wgt
 
 
@@ -390,7 +399,18 @@ def _median(x):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _targets_kernel(pts, step, runs, blend, ui, follow, tgt, wgt):  # pragma: no cover
+def _fade_out_len(fast, e, blend):  # pragma: no cover - compiled
+    """Frames of the fade-out after a contact ending at ``e``: it ends where the point
+    reaches full swing (``fast``), so the held slide is released while the foot lifts off,
+    not added to the captured swing."""
+    for k in range(blend):
+        if e + k < fast.size and fast[e + k]:
+            return k
+    return blend
+
+
+@njit(cache=True)
+def _targets_kernel(pts, step, runs, blend, ui, follow, fast, tgt, wgt):  # pragma: no cover
     f = pts.shape[0]
     dist = np.full(f, np.inf)
     for r in range(runs.shape[0]):
@@ -420,8 +440,14 @@ def _targets_kernel(pts, step, runs, blend, ui, follow, tgt, wgt):  # pragma: no
         for k in range(s + 1, e):
             low = min(low, pts[k, ui])
         p[ui] = low
-        for k in range(max(0, s - blend), min(f, e + blend)):
-            d = float(s - k) if k < s else (float(k - e + 1) if k >= e else 0.0)
+        out = _fade_out_len(fast, e, blend)
+        for k in range(max(0, s - blend), min(f, e + out)):
+            if k < s:
+                d = float(s - k)
+            elif k >= e:
+                d = float(k - e + 1) * (blend + 1) / (out + 1)
+            else:
+                d = 0.0
             if d >= dist[k]:
                 continue
             dist[k] = d
@@ -604,7 +630,7 @@ def _clearance(
 
 def _leg_goals(
     lg: Leg, col: dict[int, int], pos: Array, w_ref: Array, contacts, blend: int, ui: int,
-    follow: bool, lift: Array | None = None,
+    follow: bool, lift: Array | None = None, swing: float = 0.0,
 ) -> tuple[Array, Array, Array, NDArray[np.int64]] | None:  # fmt: skip
     """Ankle goal per frame, the toe's held place and weight, and the frames to solve
     (``None`` when there is nothing to do). ``lift``: the clearance kept from a reference
@@ -619,12 +645,12 @@ def _leg_goals(
     ca = col[lg.ankle]
     # the ankle target: held ankle while the ankle is planted; while only the toe is
     # planted (heel off), the held toe minus the toe's current offset from the ankle
-    ta, wa = _targets(on_a, w_ref[:, ca], blend, ui, follow)
+    ta, wa = _targets(on_a, w_ref[:, ca], blend, ui, follow, _in_swing(w_ref[:, ca], ui, swing))
     goal = pos[:, ca] + wa[:, None] * (ta - pos[:, ca])
     tt, wt = np.zeros((f, 3)), np.zeros(f)
     if lg.toe >= 0:
         ct = col[lg.toe]
-        tt, wt = _targets(on_t, w_ref[:, ct], blend, ui, follow)
+        tt, wt = _targets(on_t, w_ref[:, ct], blend, ui, follow, _in_swing(w_ref[:, ct], ui, swing))
         only_toe = (wt > wa) & ~on_a
         g2 = pos[:, ca] + wt[:, None] * (tt - pos[:, ct])
         goal = np.where(only_toe[:, None], g2, goal)
@@ -637,6 +663,16 @@ def _leg_goals(
         w = np.where(raise_, 1.0, w)
     act = np.flatnonzero(w > 0).astype(np.int64)
     return goal, tt, wt, act
+
+
+def _in_swing(p: Array, ui: int, swing: float) -> NDArray[np.bool_] | None:
+    """Frames where the point ``p (f, 3)`` moves horizontally faster than ``swing`` × its own
+    95th-percentile speed (its swing speed, measured on the clip; ``None`` when off)."""
+    if swing <= 0 or p.shape[0] < 2:
+        return None
+    horiz = [a for a in range(3) if a != ui]
+    v = np.hypot(*np.gradient(p[:, horiz], axis=0).T)
+    return v > swing * float(np.percentile(v, 95))
 
 
 def _reference(motion: Motion, reference: Motion | None) -> Motion:
@@ -678,7 +714,9 @@ def lock_feet(
         if ref is not motion and lg.toe >= 0:  # an operator's output: keep the input's clearance
             foot = float(np.linalg.norm(motion.skeleton.offset[lg.toe]))
             lift = _clearance(lg, col, pos, w_ref, ui, foot)
-        goals.append(_leg_goals(lg, col, pos, w_ref, contacts, blend, ui, follow, lift))
+        goals.append(
+            _leg_goals(lg, col, pos, w_ref, contacts, blend, ui, follow, lift, float(o.swing))
+        )
     rot = np.array(motion.rotation, dtype=np.float64)
     rest = np.ascontiguousarray(motion.skeleton.rest_rotation, dtype=np.float64)
     par = motion.skeleton.parent
