@@ -16,6 +16,12 @@ file's units:
 * ``speed = 1.0`` body scales per second: a walking body moves about one leg length per
   second (Xia walk 0.9 m/s, hip 0.9 m), a planted foot far less, a swinging foot 2–3×;
 * ``hysteresis = 1.5``; ``min_s`` = 0.05 s (shorter contacts are ignored);
+* ``swing = 0.8``: a contact's fade-out ends at the first frame the point moves faster than
+  0.8 × its own 95th-percentile horizontal speed (its swing speed on this clip), the fade
+  compressed into the frames before it, so a held slide is released while the foot lifts
+  off and not added to the captured swing (dme raw 0.573 → 0.534; 0 turns it off). Fitted
+  on the shared captures (0.5 / 0.65 / 0.8 compared); the fade-in is not cut (pulling the
+  arriving foot onto its place slows its last low frames, cutting it raised the run's skate);
 * ``blend_s = 0.2`` s fade in/out (≥ 1 frame): **chosen on the shared captures** (0.1 / 0.2 /
   0.3 s compared with ``bench/motion.py --skate``; 0.1 s released a held slide within 3
   frames at 30 fps and raised the skate metric of the Xia walk above its input), so it is a

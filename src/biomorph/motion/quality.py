@@ -15,8 +15,8 @@ A clean capture has feet that stand still on the ground: skate near zero.
 Skate is a *mean* over the frames in the band, so a clip whose planted feet sit a little
 lower (more still frames inside the band) scores lower for the same sliding. ``band_travel``
 is the other view: the feet's horizontal travel summed over their in-band frames, in body
-scales per second of clip (the dme pair: raw 2.05, cleaned by ``lock_feet`` 1.28, the
-authors' fixed file 1.50, while their skate means are 0.874 / 0.573 / 0.571).
+scales per second of clip (the dme pair: raw 2.05, cleaned by ``lock_feet`` 1.18, the
+authors' fixed file 1.50, while their skate means are 0.874 / 0.534 / 0.571).
 """
 
 from __future__ import annotations
