@@ -368,23 +368,22 @@ def build(
     else:  # standing: digits on the ground (compiled)
         dirs, seg, pos, end_tip = _build_standing(lay, start, metapodial, ground, eps)
         lateral = np.broadcast_to([0.0, 0.0, 1.0], (m, 3))
-    contacts, clocal = [], []
-    if heel is not None:
-        contacts.append(np.asarray(heel, float)[None])
-        clocal.append(np.array([-1]))
     if ground is not None:
-        if tip[1] - ground <= eps:
-            contacts.append(np.array([[tip[0], ground, tip[2]]]))
-            clocal.append(np.array([-1]))
-        # per digit: its joints on the ground, then the end bone's tip
-        on = (lay.j_in > 0) & (pos[:, 1] - ground <= eps)
-        pts = np.concatenate([pos, np.zeros((m, 3))], axis=1).reshape(2 * m, 3)
-        pts[1::2][last] = end_tip
-        keep = np.stack([on, last], axis=1).reshape(-1)
-        c3 = pts[keep]
-        c3[:, 1] = ground
-        contacts.append(c3)
-        clocal.append(np.repeat(np.arange(m), 2)[keep])
+        contacts, clocal = _contacts_kernel(
+            pos,
+            end_tip,
+            lay.j_in,
+            last,
+            float(ground),
+            float(eps),
+            tip,
+            heel is not None,
+            np.zeros(3) if heel is None else np.asarray(heel, float),
+        )
+    elif heel is not None:
+        contacts, clocal = np.asarray(heel, float).reshape(1, 3), np.array([-1], np.int64)
+    else:
+        contacts, clocal = np.zeros((0, 3)), np.zeros(0, np.int64)
     return Digits(
         lay.names,
         lay.parent,
@@ -396,6 +395,40 @@ def build(
         bone_radius * lay.rad_end * lay.rad_taper,
         lay.parts,
         lay.numbers,
-        np.concatenate(contacts).reshape(-1, 3) if contacts else np.zeros((0, 3)),
-        np.concatenate(clocal).astype(np.int64) if clocal else np.zeros(0, np.int64),
+        contacts,
+        clocal,
     )
+
+
+@numba.njit(cache=True)
+def _contacts_kernel(
+    pos, end_tip, j_in, last, ground, eps, tip, has_heel, heel
+):  # pragma: no cover - compiled
+    """A standing foot's ground contacts and their joints (local index, -1 = the
+    metapodial): the heel (a plantigrade ankle), the metapodial's tip when on the ground,
+    then per digit joint its position when on the ground (not the digit's first joint) and,
+    after the digit's end joint, the end bone's tip — all at the ground height."""
+    m = pos.shape[0]
+    out = np.empty((2 * m + 2, 3))
+    loc = np.empty(2 * m + 2, np.int64)
+    k = 0
+    if has_heel:
+        out[k, 0], out[k, 1], out[k, 2] = heel[0], heel[1], heel[2]
+        loc[k] = -1
+        k += 1
+    if tip[1] - ground <= eps:
+        out[k, 0], out[k, 1], out[k, 2] = tip[0], ground, tip[2]
+        loc[k] = -1
+        k += 1
+    d = 0
+    for q in range(m):
+        if j_in[q] > 0 and pos[q, 1] - ground <= eps:
+            out[k, 0], out[k, 1], out[k, 2] = pos[q, 0], ground, pos[q, 2]
+            loc[k] = q
+            k += 1
+        if last[q]:
+            out[k, 0], out[k, 1], out[k, 2] = end_tip[d, 0], ground, end_tip[d, 2]
+            loc[k] = q
+            k += 1
+            d += 1
+    return out[:k].copy(), loc[:k].copy()

@@ -24,11 +24,40 @@ def density(cls: str) -> float:
     return DENSITY.get(cls, 1000.0)
 
 
+_PROFILES: dict[tuple, tuple] = {}
+
+
 def profile(
     s: NDArray, region_len: NDArray, girth: float, cls: str, skull_h: float, legless: bool
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray]:
     """Body height ``h``, width ``b`` and centre offset below the spine at arc lengths ``s``
-    (frame px, from the head end)."""
+    (frame px, from the head end). Profiles along a whole sampled spine are memoised
+    (read-only arrays): limbs, balance repair and assembly ask for the same one."""
+    s = np.asarray(s, float)
+    if s.ndim != 1 or len(s) < 16:
+        return _profile(s, region_len, girth, cls, skull_h, legless)
+    key = (
+        s.tobytes(),
+        np.asarray(region_len, float).tobytes(),
+        float(girth),
+        cls,
+        float(skull_h),
+        bool(legless),
+    )
+    hit = _PROFILES.get(key)
+    if hit is None:
+        hit = _profile(s, region_len, girth, cls, skull_h, legless)
+        for a in hit:
+            a.setflags(write=False)
+        if len(_PROFILES) > 128:
+            _PROFILES.clear()
+        _PROFILES[key] = hit
+    return hit
+
+
+def _profile(
+    s: NDArray, region_len: NDArray, girth: float, cls: str, skull_h: float, legless: bool
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray]:
     neck, back, tail = region_len
     total = max(neck + back + tail, 1e-9)
     h_back = girth * (back if back > 0.15 * total else total)

@@ -316,8 +316,14 @@ def _attach_all(xy, s, rl, spine, skull_h, legless, places, width: float) -> lis
     if not places:
         return []
     at = np.array([p[3] for p in places], float)
-    g = sp.point_at(xy, s, at)
-    t = sp.tangent_at(xy, s, at)
+    k = len(at)
+    # point_at and tangent_at (central differences) in one interpolation
+    h = max(s[-1] * 1e-3, 1e-9)
+    q = sp.point_at(xy, s, np.concatenate([at, at + h, at - h]))
+    g = q[:k]
+    d = q[k : 2 * k] - q[2 * k :]
+    nd = np.linalg.norm(d, axis=-1, keepdims=True)
+    t = d / np.where(nd > 0, nd, 1.0)
     n = np.stack([t[:, 1], -t[:, 0]], axis=1)
     n = np.where(n[:, 1:2] < 0, -n, n)
     h, b, _ = ms.profile(at, rl, spine.girth, spine.cls, skull_h, legless)
