@@ -28,6 +28,7 @@ from scipy.spatial import cKDTree
 
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
+from biomorph.tree.neighbours import query_blocks, query_ordered
 
 __all__ = [
     "validate_cloud",
@@ -236,9 +237,9 @@ def remove_outliers(
         keep = np.ones(n, dtype=bool)
     else:
         tree = cKDTree(cloud.xyz)
-        d, _ = tree.query(cloud.xyz, k=k + 1, workers=-1)
-        md = d[:, 1:].mean(axis=1)
-        del d
+        md = np.empty(n)
+        for rows, d, _ in query_blocks(tree, None, k + 1):
+            md[rows] = d[:, 1:].mean(axis=1)
         out_ = np.flatnonzero(md > md.mean() + std_ratio * md.std())
         lr = LOCAL_RATIO if local_ratio is None else local_ratio
         if out_.size and lr is not None:
@@ -266,7 +267,7 @@ def point_spacing(cloud: PointCloud, max_samples: int = 200_000, seed: int = 0) 
     q = xyz
     if xyz.shape[0] > max_samples:
         q = xyz[np.random.default_rng(seed).choice(xyz.shape[0], max_samples, replace=False)]
-    d, _ = tree.query(q, k=4, workers=-1)
+    d, _ = query_ordered(tree, q, 4)
     d = d[:, 1:]
     d = np.where(d > 0, d, np.inf).min(axis=1)
     d = d[np.isfinite(d)]

@@ -42,6 +42,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from biomorph.errors import InputError, ParameterError
+from biomorph.tree.neighbours import query_blocks
 
 __all__ = [
     "neighbourhood_thickness",
@@ -69,14 +70,13 @@ def neighbourhood_thickness(
         return np.zeros(n)
     tree = kdtree if kdtree is not None else cKDTree(xyz)
     out = np.empty(n)
-    for a in range(0, n, _CHUNK):
-        b = min(a + _CHUNK, n)
-        _, idx = tree.query(xyz[a:b], k=k, workers=-1)
+    # blocks in spatial order: the query and the neighbour gather stay in cache
+    for rows, _, idx in query_blocks(tree, None if kdtree is None else xyz, k, block=_CHUNK):
         nb = xyz[idx]
         nb -= nb.mean(axis=1, keepdims=True)
         cov = np.einsum("nki,nkj->nij", nb, nb) / k
         lam = np.linalg.eigvalsh(cov)[:, 0]
-        out[a:b] = np.sqrt(np.maximum(lam, 0.0))
+        out[rows] = np.sqrt(np.maximum(lam, 0.0))
     return out
 
 

@@ -87,6 +87,7 @@ from biomorph.tree.neighbours import (
     estimate_spacing,
     neighbour_graph,
     shortest_path_forest,
+    spatial_order,
 )
 from biomorph.tree.resample import densify, extend_tips
 from biomorph.tree.roots import check_single_tree, check_trunk_reaches_ground, find_roots
@@ -190,6 +191,7 @@ class LivnyResult:
     timings : seconds per phase: ``t1`` roots, ``t2`` initial skeleton (graph, bridging,
         Dijkstra, contraction), ``t3`` global optimisation (iii–vi), plus sub-phases.
     info : counts (points, components bridged, iterations, trees, vertices).
+    kdtree : the k-d tree of the input points (for later queries on the same points).
     """
 
     graph: BranchGraph
@@ -197,6 +199,7 @@ class LivnyResult:
     point_tree: NDArray[np.int64]
     timings: dict[str, float] = field(default_factory=dict)
     info: dict[str, object] = field(default_factory=dict)
+    kdtree: cKDTree | None = field(default=None, repr=False)
 
 
 def skeletonize_graph(
@@ -364,7 +367,12 @@ def skeletonize_graph(
     c = importance_weights(parent, pos, order)
     # ---- step vii: allometric radii with ΣD from the mean point-to-skeleton distance
     ok = con.label >= 0
-    d, _ = skeleton_distance(xyz[ok], parent, pos)
+    # the points in spatial order (the same distances, half the query's cache misses)
+    pts = xyz[ok]
+    perm = spatial_order(pts)
+    d = np.empty(pts.shape[0])
+    d[perm] = skeleton_distance(pts[perm], parent, pos)[0]
+    del pts
     ptree = con.tree[con.label[ok]]
     ntree = int(con.tree.max()) + 1
     md = np.bincount(ptree, weights=d, minlength=ntree) / np.maximum(
@@ -394,4 +402,4 @@ def skeletonize_graph(
         "level_merge": level_merge,
         "mean_point_distance": md.tolist(),
     }
-    return LivnyResult(graph, con.label, point_tree, timings, info)
+    return LivnyResult(graph, con.label, point_tree, timings, info, kdtree=kd)

@@ -19,6 +19,7 @@ from scipy.spatial import cKDTree
 from biomorph.core.graph import BranchGraph
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
+from biomorph.tree.neighbours import query_ordered
 
 __all__ = [
     "skeleton_metrics",
@@ -80,7 +81,7 @@ def point_to_skeleton_distance(
     step = max(float(np.median(el)) / 2 if el.size else 1.0, 1e-4)
     pts, ec, _ = resample_graph(graph, step)
     kk = min(k, pts.shape[0])
-    _, idx = cKDTree(pts).query(xyz, k=kk, workers=-1)
+    _, idx = query_ordered(cKDTree(pts), xyz, kk)
     idx = idx.reshape(xyz.shape[0], kk)
     node = ec[idx]  # child node of candidate edges (or a root)
     par = graph.parent[node]
@@ -115,7 +116,7 @@ def skeleton_metrics(graph: BranchGraph, cloud: PointCloud | NDArray | None = No
             d = point_to_skeleton_distance(graph, xyz)
             d2 = d**2
             # the tree of the nearest node (cheap, adequate for attributing points)
-            _, ni = cKDTree(graph.position).query(xyz, workers=-1)
+            _, ni = query_ordered(cKDTree(graph.position), xyz)
             near_tree = labels[ni]
     trees = []
     for t in uniq:
@@ -451,7 +452,7 @@ def _surface_candidates(graph: BranchGraph, xyz: NDArray, k: int = 8) -> tuple[N
     step = max(float(np.median(el)) / 2 if el.size else 1.0, 1e-4)
     pts, ec, _ = resample_graph(graph, step)
     kk = min(k, pts.shape[0])
-    _, idx = cKDTree(pts).query(xyz, k=kk, workers=-1)
+    _, idx = query_ordered(cKDTree(pts), xyz, kk)
     node = ec[np.asarray(idx).reshape(xyz.shape[0], kk)]
     par = graph.parent[node]
     b = graph.position[node]

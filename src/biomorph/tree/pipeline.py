@@ -347,7 +347,9 @@ def graph_phase(run: _Run) -> None:
     )
     t0 = time.perf_counter()
     graph = _graph_cleanup(run, res.graph, spacing)
-    graph = livny.extend_tips(graph, xyz, 2.0 * spacing)
+    # the k-d tree of step ii holds the same points: no second 10⁶-point build
+    graph = livny.extend_tips(graph, xyz, 2.0 * spacing, kdtree=res.kdtree)
+    del res
     run.graph = livny.densify(graph, spacing)
     run.timings["t4"] = time.perf_counter() - t0
     run.timings["cleanup"] = run.timings["t4"]
