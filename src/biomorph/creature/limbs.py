@@ -812,15 +812,45 @@ def free_arm_rest(
     if x <= front and low >= floor:
         return rest * DEG
     cand, sin_c, cos_c = _arm_grid("mammal" if cls == "mammal" else "folded")
-    # chain(cand) with the grid's sines and cosines computed once per class
-    x = float(base[0]) + np.cumsum(L * sin_c, axis=-1)[..., -1]
-    low = (float(base[1]) - np.cumsum(L * cos_c, axis=-1)).min(axis=-1)
-    above = low >= floor
-    if not above.any():
+    best = _arm_pick(cand, sin_c, cos_c, L, float(base[0]), float(base[1]), front, floor, rest)
+    if best < 0:
         return rest * DEG  # nothing in the ranges clears the ground: lift_clear folds it
-    cost = np.where(above & (x <= front), np.abs(cand - rest).sum(axis=1), np.inf)
-    best = np.argmin(cost) if np.isfinite(cost).any() else np.argmin(np.where(above, x, np.inf))
     return cand[best] * DEG
+
+
+@numba.njit(cache=True)
+def _arm_pick(cand, sin_c, cos_c, L, bx, by, front, floor, rest):  # pragma: no cover
+    """:func:`free_arm_rest`'s grid search compiled (``chain`` on every grid pose with the
+    grid's sines and cosines, the same sums in the same order): among the poses whose joints
+    and fingertips stay at or above ``floor``, the first of least summed |difference| from
+    ``rest`` with the fingertips at or behind ``front``, else the first with the fingertips
+    furthest back; -1 when no pose clears the floor."""
+    best, best_cost = -1, np.inf
+    back, back_x = -1, np.inf
+    for i in range(cand.shape[0]):
+        sx = 0.0
+        sy = 0.0
+        low = np.inf
+        for k in range(3):
+            tx = L[k] * sin_c[i, k]
+            ty = L[k] * cos_c[i, k]
+            sx = tx if k == 0 else sx + tx
+            sy = ty if k == 0 else sy + ty
+            low = min(low, by - sy)
+        if not low >= floor:
+            continue
+        x = bx + sx
+        if x < back_x:
+            back, back_x = i, x
+        if x <= front:
+            c = 0.0
+            for k in range(3):
+                c += abs(cand[i, k] - rest[k])
+            if c < best_cost:
+                best, best_cost = i, c
+    if best >= 0 and np.isfinite(best_cost):
+        return best
+    return back
 
 
 @lru_cache(maxsize=4)
