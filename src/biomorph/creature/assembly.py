@@ -126,15 +126,27 @@ class _Body:
     arrays: dict[str, NDArray]
 
 
-def _body_blocks(spine: SpineState, pts: NDArray, skull: SkullState) -> _Body:
-    cls = spine.cls
-    legless = spine.legs == 0
-    xy, s, region = sp.sample(pts)
-    rl = sp.region_lengths(s, region)
-    shape = sk.get(skull.shape)
-    skull_h = shape.height * skull.length
-    edges, vreg = vt.boundaries(rl, spine.counts)
-    P = sp.point_at(xy, s, edges)
+@dataclass(frozen=True, eq=False)
+class _Topology:
+    """What the vertebra counts fix: joint order (root vertebra first, then towards the head,
+    then towards the tail), parents, names, parts, regions, limits."""
+
+    m: int
+    root: int
+    order: NDArray[np.int64]
+    slot: NDArray[np.int64]
+    vreg: NDArray[np.int64]
+    parent: NDArray[np.int64]
+    lim: NDArray[np.float64]
+    names: tuple[str, ...]
+    kind: tuple[str, ...]
+    region: tuple[str, ...]
+    part: tuple[str, ...]
+
+
+@lru_cache(maxsize=256)
+def _topology(counts: tuple[int, int, int], cls: str) -> _Topology:
+    _, vreg = vt.boundaries(np.ones(3), np.array(counts, np.int64))
     m = len(vreg)
     back_idx = np.flatnonzero(vreg == 1)
     root = int(back_idx[min(int(round(0.65 * (len(back_idx) - 1))), len(back_idx) - 1)])
@@ -149,6 +161,40 @@ def _body_blocks(spine: SpineState, pts: NDArray, skull: SkullState) -> _Body:
     vl, wl = vreg.tolist(), within.tolist()
     vnames = [f"{rname[vl[i]]}_{wl[i]:02d}" for i in order.tolist()]
     vparts = an.vertebra_parts(vreg, cls)
+    vi = order
+    ant = order < root
+    par_v = np.where(
+        vi == root, -1, np.where(ant, slot[np.minimum(vi + 1, m - 1)], slot[np.maximum(vi - 1, 0)])
+    )
+    out = _Topology(
+        m=m,
+        root=root,
+        order=order,
+        slot=slot,
+        vreg=vreg,
+        parent=np.concatenate([par_v, [slot[0], m]]).astype(np.int64),
+        lim=np.concatenate([_REGION_RANGES[vreg[vi]], [_RANGES["head"], _RANGES["jaw"]]]),
+        names=tuple(vnames) + ("skull", "jaw"),
+        kind=("spine",) * m + ("skull", "skull"),
+        region=tuple(rname[r] for r in vreg[vi].tolist()) + ("head", "head"),
+        part=tuple(vparts[i] for i in vi.tolist()) + ("skull", "mandible"),
+    )
+    for a in (out.order, out.slot, out.vreg, out.parent, out.lim):
+        a.setflags(write=False)
+    return out
+
+
+def _body_blocks(spine: SpineState, pts: NDArray, skull: SkullState) -> _Body:
+    cls = spine.cls
+    legless = spine.legs == 0
+    xy, s, region = sp.sample(pts)
+    rl = sp.region_lengths(s, region)
+    shape = sk.get(skull.shape)
+    skull_h = shape.height * skull.length
+    top = _topology(tuple(int(c) for c in spine.counts), cls)
+    edges, _ = vt.boundaries(rl, spine.counts)
+    P = sp.point_at(xy, s, edges)
+    m, root, order, slot = top.m, top.root, top.order, top.slot
     # body slices (volume, centre, owning vertebra)
     h, b, off = ms.profile(s, rl, spine.girth, cls, skull_h, legless)
     vol = ms.slice_volumes(s, h, b)
@@ -179,9 +225,6 @@ def _body_blocks(spine: SpineState, pts: NDArray, skull: SkullState) -> _Body:
     vi = order
     a = np.where(ant[:, None], P[vi + 1], P[vi])
     e = np.where(ant[:, None], P[vi], P[vi + 1])
-    par_v = np.where(
-        vi == root, -1, np.where(ant, slot[np.minimum(vi + 1, m - 1)], slot[np.maximum(vi - 1, 0)])
-    )
     d3 = np.concatenate([e - a, np.zeros((m, 1))], axis=1)
     Lv = np.linalg.norm(d3, axis=1)
     # skull and jaw
@@ -194,7 +237,7 @@ def _body_blocks(spine: SpineState, pts: NDArray, skull: SkullState) -> _Body:
     vsk = ms.ellipsoid_volume(sbox)
     sk_box = np.array([sbox, jaw.box], float)
     arrays = {
-        "parent": np.concatenate([par_v, [slot[0], m]]).astype(np.int64),
+        "parent": top.parent,
         "side": np.zeros(m + 2, np.int64),
         "digit": np.zeros(m + 2, np.int64),
         "W": np.concatenate([_frames_from_dirs(d3), Wsk, jaw.W[None]]),
@@ -217,20 +260,21 @@ def _body_blocks(spine: SpineState, pts: NDArray, skull: SkullState) -> _Body:
         "mass_sz": np.concatenate(
             [np.stack([vh[vi], np.maximum(Lv, 1e-9), vb[vi]], axis=1), sk_box]
         ),
-        "lim": np.concatenate([_REGION_RANGES[vreg[vi]], [_RANGES["head"], _RANGES["jaw"]]]),
+        "lim": top.lim,
         "anat_a": np.zeros((m + 2, 3)),
         "anat_l": np.zeros((m + 2, 3, 2)),
     }
     for v in arrays.values():
-        v.setflags(write=False)
+        if v.flags.writeable:
+            v.setflags(write=False)
     return _Body(
         m=m,
         edges=edges.tolist(),
         slot=slot,
-        names=tuple(vnames) + ("skull", "jaw"),
-        kind=("spine",) * m + ("skull", "skull"),
-        region=tuple(rname[r] for r in vreg[vi].tolist()) + ("head", "head"),
-        part=tuple(vparts[i] for i in vi.tolist()) + ("skull", "mandible"),
+        names=top.names,
+        kind=top.kind,
+        region=top.region,
+        part=top.part,
         arrays=arrays,
     )
 
