@@ -83,6 +83,22 @@ def edge_distances(poly: NDArray, q: NDArray) -> NDArray[np.float64]:
     return cr / np.where(n > 0, n, 1.0)
 
 
+@numba.njit(cache=True)
+def _min_edge_distance(poly: np.ndarray, qx: float, qy: float) -> float:  # pragma: no cover
+    """``edge_distances(poly, q).min()`` compiled (the same operations per edge)."""
+    k = poly.shape[0]
+    best = np.inf
+    for i in range(k):
+        j = i + 1 if i + 1 < k else 0
+        ex, ey = poly[j, 0] - poly[i, 0], poly[j, 1] - poly[i, 1]
+        n = np.sqrt(ex * ex + ey * ey)
+        cr = ex * (qy - poly[i, 1]) - ey * (qx - poly[i, 0])
+        d = cr / (n if n > 0 else 1.0)
+        if d < best or i == 0:
+            best = d
+    return best
+
+
 def evaluate(
     com: NDArray,
     mass: float,
@@ -114,8 +130,7 @@ def evaluate(
         margin = -float(np.min(np.linalg.norm(poly - q, axis=1))) if len(poly) else -1.0
         torque = mass * G * margin
     else:
-        d = edge_distances(poly, q)
-        margin = float(d.min())
+        margin = float(_min_edge_distance(poly, float(q[0]), float(q[1])))
         torque = float(mass * G * margin)
     frac = margin / max(body_length, 1e-12)
     stable = frac >= min_margin_fraction
@@ -127,6 +142,6 @@ def evaluate(
         float(sag),
         float(torque),
         tuple(map(float, c)),
-        tuple((float(a), float(b)) for a, b in poly),
+        tuple(map(tuple, poly.tolist())),
         float(mass),
     )
