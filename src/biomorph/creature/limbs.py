@@ -925,7 +925,12 @@ def lift_clear(
 
 def start_pose(role: str, posture: str, standing: bool = True) -> NDArray[np.float64]:
     """The descent's start: every flexion DOF at its most bent limit (of the standing box
-    :data:`STAND_LIMITS_DEG` unless ``standing=False``), posture abduction."""
+    :data:`STAND_LIMITS_DEG` unless ``standing=False``), posture abduction (a fresh array)."""
+    return _start_pose(role, posture, bool(standing)).copy()
+
+
+@lru_cache(maxsize=64)
+def _start_pose(role: str, posture: str, standing: bool) -> NDArray[np.float64]:
     limits = (STAND_LIMITS_DEG if standing else LIMITS_DEG)[role] * DEG
     start = np.zeros((3, 3))
     start[:, 0] = (

@@ -338,6 +338,11 @@ def _attach_all(xy, s, rl, spine, skull_h, legless, places, width: float) -> lis
     ]
 
 
+#: The Bernstein basis at 17 samples (``bezier_eval(seg, np.linspace(0, 1, 17))`` is
+#: ``einsum(basis, seg)``; the basis is computed once).
+_BASIS17 = bezier_eval(np.eye(4), np.linspace(0, 1, 17))
+
+
 def _flatten(points: NDArray, which: str, floor: float) -> NDArray:
     """Raise a drooping tail (or neck) above ``floor`` keeping the join's tangent (C1)."""
     base, inner, outer = (6, 7, (8, 9)) if which == "tail" else (3, 2, (1, 0))
@@ -348,7 +353,7 @@ def _flatten(points: NDArray, which: str, floor: float) -> NDArray:
             q[k, 1] = p[base, 1] + alpha * (p[k, 1] - p[base, 1])
         q[inner] = p[base] + max(alpha, 0.25) * (p[inner] - p[base])
         seg = q[6:10] if which == "tail" else q[0:4]
-        if bezier_eval(seg, np.linspace(0, 1, 17))[:, 1].min() >= floor:
+        if np.einsum("mk,...kd->...md", _BASIS17, seg)[:, 1].min() >= floor:
             return q
         p_last = q
     return p_last
@@ -464,7 +469,7 @@ def step_limbs(
             if k == 1:  # second pair a little apart, towards the body centre
                 step = 0.18 * max(rl[1], 1e-6)
                 at = at + step if g.name in ("shoulder", "centaur") else at - step
-            at = float(np.clip(at, 0.0, s[-1]))
+            at = min(max(float(at), 0.0), float(s[-1]))  # np.clip on a float
             places.append((g.name, k, spec, at))
     attach = _attach_all(xy, s, rl, spine, skull_h, legless, places, shifts.get("width", 1.0))
     legs = [i for i, p in enumerate(places) if p[2].kind == "leg"]
