@@ -193,33 +193,10 @@ def _body_blocks(spine: SpineState, pts: NDArray, skull: SkullState) -> _Body:
     skull_h = shape.height * skull.length
     top = _topology(tuple(int(c) for c in spine.counts), cls)
     edges, _ = vt.boundaries(rl, spine.counts)
-    P = sp.point_at(xy, s, edges)
     m, root, order, slot = top.m, top.root, top.order, top.slot
-    # body slices (volume, centre, owning vertebra)
+    # body slices (volume, centre, owning vertebra), compiled (_slices_kernel)
     h, b, off = ms.profile(s, rl, spine.girth, cls, skull_h, legless)
-    vol = ms.slice_volumes(s, h, b)
-    smid = 0.5 * (s[1:] + s[:-1])
-    t = np.diff(xy, axis=0)
-    t = t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
-    nrm = np.stack([t[:, 1], -t[:, 0]], axis=1)
-    nrm = np.where(nrm[:, 1:2] < 0, -nrm, nrm)
-    cen2 = 0.5 * (xy[1:] + xy[:-1]) - nrm * 0.5 * (off[1:] + off[:-1])[:, None]
-    owner = np.clip(np.searchsorted(edges, smid, side="right") - 1, 0, m - 1)
-    vmass = np.bincount(owner, weights=vol, minlength=m)
-    vcen = (
-        np.stack(
-            [np.bincount(owner, weights=vol * cen2[:, k], minlength=m) for k in range(2)], axis=1
-        )
-        / np.maximum(vmass, 1e-30)[:, None]
-    )
-    emid = 0.5 * (edges[1:] + edges[:-1])
-    # a vertebra shorter than one body slice owns no slice (no mass of its own): its centre
-    # is the body section's centre at its own midpoint, interpolated between the slices
-    empty = vmass <= 0
-    if empty.any():
-        vcen[empty] = np.stack([np.interp(emid[empty], smid, cen2[:, k]) for k in range(2)], 1)
-    vh = np.interp(emid, s, h)
-    vb = np.interp(emid, s, b)
+    P, vmass, vcen, vh, vb = _slices_kernel(xy, s, h, b, off, np.ascontiguousarray(edges), m)
     # vertebra i: joint at the end nearer the root, bone towards the other end
     ant = order < root
     vi = order
@@ -277,6 +254,98 @@ def _body_blocks(spine: SpineState, pts: NDArray, skull: SkullState) -> _Body:
         part=top.part,
         arrays=arrays,
     )
+
+
+@numba.njit(cache=True)
+def _interp1(x, xp, fp):  # pragma: no cover - compiled
+    """``np.interp`` at one point (NumPy's formula: the last knot ``xp[j] <= x``, the knot's
+    value where ``x`` equals it, the slope form otherwise, its NaN fallback)."""
+    n = xp.shape[0]
+    if x > xp[n - 1]:
+        return fp[n - 1]
+    if x < xp[0]:
+        return fp[0]
+    lo, hi = 0, n
+    while lo < hi:  # upper bound
+        mid = lo + ((hi - lo) >> 1)
+        if x >= xp[mid]:
+            lo = mid + 1
+        else:
+            hi = mid
+    j = lo - 1
+    if j == n - 1 or xp[j] == x:
+        return fp[j]
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    r = slope * (x - xp[j]) + fp[j]
+    if np.isnan(r):
+        r = slope * (x - xp[j + 1]) + fp[j + 1]
+        if np.isnan(r) and fp[j] == fp[j + 1]:
+            r = fp[j]
+    return r
+
+
+@numba.njit(cache=True)
+def _slices_kernel(xy, s, h, b, off, edges, m):  # pragma: no cover - compiled
+    """The vertebrae's share of the body slices, the NumPy steps of the assembly compiled
+    with the same arithmetic: points at the vertebra boundaries (``sp.point_at``), slice
+    volumes (``ms.slice_volumes``) and centres (below the spine along its normal), each
+    slice owned by the vertebra its midpoint lies in (volume-weighted centres; a vertebra
+    without a slice takes the interpolated centre at its midpoint), heights and widths at
+    the vertebra midpoints."""
+    n = s.shape[0]
+    ne = edges.shape[0]
+    P = np.empty((ne, 2))
+    for i in range(ne):
+        a = min(max(edges[i], 0.0), s[n - 1])
+        P[i, 0] = _interp1(a, s, xy[:, 0])
+        P[i, 1] = _interp1(a, s, xy[:, 1])
+    ns = n - 1
+    smid = np.empty(ns)
+    cen = np.empty((ns, 2))
+    vol = np.empty(ns)
+    vmass = np.zeros(m)
+    w0 = np.zeros(m)
+    w1 = np.zeros(m)
+    for i in range(ns):
+        ds = s[i + 1] - s[i]
+        hm = 0.5 * (h[i + 1] + h[i])
+        bm = 0.5 * (b[i + 1] + b[i])
+        vol[i] = np.pi / 4.0 * hm * bm * ds
+        smid[i] = 0.5 * (s[i + 1] + s[i])
+        t0, t1 = xy[i + 1, 0] - xy[i, 0], xy[i + 1, 1] - xy[i, 1]
+        nt = max(np.sqrt(t0 * t0 + t1 * t1), 1e-12)
+        t0, t1 = t0 / nt, t1 / nt
+        n0, n1 = t1, -t0
+        if n1 < 0:
+            n0, n1 = -n0, -n1
+        o = off[i + 1] + off[i]
+        cen[i, 0] = 0.5 * (xy[i + 1, 0] + xy[i, 0]) - n0 * 0.5 * o
+        cen[i, 1] = 0.5 * (xy[i + 1, 1] + xy[i, 1]) - n1 * 0.5 * o
+        lo, hi = 0, ne  # searchsorted(edges, smid, side="right") - 1, clipped
+        while lo < hi:
+            mid = lo + ((hi - lo) >> 1)
+            if smid[i] >= edges[mid]:
+                lo = mid + 1
+            else:
+                hi = mid
+        k = min(max(lo - 1, 0), m - 1)
+        vmass[k] += vol[i]
+        w0[k] += vol[i] * cen[i, 0]
+        w1[k] += vol[i] * cen[i, 1]
+    vcen = np.empty((m, 2))
+    vh = np.empty(m)
+    vb = np.empty(m)
+    for k in range(m):
+        d = max(vmass[k], 1e-30)
+        vcen[k, 0] = w0[k] / d
+        vcen[k, 1] = w1[k] / d
+        emid = 0.5 * (edges[k + 1] + edges[k])
+        if vmass[k] <= 0:
+            vcen[k, 0] = _interp1(emid, smid, cen[:, 0])
+            vcen[k, 1] = _interp1(emid, smid, cen[:, 1])
+        vh[k] = _interp1(emid, s, h)
+        vb[k] = _interp1(emid, s, b)
+    return P, vmass, vcen, vh, vb
 
 
 _BODY_CACHE: dict[tuple, _Body] = {}
