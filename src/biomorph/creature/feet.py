@@ -340,8 +340,42 @@ def build(
     ``frames=False`` leaves the joints' rotations out (``W`` empty): for the contacts only."""
     tip = np.asarray(tip, float)
     eps = 1e-6 * max(metapodial, 1e-9)
-    lay = _layout(tuple(plan))
+    lay = _layout_of(plan)
     n, m, dig, last = lay.n, lay.m, lay.dig, lay.last
+    if ground is not None and m:  # a standing foot: one compiled call
+        dirs, seg, pos, W, contacts, clocal = _standing_foot(
+            tip,
+            float(width),
+            lay.frac,
+            float(metapodial),
+            lay.side,
+            lay.counts,
+            lay.first,
+            dig,
+            last,
+            lay.j_in,
+            lay.cos_splay,
+            lay.sin_splay,
+            lay.back,
+            float(ground),
+            float(eps),
+            _SIN_MAX,
+            heel is not None,
+            np.zeros(3) if heel is None else np.asarray(heel, float),
+            bool(frames),
+        )
+        return Digits(
+            lay.names,
+            lay.parent,
+            W,
+            pos,
+            seg,
+            bone_radius * lay.rad_end * lay.rad_taper,
+            lay.parts,
+            lay.numbers,
+            contacts,
+            clocal,
+        )
     seg = lay.frac * metapodial
     start = tip[None, :] + np.outer(lay.side, [0.0, 0.0, 1.0]) * width  # (n, 3)
     splay = lay.splay
@@ -398,6 +432,70 @@ def build(
         contacts,
         clocal,
     )
+
+
+_LAYOUTS: dict[int, tuple] = {}
+
+
+def _layout_of(plan: tuple[Digit, ...]) -> _Layout:
+    """:func:`_layout` looked up by the plan object (plans come from the memoised
+    :func:`digit_plan`; hashing a plan's digits costs more than the lookup)."""
+    hit = _LAYOUTS.get(id(plan))
+    if hit is not None and hit[0] is plan:
+        return hit[1]
+    lay = _layout(tuple(plan))
+    if len(_LAYOUTS) > 512:
+        _LAYOUTS.clear()
+    _LAYOUTS[id(plan)] = (plan, lay)
+    return lay
+
+
+@numba.njit(cache=True)
+def _standing_foot(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
+    tip,
+    width,
+    frac,
+    metapodial,
+    side,
+    counts,
+    first,
+    dig,
+    last,
+    j_in,
+    cos_s,
+    sin_s,
+    back,
+    ground,
+    eps,
+    sin_max,
+    has_heel,
+    heel,
+    frames,
+):  # pragma: no cover - compiled
+    """:func:`build` for a standing foot in one compiled call: the digits' starts spread
+    across the metapodial's tip, :func:`_stand_kernel`, the frames (lateral +z) and the
+    contacts (:func:`_contacts_kernel`) — the same operations as the separate steps."""
+    n = side.shape[0]
+    m = frac.shape[0]
+    start = np.empty((n, 3))
+    for k in range(n):
+        start[k, 0] = tip[0] + side[k] * 0.0 * width
+        start[k, 1] = tip[1] + side[k] * 0.0 * width
+        start[k, 2] = tip[2] + side[k] * 1.0 * width
+    seg0 = np.empty(m)
+    for q in range(m):
+        seg0[q] = frac[q] * metapodial
+    dirs, seg, pos, end_tip = _stand_kernel(
+        start, seg0, counts, first, dig, last, cos_s, sin_s, back, ground, eps, sin_max
+    )
+    if frames:
+        lateral = np.zeros((m, 3))
+        lateral[:, 2] = 1.0
+        W = _frames_kernel(dirs, lateral)
+    else:
+        W = np.zeros((0, 3, 3))
+    contacts, clocal = _contacts_kernel(pos, end_tip, j_in, last, ground, eps, tip, has_heel, heel)
+    return dirs, seg, pos, W, contacts, clocal
 
 
 @numba.njit(cache=True)
