@@ -184,3 +184,24 @@ def test_tips_taper_towards_the_twig_radius():
     assert r.min() >= twig
     assert np.allclose(r[:30], truth[:30], rtol=0.02)
     assert np.allclose(r[60], truth[60], rtol=0.15)  # the branch tip, not 0.02·L^0.5
+
+
+def test_thin_reliable_fits_are_kept_thick_ones_are_not():
+    """The outlier test is one-sided: where the stem path runs through a 4 cm branch (a
+    skeleton detour), its tight, well-covered fits are kept as measured instead of being
+    overwritten by the stem model; a run of fits as far *above* the model (needle
+    envelopes) is still rejected."""
+    g = _tree()
+    carried = g.subtree_length() + g.edge_length
+    truth = 0.02 * carried**0.5
+    fitted = truth.copy()
+    fitted[30:36] = 0.2 * truth[30:36]  # measured 5x thinner than the stem model
+    ok = np.ones(g.n_nodes, dtype=bool)
+    r, fit = taper_radii(g, _fit(g, fitted, ok, mad=1e-4), min_radius=0.0)
+    assert fit.reliable[30:36].all()
+    assert np.allclose(r[31:35], fitted[31:35], rtol=0.15)
+    fitted = truth.copy()
+    fitted[30:36] = 5.0 * truth[30:36]
+    r, fit = taper_radii(g, _fit(g, fitted, ok, mad=1e-4), min_radius=0.0)
+    assert not fit.reliable[30:36].any()
+    assert np.all(r[30:36] <= 1.2 * truth[30:36])

@@ -31,9 +31,10 @@ def test_total_and_per_class_volume_within_target(run):
     for lab in ("<2.5cm", "7-20cm", ">20cm"):
         assert abs(ratio[lab] - 1) <= 0.20, (lab, ratio)  # target ±20 %
     # 2.5-7 cm: the target (±20 %) is not met on the presets, whose branches taper linearly
-    # rather than by the pipe model (docs/tree.md); guard today's figure (1.24 with the
-    # fitted within-branch slope, 1.32 before) from drifting
-    assert 0.8 <= ratio["2.5-7cm"] <= 1.30, ratio
+    # rather than by the pipe model (docs/tree.md); guard today's figure (1.20 with the
+    # one-sided outlier test, 1.24 with the fitted within-branch slope, 1.32 before) from
+    # drifting
+    assert 0.8 <= ratio["2.5-7cm"] <= 1.25, ratio
 
 
 def test_thin_branch_residual_within_target(run):
