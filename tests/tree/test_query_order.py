@@ -82,3 +82,51 @@ def test_shortest_path_forest_matches_coo_build(cloud):
     p0 = p0[:n].astype(np.int64)
     p0[(p0 == n) | (p0 < 0)] = -1
     assert np.array_equal(dist, d0[:n]) and np.array_equal(parent, p0)
+
+
+def _grid_cloud(n=4000, seed=5):
+    """Points on a 1 mm grid (as LAS stores them): many equal distances, and duplicates."""
+    rng = np.random.default_rng(seed)
+    xyz = np.round(rng.normal(size=(n, 3)) * [0.05, 0.05, 0.5], 3)
+    xyz[7] = xyz[8]
+    return xyz
+
+
+@pytest.mark.parametrize("make", [_grid_cloud, lambda: np.random.default_rng(1).random((3000, 3))])
+def test_neighbour_cache_equals_fresh_query_after_removals(make):
+    from biomorph.tree.neighbours import NeighbourCache
+
+    xyz = make()
+    cache = NeighbourCache.from_query(cKDTree(xyz), 17)
+    rng = np.random.default_rng(2)
+    keep = rng.random(xyz.shape[0]) > 0.1
+    sub, c1 = xyz[keep], cache.select(keep)
+    keep2 = np.flatnonzero(rng.random(sub.shape[0]) > 0.05)
+    sub, c2 = sub[keep2], c1.select(keep2)
+    tree = cKDTree(sub)
+    for k in (1, 5, 11, 17, 20):
+        d, i = c2.query(k, tree, sub)
+        d0, i0 = tree.query(sub, k=k)
+        assert np.array_equal(d, d0.reshape(d.shape)) and np.array_equal(i, i0.reshape(i.shape))
+
+
+def test_prepare_keeps_the_outlier_query_for_the_graph():
+    from biomorph.core.pointcloud import PointCloud
+    from biomorph.tree.cloud import prepare, remove_outliers
+    from biomorph.tree.pipeline import remove_sparse
+
+    xyz = _grid_cloud(5000) + [4.0e5, 6.0e6, 120.0]
+    xyz[:40] += np.random.default_rng(0).normal(size=(40, 3))  # strays for the filter
+    cloud = PointCloud(xyz)
+    plain = prepare(cloud, ground=None)
+    prep = prepare(cloud, ground=None, neighbours=True)
+    assert plain.neighbours is None and prep.neighbours is not None
+    assert np.array_equal(plain.cloud.xyz, prep.cloud.xyz)
+    pts = prep.cloud.xyz
+    g0 = neighbour_graph(pts, k=10)
+    g1 = neighbour_graph(pts, k=10, cache=prep.neighbours, tree=cKDTree(pts))
+    assert (g0 != g1).nnz == 0 and np.array_equal(g0.indices, g1.indices)
+    out, keep, cache = remove_outliers(PointCloud(xyz), return_neighbours=True)
+    assert cache.n == out.n_points == keep.sum()
+    dense, mask = remove_sparse(out, 4.0, return_mask=True)
+    assert dense.n_points == mask.sum() and np.array_equal(dense.xyz, remove_sparse(out, 4.0).xyz)

@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
-from biomorph.tree.neighbours import query_blocks, query_ordered
+from biomorph.tree.neighbours import NeighbourCache, query_blocks, query_ordered
 
 __all__ = [
     "validate_cloud",
@@ -221,25 +221,35 @@ def remove_outliers(
     *,
     return_mask: bool = False,
     local_ratio: float | None = None,
-) -> PointCloud | tuple[PointCloud, NDArray]:
+    return_neighbours: bool = False,
+) -> PointCloud | tuple:
     """Statistical outlier removal.
 
     A point is an outlier when its mean distance to its ``k`` nearest neighbours exceeds
     ``mean + std_ratio * std`` of that statistic over the cloud, and — with
     ``local_ratio`` (default :data:`LOCAL_RATIO`, off) — more than ``local_ratio`` × the
     same statistic of its sparser neighbours (sparse but evenly sampled parts, such as thin
-    twigs, stay). With ``return_mask`` the boolean inlier mask is returned as well.
+    twigs, stay). With ``return_mask`` the boolean inlier mask is returned as well; with
+    ``return_neighbours`` the result is ``(cloud, mask, cache)``, ``cache`` the
+    :class:`~biomorph.tree.neighbours.NeighbourCache` of the kept points from the same
+    ``k + 1``-neighbour query (None for clouds of at most ``k + 1`` points), so the
+    neighbour graph needs no second query.
     """
     if k < 1:
         raise ParameterError(f"remove_outliers k must be >= 1; got {k}")
     n = cloud.n_points
+    cache = None
     if n <= k + 1:
         keep = np.ones(n, dtype=bool)
     else:
         tree = cKDTree(cloud.xyz)
-        md = np.empty(n)
-        for rows, d, _ in query_blocks(tree, None, k + 1):
-            md[rows] = d[:, 1:].mean(axis=1)
+        if return_neighbours:
+            cache = NeighbourCache.from_query(tree, k + 1)
+            md = cache.dist[:, 1:].mean(axis=1)
+        else:
+            md = np.empty(n)
+            for rows, d, _ in query_blocks(tree, None, k + 1):
+                md[rows] = d[:, 1:].mean(axis=1)
         out_ = np.flatnonzero(md > md.mean() + std_ratio * md.std())
         lr = LOCAL_RATIO if local_ratio is None else local_ratio
         if out_.size and lr is not None:
@@ -251,6 +261,8 @@ def remove_outliers(
         keep = np.ones(n, dtype=bool)
         keep[out_] = False
     out = cloud.select(keep)
+    if return_neighbours:
+        return out, keep, None if cache is None else cache.select(keep)
     return (out, keep) if return_mask else out
 
 
@@ -314,12 +326,15 @@ class PreparedCloud:
 
     ``cloud``: the vegetation points ready for skeletonisation; ``ground``: the removed ground
     points (or ``None``); ``steps``: per step what was done -- ``{"name": {"points_in": ...,
-    "points_out": ..., "seconds": ..., **details}}`` in execution order.
+    "points_out": ..., "seconds": ..., **details}}`` in execution order; ``neighbours``: with
+    ``prepare(neighbours=True)`` the outlier filter's neighbour lists of ``cloud``
+    (:class:`~biomorph.tree.neighbours.NeighbourCache`), or None.
     """
 
     cloud: PointCloud
     ground: PointCloud | None = None
     steps: dict[str, dict[str, Any]] = field(default_factory=dict)
+    neighbours: NeighbourCache | None = field(default=None, repr=False)
 
 
 def prepare(
@@ -332,6 +347,7 @@ def prepare(
     ground: str | None = "auto",
     seed: int = 0,
     ground_params: dict[str, Any] | None = None,
+    neighbours: bool = False,
 ) -> PreparedCloud:
     """Validate, centre, filter, downsample, de-noise and remove ground, in that order.
 
@@ -344,10 +360,13 @@ def prepare(
     ground : ``"auto"`` (the default method of :func:`biomorph.tree.ground.remove_ground`,
         only if :func:`has_ground` detects a ground surface), ``"csf"``, ``"grid"`` or None.
     seed : random seed of the downsampling.
+    neighbours : keep the outlier filter's neighbour lists (``PreparedCloud.neighbours``)
+        for a later kNN query on the prepared points (the graph method's neighbour graph).
     """
     steps: dict[str, dict[str, Any]] = {}
     validate_cloud(cloud)
     cur = cloud
+    cache: NeighbourCache | None = None
 
     def record(step: str, before: int, t0: float, **extra: Any) -> None:
         steps[step] = {
@@ -392,7 +411,10 @@ def prepare(
         t0 = time.perf_counter()
         n0 = cur.n_points
         kw = {} if outliers is True else dict(outliers)
-        cur = remove_outliers(cur, **kw)
+        if neighbours:
+            cur, _, cache = remove_outliers(cur, **kw, return_neighbours=True)
+        else:
+            cur = remove_outliers(cur, **kw)
         record("outliers", n0, t0, **kw)
     ground_cloud = None
     if ground is not None:
@@ -409,8 +431,10 @@ def prepare(
             veg, mask = remove_ground(cur, method=method, **(ground_params or {}))
             ground_cloud = cur.select(mask)
             cur = veg
+            if cache is not None:
+                cache = cache.select(~mask)
             record("ground", n0, t0, method=method, ground_points=int(mask.sum()))
         else:
             record("ground", n0, t0, method=None, detail="no ground surface detected")
     validate_cloud(cur)
-    return PreparedCloud(cloud=cur, ground=ground_cloud, steps=steps)
+    return PreparedCloud(cloud=cur, ground=ground_cloud, steps=steps, neighbours=cache)

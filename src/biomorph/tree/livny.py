@@ -82,6 +82,7 @@ from biomorph.tree.neighbours import (
     NODE_SPACING_MIN,
     BridgeRule,
     Contraction,
+    NeighbourCache,
     bridge_components,
     contract,
     estimate_spacing,
@@ -222,6 +223,7 @@ def skeletonize_graph(
     bridge_gap: float | None = None,
     reach: float | None = REACH,
     level_merge: str = "adjacent",
+    neighbours: NeighbourCache | None = None,
 ) -> LivnyResult:
     """Livny et al. 2010 steps i–vii on a point cloud (cleanup is :mod:`~biomorph.tree.cleanup`).
 
@@ -253,6 +255,10 @@ def skeletonize_graph(
         the unbounded refinement of the paper.
     level_merge : how adjacent pieces of one contraction level join:
         ``"adjacent"`` (default) or ``"overlap"`` (:func:`~biomorph.tree.neighbours.contract`).
+    neighbours : neighbour lists of ``xyz`` from an earlier query with at least ``k + 1``
+        neighbours (:class:`~biomorph.tree.neighbours.NeighbourCache`, e.g. the outlier
+        filter's): the kNN graph takes its rows from them where they decide it (the same
+        graph) and they are released once it is built.
 
     Raises :class:`~biomorph.errors.InputError` (one line, exit 2 at the CLI) for clouds
     with no tree model to give: foliage only (:func:`~biomorph.tree.foliage.check_not_only_leaves`),
@@ -313,7 +319,8 @@ def skeletonize_graph(
     timings["t1"] = t0 - t_start
 
     t2s = t0
-    p_graph = neighbour_graph(xyz, k=k, radius=search_radius, tree=kd)
+    p_graph = neighbour_graph(xyz, k=k, radius=search_radius, tree=kd, cache=neighbours)
+    neighbours = None  # frees the 10⁶ × 17 lists before bridging
     t0 = tick("neighbour_graph", t0)
     gap = GAP_SHORT * node_spacing if bridge_gap is None else float(bridge_gap)
     if not gap >= 0:

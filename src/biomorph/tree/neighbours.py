@@ -27,6 +27,7 @@ from biomorph.errors import InputError, ParameterError
 __all__ = [
     "estimate_spacing",
     "components",
+    "NeighbourCache",
     "spatial_order",
     "query_ordered",
     "query_blocks",
@@ -200,6 +201,102 @@ def components(
     return int(count), label
 
 
+@numba.njit(cache=True)
+def _cached_rows(index, dist, n, kk, out_i, out_d):  # pragma: no cover - numba
+    """Per row the first ``kk`` entries of ``index`` below ``n`` (points still present)
+    into ``out_i``/``out_d``; returns the rows whose answer is not unique (see
+    :meth:`NeighbourCache.query`)."""
+    rows, m = index.shape
+    unsure = np.zeros(rows, dtype=np.bool_)
+    for r in range(rows):
+        c = 0
+        for j in range(m):
+            q = index[r, j]
+            if q >= n:
+                continue
+            dj = dist[r, j]
+            if c < kk:
+                if c > 0 and not dj > out_d[r, c - 1]:
+                    unsure[r] = True  # a tie inside the first kk: order not unique
+                out_i[r, c] = q
+                out_d[r, c] = dj
+                c += 1
+            else:
+                if not dj > out_d[r, kk - 1]:
+                    unsure[r] = True  # a tie at the cut: set not unique
+                c += 1
+                break
+        if c < kk:
+            unsure[r] = True  # too few left in the list
+        elif c == kk and not out_d[r, kk - 1] < dist[r, m - 1]:
+            unsure[r] = True  # points outside the list may lie as close
+    return unsure
+
+
+@dataclass
+class NeighbourCache:
+    """The ``m`` nearest neighbours of every point of a cloud (itself first), from one
+    k-d tree query, carried through point removals so a later query of fewer neighbours
+    on the remaining points needs no new query (issue 13: the outlier filter's k = 16
+    query serves the neighbour graph's k = 10).
+
+    ``index[i]`` are row numbers of the current cloud, or ``n`` (the number of points,
+    cKDTree's "missing" marker) where the neighbour was removed; ``dist[i]`` the distances
+    as the query returned them. The list of a point holds every remaining point closer
+    than its last distance ``dist[i, -1]``."""
+
+    index: NDArray[np.int32]
+    dist: NDArray[np.float64]
+
+    @property
+    def n(self) -> int:
+        return int(self.index.shape[0])
+
+    @classmethod
+    def from_query(cls, tree: cKDTree, m: int) -> NeighbourCache:
+        """One query of ``m`` neighbours of every point of ``tree.data``."""
+        n = tree.n
+        dt = np.int32 if n < 2**31 - 1 else np.int64
+        dist, index = query_ordered(tree, None, m, index_dtype=dt)
+        return cls(index, dist)
+
+    def select(self, keep: NDArray) -> NeighbourCache:
+        """The cache of the points ``keep`` (boolean mask or sorted indices) retains."""
+        keep = np.asarray(keep)
+        if keep.dtype == bool:
+            rows = np.flatnonzero(keep)
+        else:
+            rows = keep.astype(np.int64)
+        new = rows.size
+        remap = np.full(self.n + 1, new, dtype=self.index.dtype)
+        remap[rows] = np.arange(new, dtype=self.index.dtype)
+        return NeighbourCache(remap[self.index[rows]], self.dist[rows])
+
+    def query(
+        self, k: int, tree: cKDTree | None = None, xyz: NDArray[np.float64] | None = None
+    ) -> tuple[NDArray[np.float64], NDArray]:
+        """``tree.query(xyz, k)`` of the cloud's own points (``tree`` built on ``xyz``),
+        the same arrays: rows whose ``k`` nearest remaining neighbours are unique (no
+        equal distances among them or at the cut, all inside the cached list) come from
+        the cache, the other rows (duplicates, ties, too few left) from ``tree``."""
+        n = self.n
+        m = self.index.shape[1]
+        out_i = np.full((n, k), n, dtype=self.index.dtype)
+        out_d = np.full((n, k), np.inf)
+        if k <= m:
+            unsure = _cached_rows(self.index, self.dist, n, k, out_i, out_d)
+        else:
+            unsure = np.ones(n, dtype=bool)
+        redo = np.flatnonzero(unsure)
+        if redo.size:
+            if tree is None or xyz is None:
+                raise ParameterError("NeighbourCache.query needs the tree and points")
+            d, i = query_ordered(tree, xyz[redo], k)
+            out_d[redo] = d.reshape(redo.size, k)
+            out_i[redo] = i.reshape(redo.size, k)
+        return out_d, out_i
+
+
 def estimate_spacing(
     xyz: NDArray[np.float64], sample: int = 20000, seed: int = 0, kdtree: cKDTree | None = None
 ) -> float:
@@ -221,6 +318,7 @@ def neighbour_graph(
     radius: float | None = None,
     tree: cKDTree | None = None,
     workers: int = -1,
+    cache: NeighbourCache | None = None,
 ) -> sparse.csr_matrix:
     """Neighbour graph with squared-distance weights (``csr``, n×n).
 
@@ -228,7 +326,8 @@ def neighbour_graph(
     matrix stores each edge in at least one direction; every consumer treats it as
     undirected (``csgraph`` with ``directed=False``), which is the symmetric kNN graph
     without building the transpose (a large saving at 10⁶ points). Duplicate points get a
-    tiny positive weight so csgraph keeps the edge.
+    tiny positive weight so csgraph keeps the edge. A :class:`NeighbourCache` of these
+    points (``cache``) replaces the kNN query where its lists decide it (the same graph).
     """
     n = xyz.shape[0]
     tree = tree or cKDTree(xyz)
@@ -238,8 +337,11 @@ def neighbour_graph(
     else:
         kk = min(k + 1, n)
         idt = np.int32 if n < 2**31 else np.int64
-        own = tree.data.shape == xyz.shape and np.array_equal(tree.data, xyz)
-        d, nb = query_ordered(tree, None if own else xyz, kk, workers=workers, index_dtype=idt)
+        if cache is not None and cache.n == n and kk > 1:
+            d, nb = cache.query(kk, tree, xyz)
+        else:
+            own = tree.data.shape == xyz.shape and np.array_equal(tree.data, xyz)
+            d, nb = query_ordered(tree, None if own else xyz, kk, workers=workers, index_dtype=idt)
         nb = nb[:, 1:]
         ok = nb < n
         # rows come sorted from the query: build the CSR arrays directly (no COO sort)

@@ -121,10 +121,15 @@ def load_cloud(cloud: PointCloud | str | os.PathLike | NDArray) -> PointCloud:
     return PointCloud(arr)
 
 
-def remove_sparse(cloud: PointCloud, ratio: float, k: int = 16) -> PointCloud:
+def remove_sparse(
+    cloud: PointCloud, ratio: float, k: int = 16, *, return_mask: bool = False
+) -> PointCloud | tuple[PointCloud, NDArray[np.bool_]]:
     """Points whose mean distance to their ``k`` nearest neighbours is at most ``ratio``
-    times the median of that distance (a density filter for clutter; metres-free)."""
+    times the median of that distance (a density filter for clutter; metres-free). With
+    ``return_mask`` the boolean mask of the kept points is returned as well."""
     from scipy.spatial import cKDTree
+
+    from biomorph.tree.neighbours import query_blocks
 
     if ratio <= 1:
         raise ParameterError(
@@ -132,10 +137,12 @@ def remove_sparse(cloud: PointCloud, ratio: float, k: int = 16) -> PointCloud:
         )
     n = cloud.n_points
     if n <= k:
-        return cloud
-    d, _ = cKDTree(cloud.xyz).query(cloud.xyz, k=k + 1, workers=-1)
-    md = d[:, 1:].mean(axis=1)
-    return cloud.select(md <= ratio * np.median(md))
+        return (cloud, np.ones(n, dtype=bool)) if return_mask else cloud
+    md = np.empty(n)
+    for rows, d, _ in query_blocks(cKDTree(cloud.xyz), None, k + 1):
+        md[rows] = d[:, 1:].mean(axis=1)
+    keep = md <= ratio * np.median(md)
+    return (cloud.select(keep), keep) if return_mask else cloud.select(keep)
 
 
 def _height_above_ground(xyz: NDArray, ground: PointCloud | None) -> NDArray | None:
@@ -168,6 +175,14 @@ class _Run:
     metrics: dict[str, Any] = field(default_factory=dict)
     fit: Any = None
     quality: dict[str, NDArray] | None = None
+    #: the outlier filter's neighbour lists of ``cloud`` until the neighbour graph uses them
+    knn: Any = None
+
+    def take_knn(self) -> Any:
+        """The neighbour lists, released here (their 10⁶ × 17 arrays live no longer than
+        the neighbour graph that consumes them)."""
+        knn, self.knn = self.knn, None
+        return knn
 
     @property
     def source(self) -> str:
@@ -242,6 +257,7 @@ def prepare_phase(run: _Run) -> None:
     from biomorph.tree.cloud import prepare
 
     po = run.opts.prepare
+    go = run.opts.graph
     t0 = time.perf_counter()
     prep = prepare(
         run.raw,
@@ -251,24 +267,32 @@ def prepare_phase(run: _Run) -> None:
         outliers=po.outliers_arg(),
         ground=po.ground,
         seed=run.opts.seed,
+        # the outlier filter's k + 1 neighbours serve the kNN graph's (one query, not two)
+        neighbours=run.opts.method == "graph" and go.search_radius is None and go.k <= po.outlier_k,
     )
-    pc = prep.cloud
+    pc, knn, ground, steps = prep.cloud, prep.neighbours, prep.ground, prep.steps
+    del prep  # ``knn`` alone holds the neighbour lists until the graph
     foliage, foliage_info = _foliage(run, pc)
     if foliage_info:
-        pc = pc.select(foliage_info.pop("_wood"))
+        wood = foliage_info.pop("_wood")
+        pc = pc.select(wood)
+        knn = None if knn is None else knn.select(wood)
     if po.sparse_filter is not None:
-        pc = remove_sparse(pc, po.sparse_filter)
+        pc, dense = remove_sparse(pc, po.sparse_filter, return_mask=True)
+        knn = None if knn is None else knn.select(dense)
+    run.knn = knn
+    del knn
     if pc.n_points < 10:
         raise InputError(
             f"{run.source}: only {pc.n_points} points remain above the ground; expected a tree"
         )
-    run.cloud, run.ground = pc, prep.ground
+    run.cloud, run.ground = pc, ground
     run.timings["prepare"] = time.perf_counter() - t0
     run.info.update(
         {
             "points_in": run.raw.n_points,
             "points": pc.n_points,
-            "prepare": prep.steps,
+            "prepare": steps,
             **foliage_info,
         }
     )
@@ -329,6 +353,7 @@ def graph_phase(run: _Run) -> None:
         edge_weights=go.edge_weights,
         seed=run.opts.seed,
         progress=run.progress,
+        neighbours=run.take_knn(),
     )
     spacing = float(res.info["node_spacing"])
     run.timings.update(dict(res.timings.items()))
