@@ -8,6 +8,7 @@ the ratio of region lengths, then clamped to class ranges (mammals 6–9 cervica
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -72,18 +73,45 @@ def boundaries(region_len: ArrayLike, counts: ArrayLike) -> tuple[NDArray, NDArr
     covered by the trunk vertebrae instead, so the chain always spans head end to tail tip.
     Returns ``(edges (m+1,), region (m,))`` measured from the head end.
     """
-    L = np.asarray(region_len, dtype=float)
+    L = np.ascontiguousarray(region_len, dtype=float)
     c = np.asarray(counts, dtype=np.int64).copy()
     c[1] = max(c[1], 1)
-    a = np.array([0.0, L[0], L[0] + L[1], L.sum()])
+    return _boundaries_kernel(L, c)
+
+
+@numba.njit(cache=True)
+def _boundaries_kernel(L, c):  # pragma: no cover - compiled
+    """:func:`boundaries` compiled: per region ``np.linspace(a[r], a[r + 1], c[r] + 1)[1:]``
+    with NumPy's formula (``i * step + start``, ``(i / div) * delta + start`` for a zero step,
+    the last point ``stop`` exactly)."""
+    a = np.array([0.0, L[0], L[0] + L[1], (L[0] + L[1]) + L[2]])
     if c[0] <= 0:
         a[1] = 0.0
     if c[2] <= 0:
         a[2] = a[3]
-    parts, reg = [np.array([a[0]])], []
+    total = 0
     for r in range(3):
-        if c[r] <= 0:
+        if c[r] > 0:
+            total += c[r]
+    edges = np.empty(total + 1)
+    reg = np.empty(total, np.int64)
+    edges[0] = a[0]
+    k = 1
+    for r in range(3):
+        div = c[r]
+        if div <= 0:
             continue
-        parts.append(np.linspace(a[r], a[r + 1], c[r] + 1)[1:])
-        reg.append(np.full(c[r], r))
-    return np.concatenate(parts), np.concatenate(reg)
+        start, stop = a[r], a[r + 1]
+        delta = stop - start
+        step = delta / div
+        for i in range(1, div + 1):
+            if i == div:
+                v = stop
+            elif step == 0:
+                v = (i / div) * delta + start
+            else:
+                v = i * step + start
+            edges[k] = v
+            reg[k - 1] = r
+            k += 1
+    return edges, reg
