@@ -627,8 +627,10 @@ def depth_first(asm: dict) -> dict:
         "digit",
     ):
         out[k] = asm[k][perm]
+    pl = perm.tolist()  # plain ints: list indexing with NumPy integers is slow
     for k in ("names", "kind", "region", "part"):
-        out[k] = [asm[k][i] for i in perm]
+        src = asm[k]
+        out[k] = [src[i] for i in pl]
     p = par[perm]
     out["parent"] = np.where(p >= 0, inv[np.maximum(p, 0)], -1)
     out["mirror"] = inv[asm["mirror"][perm]]
