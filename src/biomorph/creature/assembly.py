@@ -537,7 +537,29 @@ def limb_digits(
 ) -> feet.Digits:
     """Digit joints (right side, creature px) of one limb; a standing leg's digits lie on
     ``ground`` and carry its contact points (:mod:`biomorph.creature.feet`); ``frames=False``
-    for the contacts only."""
+    when only the contacts are needed (``W`` may then be empty). Memoised on the objects
+    (the balance repair's cheap re-check and the final assembly ask for the same legs)."""
+    key = (id(pose), id(L3), id(spine), kind, girdle, ground)
+    hit = _DIGITS.get(key)
+    if (
+        hit is not None
+        and hit[0] is pose
+        and hit[1] is L3
+        and hit[2] is spine
+        and (hit[3] or not frames)
+    ):
+        return hit[4]
+    dg = _limb_digits(pose, L3, kind, girdle, spine, ground, frames)
+    if len(_DIGITS) > 64:
+        _DIGITS.clear()
+    _DIGITS[key] = (pose, L3, spine, frames, dg)
+    return dg
+
+
+_DIGITS: dict[tuple, tuple] = {}
+
+
+def _limb_digits(pose, L3, kind, girdle, spine, ground, frames) -> feet.Digits:
     role = "hind" if girdle == "hip" else "fore"
     plan = feet.digit_plan(
         kind, role, spine.cls, foot_posture(spine, pose), spine.skull, spine.hoof_digits

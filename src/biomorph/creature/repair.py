@@ -156,7 +156,8 @@ def limb_mass_and_patches(limbs: LimbsState, spine: SpineState) -> tuple[float, 
         vol += 2 * v.sum()
         mom += 2 * (v[:, None] * mid * [1, 1, 0]).sum(axis=0)
         if pose.contact is not None:
-            dg = limb_digits(pose, L3, spec.kind, g, spine, limbs.ground, frames=False)
+            # with frames: the final assembly reuses these digits (memoised)
+            dg = limb_digits(pose, L3, spec.kind, g, spine, limbs.ground)
             c = dg.contacts[:, [0, 2]]
             patches += [c, c * [1.0, -1.0]]
     return vol, mom, (np.concatenate(patches) if patches else np.zeros((0, 2)))
