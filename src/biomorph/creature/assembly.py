@@ -398,11 +398,16 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
             ]
         )
         pos = np.concatenate([gpt[None], pose.points[:3], dg.pos])
-        dbox = np.stack([2 * dg.radius, np.maximum(dg.length, 1e-9), 2 * dg.radius], axis=1)
         blen = np.concatenate([[gl], L3, dg.length])
-        box = np.concatenate(
-            [[[0.3 * gl, gl, 0.06 * gl]], np.stack([2 * rb, L3, 2 * rb], axis=1), dbox]
-        )
+        # boxes (bone) and soft-tissue sizes: girdle, the three limb bones, the digits
+        box = np.empty((q, 3))
+        box[0] = (0.3 * gl, gl, 0.06 * gl)
+        box[1:4, 0] = 2 * rb
+        box[1:4, 1] = L3
+        box[1:4, 2] = box[1:4, 0]
+        box[4:, 0] = 2 * dg.radius
+        box[4:, 1] = np.maximum(dg.length, 1e-9)
+        box[4:, 2] = box[4:, 0]
         vv = np.concatenate([[0.0], vols, np.zeros(nd)])
         if nd:  # the digits carry their share of the hand / foot (mass unchanged in total)
             vv[4:] = DIGIT_MASS_SHARE * vols[2] * dg.length / max(dg.length.sum(), 1e-30)
@@ -414,13 +419,12 @@ def assemble(spine: SpineState, limbs: LimbsState, skull: SkullState) -> dict[st
                 dg.pos + dg.W[:, :, 1] * (0.5 * dg.length)[:, None],
             ]
         )
-        msz = np.concatenate(
-            [
-                [[0.3 * gl, max(gl, 1e-9), 0.06 * gl]],
-                np.stack([2 * radius, np.maximum(L3, 1e-9), 2 * radius], axis=1),
-                dbox,
-            ]
-        )
+        msz = np.empty((q, 3))
+        msz[0] = (0.3 * gl, max(gl, 1e-9), 0.06 * gl)
+        msz[1:4, 0] = 2 * radius
+        msz[1:4, 1] = np.maximum(L3, 1e-9)
+        msz[1:4, 2] = msz[1:4, 0]
+        msz[4:] = box[4:]
         lim, aa0, al0 = _limb_consts(nd)
         aa = aa0.copy()
         aa[1:4] = pose.angles

@@ -9,6 +9,7 @@ All lengths are in the seed's frame units (px of the 1000-px annotation frame).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -66,5 +67,15 @@ class SkullState:
 
 
 def step_rng(seed: int, step: str, roll: int) -> np.random.Generator:
-    """The random stream of one step (seed, step index, re-roll count)."""
-    return np.random.default_rng([int(seed) & 0xFFFFFFFF, STEPS.index(step), int(roll)])
+    """The random stream of one step (seed, step index, re-roll count): a fresh generator
+    seeded like ``np.random.default_rng([seed, step, roll])`` (the seed sequence, whose
+    hashing is most of the cost, is memoised; balance repair asks for the same stream
+    again and again)."""
+    return np.random.Generator(
+        np.random.PCG64(_seed_sequence(int(seed) & 0xFFFFFFFF, STEPS.index(step), int(roll)))
+    )
+
+
+@lru_cache(maxsize=1024)
+def _seed_sequence(seed: int, step: int, roll: int) -> np.random.SeedSequence:
+    return np.random.SeedSequence([seed, step, roll])
