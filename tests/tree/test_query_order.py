@@ -130,3 +130,24 @@ def test_prepare_keeps_the_outlier_query_for_the_graph():
     assert cache.n == out.n_points == keep.sum()
     dense, mask = remove_sparse(out, 4.0, return_mask=True)
     assert dense.n_points == mask.sum() and np.array_equal(dense.xyz, remove_sparse(out, 4.0).xyz)
+
+
+def test_bridges_inserted_in_canonical_csr(cloud):
+    from biomorph.tree.neighbours import _with_entries
+
+    g = neighbour_graph(cloud - cloud.min(axis=0), k=6)
+    n = g.shape[0]
+    rng = np.random.default_rng(4)
+    r = rng.integers(0, n, 50)
+    c = (r + 1 + rng.integers(0, n - 1, 50)) % n
+    w = rng.random(50)
+    for rr, cc in ((r, c), (np.r_[r, r[:1]], np.r_[c, c[:1]])):  # the second repeats one entry
+        ww = np.r_[w, w[: rr.size - w.size]]
+        coo = g.tocoo()
+        ref = sparse.csr_matrix(
+            (np.r_[coo.data, ww], (np.r_[coo.row, rr], np.r_[coo.col, cc])), shape=g.shape
+        )
+        ref.sum_duplicates()
+        out = _with_entries(g, rr, cc, ww)
+        for a in ("indptr", "indices", "data"):
+            assert np.array_equal(getattr(out, a), getattr(ref, a))

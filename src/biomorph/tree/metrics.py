@@ -12,6 +12,8 @@ All distances are metres in the graphs' common frame; nothing here aligns frames
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
@@ -29,6 +31,8 @@ __all__ = [
     "volume",
     "resample_graph",
     "point_to_skeleton_distance",
+    "segment_candidates",
+    "SegmentCandidates",
     "DIAMETER_CLASSES",
     "class_labels",
     "edge_volumes",
@@ -65,15 +69,25 @@ def resample_graph(graph: BranchGraph, step: float) -> tuple[NDArray, NDArray, N
     return pts, ec, tt
 
 
-def point_to_skeleton_distance(
-    graph: BranchGraph, xyz: NDArray[np.float64], k: int = 8
-) -> NDArray[np.float64]:
-    """Exact distance (m) of each point to the nearest skeleton edge segment.
+@dataclass(frozen=True)
+class SegmentCandidates:
+    """For every point its ``k`` candidate skeleton edges (those of its ``k`` nearest
+    samples of the resampled skeleton): ``node`` the edge's child node (or a root),
+    ``par`` its parent (-1 at a root), ``t`` the parameter of the closest point on the
+    edge (0 at the parent) and ``d`` the distance to it (m); all ``[n, k]``. Computed once
+    by :func:`segment_candidates` for the MSE and the cylinder fit of one skeleton."""
 
-    Candidate segments are the edges of the ``k`` nearest samples of the resampled skeleton
-    (spacing a fraction of the median edge length); the exact point-to-segment distance is
-    then taken over those candidates.
-    """
+    node: NDArray[np.int64]
+    par: NDArray[np.int64]
+    t: NDArray[np.float64]
+    d: NDArray[np.float64]
+
+
+def segment_candidates(
+    graph: BranchGraph, xyz: NDArray[np.float64], k: int = 8
+) -> SegmentCandidates:
+    """The :class:`SegmentCandidates` of ``xyz`` on ``graph`` (samples spaced half the
+    median edge length)."""
     if graph.n_nodes == 0:
         raise InputError("skeleton is empty; expected at least one node")
     xyz = np.asarray(xyz, dtype=float)
@@ -94,15 +108,40 @@ def point_to_skeleton_distance(
         denom > 0, np.einsum("...i,...i->...", ap, ab) / np.where(denom > 0, denom, 1), 0.0
     ).clip(0, 1)
     d = np.linalg.norm(ap - ab * t[..., None], axis=-1)
-    return d.min(axis=1)
+    return SegmentCandidates(node, par, t, d)
 
 
-def skeleton_metrics(graph: BranchGraph, cloud: PointCloud | NDArray | None = None) -> dict:
+def point_to_skeleton_distance(
+    graph: BranchGraph,
+    xyz: NDArray[np.float64],
+    k: int = 8,
+    *,
+    candidates: SegmentCandidates | None = None,
+) -> NDArray[np.float64]:
+    """Exact distance (m) of each point to the nearest skeleton edge segment.
+
+    Candidate segments are the edges of the ``k`` nearest samples of the resampled skeleton
+    (spacing a fraction of the median edge length); the exact point-to-segment distance is
+    then taken over those candidates (``candidates``: from :func:`segment_candidates`).
+    """
+    if graph.n_nodes == 0:
+        raise InputError("skeleton is empty; expected at least one node")
+    c = candidates if candidates is not None else segment_candidates(graph, xyz, k)
+    return c.d.min(axis=1)
+
+
+def skeleton_metrics(
+    graph: BranchGraph,
+    cloud: PointCloud | NDArray | None = None,
+    *,
+    candidates: SegmentCandidates | None = None,
+) -> dict:
     """The thesis's NOB, TBL and (with a cloud) MSE, overall and per tree.
 
     Returns ``{"nob", "tbl", "mse", "n_nodes", "n_trees", "trees": [{"tree", "nob",
     "tbl", "mse", "n_nodes", "n_points"}, ...]}``; ``mse`` (m²) is ``None`` without a cloud.
-    Points are attributed to the tree of their nearest skeleton segment.
+    Points are attributed to the tree of their nearest skeleton segment. ``candidates``:
+    the cloud's :func:`segment_candidates`, if already computed.
     """
     labels = graph.trees
     uniq = np.unique(labels)
@@ -113,7 +152,7 @@ def skeleton_metrics(graph: BranchGraph, cloud: PointCloud | NDArray | None = No
     if cloud is not None:
         xyz = cloud.xyz if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=float)
         if xyz.shape[0]:
-            d = point_to_skeleton_distance(graph, xyz)
+            d = point_to_skeleton_distance(graph, xyz, candidates=candidates)
             d2 = d**2
             # the tree of the nearest node (cheap, adequate for attributing points)
             _, ni = query_ordered(cKDTree(graph.position), xyz)
@@ -445,29 +484,17 @@ def tree_attributes(graph: BranchGraph, height: float = 1.3) -> list[dict[str, f
     return out
 
 
-def _surface_candidates(graph: BranchGraph, xyz: NDArray, k: int = 8) -> tuple[NDArray, NDArray]:
+def _surface_candidates(
+    graph: BranchGraph, xyz: NDArray, k: int = 8, candidates: SegmentCandidates | None = None
+) -> tuple[NDArray, NDArray]:
     """Per point and candidate edge (``k`` nearest skeleton samples): signed distance to
     the cylinder (frustum) surface, m (> 0 outside), and the local radius, m."""
-    el = graph.edge_length[graph.parent >= 0]
-    step = max(float(np.median(el)) / 2 if el.size else 1.0, 1e-4)
-    pts, ec, _ = resample_graph(graph, step)
-    kk = min(k, pts.shape[0])
-    _, idx = query_ordered(cKDTree(pts), xyz, kk)
-    node = ec[np.asarray(idx).reshape(xyz.shape[0], kk)]
-    par = graph.parent[node]
-    b = graph.position[node]
-    a = np.where((par >= 0)[..., None], graph.position[np.maximum(par, 0)], b)
-    ab = b - a
-    denom = np.einsum("...i,...i->...", ab, ab)
-    ap = xyz[:, None, :] - a
-    t = np.where(
-        denom > 0, np.einsum("...i,...i->...", ap, ab) / np.where(denom > 0, denom, 1), 0.0
-    ).clip(0, 1)
-    d = np.linalg.norm(ap - ab * t[..., None], axis=-1)
+    c = candidates if candidates is not None else segment_candidates(graph, xyz, k)
+    node, par, t = c.node, c.par, c.t
     r = graph.radius
     rp = np.where(par >= 0, r[np.maximum(par, 0)], r[node])
     rad = rp + (r[node] - rp) * t
-    return d - rad, rad
+    return c.d - rad, rad
 
 
 def cylinder_fit(
@@ -477,6 +504,7 @@ def cylinder_fit(
     far: float = 0.10,
     bounds: tuple[float, ...] = DIAMETER_CLASSES,
     k: int = 8,
+    candidates: SegmentCandidates | None = None,
 ) -> dict:
     """Reference-free fit of a cylinder model to its cloud, as a forest scientist checks it.
 
@@ -485,13 +513,14 @@ def cylinder_fit(
     whose surface is nearest; ``residual`` per diameter class is the median of ``(distance
     to the axis − radius) / radius`` over the points within one radius of that surface
     (negative = cylinders too thick, positive = too thin); ``points`` the count behind it.
+    ``candidates``: the cloud's :func:`segment_candidates` (``k``), if already computed.
     """
     if graph.radius is None:
         raise InputError("the skeleton has no radii; expected a cylinder model")
     xyz = cloud.xyz if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=float)
     if xyz.shape[0] == 0 or graph.n_nodes == 0:
         raise InputError("cylinder_fit needs points and a non-empty skeleton")
-    s, rad = _surface_candidates(graph, xyz, k)
+    s, rad = _surface_candidates(graph, xyz, k, candidates)
     best = np.argmin(np.abs(s), axis=1)
     rows = np.arange(xyz.shape[0])
     sb, rb = s[rows, best], rad[rows, best]
@@ -507,15 +536,20 @@ def cylinder_fit(
     return {"far_share": float((np.abs(sb) > far).mean()), "far": far, "classes": res}
 
 
-def qsm_report(graph: BranchGraph, cloud: PointCloud | NDArray | None = None) -> dict:
+def qsm_report(
+    graph: BranchGraph,
+    cloud: PointCloud | NDArray | None = None,
+    *,
+    candidates: SegmentCandidates | None = None,
+) -> dict:
     """All QSM measures in one dict: ``classes`` (:func:`volume_by_class`), ``orders``
     (:func:`volume_by_order`), ``trees`` (:func:`tree_attributes`) and, with a cloud,
-    ``fit`` (:func:`cylinder_fit`)."""
+    ``fit`` (:func:`cylinder_fit`; ``candidates`` as in :func:`skeleton_metrics`)."""
     out = {
         "classes": volume_by_class(graph),
         "orders": volume_by_order(graph),
         "trees": tree_attributes(graph),
     }
     if cloud is not None:
-        out["fit"] = cylinder_fit(graph, cloud)
+        out["fit"] = cylinder_fit(graph, cloud, candidates=candidates)
     return out

@@ -142,28 +142,65 @@ def _find(root, v):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
+def _union(root, u, v):  # pragma: no cover - numba
+    a = _find(root, u)
+    b = _find(root, v)
+    if a != b:
+        if a < b:
+            root[b] = a
+        else:
+            root[a] = b
+
+
+@numba.njit(cache=True)
 def _union_pairs(root, rows, cols):  # pragma: no cover - numba
     for e in range(rows.size):
-        a = _find(root, rows[e])
-        b = _find(root, cols[e])
-        if a != b:
-            if a < b:
-                root[b] = a
-            else:
-                root[a] = b
+        _union(root, rows[e], cols[e])
 
 
 @numba.njit(cache=True)
 def _union_csr(root, indptr, indices):  # pragma: no cover - numba
     for i in range(indptr.size - 1):
         for e in range(indptr[i], indptr[i + 1]):
-            a = _find(root, i)
-            b = _find(root, indices[e])
-            if a != b:
-                if a < b:
-                    root[b] = a
-                else:
-                    root[a] = b
+            _union(root, i, indices[e])
+
+
+@numba.njit(cache=True)
+def _union_level_edges(root, indptr, indices, level, tree, ok):  # pragma: no cover - numba
+    """Union the edges of a CSR graph whose ends are kept points of one tree and level."""
+    for i in range(indptr.size - 1):
+        if not ok[i]:
+            continue
+        for e in range(indptr[i], indptr[i + 1]):
+            j = indices[e]
+            if ok[j] and level[j] == level[i] and tree[j] == tree[i]:
+                _union(root, i, j)
+
+
+@numba.njit(cache=True)
+def _cross_keys(indptr, indices, label, m):  # pragma: no cover - numba
+    """``min * m + max`` of the labels of every CSR edge joining two labelled pieces."""
+    cnt = 0
+    for i in range(indptr.size - 1):
+        li = label[i]
+        if li < 0:
+            continue
+        for e in range(indptr[i], indptr[i + 1]):
+            lj = label[indices[e]]
+            if lj >= 0 and lj != li:
+                cnt += 1
+    keys = np.empty(cnt, dtype=np.int64)
+    cnt = 0
+    for i in range(indptr.size - 1):
+        li = label[i]
+        if li < 0:
+            continue
+        for e in range(indptr[i], indptr[i + 1]):
+            lj = label[indices[e]]
+            if lj >= 0 and lj != li:
+                keys[cnt] = min(li, lj) * m + max(li, lj)
+                cnt += 1
+    return keys
 
 
 @numba.njit(cache=True)
@@ -476,15 +513,74 @@ def bridge_components(
     w = np.maximum(np.sum((xyz[r] - xyz[c]) ** 2, axis=1), 1e-18)
     if r.size == 0:
         return graph, n0
-    # the bridges join different pieces, so no entry of the graph repeats: appending them
-    # and sorting each row gives the canonical sum without a 10⁶ x 10⁶ sparse addition
-    g = graph.tocoo()
-    out = sparse.csr_matrix(
-        (np.concatenate([g.data, w]), (np.concatenate([g.row, r]), np.concatenate([g.col, c]))),
-        shape=(n, n),
+    # the bridges join different pieces, so no entry of the graph repeats: inserting them
+    # and sorting each row by column gives the canonical sum (what scipy's COO -> CSR
+    # conversion returns) without a 10⁶ x 10⁶ sparse addition or a COO copy
+    return _with_entries(sparse.csr_matrix(graph), r, c, w), n0
+
+
+@numba.njit(cache=True)
+def _merge_rows(
+    indptr, indices, data, aptr, acol, aval, out_ptr, out_idx, out_val
+):  # pragma: no cover
+    """Rows of a CSR matrix plus added entries (grouped by row in ``aptr``), each row
+    sorted by column (insertion sort: rows are short); False if a column repeats."""
+    for i in range(indptr.size - 1):
+        o = out_ptr[i]
+        m = 0
+        for e in range(indptr[i], indptr[i + 1]):
+            out_idx[o + m] = indices[e]
+            out_val[o + m] = data[e]
+            m += 1
+        for e in range(aptr[i], aptr[i + 1]):
+            out_idx[o + m] = acol[e]
+            out_val[o + m] = aval[e]
+            m += 1
+        for a in range(1, m):
+            ci = out_idx[o + a]
+            vi = out_val[o + a]
+            b = a - 1
+            while b >= 0 and out_idx[o + b] > ci:
+                out_idx[o + b + 1] = out_idx[o + b]
+                out_val[o + b + 1] = out_val[o + b]
+                b -= 1
+            out_idx[o + b + 1] = ci
+            out_val[o + b + 1] = vi
+        for a in range(1, m):
+            if out_idx[o + a] == out_idx[o + a - 1]:
+                return False
+    return True
+
+
+def _with_entries(
+    g: sparse.csr_matrix, r: NDArray[np.int64], c: NDArray[np.int64], w: NDArray[np.float64]
+) -> sparse.csr_matrix:
+    """``g`` plus the entries ``(r, c, w)`` in canonical CSR form (rows sorted by column,
+    duplicates summed): the same arrays as building it from COO."""
+    n = g.shape[0]
+    order = np.argsort(r, kind="stable")
+    aptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(r, minlength=n), out=aptr[1:])
+    out_ptr = g.indptr.astype(np.int64) + aptr
+    nnz = int(out_ptr[-1])
+    idt = np.int32 if max(n, nnz) < 2**31 else np.int64
+    out_idx = np.empty(nnz, dtype=idt)
+    out_val = np.empty(nnz, dtype=np.result_type(g.data, w))
+    ok = _merge_rows(
+        g.indptr, g.indices, g.data, aptr, c[order].astype(idt), w[order], out_ptr, out_idx, out_val
     )
-    out.sum_duplicates()
-    return out, n0
+    if not ok:  # a repeated entry: let scipy sum it
+        coo = g.tocoo()
+        out = sparse.csr_matrix(
+            (
+                np.concatenate([coo.data, w]),
+                (np.concatenate([coo.row, r]), np.concatenate([coo.col, c])),
+            ),
+            shape=g.shape,
+        )
+        out.sum_duplicates()
+        return out
+    return sparse.csr_matrix((out_val, out_idx, out_ptr.astype(idt)), shape=g.shape)
 
 
 #: gaps up to this many node spacings are bridged without further support: the kNN graph
@@ -807,21 +903,20 @@ def contract(
         level = np.arange(n, dtype=np.int64)
     else:
         level = np.floor(np.where(ok, path_length, 0) / spacing).astype(np.int64)
-    # all level-0 points of a tree are one piece (one root vertex per tree)
-    g = graph.tocoo()
-    same = (level[g.row] == level[g.col]) & (point_tree[g.row] == point_tree[g.col])
-    same &= ok[g.row] & ok[g.col]
-    r, c = g.row[same], g.col[same]
-    # tie every tree's level-0 points together through its first level-0 point
+    # pieces: union-find over the kNN edges within a (tree, level) and the edge lists
+    # below (the partition csgraph's connected_components gives on their sparse sum,
+    # without building it or a COO copy of the 10⁶-point graph)
+    g = sparse.csr_matrix(graph)
+    root = np.arange(n, dtype=np.int64)
+    _union_level_edges(root, g.indptr, g.indices, level, np.asarray(point_tree), ok)
+    # all level-0 points of a tree are one piece (one root vertex per tree): tie every
+    # tree's level-0 points together through its first level-0 point
     lvl0 = np.flatnonzero(ok & (level == 0))
     if lvl0.size:
         t0 = point_tree[lvl0]
         first = np.full(int(point_tree.max()) + 1, -1, dtype=np.int64)
         first[t0[::-1]] = lvl0[::-1]
-        r = np.concatenate([r, lvl0])
-        c = np.concatenate([c, first[t0]])
-    # pieces: union-find over the edge lists (the partition of csgraph's
-    # connected_components on their sparse sum, without building it)
+        _union_pairs(root, lvl0, first[t0])
     if spacing > 0:
         vr, vc = _voxel_level_edges(
             xyz, level, point_tree, ok, cell if cell else LEVEL_CELL * spacing
@@ -831,12 +926,15 @@ def contract(
             # fine scale first: points of a level within ~2 point spacings always join
             # (a kNN graph leaves points at a level's edge alone in their level)
             fr, fc = _voxel_level_edges(xyz, level, point_tree, ok, floor)
-            _, lab = components(n, ((r, c), (fr, fc)))
+            _union_pairs(root, fr, fc)
+            lab = _canonical_labels(root)[1]
             lab = _merge_overlapping(xyz, lab, vr, vc, floor)
         else:  # "adjacent": every voxel-adjacent piece of a level joins
-            _, lab = components(n, ((r, c), (vr, vc)))
+            _union_pairs(root, vr, vc)
+            lab = _canonical_labels(root)[1]
     else:
-        _, lab = components(n, ((r, c),))
+        lab = _canonical_labels(root)[1]
+    del root
     # number the pieces holding kept points 0..m-1 in label order (np.unique's numbering)
     present = np.zeros(int(lab.max()) + 1 if n else 0, dtype=bool)
     present[lab[ok]] = True
@@ -845,7 +943,7 @@ def contract(
     label[ok] = renumber[lab[ok]]
     m = int(present.sum())
     if merge == "overlap" and spacing > 0:
-        label, m = _absorb_fragments(g, label, ok, m)
+        label, m = _absorb_fragments(g.tocoo(), label, ok, m)
     count = np.bincount(label[ok], minlength=m)
     pos = (
         np.stack(
@@ -866,9 +964,7 @@ def contract(
     first_of_tree = np.unique(vtree[ordv], return_index=True)[1]
     roots[vtree[ordv[first_of_tree]]] = ordv[first_of_tree]
     # contracted neighbour graph Q
-    cross = ok[g.row] & ok[g.col] & (label[g.row] != label[g.col])
-    qr, qc = label[g.row[cross]], label[g.col[cross]]
-    key = np.unique(np.minimum(qr, qc) * m + np.maximum(qr, qc))
+    key = np.unique(_cross_keys(g.indptr, g.indices, label, m))
     qr, qc = key // m, key % m
     w = np.maximum(np.sum((pos[qr] - pos[qc]) ** 2, axis=1), 1e-18)
     q = sparse.coo_matrix((w, (qr, qc)), shape=(m, m)).tocsr()

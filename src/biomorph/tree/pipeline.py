@@ -568,7 +568,12 @@ def metrics_phase(run: _Run) -> None:
     (:func:`biomorph.tree.metrics.qsm_report`: ``classes`` volume/length per diameter
     class, ``orders`` per branch order, ``trees`` TreeQSM-style attributes, ``fit`` far
     share and signed residual per class on the MSE sample)."""
-    from biomorph.tree.metrics import dbh_per_tree, qsm_report, skeleton_metrics
+    from biomorph.tree.metrics import (
+        dbh_per_tree,
+        qsm_report,
+        segment_candidates,
+        skeleton_metrics,
+    )
 
     graph, pc = run.graph, run.cloud
     assert graph is not None and pc is not None
@@ -577,7 +582,9 @@ def metrics_phase(run: _Run) -> None:
     if pc.n_points > MSE_POINTS:
         pick = np.random.default_rng(run.opts.seed).choice(pc.n_points, MSE_POINTS, replace=False)
         mse_cloud = pc.select(np.sort(pick))
-    metrics = skeleton_metrics(graph, mse_cloud)
+    # the nearest skeleton edges of the sample, shared by the MSE and the cylinder fit
+    cand = segment_candidates(graph, mse_cloud.xyz) if graph.n_nodes else None
+    metrics = skeleton_metrics(graph, mse_cloud, candidates=cand)
     metrics["mse_points"] = mse_cloud.n_points
     try:
         dbhs = dbh_per_tree(graph)
@@ -586,7 +593,8 @@ def metrics_phase(run: _Run) -> None:
         metrics["dbh"] = None
     metrics["trunk_radius"] = [float(graph.radius[r]) for r in graph.roots]
     metrics["max_order"] = int(graph.depth.max()) if graph.n_nodes else 0
-    qsm = qsm_report(graph, mse_cloud)
+    qsm = qsm_report(graph, mse_cloud, candidates=cand)
+    del cand
     attrs = {a["tree"]: a for a in qsm.pop("trees")}
     for rec in metrics["trees"]:
         rec.update(attrs.get(rec["tree"], {}))
