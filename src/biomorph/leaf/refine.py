@@ -41,22 +41,30 @@ _EPS = 1e-12
 
 
 @njit(cache=True)
+def _dot3(u, v):  # pragma: no cover - compiled
+    """``u · v`` of 3-vectors in a fixed order: ``@`` goes through BLAS, whose kernel (and so
+    the last bit) depends on the CPU, and the greedy refinement amplifies a last-bit change
+    into another mesh (0.44 vs 0.52 mm at 200 triangles on two x86-64 machines)."""
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
+@njit(cache=True)
 def _dist_tri(p, a, b, c):  # pragma: no cover - compiled
     """Exact distance of point ``p`` to triangle ``abc`` (closest point by regions)."""
     ab = b - a
     ac = c - a
     ap = p - a
-    d1 = ab @ ap
-    d2 = ac @ ap
+    d1 = _dot3(ab, ap)
+    d2 = _dot3(ac, ap)
     if d1 <= 0.0 and d2 <= 0.0:
         q = a
     else:
         bp = p - b
-        d3 = ab @ bp
-        d4 = ac @ bp
+        d3 = _dot3(ab, bp)
+        d4 = _dot3(ac, bp)
         cp = p - c
-        d5 = ab @ cp
-        d6 = ac @ cp
+        d5 = _dot3(ab, cp)
+        d6 = _dot3(ac, cp)
         vc = d1 * d4 - d3 * d2
         vb = d5 * d2 - d1 * d6
         va = d3 * d6 - d5 * d4
@@ -75,12 +83,12 @@ def _dist_tri(p, a, b, c):  # pragma: no cover - compiled
             if den == 0.0:  # degenerate triangle: nearest of its corners
                 q = a
                 for x in (b, c):
-                    if ((p - x) @ (p - x)) < ((p - q) @ (p - q)):
+                    if _dot3(p - x, p - x) < _dot3(p - q, p - q):
                         q = x
             else:
                 q = a + ab * (vb / den) + ac * (vc / den)
     e = p - q
-    return np.sqrt(e @ e)
+    return np.sqrt(_dot3(e, e))
 
 
 @njit(cache=True)
