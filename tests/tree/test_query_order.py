@@ -151,3 +151,27 @@ def test_bridges_inserted_in_canonical_csr(cloud):
         out = _with_entries(g, rr, cc, ww)
         for a in ("indptr", "indices", "data"):
             assert np.array_equal(getattr(out, a), getattr(ref, a))
+
+
+def test_segment_kernel_equals_the_array_expressions():
+    """The candidate-edge kernel of the metrics gives the very values of the numpy
+    expressions it replaced (einsum / norm grouping of the three components)."""
+    from biomorph.tree.metrics import _segment_kernel
+
+    rng = np.random.default_rng(0)
+    pos = rng.normal(size=(500, 3)) * 5
+    parent = rng.integers(-1, 500, 500)
+    xyz = rng.normal(size=(3000, 3)) * 5
+    node = rng.integers(0, 500, (3000, 8))
+    par = parent[node]
+    b = pos[node]
+    a = np.where((par >= 0)[..., None], pos[np.maximum(par, 0)], b)
+    ab = b - a
+    denom = np.einsum("...i,...i->...", ab, ab)
+    ap = xyz[:, None, :] - a
+    t0 = np.where(
+        denom > 0, np.einsum("...i,...i->...", ap, ab) / np.where(denom > 0, denom, 1), 0.0
+    ).clip(0, 1)
+    d0 = np.linalg.norm(ap - ab * t0[..., None], axis=-1)
+    t, d = _segment_kernel(xyz, node, par, pos)
+    assert np.array_equal(t, t0) and np.array_equal(d, d0)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
@@ -99,16 +100,38 @@ def segment_candidates(
     idx = idx.reshape(xyz.shape[0], kk)
     node = ec[idx]  # child node of candidate edges (or a root)
     par = graph.parent[node]
-    b = graph.position[node]
-    a = np.where((par >= 0)[..., None], graph.position[np.maximum(par, 0)], b)
-    ab = b - a
-    denom = np.einsum("...i,...i->...", ab, ab)
-    ap = xyz[:, None, :] - a
-    t = np.where(
-        denom > 0, np.einsum("...i,...i->...", ap, ab) / np.where(denom > 0, denom, 1), 0.0
-    ).clip(0, 1)
-    d = np.linalg.norm(ap - ab * t[..., None], axis=-1)
+    t, d = _segment_kernel(xyz, node, par, np.ascontiguousarray(graph.position, dtype=float))
     return SegmentCandidates(node, par, t, d)
+
+
+@numba.njit(cache=True)
+def _segment_kernel(xyz, node, par, pos):  # pragma: no cover - numba
+    """Closest-point parameter and distance of each point to each of its candidate edges,
+    in one pass (no ``[n, k, 3]`` temporaries). Sums are grouped as numpy's ``einsum``
+    and ``norm`` group them over three components, so every value equals the array
+    expressions it replaced (tested)."""
+    n, k = node.shape
+    t = np.empty((n, k))
+    d = np.empty((n, k))
+    for i in range(n):
+        px, py, pz = xyz[i, 0], xyz[i, 1], xyz[i, 2]
+        for j in range(k):
+            v = node[i, j]
+            p = par[i, j]
+            bx, by, bz = pos[v, 0], pos[v, 1], pos[v, 2]
+            if p >= 0:
+                ax, ay, az = pos[p, 0], pos[p, 1], pos[p, 2]
+            else:
+                ax, ay, az = bx, by, bz
+            abx, aby, abz = bx - ax, by - ay, bz - az
+            den = (abx * abx + abz * abz) + aby * aby
+            apx, apy, apz = px - ax, py - ay, pz - az
+            tt = ((apx * abx + apz * abz) + apy * aby) / den if den > 0 else 0.0
+            tt = min(max(tt, 0.0), 1.0)
+            ex, ey, ez = apx - abx * tt, apy - aby * tt, apz - abz * tt
+            t[i, j] = tt
+            d[i, j] = np.sqrt((ex * ex + ey * ey) + ez * ez)
+    return t, d
 
 
 def point_to_skeleton_distance(

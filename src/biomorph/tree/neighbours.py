@@ -318,8 +318,9 @@ class NeighbourCache:
         the cache, the other rows (duplicates, ties, too few left) from ``tree``."""
         n = self.n
         m = self.index.shape[1]
-        out_i = np.full((n, k), n, dtype=self.index.dtype)
-        out_d = np.full((n, k), np.inf)
+        # every row is either filled from the cache or re-queried whole
+        out_i = np.empty((n, k), dtype=self.index.dtype)
+        out_d = np.empty((n, k))
         if k <= m:
             unsure = _cached_rows(self.index, self.dist, n, k, out_i, out_d)
         else:

@@ -275,8 +275,9 @@ def prepare_phase(run: _Run) -> None:
     foliage, foliage_info = _foliage(run, pc)
     if foliage_info:
         wood = foliage_info.pop("_wood")
-        pc = pc.select(wood)
-        knn = None if knn is None else knn.select(wood)
+        if not wood.all():  # nothing removed (no foliage detected): no copies
+            pc = pc.select(wood)
+            knn = None if knn is None else knn.select(wood)
     if po.sparse_filter is not None:
         pc, dense = remove_sparse(pc, po.sparse_filter, return_mask=True)
         knn = None if knn is None else knn.select(dense)
