@@ -226,3 +226,69 @@ def test_compiled_median_equals_numpy():
         for k in range(6):
             x = rng.random(n) if k % 2 else rng.integers(0, 4, n).astype(float)  # ties
             assert C._median(x.copy()) == np.median(x)
+
+
+# --------------------------------------------------------------------------- no jumps
+def _worst_jump(m, out):
+    """How far (body scales/s) one frame's step of a knee, ankle or toe exceeds both its
+    neighbours' steps in ``out``: a one-frame pop scores its size, a fast but smooth motion
+    (even a quick fade) scores about 0."""
+    w = out.world_positions()
+    js = sorted({j for lg in C.find_legs(m) for j in (lg.knee, lg.ankle, lg.toe) if j >= 0})
+    s = np.linalg.norm(np.diff(w[:, js], axis=0), axis=2)
+    return float((s[1:-1] - np.maximum(s[:-2], s[2:])).max() * m.fps / foot_skate(m)["body_scale"])
+
+
+def test_locking_the_built_in_walk_never_jumps():
+    # stiff knees: its held heels go out of reach before toe-off; the switch to the toe
+    # on one frame was a 7.9 body scales/s pop (frame 32), now 3.9 at most (the knee
+    # straightening at the reach boundary), the capture's own frame-to-frame variation 1.0
+    m = walk(480, 120)
+    assert _worst_jump(m, _lock(m)) < 5.0
+
+
+def test_held_ankle_out_of_reach_hands_over_to_the_toe_without_a_jump():
+    m = read_bvh(shared_file("motion", "xia_neutral_01_000_walk.bvh"))
+    out = _lock(m)
+    # the held left heel was 6.7 % beyond the leg at frame 158 and the goal switched to the
+    # toe on frame 159: the toe moved 7.5 body scales/s more than in the frames around it
+    assert _worst_jump(m, out) < 1.5
+    lg = next(lg for lg in C.find_legs(m) if m.names[lg.ankle] == "LeftFoot")
+    w = out.world_positions()
+    step = np.linalg.norm(np.diff(w[150:170, lg.ankle], axis=0), axis=1)
+    assert step.max() < 0.3  # units per frame (was 1.1 at frame 158 -> 159)
+
+
+def test_overlapping_fades_move_the_held_place_across_the_gap():
+    # two contacts 6 frames apart with 8-frame fades: the held place used to switch to the
+    # nearer contact mid-gap at a weight near 1 (cmu_01_01's right toe: 4.2 units in frame 1163)
+    f = 50
+    pts = np.zeros((f, 3))
+    pts[:, 2] = np.linspace(0.0, 10.0, f)
+    on = np.zeros(f, bool)
+    on[5:20] = on[26:45] = True
+    tgt, wgt = C._targets(on, pts, 8, 1)
+    held = tgt * wgt[:, None]
+    gap = np.abs(np.diff(held[18:29, 2]))
+    assert gap.max() < 0.5 * abs(tgt[26, 2] - tgt[19, 2])
+    assert (wgt[19:27] > 0).all()
+
+
+def test_soft_ik_is_continuous_at_full_extension():
+    f = 201
+    hip = np.zeros((f, 3))
+    knee = np.tile([0.0, -1.0, 0.05], (f, 1))
+    ankle = np.tile([0.0, -2.0, 0.0], (f, 1))
+    tgt = np.column_stack([np.zeros(f), -np.linspace(1.9, 2.1, f), np.zeros(f)])  # through L
+    for soft in (0.0, 0.005):
+        r1, r2, _ = C.two_bone_ik(hip, knee, ankle, tgt, soft=soft)
+        from biomorph.core import transforms as tf
+
+        k = tf.quat_rotate(r1, knee - hip)
+        step = np.linalg.norm(np.diff(k, axis=0), axis=1)
+        if soft:  # the knee's step never grows by more than 2x from one frame to the next
+            assert (step[1:] <= 2.0 * step[:-1] + 1e-12).all()
+            a = k + tf.quat_rotate(r2, tf.quat_rotate(r1, ankle - knee))
+            assert np.abs(np.linalg.norm(a, axis=1) - np.minimum(-tgt[:, 1], 2.0)).max() < 0.01
+        else:  # hard clamp: the knee snaps (its last step before full extension is the largest)
+            assert step.max() > 5 * np.median(step[step > 0])

@@ -62,7 +62,17 @@ target with the knee kept in its plane (the knee's side of the hip–ankle line 
 foot keeps its world orientation (so the toe follows; while both the heel and the toe are
 planted the foot turns so the toe lands on its held place), and the weight fades in and out
 over ``blend_s``. Targets out of reach are clamped to the leg's length with one
-:class:`ContactWarning` (never NaN).
+:class:`ContactWarning` (never NaN). Nothing switches on one frame: a held ankle that the
+leg cannot reach hands over to the held toe continuously (smoothstep from 1.0 to
+``REACH_OUT`` = 1.1 leg lengths: the heel lifts, as at a real toe-off; was a switch when the
+ankle's contact ended — a 1.1-unit pop of the Xia walk's left foot at frame 159), two
+contacts whose fades overlap move the held place across the gap (was a switch to the nearer
+one), and the IK is *soft* near full extension (``soft`` = 0.005 leg lengths; the knee
+straightens without the hard clamp's snap). 0.005 and 1.1 were compared with 0.01 / 0.02 /
+0.05 and 1.0 / 1.03 / 1.05 / 1.08 / 1.15 on the shared captures (``bench/motion.py
+--skate``): a wider soft band raised the dme raw clip's cleaned skate to 0.55-0.63, a handoff
+ending at 1.0 to 0.61; at these values every cleaned clip stays within 0.015 of the former
+figures or below them.
 
 Cost: forward kinematics runs once per clip and only over the legs' chains (root → toes:
 9 of 60 joints on the benchmark skeleton), detection and the IK of every frame and both
@@ -84,6 +94,10 @@ from biomorph.core.types import Array
 from biomorph.errors import ParameterError
 
 _UP = {"x": 0, "y": 1, "z": 2}
+#: a held ankle farther from the hip than the leg's length gives way to the held toe
+#: (smoothstep from 1.0 to ``REACH_OUT`` leg lengths; the heel lifts because the leg cannot
+#: reach it, as in a real toe-off) instead of switching on one frame when the contact ends
+REACH_OUT = 1.10
 
 
 class ContactWarning(UserWarning):
@@ -101,13 +115,14 @@ class ContactOptions:
     blend_s: float = 0.2
     min_s: float = 0.05
     swing: float = 0.8
+    soft: float = 0.005
     up: str | None = None
     mode: str = "auto"
 
     def __post_init__(self) -> None:
         if self.mode not in ("auto", "hold", "follow"):
             raise ParameterError(f"contact mode {self.mode!r}; expected auto, hold or follow")
-        for name in ("height", "speed", "hysteresis", "blend_s", "min_s", "swing"):
+        for name in ("height", "speed", "hysteresis", "blend_s", "min_s", "swing", "soft"):
             v = float(getattr(self, name))
             if not np.isfinite(v) or v < 0 or (name == "hysteresis" and v < 1):
                 raise ParameterError(
@@ -416,37 +431,50 @@ def _fade_out_len(fast, e, blend):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def _held_place(pts, step, s, e, blend, ui):  # pragma: no cover - compiled
+    """Where the contact ``s:e`` is held: the median position of its slower half of frames
+    at the lowest height it reaches (see :func:`_targets`)."""
+    f = pts.shape[0]
+    # a contact cut by the clip's start (end) is held where it meets the rest of the
+    # clip: only its last (first) ``blend`` frames choose the place, since nothing
+    # before frame 0 (after the last) needs a fade, so no slide is released into the clip
+    a0, a1 = s, e
+    if s == 0 and e < f:
+        a0 = max(s, e - blend)
+    elif e == f and s > 0:
+        a1 = min(e, s + blend)
+    cut = _median(step[a0:a1].copy())
+    n = 0
+    for k in range(a0, a1):
+        n += step[k] <= cut
+    p = np.empty(3)
+    col = np.empty(n)
+    for a in range(3):
+        i = 0
+        for k in range(a0, a1):
+            if step[k] <= cut:
+                col[i] = pts[k, a]
+                i += 1
+        p[a] = _median(col.copy())
+    low = pts[s, ui]
+    for k in range(s + 1, e):
+        low = min(low, pts[k, ui])
+    p[ui] = low
+    return p
+
+
+@njit(cache=True)
 def _targets_kernel(pts, step, runs, blend, ui, follow, fast, tgt, wgt):  # pragma: no cover
     f = pts.shape[0]
     dist = np.full(f, np.inf)
+    held = np.empty((runs.shape[0], 3))
+    outs = np.zeros(runs.shape[0], dtype=np.int64)
     for r in range(runs.shape[0]):
         s, e = runs[r, 0], runs[r, 1]
-        # a contact cut by the clip's start (end) is held where it meets the rest of the
-        # clip: only its last (first) ``blend`` frames choose the place, since nothing
-        # before frame 0 (after the last) needs a fade, so no slide is released into the clip
-        a0, a1 = s, e
-        if s == 0 and e < f:
-            a0 = max(s, e - blend)
-        elif e == f and s > 0:
-            a1 = min(e, s + blend)
-        cut = _median(step[a0:a1].copy())
-        n = 0
-        for k in range(a0, a1):
-            n += step[k] <= cut
-        p = np.empty(3)
-        col = np.empty(n)
-        for a in range(3):
-            i = 0
-            for k in range(a0, a1):
-                if step[k] <= cut:
-                    col[i] = pts[k, a]
-                    i += 1
-            p[a] = _median(col.copy())
-        low = pts[s, ui]
-        for k in range(s + 1, e):
-            low = min(low, pts[k, ui])
-        p[ui] = low
+        p = _held_place(pts, step, s, e, blend, ui)
+        held[r] = p
         out = _fade_out_len(fast, e, blend)
+        outs[r] = out
         for k in range(max(0, s - blend), min(f, e + out)):
             if k < s:
                 d = float(s - k)
@@ -463,6 +491,25 @@ def _targets_kernel(pts, step, runs, blend, ui, follow, fast, tgt, wgt):  # prag
                 wgt[k] = wk
                 for a in range(3):
                     tgt[k, a] = pts[k, a] if follow else p[a]
+    if not follow:
+        _bridge_gaps(runs, outs, held, blend, tgt)
+
+
+@njit(cache=True)
+def _bridge_gaps(runs, outs, held, blend, tgt):  # pragma: no cover - compiled
+    """Two contacts whose fades overlap (the fade-out of one reaches the fade-in of the
+    next): the held place moves from one to the other across the gap (smoothstep) instead
+    of switching to the nearer one mid-gap at a weight near 1 (a one-frame jump of the whole
+    step; cmu_01_01's right toe moved 4.2 units in frame 1163)."""
+    for r in range(runs.shape[0] - 1):
+        e1, s2 = runs[r, 1], runs[r + 1, 0]
+        if e1 + outs[r] <= s2 - blend:
+            continue
+        for k in range(e1, s2):
+            u = (k - e1 + 1) / (s2 - e1 + 1)
+            u = u * u * (3.0 - 2.0 * u)
+            for a in range(3):
+                tgt[k, a] = held[r, a] + u * (held[r + 1, a] - held[r, a])
 
 
 # --------------------------------------------------------------------------- two-bone IK
@@ -493,9 +540,17 @@ def _arc3(ax, ay, az, bx, by, bz):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _ik_frame(hip, knee, ankle, target, r_hip, r_knee):  # pragma: no cover - compiled
+def _ik_frame(hip, knee, ankle, target, r_hip, r_knee, soft, wk):  # pragma: no cover
     """One frame of :func:`two_bone_ik`; writes ``r_hip``/``r_knee`` (4,), returns True
-    when the target was more than 1 % beyond the leg's reach (or inside its inner limit)."""
+    when the target was more than 1 % beyond the leg's reach (or inside its inner limit).
+
+    ``soft`` (fraction of the leg's length ``L``, 0 = off): *soft IK* — a target farther than
+    ``L − s`` (``s = soft·L``) is reached at ``L − s·exp(−(d − L + s)/s)``, which meets the
+    plain distance with equal slope at ``L − s`` and never reaches ``L``, so the knee
+    straightens smoothly instead of snapping (the knee angle of a hard clamp has an infinite
+    derivative where the target crosses the leg's length, a visible pop). ``wk`` ∈ [0, 1]
+    weighs the soft distance against the hard clamp, so a solve fading in from the captured
+    pose (weight → 0, target → the captured ankle) starts from the captured pose exactly."""
     k0, k1, k2 = knee[0] - hip[0], knee[1] - hip[1], knee[2] - hip[2]
     s0, s1, s2 = ankle[0] - knee[0], ankle[1] - knee[1], ankle[2] - knee[2]
     a0, a1, a2 = ankle[0] - hip[0], ankle[1] - hip[1], ankle[2] - hip[2]
@@ -507,6 +562,12 @@ def _ik_frame(hip, knee, ankle, target, r_hip, r_knee):  # pragma: no cover - co
     hi = (l1 + l2) * (1 - 1e-9)
     clamped = d > 1.01 * (l1 + l2) or d < 0.99 * lo
     dc = min(max(d, lo), hi)
+    if soft > 0 and wk > 0:
+        s = soft * (l1 + l2)
+        da = l1 + l2 - s
+        if d > da:
+            ds = max(l1 + l2 - s * math.exp(-(d - da) / s), lo)
+            dc = dc + min(wk, 1.0) * (min(ds, hi) - dc)
     u0, u1, u2 = _unit3(t0, t1, t2) if d > 1e-12 else _unit3(a0, a1, a2)
     kd = k0 * u0 + k1 * u1 + k2 * u2
     b0, b1, b2 = k0 - kd * u0, k1 - kd * u1, k2 - kd * u2
@@ -535,35 +596,40 @@ def _ik_frame(hip, knee, ankle, target, r_hip, r_knee):  # pragma: no cover - co
 
 
 @njit(cache=True)
-def _ik_frames(hip, knee, ankle, target, r_hip, r_knee):  # pragma: no cover - compiled
+def _ik_frames(hip, knee, ankle, target, r_hip, r_knee, soft):  # pragma: no cover - compiled
     c = 0
     for t in range(hip.shape[0]):
-        if _ik_frame(hip[t], knee[t], ankle[t], target[t], r_hip[t], r_knee[t]):
+        if _ik_frame(hip[t], knee[t], ankle[t], target[t], r_hip[t], r_knee[t], soft, 1.0):
             c += 1
     return c
 
 
-def two_bone_ik(hip: Array, knee: Array, ankle: Array, target: Array) -> tuple[Array, Array, int]:
+def two_bone_ik(
+    hip: Array, knee: Array, ankle: Array, target: Array, soft: float = 0.0
+) -> tuple[Array, Array, int]:
     """World rotations ``(r_hip, r_knee)`` (f, 4) that move the ankle of the chain
     ``hip → knee → ankle`` (positions ``(f, 3)``) onto ``target``: ``r_hip`` turns the thigh,
     ``r_knee`` then turns the shin (both applied in world space, about the hip and the new
     knee). The knee stays in the plane of hip, knee and ankle on its side. Returns the count
     of frames whose target was more than 1 % out of reach (every target is clamped to the
-    reachable distance)."""
+    reachable distance). ``soft`` > 0: soft IK over the last ``soft`` × leg length (the
+    ankle falls short of targets near full extension so the knee never snaps straight;
+    :class:`ContactOptions.soft`)."""
     args = [np.ascontiguousarray(a, dtype=np.float64) for a in (hip, knee, ankle, target)]
     r_hip = np.empty((args[0].shape[0], 4))
     r_knee = np.empty_like(r_hip)
-    c = _ik_frames(*args, r_hip, r_knee)
+    c = _ik_frames(*args, r_hip, r_knee, float(soft))
     return r_hip, r_knee, int(c)
 
 
 @njit(cache=True)
-def _lock_leg(P, Q, leg, goal, act, tt, wt, rest, joints, rot):  # pragma: no cover
+def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot):  # noqa: PLR0913 # pragma: no cover
     """Solve one leg on the frames ``act`` and write the new local rotations of its hip,
     knee and ankle into ``rot (f, n, 4)``. ``P``/``Q``: chain world positions/orientations;
     ``leg`` = chain columns of (hip's parent, hip, knee, ankle, toe or -1); ``joints`` =
     skeleton indices of (hip, knee, ankle); ``goal`` the ankle target; ``tt``/``wt`` the toe's
-    held place and weight (the foot turns toward it where ``wt > 0``)."""
+    held place and weight (the foot turns toward it where ``wt > 0``); ``ws`` the solve's
+    weight per frame and ``soft`` the soft-IK band (:func:`_ik_frame`)."""
     cp, ch, ck, ca, ct = leg[0], leg[1], leg[2], leg[3], leg[4]
     jh, jk, ja = joints[0], joints[1], joints[2]
     r_hip = np.empty(4)
@@ -571,7 +637,7 @@ def _lock_leg(P, Q, leg, goal, act, tt, wt, rest, joints, rot):  # pragma: no co
     clamped = 0
     for i in range(act.size):
         t = act[i]
-        if _ik_frame(P[t, ch], P[t, ck], P[t, ca], goal[t], r_hip, r_knee):
+        if _ik_frame(P[t, ch], P[t, ck], P[t, ca], goal[t], r_hip, r_knee, soft, ws[t]):
             clamped += 1
         qh = Q[t, ch]
         hx, hy, hz, hw = _qmul(r_hip[0], r_hip[1], r_hip[2], r_hip[3], qh[0], qh[1], qh[2], qh[3])
@@ -637,10 +703,11 @@ def _clearance(
 def _leg_goals(
     lg: Leg, col: dict[int, int], pos: Array, w_ref: Array, contacts, blend: int, ui: int,
     follow: bool, lift: Array | None = None, swing: float = 0.0,
-) -> tuple[Array, Array, Array, NDArray[np.int64]] | None:  # fmt: skip
-    """Ankle goal per frame, the toe's held place and weight, and the frames to solve
-    (``None`` when there is nothing to do). ``lift``: the clearance kept from a reference
-    (:func:`_clearance`), applied outside the contacts (faded by the contact weight)."""
+) -> tuple[Array, Array, Array, Array, NDArray[np.int64]] | None:  # fmt: skip
+    """Ankle goal per frame, the toe's held place and weight, the soft-IK weight and the
+    frames to solve (``None`` when there is nothing to do). ``lift``: the clearance kept
+    from a reference (:func:`_clearance`), applied outside the contacts (faded by the
+    contact weight)."""
     f = pos.shape[0]
     none = np.zeros(f, bool)
     on_a = contacts.get(lg.ankle, none)
@@ -649,18 +716,29 @@ def _leg_goals(
     if not (on_a.any() or on_t.any() or lifted):
         return None
     ca = col[lg.ankle]
-    # the ankle target: held ankle while the ankle is planted; while only the toe is
-    # planted (heel off), the held toe minus the toe's current offset from the ankle
+    # the ankle target: the held ankle while the ankle is planted; where the toe is planted
+    # too, the held ankle gives way to "the held toe minus the toe's current offset from the
+    # ankle" (heel off) continuously — as the ankle's fade-out goes and as the held ankle
+    # leaves the leg's reach (the heel lifts because the leg cannot reach it), never by a
+    # switch on one frame (was: a 1.1-unit jump of the Xia walk's left ankle, frames 158-159)
     ta, wa = _targets(on_a, w_ref[:, ca], blend, ui, follow, _in_swing(w_ref[:, ca], ui, swing))
     goal = pos[:, ca] + wa[:, None] * (ta - pos[:, ca])
     tt, wt = np.zeros((f, 3)), np.zeros(f)
     if lg.toe >= 0:
         ct = col[lg.toe]
         tt, wt = _targets(on_t, w_ref[:, ct], blend, ui, follow, _in_swing(w_ref[:, ct], ui, swing))
-        only_toe = (wt > wa) & ~on_a
-        g2 = pos[:, ca] + wt[:, None] * (tt - pos[:, ct])
-        goal = np.where(only_toe[:, None], g2, goal)
+        hip = pos[:, col[lg.hip]]
+        length = np.linalg.norm(pos[:, col[lg.knee]] - hip, axis=1) + np.linalg.norm(
+            pos[:, ca] - pos[:, col[lg.knee]], axis=1
+        )
+        r = np.linalg.norm(ta - hip, axis=1) / length
+        x = np.clip((REACH_OUT - r) / (REACH_OUT - 1.0), 0.0, 1.0)
+        q = x * x * (3.0 - 2.0 * x)  # 1 within the leg's length, 0 beyond REACH_OUT
+        a = (wa * (1.0 - wt * (1.0 - q)))[:, None]  # the held ankle's share
+        g_toe = pos[:, ca] + wt[:, None] * (tt - pos[:, ct])
+        goal = a * ta + (1.0 - a) * g_toe  # = the ankle-only goal where wt = 0
     w = np.maximum(wa, wt)
+    w_soft = w  # continuous: the soft-IK weight (a raise alone keeps the hard clamp)
     if lifted:
         assert lift is not None
         up = pos[:, ca, ui] + lift * (1.0 - w)
@@ -668,7 +746,7 @@ def _leg_goals(
         goal[raise_, ui] = up[raise_]
         w = np.where(raise_, 1.0, w)
     act = np.flatnonzero(w > 0).astype(np.int64)
-    return goal, tt, wt, act
+    return goal, tt, wt, w_soft, act
 
 
 def _in_swing(p: Array, ui: int, swing: float) -> NDArray[np.bool_] | None:
@@ -731,13 +809,15 @@ def lock_feet(
         g = goals[i]
         if g is None or g[3].size == 0:
             continue
-        goal, tt, wt, act = g
+        goal, tt, wt, w_soft, act = g
         cp = col[int(par[lg.hip])] if par[lg.hip] >= 0 else -1  # -1: the hip is a root
         cols = np.array(
             [cp, col[lg.hip], col[lg.knee], col[lg.ankle], col.get(lg.toe, -1)], dtype=np.int64
         )
         joints = np.array([lg.hip, lg.knee, lg.ankle], dtype=np.int64)
-        clamped += _lock_leg(pos, wq, cols, goal, act, tt, wt, rest, joints, rot)
+        clamped += _lock_leg(
+            pos, wq, cols, goal, act, tt, wt, w_soft, float(o.soft), rest, joints, rot
+        )
     if clamped:
         warnings.warn(
             f"{clamped} foot-contact target(s) out of the leg's reach; clamped to the leg length",
