@@ -740,7 +740,8 @@ def retarget(
     source_names: Annotated[
         str | None,
         typer.Option(
-            help="Source name preset: cmu | mixamo | humanik | rokoko | rigify (default: detected)."
+            help="Source name preset: cmu | cmu_asf | cmu_max | mixamo | humanik | rokoko | "
+            "rigify | creature | htr (default: detected)."
         ),
     ] = None,
     target_names: Annotated[

@@ -161,6 +161,27 @@ def find_legs(motion: Motion) -> list[Leg]:
             kids = [int(c) for c in np.flatnonzero(par == j)]
             toes = [c for c in kids if "toe" in names[c]] or kids
             legs.append(Leg(int(par[knee]), knee, j, toes[0] if toes else -1))
+    return legs or _preset_legs(motion)
+
+
+def _preset_legs(motion: Motion) -> list[Leg]:
+    """Legs of a skeleton without foot/ankle names from its name preset (``biomorph
+    creature``'s ``hip1_upper_l → hip1_lower_l → hip1_distal_l``, toe ``hip1_digit3_1_l``):
+    thigh → shin → foot, each the parent of the next."""
+    from biomorph.errors import InputError
+    from biomorph.motion import names as nm
+
+    try:
+        idx = nm.resolve(motion.names, nm.detect_preset(motion.names), motion.skeleton.parent)
+    except InputError:
+        return []
+    par = motion.skeleton.parent
+    legs = []
+    for s in ("l", "r"):
+        th, sh, ft = (idx.get(f"{s}_{b}", -1) for b in ("thigh", "shin", "foot"))
+        if min(th, sh, ft) >= 0 and par[ft] == sh and par[sh] == th:
+            toe = idx.get(f"{s}_toe", -1)
+            legs.append(Leg(th, sh, ft, toe if toe >= 0 and par[toe] == ft else -1))
     return legs
 
 

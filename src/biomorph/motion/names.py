@@ -59,6 +59,43 @@ PRESETS: dict[str, dict[str, str]] = {
     },
 }
 PRESETS["rokoko"] = PRESETS["humanik"]
+# CMU in the "3ds-Max-friendly" BVH dialect (AnimatedDrawings' cmu1): LeftHip LeftKnee
+# LeftAnkle LeftToe, LeftCollar LeftShoulder LeftElbow LeftWrist, lowerback Chest Chest2
+PRESETS["cmu_max"] = _humanik(
+    ("lowerback", "Chest", "Chest2"),
+    ("Collar", "Shoulder", "Elbow", "Wrist", "Hip", "Knee", "Ankle", "Toe"),
+)
+# Motion Analysis HTR joint names (the animal3D egnaro file): main, spine1…, L_hip L_knee
+# L_ankle L_football
+PRESETS["htr"] = {
+    "hips": "main",
+    "spine": "spine1",
+    **{
+        f"{s}_{b}": f"{s.upper()}_{n}"
+        for s in ("l", "r")
+        for b, n in (("thigh", "hip"), ("shin", "knee"), ("foot", "ankle"), ("toe", "football"))
+    },
+}
+# CMU's own Acclaim ASF/AMC bones (root lowerback upperback thorax lowerneck upperneck head,
+# l/r + hipjoint femur tibia foot toes clavicle humerus radius wrist hand …); a joint sits at
+# its bone's start, so the ankle is ``lfoot`` and the hand ``lwrist``
+PRESETS["cmu_asf"] = {
+    "hips": "root",
+    "spine": "lowerback",
+    "chest": "upperback",
+    "upper_chest": "thorax",
+    "neck": "lowerneck",
+    "head": "head",
+    **{
+        f"{s}_{b}": f"{s}{n}"
+        for s in ("l", "r")
+        for b, n in zip(
+            _SIDE,
+            ("clavicle", "humerus", "radius", "wrist", "femur", "tibia", "foot", "toes"),
+            strict=True,
+        )
+    },
+}
 # biomorph creature's generator names (BVH export): limbs hip1_/shoulder1_ + girdle, upper,
 # lower, distal, digits; the hips are the vertebra the hip girdles hang from (found from the
 # hierarchy by :func:`resolve`), the toe the middle digit's first bone
@@ -161,12 +198,15 @@ _LR = [
     (re.compile(r"^()(r)([A-Z].*)$"), "l"),
     (re.compile(r"^()(L)([A-Z][a-z].*)$"), "R"),
     (re.compile(r"^()(R)([A-Z][a-z].*)$"), "L"),
+    # CMU ASF: lfemur/rfemur, lhumerus/rhumerus (a pair only when both names exist)
+    (re.compile(r"^()(l)([a-z]{3,})$"), "r"),
+    (re.compile(r"^()(r)([a-z]{3,})$"), "l"),
 ]
 
 
 def mirror_name(name: str) -> str | None:
-    """The other side's name (Left↔Right, .L↔.R, _l↔_r, L_↔R_, lFoot↔rFoot, LThumb↔RThumb)
-    or None."""
+    """The other side's name (Left↔Right, .L↔.R, _l↔_r, L_↔R_, lFoot↔rFoot, LThumb↔RThumb,
+    CMU ASF's lfemur↔rfemur) or None (the name need not exist: see :func:`left_right_pairs`)."""
     for pat, other in _LR:
         m = pat.match(name)
         if m:

@@ -76,10 +76,18 @@ def remove_drift(
 
 
 def extract_root_motion(
-    motion: Motion, up: str = "y", name: str = "root", with_heading: bool = True
+    motion: Motion, up: str = "y", name: str | None = None, with_heading: bool = True
 ) -> Motion:
     """A motion with a new ground-level root joint ``name`` carrying the path (horizontal
-    position, height 0) and heading; the former root becomes its child (module docstring)."""
+    position, height 0) and heading; the former root becomes its child (module docstring).
+    ``name=None``: ``"root"``, or ``"root_motion"`` (``root_motion2``, …) when the skeleton
+    already has a joint named ``root`` (CMU's ASF/AMC pelvis); an explicit ``name`` that
+    is taken is refused."""
+    if name is None:
+        name, k = "root", 1
+        while name in motion.names:
+            name = "root_motion" if k == 1 else f"root_motion{k}"
+            k += 1
     if name in motion.names:
         raise InputError(
             f"the skeleton already has a joint named {name!r}; pass another "
