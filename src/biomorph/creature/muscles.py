@@ -38,6 +38,9 @@ from numpy.typing import NDArray
 from biomorph.core.mesh import Mesh
 from biomorph.creature.creature import Creature
 
+#: the back's epaxial bellies lie this far either side of the spine (share of the
+#: soft-tissue half-width)
+EPAXIAL_OFFSET = 0.36
 #: tendon radius as a share of the belly radius
 TENDON = 0.1
 #: belly radius as a share of the soft-tissue half-width of the bone it lies along
@@ -46,7 +49,8 @@ BELLY = {
     "front": 0.45,
     "back": 0.5,
     "distal": 0.4,
-    "epaxial": 0.22,
+    "epaxial": 0.4,
+    "caudal": 0.22,
     "neck": 0.3,
     "temporalis": 0.35,
     "masseter": 0.25,
@@ -157,17 +161,30 @@ def _scapular(c: Creature, k: int) -> list[Muscle]:
         # a flat sheet: three bellies side by side across the blade (the blade narrows to
         # the neck), each about a tenth of the blade's length thick
         half = 0.5 * SCAPULA_WIDTH * ls * (1.0 - 0.7 * u**0.8)
-        thick = 0.11 * ls * (1.0 - 0.4 * u) + 0.02 * ls
+        # thin at the dorsal border (the blade's cartilage lies under the skin there), full
+        # over the fossae, narrowing to the neck: a blunt full-thickness start made a box
+        # on the shoulder's skin
+        rise = np.sin(0.5 * np.pi * np.clip(u / 0.35, 0.0, 1.0))
+        thick = (0.1 * (1.0 - 0.4 * u) + 0.02) * ls * (0.45 + 0.55 * rise)
         ins = int(np.flatnonzero(c.skeleton.parent == j)[0])
-        for n_sheet, share in enumerate((-0.66, 0.0, 0.66)):
+        # a dome across the blade: the middle belly (over the spine) the thickest
+        for n_sheet, (share, t_share) in enumerate(((-0.6, 0.65), (0.0, 1.0), (0.6, 0.65))):
             path = (
                 d_pt
                 + np.outer(u * 0.95, frame[:, 1] * ls)
                 + np.outer(share * half, frame[:, 0])
-                + np.outer(0.5 * thick, frame[:, 2])
+                + np.outer(0.4 * t_share * thick, frame[:, 2])
             )
             out.append(
-                Muscle(f"{c.names[j]}_spinati{n_sheet}", j, ins, path[0], path[-1], path, thick)
+                Muscle(
+                    f"{c.names[j]}_spinati{n_sheet}",
+                    j,
+                    ins,
+                    path[0],
+                    path[-1],
+                    path,
+                    t_share * thick,
+                )
             )
     return out
 
@@ -208,43 +225,93 @@ def _axial(c: Creature, k: int) -> list[Muscle]:
         ]
         if len(idx) < 2:
             continue
-        # order along the chain (parents first), keep one side of a branching root
-        idx.sort(key=lambda j: _depth(par, j))
-        runs: list[list[int]] = [[idx[0]]]
-        for j in idx[1:]:
-            if par[j] == runs[-1][-1]:
-                runs[-1].append(j)
-            else:
-                runs.append([j])
+        runs = _chains(par, idx)
         for n_run, run in enumerate(runs):
             if len(run) < 2:
                 continue
             dorsal = [_dorsal_point(c, j) for j in run]
             path = np.array(dorsal)
             hw = np.array([_half_width(c, j) for j in run])
-            belly = BELLY[role] * hw
             u = np.linspace(0, 1, len(run))
             taper = TENDON + (1 - TENDON) * np.sin(np.pi * (0.1 + 0.8 * u)) ** 0.5
-            out.append(
-                Muscle(
-                    f"{region}_{role}_{n_run}",
-                    run[0],
-                    run[-1],
-                    path[0],
-                    path[-1],
-                    path,
-                    belly * taper,
+            if region != "back":
+                belly = BELLY["caudal" if region == "tail" else role] * hw
+                out.append(
+                    Muscle(
+                        f"{region}_{role}_{n_run}",
+                        run[0],
+                        run[-1],
+                        path[0],
+                        path[-1],
+                        path,
+                        belly * taper,
+                    )
                 )
-            )
+                continue
+            # the back: longissimus and iliocostalis as a broad mass either side of the
+            # spinous processes, between them and the ribs' angles (a dog's back is about as
+            # wide as its chest at the withers; one thin midline tube left the scapula's
+            # dorsal border standing out of a narrow back)
+            lat = np.array([_lateral(c, j) for j in run])
+            spine = c.joint_positions[run] + 0.5 * c.bone_length[run][:, None] * c.world[run, :3, 1]
+            low = spine + 0.3 * (path - spine)
+            taper = TENDON + (1 - TENDON) * np.sin(np.pi * (0.05 + 0.9 * u)) ** 0.35
+            for tag, sgn in (("r", 1.0), ("l", -1.0)):
+                side_path = low + sgn * (EPAXIAL_OFFSET * hw)[:, None] * lat
+                out.append(
+                    Muscle(
+                        f"{region}_{role}_{n_run}_{tag}",
+                        run[0],
+                        run[-1],
+                        side_path[0],
+                        side_path[-1],
+                        side_path,
+                        BELLY["epaxial"] * hw * taper,
+                    )
+                )
     return out
 
 
-def _depth(par: NDArray, j: int) -> int:
-    d = 0
-    while par[j] >= 0:
-        j = int(par[j])
-        d += 1
-    return d
+def _chains(par: NDArray, idx: list[int]) -> list[list[int]]:
+    """The joints ``idx`` as runs along the skeleton: each connected piece (by parent
+    links within ``idx``) walked from one end to the other, through the root where the
+    root sits mid-back (its head- and tail-side children are both in ``idx``). A piece
+    that branches is split at the branch. (Sorting by depth from the root used to
+    interleave the two sides of a mid-back root into runs of one joint each: the back's
+    epaxial muscle was a stub over the root vertebra, a box on the spine.)"""
+    members = set(idx)
+    nbr: dict[int, list[int]] = {j: [] for j in idx}
+    for j in idx:
+        p = int(par[j])
+        if p in members:
+            nbr[j].append(p)
+            nbr[p].append(j)
+    seen: set[int] = set()
+    runs: list[list[int]] = []
+    # start at the ends (degree 1) first, then any branch point or leftover
+    for start in sorted(idx, key=lambda j: (len(nbr[j]) != 1, len(nbr[j]) == 0, j)):
+        if start in seen:
+            continue
+        run, prev, j = [start], -1, start
+        seen.add(start)
+        while True:
+            nxt = [k for k in nbr[j] if k != prev and k not in seen]
+            if len(nbr[j]) > 2 and j != start or len(nxt) != 1:
+                break
+            prev, j = j, nxt[0]
+            run.append(j)
+            seen.add(j)
+        runs.append(run)
+    return runs
+
+
+def _lateral(c: Creature, j: int) -> NDArray:
+    """Joint ``j``'s right-hand direction across the spine (world, unit, ⟂ the bone)."""
+    y = c.world[j, :3, 1]
+    z = np.array([0.0, 0.0, 1.0])
+    lat = z - (z @ y) * y
+    n = float(np.linalg.norm(lat))
+    return lat / n if n > 1e-9 else c.world[j, :3, 2]
 
 
 def _dorsal_point(c: Creature, j: int) -> NDArray:

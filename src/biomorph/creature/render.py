@@ -44,6 +44,9 @@ class Layer:
     rgb: NDArray
     alpha: float = 1.0
     cull: bool = True
+    #: optional vertex normals ``(n, 3)``: a face is shaded by the mean of its corners'
+    #: normals (smooth surfaces read smooth, not as their triangles)
+    normals: NDArray | None = None
 
 
 def _camera(view: str) -> tuple[NDArray, NDArray, NDArray]:
@@ -67,12 +70,19 @@ def _shade(layer: Layer, right: NDArray, up: NDArray, back: NDArray):
     ok = norm > 0
     n = n[ok] / norm[ok, None]
     tri = tri[ok]
+    if layer.normals is not None:  # smooth shading: the corners' normals averaged
+        vn = np.asarray(layer.normals, float)[f[ok]].sum(axis=1)
+        vl = np.linalg.norm(vn, axis=1)
+        smooth = np.where((vl > 1e-12)[:, None], vn / np.maximum(vl, 1e-12)[:, None], n)
+    else:
+        smooth = n
     facing = n @ back
     if layer.cull:
         keep = facing > 0
-        tri, n, facing = tri[keep], n[keep], facing[keep]
+        tri, n, smooth, facing = tri[keep], n[keep], smooth[keep], facing[keep]
     else:
-        n = np.where(facing[:, None] < 0, -n, n)
+        smooth = np.where(facing[:, None] < 0, -smooth, smooth)
+    n = smooth
     light = back + 0.9 * up + 0.4 * right
     light /= np.linalg.norm(light)
     lam = AMBIENT + (1 - AMBIENT) * np.clip(n @ light, 0.0, 1.0)
@@ -145,11 +155,24 @@ def creature_layers(
         b = body(c, lod=lod)
         if muscles and b.muscles is not None:
             layers.append(
-                Layer(b.muscles.vertices, b.muscles.faces, MUSCLE_RGB, 0.85 if skeleton else 1.0)
+                Layer(
+                    b.muscles.vertices,
+                    b.muscles.faces,
+                    MUSCLE_RGB,
+                    0.85 if skeleton else 1.0,
+                    normals=b.muscles.normals,
+                )
             )
         if skin:
+            env = b.envelope
             layers.append(
-                Layer(b.envelope.vertices, b.envelope.faces, SKIN_RGB, 0.38 if skeleton else 1.0)
+                Layer(
+                    env.vertices,
+                    env.faces,
+                    SKIN_RGB,
+                    0.38 if skeleton else 1.0,
+                    normals=env.normals,
+                )
             )
     return layers
 

@@ -103,11 +103,24 @@ def _section_frames(c: Creature, js: NDArray, centre: NDArray) -> tuple[NDArray,
 
 
 def _headward(c: Creature) -> NDArray[np.bool_]:
+    """Joints whose bone points towards the head: the skull and those of its ancestors
+    whose bone runs towards the skull's side of the chain. The root vertebra is the skull's
+    ancestor but its bone points to the tail (its local X is dorsal): counting it headward
+    turned its vertebra upside down (a box-like centrum above the spine)."""
     out = np.zeros(len(c), bool)
     j = c.kind.index("skull") if "skull" in c.kind else -1
+    child = -1
     while j >= 0:
-        out[j] = True
-        j = int(c.skeleton.parent[j])
+        if child < 0:
+            out[j] = True
+        else:
+            to_child = c.joint_positions[child] - c.joint_positions[j]
+            y = c.world[j, :3, 1]
+            if float(np.linalg.norm(to_child)) > 0.25 * float(c.bone_length[j]):
+                out[j] = float(to_child @ y) >= 0.0
+            else:  # the child starts where this bone starts (the root): compare directions
+                out[j] = float(c.world[child, :3, 1] @ y) >= 0.0 if out[child] else False
+        child, j = j, int(c.skeleton.parent[j])
     return out
 
 
@@ -243,7 +256,17 @@ def scapula_frame(c: Creature, j: int, cls: str) -> tuple[NDArray, NDArray, floa
     lateral_min = np.sqrt(max(wall**2 - up**2, 0.0))
     lateral_min = max(lateral_min, 0.35 * c.box_size[par, 2])
     cur = (d_pt - cen) @ la
-    if cur < lateral_min:
+    # the trunk's own surface beside the dorsal end (the union of the sections there, which
+    # narrows dorsally): the blade lies on the cage, its dorsal border in the wall. Only
+    # pushing outwards left a blade hung from a wide-set shoulder standing clear of the
+    # chest (its spinati made a lump on the skin)
+    mid = d_pt - cur * la
+    _, all_c, all_r = trunk_sections(c)
+    exit_ = float(_exit_distance(mid[None], la[None], all_c, all_r)[0])
+    if exit_ > 0:
+        target = max(exit_ - 0.5 * BODY_WALL * r, 0.35 * c.box_size[par, 2])
+        d_pt = d_pt + (target - cur) * la
+    elif cur < lateral_min:
         d_pt = d_pt + (lateral_min - cur) * la
     y_ax = glen - d_pt
     y_ax /= np.linalg.norm(y_ax)

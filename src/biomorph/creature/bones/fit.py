@@ -53,13 +53,8 @@ def _child_kind(c: Creature, j: int) -> str:
 
 
 def _headward(c: Creature) -> NDArray[np.bool_]:
-    """Joints whose bone points towards the head: the skull's ancestors (and the skull)."""
-    out = np.zeros(len(c), bool)
-    j = c.kind.index("skull") if "skull" in c.kind else -1
-    while j >= 0:
-        out[j] = True
-        j = int(c.skeleton.parent[j])
-    return out
+    """Joints whose bone points towards the head (:func:`cage._headward`)."""
+    return cage._headward(c)
 
 
 def _spine_rank(c: Creature, parts: tuple[str, ...]) -> NDArray[np.float64]:
