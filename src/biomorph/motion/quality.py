@@ -56,14 +56,28 @@ def euler_wraps(motion: Motion) -> int:
     return total
 
 
+def _preset_feet(motion: Motion) -> list[int]:
+    """Foot and toe joints named by the skeleton's name preset (none when no preset fits)."""
+    from biomorph.errors import InputError
+    from biomorph.motion import names as nm
+
+    try:
+        idx = nm.resolve(motion.names, nm.detect_preset(motion.names), motion.skeleton.parent)
+    except InputError:
+        return []
+    return sorted(idx[k] for k in ("l_foot", "l_toe", "r_foot", "r_toe") if k in idx)
+
+
 def foot_skate(motion: Motion, up: str | None = None) -> dict[str, Any]:
     """Foot-skate measure (see module docstring)."""
     up = up or motion.meta.get("up_guess") or guess_up_axis(motion)
     ui = _up_index(up)
     names = [s.lower() for s in motion.names]
     feet = [i for i, s in enumerate(names) if any(k in s for k in ("foot", "toe", "ankle"))]
-    if not feet:
-        feet = list(np.setdiff1d(np.arange(motion.n_joints), motion.skeleton.parent))
+    if not feet:  # a preset's feet (biomorph creature: hip1_distal_l, hip1_digit3_1_l), else leaves
+        feet = _preset_feet(motion) or list(
+            np.setdiff1d(np.arange(motion.n_joints), motion.skeleton.parent)
+        )
     w = motion.world_positions()
     h = w[:, feet, ui]
     ground = float(np.percentile(h, 2))
