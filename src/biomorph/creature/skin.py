@@ -88,14 +88,15 @@ def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray
     # the same sections, :mod:`biomorph.creature.bones.cage`), joined to its parent
     # vertebra's section by a tapered capsule (spheres alone beaded the neck and tail)
     sec, centre, radius = trunk_sections(c)
-    a_s.append(centre)
-    b_s.append(centre)
-    ra_s.append(radius)
-    rb_s.append(radius)
     row = {int(j): k for k, j in enumerate(sec)}
     link = [(k, row.get(int(c.skeleton.parent[j]), -1)) for k, j in enumerate(sec)]
     link = np.asarray([(k, p) for k, p in link if p >= 0 and p != k] or [], np.int64)
     link = link.reshape(-1, 2)
+    alone = np.setdiff1d(np.arange(len(sec)), link.reshape(-1))  # a link holds its ends
+    a_s.append(centre[alone])
+    b_s.append(centre[alone])
+    ra_s.append(radius[alone])
+    rb_s.append(radius[alone])
     a_s.append(centre[link[:, 0]])
     b_s.append(centre[link[:, 1]])
     ra_s.append(radius[link[:, 0]])
@@ -246,8 +247,6 @@ def envelope(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[Mesh, f
     tubes and sheets (:func:`wing_skin`), one mesh with area-weighted vertex normals."""
     from skimage.measure import marching_cubes
 
-    from biomorph.creature.bones.prim import vertex_normals
-
     grid, lo, h = envelope_field(c, ms, lod)
     verts, faces, _, _ = marching_cubes(grid, level=0.0, spacing=(h, h, h))
     verts = verts.astype(np.float64) + lo
@@ -260,7 +259,30 @@ def envelope(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[Mesh, f
     if len(wv):
         faces = np.concatenate([faces, wf + len(verts)])
         verts = np.concatenate([verts, wv])
-    return Mesh(verts, faces, normals=vertex_normals(verts, faces)), h
+    return Mesh(verts, faces, normals=_normals(verts, faces)), h
+
+
+@numba.njit(cache=True, nogil=True)
+def _normals(v, f):  # pragma: no cover - compiled
+    """Area-weighted unit vertex normals (as :func:`~biomorph.creature.bones.prim.
+    vertex_normals`, compiled)."""
+    n = np.zeros((v.shape[0], 3))
+    for t in range(f.shape[0]):
+        a, b, c = f[t, 0], f[t, 1], f[t, 2]
+        ux, uy, uz = v[b, 0] - v[a, 0], v[b, 1] - v[a, 1], v[b, 2] - v[a, 2]
+        wx, wy, wz = v[c, 0] - v[a, 0], v[c, 1] - v[a, 1], v[c, 2] - v[a, 2]
+        cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+        for i in (a, b, c):
+            n[i, 0] += cx
+            n[i, 1] += cy
+            n[i, 2] += cz
+    for i in range(v.shape[0]):
+        ln = np.sqrt(n[i, 0] ** 2 + n[i, 1] ** 2 + n[i, 2] ** 2)
+        if ln > 0:
+            n[i, 0] /= ln
+            n[i, 1] /= ln
+            n[i, 2] /= ln
+    return n
 
 
 #: Taubin smoothing passes (each a shrink step λ and an inflate step μ) over the marching
@@ -270,25 +292,49 @@ TAUBIN = (0.5, -0.53)
 
 
 def taubin(v: NDArray, f: NDArray, steps: int = TAUBIN_STEPS) -> NDArray:
-    """Taubin's λ|μ smoothing of the mesh ``(v, f)`` (umbrella Laplacian over the edges):
-    low-pass without the shrinkage of plain Laplacian smoothing (Taubin 1995)."""
-    from scipy.sparse import csr_matrix
-
-    n = len(v)
+    """Taubin's λ|μ smoothing of the closed mesh ``(v, f)`` (umbrella Laplacian over its
+    edges): a low-pass filter without the shrinkage of plain Laplacian smoothing (Taubin
+    1995)."""
     if not len(f) or steps <= 0:
         return v
-    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    rows, cols = np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]]
-    adj = csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
-    adj.data[:] = 1.0  # duplicate edges (two faces per edge) count once
-    deg = np.asarray(adj.sum(axis=1)).ravel()
-    inv = np.divide(1.0, deg, out=np.zeros(n), where=deg > 0)[:, None]
     out = np.array(v, np.float64)
-    lam, mu = TAUBIN
-    for _ in range(steps):
-        out += lam * (inv * (adj @ out) - out)
-        out += mu * (inv * (adj @ out) - out)
+    _taubin(out, np.ascontiguousarray(f, np.int64), int(steps), *TAUBIN)
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _taubin(v, f, steps, lam, mu):  # pragma: no cover - compiled
+    n = v.shape[0]
+    # each edge once: a closed mesh meets it as (a, b) in one face and (b, a) in the other
+    m = 0
+    ea = np.empty(3 * f.shape[0], np.int64)
+    eb = np.empty(3 * f.shape[0], np.int64)
+    for t in range(f.shape[0]):
+        for e in range(3):
+            a, b = f[t, e], f[t, (e + 1) % 3]
+            if a < b:
+                ea[m] = a
+                eb[m] = b
+                m += 1
+    deg = np.zeros(n)
+    for q in range(m):
+        deg[ea[q]] += 1.0
+        deg[eb[q]] += 1.0
+    for i in range(n):
+        deg[i] = 1.0 / deg[i] if deg[i] > 0 else 0.0
+    acc = np.empty((n, 3))
+    for _ in range(steps):
+        for factor in (lam, mu):
+            acc[:] = 0.0
+            for q in range(m):
+                a, b = ea[q], eb[q]
+                for k in range(3):
+                    acc[a, k] += v[b, k]
+                    acc[b, k] += v[a, k]
+            for i in range(n):
+                if deg[i] > 0:
+                    for k in range(3):
+                        v[i, k] += factor * (acc[i, k] * deg[i] - v[i, k])
 
 
 def envelope_field(
@@ -463,8 +509,8 @@ def _poly(c: Creature, chain: list[int], start: NDArray | None = None) -> NDArra
 
 
 def _hind_anchor(c: Creature, side: float) -> NDArray | None:
-    """Where a bat's wing membrane meets the hind limb on ``side``: the ankle of the most
-    caudal leg on that side (None without one)."""
+    """Where a bat's wing membrane meets the hind limb on ``side``: the hip, knee and
+    ankle of the most caudal leg on that side (None without one)."""
     best, best_x = None, np.inf
     par = c.skeleton.parent
     for j in range(len(c)):
@@ -483,7 +529,8 @@ def _hind_anchor(c: Creature, side: float) -> NDArray | None:
         if not kids:
             break
         chain.append(kids[0])
-    return np.asarray(c.bone_ends[chain[-1]] if len(chain) >= 2 else c.bone_ends[best], float)
+    # hip, knee, ankle: the membrane's body edge runs along the flank and down the leg
+    return np.asarray([c.joint_positions[j] for j in chain] + [c.bone_ends[chain[-1]]], float)
 
 
 def wing_skin(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[NDArray, NDArray]:
@@ -544,10 +591,12 @@ def wing_skin(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[NDArra
             grid = _loft(pa, pb, n_rows, SCALLOP)[:, 1:]  # off the shared knuckle
             add(_slab(grid, np.full(grid.shape[:2], t), up))
         # plagiopatagium: the arm and the trailing finger to the flank and the ankle
-        ankle = _hind_anchor(c, side)
+        leg = _hind_anchor(c, side)
         arm = np.concatenate([[S, E, W, K], _poly(c, fingers[-1])[1:]])
-        hip = ankle if ankle is not None else S + 0.8 * back * float(np.linalg.norm(K - S))
-        flank = np.asarray([S, 0.5 * (S + hip) + 0.0 * up, hip])
+        if leg is None:  # no hind leg on this side: to the flank a wing's length back
+            flank = np.asarray([S, S + 0.8 * back * float(np.linalg.norm(K - S))])
+        else:  # along the flank to the hip, then down the thigh and shank to the ankle
+            flank = np.concatenate([[S], leg[1:] if len(leg) > 2 else leg])
         pa, pb = _resample(arm, n_along + 4), _resample(flank, n_along + 4)
         grid = _loft(pa, pb, n_rows + 2, SCALLOP * 0.6)[:, 1:]
         add(_slab(grid, np.full(grid.shape[:2], t), up))

@@ -19,7 +19,7 @@ from functools import cache
 import numpy as np
 from numpy.typing import NDArray
 
-from biomorph.creature.bones.prim import SIDES, Parts, box, ellipsoid, tube, unit
+from biomorph.creature.bones.prim import SIDES, Parts, ellipsoid, tube, unit
 
 #: neural-spine height (share of the dorsal half), transverse-process span (share of the
 #: width), centrum length (share of the bone) per vertebra region, at the region's start and
@@ -56,8 +56,15 @@ def vertebra(region: str, t_bin: int, lod: int) -> tuple[NDArray, NDArray, NDArr
     parts.add(tube(path, rc, s, radius2=rc * 1.25, ref=[1.0, 0, 0]))
     # neural arch: two pedicles and the lamina over the spinal canal
     ym0, ym1 = 0.5 - 0.3 * clen, 0.5 + 0.3 * clen
-    parts.mirrored(box([-0.15, ym0, 0.1], [0.05, ym1, 0.2]), axis=2)
-    parts.add(box([0.0, ym0, -0.2], [0.08, ym1, 0.2]))
+    # (rounded: boxes read as boxes on long cervicals; a pedicle is a short column and
+    # the lamina a flat arch)
+    ya = np.linspace(ym0, ym1, 3)
+    ped = np.stack([np.full(3, -0.05), ya, np.full(3, 0.15)], axis=1)
+    pr = np.array([0.085, 0.1, 0.085])
+    parts.mirrored(tube(ped, pr, max(4, s // 2 + 2), radius2=0.5 * pr, ref=[1.0, 0, 0]), axis=2)
+    lam = np.stack([np.full(3, 0.04), ya, np.zeros(3)], axis=1)
+    lr = np.array([0.045, 0.05, 0.045])
+    parts.add(tube(lam, lr, s, radius2=4.0 * lr, ref=[1.0, 0, 0]))
     if spine_h > 0.02:  # neural spine, leaning caudally (towards y = 0 for headward bones)
         top = 0.08 + 0.42 * spine_h
         sp = np.array([[0.06, 0.5, 0.0], [top, 0.5 - 0.15 * spine_h, 0.0]])
