@@ -32,9 +32,13 @@ from biomorph.creature.creature import Creature
 #: grid cells along the longest side per level of detail
 RESOLUTION = (40, 64, 96)
 #: finest grid (cells along the longest side) per level of detail
-RES_MAX = (56, 96, 160)
+RES_MAX = (64, 96, 160)
 #: tissue over bone at the bony landmarks, as a share of the bone's half-width
 LANDMARK_TISSUE = 0.35
+#: grid cell = the thinnest limb's skin radius / LIMB_CELLS (creatures without legs or
+#: arms: the median capsule radius / H_DIV), within the RESOLUTION .. RES_MAX range
+LIMB_CELLS = 2.5
+H_DIV = 1.2
 #: smoothing of the field (grid cells)
 SMOOTH = 0.9
 #: the cone from a girdle's trunk section to its limb socket starts at this share of the
@@ -337,6 +341,26 @@ def _taubin(v, f, steps, lam, mu):  # pragma: no cover - compiled
                         v[i, k] += factor * (acc[i, k] * deg[i] - v[i, k])
 
 
+def _limb_radius(c: Creature) -> float:
+    """The skin radius at the middle of the thinnest long bone of a leg or arm (as
+    :func:`_capsules` gives it), 0 without legs or arms."""
+    from biomorph.creature.bones.fit import parts_of
+
+    parts = parts_of(c)
+    js = [
+        j
+        for j in range(len(c))
+        if c.kind[j] in ("leg", "arm")
+        and parts[j] in ("humerus", "femur", "radius", "tibia")
+        and c.bone_length[j] > 1e-9
+    ]
+    if not js:
+        return 0.0
+    box, mass = c.box_size[js], c.mass_size[js]
+    bone = 0.5 * np.maximum(box[:, 0], box[:, 2]) * (1 + LANDMARK_TISSUE)
+    return float(np.maximum(bone, 0.8 * 0.25 * (mass[:, 0] + mass[:, 2])).min())
+
+
 def envelope_field(
     c: Creature, ms: list | None = None, lod: int = 1
 ) -> tuple[NDArray, NDArray, float]:
@@ -349,10 +373,13 @@ def envelope_field(
     lo = np.minimum(a - r, b - r).min(axis=0)
     hi = np.maximum(a + r, b + r).max(axis=0)
     ext = float((hi - lo).max())
-    # cell: fine enough that the median limb/bone capsule spans ~2.4 cells, within the
-    # RESOLUTION range for this level of detail
+    # cell: fine enough that the thinnest leg or arm (its long bones' skin radius) spans
+    # LIMB_CELLS cells (a thin limb on a coarse grid is a faceted stick), within the
+    # RESOLUTION .. RES_MAX range for this level of detail
     fine, coarse = ext / RES_MAX[lod], ext / RESOLUTION[lod]
-    h = float(np.clip(np.median(np.minimum(ra, rb)) / 1.2, fine, coarse))
+    r_limb = _limb_radius(c)
+    want = r_limb / LIMB_CELLS if r_limb > 0 else float(np.median(np.minimum(ra, rb))) / H_DIV
+    h = float(np.clip(want, fine, coarse))
     # thin bones would vanish between grid points: keep each at least a cell wide. Not the
     # muscles: they lie over bones that keep the skin there, and a thin sheet (the spinati
     # over the scapula) grown to 1.4 cells stood out of the shoulder as a box
