@@ -45,10 +45,15 @@ def local_from_world_reference(world: Array, rest: Array, parent: Array) -> Arra
     return out
 
 
-def mirror_rotations_reference(motion: Motion, other: Array, sign: Array) -> Array:
+def mirror_rotations_reference(
+    motion: Motion, other: Array, sign: Array, corr: Array | None = None
+) -> Array:
     """Reference for the mirror kernel: world rotations by FK, the mirror joint's reflected
-    (``[:, other] * sign``), back to local rotations."""
+    (``[:, other] * sign``) times its frame correction ``corr`` when given, back to local
+    rotations."""
     mw = motion.world_rotations()[:, other] * sign
+    if corr is not None:
+        mw = tf.quat_multiply(mw, corr[None])
     return local_from_world_reference(mw, motion.skeleton.rest_rotation, motion.skeleton.parent)
 
 

@@ -602,11 +602,13 @@ def dtw(cost):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def mirror_rotations(rest, rot, parent, other, sign, out):  # pragma: no cover - compiled
+def mirror_rotations(rest, rot, parent, other, sign, corr, use_corr, out):  # pragma: no cover
     """Local pose rotations of the mirrored motion, one frame at a time: the world rotation
     of every joint (FK, as ``fk_positions``), reflected (``sign`` ±1 per component) and
-    taken from the mirror joint ``other[j]``, then ``out[t, j] = rest[j]⁻¹ · M[parent]⁻¹ ·
-    M[j]``, hemisphere-continuous along t. Fuses FK, the ``[:, other] * sign`` gather and
+    taken from the mirror joint ``other[j]``, times the joint's constant correction
+    ``corr[j]`` on the right when ``use_corr`` (rigs whose left and right local frames are not
+    mirror images), then ``out[t, j] = rest[j]⁻¹ · M[parent]⁻¹ · M[j]``, hemisphere-continuous
+    along t. Fuses FK, the ``[:, other] * sign`` gather and
     ``retarget._local_from_world`` without any ``(f, n, 4)`` temporaries (same bits)."""
     f, n = rot.shape[0], rot.shape[1]
     world = np.empty((n, 4))
@@ -633,6 +635,17 @@ def mirror_rotations(rest, rot, parent, other, sign, out):  # pragma: no cover -
             o = other[j]
             for c in range(4):
                 mw[j, c] = world[o, c] * sign[c]
+            if use_corr:
+                mw[j, 0], mw[j, 1], mw[j, 2], mw[j, 3] = _qmul(
+                    mw[j, 0],
+                    mw[j, 1],
+                    mw[j, 2],
+                    mw[j, 3],
+                    corr[j, 0],
+                    corr[j, 1],
+                    corr[j, 2],
+                    corr[j, 3],
+                )
         for j in range(n):
             p = parent[j]
             x, y, z, w = mw[j, 0], mw[j, 1], mw[j, 2], mw[j, 3]

@@ -276,15 +276,104 @@ def retarget(
     return out
 
 
-def _lateral_axis(sk: JointSkeleton, pairs: list[tuple[int, int]]) -> int:
-    pos, _ = _rest_world(sk)
-    d = np.abs(np.array([pos[a] - pos[b] for a, b in pairs])).sum(axis=0)
+def _lateral_axis(sk: JointSkeleton, pairs: list[tuple[int, int]], pos: Array | None = None) -> int:
+    """The axis along which the left/right pairs differ most: of the rest pose, or of the
+    world positions ``pos (f, n, 3)`` (summed over frames) when given."""
+    if pos is None:
+        pos = _rest_world(sk)[0][None]
+    d = np.zeros(3)
+    for a, b in pairs:
+        d += np.abs(pos[:, a] - pos[:, b]).sum(axis=0)
     return int(np.argmax(d))
+
+
+def _rotation_between(u: Array, v: Array) -> Array:
+    """The smallest rotation matrix taking direction ``u`` onto ``v`` (180° about any
+    perpendicular axis when they are opposite)."""
+    u = u / np.linalg.norm(u)
+    v = v / np.linalg.norm(v)
+    c = float(u @ v)
+    if c < -1.0 + 1e-12:
+        w = np.cross(u, np.eye(3)[int(np.argmin(np.abs(u)))])
+        w /= np.linalg.norm(w)
+        return 2.0 * np.outer(w, w) - np.eye(3)
+    k = np.cross(u, v)
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + kx + kx @ kx / (1.0 + c)
+
+
+SYMMETRIC_DEG = 30.0
+"""A rig whose every bone lies within this angle of its mirror bone's image (captured CMU,
+Xia, dme rigs: at most 8°) mirrors its local angles as they are; beyond it (Rokoko: 180°, each
+bone along +x on both sides) the frames are corrected (:func:`_mirror_corrections`)."""
+
+
+def _mirror_corrections(
+    sk: JointSkeleton, other: Array, a: int, world0: Array
+) -> tuple[Array, bool]:
+    """Per joint j a constant rotation ``C[j]`` (quaternions ``(n, 4)``) with the mirrored
+    world rotation ``M·W[other j]·M·C[j]`` putting every child bone of j where the mirror of
+    the other side's bone is: ``C[j]·d = M·d'`` for each child offset ``d`` and its mirror
+    child's ``d'`` (and the End Sites). Identity on a rig whose left and right local frames are
+    mirror images (CMU, Mixamo, Xia…); on rigs with the joint orientations baked in (Rokoko:
+    every bone along its local +x on both sides) a Kabsch fit over the children, or with one
+    child the rotation closest to ``M·S`` (``S`` the reflection across the lateral direction
+    in the other joint's frame at ``world0``, its world orientations at frame 0) that puts the
+    bone in place. Returns the corrections and whether they are used: identity, False when every
+    bone is within :data:`SYMMETRIC_DEG` of its mirror image."""
+    n = sk.n_joints
+    m = np.ones(3)
+    m[a] = -1.0
+    off = np.asarray(sk.offset, dtype=float)
+    end = np.asarray(sk.end_site, dtype=float)
+    children: list[list[int]] = [[] for _ in range(n)]
+    for c in range(1, n):
+        children[int(sk.parent[c])].append(c)
+    scale = float(np.abs(off).max()) or 1.0
+    corr = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+    mat = np.diag(m)
+    e = np.eye(3)[a]
+    worst = 0.0
+    for j in range(n):
+        o = int(other[j])
+        src, dst = [], []
+        for c in children[j]:
+            src.append(off[c])
+            dst.append(m * off[int(other[c])])
+        if np.isfinite(end[j]).all() and np.isfinite(end[o]).all():
+            src.append(end[j])
+            dst.append(m * end[o])
+        src_a, dst_a = np.array(src).reshape(-1, 3), np.array(dst).reshape(-1, 3)
+        keep = np.linalg.norm(src_a, axis=1) > 1e-9 * scale
+        src_a, dst_a = src_a[keep], dst_a[keep]
+        if not len(src_a) or np.abs(src_a - dst_a).max() <= 1e-9 * scale:
+            continue
+        cos = (
+            np.sum(src_a * dst_a, 1) / np.linalg.norm(src_a, axis=1) / np.linalg.norm(dst_a, axis=1)
+        )
+        worst = max(worst, float(np.degrees(np.arccos(np.clip(cos.min(), -1.0, 1.0)))))
+        h = src_a.T @ dst_a
+        u_, s_, vt = np.linalg.svd(h)
+        if s_[1] > 1e-6 * s_[0]:  # two or more independent bones: the fit fixes the twist
+            dd = np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u_.T)) or 1.0])
+            r = vt.T @ dd @ u_.T
+        else:  # one bone direction: closest to the frame's own mirror, then onto the bone
+            nl = tf.quat_rotate(tf.quat_conjugate(world0[o]), e)
+            k0 = mat @ (np.eye(3) - 2.0 * np.outer(nl, nl))
+            w = src_a[0] / np.linalg.norm(src_a[0])
+            if float(w @ dst_a[0]) > 0.0:
+                k0 = np.eye(3)
+            r = _rotation_between(k0 @ w, dst_a[0] / np.linalg.norm(dst_a[0])) @ k0
+        corr[j] = tf.matrix_to_quat(r)
+    if worst <= SYMMETRIC_DEG:  # a captured rig's own asymmetry: mirror the angles as they are
+        return np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)), False
+    return corr, True
 
 
 def mirror(motion: Motion, axis: int | None = None) -> Motion:
     """Swap left and right (see the module docstring); ``axis`` the lateral axis (0, 1, 2),
-    found from the rest pose when None."""
+    found from the rest pose when None (from the animated pose when the rest pose is not
+    left/right symmetric, e.g. Rokoko's all-along-x rest; never the up axis)."""
     sk = motion.skeleton
     pairs = nm.left_right_pairs(sk.names)
     if not pairs:
@@ -292,17 +381,46 @@ def mirror(motion: Motion, axis: int | None = None) -> Motion:
             f"mirror needs left/right joint names (Left…/Right…, ….L/….R, …_l/…_r);"
             f" the skeleton has none ({', '.join(sk.names[:4])}, …)"
         )
-    a = _lateral_axis(sk, pairs) if axis is None else int(axis)
     other = np.arange(sk.n_joints)
     for i, j in pairs:
         other[i], other[j] = j, i
+    world0 = np.empty((1, sk.n_joints, 4))  # world orientations of frame 0
+    fk_positions(
+        ro(sk.rest_rotation),
+        ro(np.ascontiguousarray(motion.rotation[:1])),
+        ro(sk.offset[None]),
+        ro_int(sk.parent),
+        np.empty((1, sk.n_joints, 3)),
+        world0,
+    )
+    world0 = world0[0]
+    if axis is None:
+        a = _lateral_axis(sk, pairs)
+        corr, use_corr = _mirror_corrections(sk, other, a, world0)
+        up = {"x": 0, "y": 1, "z": 2}.get(str(motion.meta.get("up_guess") or "y").lower(), 1)
+        if use_corr or a == up:  # rest pose not symmetric: the lateral axis of the motion
+            step = max(1, motion.n_frames // 64)
+            pos = np.array(motion.world_positions()[::step])
+            pos[..., up] = 0.0
+            a = _lateral_axis(sk, pairs, pos)
+            corr, use_corr = _mirror_corrections(sk, other, a, world0)
+    else:
+        a = int(axis)
+        corr, use_corr = _mirror_corrections(sk, other, a, world0)
     sign = -np.ones(4)
     sign[a] = 1.0
     sign[3] = 1.0
     rot = np.empty(motion.rotation.shape)
     # per frame: world rotations (FK), the mirror joint's reflected, back to local poses
     mirror_rotations(
-        ro(sk.rest_rotation), ro(motion.rotation), ro_int(sk.parent), ro_int(other), ro(sign), rot
+        ro(sk.rest_rotation),
+        ro(motion.rotation),
+        ro_int(sk.parent),
+        ro_int(other),
+        ro(sign),
+        ro(corr),
+        use_corr,
+        rot,
     )
     pos = np.array(motion.root_position)
     pos[:, a] = -pos[:, a]
@@ -310,6 +428,9 @@ def mirror(motion: Motion, axis: int | None = None) -> Motion:
     if motion.joint_translation is not None:
         jt = np.array(motion.joint_translation[:, other])
         jt[..., a] = -jt[..., a]
+        if use_corr:  # local translations in the corrected parent frames: C[parent]⁻¹·M·t
+            par = np.maximum(np.asarray(sk.parent), 0)
+            jt = tf.quat_rotate(tf.quat_conjugate(corr[par])[None], jt)
         jt[:, 0] = pos
     meta = dict(motion.meta)
     meta["history"] = [*meta.get("history", []), f"mirror axis={'xyz'[a]}"]
