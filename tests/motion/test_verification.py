@@ -43,3 +43,48 @@ def test_mirror_rokoko_rig_reflects_positions(rokoko):
     s0 = foot_skate(m)["skate_per_body_scale"]
     assert foot_skate(out)["skate_per_body_scale"] < s0 * 1.01
     assert np.abs(mirror(out).world_positions() - p0).max() < 1e-9 * hip
+
+
+def _foot_min(m):
+    from biomorph.motion.contact import foot_floor
+
+    return foot_floor(m)
+
+
+def _hip(m, up=1):
+    return float(np.median(m.world_positions()[:, 0, up])) - _foot_min(m)
+
+
+def test_lock_keeps_the_floor_fair1_jumping():
+    # was: a held ankle nearer its held toe than the foot's length turned the toe down past
+    # its place, 5.5 % of the hip height through the floor (equalize, edit, blend, mirror)
+    from biomorph.core.motion import to_y_up
+    from biomorph.motion.contact import lock_feet
+
+    m = to_y_up(_read("ad_fair1_jumping.bvh"), "z")
+    floor, hip = _foot_min(m), _hip(m)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert _foot_min(lock_feet(m)) > floor - 1e-3 * hip
+        assert _foot_min(lock_feet(mirror(m))) > floor - 1e-3 * hip
+
+
+def test_cli_mirror_and_speed_keep_the_input_floor(tmp_path):
+    # cmu_01_01's legs differ left/right, so its mirror image stood 1.8 % of the hip height
+    # lower; the zombie's speed curve 8 %: the CLI locks against the input's lowest foot
+    from biomorph.cli import run
+
+    for name, args in (
+        ("cmu_01_01.bvh", ["mirror"]),
+        ("ad_fair1_zombie_walk.bvh", ["speed", "--speed", "0:1,300:1.5,599:1", "--up", "z"]),
+    ):
+        src = shared_file("motion", name)
+        out = tmp_path / f"{name}.bvh"
+        assert run(["motion", args[0], str(src), *args[1:], "-o", str(out)]) == 0
+        m0 = _read(name)
+        if name.startswith("ad_fair1"):
+            from biomorph.core.motion import to_y_up
+
+            m0 = to_y_up(m0, "z")
+        m1 = read_bvh(out)
+        assert _foot_min(m1) > _foot_min(m0) - 2e-3 * _hip(m0)

@@ -168,7 +168,7 @@ def apply_step(mo: Motion, step: Step) -> Motion:
 def apply_chain(mo: Motion, steps: list[Step], lock_feet: bool = True) -> Motion:
     """Every step in order; planted feet locked after each (against the step's input when
     the step keeps the timing, else on its own output)."""
-    from biomorph.motion.contact import ContactWarning
+    from biomorph.motion.contact import ContactWarning, foot_floor
     from biomorph.motion.contact import lock_feet as lock
 
     for step in steps:
@@ -176,7 +176,8 @@ def apply_chain(mo: Motion, steps: list[Step], lock_feet: bool = True) -> Motion
         if lock_feet and step.name != "extract-root":
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ContactWarning)
-                out = lock(out, mo if step.name in _TIMING_KEPT else None)
+                floor = foot_floor(mo) if out.names == mo.names else None
+                out = lock(out, mo if step.name in _TIMING_KEPT else None, floor=floor)
         mo = out
     return mo
 

@@ -86,9 +86,11 @@ def _finish(
     lock: bool = True,
     euler: str = "wrap",
     preview: Path | None = None,
+    ground=(),
 ):
-    """Lock planted feet (against ``reference`` when it shares the timing), write, and
-    render the preview (checked before anything is written)."""
+    """Lock planted feet (against ``reference`` when it shares the timing; no foot below
+    the lowest foot of the ``ground`` inputs with the same skeleton), write, and render the
+    preview (checked before anything is written)."""
     import shutil
     import warnings
 
@@ -104,11 +106,17 @@ def _finish(
                 "install ffmpeg); write a .gif instead"
             )
     if lock:
-        from biomorph.motion.contact import ContactWarning, lock_feet  # numba: only to lock
+        from biomorph.motion.contact import (  # numba: only to lock
+            ContactWarning,
+            foot_floor,
+            lock_feet,
+        )
 
+        floors = [foot_floor(g) for g in ground if g.names == mo.names]
+        floor = min((f for f in floors if f is not None), default=None)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ContactWarning)
-            mo = lock_feet(mo, reference)
+            mo = lock_feet(mo, reference, floor=floor)
         for w in caught:
             err_console.print(f"warning: {w.message}", markup=False, highlight=False)
     _write(path, mo, euler)
@@ -452,7 +460,7 @@ def blend(
     if joint is not None:
         mo = merge_below(clips[0], mo, joint)
         ref = clips[0]
-    mo = _finish(output, mo, ref, lock_feet, euler, preview)
+    mo = _finish(output, mo, ref, lock_feet, euler, preview, clips)
     _emit(_summary(mo, output, t0, offsets=mo.meta["blend"]["offsets"]), as_json)
 
 
@@ -516,7 +524,7 @@ def speed(
     if joint is not None:
         mo = merge_below(src, mo, joint)
         ref = src
-    mo = _finish(output, mo, ref, lock_feet, euler, preview)
+    mo = _finish(output, mo, ref, lock_feet, euler, preview, [src])
     _emit(_summary(mo, output, t0, frames_in=src.n_frames), as_json)
 
 
@@ -589,7 +597,7 @@ def cycle(
         out = merge_below(mo, out, joint)
         out.meta["cycle"] = info
         ref = mo
-    out = _finish(output, out, ref, lock_feet and mode != "root-motion", euler, preview)
+    out = _finish(output, out, ref, lock_feet and mode != "root-motion", euler, preview, [mo])
     _emit(
         _summary(
             out,
@@ -722,8 +730,9 @@ def mirror(
 
     _check_out(output)
     t0 = time.perf_counter()
-    out = mi(_read(path, up, strict))
-    out = _finish(output, out, None, lock_feet, euler, preview)
+    src = _read(path, up, strict)
+    out = mi(src)
+    out = _finish(output, out, None, lock_feet, euler, preview, [src])
     _emit(_summary(out, output, t0), as_json)
 
 

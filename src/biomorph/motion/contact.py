@@ -644,14 +644,16 @@ def two_bone_ik(
 
 
 @njit(cache=True)
-def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot):  # noqa: PLR0913 # pragma: no cover
+def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot, ui, floor):  # noqa: PLR0913 # pragma: no cover
     """Solve one leg on the frames ``act`` and write the new local rotations of its hip,
     knee and ankle into ``rot (f, n, 4)``. ``P``/``Q``: chain world positions/orientations;
     ``leg`` = chain columns of (hip's parent, hip, knee, ankle, toe or -1); ``joints`` =
     skeleton indices of (hip, knee, ankle); ``goal`` the ankle target; ``tt``/``wt`` the toe's
     held place and weight (the foot turns toward it where ``wt > 0``); ``ws`` the solve's
-    weight per frame and ``soft`` the soft-IK band (:func:`_ik_frame`)."""
+    weight per frame and ``soft`` the soft-IK band (:func:`_ik_frame`); ``ui`` the up axis
+    and ``floor`` the height no turned toe goes below."""
     cp, ch, ck, ca, ct = leg[0], leg[1], leg[2], leg[3], leg[4]
+    gv = np.empty(3)
     jh, jk, ja = joints[0], joints[1], joints[2]
     r_hip = np.empty(4)
     r_knee = np.empty(4)
@@ -683,7 +685,21 @@ def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot):  # noq
             pt, pa, g, wk = P[t, ct], P[t, ca], goal[t], wt[t]
             c0, c1, c2 = _unit3(pt[0] - pa[0], pt[1] - pa[1], pt[2] - pa[2])
             g0, g1, g2 = _unit3(tt[t, 0] - g[0], tt[t, 1] - g[1], tt[t, 2] - g[2])
-            g0, g1, g2 = _unit3(c0 + wk * (g0 - c0), c1 + wk * (g1 - c1), c2 + wk * (g2 - c2))
+            gv[0], gv[1], gv[2] = _unit3(
+                c0 + wk * (g0 - c0), c1 + wk * (g1 - c1), c2 + wk * (g2 - c2)
+            )
+            # not through the floor: a held ankle nearer to the held toe than the foot's length
+            # puts the toe past it along the line (fair1 jumping: 5.5 % of the hip height
+            # below the floor); there the foot turns only as far down as the floor
+            foot = math.sqrt((pt[0] - pa[0]) ** 2 + (pt[1] - pa[1]) ** 2 + (pt[2] - pa[2]) ** 2)
+            if foot > 0 and g[ui] + foot * gv[ui] < floor:
+                gy = min(1.0, max(-1.0, (floor - g[ui]) / foot))
+                hn = math.sqrt(max(0.0, 1.0 - gv[ui] * gv[ui]))
+                if hn > 1e-9:
+                    sc = math.sqrt(1.0 - gy * gy) / hn
+                    gv[0], gv[1], gv[2] = gv[0] * sc, gv[1] * sc, gv[2] * sc
+                    gv[ui] = gy
+            g0, g1, g2 = gv[0], gv[1], gv[2]
             ax, ay, az, aw = _arc3(c0, c1, c2, g0, g1, g2)
             fx, fy, fz, fw = _qmul(ax, ay, az, aw, fx, fy, fz, fw)
         x, y, z, w = _qmul(-kx, -ky, -kz, kw, fx, fy, fz, fw)
@@ -721,22 +737,28 @@ def _clearance(
     return lift
 
 
-def _leg_goals(
+def _leg_goals(  # noqa: PLR0913
     lg: Leg, col: dict[int, int], pos: Array, w_ref: Array, contacts, blend: int, ui: int,
-    follow: bool, lift: Array | None = None, swing: float = 0.0,
+    follow: bool, lift: Array | None = None, swing: float = 0.0, floor: float | None = None,
 ) -> tuple[Array, Array, Array, Array, NDArray[np.int64]] | None:  # fmt: skip
     """Ankle goal per frame, the toe's held place and weight, the soft-IK weight and the
     frames to solve (``None`` when there is nothing to do). ``lift``: the clearance kept
     from a reference (:func:`_clearance`), applied outside the contacts (faded by the
-    contact weight)."""
+    contact weight). ``floor``: no ankle or toe ends below this height — where one would
+    (a held ankle whose foot is tipped toe-down, an operator's pose below the input's
+    lowest foot), the ankle goal rises by the difference (the foot keeps its orientation,
+    so the toe rises with it)."""
     f = pos.shape[0]
     none = np.zeros(f, bool)
     on_a = contacts.get(lg.ankle, none)
     on_t = contacts.get(lg.toe, none) if lg.toe >= 0 else none
     lifted = lift is not None and bool((lift > 0).any())
-    if not (on_a.any() or on_t.any() or lifted):
-        return None
     ca = col[lg.ankle]
+    below = floor is not None and bool(
+        (pos[:, ca, ui] < floor).any() or (lg.toe >= 0 and (pos[:, col[lg.toe], ui] < floor).any())
+    )
+    if not (on_a.any() or on_t.any() or lifted or below):
+        return None
     # the ankle target: the held ankle while the ankle is planted; where the toe is planted
     # too, the held ankle gives way to "the held toe minus the toe's current offset from the
     # ankle" (heel off) continuously — as the ankle's fade-out goes and as the held ankle
@@ -766,6 +788,17 @@ def _leg_goals(
         raise_ = up > goal[:, ui]
         goal[raise_, ui] = up[raise_]
         w = np.where(raise_, 1.0, w)
+    if floor is not None:  # nothing through the floor: the ankle, and the toe carried by it
+        drop = np.zeros(f)
+        if lg.toe >= 0:  # the toe below the ankle (kept where the foot is not turned to it)
+            drop = np.minimum(pos[:, col[lg.toe], ui] - pos[:, ca, ui], 0.0) * (1.0 - wt)
+        need = floor - (goal[:, ui] + drop)
+        if lg.toe >= 0:  # a turned foot puts the toe on its held place, at most this low
+            need = np.maximum(need, np.where(wt > 0, floor - tt[:, ui], -np.inf))
+        under = need > 0
+        if under.any():
+            goal[under, ui] += need[under]
+            w = np.where(under, 1.0, w)
     act = np.flatnonzero(w > 0).astype(np.int64)
     return goal, tt, wt, w_soft, act
 
@@ -790,15 +823,34 @@ def _reference(motion: Motion, reference: Motion | None) -> Motion:
     return motion
 
 
+def foot_floor(motion: Motion, up: str | None = None) -> float | None:
+    """The lowest height any foot point (ankle or toe) reaches in ``motion`` (``None`` when
+    the skeleton has no legs): the floor :func:`lock_feet` keeps."""
+    legs = find_legs(motion)
+    if not legs:
+        return None
+    ui = _UP[(up or motion.meta.get("up_guess") or guess_up_axis(motion)).lower()]
+    chain = _leg_chain(motion, legs)
+    col = {int(j): c for c, j in enumerate(chain)}
+    pos = _chain_fk(motion, chain)[0]
+    return float(pos[:, [col[j] for j in _contact_points(legs)], ui].min())
+
+
 def lock_feet(
-    motion: Motion, reference: Motion | None = None, options: ContactOptions | None = None
+    motion: Motion,
+    reference: Motion | None = None,
+    options: ContactOptions | None = None,
+    floor: float | None = None,
 ) -> Motion:
     """``motion`` with planted feet held in place (see the module docstring).
 
     Contacts and their held positions come from ``reference`` when given (same frame count
     and joints: the input of an operator that keeps timing, so an edit cannot lift or slide
-    the feet), else from ``motion`` itself. Returns ``motion`` unchanged when the skeleton has
-    no legs or locking is disabled."""
+    the feet), else from ``motion`` itself. No ankle or toe ends below ``floor`` — by default
+    the lowest foot point of the reference (or of ``motion``); pass the input's
+    (:func:`foot_floor`) after an operator that changes the timing or the sides (speed,
+    blend, cycle, mirror). Returns ``motion`` unchanged when the skeleton has no legs or
+    locking is disabled."""
     o = options or ContactOptions()
     legs = find_legs(motion)
     if not o.enabled or not legs or motion.n_frames < 2:
@@ -813,6 +865,8 @@ def lock_feet(
     contacts = _detect(w_ref, col, legs, motion.fps, opts, ui)
     blend = max(1, round(o.blend_s * motion.fps))
     follow = o.mode == "follow"
+    if floor is None:
+        floor = float(w_ref[:, [col[j] for j in _contact_points(legs)], ui].min())
     goals = []
     for lg in legs:
         lift = None
@@ -820,7 +874,9 @@ def lock_feet(
             foot = float(np.linalg.norm(motion.skeleton.offset[lg.toe]))
             lift = _clearance(lg, col, pos, w_ref, ui, foot)
         goals.append(
-            _leg_goals(lg, col, pos, w_ref, contacts, blend, ui, follow, lift, float(o.swing))
+            _leg_goals(
+                lg, col, pos, w_ref, contacts, blend, ui, follow, lift, float(o.swing), floor
+            )
         )
     rot = np.array(motion.rotation, dtype=np.float64)
     rest = np.ascontiguousarray(motion.skeleton.rest_rotation, dtype=np.float64)
@@ -837,7 +893,7 @@ def lock_feet(
         )
         joints = np.array([lg.hip, lg.knee, lg.ankle], dtype=np.int64)
         clamped += _lock_leg(
-            pos, wq, cols, goal, act, tt, wt, w_soft, float(o.soft), rest, joints, rot
+            pos, wq, cols, goal, act, tt, wt, w_soft, float(o.soft), rest, joints, rot, ui, floor
         )
     if clamped:
         warnings.warn(
@@ -861,4 +917,5 @@ __all__ = [
     "detect_contacts",
     "two_bone_ik",
     "lock_feet",
+    "foot_floor",
 ]
