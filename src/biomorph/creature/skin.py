@@ -45,7 +45,7 @@ SMOOTH = 0.9
 #: section's radius
 GIRDLE_FILL = 0.85
 #: tissue over the shoulder blade's faces (share of its length; the plate is 0.1 thick)
-BLADE_TISSUE = 0.08
+BLADE_TISSUE = 0.09
 #: the head's skin at the snout tip as a share of its width at the braincase
 SNOUT = {"bird": 0.3, "mammal": 0.6, "reptile": 0.5, "amphibian": 0.6, "fish": 0.5}
 
@@ -137,10 +137,13 @@ def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray
         if fr is None:
             continue
         frame, d_pt, ls = fr
-        glen = d_pt + frame[:, 1] * ls
-        for share in (-0.9, 0.0, 0.9):
+        # from just above the dorsal border's corners to just past the glenoid's rim (the
+        # smoothing rounds a thin capsule's ends off)
+        top = d_pt - frame[:, 1] * (0.05 * ls)
+        glen = d_pt + frame[:, 1] * (1.05 * ls)
+        for share in (-0.95, 0.0, 0.95):
             across = share * 0.5 * SCAPULA_WIDTH * ls * frame[:, 0]
-            a_s.append((d_pt + across)[None])
+            a_s.append((top + across)[None])
             b_s.append((glen + 0.3 * across)[None])
             ra_s.append(np.array([BLADE_TISSUE * ls]))
             rb_s.append(np.array([BLADE_TISSUE * ls]))
