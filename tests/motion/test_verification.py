@@ -88,3 +88,22 @@ def test_cli_mirror_and_speed_keep_the_input_floor(tmp_path):
             m0 = to_y_up(m0, "z")
         m1 = read_bvh(out)
         assert _foot_min(m1) > _foot_min(m0) - 2e-3 * _hip(m0)
+
+
+def test_skate_body_scale_from_the_pelvis_on_a_ground_root(tmp_path):
+    # was: the body scale was the root's height, 0 for root motion's ground-level root, so
+    # `cycle --mode root-motion` outputs measured 4-34 body scales/s
+    from biomorph.io.bvh import write_bvh
+    from biomorph.motion.rootmotion import extract_root_motion
+
+    m = _read("xia_neutral_01_000_walk.bvh")
+    rm = extract_root_motion(m, "y")
+    a, b = foot_skate(m), foot_skate(rm)
+    assert b["body_scale"] == pytest.approx(a["body_scale"], rel=1e-9)
+    assert b["skate_per_body_scale"] == pytest.approx(a["skate_per_body_scale"], rel=1e-6)
+    p = tmp_path / "rm.bvh"
+    write_bvh(p, rm)
+    back = read_bvh(p)  # the up axis is guessed from the hips, not the ground root
+    assert back.meta["up_guess"] == "y"
+    zombie = _read("ad_fair1_zombie_walk.bvh")  # a Z-up capture stays Z-up
+    assert zombie.meta["up_guess"] == "z"

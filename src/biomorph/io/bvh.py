@@ -655,6 +655,28 @@ def _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols
     return conv.result()
 
 
+def _guess_up(mo, guess_up_axis) -> str:
+    """``guess_up_axis`` of the clip, measured from the pelvis when the root is a single-child
+    joint above it (a ground-level ``root`` of root motion stands *on* the floor, so the
+    root-above-feet rule read a Y-up root-motion walk as Z-up)."""
+    parent = np.asarray(mo.skeleton.parent)
+    j = 0
+    while True:
+        kids = np.flatnonzero(parent == j)
+        if len(kids) != 1:
+            break
+        j = int(kids[0])
+    if j == 0 or len(np.flatnonzero(parent == j)) == 0:
+        return str(guess_up_axis(mo))
+    names = [s.lower() for s in mo.names]
+    feet = [i for i, s in enumerate(names) if any(k in s for k in ("foot", "toe", "ankle"))]
+    if not feet:
+        feet = list(np.setdiff1d(np.arange(mo.n_joints), parent))
+    pos = mo.world_positions(slice(None, None, max(1, mo.n_frames // 200)))
+    d = np.abs(pos[:, j, :] - pos[:, feet, :].mean(axis=1)).mean(axis=0)
+    return "z" if d[2] > 1.2 * d[1] and d[2] > d[0] else "y"
+
+
 def read_bvh(path: str | os.PathLike[str], up: str | None = None, strict: bool = False):
     """Read a BVH file into a :class:`biomorph.motion.Motion` (see the module docstring).
 
@@ -791,7 +813,7 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None, strict: bool =
         if arr is not None:
             arr.setflags(write=False)
     mo = Motion(skel, rotation, root_pos, frame_time, translation, meta)
-    mo.meta["up_guess"] = guess_up_axis(mo)
+    mo.meta["up_guess"] = _guess_up(mo, guess_up_axis)
     if up is not None:
         from biomorph.core.motion import to_y_up
 

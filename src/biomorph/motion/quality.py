@@ -6,9 +6,12 @@ Foot skate (stated ground-height rule)
 Feet are the joints whose name contains ``foot``, ``toe`` or ``ankle`` (else the leaf
 joints). Heights are measured along the up axis (``"y"``, or the axis detected for Z-up
 files). The **ground height** is the 2nd percentile of all foot-joint heights over the clip
-(robust to a few glitches); the **body scale** ``L`` is the median root height above that
-ground. A foot joint is **in contact** on a frame when its height is below
-``ground + 0.08·L`` (8 % of hip height). **Skate** is the mean horizontal speed of foot
+(robust to a few glitches); the **body scale** ``L`` is the median height above that ground
+of the pelvis — the nearest joint above every foot joint (the root on most rigs; the hips
+under a ground-level ``root`` of root motion, whose own height is 0), or the leg's length
+(pelvis → foot along the skeleton) when the pelvis does not stand above the ground. A foot
+joint is **in contact** on a frame when its height is below ``ground + 0.08·L`` (8 % of hip
+height). **Skate** is the mean horizontal speed of foot
 joints over their contact frames, reported in units/s and as ``L``/s (body-scale free).
 A clean capture has feet that stand still on the ground: skate near zero.
 
@@ -68,6 +71,35 @@ def _preset_feet(motion: Motion) -> list[int]:
     return sorted(idx[k] for k in ("l_foot", "l_toe", "r_foot", "r_toe") if k in idx)
 
 
+def _ancestors(parent: np.ndarray, j: int) -> list[int]:
+    out = [j]
+    while parent[out[-1]] >= 0:
+        out.append(int(parent[out[-1]]))
+    return out
+
+
+def _pelvis(motion: Motion, feet: list[int]) -> int:
+    """The nearest joint that is an ancestor of every foot joint (the root when none)."""
+    parent = np.asarray(motion.skeleton.parent)
+    common = set(_ancestors(parent, feet[0]))
+    for f in feet[1:]:
+        common &= set(_ancestors(parent, f))
+    chain = [j for j in _ancestors(parent, feet[0]) if j in common and j not in feet]
+    return chain[0] if chain else 0
+
+
+def _leg_length(motion: Motion, pelvis: int, feet: list[int]) -> float:
+    """Longest pelvis → foot path along the rest offsets."""
+    parent = np.asarray(motion.skeleton.parent)
+    off = np.linalg.norm(np.asarray(motion.skeleton.offset, dtype=float), axis=-1)
+    best = 0.0
+    for f in feet:
+        chain = _ancestors(parent, f)
+        if pelvis in chain:
+            best = max(best, float(off[chain[: chain.index(pelvis)]].sum()))
+    return best
+
+
 def foot_skate(motion: Motion, up: str | None = None) -> dict[str, Any]:
     """Foot-skate measure (see module docstring)."""
     up = up or motion.meta.get("up_guess") or guess_up_axis(motion)
@@ -81,8 +113,10 @@ def foot_skate(motion: Motion, up: str | None = None) -> dict[str, Any]:
     w = motion.world_positions()
     h = w[:, feet, ui]
     ground = float(np.percentile(h, 2))
-    scale = float(np.median(w[:, 0, ui] - ground))
-    scale = scale if scale > 0 else float(np.ptp(w[..., ui]) or 1.0)
+    pelvis = _pelvis(motion, feet)
+    scale = float(np.median(w[:, pelvis, ui] - ground))
+    if scale <= 0:
+        scale = _leg_length(motion, pelvis, feet) or float(np.ptp(w[..., ui]) or 1.0)
     contact = h < ground + 0.08 * scale
     horiz = [a for a in range(3) if a != ui]
     v = (
