@@ -107,3 +107,32 @@ def test_skate_body_scale_from_the_pelvis_on_a_ground_root(tmp_path):
     assert back.meta["up_guess"] == "y"
     zombie = _read("ad_fair1_zombie_walk.bvh")  # a Z-up capture stays Z-up
     assert zombie.meta["up_guess"] == "z"
+
+
+def test_in_place_cycle_locks_the_travelling_feet():
+    # was: the in-place loop was locked after the travel was removed, holding the feet
+    # against the drift (Xia run: skate 1.40 -> 2.32, feet 3-7 % of hip height under)
+    from biomorph.motion.contact import foot_floor, lock_feet
+    from biomorph.motion.cycle import best_loop, make_cycle
+    from biomorph.motion.rootmotion import remove_drift
+
+    m = _read("xia_angry_13_000_run.bvh")
+    s, e, _ = best_loop(m, 30, None, 12)
+    floor = foot_floor(m)
+
+    def lock(c):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return lock_feet(c, floor=floor)
+
+    world = make_cycle(m, s, e, 12, 3, mode="world", lock=lock)
+    ip = make_cycle(m, s, e, 12, 3, mode="in-place", lock=lock)
+    d, p = ip.meta["cycle"]["drift"], ip.meta["cycle"]["period"]
+    back = remove_drift(ip, d["translation"], d["yaw"], p, restore=True)
+    assert np.abs(back.world_positions() - world.world_positions()).max() < 1e-6
+    sk = foot_skate(back)["skate_per_body_scale"]
+    assert sk <= foot_skate(m)["skate_per_body_scale"]
+    hip = foot_skate(m)["body_scale"]
+    assert foot_floor(ip) > floor - 1e-3 * hip
+    step = np.linalg.norm(np.diff(ip.root_position, axis=0), axis=1)
+    assert step.max() < 0.2 * hip  # no teleport at the seams

@@ -79,6 +79,28 @@ def _read(path: Path, up: str | None = None, strict: bool | None = None):
     return mo
 
 
+def _lock(mo, reference=None, ground=()):
+    """Lock planted feet (against ``reference`` when it shares the timing; no foot below the
+    lowest foot of the ``ground`` inputs with the same skeleton), one warning line each."""
+    import warnings
+
+    from biomorph._cli import err_console
+    from biomorph.motion.contact import (  # numba: only to lock
+        ContactWarning,
+        foot_floor,
+        lock_feet,
+    )
+
+    floors = [foot_floor(g) for g in ground if g.names == mo.names]
+    floor = min((f for f in floors if f is not None), default=None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ContactWarning)
+        mo = lock_feet(mo, reference, floor=floor)
+    for w in caught:
+        err_console.print(f"warning: {w.message}", markup=False, highlight=False)
+    return mo
+
+
 def _finish(
     path: Path,
     mo,
@@ -92,9 +114,8 @@ def _finish(
     the lowest foot of the ``ground`` inputs with the same skeleton), write, and render the
     preview (checked before anything is written)."""
     import shutil
-    import warnings
 
-    from biomorph._cli import check_suffix, err_console
+    from biomorph._cli import check_suffix
 
     if euler not in ("wrap", "continuous"):
         raise ParameterError(f"--euler {euler!r}; expected wrap or continuous")
@@ -106,19 +127,7 @@ def _finish(
                 "install ffmpeg); write a .gif instead"
             )
     if lock:
-        from biomorph.motion.contact import (  # numba: only to lock
-            ContactWarning,
-            foot_floor,
-            lock_feet,
-        )
-
-        floors = [foot_floor(g) for g in ground if g.names == mo.names]
-        floor = min((f for f in floors if f is not None), default=None)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ContactWarning)
-            mo = lock_feet(mo, reference, floor=floor)
-        for w in caught:
-            err_console.print(f"warning: {w.message}", markup=False, highlight=False)
+        mo = _lock(mo, reference, ground)
     _write(path, mo, euler)
     if preview is not None:
         from biomorph.motion.preview import render_preview
@@ -586,8 +595,16 @@ def cycle(
     s = 0 if start is None else start
     e = mo.n_frames if stop is None else stop
     up_axis = (up and "y") or mo.meta.get("up_guess") or "y"
+    whole = joint is None and lock_feet  # lock the world-space cycle before in-place / root
     out = make_cycle(
-        mo, s, e, transition, cycles, up=up_axis, mode="in-place" if no_offset else mode
+        mo,
+        s,
+        e,
+        transition,
+        cycles,
+        up=up_axis,
+        mode="in-place" if no_offset else mode,
+        lock=(lambda c: _lock(c, None, [mo])) if whole else None,
     )
     ref = None
     if joint is not None:
@@ -597,7 +614,8 @@ def cycle(
         out = merge_below(mo, out, joint)
         out.meta["cycle"] = info
         ref = mo
-    out = _finish(output, out, ref, lock_feet and mode != "root-motion", euler, preview, [mo])
+    locked_here = lock_feet and not whole and mode != "root-motion"
+    out = _finish(output, out, ref, locked_here, euler, preview, [mo])
     _emit(
         _summary(
             out,
@@ -608,6 +626,7 @@ def cycle(
             period=out.meta["cycle"]["period"],
             mode=out.meta["cycle"]["mode"],
             loop_cost=cost,
+            **({"drift": out.meta["cycle"]["drift"]} if "drift" in out.meta["cycle"] else {}),
         ),
         as_json,
     )

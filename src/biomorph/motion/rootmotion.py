@@ -56,11 +56,18 @@ def in_place(motion: Motion, up: str = "y", with_heading: bool = True) -> Motion
 
 
 def remove_drift(
-    motion: Motion, translation: ArrayLike, yaw: float, period: float, up: str = "y"
+    motion: Motion,
+    translation: ArrayLike,
+    yaw: float,
+    period: float,
+    up: str = "y",
+    restore: bool = False,
 ) -> Motion:
     """Subtract a steady travel of ``translation`` (horizontal) and ``yaw`` (rad) per
     ``period`` frames, growing linearly from frame 0 (frame ``k`` is moved back by
-    ``k / period`` of it)."""
+    ``k / period`` of it). ``restore=True`` adds it back exactly (the world path of an
+    in-place loop, from the ``drift`` that ``make_cycle``'s ``meta["cycle"]`` and ``cycle
+    --json`` report)."""
     if not (np.isfinite(period) and period > 0):
         raise ParameterError(f"period {period}; expected a positive number of frames")
     ui = _up_index(up)
@@ -72,6 +79,9 @@ def remove_drift(
     c0[ui] = 0.0
     shift = -k[:, None] * tf.quat_rotate(q, np.broadcast_to(t, (k.size, 3)))
     trans = c0 - tf.quat_rotate(q, np.broadcast_to(c0, (k.size, 3))) + shift
+    if restore:  # the inverse map, x -> q⁻¹ (x - trans), about the same start point
+        qi = tf.quat_conjugate(q)
+        return transform_root(motion, qi, -tf.quat_rotate(qi, trans))
     return transform_root(motion, q, trans)
 
 
