@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -102,8 +103,9 @@ def _floats(step: Step, key: str) -> list[float] | None:
     return vals
 
 
-def apply_step(mo: Motion, step: Step) -> Motion:
-    """One operator (module docstring) on ``mo``."""
+def apply_step(mo: Motion, step: Step, lock: Callable[[Motion], Motion] | None = None) -> Motion:
+    """One operator (module docstring) on ``mo``; ``lock`` is handed to ``make_cycle`` (the
+    world-space cycle is locked before an in-place / root-motion conversion)."""
     import biomorph.motion as bm
     from biomorph.motion import rootmotion as rm
     from biomorph.motion.retarget import mirror, retarget
@@ -141,6 +143,7 @@ def apply_step(mo: Motion, step: Step) -> Motion:
             _num(step, "cycles", 1, 1, 10000, True),
             up=up,
             mode=p.get("mode", "world"),
+            lock=lock,
         )
     if n == "trim":
         return mo.frames(
@@ -172,12 +175,20 @@ def apply_chain(mo: Motion, steps: list[Step], lock_feet: bool = True) -> Motion
     from biomorph.motion.contact import lock_feet as lock
 
     for step in steps:
-        out = apply_step(mo, step)
-        if lock_feet and step.name != "extract-root":
+        floor = foot_floor(mo) if lock_feet else None
+
+        def lock_cycle(c: Motion, floor: float | None = floor) -> Motion:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ContactWarning)
-                floor = foot_floor(mo) if out.names == mo.names else None
-                out = lock(out, mo if step.name in _TIMING_KEPT else None, floor=floor)
+                return lock(c, floor=floor)
+
+        cyc = lock_feet and step.name == "cycle"
+        out = apply_step(mo, step, lock_cycle if cyc else None)
+        if lock_feet and not cyc and step.name != "extract-root":
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ContactWarning)
+                fl = floor if out.names == mo.names else None
+                out = lock(out, mo if step.name in _TIMING_KEPT else None, floor=fl)
         mo = out
     return mo
 
