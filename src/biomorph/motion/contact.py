@@ -644,14 +644,15 @@ def two_bone_ik(
 
 
 @njit(cache=True)
-def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot, ui, floor):  # noqa: PLR0913 # pragma: no cover
+def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot, ui, tfloor):  # noqa: PLR0913 # pragma: no cover
     """Solve one leg on the frames ``act`` and write the new local rotations of its hip,
     knee and ankle into ``rot (f, n, 4)``. ``P``/``Q``: chain world positions/orientations;
     ``leg`` = chain columns of (hip's parent, hip, knee, ankle, toe or -1); ``joints`` =
     skeleton indices of (hip, knee, ankle); ``goal`` the ankle target; ``tt``/``wt`` the toe's
     held place and weight (the foot turns toward it where ``wt > 0``); ``ws`` the solve's
     weight per frame and ``soft`` the soft-IK band (:func:`_ik_frame`); ``ui`` the up axis
-    and ``floor`` the height no turned toe goes below."""
+    and ``tfloor`` per frame the height no turned toe goes below (the floor; outside the
+    toe's contacts, where a reference is given, also the reference toe's height)."""
     cp, ch, ck, ca, ct = leg[0], leg[1], leg[2], leg[3], leg[4]
     gv = np.empty(3)
     jh, jk, ja = joints[0], joints[1], joints[2]
@@ -692,8 +693,8 @@ def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot, ui, flo
             # puts the toe past it along the line (fair1 jumping: 5.5 % of the hip height
             # below the floor); there the foot turns only as far down as the floor
             foot = math.sqrt((pt[0] - pa[0]) ** 2 + (pt[1] - pa[1]) ** 2 + (pt[2] - pa[2]) ** 2)
-            if foot > 0 and g[ui] + foot * gv[ui] < floor:
-                gy = min(1.0, max(-1.0, (floor - g[ui]) / foot))
+            if foot > 0 and g[ui] + foot * gv[ui] < tfloor[t]:
+                gy = min(1.0, max(-1.0, (tfloor[t] - g[ui]) / foot))
                 hn = math.sqrt(max(0.0, 1.0 - gv[ui] * gv[ui]))
                 if hn > 1e-9:
                     sc = math.sqrt(1.0 - gy * gy) / hn
@@ -723,24 +724,30 @@ def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot, ui, flo
 # --------------------------------------------------------------------------- locking
 def _clearance(
     lg: Leg, col: dict[int, int], pos: Array, w_ref: Array, ui: int, foot: float
-) -> Array:
+) -> tuple[Array, Array]:
     """How far the leg's lowest point must rise (per frame, ≥ 0) so that no foot point is
     lower than the reference had it while the reference's point is within a foot's length
-    of its resting height; the rule fades out over the upper half of that band."""
+    of its resting height (the rule fades out over the upper half of that band), and the
+    toe height that rule asks for (a lower bound for a toe turned toward its held place)."""
     lift = np.zeros(pos.shape[0])
+    toe = np.full(pos.shape[0], -np.inf)
     if foot <= 0:
-        return lift
+        return lift, toe
     for j in (lg.ankle, lg.toe):
         h_ref, h = w_ref[:, col[j], ui], pos[:, col[j], ui]
         x = np.clip((np.percentile(h_ref, 2) + foot - h_ref) / (0.5 * foot), 0.0, 1.0)
-        lift = np.maximum(lift, np.maximum(h_ref - h, 0.0) * (x * x * (3.0 - 2.0 * x)))
-    return lift
+        x = x * x * (3.0 - 2.0 * x)
+        lift = np.maximum(lift, np.maximum(h_ref - h, 0.0) * x)
+        if j == lg.toe:  # the toe's own lower bound: its height, or the reference's
+            toe = h + np.maximum(h_ref - h, 0.0) * x
+    return lift, toe
 
 
 def _leg_goals(  # noqa: PLR0913
     lg: Leg, col: dict[int, int], pos: Array, w_ref: Array, contacts, blend: int, ui: int,
     follow: bool, lift: Array | None = None, swing: float = 0.0, floor: float | None = None,
-) -> tuple[Array, Array, Array, Array, NDArray[np.int64]] | None:  # fmt: skip
+    toe_clear: Array | None = None,
+) -> tuple[Array, Array, Array, Array, NDArray[np.int64], Array] | None:  # fmt: skip
     """Ankle goal per frame, the toe's held place and weight, the soft-IK weight and the
     frames to solve (``None`` when there is nothing to do). ``lift``: the clearance kept
     from a reference (:func:`_clearance`), applied outside the contacts (faded by the
@@ -784,7 +791,7 @@ def _leg_goals(  # noqa: PLR0913
     w_soft = w  # continuous: the soft-IK weight (a raise alone keeps the hard clamp)
     if lifted:
         assert lift is not None
-        up = pos[:, ca, ui] + lift * (1.0 - w)
+        up = pos[:, ca, ui] + lift * (1.0 - np.maximum(on_a, on_t))  # not faded by w
         raise_ = up > goal[:, ui]
         goal[raise_, ui] = up[raise_]
         w = np.where(raise_, 1.0, w)
@@ -800,7 +807,10 @@ def _leg_goals(  # noqa: PLR0913
             goal[under, ui] += need[under]
             w = np.where(under, 1.0, w)
     act = np.flatnonzero(w > 0).astype(np.int64)
-    return goal, tt, wt, w_soft, act
+    tfloor = np.full(f, -np.inf if floor is None else float(floor))
+    if toe_clear is not None and lg.toe >= 0:  # a turned toe keeps the reference's clearance
+        tfloor = np.maximum(tfloor, np.where(on_t, -np.inf, toe_clear))
+    return goal, tt, wt, w_soft, act, tfloor
 
 
 def _in_swing(p: Array, ui: int, swing: float) -> NDArray[np.bool_] | None:
@@ -869,13 +879,24 @@ def lock_feet(
         floor = float(w_ref[:, [col[j] for j in _contact_points(legs)], ui].min())
     goals = []
     for lg in legs:
-        lift = None
+        lift = toe_clear = None
         if ref is not motion and lg.toe >= 0:  # an operator's output: keep the input's clearance
             foot = float(np.linalg.norm(motion.skeleton.offset[lg.toe]))
-            lift = _clearance(lg, col, pos, w_ref, ui, foot)
+            lift, toe_clear = _clearance(lg, col, pos, w_ref, ui, foot)
         goals.append(
             _leg_goals(
-                lg, col, pos, w_ref, contacts, blend, ui, follow, lift, float(o.swing), floor
+                lg,
+                col,
+                pos,
+                w_ref,
+                contacts,
+                blend,
+                ui,
+                follow,
+                lift,
+                float(o.swing),
+                floor,
+                toe_clear,
             )
         )
     rot = np.array(motion.rotation, dtype=np.float64)
@@ -886,14 +907,14 @@ def lock_feet(
         g = goals[i]
         if g is None or g[3].size == 0:
             continue
-        goal, tt, wt, w_soft, act = g
+        goal, tt, wt, w_soft, act, tfl = g
         cp = col[int(par[lg.hip])] if par[lg.hip] >= 0 else -1  # -1: the hip is a root
         cols = np.array(
             [cp, col[lg.hip], col[lg.knee], col[lg.ankle], col.get(lg.toe, -1)], dtype=np.int64
         )
         joints = np.array([lg.hip, lg.knee, lg.ankle], dtype=np.int64)
         clamped += _lock_leg(
-            pos, wq, cols, goal, act, tt, wt, w_soft, float(o.soft), rest, joints, rot, ui, floor
+            pos, wq, cols, goal, act, tt, wt, w_soft, float(o.soft), rest, joints, rot, ui, tfl
         )
     if clamped:
         warnings.warn(
