@@ -155,3 +155,29 @@ def test_jumping_jacks_keep_their_hops_after_a_filter():
     s_out = foot_skate(out)["skate_per_body_scale"]
     assert s_out < foot_skate(eq)["skate_per_body_scale"]
     assert s_out < 1.05 * s_in  # 0.277 vs 0.271
+
+
+def test_up_guess_from_the_pelvis_of_a_creature_biped(tmp_path):
+    # a creature skeleton's root is the front of its spine: the root-above-feet rule read
+    # Y-up biped outputs as Z-up, so their skate was measured along the wrong axis
+    from biomorph.core.motion import Motion
+    from biomorph.io.bvh import write_bvh
+    from biomorph.motion.retarget import retarget
+
+    bip = _biped(tmp_path)
+    out = retarget(_read("cmu_01_01.bvh").frames(0, 240), bip.skeleton, feet=False)
+    p = tmp_path / "o.bvh"
+    write_bvh(p, out)
+    assert isinstance(out, Motion) and read_bvh(p).meta["up_guess"] == "y"
+
+
+def _biped(tmp_path):
+    from biomorph.cli import run
+
+    p = tmp_path / "biped.bvh"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        code = run(["creature", "generate", "--legs", "2", "--seed", "3", "-o", str(p)])
+    if code != 0:
+        pytest.skip("biomorph creature generate failed (creature pillar)")
+    return read_bvh(p)

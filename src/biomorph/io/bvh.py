@@ -656,24 +656,35 @@ def _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols
 
 
 def _guess_up(mo, guess_up_axis) -> str:
-    """``guess_up_axis`` of the clip, measured from the pelvis when the root is a single-child
-    joint above it (a ground-level ``root`` of root motion stands *on* the floor, so the
-    root-above-feet rule read a Y-up root-motion walk as Z-up)."""
+    """``guess_up_axis``'s rule (the axis along which the body stands highest above its
+    feet), measured from the pelvis — the nearest joint above every foot — instead of the
+    root: the same joint on most rigs, but a ground-level ``root`` of root motion stands *on*
+    the floor and a creature skeleton's root is the front of its spine, so the root-based
+    rule read a Y-up root-motion walk and Y-up creature bipeds as Z-up."""
     parent = np.asarray(mo.skeleton.parent)
-    j = 0
-    while True:
-        kids = np.flatnonzero(parent == j)
-        if len(kids) != 1:
-            break
-        j = int(kids[0])
-    if j == 0 or len(np.flatnonzero(parent == j)) == 0:
-        return str(guess_up_axis(mo))
     names = [s.lower() for s in mo.names]
     feet = [i for i, s in enumerate(names) if any(k in s for k in ("foot", "toe", "ankle"))]
     if not feet:
-        feet = list(np.setdiff1d(np.arange(mo.n_joints), parent))
+        from biomorph.motion.quality import _preset_feet
+
+        feet = _preset_feet(mo)
+    if not feet:
+        return str(guess_up_axis(mo))
+
+    def chain(j: int) -> list[int]:
+        out = [j]
+        while parent[out[-1]] >= 0:
+            out.append(int(parent[out[-1]]))
+        return out
+
+    common = set(chain(feet[0]))
+    for f in feet[1:]:
+        common &= set(chain(f))
+    pelvis = next((j for j in chain(feet[0]) if j in common and j not in feet), 0)
+    if pelvis == 0:
+        return str(guess_up_axis(mo))
     pos = mo.world_positions(slice(None, None, max(1, mo.n_frames // 200)))
-    d = np.abs(pos[:, j, :] - pos[:, feet, :].mean(axis=1)).mean(axis=0)
+    d = np.abs(pos[:, pelvis, :] - pos[:, feet, :].mean(axis=1)).mean(axis=0)
     return "z" if d[2] > 1.2 * d[1] and d[2] > d[0] else "y"
 
 
