@@ -181,3 +181,15 @@ def _biped(tmp_path):
     if code != 0:
         pytest.skip("biomorph creature generate failed (creature pillar)")
     return read_bvh(p)
+
+
+@pytest.mark.parametrize("name", ["cmu_01_01.bvh", "ad_rokoko_jesse_dance.bvh"])
+def test_auto_cycle_prefers_a_moving_loop(name):
+    # was: a 30-frame still stretch of the long takes (cost ~0; the loop skated 0 because
+    # nothing moved)
+    from biomorph.motion.cycle import MIN_ENERGY, best_loop, loop_cost
+
+    m = _read(name)
+    s, e, _ = best_loop(m, 30, None, 12)
+    speed = np.linalg.norm(loop_cost(m)[1], axis=1)
+    assert speed[s : e - 12].mean() >= MIN_ENERGY * speed[: m.n_frames - 12].mean() - 1e-12

@@ -169,6 +169,11 @@ def make_cycle(
     return out
 
 
+MIN_ENERGY = 0.5
+"""A loop found by :func:`best_loop` moves at least this fraction of the clip's mean pose
+speed (unless no range of the requested length does)."""
+
+
 def loop_cost(motion: Motion, velocity_weight: float = 1.0) -> tuple[Array, Array]:
     """Per-frame pose features and velocities used by :func:`best_loop`."""
     f = pose_features(motion)
@@ -188,8 +193,10 @@ def best_loop(
     period ``P = stop − start − transition`` is chosen minimising
     ``|pose(start) − pose(start + P)|² + |vel(start) − vel(start + P)|²`` over
     ``min_length <= P <= max_length`` (non-root joint
-    quaternions; root excluded so travel does not count). Searched on a grid of at most
-    ``candidates`` frames, then refined ±grid step frame by frame."""
+    quaternions; root excluded so travel does not count) among the ranges whose mean pose
+    speed is at least :data:`MIN_ENERGY` × the clip's (a still stretch is not a loop).
+    Searched on a grid of at most ``candidates`` frames, then refined ±grid step frame by
+    frame."""
     if transition < 0:
         raise ParameterError(f"transition {transition}; expected >= 0")
     f_all = motion.n_frames - int(transition)
@@ -200,12 +207,24 @@ def best_loop(
         )
     feat, vel = loop_cost(motion[:f_all] if f_all > 0 else motion, velocity_weight)
     x = np.concatenate([feat, vel], axis=1)
+    # motion energy: a loop must move at least MIN_ENERGY × the clip's mean pose speed (a
+    # still stretch of a long take loops at cost ~0 and was chosen: skate 0, nothing moves)
+    speed = np.linalg.norm(vel, axis=1)
+    csum = np.concatenate([[0.0], np.cumsum(speed)])
+    need = MIN_ENERGY * float(speed.mean()) if speed.size else 0.0
+
+    def moving(a: Array, b: Array) -> Array:
+        span = np.maximum(b - a, 1)
+        return (csum[np.clip(b, 0, speed.size)] - csum[np.clip(a, 0, speed.size)]) / span >= need
+
     step = max(1, int(np.ceil(f_all / candidates)))
     idx = np.arange(0, f_all, step)
     sq = np.einsum("ij,ij->i", x[idx], x[idx])
     d = sq[:, None] + sq[None, :] - 2 * x[idx] @ x[idx].T
     length = idx[None, :] - idx[:, None]
-    d = np.where((length >= min_length) & (length <= max_length), d, np.inf)
+    fits = (length >= min_length) & (length <= max_length)
+    live = fits & moving(idx[:, None], idx[None, :])
+    d = np.where(live if live.any() else fits, d, np.inf)
     i, j = np.unravel_index(np.argmin(d), d.shape)
     if not np.isfinite(d[i, j]):
         raise ParameterError("no loop range of the requested length fits the clip")
@@ -215,7 +234,10 @@ def best_loop(
     es = np.arange(max(0, e0 - step), min(f_all, e0 + step + 1))
     dd = np.sum((x[ss][:, None] - x[es][None]) ** 2, axis=-1)
     ll = es[None, :] - ss[:, None]
-    dd = np.where((ll >= min_length) & (ll <= max_length), dd, np.inf)
+    ok = (ll >= min_length) & (ll <= max_length)
+    if live.any():
+        ok &= moving(ss[:, None], es[None, :])
+    dd = np.where(ok, dd, np.inf)
     a, b = np.unravel_index(np.argmin(dd), dd.shape)
     if dd[a, b] < best[2]:
         best = (int(ss[a]), int(es[b]), float(dd[a, b]))
