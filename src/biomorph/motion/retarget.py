@@ -14,7 +14,7 @@ Retarget (:func:`retarget`)
    parents first; unmapped target joints keep their rest pose relative to their parent.
 4. Root: the hips trajectory is scaled by the ratio of leg lengths (thigh + shin, measured on
    the rest poses), so a shorter character takes proportionally shorter steps and its hips
-   stay at its own height.
+   stay at its own height; the source's floor (its lowest foot) is put at the target's 0.
 5. Feet: :func:`biomorph.motion.contact.lock_feet` then holds the planted feet (the CLI and
    ``feet=True`` do this by default).
 
@@ -260,6 +260,14 @@ def retarget(
     # the root's world position is its translation; other hips need the FK positions
     src_hips = source.root_position if hips_s == 0 else source.world_positions()[:, hips_s]
     root = src_hips * scale
+    # the source's floor (its lowest foot) lands on the target's y = 0 (an ASF capture's floor
+    # sat 0.4 hip heights above a creature biped's ground)
+    from biomorph.motion.contact import _UP, foot_floor
+
+    up = str(source.meta.get("up_guess") or "y").lower()
+    floor = foot_floor(source, up)
+    if floor is not None and up in _UP:
+        root[:, _UP[up]] -= floor * scale
     if t_can["hips"] != 0:  # joints above the target's hips: keep them at rest, move the root
         root = root - (pt[hips_t] - pt[0])
     meta = {
