@@ -388,8 +388,9 @@ def run_biomorph(cloud, method: str, graph_kw: dict | None = None) -> dict:
     return out
 
 
-#: the opt-in graph variant of issue 13 (docs/tree.md "Topology, peers and speed")
-VARIANT = {"level_merge": "overlap", "reach": 1.0}
+#: graph variant shown beside the default by ``--variant`` (docs/tree.md "Topology, peers
+#: and speed"): the opt-in adaptive level merge of issue 13's session 7
+VARIANT = {"level_merge": "adaptive"}
 
 
 def model_measures(graph, xyz: NDArray, refs: dict, wood: NDArray | None = None) -> dict:
@@ -461,7 +462,9 @@ def peers(names: tuple[str, ...], with_pytlidar: bool = True, variant: bool = Fa
         }
         cols["biomorph graph"] = run_biomorph(cloud, "graph")
         if variant:
-            cols["graph overlap+reach"] = run_biomorph(cloud, "graph", VARIANT)
+            cols["graph " + ", ".join(map(str, VARIANT.values()))] = run_biomorph(
+                cloud, "graph", VARIANT
+            )
         cols["biomorph voxel"] = run_biomorph(cloud, "voxel")
         if with_pytlidar and name not in SINGLE_TREE_ONLY:
             cols["pytlidar"] = run_pytlidar(xyz)
@@ -509,7 +512,11 @@ def peers(names: tuple[str, ...], with_pytlidar: bool = True, variant: bool = Fa
 
 
 def truth_table(seeds: int, sizes: tuple[int, ...], methods: tuple[str, ...]) -> None:
-    """Synthetic truth: total volume, volume per diameter class, length and F1 (issue 13)."""
+    """Synthetic truth: total volume, volume per diameter class, length and F1 (issue 13);
+    method ``graph+variant``: the graph method with :data:`VARIANT`."""
+    import functools
+
+    from biomorph.tree import livny
     from biomorph.tree.metrics import class_labels, compare_to_truth, volume_by_class
     from biomorph.tree.pipeline import skeletonize
     from biomorph.tree.synthetic import PRESETS, generate_tree, simulate_scan
@@ -540,11 +547,16 @@ def truth_table(seeds: int, sizes: tuple[int, ...], methods: tuple[str, ...]) ->
                     tv = sum(v["volume"] for v in vt.values())
                     for method in methods:
                         t0 = time.perf_counter()
+                        orig = livny.skeletonize_graph
+                        if method == "graph+variant":
+                            livny.skeletonize_graph = functools.partial(orig, **VARIANT)
                         try:
-                            g = skeletonize(cloud, method=method).world_graph()
+                            g = skeletonize(cloud, method=method.split("+")[0]).world_graph()
                         except Exception as exc:  # noqa: BLE001 - report and carry on
                             print(f"<!-- {preset} {cname} {n} {method} {seed}: {exc} -->")
                             continue
+                        finally:
+                            livny.skeletonize_graph = orig
                         dt = time.perf_counter() - t0
                         vc = volume_by_class(g)
                         c = compare_to_truth(g, truth, cloud=cloud)
@@ -576,7 +588,7 @@ def truth_table(seeds: int, sizes: tuple[int, ...], methods: tuple[str, ...]) ->
     print("\nTargets: volume ±10 %, each class ±20 %, length ±10 %, F1 ≥ 0.9.")
 
 
-def sparse_twigs(seeds: int, voxel: float = 0.05) -> None:
+def sparse_twigs(seeds: int, voxel: float = 0.05, variant: bool = False) -> None:
     """Twig recall on sparse scans (issue 13): presets scanned at 60,000 points (5 mm
     noise, occlusion, no leaves), voxel-thinned to one point per ``voxel`` m; twig = truth
     samples of branches under 2.5 cm diameter, recall within 5 cm."""
@@ -589,8 +601,18 @@ def sparse_twigs(seeds: int, voxel: float = 0.05) -> None:
     from biomorph.tree.synthetic import generate_tree, simulate_scan
 
     print(f"\n### Sparse scans: one point per {voxel * 100:.0f} cm voxel\n")
-    print("| preset | seed | points | spacing m | twig recall | recall | F1 | tips / truth |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(
+        "| preset | seed | variant | points | spacing m | twig recall | recall | F1 "
+        "| tips / truth |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    import functools
+
+    from biomorph.tree import livny
+
+    runs = {"default": None}
+    if variant:
+        runs[", ".join(map(str, VARIANT.values()))] = VARIANT
     for preset in ("birch", "maple"):
         for seed in range(seeds):
             truth = generate_tree(preset, seed=seed)
@@ -598,18 +620,25 @@ def sparse_twigs(seeds: int, voxel: float = 0.05) -> None:
                 truth, n_points=60_000, seed=seed, noise=0.005, ground=False, occlusion=True
             )
             cl = downsample(scan, "voxel", voxel_size=voxel, seed=seed)
-            g = skeletonize(cl, method="graph").world_graph()
-            ps, _, _ = resample_graph(g, 0.0125)
             pt, ect, tt = resample_graph(truth, 0.0125)
             twig = _interp_radius(truth, ect, tt) < 0.0125
-            d, _ = cKDTree(ps).query(pt[twig])
-            c = compare_to_truth(g, truth, tolerance=0.05)
-            print(
-                f"| {preset} | {seed} | {cl.n_points:,} | {estimate_spacing(cl.xyz):.3f} | "
-                f"{np.mean(d <= 0.05):.2f} | {c['recall']:.2f} | {c['f1']:.3f} | "
-                f"{g.leaves.size} / {truth.leaves.size} |"
-            )
-            sys.stdout.flush()
+            for label, kw in runs.items():
+                orig = livny.skeletonize_graph
+                if kw:
+                    livny.skeletonize_graph = functools.partial(orig, **kw)
+                try:
+                    g = skeletonize(cl, method="graph").world_graph()
+                finally:
+                    livny.skeletonize_graph = orig
+                ps, _, _ = resample_graph(g, 0.0125)
+                d, _ = cKDTree(ps).query(pt[twig])
+                c = compare_to_truth(g, truth, tolerance=0.05)
+                print(
+                    f"| {preset} | {seed} | {label} | {cl.n_points:,} | "
+                    f"{estimate_spacing(cl.xyz):.3f} | {np.mean(d <= 0.05):.2f} | "
+                    f"{c['recall']:.2f} | {c['f1']:.3f} | {g.leaves.size} / {truth.leaves.size} |"
+                )
+                sys.stdout.flush()
 
 
 def main() -> None:
@@ -624,7 +653,9 @@ def main() -> None:
     )
     ap.add_argument("--no-pytlidar", action="store_true", help="peer table without pytlidar")
     ap.add_argument(
-        "--variant", action="store_true", help="peer table: also the overlap+reach graph variant"
+        "--variant",
+        action="store_true",
+        help="peers/sparse: also the graph variant VARIANT (adaptive level merge)",
     )
     ap.add_argument(
         "--sizes",
@@ -668,7 +699,7 @@ def main() -> None:
     if a.only in (None, "truth"):
         truth_table(a.seeds, tuple(a.sizes), tuple(a.methods))
     if a.only in (None, "sparse"):
-        sparse_twigs(a.seeds)
+        sparse_twigs(a.seeds, variant=a.variant)
 
 
 if __name__ == "__main__":

@@ -1,8 +1,8 @@
 """Contraction of the graph method (issue 13): level pieces that follow the wood.
 
-With ``merge="overlap"`` two twigs side by side in one geodesic level stay two vertices
-(the default ``"adjacent"`` puts one centroid between them, > 10 cm from the wood on real
-crowns); the optional reach bound keeps refined vertices on their points.
+With ``merge="overlap"`` or ``"adaptive"`` two twigs side by side in one geodesic level
+stay two vertices (the default ``"adjacent"`` puts one centroid between them, > 10 cm from
+the wood on real crowns); the reach bound keeps refined vertices on their points.
 """
 
 from __future__ import annotations
@@ -69,3 +69,84 @@ def test_reach_keeps_refined_twigs_on_their_points():
     assert np.quantile(d_bound[twig], 0.95) <= np.quantile(d_free[twig], 0.95) + 1e-9
     c = livny.clamp_to_points(np.array([[3.0, 0, 0]]), np.zeros((1, 3)), np.array([0.5]))
     assert np.allclose(c, [[0.5, 0, 0]])
+
+
+def test_adaptive_joins_arcs_of_one_thick_ring():
+    """Two arcs of a 0.6 m stem ring behind an occlusion gap wider than their spreads:
+    the overlap test keeps them apart, the adaptive rule joins them (both pieces are wider
+    than the level width); two narrow twig pieces the same distance apart stay apart."""
+    from biomorph.tree.neighbours import _merge_overlapping
+
+    r = 0.3
+    a = np.linspace(-0.2, 0.2, 40)  # two 12 cm arcs, 8 cm apart along the ring
+    gap_angle = 0.2 + 0.08 / r
+    arc1 = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(a)])
+    b = a + 2 * gap_angle
+    arc2 = np.column_stack([r * np.cos(b), r * np.sin(b), np.zeros_like(b)])
+    xyz = np.vstack([arc1, arc2])
+    lab = np.repeat([0, 1], 40)
+    vr, vc = np.array([39]), np.array([40])  # the facing ends: the voxel link
+    gap = np.linalg.norm(xyz[39] - xyz[40])
+    spread = np.sqrt(np.mean(np.sum((arc1 - arc1.mean(0)) ** 2, axis=1)))
+    assert gap > 2 * spread > 2 * 0.03
+    assert np.unique(_merge_overlapping(xyz, lab, vr, vc, 0.01)).size == 2
+    assert np.unique(_merge_overlapping(xyz, lab, vr, vc, 0.01, wide=0.03)).size == 1
+    # twig pieces (1 cm across) as far apart: not wide, not joined
+    rng = np.random.default_rng(0)
+    t1 = rng.normal(0, 0.005, (40, 3))
+    t2 = t1 + [gap + 0.02, 0, 0]
+    tw = np.vstack([t1, t2])
+    i, j = np.argmax(t1[:, 0]), 40 + np.argmin(t2[:, 0])
+    out = _merge_overlapping(tw, lab, np.array([i]), np.array([j]), 0.01, wide=0.03)
+    assert np.unique(out).size == 2
+
+
+def test_adaptive_keeps_twigs_side_by_side_apart():
+    xyz = _twins()
+    con = _levels(xyz, 0.03, "adaptive")
+    high = con.position[:, 2] > 0.9
+    assert high.sum() >= 20
+    assert np.all(np.abs(np.abs(con.position[high, 0]) - 0.04) < 0.015)
+
+
+def test_adaptive_keeps_sparse_twig_pieces_in_their_levels():
+    """Fragments join only pieces that hold a whole kNN neighbourhood (a stem's
+    cross-section): every vertex of a sparse twig holds the points of one geodesic level
+    (on 5 cm scans absorbing 1–2-point pieces into the next 3-point piece merged twigs)."""
+    rng = np.random.default_rng(3)
+    stem = cylinder_points((0, 0, 0), (0, 0, 1.0), 0.05, 3000, rng, 0.001)
+    t = np.linspace(0, 0.6, 50)[:, None]  # a sparse twig: 2-3 points per 3 cm level
+    twig = np.array([0.05, 0, 0.5]) + t * np.array([0.8, 0, 0.6])
+    xyz = np.vstack([stem, twig + rng.normal(0, 0.002, twig.shape)])
+    g, _ = bridge_components(xyz, neighbour_graph(xyz, k=10))
+    roots = np.flatnonzero(xyz[:, 2] < 0.02)
+    geo = g.copy()
+    geo.data = np.sqrt(geo.data)
+    plen, _ = shortest_path_forest(geo, roots)
+    tree = np.where(np.isfinite(plen), 0, -1)
+    con = contract(xyz, g, plen, tree, 0.03, merge="adaptive")
+    level = np.floor(plen / 0.03).astype(int)
+    ok = (con.label >= 0) & (xyz[:, 0] > 0.25)  # the twig past its base
+    assert ok.sum() >= 12
+    lo = np.full(con.count.size, 10**9)
+    hi = np.full(con.count.size, -1)
+    np.minimum.at(lo, con.label[ok], level[ok])
+    np.maximum.at(hi, con.label[ok], level[ok])
+    twig = np.unique(con.label[ok])
+    assert np.array_equal(lo[twig], hi[twig])
+    # the overlap merge's absorption (into any piece of 3 points) spans levels there
+    old = contract(xyz, g, plen, tree, 0.03, merge="overlap")
+    lo2 = np.full(old.count.size, 10**9)
+    hi2 = np.full(old.count.size, -1)
+    np.minimum.at(lo2, old.label[ok], level[ok])
+    np.maximum.at(hi2, old.label[ok], level[ok])
+    t2 = np.unique(old.label[ok])
+    assert np.any(lo2[t2] != hi2[t2])
+
+
+def test_graph_level_merge_option():
+    xyz = _twins(gap=0.3)
+    assert livny.LEVEL_MERGE_DEFAULT == "adjacent"
+    assert livny.skeletonize_graph(xyz).info["level_merge"] == "adjacent"
+    res = livny.skeletonize_graph(xyz, level_merge="adaptive")
+    assert res.info["level_merge"] == "adaptive" and res.graph.leaves.size >= 2

@@ -147,6 +147,17 @@ __all__ = [
 #: pulls them onto the axis); cleanup rule 1b merges them there.
 REACH = 1.0
 
+#: how the kNN pieces of one contraction level join (:func:`~biomorph.tree.neighbours.contract`).
+#: ``"adjacent"``: every voxel-adjacent piece, which puts one vertex between twigs 5–20 cm
+#: apart. ``"adaptive"`` (opt-in, issue 13 session 7) joins them when their gap is below
+#: the sum of their RMS spreads or both are wider than the level (arcs of one thick stem
+#: ring): AdTree tree1 wood points > 10 cm from every cylinder 10.0 → 8.5 %, spruce 15.8 →
+#: 11.3 %, rTwig F1 0.944 → 0.962, 5 cm sparse scans F1 unchanged or higher — but on clean
+#: dense synthetic stems it still splits some branch ends and stem rings (the 6,000-point
+#: Y test: 4 tips instead of 3 on 2 of 4 seeds), so it is not the default
+#: (docs/tree.md "Session 7 (tree B)").
+LEVEL_MERGE_DEFAULT = "adjacent"
+
 
 def clamp_to_points(
     position: NDArray[np.float64], centroid: NDArray[np.float64], reach: NDArray[np.float64]
@@ -222,7 +233,7 @@ def skeletonize_graph(
     source: str = "point cloud",
     bridge_gap: float | None = None,
     reach: float | None = REACH,
-    level_merge: str = "adjacent",
+    level_merge: str = LEVEL_MERGE_DEFAULT,
     neighbours: NeighbourCache | None = None,
 ) -> LivnyResult:
     """Livny et al. 2010 steps i–vii on a point cloud (cleanup is :mod:`~biomorph.tree.cleanup`).
@@ -253,8 +264,9 @@ def skeletonize_graph(
     reach : step v keeps each vertex within ``reach`` RMS spreads of its own points (at
         least one point spacing) from their centroid (default :data:`REACH`); ``None`` =
         the unbounded refinement of the paper.
-    level_merge : how adjacent pieces of one contraction level join:
-        ``"adjacent"`` (default) or ``"overlap"`` (:func:`~biomorph.tree.neighbours.contract`).
+    level_merge : how adjacent pieces of one contraction level join (default
+        :data:`LEVEL_MERGE_DEFAULT`, ``"adjacent"``; ``"adaptive"``, ``"overlap"``;
+        :func:`~biomorph.tree.neighbours.contract`).
     neighbours : neighbour lists of ``xyz`` from an earlier query with at least ``k + 1``
         neighbours (:class:`~biomorph.tree.neighbours.NeighbourCache`, e.g. the outlier
         filter's): the kNN graph takes its rows from them where they decide it (the same
@@ -345,7 +357,14 @@ def skeletonize_graph(
         point_tree = np.where(np.isfinite(plen), 0, -1).astype(np.int64)
     t0 = tick("dijkstra", t0)
     con = contract(
-        xyz, p_graph, plen, point_tree, node_spacing, point_spacing=spacing_pts, merge=level_merge
+        xyz,
+        p_graph,
+        plen,
+        point_tree,
+        node_spacing,
+        point_spacing=spacing_pts,
+        merge=level_merge,
+        k=k,
     )
     t0 = tick("contraction", t0)
     timings["t2"] = t0 - t2s
