@@ -444,24 +444,10 @@ def _girdle_rise(spine: SpineState, places, attach, previous: LimbsState) -> flo
     return 0.0
 
 
-def step_limbs(
-    spine: SpineState,
-    girdles: tuple[gd.Girdle, ...],
-    opts: Options,
-    rng: np.random.Generator,
-    shifts: dict[str, float] | None = None,
-    ground: float | None = None,
-    previous: LimbsState | None = None,
-) -> LimbsState:
-    """Ground height, grounded legs by the seed's descent, free limbs by rule (frame px)."""
-    pts = to_creature_px(spine.points)
-    cls, posture, stance = spine.cls, spine.posture, spine.stance
-    legless = spine.legs == 0
-    xy, s, region = sp.sample(pts)
-    rl = sp.region_lengths(s, region)
-    skull_h = sk.get(spine.skull).height * spine.skull_length
-    shifts = shifts or {}
-    # placements: (girdle name, pair index, spec, arc position)
+def placements(girdles, shifts: dict[str, float], rl: NDArray, s: NDArray) -> list:
+    """Limb placements ``(girdle name, pair index, spec, arc position)``: each girdle's
+    position plus its balance-repair shift; a second pair a little apart, towards the body
+    centre; clamped to the spine."""
     places = []
     for g in girdles:
         for k, spec in enumerate(g.pairs):
@@ -471,6 +457,51 @@ def step_limbs(
                 at = at + step if g.name in ("shoulder", "centaur") else at - step
             at = min(max(float(at), 0.0), float(s[-1]))  # np.clip on a float
             places.append((g.name, k, spec, at))
+    return places
+
+
+def carried_ground(spine: SpineState, places, attach, previous: LimbsState, legs) -> float:
+    """Ground height (creature px) under legs that keep their joint angles and move with their
+    attachments (``attach`` indexable by place): the lowest foot's contact less the height
+    its digits need (:func:`feet.clearance`)."""
+    out = np.inf
+    for i in legs:
+        role = "hind" if places[i][0] == "hip" else "fore"
+        plan = feet.digit_plan("leg", role, spine.cls, spine.stance, spine.skull, spine.hoof_digits)
+        L3 = previous.lengths[i]
+        pose = previous.poses[i]
+        _, p = lb.forward(attach[i][1], L3, pose.angles)
+        out = min(out, float(p[2 if pose.foot_flat else 3, 1]) - feet.clearance(plan, float(L3[2])))
+    return out
+
+
+def step_limbs(
+    spine: SpineState,
+    girdles: tuple[gd.Girdle, ...],
+    opts: Options,
+    rng: np.random.Generator,
+    shifts: dict[str, float] | None = None,
+    ground: float | None = None,
+    previous: LimbsState | None = None,
+    carry: bool = False,
+    repose: bool = False,
+) -> LimbsState:
+    """Ground height, grounded legs by the seed's descent, free limbs by rule (frame px).
+
+    With ``previous`` (balance repair) the legs keep their poses and are re-grounded at the
+    new attachments; the ground follows the girdle the standing height is measured at
+    (``ground`` + its rise) or, with ``carry`` (the bipeds' repair), lies under the feet of
+    the legs carried rigidly with their attachments (:func:`carried_ground`; re-grounding
+    then :func:`limbs.reground`'s continuous one) and wings keep their angles; ``repose``
+    poses the legs afresh there by the descent instead of re-grounding them."""
+    pts = to_creature_px(spine.points)
+    cls, posture, stance = spine.cls, spine.posture, spine.stance
+    legless = spine.legs == 0
+    xy, s, region = sp.sample(pts)
+    rl = sp.region_lengths(s, region)
+    skull_h = sk.get(spine.skull).height * spine.skull_length
+    shifts = shifts or {}
+    places = placements(girdles, shifts, rl, s)
     attach = _attach_all(xy, s, rl, spine, skull_h, legless, places, shifts.get("width", 1.0))
     legs = [i for i, p in enumerate(places) if p[2].kind == "leg"]
     lengths = [np.array(p[2].lengths, float) for p in places]
@@ -480,7 +511,10 @@ def step_limbs(
         # moved along a pitched spine carries its legs instead of stretching them
         for i in legs:
             lengths[i] = np.array(previous.lengths[i], float)
-        ground = ground + _girdle_rise(spine, places, attach, previous)
+        if carry:
+            ground = carried_ground(spine, places, attach, previous, legs)
+        else:
+            ground = ground + _girdle_rise(spine, places, attach, previous)
     h_all, _, off_all = ms.profile(s, rl, spine.girth, cls, skull_h, legless)
     body_bottom = xy[:, 1] - np.where(region == 1, 0.35, 0.2) * h_all
     if legs:
@@ -538,15 +572,19 @@ def step_limbs(
             role = "hind" if gname == "hip" else "fore"
             plan = feet.digit_plan("leg", role, cls, stance, spine.skull, spine.hoof_digits)
             pose = None
-            if previous is not None:  # balance repair: keep the pose, re-ground continuously
+            if previous is not None and not repose:  # repair: keep the pose, re-ground
                 prev = previous.poses[i]
                 lift = feet.clearance(plan, float(previous.lengths[i][2]))
-                pose = lb.reground(prev, base, previous.lengths[i], ground + lift, opts.descent)
+                pose = lb.reground(
+                    prev, base, previous.lengths[i], ground + lift, opts.descent, carry
+                )
                 if pose is not None:
                     lengths[i] = previous.lengths[i]
             if pose is None:
                 pose = _pose_leg(spine, opts, rng, base, lengths[i], ground, role, plan)
             lengths[i] = pose.lengths
+        elif carry and spec.kind == "wing":  # the bipeds' repair: wings keep their angles
+            pose = lb.moved(previous.poses[i], base, lengths[i])
         else:
             floor = None if ground is None else ground + 0.01 * max(s[-1], 1.0)
             pose = _pose_free(spine, spec.kind, base, lengths[i], rng, lean, xy, floor)
