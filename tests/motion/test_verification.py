@@ -193,3 +193,24 @@ def test_auto_cycle_prefers_a_moving_loop(name):
     s, e, _ = best_loop(m, 30, None, 12)
     speed = np.linalg.norm(loop_cost(m)[1], axis=1)
     assert speed[s : e - 12].mean() >= MIN_ENERGY * speed[: m.n_frames - 12].mean() - 1e-12
+
+
+def test_retarget_onto_a_creature_biped_locks_on_the_source_contacts(tmp_path):
+    # the biped's foot is 0.37 hip heights long (a human's 0.14): at the source's foot angles
+    # its toe swept the floor band and contacts detected on the target missed the planted
+    # toes (cmu_01_01: 0.33 after locking); the source's contacts are used instead
+    from biomorph.motion.retarget import retarget
+
+    bip = _biped(tmp_path)
+    src = _read("cmu_01_01.bvh").frames(0, 1200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        own = retarget(src, bip.skeleton, feet=False)
+        out = retarget(src, bip.skeleton)
+    from biomorph.motion.contact import lock_feet
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s_own = foot_skate(lock_feet(own))["skate_per_body_scale"]
+    s_out = foot_skate(out)["skate_per_body_scale"]
+    assert s_out < s_own and s_out < foot_skate(src)["skate_per_body_scale"]

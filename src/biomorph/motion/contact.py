@@ -851,6 +851,7 @@ def lock_feet(
     reference: Motion | None = None,
     options: ContactOptions | None = None,
     floor: float | None = None,
+    contacts: dict[int, NDArray[np.bool_]] | None = None,
 ) -> Motion:
     """``motion`` with planted feet held in place (see the module docstring).
 
@@ -859,8 +860,9 @@ def lock_feet(
     the feet), else from ``motion`` itself. No ankle or toe ends below ``floor`` — by default
     the lowest foot point of the reference (or of ``motion``); pass the input's
     (:func:`foot_floor`) after an operator that changes the timing or the sides (speed,
-    blend, cycle, mirror). Returns ``motion`` unchanged when the skeleton has no legs or
-    locking is disabled."""
+    blend, cycle, mirror). ``contacts`` (joint index → ``bool[f]``) replaces the detection:
+    a retarget passes the source's contacts mapped onto the target's feet. Returns
+    ``motion`` unchanged when the skeleton has no legs or locking is disabled."""
     o = options or ContactOptions()
     legs = find_legs(motion)
     if not o.enabled or not legs or motion.n_frames < 2:
@@ -872,7 +874,8 @@ def lock_feet(
     col = {int(j): c for c, j in enumerate(chain)}
     pos, wq = _chain_fk(motion, chain)
     w_ref = pos if ref is motion else _chain_fk(ref, chain)[0]
-    contacts = _detect(w_ref, col, legs, motion.fps, opts, ui)
+    if contacts is None:
+        contacts = _detect(w_ref, col, legs, motion.fps, opts, ui)
     blend = max(1, round(o.blend_s * motion.fps))
     follow = o.mode == "follow"
     if floor is None:

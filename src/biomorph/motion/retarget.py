@@ -278,10 +278,49 @@ def retarget(
     }
     out = Motion(target, frozen(rot), frozen(root), source.frame_time, None, meta)
     if feet:
-        from biomorph.motion.contact import lock_feet
+        foot_s = _foot_ratio(source.skeleton, ps, s_can)
+        foot_t = _foot_ratio(target, pt, t_can)
+        if foot_s > 0 and foot_t > 0 and max(foot_s, foot_t) > FOOT_RATIO * min(foot_s, foot_t):
+            out = _lock_like_source(source, out, s_can, t_can)
+        else:
+            from biomorph.motion.contact import lock_feet
 
-        out = lock_feet(out)
+            out = lock_feet(out)
     return out
+
+
+FOOT_RATIO = 1.5
+"""Feet proportioned this much otherwise (foot length / leg length, source vs target) are
+locked on the source's contacts (:func:`_lock_like_source`); similar feet on their own."""
+
+
+def _foot_ratio(sk: JointSkeleton, pos: Array, m: dict[str, int]) -> float:
+    """Foot (ankle → toe) over leg (thigh + shin) length on the rest pose; 0 without toes."""
+    if "l_toe" not in m or "l_foot" not in m:
+        return 0.0
+    foot = float(np.linalg.norm(pos[m["l_toe"]] - pos[m["l_foot"]]))
+    return foot / max(_leg_length(sk, pos, m), 1e-12)
+
+
+def _lock_like_source(
+    source: Motion, out: Motion, s_can: dict[str, int], t_can: dict[str, int]
+) -> Motion:
+    """Lock the target's feet on the *source's* contacts (ankle and toe mapped by their
+    canonical names): a foot proportioned otherwise (a creature's foot is 0.37 hip heights
+    long, a human's 0.14) swings its toe through the floor band at the source's foot angles,
+    so contacts detected on the target missed the planted toes."""
+    from biomorph.motion.contact import detect_contacts, find_legs, lock_feet
+
+    legs = find_legs(out)
+    src = detect_contacts(source)
+    mapped: dict[int, np.ndarray] = {}
+    for c in ("l_foot", "l_toe", "r_foot", "r_toe"):
+        if c in s_can and c in t_can and s_can[c] in src:
+            mapped[t_can[c]] = src[s_can[c]]
+    points = {p for lg in legs for p in (lg.ankle, lg.toe) if p >= 0}
+    if not mapped or not points <= set(mapped):
+        return lock_feet(out)
+    return lock_feet(out, contacts={j: v for j, v in mapped.items() if j in points})
 
 
 def _lateral_axis(sk: JointSkeleton, pairs: list[tuple[int, int]], pos: Array | None = None) -> int:
