@@ -153,8 +153,8 @@ REACH = 1.0
 #: the sum of their RMS spreads or both are wider than the level (arcs of one thick stem
 #: ring): AdTree tree1 wood points > 10 cm from every cylinder 10.0 → 8.5 %, spruce 15.8 →
 #: 11.3 %, rTwig F1 0.944 → 0.962, 5 cm sparse scans F1 unchanged or higher — but on clean
-#: dense synthetic stems it still splits some branch ends and stem rings (the 6,000-point
-#: Y test: 4 tips instead of 3 on 2 of 4 seeds), so it is not the default
+#: dense synthetic stems it still splits some branch ends and stem rings (the 4,000-point
+#: Y tree through the pipeline: 4 tips instead of 3 on 2 of 5 seeds), so it is not the default
 #: (docs/tree.md "Session 7 (tree B)").
 LEVEL_MERGE_DEFAULT = "adjacent"
 
