@@ -43,11 +43,13 @@ from biomorph.creature.steps import (
     _pose_free,
     _trunk_lean,
     carried_ground,
+    carried_wing,
     placements,
     step_limbs,
     step_skull,
     to_creature_px,
     trunk_pitch,
+    wing_reach,
 )
 from biomorph.errors import ParameterError
 
@@ -325,6 +327,11 @@ def quick_report(spine: SpineState, limbs: LimbsState, skull: SkullState, opts: 
     return _report(_Part.join([b, lg]), opts), b, lg, free
 
 
+def p_len(limbs: LimbsState, i: int) -> NDArray:
+    """Segment lengths of placement ``i`` (a free limb keeps its sampled ones)."""
+    return np.array(limbs.places[i][2].lengths, float)
+
+
 def _rotated(spine: SpineState, theta: float, pivot: NDArray) -> SpineState:
     """The spine rotated rigidly by ``theta`` (sagittal plane) about ``pivot`` (creature px),
     as :func:`pitch_body` leans it."""
@@ -398,6 +405,7 @@ class _Reduced:
         xy_f, s_f, _ = sp.sample(flat)
         parts = [_spine_part(spine, flat, self.skull_h)]
         lean = _trunk_lean(places, attach)
+        rng = step_rng(opts.seed, "limbs", 100)  # wings drawn again (carried_wing)
         floor = ground + 0.01 * max(s_f[-1], 1.0)
         clear = 0.01 * max(s_f[-1], 1.0)
         poses = {}
@@ -406,15 +414,18 @@ class _Reduced:
                 continue
             L3 = np.array(place[2].lengths, float)
             base = attach[i][1]
+            lift = clear
             if place[2].kind == "wing":  # same angles, moved with the attachment
+                lift += wing_reach(spine, L3, base[1] - ground)  # its digits clear it too
                 pose = lb.moved(prev.poses[i], base, L3)
-                if np.all(pose.points[1:, 1] >= ground + clear):  # lift_clear: unchanged
+                if np.all(pose.points[1:, 1] >= ground + lift):  # lift_clear: unchanged
                     parts.append(self._moved_part(i, attach[i], pose))
                     poses[i] = pose
                     continue
+                pose = carried_wing(spine, prev.poses[i], base, L3, ground, s_f, rng)
             else:  # arms and fins draw no random numbers
                 pose = _pose_free(spine, place[2].kind, base, L3, None, lean, xy_f, floor)
-            pose = lb.lift_clear(pose, base, L3, ground, clear)
+            pose = lb.lift_clear(pose, base, L3, ground, lift)
             parts.append(_limb_part(spine, place, attach[i], pose, L3, None))
             poses[i] = pose
         stub = SimpleNamespace(points=flat, ground=ground)
@@ -429,10 +440,8 @@ class _Reduced:
         ``legs`` (placement -> (attachment, pose)) shifted by ``shifts``: the body as it was
         posed for the unshifted legs, where the new ground leaves its tail, neck, free limbs
         and skull clear of the ground as the repair pass requires; ``None`` otherwise (the
-        full pass decides; so do arms, whose rest pose follows the trunk line and the
-        ground)."""
-        if any(p[2].kind == "arm" for p in self.prev.places):
-            return None
+        full pass decides). Arms, whose rest pose follows the trunk line and the ground, are
+        posed again as the repair pass poses them."""
         if ground > st.ground:
             xy_f, s_f, region = sp.sample(st.flat)
             clear = ground + 0.02 * max(st.s[-1], 1.0)
@@ -440,8 +449,12 @@ class _Reduced:
                 if (region == reg).any() and xy_f[region == reg, 1].min() < clear:
                     return None
             clear = ground + 0.01 * max(s_f[-1], 1.0)
-            if any(p.points[1:, 1].min() < clear for p in st.poses.values()):
-                return None
+            for i, p in st.poses.items():
+                reach = 0.0
+                if p.kind == "wing":
+                    reach = wing_reach(st.spine, p_len(self.prev, i), st.attach[i][1][1] - ground)
+                if p.points[1:, 1].min() < clear + reach:
+                    return None
             shape = sk.get(st.skull.shape)
             c, sn = np.cos(st.skull.angle), np.sin(st.skull.angle)
             head = st.skull.origin[1]
@@ -457,6 +470,15 @@ class _Reduced:
             for i, p in enumerate(places)
         ]
         poses = [legs[i][1] if i in legs else st.poses[i] for i in range(len(places))]
+        arms = [i for i, p in enumerate(places) if p[2].kind == "arm"]
+        if arms:
+            xy_f, s_f, _ = sp.sample(st.flat)
+            lean = _trunk_lean(places, attach)
+            clear = 0.01 * max(s_f[-1], 1.0)
+            for i in arms:
+                base, L3 = attach[i][1], lengths[i]
+                pose = _pose_free(st.spine, "arm", base, L3, None, lean, xy_f, ground + clear)
+                poses[i] = lb.lift_clear(pose, base, L3, ground, clear)
         limbs = LimbsState(
             points=st.flat,
             ground=float(ground),
@@ -668,7 +690,7 @@ def _solve_shift(red: _Reduced, st: _Leaned, got0, need: float, aim: float, repa
         return got[0].margin_fraction - aim
 
     for phase in range(2):
-        _search_shift(red, best, trial, need, aim)
+        _search_shift(red, st, best, trial, need, aim)
         for _ in range(3):  # the lateral margin: a wider stance
             rep, legs, _, shifts = best
             move = _shift_move(rep, legs, red.prev, shifts, m)
@@ -689,7 +711,7 @@ def _solve_shift(red: _Reduced, st: _Leaned, got0, need: float, aim: float, repa
     return best, repairs
 
 
-def _search_shift(red: _Reduced, best, trial, need: float, aim: float) -> None:
+def _search_shift(red: _Reduced, st: _Leaned, best, trial, need: float, aim: float) -> None:
     """Shift the leg girdle from the state ``best``: the first step 1.2 × the missing distance
     (:func:`_shift_move`), then secant steps on the margin towards ``aim`` until it reaches
     ``need``; a step that lowers the margin is halved back once, then the search stops

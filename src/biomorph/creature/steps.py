@@ -584,7 +584,7 @@ def step_limbs(
                 pose = _pose_leg(spine, opts, rng, base, lengths[i], ground, role, plan)
             lengths[i] = pose.lengths
         elif carry and spec.kind == "wing":  # the bipeds' repair: wings keep their angles
-            pose = lb.moved(previous.poses[i], base, lengths[i])
+            pose = carried_wing(spine, previous.poses[i], base, lengths[i], ground, s, rng)
         else:
             floor = None if ground is None else ground + 0.01 * max(s[-1], 1.0)
             pose = _pose_free(spine, spec.kind, base, lengths[i], rng, lean, xy, floor)
@@ -597,7 +597,20 @@ def step_limbs(
     else:
         clear = 0.01 * max(s[-1], 1.0)  # lift_clear's clearance is above ``ground``
         poses = [
-            lb.lift_clear(p, attach[i][1], lengths[i], ground, clear) if p.kind != "leg" else p
+            lb.lift_clear(
+                p,
+                attach[i][1],
+                lengths[i],
+                ground,
+                clear
+                + (
+                    wing_reach(spine, lengths[i], attach[i][1][1] - ground)
+                    if carry and p.kind == "wing"
+                    else 0.0
+                ),
+            )
+            if p.kind != "leg"
+            else p
             for i, p in enumerate(poses)
         ]
     return LimbsState(
@@ -609,6 +622,30 @@ def step_limbs(
         poses=poses,
         shifts=dict(shifts),
     )
+
+
+def carried_wing(spine, pose, base, lengths, ground: float, s: NDArray, rng) -> lb.LimbPose:
+    """A wing in the bipeds' repair: its angles at the new attachment, folded
+    (:func:`limbs.lift_clear`) until it and its digits clear the ground by
+    :func:`wing_reach`; drawn again from the repair's stream where folding cannot."""
+    lift = 0.01 * max(s[-1], 1.0) + wing_reach(spine, lengths, base[1] - ground)
+    out = lb.moved(pose, base, lengths)
+    if np.all(out.points[1:, 1] >= ground + lift):
+        return out
+    out = lb.lift_clear(out, base, lengths, ground, lift)
+    if np.all(out.points[1:, 1] >= ground + lift):
+        return out
+    return lb.pose_free("wing", base, lengths, rng, cls=spine.cls)
+
+
+def wing_reach(spine: SpineState, lengths: NDArray, height: float) -> float:
+    """Clearance (px) a wing kept in its pose during the bipeds' repair keeps above the ground
+    besides the free limbs' own: how far its digits reach beyond its hand, plus 5 % of its
+    attachment's ``height`` above the ground (a walk lowers the body by up to 4 % of the hip
+    height, :mod:`biomorph.creature.walk`)."""
+    plan = feet.digit_plan("wing", "fore", spine.cls, spine.stance, spine.skull)
+    reach = max((sum(d.fractions) for d in plan), default=0.0) * float(lengths[2])
+    return reach + 0.05 * max(float(height), 0.0)
 
 
 def _pose_free(spine, kind, base, lengths, rng, lean, xy, floor) -> lb.LimbPose:
