@@ -86,12 +86,13 @@ def _lock(mo, reference=None, ground=()):
 
     from biomorph._cli import err_console
     from biomorph.motion.contact import (  # numba: only to lock
+        FLOOR_TOLERANCE,
         ContactWarning,
         foot_floor,
         lock_feet,
     )
 
-    floors = [foot_floor(g) for g in ground if g.names == mo.names]
+    floors = [foot_floor(g, tolerance=FLOOR_TOLERANCE) for g in ground if g.names == mo.names]
     floor = min((f for f in floors if f is not None), default=None)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ContactWarning)
@@ -796,8 +797,22 @@ def retarget(
     t0 = time.perf_counter()
     src = _read(path, up, strict)
     tgt = _read(to, None, strict)
-    out = rt(src, tgt.skeleton, source_names, target_names, map_csv, feet=False)
-    out = _finish(output, out, None, lock_feet, euler, preview)
+    import warnings
+
+    from biomorph._cli import err_console
+
+    if lock_feet:  # retarget locks on the source's contacts where the feet differ (numba)
+        from biomorph.motion.contact import ContactWarning
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ContactWarning)
+            out = rt(src, tgt.skeleton, source_names, target_names, map_csv, feet=True)
+        for w in caught:
+            if issubclass(w.category, ContactWarning):
+                err_console.print(f"warning: {w.message}", markup=False, highlight=False)
+    else:
+        out = rt(src, tgt.skeleton, source_names, target_names, map_csv, feet=False)
+    out = _finish(output, out, None, False, euler, preview)
     _emit(
         _summary(
             out,

@@ -644,17 +644,19 @@ def two_bone_ik(
 
 
 @njit(cache=True)
-def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot, ui, tfloor):  # noqa: PLR0913 # pragma: no cover
+def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot, ui, floor, tclear):  # noqa: PLR0913 # pragma: no cover
     """Solve one leg on the frames ``act`` and write the new local rotations of its hip,
     knee and ankle into ``rot (f, n, 4)``. ``P``/``Q``: chain world positions/orientations;
     ``leg`` = chain columns of (hip's parent, hip, knee, ankle, toe or -1); ``joints`` =
     skeleton indices of (hip, knee, ankle); ``goal`` the ankle target; ``tt``/``wt`` the toe's
     held place and weight (the foot turns toward it where ``wt > 0``); ``ws`` the solve's
     weight per frame and ``soft`` the soft-IK band (:func:`_ik_frame`); ``ui`` the up axis
-    and ``tfloor`` per frame the height no turned toe goes below (the floor; outside the
-    toe's contacts, where a reference is given, also the reference toe's height)."""
+    and ``floor`` the height no turned toe goes below; ``tclear`` per frame the reference
+    toe's clearance outside the toe's contacts (``-inf`` elsewhere), kept as far as the
+    unturned foot reaches it."""
     cp, ch, ck, ca, ct = leg[0], leg[1], leg[2], leg[3], leg[4]
     gv = np.empty(3)
+    cv = np.empty(3)
     jh, jk, ja = joints[0], joints[1], joints[2]
     r_hip = np.empty(4)
     r_knee = np.empty(4)
@@ -693,8 +695,12 @@ def _lock_leg(P, Q, leg, goal, act, tt, wt, ws, soft, rest, joints, rot, ui, tfl
             # puts the toe past it along the line (fair1 jumping: 5.5 % of the hip height
             # below the floor); there the foot turns only as far down as the floor
             foot = math.sqrt((pt[0] - pa[0]) ** 2 + (pt[1] - pa[1]) ** 2 + (pt[2] - pa[2]) ** 2)
-            if foot > 0 and g[ui] + foot * gv[ui] < tfloor[t]:
-                gy = min(1.0, max(-1.0, (tfloor[t] - g[ui]) / foot))
+            cv[0], cv[1], cv[2] = c0, c1, c2
+            # the reference's clearance only as far as the unturned foot reaches it (never
+            # pitched up past the animation's own foot)
+            low = max(floor, min(tclear[t], g[ui] + foot * cv[ui]))
+            if foot > 0 and g[ui] + foot * gv[ui] < low:
+                gy = min(1.0, max(-1.0, (low - g[ui]) / foot))
                 hn = math.sqrt(max(0.0, 1.0 - gv[ui] * gv[ui]))
                 if hn > 1e-9:
                     sc = math.sqrt(1.0 - gy * gy) / hn
@@ -807,10 +813,10 @@ def _leg_goals(  # noqa: PLR0913
             goal[under, ui] += need[under]
             w = np.where(under, 1.0, w)
     act = np.flatnonzero(w > 0).astype(np.int64)
-    tfloor = np.full(f, -np.inf if floor is None else float(floor))
+    tclear = np.full(f, -np.inf)
     if toe_clear is not None and lg.toe >= 0:  # a turned toe keeps the reference's clearance
-        tfloor = np.maximum(tfloor, np.where(on_t, -np.inf, toe_clear))
-    return goal, tt, wt, w_soft, act, tfloor
+        tclear = np.where(on_t, -np.inf, toe_clear)
+    return goal, tt, wt, w_soft, act, tclear
 
 
 def _in_swing(p: Array, ui: int, swing: float) -> NDArray[np.bool_] | None:
@@ -833,9 +839,18 @@ def _reference(motion: Motion, reference: Motion | None) -> Motion:
     return motion
 
 
-def foot_floor(motion: Motion, up: str | None = None) -> float | None:
+FLOOR_TOLERANCE = 0.01
+"""After an operator that changes the timing or the sides, a foot may end this fraction of
+the body scale below the input's lowest foot (the CLI's floor): a mirrored capture whose
+legs differ stands that much lower (cmu_01_01 1.8 %, dme fixed 1.4 %), and holding it
+exactly at the input's floor raised the planted feet (dme fixed mirror skate 0.495 → 0.586,
+input 0.571; with 1 %: 0.539)."""
+
+
+def foot_floor(motion: Motion, up: str | None = None, tolerance: float = 0.0) -> float | None:
     """The lowest height any foot point (ankle or toe) reaches in ``motion`` (``None`` when
-    the skeleton has no legs): the floor :func:`lock_feet` keeps."""
+    the skeleton has no legs), less ``tolerance`` × the body scale: the floor
+    :func:`lock_feet` keeps."""
     legs = find_legs(motion)
     if not legs:
         return None
@@ -843,7 +858,9 @@ def foot_floor(motion: Motion, up: str | None = None) -> float | None:
     chain = _leg_chain(motion, legs)
     col = {int(j): c for c, j in enumerate(chain)}
     pos = _chain_fk(motion, chain)[0]
-    return float(pos[:, [col[j] for j in _contact_points(legs)], ui].min())
+    pts = [col[j] for j in _contact_points(legs)]
+    low = float(pos[:, pts, ui].min())
+    return low - tolerance * _ground_and_scale(pos, pts, ui)[1] if tolerance else low
 
 
 def lock_feet(
@@ -917,7 +934,21 @@ def lock_feet(
         )
         joints = np.array([lg.hip, lg.knee, lg.ankle], dtype=np.int64)
         clamped += _lock_leg(
-            pos, wq, cols, goal, act, tt, wt, w_soft, float(o.soft), rest, joints, rot, ui, tfl
+            pos,
+            wq,
+            cols,
+            goal,
+            act,
+            tt,
+            wt,
+            w_soft,
+            float(o.soft),
+            rest,
+            joints,
+            rot,
+            ui,
+            floor,
+            tfl,
         )
     if clamped:
         warnings.warn(
@@ -942,4 +973,5 @@ __all__ = [
     "two_bone_ik",
     "lock_feet",
     "foot_floor",
+    "FLOOR_TOLERANCE",
 ]
