@@ -539,12 +539,21 @@ class _Reduced:
         if prev.shifts or not len(legs.patches):
             return None
         g = carried_ground(st.spine, prev.places, prev.attach, prev, self.legs)
-        if abs(st.ground - g) > 1e-9 * max(abs(g), 1.0) or abs(g - prev.ground) > 1e-9 * max(
-            abs(g), 1.0
-        ):
-            return None  # a ground that moved (the trunk's underside, a foot above it)
-        stood = {i: (prev.attach[i], prev.poses[i]) for i in self.legs}
-        return _report(_Part.join([st.body, legs]), self.opts), legs, (stood, st.ground)
+        tol = 1e-9 * max(abs(g), 1.0)
+        if abs(st.ground - g) > tol:
+            return None  # the trunk's underside lowered the ground: re-ground the legs
+        # the girdle bones run from the leaned spine; the feet stood a little above the
+        # ground they were posed for: their digits on g
+        legs = _Part.join(
+            [
+                _limb_part(
+                    st.spine, prev.places[i], st.attach[i], prev.poses[i], prev.lengths[i], g
+                )
+                for i in self.legs
+            ]
+        )
+        stood = {i: (st.attach[i], prev.poses[i]) for i in self.legs}
+        return _report(_Part.join([st.body, legs]), self.opts), legs, (stood, g)
 
     def stand(self, st: _Leaned, shifts: dict):
         """Balance of the leaned body with the legs at ``shifts``: ``(report, legs part,
