@@ -194,11 +194,20 @@ def test_shortest_path_forest_uses_a_virtual_root():
 # ----------------------------------------------------------------------------- end to end
 
 
-def test_y_tree_skeleton_matches_the_axes():
+@pytest.mark.parametrize(
+    ("level_merge", "inside", "seed"),
+    [("adjacent", False, 3)]
+    + [("adaptive", True, s) for s in range(4)]
+    + [("adjacent", True, s) for s in (1, 4)],
+)
+def test_y_tree_skeleton_matches_the_axes(level_merge, inside, seed):
+    """Three tips. With ``inside_tips`` (issue 13 session 8) the stem-surface pieces'
+    parallel paths and split branch ends go: the adaptive merge gave 4 tips on seeds 0
+    and 3 without it, the adjacent merge 4 on seeds 1 and 4."""
     from biomorph.tree.cleanup import cleanup
 
-    pts = make_cloud(n=6000, seed=3)
-    res = livny.skeletonize_graph(pts)
+    pts = make_cloud(n=6000, seed=seed)
+    res = livny.skeletonize_graph(pts, level_merge=level_merge, inside_tips=inside)
     g = cleanup(res.graph)
     assert g.roots.size == 1
     assert g.leaves.size == 3  # three branch tips

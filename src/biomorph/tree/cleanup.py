@@ -36,6 +36,7 @@ __all__ = [
     "prune_small_trees",
     "tip_chains",
     "prune_unsupported_tips",
+    "merge_inside_tips",
 ]
 
 
@@ -391,3 +392,167 @@ def prune_unsupported_tips(
         return graph
     g = graph.subgraph(~np.isin(lab, bad))
     return g.with_(weight=g.subtree_length())
+
+
+def _measured_radius(graph: BranchGraph, xyz: NDArray, owner: NDArray) -> NDArray:
+    """RMS distance of each node's points (``owner``: nearest node of every point) to the
+    node's incoming edge; ``nan`` for roots and nodes with fewer than 3 points."""
+    par = graph.parent
+    pos = graph.position
+    v = owner
+    p = np.where(par[v] >= 0, par[v], v)
+    a, b = pos[p], pos[v]
+    d = b - a
+    l2 = np.einsum("ij,ij->i", d, d)
+    t = np.clip(np.einsum("ij,ij->i", xyz - a, d) / np.maximum(l2, 1e-300), 0, 1)
+    q = xyz - (a + t[:, None] * d)
+    d2 = np.einsum("ij,ij->i", q, q)
+    n = graph.n_nodes
+    cnt = np.bincount(v, minlength=n)
+    ms = np.bincount(v, weights=d2, minlength=n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.sqrt(ms / cnt)
+    out[(cnt < 3) | (par < 0)] = np.nan
+    return out
+
+
+def _host_edges(graph, vert, chain_of, lab, spacing):
+    """For each chain vertex, up to 48 candidate host edges (child ids) near it, the
+    distance to each and whether it is the vertex's own chain (edges sampled every 2
+    spacings, a k-d tree over the samples)."""
+    from scipy.spatial import cKDTree
+
+    par = graph.parent
+    pos = graph.position
+    e = np.flatnonzero(par >= 0)
+    step = 2.0 * spacing
+    ns = np.ceil(graph.edge_length[e] / step).astype(np.int64) + 1
+    se = np.repeat(e, ns)
+    off = np.repeat(np.cumsum(ns) - ns, ns)
+    frac = (np.arange(se.size) - off) / np.repeat(np.maximum(ns - 1, 1), ns)
+    samples = pos[par[se]] + frac[:, None] * (pos[se] - pos[par[se]])
+    k = int(min(48, se.size))
+    _, nb = cKDTree(samples).query(pos[vert], k=k, workers=-1)
+    host = se[nb.reshape(vert.size, k)]
+    own = chain_of[host] == lab[vert][:, None]
+    a = pos[par[host]]
+    d = pos[host] - a
+    x = pos[vert][:, None, :]
+    l2 = np.einsum("ijk,ijk->ij", d, d)
+    t = np.clip(np.einsum("ijk,ijk->ij", x - a, d) / np.maximum(l2, 1e-300), 0, 1)
+    dist = np.linalg.norm(x - (a + t[..., None] * d), axis=2)
+    return host, dist, own
+
+
+def _split_end_slack(graph, tops, inv, vert, clen, tol):
+    """Per chain vertex: distance beyond the fork's incoming edge continued past the fork
+    (by the chain's length, radius the smaller tolerance of the fork's and its parent's
+    edges), counted only where a sibling chain lies in it too (``inf`` elsewhere)."""
+    n = graph.n_nodes
+    par = graph.parent
+    pos = graph.position
+    u = par[tops]
+    pu = par[np.maximum(u, 0)]
+    has = (u >= 0) & (pu >= 0)
+    du, _ = _unit(pos[u] - pos[np.maximum(pu, 0)])
+    tu = np.where(has, np.minimum(tol[u], tol[np.maximum(pu, 0)]), -np.inf)
+    rel = pos[vert] - pos[u[inv]]
+    s_ax = np.clip(np.einsum("ij,ij->i", rel, du[inv]), 0, clen[inv] + tu[inv])
+    d_ext = np.linalg.norm(rel - s_ax[:, None] * du[inv], axis=1)
+    ext = np.where(has[inv], d_ext - tu[inv], np.inf)
+    # two pieces of one branch end; a chain continuing its parent beside a twig is the
+    # branch itself
+    in_ext = np.bincount(inv, weights=ext > 0, minlength=tops.size) == 0
+    n_ext = np.bincount(np.maximum(u, 0), weights=in_ext & has, minlength=n)
+    return np.where(n_ext[np.maximum(u, 0)][inv] >= 2, ext, np.inf)
+
+
+def merge_inside_tips(
+    graph: BranchGraph, xyz: NDArray[np.float64], spacing: float, max_rounds: int = 10
+) -> BranchGraph:
+    """Remove side tip chains (:func:`tip_chains`) lying wholly inside the rest of the
+    skeleton: every vertex of the chain lies (a) within ``r + spacing`` of some edge
+    outside the chain, ``r`` the RMS distance of that edge's own points (nearest node) to
+    it -- its allometric radius where it holds fewer than 3 points -- and ``spacing`` the
+    point spacing, or (b) in the fork's incoming edge continued past the fork by the
+    chain's length (radius the smaller ``r + spacing`` of the fork's and its parent's
+    edges) when a sibling chain lies wholly in it too: a split branch end.
+
+    Why: the contraction's level pieces on the surface of a clean dense stem (a level
+    behind the ring) give chains that run beside the stem's path inside the stem's own
+    points -- parallel paths and split branch ends (``level_merge="adaptive"``). A real twig
+    leaves its parent's point envelope; a chain that never does adds no wood.
+    Where two chains lie in each other the shorter goes first, one chain per fork and
+    round; repeated until stable. Every threshold is a measure of the cloud (point
+    spacing, RMS spreads) -- none was tuned on a file.
+    """
+    if graph.radius is None:
+        raise ParameterError("merge_inside_tips needs radii (run allometric_radii first)")
+    if not (spacing > 0 and np.isfinite(spacing)):
+        raise ParameterError(f"point spacing must be > 0 metres, got {spacing}")
+    return merge_inside_tips_mapped(graph, xyz, spacing, max_rounds)[0]
+
+
+def merge_inside_tips_mapped(
+    graph: BranchGraph, xyz: NDArray[np.float64], spacing: float, max_rounds: int = 10
+) -> tuple[BranchGraph, NDArray[np.int64]]:
+    """:func:`merge_inside_tips` and, for every input node, its node in the result (a
+    removed chain's nodes map to the fork the chain left: its points merge there)."""
+    from scipy.spatial import cKDTree
+
+    xyz = np.asarray(xyz, dtype=np.float64)
+    index = np.arange(graph.n_nodes, dtype=np.int64)
+    for _ in range(max_rounds):
+        n = graph.n_nodes
+        if n < 3 or xyz.shape[0] == 0:
+            break
+        par = graph.parent
+        pos = graph.position
+        lab = tip_chains(graph)
+        side = (lab >= 0) & (par[np.maximum(lab, 0)] >= 0)
+        if not side.any():
+            break
+        _, owner = cKDTree(pos).query(xyz, workers=-1)
+        rms = _measured_radius(graph, xyz, owner)
+        r_edge = 0.5 * (graph.radius + graph.radius[np.maximum(par, 0)])
+        tol = np.where(np.isfinite(rms), rms, r_edge) + spacing
+        vert = np.flatnonzero(side)
+        chain_of = np.where(side, lab, -1)
+        host, dist, own = _host_edges(graph, vert, chain_of, lab, spacing)
+        slack = np.where(own, np.inf, dist - tol[host])
+        j = np.argmin(slack, axis=1)
+        hv = host[np.arange(vert.size), j]
+        best = slack[np.arange(vert.size), j]
+        host_chain = chain_of[hv]
+        tops, inv = np.unique(lab[vert], return_inverse=True)
+        clen = np.bincount(inv, weights=graph.edge_length[vert], minlength=tops.size)
+        u = par[tops]
+        ext = _split_end_slack(graph, tops, inv, vert, clen, tol)
+        host_chain = np.where(ext < best, -1, host_chain)
+        inside_v = np.minimum(best, ext) <= 0
+        inside = np.bincount(inv, weights=~inside_v, minlength=tops.size) == 0
+        if not inside.any():
+            break
+        # a candidate waits while one of its hosts is a shorter (or equal, lower id) candidate
+        cand_len = np.full(n, np.inf)
+        cand_len[tops[inside]] = clen[inside]
+        hc = np.maximum(host_chain, 0)
+        hl = np.where(host_chain >= 0, cand_len[hc], np.inf)
+        mine = clen[inv]
+        blocked_v = (hl < mine) | ((hl == mine) & (hc < lab[vert]))
+        blocked = np.bincount(inv, weights=blocked_v, minlength=tops.size) > 0
+        ok = np.flatnonzero(inside & ~blocked)
+        # one chain per fork and round, the shortest: a fork keeps a child
+        ok = ok[np.lexsort((tops[ok], clen[ok]))]
+        _, first = np.unique(u[ok], return_index=True)
+        bad = tops[ok[first]]
+        if bad.size == 0:
+            break
+        drop = np.isin(lab, bad)
+        new = np.full(n, -1, dtype=np.int64)
+        new[~drop] = np.arange(int((~drop).sum()))
+        new[drop] = new[par[lab[drop]]]  # the fork the chain left
+        index = new[index]
+        graph = graph.subgraph(~drop)
+        graph = graph.with_(weight=graph.subtree_length())
+    return graph, index
