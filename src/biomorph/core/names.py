@@ -1,5 +1,6 @@
-"""Joint-name conventions: canonical humanoid names, presets (CMU, Mixamo, Rokoko/HumanIK,
-Rigify as written by ``biomorph creature``), user CSV maps, and left/right pairs.
+"""Joint-name conventions (in ``core``: the BVH reader and the motion pillar use them):
+canonical humanoid names, presets (CMU, Mixamo, Rokoko/HumanIK, Rigify as written by
+``biomorph creature``), user CSV maps, and left/right pairs.
 
 Canonical names are ``hips spine chest upper_chest neck head`` and, per side ``l_``/``r_``,
 ``shoulder upper_arm forearm hand thigh shin foot toe``. A preset maps canonical names to a
@@ -236,4 +237,16 @@ __all__ = [
     "read_map_csv",
     "mirror_name",
     "left_right_pairs",
+    "preset_feet",
 ]
+
+
+def preset_feet(names: tuple[str, ...] | list[str], parent) -> list[int]:
+    """Foot and toe joints named by the skeleton's name preset, sorted (none when no preset
+    fits): how a skeleton without ``foot``/``toe`` in its names (``biomorph creature``'s
+    Rigify-style bipeds) tells its feet."""
+    try:
+        idx = resolve(names, detect_preset(names), parent)
+    except InputError:
+        return []
+    return sorted(idx[k] for k in ("l_foot", "l_toe", "r_foot", "r_toe") if k in idx)

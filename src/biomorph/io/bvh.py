@@ -665,9 +665,9 @@ def _guess_up(mo, guess_up_axis) -> str:
     names = [s.lower() for s in mo.names]
     feet = [i for i, s in enumerate(names) if any(k in s for k in ("foot", "toe", "ankle"))]
     if not feet:
-        from biomorph.motion.quality import _preset_feet
+        from biomorph.core.names import preset_feet
 
-        feet = _preset_feet(mo)
+        feet = preset_feet(mo.names, mo.skeleton.parent)
     if not feet:
         return str(guess_up_axis(mo))
 

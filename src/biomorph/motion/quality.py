@@ -61,14 +61,9 @@ def euler_wraps(motion: Motion) -> int:
 
 def _preset_feet(motion: Motion) -> list[int]:
     """Foot and toe joints named by the skeleton's name preset (none when no preset fits)."""
-    from biomorph.errors import InputError
-    from biomorph.motion import names as nm
+    from biomorph.core.names import preset_feet
 
-    try:
-        idx = nm.resolve(motion.names, nm.detect_preset(motion.names), motion.skeleton.parent)
-    except InputError:
-        return []
-    return sorted(idx[k] for k in ("l_foot", "l_toe", "r_foot", "r_toe") if k in idx)
+    return preset_feet(motion.names, motion.skeleton.parent)
 
 
 def _ancestors(parent: np.ndarray, j: int) -> list[int]:
