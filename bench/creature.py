@@ -71,12 +71,18 @@ def main() -> None:
         help="time REF's src/ against this tree's, interleaved (before/after table)",
     )
     ap.add_argument("--speed-only", action="store_true", help="only the speed table(s)")
+    ap.add_argument(
+        "--conditions",
+        help="with --compare: comma-separated labels of SPEED_CONDITIONS (default: all), "
+        "e.g. 'defaults,--legs 2,--class bird'",
+    )
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
         return _worker()
     if args.compare:
-        compare_table(args.compare, args.count)
+        labels = args.conditions.split(",") if args.conditions else None
+        compare_table(args.compare, args.count, labels=labels)
         if args.speed_only:
             return
 
@@ -213,7 +219,7 @@ def _ask(p: subprocess.Popen, kw: dict, seeds: list[int]) -> list[float]:
     return json.loads(p.stdout.readline())
 
 
-def compare_table(ref: str, n: int, block: int = 25) -> None:
+def compare_table(ref: str, n: int, block: int = 25, labels: list[str] | None = None) -> None:
     """Median CPU ms per creature, REF's code against this tree's, per speed condition,
     interleaved in blocks of seeds in the same run (``--compare``)."""
     root = Path(__file__).resolve().parents[1]
@@ -234,6 +240,8 @@ def compare_table(ref: str, n: int, block: int = 25) -> None:
     res: dict[str, tuple[list[float], list[float]]] = {}
     try:
         for label, kw in SPEED_CONDITIONS.items():
+            if labels is not None and label not in labels:
+                continue
             b_, a_ = [], []
             for i, start in enumerate(range(0, n, block)):
                 seeds = list(range(start, min(start + block, n)))

@@ -35,6 +35,11 @@ def test_back_splits_into_thoracic_lumbar_sacral_in_mammals_only():
     assert "lumbar" not in vertebra_parts(vreg, "reptile")
 
 
+def _area(p) -> float:
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * abs(float(x @ np.roll(y, -1) - y @ np.roll(x, -1)))
+
+
 def test_feet_are_digits_with_end_joints_and_carry_the_contacts():
     from biomorph.creature.balance import convex_hull
 
@@ -49,9 +54,11 @@ def test_feet_are_digits_with_end_joints_and_carry_the_contacts():
         for cp, j in zip(c.contacts, c.contact_joint, strict=True):
             assert c.part[j] in ("phalanx", "hoof", "claw", "nail", "metatarsal", "metacarpal")
             assert abs(cp[1]) <= 1e-6 * c.height
-        # the balance report's support polygon is the hull of those contact points
+        # the balance report's support polygon is the hull of those contact points (the same
+        # polygon: a contact on a straight edge may be kept or dropped as rounding decides)
         hull = convex_hull(c.contacts[:, [0, 2]])
-        assert len(hull) == len(c.balance.support) and c.balance.stable
+        sup = np.array(c.balance.support)
+        assert abs(_area(hull) - _area(sup)) <= 1e-9 * _area(hull) and c.balance.stable
         # end joints end their digit: no children
         ends = [j for j, p in enumerate(c.part) if p in ("hoof", "claw", "nail")]
         assert not set(ends) & set(c.skeleton.parent.tolist())

@@ -67,10 +67,11 @@ def test_two_pc1_scores_differ_along_pc1():
 # real change of the generator moves them by far more. With and without scores=None are
 # compared bit for bit below.
 OLD = {  # re-recorded for issue 14's anatomy rules (femur tilt, knee/elbow, leg sizing);
-    # seed 11 (a biped) again for the free arms' resting pose
+    # seed 11 (a biped) again for the free arms' resting pose, and for the bipeds' balance
+    # repair on the reduced model (issue 14, speed: legs carried, girdle shift before lean)
     0: (114, 3556.9447337316246, 151.82344305851638),
     5: (88, 291.4771990027269, -9.354815545115699),
-    11: (105, 296.6663051709859, 58.84070223413431),
+    11: (105, 296.66630517057877, 62.259917985521064),
 }
 
 

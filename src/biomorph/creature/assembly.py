@@ -553,7 +553,9 @@ def limb_digits(
         and (hit[3] or not frames)
     ):
         return hit[4]
-    dg = _limb_digits(pose, L3, kind, girdle, spine, ground, frames)
+    dg = _free_digits(pose, L3, kind, girdle, spine) if ground is None and frames else None
+    if dg is None:
+        dg = _limb_digits(pose, L3, kind, girdle, spine, ground, frames)
     if len(_DIGITS) > 64:
         _DIGITS.clear()
     _DIGITS[key] = (pose, L3, spine, frames, dg)
@@ -561,6 +563,37 @@ def limb_digits(
 
 
 _DIGITS: dict[tuple, tuple] = {}
+_FREE: dict[tuple, tuple] = {}
+
+
+def _free_digits(pose, L3, kind, girdle, spine) -> feet.Digits:
+    """A free limb's digits (no ground) memoised on the hand's orientation and size: the
+    balance repair of bipeds moves wings rigidly with their attachment, so their digits are
+    those of the original pose translated (the same arrays where the hand has not moved)."""
+    tip = pose.points[3]
+    key = (
+        np.ascontiguousarray(pose.rotations[2]).tobytes(),
+        np.asarray(L3, float).tobytes(),
+        kind,
+        girdle,
+        spine.cls,
+        spine.stance,
+        spine.skull,
+        spine.hoof_digits,
+        bool(pose.foot_flat),
+    )
+    hit = _FREE.get(key)
+    if hit is None:
+        dg = _limb_digits(pose, L3, kind, girdle, spine, None, True)
+        if len(_FREE) > 64:
+            _FREE.clear()
+        _FREE[key] = (tip.copy(), dg)
+        return dg
+    tip0, dg = hit
+    d = tip - tip0
+    if not d.any():
+        return dg
+    return replace(dg, pos=dg.pos + d)
 
 
 def _limb_digits(pose, L3, kind, girdle, spine, ground, frames) -> feet.Digits:

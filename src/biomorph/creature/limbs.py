@@ -461,11 +461,13 @@ def _bisect_flexion(base, lengths, ang, j, a0, target, f0, contact, ground):  # 
     return a if fa >= 0 else b
 
 
-def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None):
+def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None, scan=0):
     """Close the remaining gap exactly: bisect one flexion angle (knee first, then hip, then
     ankle) so the contact point lies on the ground with no bone end below it (and, given
     ``accept(points)``, the result accepted). Works from above or below the ground. Returns
-    new angles or ``None``."""
+    new angles or ``None``. ``scan`` > 0 (the continuous re-grounding of :func:`reground`)
+    brackets the root nearest the current angle (``scan`` steps towards each limit) instead
+    of the whole range to a limit, which misses a root when the height rises again."""
     base = np.asarray(base, float)
     lengths = np.asarray(lengths, float)
     ang = np.ascontiguousarray(ang, dtype=float)
@@ -479,6 +481,25 @@ def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None):
         f0 = _contact_height(base, lengths, ang, j, a0, contact, ground, rot, pts)
         if f0 == 0.0:
             return ang
+        if scan:
+            t = _snap_scan(
+                base,
+                lengths,
+                ang,
+                j,
+                a0,
+                f0,
+                float(lo),
+                float(hi),
+                contact,
+                ground,
+                scan,
+                scale,
+                accept,
+            )
+            if t is not None:
+                return t
+            continue
         for target in (float(lo), float(hi)):
             ft = _contact_height(base, lengths, ang, j, target, contact, ground, rot, pts)
             if (ft <= 0 <= f0) or (f0 <= 0 <= ft):
@@ -492,31 +513,68 @@ def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None):
     return None
 
 
+def _snap_scan(base, lengths, ang, j, a0, f0, lo, hi, contact, ground, scan, scale, accept):
+    """:func:`_snap` for one joint, the root nearest ``a0``: steps of 1/``scan`` of the way
+    to either limit, alternating, bisecting the first bracket whose result is accepted."""
+    rot = np.zeros((3, 3, 3))
+    pts = np.zeros((4, 3))
+    prev = {lo: (a0, f0), hi: (a0, f0)}
+    for k in range(1, scan + 1):
+        for target in (lo, hi):
+            a_prev, f_prev = prev[target]
+            a_k = a0 + (target - a0) * k / scan
+            f_k = _contact_height(base, lengths, ang, j, a_k, contact, ground, rot, pts)
+            prev[target] = (a_k, f_k)
+            if not ((f_k <= 0 <= f_prev) or (f_prev <= 0 <= f_k)):
+                continue
+            t = ang.copy()
+            t[j, 0] = _bisect_flexion(base, lengths, ang, j, a_prev, a_k, f_prev, contact, ground)
+            _, p = forward(base, lengths, t)
+            if np.all(p[1 : contact + 1, 1] >= ground - 1e-6 * scale) and (
+                accept is None or accept(p)
+            ):
+                return t
+    return None
+
+
 def reground(
     pose: LimbPose,
     base: NDArray,
     lengths: NDArray,
     ground: float,
     params: DescentParams = DescentParams(),
+    continuous: bool = False,
 ) -> LimbPose | None:
     """Move a posed leg to a new attachment ``base`` keeping its joint angles, then close the
     (small) vertical gap by bisection — a continuous re-grounding used by balance repair.
-    Returns ``None`` if the leg cannot reach."""
+    ``continuous`` (the bipeds' repair): a contact at most ``params.tolerance`` above the
+    ground keeps the angles (the descent's own acceptance: a leg it left a fraction of a px
+    above the ground is not re-snapped), and the bisection takes the root nearest the
+    current angle (:func:`_snap`'s ``scan``). Returns ``None`` if the leg cannot reach."""
     plant = pose.foot_flat
     contact, n_active = (2, 2) if plant else (3, 3)
     box = pose.box if pose.box is not None else STAND_LIMITS_DEG[pose.role] * DEG
     if not params.plausible:
         box = pose.limits
-    ang = _snap(
-        np.asarray(base, float),
-        np.asarray(lengths, float),
-        pose.angles.copy(),
-        box,
-        ground,
-        contact,
-        n_active,
-        _plausible_test(lengths, contact, pose.role, params, pose.upper_max_deg),
-    )
+    ang = None
+    if continuous:
+        _, p = forward(base, lengths, pose.angles)
+        gap = float(p[contact, 1] - ground)
+        eps = 1e-9 * float(np.sum(lengths))
+        if -eps <= gap <= params.tolerance and np.all(p[1 : contact + 1, 1] >= ground - eps):
+            ang = pose.angles.copy()
+    if ang is None:
+        ang = _snap(
+            np.asarray(base, float),
+            np.asarray(lengths, float),
+            pose.angles.copy(),
+            box,
+            ground,
+            contact,
+            n_active,
+            _plausible_test(lengths, contact, pose.role, params, pose.upper_max_deg),
+            8 if continuous else 0,
+        )
     if ang is None:
         return None
     if plant:
@@ -900,6 +958,12 @@ def pose_free(
     ang = np.clip(ang, limits[..., 0], limits[..., 1])
     rot, pts = forward(base, lengths, ang)
     return LimbPose(kind, role, ang, limits, rot, pts, None, False, 0.0, 0)
+
+
+def moved(pose: LimbPose, base: NDArray, lengths: NDArray) -> LimbPose:
+    """A free limb's pose with the same joint angles at a new attachment ``base``."""
+    rot, pts = forward(base, lengths, pose.angles)
+    return LimbPose(pose.kind, pose.role, pose.angles, pose.limits, rot, pts, None, False, 0.0, 0)
 
 
 def lift_clear(

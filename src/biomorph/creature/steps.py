@@ -444,24 +444,10 @@ def _girdle_rise(spine: SpineState, places, attach, previous: LimbsState) -> flo
     return 0.0
 
 
-def step_limbs(
-    spine: SpineState,
-    girdles: tuple[gd.Girdle, ...],
-    opts: Options,
-    rng: np.random.Generator,
-    shifts: dict[str, float] | None = None,
-    ground: float | None = None,
-    previous: LimbsState | None = None,
-) -> LimbsState:
-    """Ground height, grounded legs by the seed's descent, free limbs by rule (frame px)."""
-    pts = to_creature_px(spine.points)
-    cls, posture, stance = spine.cls, spine.posture, spine.stance
-    legless = spine.legs == 0
-    xy, s, region = sp.sample(pts)
-    rl = sp.region_lengths(s, region)
-    skull_h = sk.get(spine.skull).height * spine.skull_length
-    shifts = shifts or {}
-    # placements: (girdle name, pair index, spec, arc position)
+def placements(girdles, shifts: dict[str, float], rl: NDArray, s: NDArray) -> list:
+    """Limb placements ``(girdle name, pair index, spec, arc position)``: each girdle's
+    position plus its balance-repair shift; a second pair a little apart, towards the body
+    centre; clamped to the spine."""
     places = []
     for g in girdles:
         for k, spec in enumerate(g.pairs):
@@ -471,6 +457,51 @@ def step_limbs(
                 at = at + step if g.name in ("shoulder", "centaur") else at - step
             at = min(max(float(at), 0.0), float(s[-1]))  # np.clip on a float
             places.append((g.name, k, spec, at))
+    return places
+
+
+def carried_ground(spine: SpineState, places, attach, previous: LimbsState, legs) -> float:
+    """Ground height (creature px) under legs that keep their joint angles and move with their
+    attachments (``attach`` indexable by place): the lowest foot's contact less the height
+    its digits need (:func:`feet.clearance`)."""
+    out = np.inf
+    for i in legs:
+        role = "hind" if places[i][0] == "hip" else "fore"
+        plan = feet.digit_plan("leg", role, spine.cls, spine.stance, spine.skull, spine.hoof_digits)
+        L3 = previous.lengths[i]
+        pose = previous.poses[i]
+        _, p = lb.forward(attach[i][1], L3, pose.angles)
+        out = min(out, float(p[2 if pose.foot_flat else 3, 1]) - feet.clearance(plan, float(L3[2])))
+    return out
+
+
+def step_limbs(
+    spine: SpineState,
+    girdles: tuple[gd.Girdle, ...],
+    opts: Options,
+    rng: np.random.Generator,
+    shifts: dict[str, float] | None = None,
+    ground: float | None = None,
+    previous: LimbsState | None = None,
+    carry: bool = False,
+    repose: bool = False,
+) -> LimbsState:
+    """Ground height, grounded legs by the seed's descent, free limbs by rule (frame px).
+
+    With ``previous`` (balance repair) the legs keep their poses and are re-grounded at the
+    new attachments; the ground follows the girdle the standing height is measured at
+    (``ground`` + its rise) or, with ``carry`` (the bipeds' repair), lies under the feet of
+    the legs carried rigidly with their attachments (:func:`carried_ground`; re-grounding
+    then :func:`limbs.reground`'s continuous one) and wings keep their angles; ``repose``
+    poses the legs afresh there by the descent instead of re-grounding them."""
+    pts = to_creature_px(spine.points)
+    cls, posture, stance = spine.cls, spine.posture, spine.stance
+    legless = spine.legs == 0
+    xy, s, region = sp.sample(pts)
+    rl = sp.region_lengths(s, region)
+    skull_h = sk.get(spine.skull).height * spine.skull_length
+    shifts = shifts or {}
+    places = placements(girdles, shifts, rl, s)
     attach = _attach_all(xy, s, rl, spine, skull_h, legless, places, shifts.get("width", 1.0))
     legs = [i for i, p in enumerate(places) if p[2].kind == "leg"]
     lengths = [np.array(p[2].lengths, float) for p in places]
@@ -480,7 +511,10 @@ def step_limbs(
         # moved along a pitched spine carries its legs instead of stretching them
         for i in legs:
             lengths[i] = np.array(previous.lengths[i], float)
-        ground = ground + _girdle_rise(spine, places, attach, previous)
+        if carry:
+            ground = carried_ground(spine, places, attach, previous, legs)
+        else:
+            ground = ground + _girdle_rise(spine, places, attach, previous)
     h_all, _, off_all = ms.profile(s, rl, spine.girth, cls, skull_h, legless)
     body_bottom = xy[:, 1] - np.where(region == 1, 0.35, 0.2) * h_all
     if legs:
@@ -538,15 +572,19 @@ def step_limbs(
             role = "hind" if gname == "hip" else "fore"
             plan = feet.digit_plan("leg", role, cls, stance, spine.skull, spine.hoof_digits)
             pose = None
-            if previous is not None:  # balance repair: keep the pose, re-ground continuously
+            if previous is not None and not repose:  # repair: keep the pose, re-ground
                 prev = previous.poses[i]
                 lift = feet.clearance(plan, float(previous.lengths[i][2]))
-                pose = lb.reground(prev, base, previous.lengths[i], ground + lift, opts.descent)
+                pose = lb.reground(
+                    prev, base, previous.lengths[i], ground + lift, opts.descent, carry
+                )
                 if pose is not None:
                     lengths[i] = previous.lengths[i]
             if pose is None:
                 pose = _pose_leg(spine, opts, rng, base, lengths[i], ground, role, plan)
             lengths[i] = pose.lengths
+        elif carry and spec.kind == "wing":  # the bipeds' repair: wings keep their angles
+            pose = carried_wing(spine, previous.poses[i], base, lengths[i], ground, s, rng)
         else:
             floor = None if ground is None else ground + 0.01 * max(s[-1], 1.0)
             pose = _pose_free(spine, spec.kind, base, lengths[i], rng, lean, xy, floor)
@@ -559,7 +597,20 @@ def step_limbs(
     else:
         clear = 0.01 * max(s[-1], 1.0)  # lift_clear's clearance is above ``ground``
         poses = [
-            lb.lift_clear(p, attach[i][1], lengths[i], ground, clear) if p.kind != "leg" else p
+            lb.lift_clear(
+                p,
+                attach[i][1],
+                lengths[i],
+                ground,
+                clear
+                + (
+                    wing_reach(spine, lengths[i], attach[i][1][1] - ground)
+                    if carry and p.kind == "wing"
+                    else 0.0
+                ),
+            )
+            if p.kind != "leg"
+            else p
             for i, p in enumerate(poses)
         ]
     return LimbsState(
@@ -571,6 +622,30 @@ def step_limbs(
         poses=poses,
         shifts=dict(shifts),
     )
+
+
+def carried_wing(spine, pose, base, lengths, ground: float, s: NDArray, rng) -> lb.LimbPose:
+    """A wing in the bipeds' repair: its angles at the new attachment, folded
+    (:func:`limbs.lift_clear`) until it and its digits clear the ground by
+    :func:`wing_reach`; drawn again from the repair's stream where folding cannot."""
+    lift = 0.01 * max(s[-1], 1.0) + wing_reach(spine, lengths, base[1] - ground)
+    out = lb.moved(pose, base, lengths)
+    if np.all(out.points[1:, 1] >= ground + lift):
+        return out
+    out = lb.lift_clear(out, base, lengths, ground, lift)
+    if np.all(out.points[1:, 1] >= ground + lift):
+        return out
+    return lb.pose_free("wing", base, lengths, rng, cls=spine.cls)
+
+
+def wing_reach(spine: SpineState, lengths: NDArray, height: float) -> float:
+    """Clearance (px) a wing kept in its pose during the bipeds' repair keeps above the ground
+    besides the free limbs' own: how far its digits reach beyond its hand, plus 5 % of its
+    attachment's ``height`` above the ground (a walk lowers the body by up to 4 % of the hip
+    height, :mod:`biomorph.creature.walk`)."""
+    plan = feet.digit_plan("wing", "fore", spine.cls, spine.stance, spine.skull)
+    reach = max((sum(d.fractions) for d in plan), default=0.0) * float(lengths[2])
+    return reach + 0.05 * max(float(height), 0.0)
 
 
 def _pose_free(spine, kind, base, lengths, rng, lean, xy, floor) -> lb.LimbPose:
