@@ -470,19 +470,25 @@ def reorder_joints(
 
 
 def guess_up_axis(motion: Motion) -> str:
-    """``"y"`` or ``"z"``: the axis along which the root stays highest above the feet.
+    """``"y"`` or ``"z"``: the axis along which the body stands highest above its feet.
 
-    Feet are joints whose name contains foot/toe/ankle (else the lowest leaf joints of the
-    rest pose). The up axis is the one maximising the mean |root - feet| over the clip;
+    Feet are :func:`biomorph.core.names.foot_joints` (names, else the name preset; else the
+    leaf joints). The body is the pelvis — the nearest joint above every foot — rather than
+    the root: the same joint on most rigs, but a ground-level ``root`` of root motion stands
+    *on* the floor and a creature skeleton's root is the front of its spine. The up axis is
+    the one maximising the mean |pelvis - feet| over the clip (sampled to ~200 frames);
     ties (and skeletons without feet) give ``"y"``."""
-    names = [s.lower() for s in motion.names]
-    feet = [i for i, s in enumerate(names) if any(k in s for k in ("foot", "toe", "ankle"))]
+    from biomorph.core.names import foot_joints
+    from biomorph.core.skeleton import common_ancestor
+
+    parent = motion.skeleton.parent
+    feet = foot_joints(motion.names, parent)
+    body = common_ancestor(parent, feet) if feet else 0
+    if not feet:
+        feet = list(np.setdiff1d(np.arange(motion.n_joints), parent))
     step = max(1, motion.n_frames // 200)
     pos = motion.world_positions(slice(None, None, step))
-    if not feet:
-        leaves = np.setdiff1d(np.arange(motion.n_joints), motion.skeleton.parent)
-        feet = list(leaves)
-    d = np.abs(pos[:, 0, :] - pos[:, feet, :].mean(axis=1)).mean(axis=0)
+    d = np.abs(pos[:, body, :] - pos[:, feet, :].mean(axis=1)).mean(axis=0)
     return "z" if d[2] > 1.2 * d[1] and d[2] > d[0] else "y"
 
 

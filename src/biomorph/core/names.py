@@ -238,6 +238,7 @@ __all__ = [
     "mirror_name",
     "left_right_pairs",
     "preset_feet",
+    "foot_joints",
 ]
 
 
@@ -250,3 +251,11 @@ def preset_feet(names: tuple[str, ...] | list[str], parent) -> list[int]:
     except InputError:
         return []
     return sorted(idx[k] for k in ("l_foot", "l_toe", "r_foot", "r_toe") if k in idx)
+
+
+def foot_joints(names: tuple[str, ...] | list[str], parent) -> list[int]:
+    """The feet: joints with ``foot``, ``toe`` or ``ankle`` in their name, else those of the
+    skeleton's name preset (:func:`preset_feet`); empty when neither finds any."""
+    low = [s.lower() for s in names]
+    feet = [i for i, s in enumerate(low) if any(k in s for k in ("foot", "toe", "ankle"))]
+    return feet or preset_feet(names, parent)

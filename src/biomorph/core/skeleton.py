@@ -10,6 +10,7 @@ a per-frame root position which replaces its offset.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
@@ -201,3 +202,22 @@ class JointSkeleton:
         child = np.flatnonzero(self.parent >= 0)
         p = w[..., :3, 3]
         return np.stack([p[..., self.parent[child], :], p[..., child, :]], axis=-2)
+
+
+def ancestors(parent: ArrayLike, joint: int) -> list[int]:
+    """``joint`` and its ancestors up to the root, nearest first."""
+    par = np.asarray(parent)
+    out = [int(joint)]
+    while par[out[-1]] >= 0:
+        out.append(int(par[out[-1]]))
+    return out
+
+
+def common_ancestor(parent: ArrayLike, joints: Sequence[int]) -> int:
+    """The nearest joint, not one of ``joints``, above every joint of ``joints`` (for feet:
+    the pelvis the legs hang from); the root (0) when there is none."""
+    chain = ancestors(parent, joints[0])
+    common = set(chain)
+    for j in joints[1:]:
+        common &= set(ancestors(parent, j))
+    return next((j for j in chain if j in common and j not in joints), 0)

@@ -655,39 +655,6 @@ def _stream_motion(buf, data_start, n_frames, n_ch, rot_cols, rot_axes, pos_cols
     return conv.result()
 
 
-def _guess_up(mo, guess_up_axis) -> str:
-    """``guess_up_axis``'s rule (the axis along which the body stands highest above its
-    feet), measured from the pelvis — the nearest joint above every foot — instead of the
-    root: the same joint on most rigs, but a ground-level ``root`` of root motion stands *on*
-    the floor and a creature skeleton's root is the front of its spine, so the root-based
-    rule read a Y-up root-motion walk and Y-up creature bipeds as Z-up."""
-    parent = np.asarray(mo.skeleton.parent)
-    names = [s.lower() for s in mo.names]
-    feet = [i for i, s in enumerate(names) if any(k in s for k in ("foot", "toe", "ankle"))]
-    if not feet:
-        from biomorph.core.names import preset_feet
-
-        feet = preset_feet(mo.names, mo.skeleton.parent)
-    if not feet:
-        return str(guess_up_axis(mo))
-
-    def chain(j: int) -> list[int]:
-        out = [j]
-        while parent[out[-1]] >= 0:
-            out.append(int(parent[out[-1]]))
-        return out
-
-    common = set(chain(feet[0]))
-    for f in feet[1:]:
-        common &= set(chain(f))
-    pelvis = next((j for j in chain(feet[0]) if j in common and j not in feet), 0)
-    if pelvis == 0:
-        return str(guess_up_axis(mo))
-    pos = mo.world_positions(slice(None, None, max(1, mo.n_frames // 200)))
-    d = np.abs(pos[:, pelvis, :] - pos[:, feet, :].mean(axis=1)).mean(axis=0)
-    return "z" if d[2] > 1.2 * d[1] and d[2] > d[0] else "y"
-
-
 def read_bvh(path: str | os.PathLike[str], up: str | None = None, strict: bool = False):
     """Read a BVH file into a :class:`biomorph.motion.Motion` (see the module docstring).
 
@@ -824,7 +791,7 @@ def read_bvh(path: str | os.PathLike[str], up: str | None = None, strict: bool =
         if arr is not None:
             arr.setflags(write=False)
     mo = Motion(skel, rotation, root_pos, frame_time, translation, meta)
-    mo.meta["up_guess"] = _guess_up(mo, guess_up_axis)
+    mo.meta["up_guess"] = guess_up_axis(mo)
     if up is not None:
         from biomorph.core.motion import to_y_up
 

@@ -9,6 +9,7 @@ from biomorph.core.names import (
     REQUIRED,
     bare,
     detect_preset,
+    foot_joints,
     left_right_pairs,
     mirror_name,
     preset_feet,
@@ -27,4 +28,5 @@ __all__ = [
     "mirror_name",
     "left_right_pairs",
     "preset_feet",
+    "foot_joints",
 ]

@@ -30,6 +30,8 @@ import numpy as np
 
 from biomorph.core import transforms as tf
 from biomorph.core.motion import Motion, guess_up_axis
+from biomorph.core.names import foot_joints
+from biomorph.core.skeleton import ancestors, common_ancestor
 from biomorph.motion.align import _up_index
 
 
@@ -59,37 +61,13 @@ def euler_wraps(motion: Motion) -> int:
     return total
 
 
-def _preset_feet(motion: Motion) -> list[int]:
-    """Foot and toe joints named by the skeleton's name preset (none when no preset fits)."""
-    from biomorph.core.names import preset_feet
-
-    return preset_feet(motion.names, motion.skeleton.parent)
-
-
-def _ancestors(parent: np.ndarray, j: int) -> list[int]:
-    out = [j]
-    while parent[out[-1]] >= 0:
-        out.append(int(parent[out[-1]]))
-    return out
-
-
-def _pelvis(motion: Motion, feet: list[int]) -> int:
-    """The nearest joint that is an ancestor of every foot joint (the root when none)."""
-    parent = np.asarray(motion.skeleton.parent)
-    common = set(_ancestors(parent, feet[0]))
-    for f in feet[1:]:
-        common &= set(_ancestors(parent, f))
-    chain = [j for j in _ancestors(parent, feet[0]) if j in common and j not in feet]
-    return chain[0] if chain else 0
-
-
 def _leg_length(motion: Motion, pelvis: int, feet: list[int]) -> float:
     """Longest pelvis → foot path along the rest offsets."""
     parent = np.asarray(motion.skeleton.parent)
     off = np.linalg.norm(np.asarray(motion.skeleton.offset, dtype=float), axis=-1)
     best = 0.0
     for f in feet:
-        chain = _ancestors(parent, f)
+        chain = ancestors(parent, f)
         if pelvis in chain:
             best = max(best, float(off[chain[: chain.index(pelvis)]].sum()))
     return best
@@ -99,16 +77,14 @@ def foot_skate(motion: Motion, up: str | None = None) -> dict[str, Any]:
     """Foot-skate measure (see module docstring)."""
     up = up or motion.meta.get("up_guess") or guess_up_axis(motion)
     ui = _up_index(up)
-    names = [s.lower() for s in motion.names]
-    feet = [i for i, s in enumerate(names) if any(k in s for k in ("foot", "toe", "ankle"))]
-    if not feet:  # a preset's feet (biomorph creature: hip1_distal_l, hip1_digit3_1_l), else leaves
-        feet = _preset_feet(motion) or list(
-            np.setdiff1d(np.arange(motion.n_joints), motion.skeleton.parent)
-        )
+    # named feet, else a preset's (biomorph creature: hip1_distal_l, hip1_digit3_1_l), else leaves
+    feet = foot_joints(motion.names, motion.skeleton.parent) or list(
+        np.setdiff1d(np.arange(motion.n_joints), motion.skeleton.parent)
+    )
     w = motion.world_positions()
     h = w[:, feet, ui]
     ground = float(np.percentile(h, 2))
-    pelvis = _pelvis(motion, feet)
+    pelvis = common_ancestor(motion.skeleton.parent, feet)
     scale = float(np.median(w[:, pelvis, ui] - ground))
     if scale <= 0:
         scale = _leg_length(motion, pelvis, feet) or float(np.ptp(w[..., ui]) or 1.0)
