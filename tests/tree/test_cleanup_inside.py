@@ -14,26 +14,15 @@ from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree import cleanup as cl
 from biomorph.tree import livny
-from tests.tree.test_livny import make_cloud
+from tests.tree.test_livny import cylinder_points, make_cloud
 
 SPACING = 0.01
 
 
 def _ring_points(a, b, r, rng, step=SPACING):
     """Points on the mantle of the cylinder a→b, about one per ``step``²."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    d = b - a
-    length = np.linalg.norm(d)
-    d /= length
-    t0 = np.cross(d, [0, 0, 1.0])
-    if np.linalg.norm(t0) < 1e-6:
-        t0 = np.array([1.0, 0, 0])
-    t0 /= np.linalg.norm(t0)
-    t1 = np.cross(d, t0)
-    n = int(length * 2 * np.pi * r / step**2)
-    s = rng.uniform(0, length, n)
-    th = rng.uniform(0, 2 * np.pi, n)
-    return a + s[:, None] * d + r * (np.cos(th)[:, None] * t0 + np.sin(th)[:, None] * t1)
+    length = float(np.linalg.norm(np.subtract(b, a)))
+    return cylinder_points(a, b, r, int(length * 2 * np.pi * r / step**2), rng)
 
 
 def _stem_graph(extra: list[tuple[int, list[tuple[float, float, float]]]]):
