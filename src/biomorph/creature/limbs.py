@@ -471,7 +471,6 @@ def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None, sc
     base = np.asarray(base, float)
     lengths = np.asarray(lengths, float)
     ang = np.ascontiguousarray(ang, dtype=float)
-    scale = max(float(np.sum(lengths)), 1e-9)
     rot = np.zeros((3, 3, 3))
     pts = np.zeros((4, 3))
     ground = float(ground)
@@ -494,7 +493,6 @@ def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None, sc
                 contact,
                 ground,
                 scan,
-                scale,
                 accept,
             )
             if t is not None:
@@ -503,17 +501,25 @@ def _snap(base, lengths, ang, limits, ground, contact, n_active, accept=None, sc
         for target in (float(lo), float(hi)):
             ft = _contact_height(base, lengths, ang, j, target, contact, ground, rot, pts)
             if (ft <= 0 <= f0) or (f0 <= 0 <= ft):
-                t = ang.copy()
-                t[j, 0] = _bisect_flexion(base, lengths, ang, j, a0, target, f0, contact, ground)
-                _, p = forward(base, lengths, t)
-                if np.all(p[1 : contact + 1, 1] >= ground - 1e-6 * scale) and (
-                    accept is None or accept(p)
-                ):
+                t = _bisected_pose(base, lengths, ang, j, a0, target, f0, contact, ground, accept)
+                if t is not None:
                     return t
     return None
 
 
-def _snap_scan(base, lengths, ang, j, a0, f0, lo, hi, contact, ground, scan, scale, accept):
+def _bisected_pose(base, lengths, ang, j, a, b, fa, contact, ground, accept):
+    """The pose with joint ``j``'s flexion bisected in the bracket ``[a, b]`` (height ``fa``
+    at ``a``), or ``None`` when a bone end dips below the ground or ``accept`` refuses it."""
+    t = ang.copy()
+    t[j, 0] = _bisect_flexion(base, lengths, ang, j, a, b, fa, contact, ground)
+    _, p = forward(base, lengths, t)
+    scale = max(float(np.sum(lengths)), 1e-9)
+    if np.all(p[1 : contact + 1, 1] >= ground - 1e-6 * scale) and (accept is None or accept(p)):
+        return t
+    return None
+
+
+def _snap_scan(base, lengths, ang, j, a0, f0, lo, hi, contact, ground, scan, accept):
     """:func:`_snap` for one joint, the root nearest ``a0``: steps of 1/``scan`` of the way
     to either limit, alternating, bisecting the first bracket whose result is accepted."""
     rot = np.zeros((3, 3, 3))
@@ -527,12 +533,8 @@ def _snap_scan(base, lengths, ang, j, a0, f0, lo, hi, contact, ground, scan, sca
             prev[target] = (a_k, f_k)
             if not ((f_k <= 0 <= f_prev) or (f_prev <= 0 <= f_k)):
                 continue
-            t = ang.copy()
-            t[j, 0] = _bisect_flexion(base, lengths, ang, j, a_prev, a_k, f_prev, contact, ground)
-            _, p = forward(base, lengths, t)
-            if np.all(p[1 : contact + 1, 1] >= ground - 1e-6 * scale) and (
-                accept is None or accept(p)
-            ):
+            t = _bisected_pose(base, lengths, ang, j, a_prev, a_k, f_prev, contact, ground, accept)
+            if t is not None:
                 return t
     return None
 
