@@ -171,11 +171,11 @@ def apply_step(mo: Motion, step: Step, lock: Callable[[Motion], Motion] | None =
 def apply_chain(mo: Motion, steps: list[Step], lock_feet: bool = True) -> Motion:
     """Every step in order; planted feet locked after each (against the step's input when
     the step keeps the timing, else on its own output)."""
-    from biomorph.motion.contact import FLOOR_TOLERANCE, ContactWarning, foot_floor
+    from biomorph.motion.contact import ContactWarning, inputs_floor
     from biomorph.motion.contact import lock_feet as lock
 
     for step in steps:
-        floor = foot_floor(mo, tolerance=FLOOR_TOLERANCE) if lock_feet else None
+        floor = inputs_floor(mo, [mo]) if lock_feet else None
 
         def lock_cycle(c: Motion, floor: float | None = floor) -> Motion:
             with warnings.catch_warnings():

@@ -86,17 +86,14 @@ def _lock(mo, reference=None, ground=()):
 
     from biomorph._cli import err_console
     from biomorph.motion.contact import (  # numba: only to lock
-        FLOOR_TOLERANCE,
         ContactWarning,
-        foot_floor,
+        inputs_floor,
         lock_feet,
     )
 
-    floors = [foot_floor(g, tolerance=FLOOR_TOLERANCE) for g in ground if g.names == mo.names]
-    floor = min((f for f in floors if f is not None), default=None)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ContactWarning)
-        mo = lock_feet(mo, reference, floor=floor)
+        mo = lock_feet(mo, reference, floor=inputs_floor(mo, ground))
     for w in caught:
         err_console.print(f"warning: {w.message}", markup=False, highlight=False)
     return mo

@@ -83,6 +83,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -863,6 +864,14 @@ def foot_floor(motion: Motion, up: str | None = None, tolerance: float = 0.0) ->
     return low - tolerance * _ground_and_scale(pos, pts, ui)[1] if tolerance else low
 
 
+def inputs_floor(motion: Motion, inputs: Sequence[Motion]) -> float | None:
+    """The floor an operator's output keeps: the lowest :func:`foot_floor` (with
+    :data:`FLOOR_TOLERANCE`) of the ``inputs`` that share ``motion``'s joints (``None`` when
+    none does or none has legs)."""
+    floors = [foot_floor(g, tolerance=FLOOR_TOLERANCE) for g in inputs if g.names == motion.names]
+    return min((f for f in floors if f is not None), default=None)
+
+
 def lock_feet(
     motion: Motion,
     reference: Motion | None = None,
@@ -973,5 +982,6 @@ __all__ = [
     "two_bone_ik",
     "lock_feet",
     "foot_floor",
+    "inputs_floor",
     "FLOOR_TOLERANCE",
 ]
