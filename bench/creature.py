@@ -336,13 +336,24 @@ def anatomy_table(creatures) -> None:
         return "–" if not len(v) else f"{v.min():.2f} / {np.median(v):.2f} / {v.max():.2f}"
 
     quad = [m["trunk_pitch_deg"] for c, m in meas if c.params["legs"] >= 4]
-    bip = [m["trunk_pitch_deg"] for c, m in meas if c.params["legs"] == 2]
+    bip = [
+        m["trunk_pitch_deg"]
+        for c, m in meas
+        if c.params["legs"] == 2 and c.params["class"] != "bird"
+    ]
+    birds = [
+        m["trunk_pitch_deg"]
+        for c, m in meas
+        if c.params["legs"] == 2 and c.params["class"] == "bird"
+    ]
     fem = [a for c, m in meas if c.params["class"] != "bird" for a in m["femur_deg"]]
     femb = [a for c, m in meas if c.params["class"] == "bird" for a in m["femur_deg"]]
     rows = {
         "trunk_pitch": (
-            f"quadrupeds {spread(quad)}°; bipeds {spread(bip)}°",
-            f"{RANGES['trunk_pitch_quadruped']}° / {RANGES['trunk_pitch_biped']}°",
+            f"quadrupeds {spread(quad)}°; bipeds {spread(bip)}°; birds {spread(birds)}°",
+            f"quadrupeds {RANGES['trunk_pitch_quadruped']}° (horse 0–5°, giraffe ≈ 25°) / "
+            f"bipeds {RANGES['trunk_pitch_biped']}° (theropods 0–15°, kangaroo ≈ 45°) / "
+            f"birds {RANGES['trunk_pitch_bird']}° (pronograde, not level)",
         ),
         "head_pitch": (
             spread([m["head_pitch_deg"] for _, m in meas]) + "°",

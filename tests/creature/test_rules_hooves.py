@@ -150,3 +150,40 @@ def test_dataset_spectrum_is_the_model_the_generator_samples(capsys, monkeypatch
     ev = species_model(None).pca.eigenvalues
     assert d["spectrum"]["first"] == pytest.approx(float(ev[0]), rel=1e-12)
     assert d["spectrum"]["total"] == pytest.approx(float(ev.sum()), rel=1e-12)
+
+
+def test_birds_stand_inclined_20_to_50_degrees_balanced_on_their_feet():
+    """Issue 14: a standing bird's back rises 20-50 deg from the hip to the shoulder (before
+    the class-specific range about half of the birds stood flatter than 20 deg)."""
+    from biomorph.creature.quality import check, trunk_pitch_deg
+
+    pitch = []
+    for seed in range(60):
+        c = generate(seed, cls="bird")
+        assert c.params["legs"] == 2
+        pitch.append(trunk_pitch_deg(c))
+        assert 20.0 <= pitch[-1] <= 50.0, (seed, pitch[-1])
+        ok = check(c)
+        assert ok["stable"] and ok["ground_contact"] and ok["above_ground"], seed
+        assert all(anatomy_check(c).values()), seed
+    assert np.ptp(pitch) > 5.0  # a range, not one fixed angle
+
+
+def test_trunk_range_is_per_body_plan():
+    from biomorph.creature.stance import RANGES, TARGET, trunk_key
+    from biomorph.creature.steps import level_trunk, trunk_pitch
+
+    assert trunk_key("bird", 2) == "trunk_pitch_bird" and RANGES["trunk_pitch_bird"] == (20, 50)
+    assert trunk_key("reptile", 2) == "trunk_pitch_biped"
+    assert trunk_key("bird", 4) == trunk_key("mammal", 4) == "trunk_pitch_quadruped"
+    lo, hi = TARGET["trunk_pitch_bird"]
+    assert RANGES["trunk_pitch_bird"][0] <= lo < hi <= RANGES["trunk_pitch_bird"][1]
+    # a straight spine (frame px, head on the left) with its back 5 deg above level
+    a = np.radians(5.0)
+    d = np.array([-np.cos(a), np.sin(a)])
+    pts = np.array([np.array([100.0, 50.0]) + d * 10.0 * (6 - i) for i in range(10)])
+    deg = lambda p: float(np.degrees(trunk_pitch(p)))  # noqa: E731
+    assert deg(pts) == pytest.approx(5.0)
+    assert deg(level_trunk(pts, 2, "bird")) == pytest.approx(lo)
+    assert deg(level_trunk(pts, 2, "reptile")) == pytest.approx(5.0)
+    assert deg(level_trunk(pts, 4, "bird")) == pytest.approx(5.0)

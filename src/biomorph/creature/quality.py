@@ -7,7 +7,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from biomorph.creature import spine as sp
 from biomorph.creature.creature import Creature
-from biomorph.creature.stance import RANGES
+from biomorph.creature.stance import RANGES, trunk_key
 from biomorph.creature.stance import allometric_height as _allometric
 
 CHECKS = (
@@ -223,7 +223,7 @@ def anatomy_check(c: Creature, m: dict | None = None) -> dict[str, bool]:
     opts = c.params.get("options", {})
     inside = lambda v, r: r[0] <= v <= r[1]  # noqa: E731
     out = {}
-    tp = RANGES["trunk_pitch_biped" if legs == 2 else "trunk_pitch_quadruped"]
+    tp = RANGES[trunk_key(cls, legs)]  # birds on two legs 20..50°, other bipeds, quadrupeds
     out["trunk_pitch"] = legs == 0 or inside(m["trunk_pitch_deg"], tp)
     out["head_pitch"] = inside(m["head_pitch_deg"], RANGES["head_pitch"])
     fr = RANGES["femur_from_vertical_bird" if cls == "bird" else "femur_from_vertical"]

@@ -33,7 +33,7 @@ from biomorph.creature.assembly import (
 )
 from biomorph.creature.creature import Creature
 from biomorph.creature.options import Options
-from biomorph.creature.stance import RANGES, TARGET
+from biomorph.creature.stance import RANGES, TARGET, trunk_key
 from biomorph.creature.states import LimbsState, SkullState, SpineState, step_rng
 from biomorph.creature.steps import (
     _DROP,
@@ -158,10 +158,12 @@ def pitch_body(
     cands = [(a + np.pi) % (2 * np.pi) - np.pi for a in cands]
     theta = min(cands, key=abs)
     theta = float(np.clip(theta, -max_deg * DEG, max_deg * DEG))
-    # the lean stays inside the bipeds' standing trunk-pitch range (never head-down)
-    lo, hi = RANGES["trunk_pitch_biped"]
+    # the lean stays inside the body plan's standing trunk-pitch range, 2° inside its ends
+    # (never head-down; a bird stays inclined); a trunk outside may only lean back in
+    lo, hi = RANGES[trunk_key(spine.cls, 2)]
     p0 = trunk_pitch(spine.points)
-    theta = float(np.clip(theta, (lo + 2.0) * DEG - p0, (hi - 2.0) * DEG - p0))
+    lo_t, hi_t = min((lo + 2.0) * DEG - p0, 0.0), max((hi - 2.0) * DEG - p0, 0.0)
+    theta = float(np.clip(theta, lo_t, hi_t))
     if abs(theta) < 1e-4:
         return None
     ct, st = np.cos(theta), np.sin(theta)
@@ -620,7 +622,7 @@ class _Reduced:
     def lean_angle(self, theta0: float, body: _Part, legs: _Part) -> float:
         """Total lean (:func:`pitch_body`'s rigid solution from the body leaned by
         ``theta0``, at most 40° more) that brings the centre of mass over the middle of the
-        feet, inside the bipeds' trunk-pitch range."""
+        feet, inside the body plan's target trunk pitch (birds 21..49°, other bipeds 0..50°)."""
         mb, ml = body.vol, legs.vol
         if mb <= 0 or not len(legs.patches):
             return theta0
@@ -637,7 +639,7 @@ class _Reduced:
         cands = [
             (a + np.pi) % (2 * np.pi) - np.pi for a in (np.arccos(c) - phi, -np.arccos(c) - phi)
         ]
-        lo, hi = TARGET["trunk_pitch_biped"]
+        lo, hi = TARGET[trunk_key(self.spine.cls, 2)]
         theta = theta0 + float(np.clip(min(cands, key=abs), -40 * DEG, 40 * DEG))
         lo_t, hi_t = min(lo * DEG - self.p0, 0.0), max(hi * DEG - self.p0, 0.0)
         return float(np.clip(theta, lo_t, hi_t))

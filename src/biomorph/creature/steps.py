@@ -25,7 +25,7 @@ from biomorph.creature import spine as sp
 from biomorph.creature import vertebrae as vt
 from biomorph.creature.model import species_model
 from biomorph.creature.options import Options
-from biomorph.creature.stance import TARGET, allometric_height
+from biomorph.creature.stance import TARGET, allometric_height, trunk_key
 from biomorph.creature.states import LimbsState, SkullState, SpineState
 from biomorph.errors import ParameterError
 
@@ -129,7 +129,7 @@ def step_spine(opts: Options, rng: np.random.Generator, attempt: int = 0) -> Spi
         legs = CLASS_LEGS.get(cls, legs)  # class coherence: birds stand on two, fish swim
     if cls == "fish":  # fish: the shoulder girdle sits right behind the head (no neck)
         pts[0:3] = pts[3]
-    pts = sp.c1_fix(level_trunk(pts, legs))
+    pts = sp.c1_fix(level_trunk(pts, legs, cls))
     xy, s, region = sp.sample(pts)
     rl = sp.region_lengths(s, region)
     if opts.centaur and rl[0] < gd.CENTAUR_MIN_NECK * rl[1]:
@@ -220,13 +220,14 @@ def trunk_pitch(points: NDArray) -> float:
     return float(np.arctan2(d[1], -d[0]))
 
 
-def level_trunk(points: NDArray, legs: int) -> NDArray:
+def level_trunk(points: NDArray, legs: int, cls: str | None = None) -> NDArray:
     """Rotate the spine rigidly about the hip (p6) so the trunk pitch lies in the standing
-    range of the body plan (:data:`biomorph.creature.stance.TARGET`); legless bodies keep
-    the sampled curve. Rigid rotation keeps the C1 joins."""
+    range of the body plan (:data:`biomorph.creature.stance.TARGET`, :func:`stance.trunk_key`:
+    birds on two legs, other bipeds, quadrupeds); legless bodies keep the sampled curve.
+    Rigid rotation keeps the C1 joins."""
     if legs == 0:
         return points
-    lo, hi = TARGET["trunk_pitch_biped" if legs == 2 else "trunk_pitch_quadruped"]
+    lo, hi = TARGET[trunk_key(cls, legs)]
     a = trunk_pitch(points)
     want = float(np.clip(a, lo * DEG, hi * DEG))
     if abs(want - a) < 1e-12:
