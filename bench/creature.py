@@ -114,6 +114,7 @@ def main() -> None:
         f"resampled {resampled}\n"
     )
     anatomy_table(creatures)
+    bird_table(args.count)
     walk_table(creatures, args.walk)
     speed_table(t, tc, max(args.count // 5, 1))
     feats = np.array([c.features() for c in creatures])
@@ -396,6 +397,32 @@ def anatomy_table(creatures) -> None:
         "hoofed (unguligrade) creatures by hoofed digits per foot: "
         + ", ".join(f"{k}: {v}" for k, v in sorted(hooves.items()))
         + " (1 = perissodactyl, inherited from the horse; 2 = artiodactyl)\n"
+    )
+
+
+def bird_table(n: int) -> None:
+    """Birds asked for (``--class bird``, seeds 0..n-1): trunk pitch against the birds' real
+    20-50° (stance.RANGES['trunk_pitch_bird']), every anatomy rule, balance on the feet."""
+    from biomorph.creature.quality import trunk_pitch_deg
+
+    lo, hi = RANGES["trunk_pitch_bird"]
+    pitch, rules, stable = [], 0, 0
+    for seed in range(n):
+        c = generate(seed, cls="bird")
+        pitch.append(trunk_pitch_deg(c))
+        rules += all(anatomy_check(c).values())
+        stable += all(check(c).values())
+    t = np.array(pitch)
+    inside = int(((t >= lo) & (t <= hi)).sum())
+    print(f"## Birds (`--class bird`, seeds 0..{n - 1})\n")
+    print(
+        "| trunk pitch in 20–50° | min / p10 / median / p90 / max | every anatomy rule | "
+        "every quality check (stable on the foot contacts) |\n|---|---|---|---|"
+    )
+    q = np.percentile(t, [10, 50, 90])
+    print(
+        f"| {inside}/{n} | {t.min():.1f} / {q[0]:.1f} / {q[1]:.1f} / {q[2]:.1f} / "
+        f"{t.max():.1f}° | {rules}/{n} | {stable}/{n} |\n"
     )
 
 

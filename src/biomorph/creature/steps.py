@@ -223,13 +223,22 @@ def trunk_pitch(points: NDArray) -> float:
 def level_trunk(points: NDArray, legs: int, cls: str | None = None) -> NDArray:
     """Rotate the spine rigidly about the hip (p6) so the trunk pitch lies in the standing
     range of the body plan (:data:`biomorph.creature.stance.TARGET`, :func:`stance.trunk_key`:
-    birds on two legs, other bipeds, quadrupeds); legless bodies keep the sampled curve.
-    Rigid rotation keeps the C1 joins."""
+    birds on two legs, other bipeds, quadrupeds; a bird's sampled pitch is mapped linearly
+    from the bipeds' range onto the birds'); legless bodies keep the sampled curve. Rigid
+    rotation keeps the C1 joins."""
     if legs == 0:
         return points
-    lo, hi = TARGET[trunk_key(cls, legs)]
+    key = trunk_key(cls, legs)
+    lo, hi = TARGET[key]
     a = trunk_pitch(points)
-    want = float(np.clip(a, lo * DEG, hi * DEG))
+    if key == "trunk_pitch_bird":
+        # the sampled back's place in the bipeds' range mapped onto the birds' (a clamp
+        # would stand half of them at its lower end): the PCA's spread is kept
+        b0, b1 = TARGET["trunk_pitch_biped"]
+        u = float(np.clip((a / DEG - b0) / (b1 - b0), 0.0, 1.0))
+        want = (lo + u * (hi - lo)) * DEG
+    else:
+        want = float(np.clip(a, lo * DEG, hi * DEG))
     if abs(want - a) < 1e-12:
         return points
     phi = a - want  # CCW rotation in the frame (head on the left) lowers the front
