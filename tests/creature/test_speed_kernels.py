@@ -91,6 +91,50 @@ def test_vertebra_boundaries_match_linspace():
         assert e1.tobytes() == e2.tobytes() and r1.tobytes() == r2.tobytes()
 
 
+def _region_counts_plain(cls, neighbour_counts, weights, lengths, neighbour_lengths, max_total=160):
+    nc = np.asarray(neighbour_counts, dtype=float)
+    nl = np.asarray(neighbour_lengths, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    L = np.asarray(lengths, dtype=float)
+    per = np.where(nc > 0, nl / np.maximum(nc, 1), np.nan)
+    seg = np.array(
+        [
+            np.nansum(w * per[:, r]) / max(np.sum(w[~np.isnan(per[:, r])]), 1e-12)
+            if np.any(~np.isnan(per[:, r]))
+            else np.nan
+            for r in range(3)
+        ]
+    )
+    base = w @ nc
+    counts = np.where(np.isfinite(seg) & (seg > 0), L / np.where(seg > 0, seg, 1), base)
+    counts = 0.5 * counts + 0.5 * base
+    lo, hi = np.array(vt.COUNT_RANGES.get(cls, vt.COUNT_RANGES["mammal"])).T
+    counts = np.clip(np.rint(counts), lo, hi)
+    if cls == "mammal":
+        counts[0] = 7 if counts[0] else 0
+    total_len = max(L.sum(), 1e-12)
+    counts = np.where(L < 0.02 * total_len, 0, counts)
+    counts[1] = max(counts[1], 2)
+    if counts.sum() > max_total:
+        counts = np.maximum(np.floor(counts * max_total / counts.sum()), np.minimum(counts, 1))
+    return counts.astype(np.int64)
+
+
+def test_region_counts_match_the_nansum_formula():
+    rng = np.random.default_rng(3)
+    for i in range(3000):
+        k = 3
+        nc = rng.integers(0, 40, (k, 3)).astype(float) * (rng.random((k, 3)) > 0.25)
+        nl = rng.random((k, 3)) * rng.choice([0.01, 1.0, 100.0])
+        w = rng.random(k)
+        w /= w.sum()
+        L = rng.random(3) * rng.choice([0.01, 1.0, 100.0])
+        L[rng.random(3) < 0.1] = 0.0
+        cls = list(vt.COUNT_RANGES)[i % len(vt.COUNT_RANGES)]
+        got = vt.region_counts(cls, nc, w, L, nl)
+        assert np.array_equal(got, _region_counts_plain(cls, nc, w, L, nl)), i
+
+
 def test_interp_kernel_matches_numpy():
     rng = np.random.default_rng(4)
     xp = np.cumsum(rng.uniform(0, 1, 40))
@@ -210,3 +254,17 @@ def test_memoised_assembly_and_profiles_are_read_only_and_reused():
     xy, s, region = sp.sample(limbs.points)
     h, _, _ = ms.profile(s, sp.region_lengths(s, region), spine.girth, spine.cls, 10.0, False)
     assert not h.flags.writeable
+
+
+def test_step_streams_are_default_rng_of_seed_step_roll():
+    from biomorph.creature.options import STEPS
+    from biomorph.creature.states import step_rng
+
+    for seed in (0, 5, 2**33 + 7):
+        for i, step in enumerate(STEPS):
+            for roll in (0, 100):
+                for _ in range(2):  # memoised state: a second generator gives the same stream
+                    got = step_rng(seed, step, roll)
+                    ref = np.random.default_rng([seed & 0xFFFFFFFF, i, roll])
+                    assert np.array_equal(got.random(6), ref.random(6))
+                    assert got.integers(1 << 40) == ref.integers(1 << 40)

@@ -13,6 +13,7 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
+from numpy.random.bit_generator import ISeedSequence
 from numpy.typing import NDArray
 
 from biomorph.creature.options import STEPS
@@ -68,14 +69,32 @@ class SkullState:
 
 def step_rng(seed: int, step: str, roll: int) -> np.random.Generator:
     """The random stream of one step (seed, step index, re-roll count): a fresh generator
-    seeded like ``np.random.default_rng([seed, step, roll])`` (the seed sequence, whose
-    hashing is most of the cost, is memoised; balance repair asks for the same stream
+    seeded like ``np.random.default_rng([seed, step, roll])`` (the seed sequence's state,
+    whose hashing is most of the cost, is memoised; balance repair asks for the same stream
     again and again)."""
     return np.random.Generator(
         np.random.PCG64(_seed_sequence(int(seed) & 0xFFFFFFFF, STEPS.index(step), int(roll)))
     )
 
 
+class _StateOf(ISeedSequence):
+    """A seed sequence's generated state, memoised: :class:`numpy.random.PCG64` reads its
+    four words (``generate_state(4, uint64)``) and nothing else, so the stream is the one
+    ``SeedSequence([seed, step, roll])`` gives, without hashing it again per generator."""
+
+    __slots__ = ("_ss", "_words")
+
+    def __init__(self, ss: np.random.SeedSequence) -> None:
+        self._ss = ss
+        self._words = ss.generate_state(4, np.uint64)
+        self._words.setflags(write=False)
+
+    def generate_state(self, n_words: int, dtype=np.uint32) -> NDArray:
+        if n_words == 4 and np.dtype(dtype) == np.uint64:
+            return self._words.copy()
+        return self._ss.generate_state(n_words, dtype)
+
+
 @lru_cache(maxsize=1024)
-def _seed_sequence(seed: int, step: int, roll: int) -> np.random.SeedSequence:
-    return np.random.SeedSequence([seed, step, roll])
+def _seed_sequence(seed: int, step: int, roll: int) -> _StateOf:
+    return _StateOf(np.random.SeedSequence([seed, step, roll]))

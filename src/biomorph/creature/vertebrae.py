@@ -21,6 +21,8 @@ COUNT_RANGES = {
     "fish": ((0, 0), (8, 60), (6, 60)),
 }
 
+_COUNT_LIMITS = {k: tuple(np.array(v, float).T) for k, v in COUNT_RANGES.items()}
+
 
 def region_counts(
     cls: str,
@@ -42,20 +44,22 @@ def region_counts(
     L = np.asarray(lengths, dtype=float)
     # vertebra length per region from the neighbours, then count = length / vertebra length
     per = np.where(nc > 0, nl / np.maximum(nc, 1), np.nan)
-    seg = np.array(
-        [
-            np.nansum(w * per[:, r]) / max(np.sum(w[~np.isnan(per[:, r])]), 1e-12)
-            if np.any(~np.isnan(per[:, r]))
-            else np.nan
-            for r in range(3)
-        ]
-    )
+    # per region: nansum(w * per) / sum(w where per is a number) — the same sums (the NaNs
+    # zeroed in place, the weights compressed) without nansum's per-call overhead
+    wp = w[:, None] * per
+    wp[np.isnan(wp)] = 0.0
+    ok = ~np.isnan(per)
+    seg = np.full(3, np.nan)
+    for r in range(3):
+        okr = ok[:, r]
+        if okr.any():
+            seg[r] = wp[:, r].sum() / max(w[okr].sum(), 1e-12)
     base = w @ nc
     counts = np.where(np.isfinite(seg) & (seg > 0), L / np.where(seg > 0, seg, 1), base)
     # blend ratio-based and neighbour counts so counts stay near the vertebral formula
     counts = 0.5 * counts + 0.5 * base
-    lo, hi = np.array(COUNT_RANGES.get(cls, COUNT_RANGES["mammal"])).T
-    counts = np.clip(np.rint(counts), lo, hi)
+    lo, hi = _COUNT_LIMITS.get(cls, _COUNT_LIMITS["mammal"])
+    counts = np.minimum(np.maximum(np.rint(counts), lo), hi)
     if cls == "mammal":
         counts[0] = 7 if counts[0] else 0  # mammals: almost always seven
     total_len = max(L.sum(), 1e-12)
