@@ -54,7 +54,7 @@ def test_no_skin_vertex_far_outside_its_bones_and_muscles(creature):
     # the shoulder as a box: its vertices lay 1.5-1.8 cells outside every capsule
     ms = muscles(creature, 1)
     env, h = skin.envelope(creature, ms, 1)
-    n_body = env.n_vertices - len(skin.wing_skin(creature, ms, 1)[0])
+    n_body = env.n_vertices - len(skin.explicit_skin(creature, ms, 1)[0])
     f = _raw_field(creature, env.vertices[:n_body], ms, h)
     assert f.min() > -1.3, f"a skin vertex {-f.min():.2f} cells outside bones and muscles"
 
@@ -67,7 +67,7 @@ def test_envelope_closed_outward_and_smooth(creature):
     # Taubin-smoothed: neighbouring faces turn less than on marching cubes' raw terraces
     from skimage.measure import marching_cubes
 
-    n_body = env.n_vertices - len(skin.wing_skin(creature, None, 1)[0])
+    n_body = env.n_vertices - len(skin.explicit_skin(creature, None, 1)[0])
     body = trimesh.Trimesh(env.vertices, env.faces[(env.faces < n_body).all(axis=1)], process=False)
     assert body.is_watertight
     grid, lo, h = skin.envelope_field(creature, muscles(creature, 1), 1)

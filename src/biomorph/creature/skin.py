@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from biomorph.core.mesh import Mesh
+from biomorph.creature import fins as fn
 from biomorph.creature.bones.cage import trunk_sections
 from biomorph.creature.creature import Creature
 
@@ -69,7 +70,8 @@ def _capsules(c: Creature, ms: list) -> tuple[NDArray, NDArray, NDArray, NDArray
     its parent's, a cone from each girdle's section to its limb socket, the shoulder
     blades, and the muscles' swept paths (no least radius: a thin muscle lies over bone)."""
     js = np.flatnonzero(c.bone_length > 1e-9)
-    js = js[~np.isin(js, _wing_hand(c))]  # built as explicit tubes and sheets
+    # built as explicit tubes and sheets: the wings beyond the elbow, the fins
+    js = js[~np.isin(js, np.r_[_wing_hand(c), fn.fin_joints(c)])]
     box, mass = c.box_size[js], c.mass_size[js]
     kind = np.asarray(c.kind, dtype=object)[js]
     bone_hw = 0.5 * np.maximum(box[:, 0], box[:, 2])
@@ -250,8 +252,9 @@ def _nearest_segments(v, a, ab):  # pragma: no cover - compiled
 
 def envelope(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[Mesh, float]:
     """The envelope mesh over bones (and muscles ``ms``) and the grid cell size (m): the
-    implicit body surface (marching cubes, Taubin-smoothed) plus the wings' explicit thin
-    tubes and sheets (:func:`wing_skin`), one mesh with area-weighted vertex normals."""
+    implicit body surface (marching cubes, Taubin-smoothed) plus the wings' and fins'
+    explicit thin tubes and sheets (:func:`explicit_skin`), one mesh with area-weighted
+    vertex normals."""
     from skimage.measure import marching_cubes
 
     grid, lo, h = envelope_field(c, ms, lod)
@@ -262,7 +265,7 @@ def envelope(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[Mesh, f
     if (tri[:, 0] * np.cross(tri[:, 1], tri[:, 2])).sum() < 0:  # wind the faces outwards
         faces = faces[:, ::-1]
     verts = taubin(verts, faces, TAUBIN_STEPS)
-    wv, wf = wing_skin(c, ms, lod)
+    wv, wf = explicit_skin(c, ms, lod)
     if len(wv):
         faces = np.concatenate([faces, wf + len(verts)])
         verts = np.concatenate([verts, wv])
@@ -637,6 +640,39 @@ def wing_skin(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[NDArra
         if float(np.linalg.norm(grid[0] - grid[-1], axis=1).max()) > 1e-6:
             add(_slab(grid, np.full(grid.shape[:2], t), up))
     return np.concatenate(vs), np.concatenate(fs)
+
+
+def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
+    """Explicit skin of the fins (world ``(vertices, faces)``, closed pieces): a thin tube
+    round each fin ray (:func:`biomorph.creature.fins.ray_radii` plus the landmark tissue)
+    and the fin membrane between the rays, a closed slab :data:`fins.MEMBRANE` of the
+    leading ray's diameter thick."""
+    from biomorph.creature.bones.prim import tubes
+
+    built = fn.build(c, *fn.DETAIL[lod])
+    if not built:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    sides = (5, 6, 8)[lod]
+    vs, fs, base = [], [], 0
+    for fin in built:
+        r, k = fin.rays.shape[:2]
+        ref = np.tile(fin.normal, (r, 1))
+        pieces = [
+            tubes(fin.rays, fn.ray_radii(fin) * (1 + LANDMARK_TISSUE), sides, ref=ref),
+            _slab(fn.membrane_grid(fin), np.full((r, k), fn.MEMBRANE * fin.width), fin.normal),
+        ]
+        for v, f in pieces:
+            vs.append(v)
+            fs.append(f + base)
+            base += len(v)
+    return np.concatenate(vs), np.concatenate(fs)
+
+
+def explicit_skin(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[NDArray, NDArray]:
+    """The envelope's explicit pieces: :func:`wing_skin` then :func:`fin_skin`."""
+    wv, wf = wing_skin(c, ms, lod)
+    fv, ff = fin_skin(c, lod)
+    return np.concatenate([wv, fv]), np.concatenate([wf, ff + len(wv)]).astype(np.int64)
 
 
 def _bird_sheet(

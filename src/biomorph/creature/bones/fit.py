@@ -15,8 +15,10 @@ from numpy.typing import NDArray
 import biomorph.creature.bones.appendicular as ap
 import biomorph.creature.bones.axial as ax
 import biomorph.creature.bones.cage as cage
+import biomorph.creature.bones.prim as prim
 import biomorph.creature.bones.skull as sk
 from biomorph.core.mesh import Mesh
+from biomorph.creature import fins as fn
 from biomorph.creature import skulls
 from biomorph.creature.anatomy import limb_parts
 from biomorph.creature.creature import Creature
@@ -117,6 +119,8 @@ class _Context:
         thoracic = [j for j, p in enumerate(self.parts) if p == "thoracic"]
         # the rib cage round the trunk's sections (world), one piece per thoracic joint
         self.cage = cage.rib_cage(c, thoracic, lod, pleural=self.cls == "fish")
+        # fin rays (world), built once per creature: each fin joint gets its stretch of them
+        self.fins = {j: fin for fin in fn.build(c, *fn.DETAIL[lod]) for j in fin.joints}
 
 
 class _Geometry:
@@ -295,10 +299,6 @@ def _limb_model(ctx: _Context, j: int, part: str):
         return ap.long_bone("paired", lod)
     if part in ("phalanx", "hoof", "claw", "nail"):
         return ap.digit_end(part, lod)
-    if part == "fin_base":
-        return ap.fin(0, 0.0, lod, True)
-    if part == "fin_ray":
-        return ap.fin(7 + lod * 2, 0.8, lod, False)
     if part in ("metacarpal", "metatarsal", "carpometacarpus"):
         if bool(np.any(c.skeleton.parent == j)):  # the digits are joints of their own
             return ap.long_bone("single", lod)
@@ -310,6 +310,21 @@ def _limb_model(ctx: _Context, j: int, part: str):
         digits_from = 0.3 if role == "wing" and ctx.cls == "mammal" else 0.62
         return ap.autopod(n, spread, end, lod, digits_from)
     return None
+
+
+def _fin(g: _Geometry, ctx: _Context, j: int) -> None:
+    """The fin rays' stretch along fin joint ``j`` (:mod:`biomorph.creature.fins`): every
+    ray of the fin, thin tapering rods, from the joint's start to its bone's end."""
+    c, fin = ctx.c, ctx.fins[j]
+    m = fin.joints.index(j)
+    k = np.flatnonzero(fin.seg_of == m)
+    if k[0] > 0:
+        k = np.r_[k[0] - 1, k]  # from the previous segment's last sample
+    paths = fin.rays[:, k]
+    rad = fn.ray_radii(fin)[:, k]
+    ref = np.tile(fin.normal, (len(paths), 1))
+    v, f = prim.tubes(paths, rad, max(3, prim.SIDES[ctx.lod] // 2), ref=ref)
+    g.raw(j, (_local(c, j, v), f))
 
 
 def _box(g: _Geometry, c: Creature, j: int) -> None:
@@ -341,6 +356,8 @@ def geometry(
             _axial(g, ctx, j, part)
         elif part in ("scapula", "pelvis"):
             _girdle(g, ctx, j, part)
+        elif j in ctx.fins:
+            _fin(g, ctx, j)
         else:
             model = _limb_model(ctx, j, part)
             if model is None:
