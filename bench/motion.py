@@ -83,6 +83,9 @@ def main() -> None:
 
     sk = m.skeleton
     mixamo_sk = JointSkeleton(["mixamorig:" + n for n in sk.names], sk.parent, sk.offset * 0.8)
+    long_off = np.array(sk.offset) * 0.8  # a creature's feet: toes 2.5× as far (foot paths)
+    long_off[[i for i, n in enumerate(sk.names) if "toe" in n.lower()]] *= 2.5
+    creature_sk = JointSkeleton(mixamo_sk.names, sk.parent, long_off)
     eq = bm.equalize(m, [0, 0.5, 1, 1.3, 1])
     ops = [
         ("equalize (5 gains, all joints)", lambda: bm.equalize(m, [0, 0.5, 1, 1.3, 1])),
@@ -120,6 +123,8 @@ def main() -> None:
         ("mirror left/right", lambda: mirror(m)),
         ("retarget onto a Mixamo-named 0.8× skeleton", lambda: retarget(m, mixamo_sk, feet=False)),
         ("retarget incl. foot locking", lambda: retarget(m, mixamo_sk)),
+        ("retarget onto 2.5× feet (foot paths)", lambda: retarget(m, creature_sk, feet=False)),
+        ("retarget onto 2.5× feet incl. locking", lambda: retarget(m, creature_sk)),
         ("resample 120 → 30 fps", lambda: m.resample(30)),
         ("world positions (FK, all frames)", lambda: m.world_positions()),
     ]

@@ -10,7 +10,8 @@ and a creature biped (``biomorph creature generate --legs 2 --seed 3 -o OUT/bipe
 reused when present). Cells: ✓ = Blender imported the output with no importer message and
 no non-finite key or bone head; the figure is ``quality.foot_skate`` of the output (body
 scales/s; in-place cycles measured with the removed drift restored, ``remove_drift(...,
-restore=True)``, i.e. in the treadmill's frame); "↓floor" = the lowest foot more than 2 % of
+restore=True)``, i.e. in the treadmill's frame; ``trim`` is a cut, its figure "(in x)" is the
+input's over the same frames); "↓floor" = the lowest foot more than 2 % of
 the input's hip height below the input's lowest foot (retargets: below the target's y = 0).
 """
 
@@ -173,6 +174,9 @@ def run_ops(out: Path, files: list[str]) -> list[dict]:
                     back = remove_drift(o, dr["translation"], dr["yaw"], js["period"], restore=True)
                     row.update(skate_out_raw=row["skate_out"], skate_out=_skate(back))
                 row["floor"] = _floor(o, m, op)
+                if op == "trim":  # a cut: compared with the input over the same frames
+                    n = m.n_frames
+                    row["skate_ref"] = _skate(m.frames(n // 4, 3 * n // 4))
             rows.append(row)
             print(json.dumps(row), flush=True)
     return rows
@@ -230,7 +234,8 @@ def table(rows: list[dict]) -> str:
             below = fl is not None and fl < -0.02
             if below:
                 low.append((f, op, fl))
-            cells.append(f"{mark} {r['skate_out']}" + (" ↓floor" if below else ""))
+            ref = f" (in {r['skate_ref']})" if "skate_ref" in r else ""
+            cells.append(f"{mark} {r['skate_out']}{ref}" + (" ↓floor" if below else ""))
         lines.append(f"| {f} ({base}) | " + " | ".join(cells) + " |")
     lines.append("")
     lines.append(

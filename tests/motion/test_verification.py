@@ -216,3 +216,60 @@ def test_retarget_onto_a_creature_biped_locks_on_the_source_contacts(tmp_path):
         s_own = foot_skate(lock_feet(own))["skate_per_body_scale"]
     s_out = foot_skate(out)["skate_per_body_scale"]
     assert s_out < s_own and s_out < foot_skate(src)["skate_per_body_scale"]
+
+
+@pytest.mark.parametrize(
+    "name", ["xia_neutral_01_000_walk.bvh", "ad_cmu1_jumping_jacks.bvh", "cmu_11.asf"]
+)
+def test_retarget_onto_a_creature_biped_skates_at_most_the_input(tmp_path, name):
+    # session 9: the biped's legs follow the source's foot paths (ankle where the source's
+    # is, toe as high) and its girdle the source's hip → thigh direction; were 1.12 / 0.47 /
+    # 0.45 against the inputs' 0.80 / 0.27 / 0.40
+    from biomorph import io
+    from biomorph.motion.retarget import retarget
+
+    bip = _biped(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        src = io.read_motion(shared_file("motion", name))
+        out = retarget(src, bip.skeleton)
+    assert out.meta["retarget"]["legs"] == "source's foot paths"
+    s_in = foot_skate(src)["skate_per_body_scale"]
+    assert foot_skate(out)["skate_per_body_scale"] <= s_in
+
+
+def test_batch_retarget_locks_like_the_cli(tmp_path):
+    # the batch's retarget step locked on the target's own contacts after a retarget without
+    # feet; it now locks inside the retarget, as the CLI does (the source's contacts here)
+    from biomorph.motion.chain import Step, apply_chain
+    from biomorph.motion.retarget import retarget
+
+    bip = _biped(tmp_path)
+    src = _read("cmu_01_01.bvh").frames(0, 600)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        got = apply_chain(src, [Step("retarget", {"to": str(tmp_path / "biped.bvh")})])
+        want = retarget(src, bip.skeleton)
+    assert np.array_equal(got.rotation, want.rotation)
+
+
+def test_trim_is_a_cut_unless_asked_to_lock(tmp_path):
+    # trim keeps the input's frames (its skate is the input's over the same frames); batch
+    # trims the same way; --lock-feet holds the part's planted feet
+    from biomorph.cli import run
+    from biomorph.motion.chain import Step, apply_chain
+
+    src = shared_file("motion", "ad_cmu1_jumping_jacks.bvh")
+    m = _read("ad_cmu1_jumping_jacks.bvh")
+    cut, locked = tmp_path / "cut.bvh", tmp_path / "locked.bvh"
+    assert run(["motion", "trim", str(src), "-o", str(cut), "--start", "31", "--stop", "93"]) == 0
+    args = ["motion", "trim", str(src), "-o", str(locked), "--start", "31", "--stop", "93"]
+    assert run([*args, "--lock-feet"]) == 0
+    part = m.frames(31, 93)
+    got = read_bvh(cut)
+    assert np.allclose(got.world_positions(), part.world_positions(), atol=1e-4)
+    assert not np.allclose(read_bvh(locked).rotation, got.rotation, atol=1e-4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        chained = apply_chain(m, [Step("trim", {"start": "31", "stop": "93"})])
+    assert np.array_equal(chained.rotation, part.rotation)

@@ -1,6 +1,8 @@
 """Operator chains: ``"equalize:gains=0/0/1/1/1" "cycle:mode=in-place,transition=12"`` applied
 in order to a clip, with planted feet locked after every operator (the behaviour of the
-single-operator CLI commands), for ``biomorph motion batch`` and the Python API.
+single-operator CLI commands: not after ``trim``, a cut, nor ``extract-root``; a ``retarget``
+locks as the CLI's does, on the source's contacts where the feet are proportioned otherwise),
+for ``biomorph motion batch`` and the Python API.
 
 Each step is ``name[:key=value,key=value…]``; vector values use ``/`` between components.
 Operators and their keys (angles in degrees, frames 0-based, as on the CLI):
@@ -46,6 +48,9 @@ OPS = (
     "retarget",
 )
 _TIMING_KEPT = ("equalize", "reorient", "in-place")  # same frames: feet follow the input
+#: steps not locked after: a root extraction, and a trim — a cut, the input's frames as they
+#: are (the CLI's ``trim`` too, unless ``--lock-feet``)
+_UNLOCKED = ("extract-root", "trim")
 
 
 @dataclass(frozen=True)
@@ -103,9 +108,13 @@ def _floats(step: Step, key: str) -> list[float] | None:
     return vals
 
 
-def apply_step(mo: Motion, step: Step, lock: Callable[[Motion], Motion] | None = None) -> Motion:
+def apply_step(
+    mo: Motion, step: Step, lock: Callable[[Motion], Motion] | None = None, feet: bool = False
+) -> Motion:
     """One operator (module docstring) on ``mo``; ``lock`` is handed to ``make_cycle`` (the
-    world-space cycle is locked before an in-place / root-motion conversion)."""
+    world-space cycle is locked before an in-place / root-motion conversion); ``feet``: a
+    retarget locks its feet itself, as the CLI's ``retarget`` does (on the source's contacts
+    where the feet are proportioned otherwise)."""
     import biomorph.motion as bm
     from biomorph.motion import rootmotion as rm
     from biomorph.motion.retarget import mirror, retarget
@@ -165,7 +174,7 @@ def apply_step(mo: Motion, step: Step, lock: Callable[[Motion], Motion] | None =
     from biomorph import io
 
     target = io.read_motion(Path(p["to"])).skeleton
-    return retarget(mo, target, p.get("source"), p.get("target"), None, feet=False)
+    return retarget(mo, target, p.get("source"), p.get("target"), None, feet=feet)
 
 
 def apply_chain(mo: Motion, steps: list[Step], lock_feet: bool = True) -> Motion:
@@ -183,8 +192,11 @@ def apply_chain(mo: Motion, steps: list[Step], lock_feet: bool = True) -> Motion
                 return lock(c, floor=floor)
 
         cyc = lock_feet and step.name == "cycle"
-        out = apply_step(mo, step, lock_cycle if cyc else None)
-        if lock_feet and not cyc and step.name != "extract-root":
+        rt = lock_feet and step.name == "retarget"  # locks inside, like the CLI's retarget
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ContactWarning)
+            out = apply_step(mo, step, lock_cycle if cyc else None, feet=rt)
+        if lock_feet and not cyc and not rt and step.name not in _UNLOCKED:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ContactWarning)
                 fl = floor if out.names == mo.names else None

@@ -685,11 +685,19 @@ def trim(
     ] = None,
     up: Up = None,
     strict: Strict = False,
+    lock_feet: Annotated[
+        bool,
+        typer.Option(
+            "--lock-feet/--no-lock-feet",
+            help="Also hold the planted feet of the part (default: a plain cut, the frames "
+            "as they are in the input).",
+        ),
+    ] = False,
     euler: Euler = "wrap",
     preview: Preview = None,
     as_json: Json = False,
 ) -> None:
-    """Keep frames start..stop-1.
+    """Keep frames start..stop-1 (a cut: the frames are the input's unless --lock-feet).
 
     Example: biomorph motion trim take.bvh -o part.bvh --start 120 --stop 480
     """
@@ -697,7 +705,7 @@ def trim(
     t0 = time.perf_counter()
     mo = _read(path, up, strict)
     out = mo.frames(start, mo.n_frames if stop is None else stop)
-    _finish(output, out, None, False, euler, preview)
+    out = _finish(output, out, None, lock_feet, euler, preview, [mo])
     _emit(_summary(out, output, t0, start=start), as_json)
 
 

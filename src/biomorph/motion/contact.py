@@ -899,7 +899,13 @@ def lock_feet(
     chain = _leg_chain(motion, legs)
     col = {int(j): c for c, j in enumerate(chain)}
     pos, wq = _chain_fk(motion, chain)
-    w_ref = pos if ref is motion else _chain_fk(ref, chain)[0]
+    same = ref is motion or (  # a copy of ``motion`` as its own reference: no second FK
+        ref.rotation is motion.rotation
+        and ref.root_position is motion.root_position
+        and ref.joint_translation is motion.joint_translation
+        and ref.skeleton is motion.skeleton
+    )
+    w_ref = pos if same else _chain_fk(ref, chain)[0]
     if contacts is None:
         contacts = _detect(w_ref, col, legs, motion.fps, opts, ui)
     blend = max(1, round(o.blend_s * motion.fps))

@@ -30,6 +30,7 @@ is reflected too.
 
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
@@ -61,13 +62,14 @@ def _rest_world(sk: JointSkeleton) -> tuple[Array, Array]:
 
 @njit(cache=True)
 def _retarget_kernel(
-    rest_s, rot_s, parent_s, src_of, pre, post, rest_t, parent, rot_out
+    rest_s, rot_s, parent_s, src_of, pre, post, rest_t, rest_w, parent, rot_out
 ):  # pragma: no cover
     """Per frame: the source's world rotations (FK, as ``fk_positions``) into a per-frame
     buffer, then per target joint (parents first): mapped joints get the world rotation
     ``ws[src] · pre[j] · post[j]`` (source delta from rest, then the aligned target rest:
-    ``pre = qs⁻¹``, ``post = align · qt``), unmapped ones their parent's world times their
-    rest; the local pose is ``rest⁻¹ · parent⁻¹ · world``."""
+    ``pre = qs⁻¹``, ``post = align · qt``), unmapped ones their parent's world times
+    ``rest_w`` (their rest, or the rest turned onto the source's hips → thigh direction:
+    :func:`_girdle_rests`); the local pose is ``rest⁻¹ · parent⁻¹ · world``."""
     f, n = rot_s.shape[0], parent.size
     world = np.empty((n, 4))
     ws = np.empty((rot_s.shape[1], 4))
@@ -108,7 +110,7 @@ def _retarget_kernel(
                 x, y, z, w = _qmul(x, y, z, w, post[j, 0], post[j, 1], post[j, 2], post[j, 3])
             else:
                 x, y, z, w = _qmul(
-                    px, py, pz, pw, rest_t[j, 0], rest_t[j, 1], rest_t[j, 2], rest_t[j, 3]
+                    px, py, pz, pw, rest_w[j, 0], rest_w[j, 1], rest_w[j, 2], rest_w[j, 3]
                 )
             world[j, 0], world[j, 1], world[j, 2], world[j, 3] = x, y, z, w
             # local = rest^-1 * parent^-1 * world
@@ -186,6 +188,59 @@ def _maps(
     return out
 
 
+def _girdle_rests(
+    target: JointSkeleton,
+    pt: Array,
+    qt: Array,
+    ps: Array,
+    s_of: dict[int, int],
+    s_can: dict[str, int],
+    t_can: dict[str, int],
+    align: dict[int, Array],
+) -> Array:
+    """The rest rotations the retarget composes unmapped target joints with: their own, but
+    an unmapped joint that carries a thigh (a creature's pelvic girdle, ``hip1_girdle_l →
+    hip1_upper_l``) is turned so that its thigh bone (girdle → hip socket) points where the
+    source's hips → thigh points at rest. Kept at its rest, the generated biped's girdle
+    (every rest bone along +y) put both hip sockets on one point 0.1 leg lengths *above* the
+    pelvis: legs hanging from the middle of the body, too high for the floor."""
+    rest_w = np.array(target.rest_rotation, dtype=float)
+    hips_t = t_can.get("hips")
+    if hips_t is None or "hips" not in s_can:
+        return rest_w
+    par = target.parent
+    for side in ("l", "r"):
+        th_t, th_s = t_can.get(f"{side}_thigh"), s_can.get(f"{side}_thigh")
+        if th_t is None or th_s is None:
+            continue
+        g = int(par[th_t])
+        if g < 0 or g in s_of or g == hips_t:
+            continue
+        chain = []  # unmapped joints from the girdle up to the nearest mapped ancestor
+        j = g
+        while j >= 0 and j not in s_of:
+            chain.append(j)
+            j = int(par[j])
+        if j != hips_t:
+            continue
+        # the girdle's world orientation at the source's rest (mapped hips: align · qt)
+        w = tf.quat_multiply(align[hips_t], qt[hips_t])
+        for k in reversed(chain[1:]):
+            w = tf.quat_multiply(w, rest_w[k])
+        w = tf.quat_multiply(w, rest_w[g])
+        d = np.asarray(target.offset[th_t], dtype=float)
+        u = ps[th_s] - ps[s_can["hips"]]
+        if np.linalg.norm(d) < 1e-12 or np.linalg.norm(u) < 1e-12:
+            continue
+        a = d / np.linalg.norm(d)
+        b = tf.quat_rotate(tf.quat_conjugate(w), u / np.linalg.norm(u))
+        c = np.cross(a, b)
+        q = np.array([*c, 1.0 + float(a @ b)])
+        if q[3] > 1e-9:
+            rest_w[g] = tf.quat_multiply(rest_w[g], tf.quat_normalize(q))
+    return rest_w
+
+
 def _leg_length(sk: JointSkeleton, pos: Array, m: dict[str, int]) -> float:
     out = []
     for s in ("l", "r"):
@@ -253,6 +308,7 @@ def retarget(
         ro(pre),
         ro(post),
         ro(target.rest_rotation),
+        ro(_girdle_rests(target, pt, qt, ps, s_of, s_can, t_can, align)),
         ro_int(target.parent),
         rot,
     )
@@ -265,28 +321,73 @@ def retarget(
     from biomorph.motion.contact import _UP, foot_floor
 
     up = str(source.meta.get("up_guess") or "y").lower()
-    floor = foot_floor(source, up)
+    foot_s = _foot_ratio(source.skeleton, ps, s_can)
+    foot_t = _foot_ratio(target, pt, t_can)
+    other = foot_s > 0 and foot_t > 0 and max(foot_s, foot_t) > FOOT_RATIO * min(foot_s, foot_t)
+    legs_s = _SourceLegs(source, s_can) if other else None  # one FK for floor, paths, contacts
+    floor = foot_floor(source, up) if legs_s is None else legs_s.floor(up)
     if floor is not None and up in _UP:
         root[:, _UP[up]] -= floor * scale
     if t_can["hips"] != 0:  # joints above the target's hips: keep them at rest, move the root
         root = root - (pt[hips_t] - pt[0])
+    adapt = legs_s is not None and floor is not None and up in _UP
     meta = {
         "source": source.meta.get("source"),
         "format": "retarget",
         "up_guess": source.meta.get("up_guess", "y"),
-        "retarget": {"joints": len(pairs), "leg_scale": scale},
+        "retarget": {
+            "joints": len(pairs),
+            "leg_scale": scale,
+            "legs": "source's foot paths" if adapt else "source's angles",
+        },
     }
+    if adapt:  # the legs follow the source's foot paths (writes ``rot`` in place)
+        assert legs_s is not None and floor is not None
+        tmp = Motion(target, frozen(rot.view()), frozen(root), source.frame_time, None, {})
+        _adapt_legs(legs_s, tmp, rot, s_can, t_can, scale, floor, _UP[up])
     out = Motion(target, frozen(rot), frozen(root), source.frame_time, None, meta)
     if feet:
-        foot_s = _foot_ratio(source.skeleton, ps, s_can)
-        foot_t = _foot_ratio(target, pt, t_can)
-        if foot_s > 0 and foot_t > 0 and max(foot_s, foot_t) > FOOT_RATIO * min(foot_s, foot_t):
-            out = _lock_like_source(source, out, s_can, t_can)
+        if legs_s is not None:
+            out = _lock_like_source(legs_s, out, s_can, t_can)
         else:
             from biomorph.motion.contact import lock_feet
 
             out = lock_feet(out)
     return out
+
+
+class _SourceLegs:
+    """The source's leg chains (legs found by name, and by canonical name) evaluated once:
+    world positions and orientations, shared by the floor, the foot paths and the contacts."""
+
+    def __init__(self, source: Motion, s_can: dict[str, int]) -> None:
+        from biomorph.motion.contact import Leg, _chain_fk, _leg_chain, find_legs
+
+        self.motion = source
+        self.named = find_legs(source)
+        sides = [s for s in ("l", "r") if all(f"{s}_{b}" in s_can for b in _LEG)]
+        self.canon = {s: Leg(*(s_can[f"{s}_{b}"] for b in _LEG)) for s in sides}
+        chain = _leg_chain(source, [*self.named, *self.canon.values()])
+        self.col = {int(j): c for c, j in enumerate(chain)}
+        self.pos, self.quat = _chain_fk(source, chain)
+
+    def floor(self, up: str) -> float | None:
+        """:func:`~biomorph.motion.contact.foot_floor` of the source."""
+        from biomorph.motion.contact import _UP, _contact_points
+
+        if not self.named or up not in _UP:
+            return None
+        pts = [self.col[j] for j in _contact_points(self.named)]
+        return float(self.pos[:, pts, _UP[up]].min())
+
+    def contacts(self) -> dict[int, np.ndarray]:
+        """:func:`~biomorph.motion.contact.detect_contacts` of the source."""
+        from biomorph.motion.contact import ContactOptions, _detect, _up_of
+
+        m, o = self.motion, ContactOptions()
+        if not self.named or m.n_frames < 2:
+            return {}
+        return _detect(self.pos, self.col, self.named, m.fps, o, _up_of(m, o))
 
 
 FOOT_RATIO = 1.5
@@ -302,17 +403,163 @@ def _foot_ratio(sk: JointSkeleton, pos: Array, m: dict[str, int]) -> float:
     return foot / max(_leg_length(sk, pos, m), 1e-12)
 
 
+def _foot_frame(q0: Array, d0: Array, ui: int) -> tuple[Array, Array]:
+    """The foot's lateral axis in its own frame (horizontal and across the rest foot ``d0``,
+    the foot's rest world orientation ``q0``) and the rest foot's horizontal direction."""
+    up = np.zeros(3)
+    up[ui] = 1.0
+    lat = np.cross(up, d0)
+    if np.linalg.norm(lat) < 1e-9 * max(float(np.linalg.norm(d0)), 1e-300):
+        lat = np.zeros(3)
+        lat[(ui + 2) % 3] = 1.0
+    lat /= np.linalg.norm(lat)
+    return tf.quat_rotate(tf.quat_conjugate(q0), lat), np.cross(lat, up)
+
+
+@njit(cache=True)
+def _qrot(qx, qy, qz, qw, vx, vy, vz):  # pragma: no cover - compiled
+    """``v`` rotated by the unit quaternion ``q``."""
+    tx = 2.0 * (qy * vz - qz * vy)
+    ty = 2.0 * (qz * vx - qx * vz)
+    tz = 2.0 * (qx * vy - qy * vx)
+    return (
+        vx + qw * tx + (qy * tz - qz * ty),
+        vy + qw * ty + (qz * tx - qx * tz),
+        vz + qw * tz + (qx * ty - qy * tx),
+    )
+
+
+@njit(cache=True)
+def _pitch_kernel(sq, local, ahead, ui, ta, tt, goal, want, tq):  # pragma: no cover - compiled
+    """Per frame: turn the target foot (world orientation ``tq[t]``, ankle ``ta[t]``, toe
+    ``tt[t]``) in the vertical plane of its heading so that, with the ankle at ``goal[t]``, its
+    toe is at height ``want[t]`` (clamped at straight up / down). The heading is the source
+    foot's lateral axis ``local`` (in the foot's frame; orientation ``sq[t]``) turned a
+    quarter about the up axis: the foot vector's own horizontal part has no heading where the
+    foot points straight down (after a toe-off) and flips between ahead of and behind the
+    ankle there; the lateral axis stays horizontal unless the foot rolls onto its side."""
+    f = tq.shape[0]
+    for t in range(f):
+        ax, ay, az = _qrot(sq[t, 0], sq[t, 1], sq[t, 2], sq[t, 3], local[0], local[1], local[2])
+        if ui == 1:  # h = a × up (horizontal)
+            hx, hy, hz = -az, 0.0, ax
+        elif ui == 2:
+            hx, hy, hz = ay, -ax, 0.0
+        else:
+            hx, hy, hz = 0.0, az, -ay
+        hn = math.sqrt(hx * hx + hy * hy + hz * hz)
+        if hn < 1e-9:
+            hx, hy, hz = ahead[0], ahead[1], ahead[2]
+            hn = math.sqrt(hx * hx + hy * hy + hz * hz)
+        hx, hy, hz = hx / hn, hy / hn, hz / hn
+        cx, cy, cz = tt[t, 0] - ta[t, 0], tt[t, 1] - ta[t, 1], tt[t, 2] - ta[t, 2]
+        foot = math.sqrt(cx * cx + cy * cy + cz * cz)
+        if foot <= 1e-12:
+            continue
+        sy = min(max((want[t] - goal[t, ui]) / foot, -1.0), 1.0)
+        ch = math.sqrt(1.0 - sy * sy)
+        g = [hx * ch, hy * ch, hz * ch]
+        g[ui] = sy
+        cx, cy, cz = cx / foot, cy / foot, cz / foot
+        w = 1.0 + cx * g[0] + cy * g[1] + cz * g[2]
+        if w < 1e-9:  # opposite: no unique turn, leave the foot
+            continue
+        x, y, z = cy * g[2] - cz * g[1], cz * g[0] - cx * g[2], cx * g[1] - cy * g[0]
+        n = math.sqrt(x * x + y * y + z * z + w * w)
+        x, y, z, w = x / n, y / n, z / n, w / n
+        tq[t, 0], tq[t, 1], tq[t, 2], tq[t, 3] = _qmul(
+            x, y, z, w, tq[t, 0], tq[t, 1], tq[t, 2], tq[t, 3]
+        )
+
+
+_LEG = ("thigh", "shin", "foot", "toe")
+
+
+def _adapt_legs(
+    legs_s: _SourceLegs,
+    out: Motion,
+    rot: Array,
+    s_can: dict[str, int],
+    t_can: dict[str, int],
+    scale: float,
+    floor: float,
+    ui: int,
+) -> None:
+    """The legs of a target whose feet are proportioned otherwise (:data:`FOOT_RATIO`) follow
+    the source's foot *paths*, not only its angles. Per leg and frame:
+
+    1. the ankle goal is the source's ankle scaled by the leg ratio (the source's floor on
+       y = 0) plus the rig's constant offset: the median over the frames of the target's hip
+       socket minus the source's scaled socket (a creature's pelvis and sockets sit otherwise
+       than a human's; the constant keeps its legs where its own body puts them, the
+       frame-to-frame path is the source's);
+    2. the foot is pitched so its toe is as high as the source's toe (scaled, same offset):
+       its heading (:func:`_heading`) and its roll are kept, only its angle in the vertical
+       plane changes, clamped at straight up / down;
+    3. hip and knee are solved for the ankle goal by the contact module's two-bone IK (soft
+       over the last 0.5 % of the leg's reach, :class:`~biomorph.motion.contact.ContactOptions`
+       ``soft``), the foot keeping the pitched orientation.
+
+    At the source's angles, a foot 2.2× longer relative to the leg (the generated biped's
+    foot is 0.35 of its leg, a human's 0.16) held its heel 0.14 hip heights up when the
+    source's was planted and swept its toe 2.2× lower through the swing; with the source's
+    heights, heel and toe are on the floor when the source's are and the source's contacts
+    (:func:`_lock_like_source`) hold them."""
+    from biomorph.motion.contact import ContactOptions, Leg, _chain_fk, _leg_chain, _lock_leg
+
+    sides = [s for s in legs_s.canon if all(f"{s}_{b}" in t_can for b in _LEG)]
+    if not sides:
+        return
+    s_legs = [legs_s.canon[s] for s in sides]
+    t_legs = [Leg(*(t_can[f"{s}_{b}"] for b in _LEG)) for s in sides]
+    s_col = legs_s.col
+    s_pos = legs_s.pos * scale
+    s_pos[..., ui] -= floor * scale  # the source in the target's units, its floor at 0
+    s_quat = legs_s.quat
+    ps, qs = _rest_world(legs_s.motion.skeleton)
+    t_chain = _leg_chain(out, t_legs)
+    t_col = {int(j): c for c, j in enumerate(t_chain)}
+    t_pos, t_quat = _chain_fk(out, t_chain)
+    rest = np.ascontiguousarray(out.skeleton.rest_rotation, dtype=float)
+    par = out.skeleton.parent
+    f = out.n_frames
+    soft = ContactOptions().soft
+    for sl, lg in zip(s_legs, t_legs, strict=True):
+        off = np.median(t_pos[:, t_col[lg.hip]] - s_pos[:, s_col[sl.hip]], axis=0)
+        goal = np.ascontiguousarray(s_pos[:, s_col[sl.ankle]] + off)
+        want = s_pos[:, s_col[sl.toe], ui] + off[ui]  # the toe's height
+        ca = t_col[lg.ankle]
+        local, ahead = _foot_frame(qs[sl.ankle], ps[sl.toe] - ps[sl.ankle], ui)
+        tq = np.ascontiguousarray(t_quat[:, ca])
+        _pitch_kernel(
+            np.ascontiguousarray(s_quat[:, s_col[sl.ankle]]), local, ahead, ui,
+            np.ascontiguousarray(t_pos[:, ca]), np.ascontiguousarray(t_pos[:, t_col[lg.toe]]),
+            goal, np.ascontiguousarray(want), tq,
+        )  # fmt: skip
+        t_quat[:, ca] = tq
+        cp = t_col[int(par[lg.hip])] if par[lg.hip] >= 0 else -1
+        cols = np.array([cp, t_col[lg.hip], t_col[lg.knee], ca, -1], dtype=np.int64)
+        joints = np.array([lg.hip, lg.knee, lg.ankle], dtype=np.int64)
+        _lock_leg(
+            t_pos, t_quat, cols, goal, np.arange(f, dtype=np.int64), np.zeros((f, 3)),
+            np.zeros(f), np.ones(f), soft, rest, joints, rot, ui, -np.inf, np.full(f, -np.inf),
+        )  # fmt: skip
+
+
 def _lock_like_source(
-    source: Motion, out: Motion, s_can: dict[str, int], t_can: dict[str, int]
+    legs_s: _SourceLegs, out: Motion, s_can: dict[str, int], t_can: dict[str, int]
 ) -> Motion:
     """Lock the target's feet on the *source's* contacts (ankle and toe mapped by their
     canonical names): a foot proportioned otherwise (a creature's foot is 0.37 hip heights
     long, a human's 0.14) swings its toe through the floor band at the source's foot angles,
-    so contacts detected on the target missed the planted toes."""
-    from biomorph.motion.contact import detect_contacts, find_legs, lock_feet
+    so contacts detected on the target missed the planted toes. Outside its contacts no toe
+    ends lower than the retarget put it (``lock_feet``'s reference clearance, the retarget
+    itself as the reference): the toe turned toward a held place during a fade does not
+    scrape."""
+    from biomorph.motion.contact import find_legs, lock_feet
 
     legs = find_legs(out)
-    src = detect_contacts(source)
+    src = legs_s.contacts()
     mapped: dict[int, np.ndarray] = {}
     for c in ("l_foot", "l_toe", "r_foot", "r_toe"):
         if c in s_can and c in t_can and s_can[c] in src:
@@ -320,7 +567,8 @@ def _lock_like_source(
     points = {p for lg in legs for p in (lg.ankle, lg.toe) if p >= 0}
     if not mapped or not points <= set(mapped):
         return lock_feet(out)
-    return lock_feet(out, contacts={j: v for j, v in mapped.items() if j in points})
+    ref = out.with_(meta=dict(out.meta))  # the same frames as a reference: its clearance kept
+    return lock_feet(out, ref, contacts={j: v for j, v in mapped.items() if j in points})
 
 
 def _lateral_axis(sk: JointSkeleton, pairs: list[tuple[int, int]], pos: Array | None = None) -> int:
