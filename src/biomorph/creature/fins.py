@@ -77,12 +77,6 @@ def fin_joints(c: Creature) -> NDArray[np.int64]:
     return np.asarray([j for ch in chains(c) for j in ch], np.int64)
 
 
-def _rotate(v: NDArray, axis: NDArray, angle: float) -> NDArray:
-    """Rodrigues: the vectors ``v (k, 3)`` turned by ``angle`` about the unit ``axis``."""
-    c, s = np.cos(angle), np.sin(angle)
-    return v * c + np.cross(axis, v) * s + np.outer(v @ axis, axis) * (1.0 - c)
-
-
 def build(c: Creature, n_rays: int = 7, per_bone: int = 4) -> list[Fin]:
     """The fins of ``c`` with ``n_rays`` rays each, ``per_bone`` samples per fin bone."""
     up = np.array([0.0, 1.0, 0.0])
@@ -115,12 +109,16 @@ def build(c: Creature, n_rays: int = 7, per_bone: int = 4) -> list[Fin]:
         # the base runs across the rays, from the leading ray's root to the trailing side
         # (rays turned further start further along it, so no two cross)
         base_dir = sign * e / max(float(np.linalg.norm(e)), 1e-12)
-        rays = np.empty((n_rays, len(lead), 3))
-        for i in range(n_rays):
-            u = i / max(n_rays - 1, 1)
-            scale = 1.0 - (1.0 - TRAILING) * u * u
-            turned = _rotate(rel, n, sign * SPREAD * u) * scale
-            rays[i] = lead[0] + u * BASE * length * base_dir + turned
+        # each ray: the leading ray turned about the fin's normal (Rodrigues, all at once)
+        u = np.linspace(0.0, 1.0, n_rays) if n_rays > 1 else np.zeros(1)
+        ang = sign * SPREAD * u
+        cs, sn = np.cos(ang)[:, None, None], np.sin(ang)[:, None, None]
+        nxr = np.cross(n, rel)[None]
+        along_n = (rel @ n)[None, :, None] * n
+        turned = rel[None] * cs + nxr * sn + along_n * (1.0 - cs)
+        scale = (1.0 - (1.0 - TRAILING) * u * u)[:, None, None]
+        roots = lead[0] + (u * BASE * length)[:, None] * base_dir
+        rays = roots[:, None, :] + turned * scale
         width = float(np.max(c.box_size[list(chain), 0]))
         out.append(Fin(chain, rays, np.asarray(chain)[seg_of], seg_of, width, n))
     return out

@@ -652,19 +652,32 @@ def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
     built = fn.build(c, *fn.DETAIL[lod])
     if not built:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    sides = (5, 6, 8)[lod]
+    sides = (3, 4, 6)[lod]  # thin rays: few sides
     vs, fs, base = [], [], 0
-    for fin in built:
-        r, k = fin.rays.shape[:2]
-        ref = np.tile(fin.normal, (r, 1))
-        pieces = [
-            tubes(fin.rays, fn.ray_radii(fin) * (1 + LANDMARK_TISSUE), sides, ref=ref),
-            _slab(fn.membrane_grid(fin), np.full((r, k), fn.MEMBRANE * fin.width), fin.normal),
-        ]
-        for v, f in pieces:
-            vs.append(v)
-            fs.append(f + base)
-            base += len(v)
+    pieces = [
+        _slab(
+            fn.membrane_grid(fin), np.full(fin.rays.shape[:2], fn.MEMBRANE * fin.width), fin.normal
+        )
+        for fin in built
+    ]
+    if len({fin.rays.shape for fin in built}) == 1:  # every fin's rays in one batch
+        pieces.append(
+            tubes(
+                np.concatenate([fin.rays for fin in built]),
+                np.concatenate([fn.ray_radii(fin) for fin in built]) * (1 + LANDMARK_TISSUE),
+                sides,
+                ref=np.concatenate([np.tile(fin.normal, (len(fin.rays), 1)) for fin in built]),
+            )
+        )
+    else:
+        for fin in built:
+            ref = np.tile(fin.normal, (len(fin.rays), 1))
+            rad = fn.ray_radii(fin) * (1 + LANDMARK_TISSUE)
+            pieces.append(tubes(fin.rays, rad, sides, ref=ref))
+    for v, f in pieces:
+        vs.append(v)
+        fs.append(f + base)
+        base += len(v)
     return np.concatenate(vs), np.concatenate(fs)
 
 

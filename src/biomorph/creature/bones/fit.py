@@ -120,7 +120,7 @@ class _Context:
         # the rib cage round the trunk's sections (world), one piece per thoracic joint
         self.cage = cage.rib_cage(c, thoracic, lod, pleural=self.cls == "fish")
         # fin rays (world), built once per creature: each fin joint gets its stretch of them
-        self.fins = {j: fin for fin in fn.build(c, *fn.DETAIL[lod]) for j in fin.joints}
+        self.fins = _fin_pieces(c, lod)
 
 
 class _Geometry:
@@ -312,19 +312,47 @@ def _limb_model(ctx: _Context, j: int, part: str):
     return None
 
 
+def _fin_pieces(c: Creature, lod: int) -> dict[int, tuple[NDArray, NDArray]]:
+    """The fin rays (:mod:`biomorph.creature.fins`) as bone models: per fin joint, its
+    stretch of every ray of its fin — thin tapering rods from the joint's start to its
+    bone's end — in the joint's frame (``(vertices, faces)``; all rods in one batch)."""
+    fins = fn.build(c, *fn.DETAIL[lod])
+    if not fins:
+        return {}
+    joints, paths, rad, ref = [], [], [], []
+    for fin in fins:
+        r_all = fn.ray_radii(fin)
+        for m, j in enumerate(fin.joints):
+            k = np.flatnonzero(fin.seg_of == m)
+            if k[0] > 0:
+                k = np.r_[k[0] - 1, k]  # from the previous segment's last sample
+            joints.append(j)
+            paths.append(fin.rays[:, k])
+            rad.append(r_all[:, k])
+            ref.append(np.tile(fin.normal, (len(fin.rays), 1)))
+    if len({p.shape for p in paths}) > 1:  # not one batch: joint by joint
+        pieces = [
+            prim.tubes(p, r, max(3, prim.SIDES[lod] // 2), ref=f)
+            for p, r, f in zip(paths, rad, ref, strict=True)
+        ]
+    else:
+        v, f = prim.tubes(
+            np.concatenate(paths),
+            np.concatenate(rad),
+            max(3, prim.SIDES[lod] // 2),
+            ref=np.concatenate(ref),
+        )
+        nv, nf = len(v) // len(joints), len(f) // len(joints)
+        pieces = [
+            (v[i * nv : (i + 1) * nv], f[i * nf : (i + 1) * nf] - i * nv)
+            for i in range(len(joints))
+        ]
+    return {j: (_local(c, j, v), f) for j, (v, f) in zip(joints, pieces, strict=True)}
+
+
 def _fin(g: _Geometry, ctx: _Context, j: int) -> None:
-    """The fin rays' stretch along fin joint ``j`` (:mod:`biomorph.creature.fins`): every
-    ray of the fin, thin tapering rods, from the joint's start to its bone's end."""
-    c, fin = ctx.c, ctx.fins[j]
-    m = fin.joints.index(j)
-    k = np.flatnonzero(fin.seg_of == m)
-    if k[0] > 0:
-        k = np.r_[k[0] - 1, k]  # from the previous segment's last sample
-    paths = fin.rays[:, k]
-    rad = fn.ray_radii(fin)[:, k]
-    ref = np.tile(fin.normal, (len(paths), 1))
-    v, f = prim.tubes(paths, rad, max(3, prim.SIDES[ctx.lod] // 2), ref=ref)
-    g.raw(j, (_local(c, j, v), f))
+    """Fin joint ``j``'s stretch of its fin's rays (:func:`_fin_pieces`)."""
+    g.raw(j, ctx.fins[j])
 
 
 def _box(g: _Geometry, c: Creature, j: int) -> None:
