@@ -10,8 +10,12 @@ and a creature biped (``biomorph creature generate --legs 2 --seed 3 -o OUT/bipe
 reused when present). Cells: ✓ = Blender imported the output with no importer message and
 no non-finite key or bone head; the figure is ``quality.foot_skate`` of the output (body
 scales/s; in-place cycles measured with the removed drift restored, ``remove_drift(...,
-restore=True)``, i.e. in the treadmill's frame; ``trim`` is a cut, its figure "(in x)" is the
-input's over the same frames); "↓floor" = the lowest foot more than 2 % of
+restore=True)``, i.e. in the treadmill's frame). "(in x)" = the like-for-like input figure
+where the operator changes which frames are measured: ``trim`` (a cut) and the cycles, the
+input's skate over the same (looped) frames; ``speed``, the input retimed by the same curve
+with the feet not locked (a retime at speed k plays every foot k× as fast, and the metric's
+mean over the in-band frames loses the stance frames it compresses). "↓floor" = the lowest
+foot more than 2 % of
 the input's hip height below the input's lowest foot (retargets: below the target's y = 0).
 """
 
@@ -131,9 +135,9 @@ def _ops(src: Path, n: int, names: tuple[str, ...], mix: Path, biped: Path) -> d
         "edit": ["edit", str(src), "--joint", arm, "--key", key, "--fade", str(max(2, n // 10))],
         "blend": blend,
         "speed": ["speed", str(src), "--speed", f"0:1,{n // 2}:1.5,{n - 1}:1"],
-        "cycle-world": ["cycle", str(src), *cyc, "--mode", "world"],
+        "cycle-world": ["cycle", str(src), *cyc, "--mode", "world", "--json"],
         "cycle-in-place": ["cycle", str(src), *cyc, "--mode", "in-place", "--json"],
-        "cycle-root-motion": ["cycle", str(src), *cyc, "--mode", "root-motion"],
+        "cycle-root-motion": ["cycle", str(src), *cyc, "--mode", "root-motion", "--json"],
         "retarget-mixamo": ["retarget", str(src), "--to", str(mix)],
         "retarget-biped": ["retarget", str(src), "--to", str(biped)],
         "mirror": ["mirror", str(src)],
@@ -168,8 +172,10 @@ def run_ops(out: Path, files: list[str]) -> list[dict]:
             if p.returncode == 0:
                 o = _read(path)
                 row.update(out=str(path), frames_out=o.n_frames, skate_out=_skate(o))
-                if op == "cycle-in-place":
+                if op.startswith("cycle"):  # the input over the looped range
                     js = json.loads(p.stdout[p.stdout.index("{") :])
+                    row["skate_ref"] = _skate(m.frames(js["start"], js["stop"]))
+                if op == "cycle-in-place":
                     dr = js["drift"]
                     back = remove_drift(o, dr["translation"], dr["yaw"], js["period"], restore=True)
                     row.update(skate_out_raw=row["skate_out"], skate_out=_skate(back))
@@ -177,6 +183,13 @@ def run_ops(out: Path, files: list[str]) -> list[dict]:
                 if op == "trim":  # a cut: compared with the input over the same frames
                     n = m.n_frames
                     row["skate_ref"] = _skate(m.frames(n // 4, 3 * n // 4))
+                if op == "speed":  # the input retimed by the same curve, feet not locked
+                    from biomorph.motion.timewarp import change_speed
+
+                    n = m.n_frames
+                    row["skate_ref"] = _skate(
+                        change_speed(m, [(0, 1.0), (n // 2, 1.5), (n - 1, 1.0)])
+                    )
             rows.append(row)
             print(json.dumps(row), flush=True)
     return rows

@@ -779,11 +779,15 @@ def _leg_goals(  # noqa: PLR0913
     # leaves the leg's reach (the heel lifts because the leg cannot reach it), never by a
     # switch on one frame (was: a 1.1-unit jump of the Xia walk's left ankle, frames 158-159)
     ta, wa = _targets(on_a, w_ref[:, ca], blend, ui, follow, _in_swing(w_ref[:, ca], ui, swing))
+    hop = _hops(on_a, blend)  # a short flight: held places do not pull the point down
+    ta[:, ui] = np.where(hop, np.maximum(ta[:, ui], pos[:, ca, ui]), ta[:, ui])
     goal = pos[:, ca] + wa[:, None] * (ta - pos[:, ca])
     tt, wt = np.zeros((f, 3)), np.zeros(f)
     if lg.toe >= 0:
         ct = col[lg.toe]
         tt, wt = _targets(on_t, w_ref[:, ct], blend, ui, follow, _in_swing(w_ref[:, ct], ui, swing))
+        hop = _hops(on_t, blend)
+        tt[:, ui] = np.where(hop, np.maximum(tt[:, ui], pos[:, ct, ui]), tt[:, ui])
         hip = pos[:, col[lg.hip]]
         length = np.linalg.norm(pos[:, col[lg.knee]] - hip, axis=1) + np.linalg.norm(
             pos[:, ca] - pos[:, col[lg.knee]], axis=1
@@ -818,6 +822,19 @@ def _leg_goals(  # noqa: PLR0913
     if toe_clear is not None and lg.toe >= 0:  # a turned toe keeps the reference's clearance
         tclear = np.where(on_t, -np.inf, toe_clear)
     return goal, tt, wt, w_soft, act, tclear
+
+
+def _hops(on: NDArray[np.bool_], blend: int) -> NDArray[np.bool_]:
+    """Frames between two contacts of a point at most ``2 · blend`` frames apart — where the
+    fade-out of one contact meets the fade-in of the next and the held place is carried
+    across (:func:`_bridge_gaps`): a hop's flight (jumping jacks: 0.2 s in the air, the two
+    0.2 s fades), not a walking swing (0.4 s and more)."""
+    out = np.zeros(on.size, bool)
+    runs = _runs(on)
+    for (_, e1), (s2, _) in zip(runs[:-1], runs[1:], strict=False):
+        if s2 - e1 <= 2 * blend:
+            out[e1:s2] = True
+    return out
 
 
 def _in_swing(p: Array, ui: int, swing: float) -> NDArray[np.bool_] | None:
