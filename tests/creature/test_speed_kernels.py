@@ -268,3 +268,85 @@ def test_step_streams_are_default_rng_of_seed_step_roll():
                     ref = np.random.default_rng([seed & 0xFFFFFFFF, i, roll])
                     assert np.array_equal(got.random(6), ref.random(6))
                     assert got.integers(1 << 40) == ref.integers(1 << 40)
+
+
+def _profile_plain(s, region_len, girth, cls, skull_h, legless):
+    neck, back, tail = region_len
+    total = max(neck + back + tail, 1e-9)
+    h_back = max(girth * (back if back > 0.15 * total else total), 0.01 * total)
+    u_neck = np.clip(s / max(neck, 1e-9), 0, 1)
+    u_back = np.clip((s - neck) / max(back, 1e-9), 0, 1)
+    u_tail = np.clip((s - neck - back) / max(tail, 1e-9), 0, 1)
+    head_h = max(0.8 * skull_h, 0.2 * h_back)
+    fishy = cls == "fish" or legless
+    tail0, tail1 = (0.75, 0.25) if fishy else (0.75, 0.06)
+    h = np.where(
+        s < neck,
+        head_h + (0.75 * h_back - head_h) * u_neck,
+        np.where(
+            s <= neck + back,
+            h_back * (0.75 + 0.25 * np.sin(np.pi * u_back)),
+            h_back * (tail0 + (tail1 - tail0) * u_tail),
+        ),
+    )
+    return h, h * (0.5 if cls == "fish" else 0.8), h * (0.12 if fishy else 0.35)
+
+
+def test_body_profile_matches_the_clip_formula():
+    rng = np.random.default_rng(5)
+    for i in range(500):
+        rl = rng.random(3) * rng.choice([0.01, 1.0, 50.0])
+        rl[rng.random(3) < 0.15] = 0.0
+        total = rl.sum()
+        s = np.r_[0.0, rl[0], rl[0] + rl[1], total, -0.0, rng.random(8) * total * 1.2 - 0.1]
+        cls = ("mammal", "fish", "bird")[i % 3]
+        args = (rl, 0.2 + rng.random(), cls, rng.random(), bool(i % 2))
+        for got, ref in zip(ms._profile(s, *args), _profile_plain(s, *args), strict=True):
+            assert np.array_equal(got, ref)
+
+
+def _attach_all_plain(xy, s, rl, spine, skull_h, legless, places, width):
+    from biomorph.creature import spine as sp
+    from biomorph.creature.steps import _DROP
+
+    at = np.array([p[3] for p in places], float)
+    k = len(at)
+    h = max(s[-1] * 1e-3, 1e-9)
+    q = sp.point_at(xy, s, np.concatenate([at, at + h, at - h]))
+    g = q[:k]
+    d = q[k : 2 * k] - q[2 * k :]
+    nd = np.linalg.norm(d, axis=-1, keepdims=True)
+    t = d / np.where(nd > 0, nd, 1.0)
+    n = np.stack([t[:, 1], -t[:, 0]], axis=1)
+    n = np.where(n[:, 1:2] < 0, -n, n)
+    h, b, _ = ms.profile(at, rl, spine.girth, spine.cls, skull_h, legless)
+    drop = np.array([_DROP[p[2].kind] for p in places]) * h
+    drop = np.where([p[0] == "hip" for p in places], drop * 0.75, drop)
+    half = 0.45 * b * (1.35 if spine.posture == "sprawling" else 1.0)
+    half = half * np.array([width if p[2].kind == "leg" else 1.0 for p in places])
+    a2 = g - drop[:, None] * n
+    return [
+        (np.array([g[i, 0], g[i, 1], 0.0]), np.array([a2[i, 0], a2[i, 1], half[i]]))
+        for i in range(len(places))
+    ]
+
+
+@pytest.mark.parametrize("kw", [{}, {"cls": "bird"}, {"legs": 6}, {"cls": "reptile", "legs": 4}])
+def test_attachments_match_the_array_formula(kw):
+    from biomorph.creature import spine as sp
+    from biomorph.creature import steps as st
+
+    for seed in range(12):
+        g = Generator(Options(seed=seed, **kw))
+        for _ in range(2):
+            g.step()
+        spine, gird = g.state("spine"), g.state("girdles")
+        xy, s, region = sp.sample(st.to_creature_px(spine.points))
+        rl = sp.region_lengths(s, region)
+        for shifts, width in (({}, 1.0), ({"hip": 3.0, "shoulder": -2.0}, 1.35)):
+            places = st.placements(gird, shifts, rl, s)
+            args = (xy, s, rl, spine, 0.7 + seed, spine.legs == 0, places, width)
+            got, ref = st._attach_all(*args), _attach_all_plain(*args)
+            assert len(got) == len(ref)
+            for (a, b), (c, d) in zip(got, ref, strict=True):
+                assert np.array_equal(a, c) and np.array_equal(b, d)

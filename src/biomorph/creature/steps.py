@@ -8,6 +8,7 @@ coordinates (x forward, y up, z right).
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import Any
 
@@ -322,30 +323,36 @@ _DROP = {"leg": 0.35, "arm": 0.3, "wing": 0.12, "fin": 0.3}
 
 
 def _attach_all(xy, s, rl, spine, skull_h, legless, places, width: float) -> list:
-    """:func:`_attach` for every placement at once (the same arithmetic, element-wise)."""
+    """:func:`_attach` for every placement at once (the same arithmetic: the spine's points
+    and profile as arrays, the few per-placement products as plain floats — IEEE doubles
+    like NumPy's element-wise ones, without its per-call cost on arrays of two to six)."""
     if not places:
         return []
     at = np.array([p[3] for p in places], float)
     k = len(at)
     # point_at and tangent_at (central differences) in one interpolation
     h = max(s[-1] * 1e-3, 1e-9)
-    q = sp.point_at(xy, s, np.concatenate([at, at + h, at - h]))
-    g = q[:k]
-    d = q[k : 2 * k] - q[2 * k :]
-    nd = np.linalg.norm(d, axis=-1, keepdims=True)
-    t = d / np.where(nd > 0, nd, 1.0)
-    n = np.stack([t[:, 1], -t[:, 0]], axis=1)
-    n = np.where(n[:, 1:2] < 0, -n, n)
-    h, b, _ = ms.profile(at, rl, spine.girth, spine.cls, skull_h, legless)
-    drop = np.array([_DROP[p[2].kind] for p in places]) * h
-    drop = np.where([p[0] == "hip" for p in places], drop * 0.75, drop)
-    half = 0.45 * b * (1.35 if spine.posture == "sprawling" else 1.0)
-    half = half * np.array([width if p[2].kind == "leg" else 1.0 for p in places])
-    a2 = g - drop[:, None] * n
-    return [
-        (np.array([g[i, 0], g[i, 1], 0.0]), np.array([a2[i, 0], a2[i, 1], half[i]]))
-        for i in range(len(places))
-    ]
+    q = sp.point_at(xy, s, np.concatenate([at, at + h, at - h])).tolist()
+    hh, b, _ = ms.profile(at, rl, spine.girth, spine.cls, skull_h, legless)
+    hh, b = hh.tolist(), b.tolist()
+    sprawl = 1.35 if spine.posture == "sprawling" else 1.0
+    out = []
+    for i, p in enumerate(places):
+        gx, gy = q[i]
+        dx, dy = q[k + i][0] - q[2 * k + i][0], q[k + i][1] - q[2 * k + i][1]
+        nd = math.sqrt(dx * dx + dy * dy)  # np.linalg.norm's sum of squares and sqrt
+        if nd > 0:
+            dx, dy = dx / nd, dy / nd
+        nx, ny = dy, -dx  # the normal, turned upwards
+        if ny < 0:
+            nx, ny = -nx, -ny
+        drop = _DROP[p[2].kind] * hh[i]
+        if p[0] == "hip":
+            drop = drop * 0.75
+        half = 0.45 * b[i] * sprawl
+        half = half * (width if p[2].kind == "leg" else 1.0)
+        out.append((np.array([gx, gy, 0.0]), np.array([gx - drop * nx, gy - drop * ny, half])))
+    return out
 
 
 #: The Bernstein basis at 17 samples (``bezier_eval(seg, np.linspace(0, 1, 17))`` is
