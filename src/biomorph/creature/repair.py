@@ -33,7 +33,7 @@ from biomorph.creature.assembly import (
 )
 from biomorph.creature.creature import Creature
 from biomorph.creature.options import Options
-from biomorph.creature.stance import RANGES, TARGET, trunk_key
+from biomorph.creature.stance import TARGET, trunk_key
 from biomorph.creature.states import LimbsState, SkullState, SpineState, step_rng
 from biomorph.creature.steps import (
     _DROP,
@@ -158,11 +158,12 @@ def pitch_body(
     cands = [(a + np.pi) % (2 * np.pi) - np.pi for a in cands]
     theta = min(cands, key=abs)
     theta = float(np.clip(theta, -max_deg * DEG, max_deg * DEG))
-    # the lean stays inside the body plan's standing trunk-pitch range, 2° inside its ends
-    # (never head-down; a bird stays inclined); a trunk outside may only lean back in
-    lo, hi = RANGES[trunk_key(spine.cls, 2)]
+    # the lean stays inside the body plan's target trunk pitch, as the reduced repair's
+    # (never head-down; other bipeds at most 50°, birds 21..49°); a trunk outside may only
+    # lean back in
+    lo, hi = TARGET[trunk_key(spine.cls, 2)]
     p0 = trunk_pitch(spine.points)
-    lo_t, hi_t = min((lo + 2.0) * DEG - p0, 0.0), max((hi - 2.0) * DEG - p0, 0.0)
+    lo_t, hi_t = min(lo * DEG - p0, 0.0), max(hi * DEG - p0, 0.0)
     theta = float(np.clip(theta, lo_t, hi_t))
     if abs(theta) < 1e-4:
         return None
