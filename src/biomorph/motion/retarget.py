@@ -15,8 +15,12 @@ Retarget (:func:`retarget`)
 4. Root: the hips trajectory is scaled by the ratio of leg lengths (thigh + shin, measured on
    the rest poses), so a shorter character takes proportionally shorter steps and its hips
    stay at its own height; the source's floor (its lowest foot) is put at the target's 0.
-5. Feet: :func:`biomorph.motion.contact.lock_feet` then holds the planted feet (the CLI and
-   ``feet=True`` do this by default).
+5. Legs of feet proportioned otherwise (foot / leg length more than :data:`FOOT_RATIO` apart,
+   a creature's): they follow the source's foot paths, not only its angles
+   (:func:`_adapt_legs`); an unmapped joint between the hips and a thigh (a pelvic girdle)
+   takes the source's hips → thigh direction (:func:`_girdle_rests`).
+6. Feet: :func:`biomorph.motion.contact.lock_feet` then holds the planted feet (the CLI and
+   ``feet=True`` do this by default), on the source's contacts where the feet differ.
 
 Mirror (:func:`mirror`)
 -----------------------
@@ -202,7 +206,7 @@ def _girdle_rests(
     an unmapped joint that carries a thigh (a creature's pelvic girdle, ``hip1_girdle_l →
     hip1_upper_l``) is turned so that its thigh bone (girdle → hip socket) points where the
     source's hips → thigh points at rest. Kept at its rest, the generated biped's girdle
-    (every rest bone along +y) put both hip sockets on one point 0.1 leg lengths *above* the
+    (every rest bone along +y) put both hip sockets on one point 0.2 leg lengths *above* the
     pelvis: legs hanging from the middle of the body, too high for the floor."""
     rest_w = np.array(target.rest_rotation, dtype=float)
     hips_t = t_can.get("hips")
@@ -344,7 +348,9 @@ def retarget(
     if adapt:  # the legs follow the source's foot paths (writes ``rot`` in place)
         assert legs_s is not None and floor is not None
         tmp = Motion(target, frozen(rot.view()), frozen(root), source.frame_time, None, {})
-        _adapt_legs(legs_s, tmp, rot, s_can, t_can, scale, floor, _UP[up])
+        drop = _adapt_legs(legs_s, tmp, rot, s_can, t_can, scale, floor, _UP[up])
+        root = np.array(root)
+        root[:, _UP[up]] -= drop
     out = Motion(target, frozen(rot), frozen(root), source.frame_time, None, meta)
     if feet:
         if legs_s is not None:
@@ -484,7 +490,7 @@ def _adapt_legs(
     scale: float,
     floor: float,
     ui: int,
-) -> None:
+) -> Array:
     """The legs of a target whose feet are proportioned otherwise (:data:`FOOT_RATIO`) follow
     the source's foot *paths*, not only its angles. Per leg and frame:
 
@@ -496,7 +502,13 @@ def _adapt_legs(
     2. the foot is pitched so its toe is as high as the source's toe (scaled, same offset):
        its heading (:func:`_heading`) and its roll are kept, only its angle in the vertical
        plane changes, clamped at straight up / down;
-    3. hip and knee are solved for the ankle goal by the contact module's two-bone IK (soft
+    3. where a goal is out of the leg's reach (less the IK's soft band) — the rig's sockets
+       pass farther from the source's foot path on some frames than the median says (the
+       zombie walk's straight stance legs: a quarter of the frames up to 5 % beyond reach,
+       the planted ankles left hanging 4 % of hip height up) — the pelvis is lowered by what
+       the leg lacks straight down (per frame, the most either leg lacks; returned, the
+       caller moves the root);
+    4. hip and knee are solved for the ankle goal by the contact module's two-bone IK (soft
        over the last 0.5 % of the leg's reach, :class:`~biomorph.motion.contact.ContactOptions`
        ``soft``), the foot keeping the pitched orientation.
 
@@ -509,7 +521,7 @@ def _adapt_legs(
 
     sides = [s for s in legs_s.canon if all(f"{s}_{b}" in t_can for b in _LEG)]
     if not sides:
-        return
+        return np.zeros(out.n_frames)
     s_legs = [legs_s.canon[s] for s in sides]
     t_legs = [Leg(*(t_can[f"{s}_{b}"] for b in _LEG)) for s in sides]
     s_col = legs_s.col
@@ -524,10 +536,24 @@ def _adapt_legs(
     par = out.skeleton.parent
     f = out.n_frames
     soft = ContactOptions().soft
+    goals, wants = [], []
+    drop = np.zeros(f)
     for sl, lg in zip(s_legs, t_legs, strict=True):
         off = np.median(t_pos[:, t_col[lg.hip]] - s_pos[:, s_col[sl.hip]], axis=0)
-        goal = np.ascontiguousarray(s_pos[:, s_col[sl.ankle]] + off)
-        want = s_pos[:, s_col[sl.toe], ui] + off[ui]  # the toe's height
+        goals.append(np.ascontiguousarray(s_pos[:, s_col[sl.ankle]] + off))
+        wants.append(s_pos[:, s_col[sl.toe], ui] + off[ui])  # the toe's height
+        # what the leg lacks to reach the goal, straight down: the pelvis drops by it
+        hip, knee = t_pos[:, t_col[lg.hip]], t_pos[:, t_col[lg.knee]]
+        reach = (1.0 - soft) * (
+            np.linalg.norm(knee - hip, axis=1)
+            + np.linalg.norm(t_pos[:, t_col[lg.ankle]] - knee, axis=1)
+        )
+        v = goals[-1] - hip
+        vh2 = np.sum(v * v, axis=1) - v[:, ui] ** 2
+        need = -np.sqrt(np.maximum(reach * reach - vh2, 0.0)) - v[:, ui]
+        drop = np.maximum(drop, need)
+    t_pos[..., ui] -= drop[:, None]  # the root lowered: every chain joint with it
+    for sl, lg, goal, want in zip(s_legs, t_legs, goals, wants, strict=True):
         ca = t_col[lg.ankle]
         local, ahead = _foot_frame(qs[sl.ankle], ps[sl.toe] - ps[sl.ankle], ui)
         tq = np.ascontiguousarray(t_quat[:, ca])
@@ -544,6 +570,7 @@ def _adapt_legs(
             t_pos, t_quat, cols, goal, np.arange(f, dtype=np.int64), np.zeros((f, 3)),
             np.zeros(f), np.ones(f), soft, rest, joints, rot, ui, -np.inf, np.full(f, -np.inf),
         )  # fmt: skip
+    return drop
 
 
 def _lock_like_source(
