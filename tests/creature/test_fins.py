@@ -17,7 +17,7 @@ def fish():
 
 
 def _in_plane(fin, p):
-    """Points ``p`` in the fin plane's coordinates (along the leading ray, across it)."""
+    """Points ``p`` in the fin plane's coordinates (along the first ray, across it)."""
     a = fin.rays[0, -1] - fin.rays[0, 0]
     a /= np.linalg.norm(a)
     e = np.cross(fin.normal, a)
@@ -30,7 +30,7 @@ def test_rays_radiate_from_the_base_without_crossing(fish):
     assert len(built) == 4  # two pairs of paired fins
     for fin in built:
         c = fish
-        # the leading ray is the skeleton's fin chain
+        # the first ray is the skeleton's fin chain
         tips = [c.bone_ends[j] for j in fin.joints]
         assert np.allclose(fin.rays[0, 4::4], tips)
         length = float(np.linalg.norm(np.diff(fin.rays[0], axis=0), axis=1).sum())

@@ -5,10 +5,13 @@ Lauder 2007, *J. R. Soc. Interface* 4:243) — instead of the implicit field's t
 the fin's three bones.
 
 A fin is the chain of ``fin`` joints of one limb pair's side (base, proximal and distal
-ray bones). Its skeleton chain is the *leading ray*; the other rays are that polyline
+ray bones). Its skeleton chain is the *first ray*; the other rays are that polyline
 turned about the fin's base, in the plane through the chain nearest the horizontal
 (paired fins spread sideways), away from the body's midline, up to :data:`SPREAD`, and
-shortened towards the trailing edge (:data:`TRAILING`: a rounded fin). Their roots lie
+shortened towards the outer edge (:data:`OUTER`: a rounded fin). With the generator's fins
+swept back along the flank, the chain is the fin's inner (posterior) edge and the fan opens
+outwards and forwards; a real pectoral fin's longest rays lead, which would need fins
+posed out from the body. Their roots lie
 on the fin's base, :data:`BASE` of the fin's length across the rays, each ray's further
 along it the more it is turned (so no two rays cross). Each ray's samples are
 assigned to the fin joint whose bone they lie along (the joints' arc-length spans along
@@ -24,16 +27,16 @@ from numpy.typing import NDArray
 
 from biomorph.creature.creature import Creature
 
-#: angle (rad) between the leading and the trailing ray at the fin's base
+#: angle (rad) between the first (the skeleton's) and the outermost ray at the fin's base
 SPREAD = 0.7
-#: length of the trailing ray as a share of the leading ray's (rays between: a smooth,
-#: rounded margin, ``1 - (1 - TRAILING) u^2`` at the share ``u`` of the way back)
-TRAILING = 0.45
+#: length of the outermost ray as a share of the first ray's (rays between: a smooth,
+#: rounded margin, ``1 - (1 - OUTER) u^2`` at the share ``u`` of the way out)
+OUTER = 0.45
 #: the fin base's length (across the rays at their roots), a share of the fin's length
 BASE = 0.2
 #: ray diameter at the tip as a share of its diameter at the base (rays taper)
 RAY_TIP = 0.35
-#: membrane thickness as a share of the leading ray's diameter (a double layer of skin)
+#: membrane thickness as a share of the first ray's diameter (a double layer of skin)
 MEMBRANE = 0.3
 #: (rays, samples per fin bone) at each level of detail — skin and bone models alike
 DETAIL = ((5, 3), (7, 4), (9, 6))
@@ -41,9 +44,9 @@ DETAIL = ((5, 3), (7, 4), (9, 6))
 
 @dataclass(frozen=True)
 class Fin:
-    """One fin: its joints (base to tip), its rays ``(r, k, 3)`` (world, leading ray first,
+    """One fin: its joints (base to tip), its rays ``(r, k, 3)`` (world, the chain's ray first,
     each from the base to the margin), each sample's joint ``(k,)`` (boundary samples end
-    one joint's piece and start the next's) and the leading ray's diameter at the base."""
+    one joint's piece and start the next's) and the first ray's diameter at the base."""
 
     joints: tuple[int, ...]
     rays: NDArray[np.float64]
@@ -106,17 +109,17 @@ def build(c: Creature, n_rays: int = 7, per_bone: int = 4) -> list[Fin]:
         outward = np.array([0.0, 0.0, side]) if side else -up
         e = np.cross(n, axis)
         sign = 1.0 if float(e @ outward) >= 0 else -1.0
-        # the base runs across the rays, from the leading ray's root to the trailing side
+        # the base runs across the rays, from the first ray's root to the outer side
         # (rays turned further start further along it, so no two cross)
         base_dir = sign * e / max(float(np.linalg.norm(e)), 1e-12)
-        # each ray: the leading ray turned about the fin's normal (Rodrigues, all at once)
+        # each ray: the first ray turned about the fin's normal (Rodrigues, all at once)
         u = np.linspace(0.0, 1.0, n_rays) if n_rays > 1 else np.zeros(1)
         ang = sign * SPREAD * u
         cs, sn = np.cos(ang)[:, None, None], np.sin(ang)[:, None, None]
         nxr = np.cross(n, rel)[None]
         along_n = (rel @ n)[None, :, None] * n
         turned = rel[None] * cs + nxr * sn + along_n * (1.0 - cs)
-        scale = (1.0 - (1.0 - TRAILING) * u * u)[:, None, None]
+        scale = (1.0 - (1.0 - OUTER) * u * u)[:, None, None]
         roots = lead[0] + (u * BASE * length)[:, None] * base_dir
         rays = roots[:, None, :] + turned * scale
         width = float(np.max(c.box_size[list(chain), 0]))
@@ -125,7 +128,7 @@ def build(c: Creature, n_rays: int = 7, per_bone: int = 4) -> list[Fin]:
 
 
 def ray_radii(fin: Fin) -> NDArray[np.float64]:
-    """Radius ``(r, k)`` of each ray along it: the leading ray's half-width at the base,
+    """Radius ``(r, k)`` of each ray along it: the first ray's half-width at the base,
     tapering to :data:`RAY_TIP` of it at the margin; the later rays slimmer (0.7)."""
     r, k = fin.rays.shape[:2]
     along = np.linspace(1.0, RAY_TIP, k)[None, :]
@@ -135,5 +138,5 @@ def ray_radii(fin: Fin) -> NDArray[np.float64]:
 
 def membrane_grid(fin: Fin) -> NDArray[np.float64]:
     """The membrane's mid-surface ``(r, k, 3)``: the rays themselves (rows), so it spans
-    the fin from the leading to the trailing ray and from the base to the margin."""
+    the fin from the first to the outermost ray and from the base to the margin."""
     return fin.rays

@@ -646,7 +646,7 @@ def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
     """Explicit skin of the fins (world ``(vertices, faces)``, closed pieces): a thin tube
     round each fin ray (:func:`biomorph.creature.fins.ray_radii` plus the landmark tissue)
     and the fin membrane between the rays, a closed slab :data:`fins.MEMBRANE` of the
-    leading ray's diameter thick."""
+    first ray's diameter thick."""
     from biomorph.creature.bones.prim import tubes
 
     built = fn.build(c, *fn.DETAIL[lod])
