@@ -75,3 +75,20 @@ def test_fin_bone_models_fan_out_with_their_joints(fish):
         across = _in_plane(fin, v)[:, 1]
         assert np.ptp(across) > length / 3  # rays spread, not one rod along the chain
         assert np.abs(_in_plane(fin, v)[:, 2]).max() < 0.05 * length
+
+
+def test_fin_skin_rides_on_its_fin_joints(fish):
+    b = skin.body(fish, 1)
+    fj = skin.fin_skin_joints(fish, 1)
+    fv, _ = skin.fin_skin(fish, 1)
+    assert len(fj) == len(fv) and np.allclose(b.envelope.vertices[-len(fv) :], fv)
+    assert np.array_equal(b.joints[-len(fj) :, 0], fj)
+    assert np.all(b.weights[-len(fj) :, 0] == 1.0)
+    # each vertex's joint is the one of the ray sample it lies at (segment ends: either)
+    built = fn.build(fish, *fn.DETAIL[1])
+    pts = np.concatenate([fin.rays.reshape(-1, 3) for fin in built])
+    jnt = np.concatenate([np.tile(fin.joint_of, len(fin.rays)) for fin in built])
+    d = np.linalg.norm(fv[:, None] - pts[None], axis=2)
+    nearest = jnt[d.argmin(axis=1)]
+    assert (nearest == fj).mean() > 0.95
+    assert set(fj.tolist()) == {j for fin in built for j in fin.joints}

@@ -408,6 +408,10 @@ def body(c: Creature, lod: int = 1, with_muscles: bool = True) -> Body:
     ms = muscles(c, lod) if with_muscles else []
     env, h = envelope(c, ms, lod)
     joints, weights = _weights(c, env.vertices, h)
+    fj = fin_skin_joints(c, lod)
+    if len(fj):  # the fin skin (the envelope's last vertices) rides on its fin joints
+        joints[-len(fj) :] = fj[:, None]
+        weights[-len(fj) :] = (1.0, 0.0, 0.0, 0.0)
     return Body(env, joints, weights, muscle_mesh(ms, lod), ms)
 
 
@@ -642,6 +646,10 @@ def wing_skin(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[NDArra
     return np.concatenate(vs), np.concatenate(fs)
 
 
+#: sides of the fin rays' skin tubes per level of detail
+_FIN_SIDES = (3, 4, 6)
+
+
 def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
     """Explicit skin of the fins (world ``(vertices, faces)``, closed pieces): a thin tube
     round each fin ray (:func:`biomorph.creature.fins.ray_radii` plus the landmark tissue)
@@ -652,7 +660,7 @@ def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
     built = fn.build(c, *fn.DETAIL[lod])
     if not built:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    sides = (3, 4, 6)[lod]  # thin rays: few sides
+    sides = _FIN_SIDES[lod]  # thin rays: few sides
     vs, fs, base = [], [], 0
     pieces = [
         _slab(
@@ -679,6 +687,20 @@ def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
         fs.append(f + base)
         base += len(v)
     return np.concatenate(vs), np.concatenate(fs)
+
+
+def fin_skin_joints(c: Creature, lod: int = 1) -> NDArray[np.int64]:
+    """The joint of each :func:`fin_skin` vertex, in its order: the fin joint whose bone the
+    vertex's ray sample lies along (slabs: both faces row by row; tubes: ring by ring, then
+    the two caps)."""
+    built = fn.build(c, *fn.DETAIL[lod])
+    sides = _FIN_SIDES[lod]
+    out = [np.tile(np.tile(fin.joint_of, len(fin.rays)), 2) for fin in built]
+    for fin in built:
+        jo = fin.joint_of
+        tube = np.concatenate([np.repeat(jo, sides), jo[:1], jo[-1:]])
+        out.append(np.tile(tube, len(fin.rays)))
+    return np.concatenate(out).astype(np.int64) if out else np.zeros(0, np.int64)
 
 
 def explicit_skin(c: Creature, ms: list | None = None, lod: int = 1) -> tuple[NDArray, NDArray]:
