@@ -145,3 +145,21 @@ def test_an_unmapped_girdle_takes_the_source_hip_direction(clip):
     gap_s = np.linalg.norm(ws[:, sl] - ws[:, sr], axis=1)
     assert np.allclose(gap_t, 0.8 * gap_s, rtol=0.02)
     assert np.all(w[:, li, 1] < w[:, hips, 1]) and np.all(ws[:, sl, 1] < ws[:, sh, 1])
+
+
+def test_the_target_stands_on_the_floor(clip):
+    # a rig whose hip sockets sit higher relative to its hips than the source's floated by
+    # the difference (the Mixamo-named Rokoko rig under cmu / Xia walks: 10-15 % of its hip
+    # height); its own lowest foot is now on y = 0, as the source's floor was
+    from biomorph.core.skeleton import JointSkeleton
+
+    sk = clip.skeleton
+    off = np.array(sk.offset, dtype=float) * 0.8
+    hips_kids = [i for i, n in enumerate(sk.names) if n in ("LeftUpLeg", "RightUpLeg")]
+    off[hips_kids, 1] += 0.3 * np.abs(off[hips_kids]).max()  # sockets higher on the hips
+    tgt = JointSkeleton(["mixamorig:" + n for n in sk.names], sk.parent, off)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for feet in (False, True):
+            out = retarget(clip, tgt, feet=feet)
+            assert foot_floor(out) == pytest.approx(0.0, abs=1e-9)

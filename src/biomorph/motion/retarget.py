@@ -14,7 +14,10 @@ Retarget (:func:`retarget`)
    parents first; unmapped target joints keep their rest pose relative to their parent.
 4. Root: the hips trajectory is scaled by the ratio of leg lengths (thigh + shin, measured on
    the rest poses), so a shorter character takes proportionally shorter steps and its hips
-   stay at its own height; the source's floor (its lowest foot) is put at the target's 0.
+   stay at its own height; the source's floor (its lowest foot) is put at the target's 0,
+   and then the target's own lowest foot (a rig whose hip sockets sit higher relative to its
+   hips stood 10–15 % of its hip height above the floor: the Mixamo-named Rokoko rig under
+   cmu and Xia walks).
 5. Legs of feet proportioned otherwise (foot / leg length more than :data:`FOOT_RATIO` apart,
    a creature's): they follow the source's foot paths, not only its angles
    (:func:`_adapt_legs`); an unmapped joint between the hips and a thigh (a pelvic girdle)
@@ -359,6 +362,11 @@ def retarget(
             from biomorph.motion.contact import lock_feet
 
             out = lock_feet(out)
+    low = foot_floor(out, up) if up in _UP else None
+    if low is not None and low != 0.0:  # its own lowest foot on y = 0, as the source's was
+        root = np.array(out.root_position)
+        root[:, _UP[up]] -= low
+        out = out.with_(root_position=frozen(root))
     return out
 
 
