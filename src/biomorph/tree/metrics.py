@@ -33,6 +33,7 @@ __all__ = [
     "resample_graph",
     "point_to_skeleton_distance",
     "segment_candidates",
+    "surface_distance",
     "SegmentCandidates",
     "DIAMETER_CLASSES",
     "class_labels",
@@ -520,6 +521,42 @@ def _surface_candidates(
     return c.d - rad, rad
 
 
+def surface_distance(
+    graph: BranchGraph,
+    xyz: NDArray,
+    k: int = 8,
+    candidates: SegmentCandidates | None = None,
+    *,
+    refine: float | None = None,
+    refine_k: int = 32,
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Signed distance of every point to the nearest cylinder (frustum) surface, m (> 0
+    outside), that cylinder's radius there (m), and the model node nearest to the point:
+    the nearer end of that cylinder's axis (its parent where the closest axis point lies
+    in the parent's half). ``refine`` (m): points whose surface distance exceeds it are
+    looked at again with ``refine_k`` candidate edges instead of ``k`` (their nearest
+    surface is kept where the wider look finds a nearer one)."""
+    c = candidates if candidates is not None else segment_candidates(graph, xyz, k)
+    s, rad = _surface_candidates(graph, xyz, k, c)
+    best = np.argmin(np.abs(s), axis=1)
+    rows = np.arange(s.shape[0])
+    node, par, t = c.node[rows, best], c.par[rows, best], c.t[rows, best]
+    near = np.where((par >= 0) & (t < 0.5), par, node)
+    sd, rd = s[rows, best], rad[rows, best]
+    if refine is not None and xyz.shape[0]:
+        # the k candidates are the edges with the nearest *axis* samples: on a thick stem
+        # at a whorl they can all be branch bases, whose thin surfaces lie farther than
+        # the stem's own; look again with more candidates where the first look was far
+        far = np.flatnonzero(np.abs(sd) > refine)
+        if far.size and refine_k > k:
+            sub = np.asarray(xyz, dtype=float)[far]
+            sd2, rd2, near2 = surface_distance(graph, sub, refine_k)
+            better = np.abs(sd2) < np.abs(sd[far])
+            idx = far[better]
+            sd[idx], rd[idx], near[idx] = sd2[better], rd2[better], near2[better]
+    return sd, rd, near
+
+
 def cylinder_fit(
     graph: BranchGraph,
     cloud: PointCloud | NDArray,
@@ -543,10 +580,9 @@ def cylinder_fit(
     xyz = cloud.xyz if isinstance(cloud, PointCloud) else np.asarray(cloud, dtype=float)
     if xyz.shape[0] == 0 or graph.n_nodes == 0:
         raise InputError("cylinder_fit needs points and a non-empty skeleton")
-    s, rad = _surface_candidates(graph, xyz, k, candidates)
-    best = np.argmin(np.abs(s), axis=1)
-    rows = np.arange(xyz.shape[0])
-    sb, rb = s[rows, best], rad[rows, best]
+    # points that look far are looked at again with more candidate cylinders: "every
+    # cylinder surface" must not mean "the 8 with the nearest axis samples"
+    sb, rb, _ = surface_distance(graph, xyz, k, candidates, refine=far)
     near = np.abs(sb) <= rb
     cls = np.searchsorted(np.asarray(bounds), 2 * rb, side="right")
     res = {}

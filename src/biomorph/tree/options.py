@@ -279,6 +279,14 @@ class CleanupOptions:
         lo_open=True,
         hi_open=True,
     )
+    residual: bool = _opt(
+        True,
+        "--residual",
+        "Grow the skeleton into pieces of wood no cylinder explains "
+        "(points more than a node spacing outside every surface, touching the model; "
+        "tree.residual), then fit radii again.",
+        kind="enabled",
+    )
 
 
 @dataclass(frozen=True)
@@ -413,6 +421,7 @@ _LEGACY = {
             "min_branch_length",
             "min_cylinder_radius",
             "tip_support",
+            "residual",
         )
     },
     "radius": ("radius", "method"),

@@ -175,6 +175,8 @@ class _Run:
     metrics: dict[str, Any] = field(default_factory=dict)
     fit: Any = None
     quality: dict[str, NDArray] | None = None
+    #: the skeleton as it entered the radius stage (the residual stage grows this one)
+    skeleton: BranchGraph | None = None
     #: the outlier filter's neighbour lists of ``cloud`` until the neighbour graph uses them
     knn: Any = None
 
@@ -233,6 +235,7 @@ def skeletonize(
     prepare_phase(run)
     (graph_phase if opts.method == "graph" else voxel_phase)(run)
     radius_phase(run)
+    residual_phase(run)
     order_phase(run)
     metrics_phase(run)
     run.timings["total"] = time.perf_counter() - t_all
@@ -472,7 +475,7 @@ def _check_skeleton(run: _Run) -> None:
     run.tick("skeleton")
 
 
-def radius_phase(run: _Run) -> None:
+def radius_phase(run: _Run, tick: bool = True) -> None:
     """Radii from circle fits (or the allometric model), then chain smoothing."""
     from biomorph.tree import livny
     from biomorph.tree.cleanup import smooth_chains
@@ -481,6 +484,7 @@ def radius_phase(run: _Run) -> None:
     ro = run.opts.radius
     graph, xyz = run.graph, run.cloud.xyz  # type: ignore[union-attr]
     assert graph is not None
+    run.skeleton = graph
     t0 = time.perf_counter()
     exponent = run.opts.graph.allometry_exponent
     if ro.method == "fit":
@@ -529,8 +533,39 @@ def radius_phase(run: _Run) -> None:
         min_radius=ro.min_radius,
         taper_exponent=ro.taper_exponent,
     )
-    run.timings["radius_fit"] = time.perf_counter() - t0
-    run.tick("radii")
+    run.timings["radius_fit"] = run.timings.get("radius_fit", 0.0) + time.perf_counter() - t0
+    if tick:
+        run.tick("radii")
+
+
+def residual_phase(run: _Run) -> None:
+    """Residual branches (:mod:`biomorph.tree.residual`): the skeleton grows into the
+    pieces of wood its cylinders leave unexplained, then the radius stage runs again on
+    the grown skeleton. Off with ``CleanupOptions.residual = False``
+    (``--no-residual``)."""
+    from biomorph.tree.residual import residual_branches
+
+    co = run.opts.cleanup
+    run.params.update(residual=co.residual)
+    if not co.residual or run.graph is None or run.graph.radius is None:
+        return
+    assert run.cloud is not None and run.skeleton is not None
+    t0 = time.perf_counter()
+    xyz = run.cloud.xyz
+    ps = run.info.get("point_spacing")
+    if not ps:
+        from biomorph.tree.neighbours import estimate_spacing
+
+        ps = estimate_spacing(xyz) if xyz.shape[0] >= 2 else 0.0
+    ns = float(run.params.get("node_spacing") or 0.0)
+    if not (ps and ps > 0 and ns > 0):
+        return
+    grown, rec = residual_branches(run.graph, xyz, float(ps), ns, base=run.skeleton)
+    run.info.update({f"residual_{k}": v for k, v in rec.items()})
+    run.timings["residual"] = time.perf_counter() - t0
+    if rec["nodes_added"]:
+        run.graph = grown
+        radius_phase(run, tick=False)
 
 
 def order_phase(run: _Run) -> None:

@@ -1,0 +1,152 @@
+"""Residual branches (issue 13): the skeleton grows into the wood its cylinders leave out,
+never through air, never along a stem's own surface, and re-routes a branch whose base
+the skeleton reached by a shortcut."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from biomorph.core.graph import BranchGraph
+from biomorph.errors import ParameterError
+from biomorph.tree.metrics import cylinder_fit, surface_distance
+from biomorph.tree.pipeline import skeletonize
+from biomorph.tree.residual import residual_branches
+from tests.tree.test_livny import cylinder_points, make_cloud
+
+SPACING = 0.01  # point spacing of the clouds below (m)
+NODE = 0.03  # node spacing (m)
+
+
+def _stem_model(top=2.0, r=0.10, step=NODE):
+    z = np.arange(0.0, top + 1e-9, step)
+    pos = np.c_[np.zeros_like(z), np.zeros_like(z), z]
+    parent = np.arange(-1, z.size - 1)
+    return BranchGraph(pos, parent, radius=np.full(z.size, r))
+
+
+def _surface(a, b, r, rng, spacing=SPACING):
+    """Points on a cylinder's mantle about ``spacing`` apart."""
+    length = float(np.linalg.norm(np.subtract(b, a)))
+    n = max(int(2 * np.pi * r * length / spacing**2), 8)
+    return cylinder_points(a, b, r, n, rng, 0.001)
+
+
+def test_a_shoot_the_skeleton_missed_is_grown_and_hangs_from_the_stem():
+    rng = np.random.default_rng(0)
+    stem = _surface((0, 0, 0), (0, 0, 2), 0.10, rng)
+    shoot = _surface((0.09, 0, 1.0), (0.6, 0, 1.25), 0.012, rng)
+    xyz = np.vstack([stem, shoot])
+    g = _stem_model()
+    before = cylinder_fit(g, xyz)["far_share"]
+    grown, info = residual_branches(g, xyz, SPACING, NODE)
+    assert info["pieces"] == 1 and info["nodes_added"] >= 10
+    assert grown.n_nodes == g.n_nodes + info["nodes_added"]
+    new = np.arange(g.n_nodes, grown.n_nodes)
+    # one new tip, the shoot's end, and the new chain hangs from a stem node near z = 1
+    assert grown.leaves.size == 2
+    tip = grown.position[grown.leaves[grown.leaves >= g.n_nodes][0]]
+    assert tip[0] > 0.45 and abs(tip[2] - 1.2) < 0.1
+    roots = new[grown.parent[new] < g.n_nodes]
+    assert roots.size == 1 and abs(grown.position[grown.parent[roots[0]], 2] - 1.0) < 0.1
+    # every new vertex lies on the shoot's axis (within its radius + a spacing)
+    d = np.cross(grown.position[new] - [0.09, 0, 1.0], np.subtract([0.6, 0, 1.25], [0.09, 0, 1.0]))
+    assert np.all(np.linalg.norm(d, axis=1) / np.hypot(0.51, 0.25) < 0.012 + 2 * SPACING)
+    assert np.all(grown.trees == 0)
+    # with a radius the shoot's points are explained
+    r = grown.radius.copy()
+    r[new] = 0.012
+    assert cylinder_fit(grown.with_(radius=r), xyz)["far_share"] < before / 5
+
+
+def test_a_floating_cluster_is_not_bridged_to():
+    rng = np.random.default_rng(1)
+    stem = _surface((0, 0, 0), (0, 0, 2), 0.10, rng)
+    # a twig 40 cm from the stem with nothing between: no support for a bridge
+    twig = _surface((0.5, 0, 1.0), (0.9, 0, 1.2), 0.012, rng)
+    grown, info = residual_branches(_stem_model(), np.vstack([stem, twig]), SPACING, NODE)
+    assert info["unexplained_points"] > 100 and info["pieces"] == 0
+    assert grown.n_nodes == _stem_model().n_nodes
+
+
+def test_a_stem_path_off_axis_does_not_sprout_a_surface_strip():
+    """The skeleton's stem runs 10 cm off the axis: the far side's bark is "unexplained"
+    but stays within about a radius of the cylinder and runs along it: no branch."""
+    rng = np.random.default_rng(2)
+    stem = _surface((0, 0, 0), (0, 0, 2), 0.10, rng)
+    g = _stem_model()
+    g = g.with_(position=g.position + [0.10, 0, 0])
+    grown, info = residual_branches(g, stem, SPACING, NODE)
+    assert info["unexplained_points"] > 0
+    assert info["pieces"] == 0 and grown.n_nodes == g.n_nodes
+
+
+def test_a_branch_reached_by_a_shortcut_is_rerouted_through_its_base():
+    """The skeleton joins a branch to the stem 30 cm above where its wood leaves the stem
+    (a level set's shortcut). The piece of wood below is not a new tip: the branch is
+    re-routed through it and the shortcut removed."""
+    rng = np.random.default_rng(3)
+    stem = _surface((0, 0, 0), (0, 0, 3), 0.10, rng)
+    a, b = np.array([0.09, 0, 1.0]), np.array([0.8, 0, 1.5])
+    branch = _surface(a, b, 0.02, rng)
+    xyz = np.vstack([stem, branch])
+    g = _stem_model(top=3.0)
+    # the modelled branch: from stem node z = 1.32 straight to the branch at x = 0.45, then on
+    s0 = int(np.argmin(np.abs(g.position[:, 2] - 1.32)))
+    t = np.linspace(0.5, 1.0, 12)
+    on = a + t[:, None] * (b - a)
+    short = np.linspace(g.position[s0], on[0], 6)[1:-1]
+    pos = np.vstack([g.position, short, on])
+    n0 = g.n_nodes
+    parent = np.concatenate([g.parent, [s0, n0, n0 + 1, n0 + 2], n0 + 3 + np.arange(on.shape[0])])
+    model = BranchGraph(pos, parent, radius=np.r_[g.radius, np.full(short.shape[0] + 12, 0.02)])
+    assert model.leaves.size == 2
+    grown, info = residual_branches(model, xyz, SPACING, NODE)
+    assert info["joined"] == 1 and info["shortcut_nodes_removed"] >= 3
+    assert grown.leaves.size == 2  # stem top and the branch tip: no new tip
+    # the branch now leaves the stem where its wood does (z ≈ 1.0), not at 1.32
+    tip = grown.leaves[np.argmax(grown.position[grown.leaves, 0])]
+    path = [int(tip)]
+    while grown.parent[path[-1]] >= 0:
+        path.append(int(grown.parent[path[-1]]))
+    on_stem = [i for i in path if np.hypot(*grown.position[i, :2]) < 1e-9]
+    assert abs(grown.position[on_stem[0], 2] - 1.0) < 0.12
+
+
+def test_surface_distance_looks_past_branch_bases_on_a_thick_stem():
+    """At a whorl the 8 nearest axis samples can all be thin branch bases; the refined
+    look finds the stem's own surface."""
+    g = _stem_model()
+    pos = [g.position]
+    parent = [g.parent]
+    n = g.n_nodes
+    s0 = int(np.argmin(np.abs(g.position[:, 2] - 1.0)))
+    for k in range(8):  # eight short branches leaving z = 1 in all directions
+        ang = 2 * np.pi * k / 8
+        d = np.array([np.cos(ang), np.sin(ang), 0.0])
+        seg = np.array([d * 0.10 + [0, 0, 1.0], d * 0.14 + [0, 0, 1.0], d * 0.18 + [0, 0, 1.0]])
+        pos.append(seg)
+        parent.append(np.array([s0, n, n + 1]))
+        n += 3
+    model = BranchGraph(np.vstack(pos), np.concatenate(parent), radius=None)
+    model = model.with_(radius=np.r_[g.radius, np.full(24, 0.005)])
+    p = np.array([[0.0, 0.101, 1.0 + 0.06]])  # on the stem's bark between branch bases
+    sd, _, _ = surface_distance(model, p, k=2)
+    sd_r, rad_r, _ = surface_distance(model, p, k=2, refine=0.005)
+    assert sd_r[0] == pytest.approx(0.001, abs=1e-3) and rad_r[0] == pytest.approx(0.10)
+    assert sd[0] >= sd_r[0]
+
+
+def test_parameters_and_pipeline_switch():
+    g = _stem_model()
+    with pytest.raises(ParameterError, match="radii"):
+        residual_branches(g.with_(radius=None), np.zeros((5, 3)), SPACING, NODE)
+    with pytest.raises(ParameterError, match="spacing"):
+        residual_branches(g, np.zeros((5, 3)), 0.0, NODE)
+    pts = make_cloud(n=5000, seed=7)
+    on = skeletonize(pts, ground=None)
+    off = skeletonize(pts, ground=None, residual=False)
+    assert on.params["residual"] is True and off.params["residual"] is False
+    assert "residual_pieces" in on.info and "residual_pieces" not in off.info
+    # the toy Y keeps its three tips either way (no strips of the stem become branches)
+    assert on.graph.leaves.size == off.graph.leaves.size == 3
