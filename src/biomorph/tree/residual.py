@@ -169,6 +169,7 @@ class _Pieces:
     target: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
     swap: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
     top: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    reach: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))  # per candidate, m
 
 
 def _pieces(
@@ -234,6 +235,7 @@ def _pieces(
         far_pt=e_sum[cand] / np.maximum(e_cnt[cand], 1)[:, None],
         host=near_node[u[attach[cand]]],
         top=top[cand],
+        reach=reach[cand],
     )
 
 
@@ -272,12 +274,14 @@ def _classify(graph: BranchGraph, p: _Pieces, tau: float, ml: float) -> None:
     # (its points are all beyond the threshold by construction, so "at the model" means
     # within one more ``min_length``: the last level piece touches the branch's envelope)
     near_model = sdf - RESIDUAL_RADIUS * radf <= tau + ml
-    # a shoot does not come back to where it left: a piece whose far end is at the host
-    # again (the host or a neighbour of it) is a bulge of the host's own wood (the flare
-    # of a junction beside a branch the skeleton starts further out)
+    # a shoot does not come back to where it left: a piece no longer than its host's
+    # diameter whose far end is at the host again (the host or a neighbour of it) is a
+    # bulge of the host's own wood (the flare of a junction beside a branch the skeleton
+    # starts further out)
     par = graph.parent
     home = (nearf == h) | (par[nearf] == h) | (par[h] == nearf)
-    shoot &= ~(near_model & home)
+    assert graph.radius is not None
+    shoot &= ~(near_model & home & (p.reach < 2 * graph.radius[h]))
     target = np.full(p.cand.size, -1, dtype=np.int64)
     swap = np.zeros(p.cand.size, dtype=bool)
     nm = np.flatnonzero(near_model)
