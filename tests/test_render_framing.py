@@ -25,3 +25,23 @@ def test_small_inputs_use_the_exact_bounds():
     rot = next(iter(_VIEWS.values()))
     _, half = _frame(pts @ rot.T)
     assert half > 0
+
+
+def test_graph_preview_has_a_legend_for_its_colours():
+    """Branch order (one tree) or tree id (a plot) in the legend; the views carry units."""
+    from biomorph.core.graph import BranchGraph
+    from biomorph.render import _add_graph, _Scene
+
+    pos = np.array([[0, 0, 0], [0, 0, 1], [0, 0, 2], [0.5, 0, 1.5]], float)
+    g = BranchGraph(pos, np.array([-1, 0, 1, 1]), radius=np.full(4, 0.05), depth=[0, 0, 0, 1])
+    scene = _Scene()
+    _add_graph(scene, g, "z")
+    assert [lab for lab, _ in scene.legend] == ["order 0", "order 1"]
+    plot = BranchGraph(
+        np.vstack([pos, pos + [3, 0, 0]]),
+        np.array([-1, 0, 1, 1, -1, 4, 5, 5]),
+        radius=np.full(8, 0.05),
+    )
+    scene = _Scene()
+    _add_graph(scene, plot, "z")
+    assert [lab for lab, _ in scene.legend] == ["tree 0", "tree 1"]

@@ -62,6 +62,8 @@ class _Scene:
     points: list[tuple[NDArray, NDArray, float]] = field(default_factory=list)
     segments: list[tuple[NDArray, NDArray, NDArray]] = field(default_factory=list)
     triangles: list[tuple[NDArray, NDArray]] = field(default_factory=list)
+    #: (label, rgba) entries of the figure legend (what a colour means)
+    legend: list[tuple[str, Any]] = field(default_factory=list)
 
     def all_xyz(self) -> NDArray[np.float64]:
         parts = [p for p, _, _ in self.points] + [s.reshape(-1, 3) for s, _, _ in self.segments]
@@ -170,6 +172,8 @@ def _draw(
         c2, half = _frame(xyz @ rot.T)
         ax.set_xlim(c2[0] - half, c2[0] + half)
         ax.set_ylim(c2[1] - half, c2[1] + half)
+        ax.set_xlabel("m", fontsize=7, labelpad=1)
+        ax.set_ylabel("m", fontsize=7, labelpad=1)
     ax3 = fig.add_subplot(2, 2, 4, projection="3d")
     ax3.set_title("perspective", fontsize=9)
     ax3.set_proj_type("persp", focal_length=0.6)
@@ -197,6 +201,17 @@ def _draw(
     ax3.tick_params(labelsize=6)
     if title:
         fig.suptitle(title, fontsize=11)
+    if scene.legend:
+        from matplotlib.lines import Line2D
+
+        handles = [Line2D([], [], color=c, lw=3, label=lab) for lab, c in scene.legend]
+        fig.legend(
+            handles=handles,
+            loc="outside lower center",
+            ncols=min(len(handles), 6),
+            fontsize=8,
+            frameon=False,
+        )
     with atomic_path(out) as tmp:
         fig.savefig(tmp, format="png", dpi=dpi)
     return out
@@ -288,11 +303,22 @@ def _add_graph(
         widths = np.clip(0.3 * widths, 0.3, 1.5)  # an overlay must not hide what is beneath
     elif graph.depth is not None:
         colors = _rgba(graph.depth[e[:, 1]], "plasma")
+        _legend_of(scene, graph.depth[e[:, 1]], colors, "order {}")
     elif graph.roots.size > 1:
         colors = _rgba(graph.trees[e[:, 1]] % 10, "tab10")
+        _legend_of(scene, graph.trees[e[:, 1]], colors, "tree {}")
     else:
         colors = _rgba(graph.node_depth[e[:, 1]], "plasma")
     scene.segments.append((segs, colors, widths))
+
+
+def _legend_of(scene: _Scene, values: NDArray, colors: NDArray, fmt: str, most: int = 10) -> None:
+    """Legend entries for integer ``values`` drawn in ``colors`` (the first ``most``)."""
+    vals, first = np.unique(np.asarray(values), return_index=True)
+    for v, i in list(zip(vals.tolist(), first.tolist(), strict=True))[:most]:
+        scene.legend.append((fmt.format(v), tuple(colors[i])))
+    if vals.size > most:
+        scene.legend.append((f"… {vals.size - most} more", (0.5, 0.5, 0.5, 1.0)))
 
 
 def render_graph(
