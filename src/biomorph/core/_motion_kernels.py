@@ -27,6 +27,19 @@ def _qmul(ax, ay, az, aw, bx, by, bz, bw):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
+def _qrot(qx, qy, qz, qw, vx, vy, vz):  # pragma: no cover - compiled
+    """``v`` rotated by the unit quaternion ``q``."""
+    tx = 2.0 * (qy * vz - qz * vy)
+    ty = 2.0 * (qz * vx - qx * vz)
+    tz = 2.0 * (qx * vy - qy * vx)
+    return (
+        vx + qw * tx + (qy * tz - qz * ty),
+        vy + qw * ty + (qz * tx - qx * tz),
+        vz + qw * tz + (qx * ty - qy * tx),
+    )
+
+
+@njit(cache=True, inline="always")
 def _slerp(ax, ay, az, aw, bx, by, bz, bw, t):  # pragma: no cover - compiled
     if t == 0.0:
         return ax, ay, az, aw

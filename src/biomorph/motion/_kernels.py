@@ -13,6 +13,7 @@ from numba import njit, prange
 # Kernels the Motion type itself needs live in core (re-exported here for the operators).
 from biomorph.core._motion_kernels import (  # noqa: F401
     _qmul,
+    _qrot,
     _slerp,
     _store_continuous,
     fk_positions,

@@ -100,6 +100,7 @@ from numpy.typing import NDArray
 from biomorph.core.motion import Motion, frozen, guess_up_axis
 from biomorph.core.types import Array
 from biomorph.errors import ParameterError
+from biomorph.motion._kernels import _qmul, _qrot
 
 _UP = {"x": 0, "y": 1, "z": 2}
 #: a held ankle farther from the hip than the leg's length gives way to the held toe
@@ -205,28 +206,6 @@ def _leg_chain(motion: Motion, legs: list[Leg]) -> NDArray[np.int64]:
                 need.add(j)
                 j = int(par[j])
     return np.array(sorted(need), dtype=np.int64)
-
-
-@njit(cache=True)
-def _qmul(ax, ay, az, aw, bx, by, bz, bw):  # pragma: no cover - compiled
-    return (
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    )
-
-
-@njit(cache=True)
-def _qrot(qx, qy, qz, qw, vx, vy, vz):  # pragma: no cover - compiled
-    tx = 2.0 * (qy * vz - qz * vy)
-    ty = 2.0 * (qz * vx - qx * vz)
-    tz = 2.0 * (qx * vy - qy * vx)
-    return (
-        vx + qw * tx + (qy * tz - qz * ty),
-        vy + qw * ty + (qz * tx - qx * tz),
-        vz + qw * tz + (qx * ty - qy * tx),
-    )
 
 
 @njit(cache=True)

@@ -49,7 +49,7 @@ from biomorph.core.skeleton import JointSkeleton
 from biomorph.core.types import Array
 from biomorph.errors import InputError
 from biomorph.motion import names as nm
-from biomorph.motion._kernels import _qmul, fk_positions, mirror_rotations
+from biomorph.motion._kernels import _qmul, _qrot, fk_positions, mirror_rotations
 
 
 def _rest_world(sk: JointSkeleton) -> tuple[Array, Array]:
@@ -428,19 +428,6 @@ def _foot_frame(q0: Array, d0: Array, ui: int) -> tuple[Array, Array]:
         lat[(ui + 2) % 3] = 1.0
     lat /= np.linalg.norm(lat)
     return tf.quat_rotate(tf.quat_conjugate(q0), lat), np.cross(lat, up)
-
-
-@njit(cache=True)
-def _qrot(qx, qy, qz, qw, vx, vy, vz):  # pragma: no cover - compiled
-    """``v`` rotated by the unit quaternion ``q``."""
-    tx = 2.0 * (qy * vz - qz * vy)
-    ty = 2.0 * (qz * vx - qx * vz)
-    tz = 2.0 * (qx * vy - qy * vx)
-    return (
-        vx + qw * tx + (qy * tz - qz * ty),
-        vy + qw * ty + (qz * tx - qx * tz),
-        vz + qw * tz + (qx * ty - qy * tx),
-    )
 
 
 @njit(cache=True)
