@@ -150,3 +150,12 @@ def test_parameters_and_pipeline_switch():
     assert "residual_pieces" in on.info and "residual_pieces" not in off.info
     # the toy Y keeps its three tips either way (no strips of the stem become branches)
     assert on.graph.leaves.size == off.graph.leaves.size == 3
+
+
+def test_main_child_is_the_one_carrying_the_most_length():
+    from biomorph.tree.residual import _main_child
+
+    # 0 - 1 - 2 - 3 (long) and 1 - 4 (short); 2 has one child
+    pos = np.array([[0, 0, 0], [0, 0, 1], [0, 0, 2], [0, 0, 4], [0.5, 0, 1.2]], float)
+    g = BranchGraph(pos, np.array([-1, 0, 1, 2, 1]), radius=np.full(5, 0.01))
+    assert _main_child(g).tolist() == [1, 2, 3, -1, -1]

@@ -165,11 +165,13 @@ class _Pieces:
     cand: NDArray[np.int64]  # pieces that touch the model, long and big enough
     far_pt: NDArray[np.float64]  # per candidate: centroid of its far end
     host: NDArray[np.int64]  # per candidate: model node it hangs from
+    top: NDArray[np.float64]  # per candidate: farthest reach beyond the model at its far end
+    reach: NDArray[np.float64]  # per candidate: geodesic length from the attachment, m
+    #: set by :func:`_classify`, per candidate: kept, branch node it carries, grown from
+    #: its far end
     keep: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
     target: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
     swap: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
-    top: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    reach: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))  # per candidate, m
 
 
 def _pieces(
@@ -286,13 +288,14 @@ def _classify(graph: BranchGraph, p: _Pieces, tau: float, ml: float) -> None:
     swap = np.zeros(p.cand.size, dtype=bool)
     nm = np.flatnonzero(near_model)
     if nm.size:
-        target[nm] = _join_targets(graph, h[nm], nearf[nm])
+        main = _main_child(graph)
+        target[nm] = _join_targets(graph, main, h[nm], nearf[nm])
         # the piece may run the other way: from a branch (where it came nearest the
         # model) down to the stem its wood leaves -- then it hangs from the far end's
         # node and carries the branch node at its near end
         back = nm[target[nm] < 0]
         if back.size:
-            tb = _join_targets(graph, nearf[back], h[back])
+            tb = _join_targets(graph, main, nearf[back], h[back])
             ok = back[tb >= 0]
             target[ok] = tb[tb >= 0]
             swap[ok] = True
@@ -404,28 +407,37 @@ def _reroute(
     return drop, len(moved)
 
 
+def _main_child(graph: BranchGraph) -> NDArray[np.int64]:
+    """The child carrying the most length (its subtree + its edge) of every node, -1 at
+    tips; ties go to the lower index."""
+    par = graph.parent
+    w = graph.subtree_length() + graph.edge_length
+    c = np.flatnonzero(par >= 0)
+    o = c[np.lexsort((c, -w[c], par[c]))]
+    first = np.ones(o.size, dtype=bool)
+    first[1:] = par[o[1:]] != par[o[:-1]]
+    main = np.full(graph.n_nodes, -1, dtype=np.int64)
+    main[par[o[first]]] = o[first]
+    return main
+
+
 def _join_targets(
-    graph: BranchGraph, host: NDArray[np.int64], near: NDArray[np.int64]
+    graph: BranchGraph,
+    main: NDArray[np.int64],
+    host: NDArray[np.int64],
+    near: NDArray[np.int64],
 ) -> NDArray[np.int64]:
     """For pieces from ``host`` whose far end lies at model node ``near``: ``near`` where
     the piece may carry that node's branch, else -1.
 
     Allowed when ``near`` lies on a *side branch* seen from the host: the tree path from
     the host and ``near``'s common ancestor down to ``near`` turns into a side child (not
-    the child carrying the most length) somewhere. Not allowed when ``near`` is the host,
-    an ancestor of it (a cycle), further along the host's own axis (a strip of a stem's
-    surface must not become the stem), or on the main axis a side branch of the host's
-    hangs from (a branch must not carry the stem).
+    ``main``, the child carrying the most length: :func:`_main_child`) somewhere. Not
+    allowed when ``near`` is the host, an ancestor of it (a cycle), further along the
+    host's own axis (a strip of a stem's surface must not become the stem), or on the main
+    axis a side branch of the host's hangs from (a branch must not carry the stem).
     """
     par = graph.parent
-    w = graph.subtree_length() + graph.edge_length
-    n = graph.n_nodes
-    main = np.full(n, -1, dtype=np.int64)  # heaviest child of each node
-    best = np.full(n, -np.inf)
-    for c in np.flatnonzero(par >= 0):
-        p = par[c]
-        if w[c] > best[p]:
-            best[p], main[p] = w[c], c
     depth = graph.node_depth
     out = np.full(host.size, -1, dtype=np.int64)
     for i, (hh, x) in enumerate(zip(host.tolist(), near.tolist(), strict=True)):
