@@ -159,3 +159,19 @@ def test_main_child_is_the_one_carrying_the_most_length():
     pos = np.array([[0, 0, 0], [0, 0, 1], [0, 0, 2], [0, 0, 4], [0.5, 0, 1.2]], float)
     g = BranchGraph(pos, np.array([-1, 0, 1, 2, 1]), radius=np.full(5, 0.01))
     assert _main_child(g).tolist() == [1, 2, 3, -1, -1]
+
+
+def test_cli_switch(tmp_path, capsys):
+    import json
+
+    from biomorph.cli import run
+    from tests.tree.test_cli import _write_xyz
+
+    src = _write_xyz(tmp_path / "y.xyz", make_cloud(n=4000, seed=21))
+    args = ["tree", "skeletonize", str(src), "--json", "--no-ground", "--out"]
+    assert run([*args, str(tmp_path / "a"), "--no-residual"]) == 0
+    off = json.loads(capsys.readouterr().out)
+    assert run([*args, str(tmp_path / "b")]) == 0
+    on = json.loads(capsys.readouterr().out)
+    assert off["params"]["residual"] is False and "residual_pieces" not in off["info"]
+    assert on["params"]["residual"] is True and on["info"]["residual_unexplained_points"] >= 0
