@@ -526,7 +526,12 @@ def balance_px(asm: dict, opts: Options) -> bal.BalanceReport:
     com = (vol[:, None] * asm["mass_c"]).sum(axis=0) / max(vol.sum(), 1e-30)
     p = np.concatenate([asm["pos"], asm["pos"] + asm["W"][:, :, 1] * asm["blen"][:, None]])
     return bal.evaluate(
-        com, float(vol.sum()), asm["patches"], float(np.ptp(p[:, 0])), opts.min_margin_fraction
+        com,
+        float(vol.sum()),
+        asm["patches"],
+        float(np.ptp(p[:, 0])),
+        opts.min_margin_fraction,
+        float(com[1] - asm["ground"]),
     )
 
 

@@ -6,6 +6,13 @@ on the ground (x, z); the creature stands if its centre of mass projects inside 
 margin. For every support edge the restoring torque is ``m g d`` with ``d`` the signed
 distance of the projected centre of mass to the edge (positive inside); the smallest is the
 torque needed to tip the creature over that edge.
+
+The margin is asked for as a share of the creature's size, the larger of its body length
+and its centre of mass's height above the ground: a tall, short creature (a biped standing
+on two hooves) must keep its centre of mass as far inside as a long one of that height, so
+the tipping angle ``atan(margin / height)`` is never below ``atan(min_margin_fraction)``
+(1.15° at the default 0.02). Measured against the body length only, such a creature passed
+with a 0.7° tipping angle and fell over in MuJoCo (issue 14, sixth round).
 """
 
 from __future__ import annotations
@@ -26,7 +33,7 @@ class BalanceReport:
     applicable: bool  # False without legs on the ground (swims / rests on body)
     stable: bool
     margin: float  # signed distance of the COM to the polygon boundary (m)
-    margin_fraction: float  # margin / body length
+    margin_fraction: float  # margin / size (the larger of body length and COM height)
     sagittal_margin: float  # the seed's 2-D view: COM x inside the contacts' x-range
     tipping_torque: float  # smallest restoring torque about a support edge (N·m)
     com: tuple[float, float, float]
@@ -105,9 +112,12 @@ def evaluate(
     patches: NDArray,
     body_length: float,
     min_margin_fraction: float = 0.01,
+    com_height: float = 0.0,
 ) -> BalanceReport:
     """Balance of a creature with centre of mass ``com (3,)`` (world, Y up) standing on
-    contact patches ``patches (k, 2)`` (x, z corner points on the ground)."""
+    contact patches ``patches (k, 2)`` (x, z corner points on the ground); the margin is
+    measured against the larger of ``body_length`` and ``com_height`` (the centre of
+    mass's height above the ground)."""
     c = np.asarray(com, float)
     if patches is None or len(patches) == 0:
         return BalanceReport(
@@ -132,7 +142,7 @@ def evaluate(
     else:
         margin = float(_min_edge_distance(poly, float(q[0]), float(q[1])))
         torque = float(mass * G * margin)
-    frac = margin / max(body_length, 1e-12)
+    frac = margin / max(body_length, com_height, 1e-12)
     stable = frac >= min_margin_fraction
     return BalanceReport(
         True,

@@ -40,6 +40,8 @@ class Options:
     temperature), |score| <= 4; the other components are sampled as without them.
     stand_fraction : the shortest leg stands at this fraction of its straightened reach.
     require_stable : repair or resample until statically stable.
+    min_margin_fraction : the least stability margin, a share of the larger of body length
+    and centre-of-mass height (:mod:`biomorph.creature.balance`).
     allow_extrapolation : accept a weight more than :data:`EXTRAPOLATION` × outside the
     dataset's weight range (the PCA was fitted on 0.01 kg … 120 t animals).
     hoof_digits : hoofed digits per foot, 1 (perissodactyl: horse) or 2 (artiodactyl:

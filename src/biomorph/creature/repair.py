@@ -73,7 +73,8 @@ def repair_shift(
     patches = asm["patches"]
     x0, x1 = patches[:, 0].min(), patches[:, 0].max()
     span = max(x1 - x0, 1e-6)
-    body = float(np.ptp(asm["pos"][:, 0]))
+    # the size the margin is asked of: body length or centre-of-mass height (balance.py)
+    body = max(float(np.ptp(asm["pos"][:, 0])), float(report.com[1] - asm["ground"]))
     target_margin = min(0.45 * span, max(1.5 * min_margin * body, 0.08 * span))
     leg_girdles = sorted({p[0] for p in limbs.places if p[2].kind == "leg"})
     shifts = dict(limbs.shifts)
@@ -99,7 +100,8 @@ def repair_shift(
 
 
 def _required(report: bal.BalanceReport, min_margin: float) -> float:
-    """The margin (px) the balance check asks for: ``min_margin`` × its body length."""
+    """The margin (px) the balance check asks for: ``min_margin`` × its size (the larger
+    of body length and centre-of-mass height)."""
     if abs(report.margin_fraction) < 1e-15:
         return 0.0
     return min_margin * report.margin / report.margin_fraction
@@ -305,10 +307,15 @@ def _limb_part(
 _FLIP_Z = np.array([1.0, -1.0])
 
 
-def _report(part: _Part, opts: Options) -> bal.BalanceReport:
+def _report(part: _Part, opts: Options, ground: float) -> bal.BalanceReport:
     com = np.array([part.mom[0], part.mom[1], 0.0]) / max(part.vol, 1e-30)
     return bal.evaluate(
-        com, part.vol, part.patches, part.xmax - part.xmin, opts.min_margin_fraction
+        com,
+        part.vol,
+        part.patches,
+        part.xmax - part.xmin,
+        opts.min_margin_fraction,
+        float(com[1] - ground),
     )
 
 
@@ -327,7 +334,7 @@ def quick_report(spine: SpineState, limbs: LimbsState, skull: SkullState, opts: 
         if place[2].kind != "leg":
             free[id(pose)] = (pose, part)
     b, lg = _Part.join(body), _Part.join(legs)
-    return _report(_Part.join([b, lg]), opts), b, lg, free
+    return _report(_Part.join([b, lg]), opts, limbs.ground), b, lg, free
 
 
 def p_len(limbs: LimbsState, i: int) -> NDArray:
@@ -556,7 +563,7 @@ class _Reduced:
             ]
         )
         stood = {i: (st.attach[i], prev.poses[i]) for i in self.legs}
-        return _report(_Part.join([st.body, legs]), self.opts), legs, (stood, g)
+        return _report(_Part.join([st.body, legs]), self.opts, g), legs, (stood, g)
 
     def stand(self, st: _Leaned, shifts: dict):
         """Balance of the leaned body with the legs at ``shifts``: ``(report, legs part,
@@ -588,7 +595,7 @@ class _Reduced:
             parts.append(_limb_part(spine, places[i], attach[i], pose, L3, ground))
             stood[i] = (attach[i], pose)
         lg = _Part.join(parts)
-        return _report(_Part.join([st.body, lg]), self.opts), lg, (stood, ground)
+        return _report(_Part.join([st.body, lg]), self.opts, ground), lg, (stood, ground)
 
     def limbs(self, st: _Leaned, shifts: dict, repose: bool = False) -> LimbsState:
         """The real repair pass (:func:`step_limbs`) for ``st`` and ``shifts``."""
@@ -908,7 +915,9 @@ def _shift_loop(spine, girdles, limbs, skull, asm, report, opts, repairs, tol=Fa
             break
         lvol, lmom, patches = limb_mass_and_patches(limbs, spine)
         com = (bmom + lmom) / max(bvol + lvol, 1e-30)
-        report = bal.evaluate(com, bvol + lvol, patches, bl, opts.min_margin_fraction)
+        report = bal.evaluate(
+            com, bvol + lvol, patches, bl, opts.min_margin_fraction, float(com[1] - limbs.ground)
+        )
         work = dict(work, patches=patches)
         repairs += 1
         if report.stable:
