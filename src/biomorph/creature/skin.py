@@ -654,11 +654,13 @@ def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
     """Explicit skin of the fins (world ``(vertices, faces)``, closed pieces): a thin tube
     round each fin ray (:func:`biomorph.creature.fins.ray_radii` plus the landmark tissue)
     and the fin membrane between the rays, a closed slab :data:`fins.MEMBRANE` of the
-    first ray's diameter thick."""
+    first ray's diameter thick — the paired fins, then a fish's median fins (dorsal, anal,
+    caudal: :func:`biomorph.creature.fins.build_median`) alike."""
     from biomorph.creature.bones.prim import tubes
 
     built = fn.build(c, *fn.DETAIL[lod])
-    if not built:
+    median = fn.build_median(c, *fn.MEDIAN_DETAIL[lod])
+    if not built and not median:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
     sides = _FIN_SIDES[lod]  # thin rays: few sides
     vs, fs, base = [], [], 0
@@ -682,6 +684,19 @@ def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
             ref = np.tile(fin.normal, (len(fin.rays), 1))
             rad = fn.ray_radii(fin) * (1 + LANDMARK_TISSUE)
             pieces.append(tubes(fin.rays, rad, sides, ref=ref))
+    pieces += [
+        _slab(fin.rays, np.full(fin.rays.shape[:2], fn.MEMBRANE * fin.width), fin.normal)
+        for fin in median
+    ]
+    if median:  # the median fins' rays in one batch (one shape for all three)
+        pieces.append(
+            tubes(
+                np.concatenate([fin.rays for fin in median]),
+                np.concatenate([fn.median_radii(fin) for fin in median]) * (1 + LANDMARK_TISSUE),
+                sides,
+                ref=np.concatenate([np.tile(fin.normal, (len(fin.rays), 1)) for fin in median]),
+            )
+        )
     for v, f in pieces:
         vs.append(v)
         fs.append(f + base)
@@ -692,14 +707,19 @@ def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
 def fin_skin_joints(c: Creature, lod: int = 1) -> NDArray[np.int64]:
     """The joint of each :func:`fin_skin` vertex, in its order: the fin joint whose bone the
     vertex's ray sample lies along (slabs: both faces row by row; tubes: ring by ring, then
-    the two caps)."""
+    the two caps); a median fin's vertices ride on the spine joint of their ray."""
     built = fn.build(c, *fn.DETAIL[lod])
+    median = fn.build_median(c, *fn.MEDIAN_DETAIL[lod])
     sides = _FIN_SIDES[lod]
     out = [np.tile(np.tile(fin.joint_of, len(fin.rays)), 2) for fin in built]
     for fin in built:
         jo = fin.joint_of
         tube = np.concatenate([np.repeat(jo, sides), jo[:1], jo[-1:]])
         out.append(np.tile(tube, len(fin.rays)))
+    out += [np.tile(fin.joint_of.reshape(-1), 2) for fin in median]
+    for fin in median:
+        for jo in fin.joint_of:
+            out.append(np.concatenate([np.repeat(jo, sides), jo[:1], jo[-1:]]))
     return np.concatenate(out).astype(np.int64) if out else np.zeros(0, np.int64)
 
 

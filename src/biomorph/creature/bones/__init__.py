@@ -22,7 +22,8 @@ scapula / pelvis   blade on the rib cage's side with the glenoid at the shoulder
 long bones         shaft with epiphyses (humerus, femur), paired shafts (radius + ulna,
                    tibia + fibula)
 metapodials        hands/feet/wing hands: metapodials + phalanges per class, claws, hooves
-                   (unguligrade stance) or nails; fins: radials and a fan of rays
+                   (unguligrade stance) or nails; fins: radials and a fan of rays;
+                   a fish's dorsal, anal and caudal fin rays on its vertebrae
 phalanx … nail     digit joints (when the skeleton has them)
 =================  =======================================================================
 

@@ -121,6 +121,8 @@ class _Context:
         self.cage = cage.rib_cage(c, thoracic, lod, pleural=self.cls == "fish")
         # fin rays (world), built once per creature: each fin joint gets its stretch of them
         self.fins = _fin_pieces(c, lod)
+        # a fish's median fins (dorsal, anal, caudal): rays on the spine joints they stand on
+        self.median = _median_pieces(c, lod)
 
 
 class _Geometry:
@@ -350,6 +352,30 @@ def _fin_pieces(c: Creature, lod: int) -> dict[int, tuple[NDArray, NDArray]]:
     return {j: (_local(c, j, v), f) for j, (v, f) in zip(joints, pieces, strict=True)}
 
 
+def _median_pieces(c: Creature, lod: int) -> dict[int, tuple[NDArray, NDArray]]:
+    """A fish's median fins (:func:`biomorph.creature.fins.build_median`) as bone models:
+    each ray a thin tapering rod from inside the body (its pterygiophore) to the fin's
+    margin, on the spine joint at its root; per joint its rays in its frame."""
+    fins = fn.build_median(c, *fn.MEDIAN_DETAIL[lod])
+    if not fins:
+        return {}
+    paths = np.concatenate([fin.rays for fin in fins])
+    joint = np.concatenate([fin.joint_of[:, 0] for fin in fins])
+    rad = np.concatenate([fn.median_radii(fin) for fin in fins])
+    ref = np.concatenate([np.tile(fin.normal, (len(fin.rays), 1)) for fin in fins])
+    v, f = prim.tubes(paths, rad, max(3, prim.SIDES[lod] // 2), ref=ref)
+    nv, nf = len(v) // len(paths), len(f) // len(paths)
+    out = {}
+    for j in np.unique(joint).tolist():
+        rows = np.flatnonzero(joint == j)
+        vs = np.concatenate([v[i * nv : (i + 1) * nv] for i in rows])
+        fs = np.concatenate(
+            [f[i * nf : (i + 1) * nf] - i * nv + m * nv for m, i in enumerate(rows)]
+        )
+        out[j] = (_local(c, j, vs), fs)
+    return out
+
+
 def _fin(g: _Geometry, ctx: _Context, j: int) -> None:
     """Fin joint ``j``'s stretch of its fin's rays (:func:`_fin_pieces`)."""
     g.raw(j, ctx.fins[j])
@@ -382,6 +408,8 @@ def geometry(
         part = ctx.parts[j]
         if part in VERTEBRAE or part in ("skull", "mandible"):
             _axial(g, ctx, j, part)
+            if j in ctx.median:  # the median fin rays standing on this vertebra
+                g.raw(j, ctx.median[j])
         elif part in ("scapula", "pelvis"):
             _girdle(g, ctx, j, part)
         elif j in ctx.fins:
