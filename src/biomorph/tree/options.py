@@ -305,7 +305,13 @@ class RadiusOptions:
         "(radius.taper_radii).",
         kind="enabled",
     )
-    min_radius: float = _opt(0.001, "--min-radius", "Radius floor of the taper model, m.", lo=0)
+    min_radius: float = _opt(
+        0.001,
+        "--min-radius",
+        "Twig (tip) radius of the taper model, m: unmeasured tips end at it. Give the "
+        "species' measured twig radius as rTwig does (e.g. 0.00423); default 1 mm.",
+        lo=0,
+    )
     taper_exponent: float = _opt(
         2.0,
         "--taper-exponent",
