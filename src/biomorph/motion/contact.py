@@ -739,15 +739,16 @@ def _clearance(
 def _leg_goals(  # noqa: PLR0913
     lg: Leg, col: dict[int, int], pos: Array, w_ref: Array, contacts, blend: int, ui: int,
     follow: bool, lift: Array | None = None, swing: float = 0.0, floor: float | None = None,
-    toe_clear: Array | None = None,
+    toe_clear: Array | None = None, fast: dict[int, NDArray[np.bool_]] | None = None,
 ) -> tuple[Array, Array, Array, Array, NDArray[np.int64], Array] | None:  # fmt: skip
     """Ankle goal per frame, the toe's held place and weight, the soft-IK weight and the
     frames to solve (``None`` when there is nothing to do). ``lift``: the clearance kept
-    from a reference (:func:`_clearance`), applied outside the contacts (faded by the
-    contact weight). ``floor``: no ankle or toe ends below this height — where one would
-    (a held ankle whose foot is tipped toe-down, an operator's pose below the input's
-    lowest foot), the ankle goal rises by the difference (the foot keeps its orientation,
-    so the toe rises with it)."""
+    from a reference (:func:`_clearance`), applied outside the contacts (not faded by the
+    contact weight; inside a contact of the ankle or toe the held place decides).
+    ``floor``: no ankle or toe ends below this height — where one would (a held ankle whose
+    foot is tipped toe-down, an operator's pose below the input's lowest foot), the ankle
+    goal rises by the difference (the foot keeps its orientation, so the toe rises with
+    it). ``fast``: frames in full swing per point (``lock_feet``'s ``swing``)."""
     f = pos.shape[0]
     none = np.zeros(f, bool)
     on_a = contacts.get(lg.ankle, none)
@@ -759,19 +760,23 @@ def _leg_goals(  # noqa: PLR0913
     )
     if not (on_a.any() or on_t.any() or lifted or below):
         return None
+
     # the ankle target: the held ankle while the ankle is planted; where the toe is planted
     # too, the held ankle gives way to "the held toe minus the toe's current offset from the
     # ankle" (heel off) continuously — as the ankle's fade-out goes and as the held ankle
     # leaves the leg's reach (the heel lifts because the leg cannot reach it), never by a
     # switch on one frame (was: a 1.1-unit jump of the Xia walk's left ankle, frames 158-159)
-    ta, wa = _targets(on_a, w_ref[:, ca], blend, ui, follow, _in_swing(w_ref[:, ca], ui, swing))
+    def in_swing(j: int) -> NDArray[np.bool_] | None:  # given (the contacts' own clip), or measured
+        return fast[j] if fast is not None and j in fast else _in_swing(w_ref[:, col[j]], ui, swing)
+
+    ta, wa = _targets(on_a, w_ref[:, ca], blend, ui, follow, in_swing(lg.ankle))
     hop = _hops(on_a, blend)  # a short flight: held places do not pull the point down
     ta[:, ui] = np.where(hop, np.maximum(ta[:, ui], pos[:, ca, ui]), ta[:, ui])
     goal = pos[:, ca] + wa[:, None] * (ta - pos[:, ca])
     tt, wt = np.zeros((f, 3)), np.zeros(f)
     if lg.toe >= 0:
         ct = col[lg.toe]
-        tt, wt = _targets(on_t, w_ref[:, ct], blend, ui, follow, _in_swing(w_ref[:, ct], ui, swing))
+        tt, wt = _targets(on_t, w_ref[:, ct], blend, ui, follow, in_swing(lg.toe))
         hop = _hops(on_t, blend)
         tt[:, ui] = np.where(hop, np.maximum(tt[:, ui], pos[:, ct, ui]), tt[:, ui])
         hip = pos[:, col[lg.hip]]
@@ -788,8 +793,12 @@ def _leg_goals(  # noqa: PLR0913
     w_soft = w  # continuous: the soft-IK weight (a raise alone keeps the hard clamp)
     if lifted:
         assert lift is not None
-        up = pos[:, ca, ui] + lift * (1.0 - np.maximum(on_a, on_t))  # not faded by w
-        raise_ = up > goal[:, ui]
+        up = pos[:, ca, ui] + lift  # not faded by w
+        # never inside a contact: there the goal is the held place (the raise had put a held
+        # ankle back at the operator's own height wherever that was higher, so a filtered
+        # clip's ankle bobbed with its hips while the toe held: the jumping jacks' toes slid
+        # 0.05-0.17 hip heights/s while planted after equalize)
+        raise_ = (up > goal[:, ui]) & ~(on_a | on_t)
         goal[raise_, ui] = up[raise_]
         w = np.where(raise_, 1.0, w)
     if floor is not None:  # nothing through the floor: the ankle, and the toe carried by it
@@ -881,6 +890,7 @@ def lock_feet(
     options: ContactOptions | None = None,
     floor: float | None = None,
     contacts: dict[int, NDArray[np.bool_]] | None = None,
+    swing: dict[int, NDArray[np.bool_]] | None = None,
 ) -> Motion:
     """``motion`` with planted feet held in place (see the module docstring).
 
@@ -890,7 +900,14 @@ def lock_feet(
     the lowest foot point of the reference (or of ``motion``); pass the input's
     (:func:`foot_floor`) after an operator that changes the timing or the sides (speed,
     blend, cycle, mirror). ``contacts`` (joint index → ``bool[f]``) replaces the detection:
-    a retarget passes the source's contacts mapped onto the target's feet. Returns
+    a retarget passes the source's contacts mapped onto the target's feet, and with them
+    ``swing``, the frames where each source point is in full swing (:func:`_in_swing` on
+    the source; else measured on the reference): a contact's fade-out is compressed into the
+    frames before the point's full swing (``ContactOptions.swing``), and that moment is
+    the source's — a retarget's own toe path may already be moving fast in the last frames
+    of a contact it did not detect (the creature biped's 2.2× longer foot pitching at the
+    source's heel-off), and measured there the fade-out shrank to no frame at all: a held
+    toe the leg could not reach snapped back 0.09 hip heights in one frame. Returns
     ``motion`` unchanged when the skeleton has no legs or locking is disabled."""
     o = options or ContactOptions()
     legs = find_legs(motion)
@@ -935,6 +952,7 @@ def lock_feet(
                 float(o.swing),
                 floor,
                 toe_clear,
+                swing,
             )
         )
     rot = np.array(motion.rotation, dtype=np.float64)

@@ -577,20 +577,28 @@ def _lock_like_source(
     so contacts detected on the target missed the planted toes. Outside its contacts no toe
     ends lower than the retarget put it (``lock_feet``'s reference clearance, the retarget
     itself as the reference): the toe turned toward a held place during a fade does not
-    scrape."""
-    from biomorph.motion.contact import find_legs, lock_feet
+    scrape. A contact's fade-out ends where the *source's* point reaches full swing (``lock_feet``'s
+    ``swing``), as it would locking the source."""
+    from biomorph.motion.contact import ContactOptions, _in_swing, _up_of, find_legs, lock_feet
 
     legs = find_legs(out)
     src = legs_s.contacts()
+    o = ContactOptions()
+    ui = _up_of(legs_s.motion, o)
     mapped: dict[int, np.ndarray] = {}
+    fast: dict[int, np.ndarray] = {}
     for c in ("l_foot", "l_toe", "r_foot", "r_toe"):
         if c in s_can and c in t_can and s_can[c] in src:
             mapped[t_can[c]] = src[s_can[c]]
+            sw = _in_swing(legs_s.pos[:, legs_s.col[s_can[c]]], ui, o.swing)
+            if sw is not None:  # full swing as the source's point reaches it
+                fast[t_can[c]] = sw
     points = {p for lg in legs for p in (lg.ankle, lg.toe) if p >= 0}
     if not mapped or not points <= set(mapped):
         return lock_feet(out)
     ref = out.with_(meta=dict(out.meta))  # the same frames as a reference: its clearance kept
-    return lock_feet(out, ref, contacts={j: v for j, v in mapped.items() if j in points})
+    keep = {j: v for j, v in mapped.items() if j in points}
+    return lock_feet(out, ref, o, contacts=keep, swing={j: fast[j] for j in keep if j in fast})
 
 
 def _lateral_axis(sk: JointSkeleton, pairs: list[tuple[int, int]], pos: Array | None = None) -> int:
