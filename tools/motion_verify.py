@@ -14,7 +14,8 @@ restore=True)``, i.e. in the treadmill's frame). "(in x)" = the like-for-like in
 where the operator changes which frames are measured: ``trim`` (a cut) and the cycles, the
 input's skate over the same (looped) frames; ``speed``, the input retimed by the same curve
 with the feet not locked (a retime at speed k plays every foot k× as fast, and the metric's
-mean over the in-band frames loses the stance frames it compresses). "↓floor" = the lowest
+mean over the in-band frames loses the stance frames it compresses). "no feet": a skeleton
+without foot joints (by name or name preset) has no foot skate. "↓floor" = the lowest
 foot more than 2 % of
 the input's hip height below the input's lowest foot (retargets: below the target's y = 0).
 """
@@ -76,10 +77,11 @@ def _read(path: Path, up: str | None = None):
     return to_y_up(m, "z") if up == "z" else m
 
 
-def _skate(m) -> float:
+def _skate(m) -> float | None:
     from biomorph.motion.quality import foot_skate
 
-    return round(float(foot_skate(m)["skate_per_body_scale"]), 3)
+    v = foot_skate(m)["skate_per_body_scale"]
+    return None if v is None else round(float(v), 3)  # None: no feet, no foot skate
 
 
 def _lowest(m) -> float | None:
@@ -247,9 +249,10 @@ def table(rows: list[dict]) -> str:
             below = fl is not None and fl < -0.02
             if below:
                 low.append((f, op, fl))
-            ref = f" (in {r['skate_ref']})" if "skate_ref" in r else ""
-            cells.append(f"{mark} {r['skate_out']}{ref}" + (" ↓floor" if below else ""))
-        lines.append(f"| {f} ({base}) | " + " | ".join(cells) + " |")
+            ref = f" (in {r['skate_ref']})" if r.get("skate_ref") is not None else ""
+            fig = "no feet" if r["skate_out"] is None else r["skate_out"]
+            cells.append(f"{mark} {fig}{ref}" + (" ↓floor" if below else ""))
+        lines.append(f"| {f} ({'no feet' if base is None else base}) | " + " | ".join(cells) + " |")
     lines.append("")
     lines.append(
         f"Blender imports OK, no NaN: {ok} of {n}; feet more than 2 % of hip height below "

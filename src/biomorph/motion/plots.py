@@ -261,8 +261,12 @@ def plot_contacts(
     axes[0].legend(fontsize=7, ncol=4, loc="upper right")
     axes[0].set_title(
         title
-        or f"foot points: height ×10 and speed (hip heights, /s); green planted, "
-        f"red counted by the skate metric (skate {fs['skate_per_body_scale']:.3f})",
+        or "foot points: height ×10 and speed (hip heights, /s); green planted, "
+        + (
+            f"red counted by the skate metric (skate {fs['skate_per_body_scale']:.3f})"
+            if fs["feet"]
+            else "no feet: no skate metric"
+        ),
         fontsize=9,
     )
     axes[-1].set_xlabel("s")

@@ -3,16 +3,21 @@ Euler wraps, and a foot-skate measure.
 
 Foot skate (stated ground-height rule)
 --------------------------------------
-Feet are the joints whose name contains ``foot``, ``toe`` or ``ankle`` (else the leaf
-joints). Heights are measured along the up axis (``"y"``, or the axis detected for Z-up
-files). The **ground height** is the 2nd percentile of all foot-joint heights over the clip
-(robust to a few glitches); the **body scale** ``L`` is the median height above that ground
-of the pelvis — the nearest joint above every foot joint (the root on most rigs; the hips
-under a ground-level ``root`` of root motion, whose own height is 0), or the leg's length
-(pelvis → foot along the skeleton) when the pelvis does not stand above the ground. A foot
-joint is **in contact** on a frame when its height is below ``ground + 0.08·L`` (8 % of hip
-height). **Skate** is the mean horizontal speed of foot
-joints over their contact frames, reported in units/s and as ``L``/s (body-scale free).
+Feet are the joints whose name contains ``foot``, ``toe`` or ``ankle``, else those of the
+skeleton's name preset (``biomorph creature``'s ``hip1_distal_l`` …); a skeleton with
+neither has **no foot skate**: every figure is ``None`` and ``feet`` is empty. (Until issue
+15's fourth round the metric fell back to the leaf joints: fairmotion's 4-joint sinusoid,
+one swinging chain, got a "skate" from its free end — 0.049 body scales/s, 0.055 after
+equalize — that no contact locking can or should change; the leaves of a real rig are hands,
+head and feet together.) Heights are measured along the up axis (``"y"``, or the axis
+detected for Z-up files). The **ground height** is the 2nd percentile of all foot-joint
+heights over the clip (robust to a few glitches); the **body scale** ``L`` is the median
+height above that ground of the pelvis — the nearest joint above every foot joint (the root
+on most rigs; the hips under a ground-level ``root`` of root motion, whose own height is 0),
+or the leg's length (pelvis → foot along the skeleton) when the pelvis does not stand above
+the ground. A foot joint is **in contact** on a frame when its height is below ``ground +
+0.08·L`` (8 % of hip height). **Skate** is the mean horizontal speed of foot joints over
+their contact frames, reported in units/s and as ``L``/s (body-scale free).
 A clean capture has feet that stand still on the ground: skate near zero.
 
 Skate is a *mean* over the frames in the band, so a clip whose planted feet sit a little
@@ -74,13 +79,22 @@ def _leg_length(motion: Motion, pelvis: int, feet: list[int]) -> float:
 
 
 def foot_skate(motion: Motion, up: str | None = None) -> dict[str, Any]:
-    """Foot-skate measure (see module docstring)."""
+    """Foot-skate measure (see module docstring); ``None`` figures without feet."""
     up = up or motion.meta.get("up_guess") or guess_up_axis(motion)
     ui = _up_index(up)
-    # named feet, else a preset's (biomorph creature: hip1_distal_l, hip1_digit3_1_l), else leaves
-    feet = foot_joints(motion.names, motion.skeleton.parent) or list(
-        np.setdiff1d(np.arange(motion.n_joints), motion.skeleton.parent)
-    )
+    # named feet, else a preset's (biomorph creature: hip1_distal_l, hip1_digit3_1_l)
+    feet = foot_joints(motion.names, motion.skeleton.parent)
+    if not feet:  # no feet, no foot skate (not the leaves: a free end is no foot)
+        return {
+            "feet": [],
+            "up": up,
+            "ground_height": None,
+            "body_scale": None,
+            "contact_fraction": 0.0,
+            "skate_speed": None,
+            "skate_per_body_scale": None,
+            "band_travel": None,
+        }
     w = motion.world_positions()
     h = w[:, feet, ui]
     ground = float(np.percentile(h, 2))
