@@ -10,6 +10,7 @@ Pure functions over an immutable :class:`Motion` (each returns a new Motion):
 ``to_y_up``                 convert Z-up data (align.py)
 ``blend``                   N clips with offsets/scales, blend curve, auto-align (blend.py)
 ``change_speed``            speed curve → time warp (timewarp.py)
+``resample``                another frame rate, planted feet kept (timewarp.py)
 ``make_cycle``/``best_loop``  seamless loops with offset (cycle.py)
 ``quality_report``          angular rates, Euler wraps, foot skate (quality.py)
 ==========================  ==========================================================
@@ -43,6 +44,7 @@ _WHERE = {
     "n_bands": "biomorph.motion.equalizer",
     "quality_report": "biomorph.motion.quality",
     "change_speed": "biomorph.motion.timewarp",
+    "resample": "biomorph.motion.timewarp",
 }
 
 __all__ = list(_WHERE)

@@ -1,8 +1,9 @@
 """Operator chains: ``"equalize:gains=0/0/1/1/1" "cycle:mode=in-place,transition=12"`` applied
 in order to a clip, with planted feet locked after every operator (the behaviour of the
 single-operator CLI commands: not after ``trim``, a cut, nor ``extract-root``; a ``retarget``
-locks as the CLI's does, on the source's contacts where the feet are proportioned otherwise),
-for ``biomorph motion batch`` and the Python API.
+locks as the CLI's does, on the source's contacts where the feet are proportioned otherwise,
+and a ``resample`` on its input's contacts, as ``convert --fps``), for ``biomorph motion
+batch`` and the Python API.
 
 Each step is ``name[:key=value,key=value…]``; vector values use ``/`` between components.
 Operators and their keys (angles in degrees, frames 0-based, as on the CLI):
@@ -114,7 +115,8 @@ def apply_step(
     """One operator (module docstring) on ``mo``; ``lock`` is handed to ``make_cycle`` (the
     world-space cycle is locked before an in-place / root-motion conversion); ``feet``: a
     retarget locks its feet itself, as the CLI's ``retarget`` does (on the source's contacts
-    where the feet are proportioned otherwise)."""
+    where the feet are proportioned otherwise), and so does a resample (on the contacts of
+    its input, as the CLI's ``convert --fps``)."""
     import biomorph.motion as bm
     from biomorph.motion import rootmotion as rm
     from biomorph.motion.retarget import mirror, retarget
@@ -158,8 +160,10 @@ def apply_step(
         return mo.frames(
             _num(step, "start", 0, 0, 1e12, True), _num(step, "stop", mo.n_frames, 1, 1e12, True)
         )
-    if n == "resample":
-        return mo.resample(_num(step, "fps", mo.fps, 1e-6, 1e4))
+    if n == "resample":  # with ``feet``, locked on the input's contacts (timewarp.resample)
+        from biomorph.motion.timewarp import resample
+
+        return resample(mo, _num(step, "fps", mo.fps, 1e-6, 1e4), lock_feet=feet)
     if n == "reorient":
         return bm.reorient(mo, math.radians(_num(step, "angle", 0.0, -1e6, 1e6)), up=up)
     if n == "mirror":
@@ -192,7 +196,8 @@ def apply_chain(mo: Motion, steps: list[Step], lock_feet: bool = True) -> Motion
                 return lock(c, floor=floor)
 
         cyc = lock_feet and step.name == "cycle"
-        rt = lock_feet and step.name == "retarget"  # locks inside, like the CLI's retarget
+        # retarget and resample lock inside (on the source's contacts), like the CLI's
+        rt = lock_feet and step.name in ("retarget", "resample")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ContactWarning)
             out = apply_step(mo, step, lock_cycle if cyc else None, feet=rt)

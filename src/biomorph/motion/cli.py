@@ -99,6 +99,29 @@ def _lock(mo, reference=None, ground=()):
     return mo
 
 
+def _resample(mo, fps: float, lock: bool):
+    """``timewarp.resample`` (feet locked on the input's contacts unless ``lock`` is off),
+    one warning line for each contact target out of reach."""
+    import warnings
+
+    from biomorph._cli import err_console
+    from biomorph.motion.timewarp import resample
+
+    if not lock:
+        return resample(mo, fps, lock_feet=False)
+    from biomorph.motion.contact import ContactWarning  # numba: only to lock
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ContactWarning)
+        out = resample(mo, fps)
+    for w in caught:
+        if issubclass(w.category, ContactWarning):
+            err_console.print(f"warning: {w.message}", markup=False, highlight=False)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return out
+
+
 def _finish(
     path: Path,
     mo,
@@ -219,6 +242,8 @@ def info(
     for k, v in rep.items():
         if k == "fastest_joints":
             v = "; ".join(f"{r['joint']} {r['max_speed_deg_s']:.0f}°/s" for r in v)
+        elif k == "foot_skate" and not v["feet"]:
+            v = "no feet (no joint named foot/toe/ankle, no name preset): not measured"
         elif k == "foot_skate":
             v = (
                 f"{v['skate_speed']:.4g} units/s ({v['skate_per_body_scale']:.3g} body/s), "
@@ -719,11 +744,13 @@ def convert(
     ] = None,
     up: Up = None,
     strict: Strict = False,
+    lock_feet: Feet = True,
     euler: Euler = "wrap",
     preview: Preview = None,
     as_json: Json = False,
 ) -> None:
-    """Convert (and optionally resample / make Y-up) a motion to BVH or glTF.
+    """Convert (and optionally resample / make Y-up) a motion to BVH or glTF; a resample
+    keeps planted feet planted (contacts found on the input, --no-lock-feet to skip).
 
     Example: biomorph motion convert take.htr -o take.bvh --fps 30
     """
@@ -731,7 +758,7 @@ def convert(
     t0 = time.perf_counter()
     mo = _read(path, up, strict)
     if fps is not None:
-        mo = mo.resample(fps)
+        mo = _resample(mo, fps, lock_feet)
     _finish(output, mo, None, False, euler, preview)
     _emit(_summary(mo, output, t0), as_json)
 
