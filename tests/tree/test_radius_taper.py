@@ -205,3 +205,26 @@ def test_thin_reliable_fits_are_kept_thick_ones_are_not():
     r, fit = taper_radii(g, _fit(g, fitted, ok, mad=1e-4), min_radius=0.0)
     assert not fit.reliable[30:36].any()
     assert np.all(r[30:36] <= 1.2 * truth[30:36])
+
+
+def test_a_fit_over_twice_the_model_is_not_kept_however_noisy_the_stem(monkeypatch):
+    """A stem measured with a large scatter (a plot's thin, cluttered stem) must not let a
+    side branch keep circles fitted on ground clutter at 2.5x its model: kept fits pass
+    their ratio to every node below them (the pine plot's 13 cm strand along the ground)."""
+    import biomorph.tree.radius as rad
+
+    g = _tree()
+    carried = g.subtree_length() + g.edge_length
+    truth = 0.02 * carried ** (1 / PIPE_EXPONENT)
+    fitted = truth.copy()
+    fitted[:51] *= np.where(np.arange(51) % 2 == 0, 1.6, 1 / 1.6)  # scatter ~0.47 in log
+    fitted[53:56] = 2.5 * truth[53:56]
+    ok = np.zeros(g.n_nodes, dtype=bool)
+    ok[:51] = True
+    ok[53:56] = True
+    r, fit = taper_radii(g, _fit(g, fitted, ok))
+    assert not fit.reliable[53:56].any()
+    assert np.all(r[53:] < 1.6 * truth[53:])
+    monkeypatch.setattr(rad, "KEEP_MAX_RATIO", 1e9)  # the old rule: 3 scatters
+    _, old = taper_radii(g, _fit(g, fitted, ok))
+    assert old.reliable[53:56].all()

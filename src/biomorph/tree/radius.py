@@ -85,6 +85,10 @@ WITHIN_SLOPE_BOUNDS = (1 / 3, 1.0)
 #: if the tree's slope were this many extra fits on the branch (a branch with three fits
 #: gets half of each)
 BRANCH_PRIOR_FITS = 3
+#: a reliable fit more than this factor above the taper model is not kept as measured,
+#: whatever the model's scatter: the same factor 2 at which :func:`fit_radii` drops a fit
+#: from the smoothed profile
+KEEP_MAX_RATIO = 2.0
 
 
 def node_axes(graph: BranchGraph) -> NDArray[np.float64]:
@@ -774,7 +778,7 @@ def taper_radii(
             model[m] = a + cum[m]
             # one-sided: a reliable fit thinner than the model is kept (artefacts — needle
             # envelopes, neighbouring twigs in the slab, junctions — inflate circles)
-            keep[rm] = y[rm] - model[rm] <= 3 * sc
+            keep[rm] = y[rm] - model[rm] <= min(3 * sc, np.log(KEEP_MAX_RATIO))
             scale[int(t)] = (a, sc, src, int(sm_.sum()))
         return model, keep, cum, scale
 
