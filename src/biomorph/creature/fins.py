@@ -16,6 +16,11 @@ on the fin's base, :data:`BASE` of the fin's length across the rays, each ray's 
 along it the more it is turned (so no two rays cross). Each ray's samples are
 assigned to the fin joint whose bone they lie along (the joints' arc-length spans along
 the chain), so the bone models bend with the joints.
+
+A fish also has median fins (:func:`build_median`): a dorsal fin on the trunk, an anal
+fin behind the vent and a forked caudal fin at the tail's end, rays in the sagittal plane
+on the vertebrae they stand on, sized from the creature's trunk sections (see the section
+comment below for where each size comes from).
 """
 
 from __future__ import annotations
