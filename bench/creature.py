@@ -113,8 +113,19 @@ def main() -> None:
         f"with ground contact {applicable}; balance-repaired {repaired}; "
         f"resampled {resampled}\n"
     )
+    tip = [
+        np.degrees(np.arctan2(c.balance.margin, c.balance.com[1]))
+        for c in creatures
+        if c.balance.applicable
+    ]
+    if tip:
+        print(
+            f"least tipping angle atan(margin / centre-of-mass height): {min(tip):.2f}° "
+            f"(every stable creature ≥ atan(0.02) = 1.15°)\n"
+        )
     anatomy_table(creatures)
     bird_table(args.count)
+    fish_table(args.count)
     walk_table(creatures, args.walk)
     speed_table(t, tc, max(args.count // 5, 1))
     feats = np.array([c.features() for c in creatures])
@@ -424,6 +435,37 @@ def bird_table(n: int) -> None:
         f"| {inside}/{n} | {t.min():.1f} / {q[0]:.1f} / {q[1]:.1f} / {q[2]:.1f} / "
         f"{t.max():.1f}° | {rules}/{n} | {stable}/{n} |\n"
     )
+
+
+def fish_table(n: int) -> None:
+    """Fish asked for (``--class fish``, seeds 0..n-1): the median fins
+    (:func:`biomorph.creature.fins.build_median`) — all three present and finite, the dorsal
+    rays' tips above where they leave the skin, the anal tips below, the caudal tips behind
+    the last vertebra's end."""
+    from biomorph.creature import fins as fn
+
+    have = placed = 0
+    for seed in range(n):
+        c = generate(seed, cls="fish")
+        ms = fn.build_median(c, *fn.MEDIAN_DETAIL[1])
+        if [m.name for m in ms] != list(fn.MEDIAN) or not all(
+            np.isfinite(m.rays).all() for m in ms
+        ):
+            continue
+        have += 1
+        dorsal, anal, caudal = ms
+        end = min(c.bone_ends[j][0] for j in range(len(c)) if c.kind[j] == "spine")
+        placed += bool(
+            (dorsal.rays[:, -1, 1] > dorsal.surface[:, 1]).all()
+            and (anal.rays[:, -1, 1] < anal.surface[:, 1]).all()
+            and (caudal.rays[:, -1, 0] < end).all()
+        )
+    print(f"## Fish median fins (`--class fish`, seeds 0..{n - 1})\n")
+    print(
+        "| dorsal, anal and caudal fin | dorsal above / anal below the skin, caudal behind "
+        "the tail |\n|---|---|"
+    )
+    print(f"| {have}/{n} | {placed}/{n} |\n")
 
 
 def walk_table(creatures, limit: int) -> None:
