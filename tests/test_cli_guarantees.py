@@ -313,3 +313,29 @@ def test_corrupt_laz_through_the_executable_is_one_line(tmp_path):
     assert res.returncode == 2
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "chunk" in lines[0] and str(bad) in lines[0]
+
+
+def test_an_error_raised_by_the_interruption_is_the_interruption(monkeypatch, capsys):
+    """Ctrl-C inside an import leaves a half-initialised module whose next import fails:
+    that error is the interruption (one line, 130), not an internal error (exit 1) — the
+    race seen once under load in `test_ctrl_c_during_imports_one_line_exit_130`."""
+    import biomorph.cli as cli
+
+    class Cut:
+        def main(self, **_):
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.5)
+            except KeyboardInterrupt:
+                raise ImportError("cannot import name 'x' (partially initialized module)") from None
+
+    monkeypatch.setattr(cli, "_command", lambda group: Cut())
+    assert run(["tree", "synth"]) == 130
+    assert INTERRUPT_LINE in capsys.readouterr().err
+
+    class Bug:
+        def main(self, **_):
+            raise ImportError("a real bug")
+
+    monkeypatch.setattr(cli, "_command", lambda group: Bug())
+    assert run(["tree", "synth"]) == 1

@@ -500,6 +500,11 @@ def _run(argv: list[str] | None) -> int:
             _error("out of memory; the request is larger than this machine's memory")
             return 2
         except Exception as exc:  # a bug, not bad input: one line, exit 1, traceback on demand
+            if interrupted():
+                # raised because Ctrl-C cut something short (an import half done leaves a
+                # module that fails the next import): the interruption, not a bug
+                err_console.print(INTERRUPT_LINE)
+                return EXIT_INTERRUPTED
             if os.environ.get("BIOMORPH_DEBUG"):
                 raise
             _error(
