@@ -32,9 +32,10 @@ def test_total_and_per_class_volume_within_target(run):
         assert abs(ratio[lab] - 1) <= 0.20, (lab, ratio)  # target ±20 %
     # 2.5-7 cm: the target (±20 %) is not met on the presets, whose branches taper linearly
     # rather than by the pipe model (docs/tree.md); guard today's figure (1.20 with the
-    # one-sided outlier test, 1.24 with the fitted within-branch slope, 1.32 before) from
+    # one-sided outlier test, 1.24 with the fitted within-branch slope, 1.32 before; 1.27
+    # since the simulated scanner no longer sees branch bases inside their parents) from
     # drifting
-    assert 0.8 <= ratio["2.5-7cm"] <= 1.25, ratio
+    assert 0.8 <= ratio["2.5-7cm"] <= 1.30, ratio
 
 
 def test_thin_branch_residual_within_target(run):

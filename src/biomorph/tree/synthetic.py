@@ -481,6 +481,40 @@ def _surface_samples(
     return pts, nrm, seg
 
 
+#: a surface sample deeper than this share of another tube's radius inside that tube is
+#: inside the wood (where a branch starts at its parent's axis, the inner side of a bend):
+#: no scanner sees it. The 5 % keeps the shared surface of two consecutive tubes of one
+#: axis, whose radii differ by the taper of one step
+INSIDE_SHARE = 0.95
+
+
+def _inside_other_tubes(
+    pts: NDArray, seg: NDArray, p0: NDArray, p1: NDArray, r: NDArray
+) -> NDArray[np.bool_]:
+    """True for samples lying inside a tube other than their own (distance to its axis
+    segment below :data:`INSIDE_SHARE` of its radius)."""
+    from scipy.spatial import cKDTree
+
+    if pts.shape[0] == 0:
+        return np.zeros(0, dtype=bool)
+    mid = 0.5 * (p0 + p1)
+    reach = 0.5 * np.linalg.norm(p1 - p0, axis=1) + r
+    lists = cKDTree(pts).query_ball_point(mid, reach, return_sorted=False)
+    cnt = np.fromiter(map(len, lists), dtype=np.int64, count=mid.shape[0])
+    if not cnt.sum():
+        return np.zeros(pts.shape[0], dtype=bool)
+    idx = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
+    k = np.repeat(np.arange(mid.shape[0]), cnt)
+    other = seg[idx] != k
+    idx, k = idx[other], k[other]
+    ab = p1[k] - p0[k]
+    t = np.clip(np.einsum("ij,ij->i", pts[idx] - p0[k], ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
+    d = np.linalg.norm(pts[idx] - (p0[k] + t[:, None] * ab), axis=1)
+    out = np.zeros(pts.shape[0], dtype=bool)
+    out[idx[d < INSIDE_SHARE * r[k]]] = True
+    return out
+
+
 def simulate_scan(
     truth: BranchGraph,
     *,
@@ -503,9 +537,11 @@ def simulate_scan(
     * ``scanners`` positions on a circle around the stem (radius ``distance``, default
       ``max(5, 0.8 * tree height)`` m) at 1.5 m height, evenly spaced in azimuth.
     * Candidate points are drawn area-uniformly on the tube surfaces (edge radius = mean
-      of its two node radii). A scanner sees a candidate only if its surface faces it; with
-      ``range_density`` it keeps it with a probability ∝ ``cos(incidence) / range²`` (the
-      footprint density of a fixed angular step), otherwise uniformly.
+      of its two node radii); candidates inside another tube (a branch's base inside its
+      parent, the inner side of a bend) are dropped. A scanner sees a candidate only if
+      its surface faces it; with ``range_density`` it keeps it with a probability
+      ∝ ``cos(incidence) / range²`` (the footprint density of a fixed angular step),
+      otherwise uniformly.
     * ``occlusion``: rays from the point to the scanner are marched through an occupancy
       grid of the tube surfaces (cell ``occlusion_cell``, default 3 cm; thin twigs
       therefore occlude a little more than their true width) -- self-shadowing.
@@ -580,6 +616,10 @@ def simulate_scan(
         cos = np.einsum("ij,ij->i", v, nrm)
         front = cos > 0.05
         pts, seg, v, rng_d, cos = pts[front], seg[front], v[front], rng_d[front], cos[front]
+        # surfaces inside the wood (a branch's first centimetres inside its parent) are
+        # never seen, occlusion or not
+        out = ~_inside_other_tubes(pts, seg, p0, p1, r)
+        pts, seg, v, rng_d, cos = pts[out], seg[out], v[out], rng_d[out], cos[out]
         if occ is not None and pts.shape[0]:
             skip = 1.5 * cell + 2 * r[seg] * (1 - cos) + 1e-3
             vis = _visible(occ, lo, cell, sp, pts, skip)
