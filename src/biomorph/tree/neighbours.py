@@ -103,6 +103,19 @@ def query_ordered(
     return dist, idx
 
 
+def ball_lists(
+    tree: cKDTree, centres: NDArray[np.float64], radius, *, workers: int = -1
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """``tree.query_ball_point(centres, radius)`` flattened: the number of points found per
+    centre and their indices, centre after centre (one C-level concatenation of the lists:
+    a per-index generator took ~25 % of the radius stage at 10⁶ points)."""
+    lists = tree.query_ball_point(centres, radius, workers=workers, return_sorted=False)
+    counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+    if not counts.sum():
+        return counts, np.zeros(0, dtype=np.int64)
+    return counts, np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
+
+
 def _query_order(tree: cKDTree, points: NDArray | None) -> tuple[NDArray, NDArray]:
     if points is None:
         return tree.data, np.asarray(tree.indices)

@@ -38,6 +38,7 @@ from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree.livny import allometric_radii, skeleton_distance, solve_tree_system
+from biomorph.tree.neighbours import ball_lists
 
 __all__ = [
     "RadiusFit",
@@ -299,6 +300,28 @@ def _fit_kernel(
         out_cov[v] = occ.sum() / 12.0
 
 
+def _cross_sections(
+    pos: NDArray, axes: NDArray, xyz: NDArray, kd: cKDTree, rs: NDArray, depth: float
+) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
+    """The points of each node's flat search cylinder (radius ``rs``, half-height ``depth``
+    about ``axes`` through ``pos``) in its cross-section plane: the plane's tangents
+    ``t0``, ``t1`` and the CSR ``indptr``, ``u``, ``w`` of :func:`_slab_points`."""
+    t0, t1 = _tangents(axes)
+    counts, idx = ball_lists(kd, pos, np.sqrt(rs**2 + depth**2))
+    indptr, u, w = _slab_points(
+        idx,
+        counts,
+        np.ascontiguousarray(xyz, dtype=np.float64),
+        np.ascontiguousarray(pos, dtype=np.float64),
+        axes,
+        t0,
+        t1,
+        float(depth),
+        rs,
+    )
+    return t0, t1, indptr, u, w
+
+
 @numba.njit(cache=True)
 def _slab_points(idx, counts, xyz, pos, axes, t0, t1, depth, rs):
     """The ball-query candidates of every node that lie in its flat search cylinder,
@@ -388,29 +411,8 @@ def fit_circles(
     kd = kdtree or cKDTree(xyz)
     rs = np.maximum(search_factor * np.asarray(prior, dtype=float), min_search)
     rs = np.maximum(rs, 1e-4)
-    axes = node_axes(graph)
-    t0, t1 = _tangents(axes)
-    lists = kd.query_ball_point(
-        graph.position, np.sqrt(rs**2 + search_depth**2), workers=-1, return_sorted=False
-    )
-    counts = np.fromiter(map(len, lists), dtype=np.int64, count=n)
-    # one C-level concatenation of the per-node lists (a per-index generator took ~25 % of
-    # the radius stage at 10⁶ points)
-    idx = (
-        np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
-        if counts.sum()
-        else np.zeros(0, dtype=np.int64)
-    )
-    indptr, u, w = _slab_points(
-        idx,
-        counts,
-        np.ascontiguousarray(xyz, dtype=np.float64),
-        np.ascontiguousarray(graph.position, dtype=np.float64),
-        axes,
-        t0,
-        t1,
-        float(search_depth),
-        rs,
+    t0, t1, indptr, u, w = _cross_sections(
+        graph.position, node_axes(graph), xyz, kd, rs, float(search_depth)
     )
     cx = np.zeros(n)
     cy = np.zeros(n)
@@ -652,27 +654,8 @@ def centre_thin_nodes(
         search_depth = 0.5 * float(np.median(el[el > 0])) if (el > 0).any() else spacing
     sub = np.flatnonzero(target)
     rs = np.maximum(2.0 * radius[sub], 2.0 * spacing)
-    axes = node_axes(graph)[sub]
-    t0, t1 = _tangents(axes)
-    kd = kdtree or cKDTree(xyz)
-    pos = graph.position[sub]
-    lists = kd.query_ball_point(
-        pos, np.sqrt(rs**2 + search_depth**2), workers=-1, return_sorted=False
-    )
-    counts = np.fromiter(map(len, lists), dtype=np.int64, count=sub.size)
-    if not counts.sum():
-        return graph
-    idx = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
-    indptr, u, w = _slab_points(
-        idx,
-        counts,
-        np.ascontiguousarray(xyz, dtype=np.float64),
-        np.ascontiguousarray(pos, dtype=np.float64),
-        axes,
-        t0,
-        t1,
-        float(search_depth),
-        rs,
+    t0, t1, indptr, u, w = _cross_sections(
+        graph.position[sub], node_axes(graph)[sub], xyz, kdtree or cKDTree(xyz), rs, search_depth
     )
     cnt = np.diff(indptr)
     has = cnt >= 3

@@ -495,22 +495,21 @@ def _inside_other_tubes(
     segment below :data:`INSIDE_SHARE` of its radius)."""
     from scipy.spatial import cKDTree
 
+    from biomorph.tree.metrics import _segment_kernel
+    from biomorph.tree.neighbours import ball_lists
+
+    out = np.zeros(pts.shape[0], dtype=bool)
     if pts.shape[0] == 0:
-        return np.zeros(0, dtype=bool)
-    mid = 0.5 * (p0 + p1)
+        return out
     reach = 0.5 * np.linalg.norm(p1 - p0, axis=1) + r
-    lists = cKDTree(pts).query_ball_point(mid, reach, return_sorted=False)
-    cnt = np.fromiter(map(len, lists), dtype=np.int64, count=mid.shape[0])
-    if not cnt.sum():
-        return np.zeros(pts.shape[0], dtype=bool)
-    idx = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
-    k = np.repeat(np.arange(mid.shape[0]), cnt)
+    cnt, idx = ball_lists(cKDTree(pts), 0.5 * (p0 + p1), reach)
+    k = np.repeat(np.arange(p0.shape[0]), cnt)
     other = seg[idx] != k
     idx, k = idx[other], k[other]
-    ab = p1[k] - p0[k]
-    t = np.clip(np.einsum("ij,ij->i", pts[idx] - p0[k], ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
-    d = np.linalg.norm(pts[idx] - (p0[k] + t[:, None] * ab), axis=1)
-    out = np.zeros(pts.shape[0], dtype=bool)
+    ends = np.concatenate([p0, p1])  # segment k runs from ends[k] to ends[m + k]
+    m = p0.shape[0]
+    _, d = _segment_kernel(np.ascontiguousarray(pts[idx]), (m + k)[:, None], k[:, None], ends)
+    d = d[:, 0]
     out[idx[d < INSIDE_SHARE * r[k]]] = True
     return out
 
