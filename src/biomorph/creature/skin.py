@@ -487,6 +487,20 @@ def _resample(poly: NDArray, n: int) -> NDArray:
     return np.stack([np.interp(t, s, poly[:, k]) for k in range(3)], axis=1)
 
 
+def _ray_tubes(fins, radii: list[NDArray], sides: int) -> tuple[NDArray, NDArray]:
+    """The rays of ``fins`` (all of one shape) as one batch of tubes: ``radii`` per fin,
+    thickened by the landmark tissue, each tube's cross-section referenced to its fin's
+    normal."""
+    from biomorph.creature.bones.prim import tubes
+
+    return tubes(
+        np.concatenate([fin.rays for fin in fins]),
+        np.concatenate(radii) * (1 + LANDMARK_TISSUE),
+        sides,
+        ref=np.concatenate([np.tile(fin.normal, (len(fin.rays), 1)) for fin in fins]),
+    )
+
+
 def _slab(mid: NDArray, thick: NDArray, up: NDArray) -> tuple[NDArray, NDArray]:
     """A closed thin sheet round the mid-surface grid ``mid (r, k, 3)``: two faces
     ``±thick/2`` along the surface normal (turned towards ``up``) stitched along the rim;
@@ -656,8 +670,6 @@ def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
     and the fin membrane between the rays, a closed slab :data:`fins.MEMBRANE` of the
     first ray's diameter thick — the paired fins, then a fish's median fins (dorsal, anal,
     caudal: :func:`biomorph.creature.fins.build_median`) alike."""
-    from biomorph.creature.bones.prim import tubes
-
     built = fn.build(c, *fn.DETAIL[lod])
     median = fn.build_median(c, *fn.MEDIAN_DETAIL[lod])
     if not built and not median:
@@ -670,33 +682,16 @@ def fin_skin(c: Creature, lod: int = 1) -> tuple[NDArray, NDArray]:
         )
         for fin in built
     ]
-    if len({fin.rays.shape for fin in built}) == 1:  # every fin's rays in one batch
-        pieces.append(
-            tubes(
-                np.concatenate([fin.rays for fin in built]),
-                np.concatenate([fn.ray_radii(fin) for fin in built]) * (1 + LANDMARK_TISSUE),
-                sides,
-                ref=np.concatenate([np.tile(fin.normal, (len(fin.rays), 1)) for fin in built]),
-            )
-        )
-    else:
-        for fin in built:
-            ref = np.tile(fin.normal, (len(fin.rays), 1))
-            rad = fn.ray_radii(fin) * (1 + LANDMARK_TISSUE)
-            pieces.append(tubes(fin.rays, rad, sides, ref=ref))
+    # rays of fins of one shape in one batch (the median fins share theirs)
+    same = len({fin.rays.shape for fin in built}) == 1
+    for group in [built] if same else [[fin] for fin in built]:
+        pieces.append(_ray_tubes(group, [fn.ray_radii(fin) for fin in group], sides))
     pieces += [
         _slab(fin.rays, np.full(fin.rays.shape[:2], fn.MEMBRANE * fin.width), fin.normal)
         for fin in median
     ]
-    if median:  # the median fins' rays in one batch (one shape for all three)
-        pieces.append(
-            tubes(
-                np.concatenate([fin.rays for fin in median]),
-                np.concatenate([fn.median_radii(fin) for fin in median]) * (1 + LANDMARK_TISSUE),
-                sides,
-                ref=np.concatenate([np.tile(fin.normal, (len(fin.rays), 1)) for fin in median]),
-            )
-        )
+    if median:
+        pieces.append(_ray_tubes(median, [fn.median_radii(fin) for fin in median], sides))
     for v, f in pieces:
         vs.append(v)
         fs.append(f + base)
