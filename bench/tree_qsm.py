@@ -126,7 +126,9 @@ def ours(path: Path, method: str, twig_radius: float | None = None) -> dict:
     c0 = time.process_time()
     opts = None
     if twig_radius is not None:
-        opts = SkeletonizeOptions(radius=RadiusOptions(min_radius=twig_radius))
+        # the species' twig radius replaces what the scan says about the twigs (rTwig's
+        # correction), so the twig offset from the points is off
+        opts = SkeletonizeOptions(radius=RadiusOptions(min_radius=twig_radius, twig_scale=False))
     s = skeletonize(path, method=method, options=opts)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     m = s.metrics

@@ -312,6 +312,13 @@ class RadiusOptions:
         "species' measured twig radius as rTwig does (e.g. 0.00423); default 1 mm.",
         lo=0,
     )
+    twig_scale: bool = _opt(
+        True,
+        "--twig-scale",
+        "Set the modelled twigs' radii to what their points say (radius.twig_offset); "
+        "off when the species' twig radius is given as --min-radius.",
+        kind="enabled",
+    )
     taper_exponent: float = _opt(
         2.0,
         "--taper-exponent",

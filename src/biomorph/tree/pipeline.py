@@ -48,6 +48,8 @@ __all__ = [
     "graph_phase",
     "voxel_phase",
     "radius_phase",
+    "residual_phase",
+    "twig_phase",
     "order_phase",
     "metrics_phase",
 ]
@@ -236,6 +238,7 @@ def skeletonize(
     (graph_phase if opts.method == "graph" else voxel_phase)(run)
     radius_phase(run)
     residual_phase(run)
+    twig_phase(run)
     order_phase(run)
     metrics_phase(run)
     run.timings["total"] = time.perf_counter() - t_all
@@ -566,6 +569,29 @@ def residual_phase(run: _Run) -> None:
     if rec["nodes_added"]:
         run.graph = grown
         radius_phase(run, tick=False)
+
+
+def twig_phase(run: _Run) -> None:
+    """The modelled twigs' radii from their points (:func:`biomorph.tree.radius.twig_offset`),
+    once the skeleton is complete (after the residual branches). Off with
+    ``RadiusOptions.twig_scale = False`` (``--no-twig-scale``) or without the taper model."""
+    from biomorph.tree.radius import twig_offset
+
+    ro = run.opts.radius
+    run.params.update(twig_scale=ro.twig_scale)
+    graph, fit = run.graph, run.fit
+    if not (ro.twig_scale and ro.method == "fit" and ro.taper) or graph is None or fit is None:
+        return
+    assert run.cloud is not None and graph.radius is not None
+    spacing = float(run.info.get("point_spacing") or 0.0)
+    if spacing <= 0 or fit.ok.size != graph.n_nodes:
+        return
+    t0 = time.perf_counter()
+    measured = fit.reliable if fit.reliable is not None else fit.ok
+    radius, info = twig_offset(graph, run.cloud.xyz, measured, spacing)
+    run.graph = graph.with_(radius=radius)
+    run.info["twig_offset"] = info
+    run.timings["radius_fit"] = run.timings.get("radius_fit", 0.0) + time.perf_counter() - t0
 
 
 def order_phase(run: _Run) -> None:

@@ -1,0 +1,116 @@
+"""The modelled twigs' radii from their points (tree.radius.twig_offset, issue 13: the
+reference-free twig residual and the twig volume against the reference QSMs)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from biomorph.core.graph import BranchGraph
+from biomorph.tree.metrics import cylinder_fit
+from biomorph.tree.radius import TWIG_MAX_OFFSET, TWIG_MIN_POINTS, twig_offset
+
+
+def _scan(radii, spacing: float = 0.004, seed: int = 0):
+    """Points on the surfaces of horizontal 0.5 m twigs along x, one per entry of ``radii``
+    (twig i at y = i × 0.2 m), about one point per ``spacing``²."""
+    rng = np.random.default_rng(seed)
+    parts = []
+    for i, r in enumerate(radii):
+        n = int(0.5 * 2 * np.pi * r / spacing**2)
+        x = rng.uniform(0, 0.5, n)
+        a = rng.uniform(0, 2 * np.pi, n)
+        parts.append(np.column_stack([x, 0.2 * i + r * np.cos(a), r * np.sin(a)]))
+    return np.vstack(parts)
+
+
+def _model(model_r: float, n_twigs: int = 1):
+    """One skeleton per twig (11 nodes along its axis, a tree each), radius ``model_r``."""
+    pos, par = [], []
+    for i in range(n_twigs):
+        base = 11 * i
+        pos.append(np.column_stack([np.linspace(0, 0.5, 11), np.full(11, 0.2 * i), np.zeros(11)]))
+        par.append(np.concatenate([[-1], base + np.arange(10)]))
+    g = BranchGraph(np.vstack(pos), np.concatenate(par))
+    return g.with_(radius=np.full(g.n_nodes, model_r))
+
+
+def test_a_twig_modelled_too_thin_gets_the_radius_its_points_show():
+    xyz = _scan([0.006])
+    g = _model(0.004)
+    before = cylinder_fit(g, xyz)["classes"]["<2.5cm"]["residual"]
+    r, info = twig_offset(g, xyz, np.zeros(g.n_nodes, bool), 0.004)
+    assert before > 0.3  # points 2 mm outside a 4 mm model
+    assert info[0]["offset"] == pytest.approx(0.002, abs=3e-4)
+    assert info[0]["points"] >= TWIG_MIN_POINTS and info[0]["nodes"] == 11
+    assert np.allclose(r, 0.006, atol=3e-4)
+    after = cylinder_fit(g.with_(radius=r), xyz)["classes"]["<2.5cm"]["residual"]
+    assert abs(after) < 0.05
+
+
+def test_a_twig_modelled_too_thick_is_thinned():
+    xyz = _scan([0.005])
+    g = _model(0.007)
+    r, info = twig_offset(g, xyz, np.zeros(g.n_nodes, bool), 0.004)
+    assert info[0]["offset"] == pytest.approx(-0.002, abs=3e-4)
+    assert np.allclose(r, 0.005, atol=3e-4)
+
+
+def test_measured_and_thick_nodes_and_sparse_trees_keep_their_radii():
+    xyz = _scan([0.006])
+    g = _model(0.004)
+    measured = np.ones(g.n_nodes, bool)
+    r, info = twig_offset(g, xyz, measured, 0.004)
+    assert info == {} and np.array_equal(r, g.radius)
+    # thicker than CENTROID_MAX_RADIUS (2) point spacings: a stem, not a twig
+    r, info = twig_offset(g, xyz, np.zeros(g.n_nodes, bool), 0.0019)
+    assert info == {} and np.array_equal(r, g.radius)
+    # fewer than TWIG_MIN_POINTS points near the twig: not measured
+    r, info = twig_offset(g, xyz[: TWIG_MIN_POINTS // 2], np.zeros(g.n_nodes, bool), 0.004)
+    assert info == {} and np.array_equal(r, g.radius)
+
+
+def test_the_offset_is_per_tree_and_clipped_to_half_a_point_spacing():
+    xyz = _scan([0.006, 0.0045])
+    g = _model(0.004, n_twigs=2)
+    r, info = twig_offset(g, xyz, np.zeros(g.n_nodes, bool), 0.004)
+    assert info[0]["offset"] == pytest.approx(0.002, abs=3e-4)
+    assert info[1]["offset"] == pytest.approx(0.0005, abs=3e-4)
+    assert np.allclose(r[11:], 0.0045, atol=3e-4)
+    # points 3 mm outside in a 2 mm spacing scan: at most 1 mm (half a spacing)
+    xyz = _scan([0.007], spacing=0.002)
+    g = _model(0.004)
+    r, info = twig_offset(g, xyz, np.zeros(g.n_nodes, bool), 0.002)
+    assert info[0]["offset"] == pytest.approx(TWIG_MAX_OFFSET * 0.002)
+    assert np.allclose(r, 0.005)
+    # points farther out than a radius are clutter around the twig, not its surface
+    r, info = twig_offset(g, _scan([0.010], spacing=0.002), np.zeros(g.n_nodes, bool), 0.002)
+    assert info == {} and np.array_equal(r, g.radius)
+
+
+def test_a_branch_stays_no_thicker_than_its_measured_parent():
+    xyz = _scan([0.006])
+    g = _model(0.004)
+    measured = np.zeros(g.n_nodes, bool)
+    measured[:4] = True  # nodes 0-3 measured at 4 mm: the twig beyond may grow 10 % per node
+    r, _ = twig_offset(g, xyz, measured, 0.004)
+    assert np.array_equal(r[:4], g.radius[:4])
+    assert r[4] <= 1.1 * r[3] + 1e-12
+    assert r[10] > r[4]
+
+
+def test_the_pipeline_records_the_offset_and_the_option_turns_it_off():
+    from biomorph.tree import RadiusOptions, SkeletonizeOptions, skeletonize
+    from biomorph.tree.synthetic import generate_tree, simulate_scan
+
+    cloud = simulate_scan(generate_tree("aspen", seed=0), n_points=20_000, seed=0)
+    on = skeletonize(cloud, method="graph")
+    off = skeletonize(
+        cloud, method="graph", options=SkeletonizeOptions(radius=RadiusOptions(twig_scale=False))
+    )
+    assert on.params["twig_scale"] is True and off.params["twig_scale"] is False
+    assert on.info["twig_offset"] and "twig_offset" not in off.info
+    rec = next(iter(on.info["twig_offset"].values()))
+    assert rec["points"] >= TWIG_MIN_POINTS and rec["nodes"] > 0
+    assert np.array_equal(on.graph.position, off.graph.position)
+    assert not np.array_equal(on.graph.radius, off.graph.radius)
