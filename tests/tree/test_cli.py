@@ -296,3 +296,13 @@ def test_trunk_angle_and_taper_exponent_reach_the_summary(good_xyz, tmp_path, ca
     data = json.loads(capsys.readouterr().out)
     assert data["params"]["trunk_angle_deg"] == pytest.approx(50.0)
     assert all(m["b"] == pytest.approx(0.4) for m in data["info"]["taper_model"].values())
+
+
+def test_no_twig_scale_reaches_the_summary(good_xyz, tmp_path, capsys):
+    args = ["tree", "skeletonize", str(good_xyz), "--no-ground", "--json"]
+    assert run([*args, "--out", str(tmp_path / "on")]) == 0
+    on = json.loads(capsys.readouterr().out)
+    assert run([*args, "--no-twig-scale", "--out", str(tmp_path / "off")]) == 0
+    off = json.loads(capsys.readouterr().out)
+    assert on["params"]["twig_scale"] is True and off["params"]["twig_scale"] is False
+    assert "twig_offset" not in off["info"]
