@@ -35,14 +35,14 @@ pine plot with undergrowth (0.46 %), the 40,000-point demo birch (4 mm noise, no
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from biomorph.errors import InputError, ParameterError
-from biomorph.tree.neighbours import query_blocks
+from biomorph.tree.neighbours import NeighbourCache, query_blocks
 
 __all__ = [
     "neighbourhood_thickness",
@@ -57,11 +57,17 @@ _CHUNK = 200_000  #: points per block of neighbourhood covariances (bounds memor
 
 
 def neighbourhood_thickness(
-    xyz: NDArray[np.float64], k: int = 12, kdtree: cKDTree | None = None
+    xyz: NDArray[np.float64],
+    k: int = 12,
+    kdtree: cKDTree | None = None,
+    neighbours: NeighbourCache | None = None,
 ) -> NDArray[np.float64]:
     """RMS distance (m) of each point's ``k`` nearest neighbours (itself included) from
     their least-squares plane: ``√λ3`` of the neighbourhood covariance. Computed in blocks
-    of 200,000 points, so memory stays ~100 MB for any cloud size."""
+    of 200,000 points, so memory stays ~100 MB for any cloud size. ``kdtree``: a k-d tree
+    of ``xyz``; ``neighbours``: the :class:`~biomorph.tree.neighbours.NeighbourCache` of
+    ``xyz`` (e.g. the outlier filter's), whose lists give the rows they decide (the same
+    neighbours, so the same values) and the tree the others."""
     xyz = np.asarray(xyz, dtype=np.float64)
     n = xyz.shape[0]
     if k < 4:
@@ -70,14 +76,26 @@ def neighbourhood_thickness(
         return np.zeros(n)
     tree = kdtree if kdtree is not None else cKDTree(xyz)
     out = np.empty(n)
-    # blocks in spatial order: the query and the neighbour gather stay in cache
-    for rows, _, idx in query_blocks(tree, None if kdtree is None else xyz, k, block=_CHUNK):
-        nb = xyz[idx]
-        nb -= nb.mean(axis=1, keepdims=True)
-        cov = np.einsum("nki,nkj->nij", nb, nb) / k
-        lam = np.linalg.eigvalsh(cov)[:, 0]
-        out[rows] = np.sqrt(np.maximum(lam, 0.0))
+    if neighbours is not None and neighbours.n == n:
+        for a in range(0, n, _CHUNK):
+            _, idx = neighbours.query(k, tree, xyz, a, a + _CHUNK)
+            out[a : a + idx.shape[0]] = _thickness(xyz, idx, k)
+        return out
+    # blocks in spatial order (the tree's own for its own points): the query and the
+    # neighbour gather stay in cache
+    own = tree.data is xyz
+    for rows, _, idx in query_blocks(tree, None if own else xyz, k, block=_CHUNK):
+        out[rows] = _thickness(xyz, idx, k)
     return out
+
+
+def _thickness(xyz: NDArray[np.float64], idx: NDArray, k: int) -> NDArray[np.float64]:
+    """``√λ3`` of the covariance of the points ``xyz[idx[i]]``, per row ``i``."""
+    nb = xyz[idx]
+    nb -= nb.mean(axis=1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", nb, nb) / k
+    lam = np.linalg.eigvalsh(cov)[:, 0]
+    return np.sqrt(np.maximum(lam, 0.0))
 
 
 @dataclass(frozen=True)
@@ -97,6 +115,9 @@ class FoliageSplit:
     threshold: tuple[float, ...]
     foliage_share: float = 0.0
     detected: bool = True
+    #: the k-d tree of all the input points, if the first pass built one (for a later
+    #: query on the same points)
+    kdtree: cKDTree | None = field(default=None, repr=False, compare=False)
 
     @property
     def foliage_fraction(self) -> float:
@@ -128,6 +149,7 @@ def separate_foliage(
     k: int = 12,
     passes: int = 2,
     detect: bool = False,
+    neighbours: NeighbourCache | None = None,
 ) -> FoliageSplit:
     """Split a tree cloud into wood and foliage by neighbourhood thickness (module doc).
 
@@ -139,6 +161,9 @@ def separate_foliage(
     k : neighbourhood size (points).
     passes : how many times the features are recomputed on the remaining points (≥ 1).
     detect : only split when foliage is detected (module doc); otherwise keep every point.
+    neighbours : the :class:`~biomorph.tree.neighbours.NeighbourCache` of ``xyz`` (at
+        least ``k`` neighbours per point, e.g. the outlier filter's): the passes take the
+        neighbourhoods it decides from it instead of querying them again (same result).
     """
     if not factor > 1:
         raise ParameterError(
@@ -159,24 +184,33 @@ def separate_foliage(
         sampled = _detected_share(xyz, k)
         if sampled <= DETECT_SHARE:
             return FoliageSplit(wood, first, (), sampled, False)
+    if neighbours is not None and neighbours.n != n:
+        neighbours = None
+    kd0 = None  # the first pass's k-d tree (of all the points)
     for it in range(passes):
         idx = np.flatnonzero(wood)
         if idx.size <= 4 * k:
             break
-        th = neighbourhood_thickness(xyz[idx], k)
+        pts = xyz[idx]
+        kd = cKDTree(pts)
+        if it == 0:
+            kd0 = kd
+        elif neighbours is not None:
+            neighbours = neighbours.select(idx)
+        th = neighbourhood_thickness(pts, k, kdtree=kd, neighbours=neighbours)
         med = float(np.median(th))
         if it == 0:
             first = th
             share = float(np.mean(th > DETECT_FACTOR * med))
             if detect and share <= DETECT_SHARE:
-                return FoliageSplit(wood, first, (), share, False)
+                return FoliageSplit(wood, first, (), share, False, kdtree=kd0)
         limit = factor * med
         limits.append(limit)
         leafy = th > limit
         if not leafy.any():
             break
         wood[idx[leafy]] = False
-    return FoliageSplit(wood, first, tuple(limits), share, True)
+    return FoliageSplit(wood, first, tuple(limits), share, True, kdtree=kd0)
 
 
 #: median :func:`scatter_ratio` above which a cloud is a volume of scattered returns, not

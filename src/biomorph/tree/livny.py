@@ -240,6 +240,15 @@ def _merge_inside_tips(graph, keep, label, xyz, spacing_pts):
     return graph, np.where(ok & (g >= 0), new[np.maximum(g, 0)], -1)
 
 
+def _kdtree(xyz: NDArray[np.float64], neighbours: NeighbourCache | None) -> cKDTree:
+    """The k-d tree of ``xyz``: the one built on these points before (the foliage
+    pass's, carried by the neighbour lists) or a new one."""
+    t = None if neighbours is None else neighbours.tree
+    if t is not None and t.n == xyz.shape[0] and t.m == 3 and np.array_equal(t.data, xyz):
+        return t
+    return cKDTree(xyz)
+
+
 def skeletonize_graph(
     xyz: NDArray[np.float64],
     *,
@@ -341,7 +350,7 @@ def skeletonize_graph(
 
     t0 = time.perf_counter()
     t_start = t0
-    kd = cKDTree(xyz)
+    kd = _kdtree(xyz, neighbours)
     spacing_pts = estimate_spacing(xyz, kdtree=kd)
     extent = float(np.ptp(xyz[:, 2]))
     if node_spacing is None:

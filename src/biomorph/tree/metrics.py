@@ -12,7 +12,7 @@ All distances are metres in the graphs' common frame; nothing here aligns frames
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
@@ -83,26 +83,43 @@ class SegmentCandidates:
     par: NDArray[np.int64]
     t: NDArray[np.float64]
     d: NDArray[np.float64]
+    #: the skeleton's samples behind them (k-d tree, sample → edge), for a second look
+    #: at some points with more candidates without resampling (:func:`surface_distance`)
+    samples: _Samples | None = field(default=None, repr=False, compare=False)
 
 
-def segment_candidates(
-    graph: BranchGraph, xyz: NDArray[np.float64], k: int = 8
-) -> SegmentCandidates:
-    """The :class:`SegmentCandidates` of ``xyz`` on ``graph`` (samples spaced half the
-    median edge length)."""
-    if graph.n_nodes == 0:
-        raise InputError("skeleton is empty; expected at least one node")
-    xyz = np.asarray(xyz, dtype=float)
+@dataclass(frozen=True)
+class _Samples:
+    """A skeleton resampled for :func:`segment_candidates`: the samples' k-d tree and
+    the edge (child node, or a root) of each sample."""
+
+    tree: cKDTree
+    edge: NDArray[np.int64]
+
+
+def _skeleton_samples(graph: BranchGraph) -> _Samples:
     el = graph.edge_length[graph.parent >= 0]
     step = max(float(np.median(el)) / 2 if el.size else 1.0, 1e-4)
     pts, ec, _ = resample_graph(graph, step)
-    kk = min(k, pts.shape[0])
-    _, idx = query_ordered(cKDTree(pts), xyz, kk)
+    return _Samples(cKDTree(pts), ec)
+
+
+def segment_candidates(
+    graph: BranchGraph, xyz: NDArray[np.float64], k: int = 8, *, _samples: _Samples | None = None
+) -> SegmentCandidates:
+    """The :class:`SegmentCandidates` of ``xyz`` on ``graph`` (samples spaced half the
+    median edge length; ``_samples``: those of an earlier call on the same graph)."""
+    if graph.n_nodes == 0:
+        raise InputError("skeleton is empty; expected at least one node")
+    xyz = np.asarray(xyz, dtype=float)
+    smp = _samples if _samples is not None else _skeleton_samples(graph)
+    kk = min(k, smp.tree.n)
+    _, idx = query_ordered(smp.tree, xyz, kk)
     idx = idx.reshape(xyz.shape[0], kk)
-    node = ec[idx]  # child node of candidate edges (or a root)
+    node = smp.edge[idx]  # child node of candidate edges (or a root)
     par = graph.parent[node]
     t, d = _segment_kernel(xyz, node, par, np.ascontiguousarray(graph.position, dtype=float))
-    return SegmentCandidates(node, par, t, d)
+    return SegmentCandidates(node, par, t, d, smp)
 
 
 @numba.njit(cache=True)
@@ -550,7 +567,9 @@ def surface_distance(
         far = np.flatnonzero(np.abs(sd) > refine)
         if far.size and refine_k > k:
             sub = np.asarray(xyz, dtype=float)[far]
-            sd2, rd2, near2 = surface_distance(graph, sub, refine_k)
+            # the same samples: no second resampling and k-d tree build
+            wide = segment_candidates(graph, sub, refine_k, _samples=c.samples)
+            sd2, rd2, near2 = surface_distance(graph, sub, refine_k, wide)
             better = np.abs(sd2) < np.abs(sd[far])
             idx = far[better]
             sd[idx], rd[idx], near[idx] = sd2[better], rd2[better], near2[better]

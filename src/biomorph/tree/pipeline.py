@@ -278,12 +278,15 @@ def prepare_phase(run: _Run) -> None:
     )
     pc, knn, ground, steps = prep.cloud, prep.neighbours, prep.ground, prep.steps
     del prep  # ``knn`` alone holds the neighbour lists until the graph
-    foliage, foliage_info = _foliage(run, pc)
+    foliage, foliage_info = _foliage(run, pc, knn)
     if foliage_info:
         wood = foliage_info.pop("_wood")
+        kd = foliage_info.pop("_kdtree")
         if not wood.all():  # nothing removed (no foliage detected): no copies
             pc = pc.select(wood)
             knn = None if knn is None else knn.select(wood)
+        elif knn is not None:
+            knn.tree = kd  # the foliage pass's k-d tree of these points, for the graph
     if po.sparse_filter is not None:
         pc, dense = remove_sparse(pc, po.sparse_filter, return_mask=True)
         knn = None if knn is None else knn.select(dense)
@@ -315,8 +318,10 @@ def prepare_phase(run: _Run) -> None:
     run.tick("prepared")
 
 
-def _foliage(run: _Run, pc: PointCloud) -> tuple[float | None, dict[str, Any]]:
-    """Resolved foliage factor and the separation's record (``_wood`` = mask to keep)."""
+def _foliage(run: _Run, pc: PointCloud, knn: Any = None) -> tuple[float | None, dict[str, Any]]:
+    """Resolved foliage factor and the separation's record (``_wood`` = mask to keep,
+    ``_kdtree`` = the k-d tree of ``pc`` if one was built). ``knn``: the outlier filter's
+    neighbour lists of ``pc``, which spare the separation its own query."""
     foliage = run.opts.prepare.foliage
     detect = False
     if isinstance(foliage, str):
@@ -326,7 +331,11 @@ def _foliage(run: _Run, pc: PointCloud) -> tuple[float | None, dict[str, Any]]:
     from biomorph.tree.foliage import separate_foliage
 
     split = separate_foliage(
-        pc.xyz, factor=foliage, passes=run.opts.prepare.foliage_passes, detect=detect
+        pc.xyz,
+        factor=foliage,
+        passes=run.opts.prepare.foliage_passes,
+        detect=detect,
+        neighbours=knn,
     )
     return foliage, {
         "foliage_removed": int((~split.wood).sum()),
@@ -334,6 +343,7 @@ def _foliage(run: _Run, pc: PointCloud) -> tuple[float | None, dict[str, Any]]:
         "foliage_detected": split.detected,
         "foliage_share": split.foliage_share,
         "_wood": split.wood,
+        "_kdtree": split.kdtree,
     }
 
 
