@@ -148,3 +148,60 @@ def test_surface_refinement_reuses_the_samples():
     sd, rd, near = surface_distance(graph, xyz, refine=0.01)
     sd0, rd0, near0 = surface_distance(graph, xyz, candidates=c, refine=0.01)
     assert np.array_equal(sd, sd0) and np.array_equal(rd, rd0) and np.array_equal(near, near0)
+
+
+def test_segment_candidates_repeat_is_served_once_and_read_only():
+    from biomorph.tree import metrics
+
+    pos = np.c_[np.zeros(20), np.zeros(20), np.linspace(0, 2, 20)]
+    graph = BranchGraph(pos, np.r_[-1, np.arange(19)], radius=np.full(20, 0.05))
+    xyz = np.random.default_rng(1).normal(scale=0.2, size=(500, 3)) + [0.0, 0.0, 1.0]
+    a = metrics.segment_candidates(graph, xyz)
+    thicker = graph.with_(radius=np.full(20, 0.08))  # radii do not enter the candidates
+    b = metrics.segment_candidates(thicker, xyz.copy())
+    assert b is a and not a.d.flags.writeable
+    c = metrics.segment_candidates(graph, xyz)  # the kept one was taken: a fresh search
+    assert c is not a
+    for name in ("node", "par", "t", "d"):
+        assert np.array_equal(getattr(a, name), getattr(c, name))
+    moved = metrics.segment_candidates(graph, xyz + 0.01)
+    assert not np.array_equal(moved.d, c.d)
+    bent = BranchGraph(pos + [0.01, 0.0, 0.0], graph.parent)
+    assert not np.array_equal(metrics.segment_candidates(bent, xyz).d, c.d)
+
+
+def test_collapse_round_equals_the_python_loop():
+    from biomorph.tree.cleanup import _merge_round
+
+    rng = np.random.default_rng(7)
+    n = 400
+    par = np.r_[-1, rng.integers(0, np.arange(1, n))]
+    m = 300
+    keep, drop = rng.integers(0, n, m), rng.integers(1, n, m)
+    dist = rng.random(m)
+    pos0, rad0, c = rng.normal(size=(n, 3)), rng.random(n), rng.random(n) + 1e-9
+    pos, rad = pos0.copy(), rad0.copy()
+    used = np.zeros(n, dtype=bool)
+    removed0 = np.zeros(n, dtype=bool)
+    redirect0 = np.arange(n)
+    for i in np.argsort(dist, kind="stable"):
+        a, b = keep[i], drop[i]
+        ids = (a, b, par[a], par[b])
+        if any(x >= 0 and used[x] for x in ids):
+            continue
+        for x in ids:
+            if x >= 0:
+                used[x] = True
+        ca, cb = c[a], c[b]
+        pos[a] = (ca * pos[a] + cb * pos[b]) / (ca + cb)
+        rad[a] = (ca * rad[a] + cb * rad[b]) / (ca + cb)
+        removed0[b] = True
+        redirect0[b] = a
+    pos1, rad1 = pos0.copy(), rad0.copy()
+    removed1 = np.zeros(n, dtype=bool)
+    redirect1 = np.arange(n)
+    order = np.argsort(dist, kind="stable")
+    _merge_round(keep, drop, order, par, pos1, rad1, c, removed1, redirect1)
+    assert removed0.any()
+    assert np.array_equal(pos1, pos) and np.array_equal(rad1, rad)
+    assert np.array_equal(removed1, removed0) and np.array_equal(redirect1, redirect0)

@@ -19,6 +19,7 @@ same ray-intersection simplification.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -202,6 +203,31 @@ def _candidates(
     )
 
 
+@numba.njit(cache=True)
+def _merge_round(keep, drop, order, par, pos, rad, c, removed, redirect):  # pragma: no cover
+    """One round of :func:`collapse_overlaps`: the candidates in ``order`` (shortest
+    first), each merged unless one of its nodes or their parents took part in an earlier
+    merge of the round; ``drop`` moves into ``keep`` (weighted by ``c``), in place."""
+    used = np.zeros(par.size, dtype=np.bool_)
+    for i in order:
+        a, b = keep[i], drop[i]
+        pa, pb = par[a], par[b]
+        if used[a] or used[b] or (pa >= 0 and used[pa]) or (pb >= 0 and used[pb]):
+            continue
+        used[a] = True
+        used[b] = True
+        if pa >= 0:
+            used[pa] = True
+        if pb >= 0:
+            used[pb] = True
+        ca, cb = c[a], c[b]
+        for j in range(3):
+            pos[a, j] = (ca * pos[a, j] + cb * pos[b, j]) / (ca + cb)
+        rad[a] = (ca * rad[a] + cb * rad[b]) / (ca + cb)
+        removed[b] = True
+        redirect[b] = a
+
+
 def collapse_overlaps(
     graph: BranchGraph,
     *,
@@ -236,22 +262,11 @@ def collapse_overlaps(
         pos = graph.position.copy()
         rad = graph.radius.copy()
         c = graph.subtree_length() + 1e-9
-        used = np.zeros(n, dtype=bool)
         removed = np.zeros(n, dtype=bool)
         redirect = np.arange(n)
-        for i in np.argsort(dist, kind="stable"):
-            a, b = keep[i], drop[i]
-            ids = (a, b, par[a], par[b])
-            if any(x >= 0 and used[x] for x in ids):
-                continue
-            for x in ids:
-                if x >= 0:
-                    used[x] = True
-            ca, cb = c[a], c[b]
-            pos[a] = (ca * pos[a] + cb * pos[b]) / (ca + cb)
-            rad[a] = (ca * rad[a] + cb * rad[b]) / (ca + cb)
-            removed[b] = True
-            redirect[b] = a
+        _merge_round(
+            keep, drop, np.argsort(dist, kind="stable"), par, pos, rad, c, removed, redirect
+        )
         if not removed.any():
             break
         par = np.where(par >= 0, redirect[np.maximum(par, 0)], -1)
