@@ -287,6 +287,14 @@ class CleanupOptions:
         "tree.residual), then fit radii again.",
         kind="enabled",
     )
+    empty_tips: bool = _opt(
+        True,
+        "--empty-tips",
+        "Prune short side tip chains whose nodes mostly have no point within 3 point "
+        "spacings (strung through leaf clutter or range noise; tree.cleanup."
+        "prune_empty_tips), then fit radii again (graph).",
+        kind="enabled",
+    )
 
 
 @dataclass(frozen=True)
@@ -435,12 +443,15 @@ _LEGACY = {
             "min_cylinder_radius",
             "tip_support",
             "residual",
+            "empty_tips",
         )
     },
     "radius": ("radius", "method"),
     "recentre": ("radius", "recentre"),
     "search_factor": ("radius", "search_factor"),
     "smooth": ("radius", "smooth"),
+    "min_radius": ("radius", "min_radius"),
+    "twig_scale": ("radius", "twig_scale"),
     "order_share": ("order", "share"),
     "order_angle": ("order", "angle"),
     "order_rule": ("order", "rule"),

@@ -49,6 +49,7 @@ __all__ = [
     "voxel_phase",
     "radius_phase",
     "residual_phase",
+    "empty_tips_phase",
     "twig_phase",
     "order_phase",
     "metrics_phase",
@@ -238,6 +239,7 @@ def skeletonize(
     (graph_phase if opts.method == "graph" else voxel_phase)(run)
     radius_phase(run)
     residual_phase(run)
+    empty_tips_phase(run)
     twig_phase(run)
     order_phase(run)
     metrics_phase(run)
@@ -578,6 +580,36 @@ def residual_phase(run: _Run) -> None:
     run.timings["residual"] = time.perf_counter() - t0
     if rec["nodes_added"]:
         run.graph = grown
+        radius_phase(run, tick=False)
+
+
+def empty_tips_phase(run: _Run) -> None:
+    """Side tip chains through empty space pruned from the finished skeleton
+    (:func:`biomorph.tree.cleanup.prune_empty_tips`, chains shorter than
+    ``TIP_SUPPORT_LENGTH`` node spacings), then the radius stage once more if any went.
+    Graph method only; off with ``CleanupOptions.empty_tips = False``
+    (``--no-empty-tips``)."""
+    from biomorph.tree.cleanup import empty_tips
+
+    co = run.opts.cleanup
+    run.params.update(empty_tips=co.empty_tips)
+    if not co.empty_tips or run.opts.method != "graph" or run.graph is None:
+        return
+    assert run.cloud is not None and run.skeleton is not None
+    spacing = float(run.info.get("point_spacing") or 0.0)
+    ns = float(run.params.get("node_spacing") or 0.0)
+    if spacing <= 0 or ns <= 0 or run.skeleton.n_nodes != run.graph.n_nodes:
+        return
+    t0 = time.perf_counter()
+    # judged where the radius stage put the nodes; removed from the skeleton it started
+    # from (same nodes), which the radius stage then fits once more
+    drop = empty_tips(run.graph, run.cloud.xyz, spacing, TIP_SUPPORT_LENGTH * ns)
+    removed = int(drop[run.graph.leaves].sum())  # one tip per chain
+    run.info["empty_tips_removed"] = removed
+    run.timings["cleanup"] = run.timings.get("cleanup", 0.0) + time.perf_counter() - t0
+    if removed:
+        g = run.skeleton.subgraph(~drop)
+        run.graph = g.with_(weight=g.subtree_length())
         radius_phase(run, tick=False)
 
 
