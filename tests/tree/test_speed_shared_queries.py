@@ -205,3 +205,53 @@ def test_collapse_round_equals_the_python_loop():
     assert removed0.any()
     assert np.array_equal(pos1, pos) and np.array_equal(rad1, rad)
     assert np.array_equal(removed1, removed0) and np.array_equal(redirect1, redirect0)
+
+
+def test_nearest_surface_equals_the_array_expressions():
+    from biomorph.tree.metrics import _nearest_surface
+
+    rng = np.random.default_rng(11)
+    n, k, nodes = 3000, 8, 50
+    node = rng.integers(0, nodes, (n, k))
+    par = np.where(rng.random((n, k)) < 0.1, -1, rng.integers(0, nodes, (n, k)))
+    t = np.round(rng.random((n, k)), 1)  # many equal parameters, 0.5 among them
+    d = np.round(rng.random((n, k)) * 0.1, 2)  # and equal distances: ties in |s|
+    r = np.round(rng.random(nodes) * 0.05, 2)
+    r[3] = np.nan  # a NaN radius: argmin takes the first NaN
+    rp = np.where(par >= 0, r[np.maximum(par, 0)], r[node])
+    rad = rp + (r[node] - rp) * t
+    s = d - rad
+    best = np.argmin(np.abs(s), axis=1)
+    rows = np.arange(n)
+    bp, bt, bn = par[rows, best], t[rows, best], node[rows, best]
+    near0 = np.where((bp >= 0) & (bt < 0.5), bp, bn)
+    sd, rd, near = _nearest_surface(node, par, t, d, r)
+    assert np.array_equal(sd, s[rows, best], equal_nan=True)
+    assert np.array_equal(rd, rad[rows, best], equal_nan=True)
+    assert np.array_equal(near, near0)
+
+
+def _ball(n=5000, seed=4):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(n, 3))
+    return v / np.linalg.norm(v, axis=1)[:, None] * rng.random((n, 1)) ** (1 / 3)
+
+
+def test_require_wood_gives_the_verdict_of_the_full_check():
+    from biomorph.errors import InputError
+
+    stem = _leafy_cloud()[:6000]
+    assert foliage.check_not_only_leaves(stem) < foliage.SCATTER_LEAVES
+    foliage.require_wood(stem)  # wood: no error (stops early)
+    with pytest.raises(InputError) as full:
+        foliage.check_not_only_leaves(_ball(), "crown.xyz")
+    with pytest.raises(InputError) as fast:
+        foliage.require_wood(_ball(), "crown.xyz")
+    assert str(fast.value) == str(full.value)  # the same median in the message
+    # rows of 12-fold duplicates have no ratio: the early stop is never reached, the
+    # median of the others decides (as in the full check)
+    dup = np.repeat(_ball(200) * 5.0 + 10.0, 13, axis=0)
+    mixed = np.concatenate([stem[:1500], dup])
+    assert foliage.check_not_only_leaves(mixed) < foliage.SCATTER_LEAVES
+    foliage.require_wood(mixed)
+    foliage.require_wood(stem[:5])  # too few points: nothing to judge

@@ -74,7 +74,7 @@ from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import InputError, ParameterError
 from biomorph.tree.allometry import allometric_radii, skeleton_distance
-from biomorph.tree.foliage import check_not_only_leaves
+from biomorph.tree.foliage import require_wood
 from biomorph.tree.neighbours import (
     GAP_SHORT,
     LEVEL_CELL,
@@ -329,7 +329,7 @@ def skeletonize_graph(
         raise ParameterError(
             f"edge_weights {edge_weights!r}; expected one of {', '.join(EDGE_WEIGHTS)}"
         )
-    check_not_only_leaves(xyz, source)
+    require_wood(xyz, source)
     check_trunk_reaches_ground(height, source=source)
     if n_trees == 1:
         check_single_tree(

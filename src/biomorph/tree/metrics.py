@@ -224,9 +224,12 @@ def skeleton_metrics(
         if xyz.shape[0]:
             d = point_to_skeleton_distance(graph, xyz, candidates=candidates)
             d2 = d**2
-            # the tree of the nearest node (cheap, adequate for attributing points)
-            _, ni = query_ordered(cKDTree(graph.position), xyz)
-            near_tree = labels[ni]
+            if uniq.size == 1:  # one tree: every point is its own
+                near_tree = np.full(xyz.shape[0], uniq[0], dtype=labels.dtype)
+            else:
+                # the tree of the nearest node (cheap, adequate for attributing points)
+                _, ni = query_ordered(cKDTree(graph.position), xyz)
+                near_tree = labels[ni]
     trees = []
     for t in uniq:
         m = labels == t
@@ -567,6 +570,38 @@ def _surface_candidates(
     return c.d - rad, rad
 
 
+@numba.njit(cache=True)
+def _nearest_surface(node, par, t, d, r):  # pragma: no cover - numba
+    """Per point, of its candidate edges the one whose surface is nearest (first of equal
+    ones, a NaN first, as ``argmin(abs(...))``): the signed distance to it, its radius
+    there (``rp + (rn - rp) t``, the expression of :func:`_surface_candidates`) and the
+    nearer end of its axis. One pass, no ``[n, k]`` temporaries."""
+    n, k = node.shape
+    sd = np.empty(n)
+    rd = np.empty(n)
+    near = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        best = 0
+        best_a = np.inf
+        best_s = 0.0
+        best_r = 0.0
+        for j in range(k):
+            v = node[i, j]
+            p = par[i, j]
+            rn = r[v]
+            rp = r[p] if p >= 0 else rn
+            rad = rp + (rn - rp) * t[i, j]
+            sv = d[i, j] - rad
+            a = abs(sv)
+            if j == 0 or a < best_a or (np.isnan(a) and not np.isnan(best_a)):
+                best, best_a, best_s, best_r = j, a, sv, rad
+        p = par[i, best]
+        sd[i] = best_s
+        rd[i] = best_r
+        near[i] = p if (p >= 0 and t[i, best] < 0.5) else node[i, best]
+    return sd, rd, near
+
+
 def surface_distance(
     graph: BranchGraph,
     xyz: NDArray,
@@ -583,12 +618,11 @@ def surface_distance(
     looked at again with ``refine_k`` candidate edges instead of ``k`` (their nearest
     surface is kept where the wider look finds a nearer one)."""
     c = candidates if candidates is not None else segment_candidates(graph, xyz, k)
-    s, rad = _surface_candidates(graph, xyz, k, c)
-    best = np.argmin(np.abs(s), axis=1)
-    rows = np.arange(s.shape[0])
-    node, par, t = c.node[rows, best], c.par[rows, best], c.t[rows, best]
-    near = np.where((par >= 0) & (t < 0.5), par, node)
-    sd, rd = s[rows, best], rad[rows, best]
+    if graph.radius is None:
+        raise InputError("the skeleton has no radii; expected a cylinder model")
+    sd, rd, near = _nearest_surface(
+        c.node, c.par, c.t, c.d, np.ascontiguousarray(graph.radius, dtype=np.float64)
+    )
     if refine is not None and xyz.shape[0]:
         # the k candidates are the edges with the nearest *axis* samples: on a thick stem
         # at a whorl they can all be branch bases, whose thin surfaces lie farther than
