@@ -114,3 +114,14 @@ def test_the_pipeline_records_the_offset_and_the_option_turns_it_off():
     assert rec["points"] >= TWIG_MIN_POINTS and rec["nodes"] > 0
     assert np.array_equal(on.graph.position, off.graph.position)
     assert not np.array_equal(on.graph.radius, off.graph.radius)
+
+
+def test_the_voxel_method_gets_the_twig_offset_too():
+    from biomorph.tree import skeletonize
+    from biomorph.tree.synthetic import generate_tree, simulate_scan
+
+    cloud = simulate_scan(generate_tree("aspen", seed=0), n_points=20_000, seed=0)
+    on = skeletonize(cloud, method="voxel")
+    off = skeletonize(cloud, method="voxel", twig_scale=False)
+    assert on.info["twig_offset"] and "twig_offset" not in off.info
+    assert not np.array_equal(on.graph.radius, off.graph.radius)

@@ -625,10 +625,14 @@ def twig_phase(run: _Run) -> None:
     if not (ro.twig_scale and ro.method == "fit" and ro.taper) or graph is None or fit is None:
         return
     assert run.cloud is not None and graph.radius is not None
+    t0 = time.perf_counter()
     spacing = float(run.info.get("point_spacing") or 0.0)
+    if spacing <= 0 and run.cloud.n_points >= 2:  # the voxel method does not measure it
+        from biomorph.tree.neighbours import estimate_spacing
+
+        spacing = float(estimate_spacing(run.cloud.xyz))
     if spacing <= 0 or fit.ok.size != graph.n_nodes:
         return
-    t0 = time.perf_counter()
     measured = fit.reliable if fit.reliable is not None else fit.ok
     radius, info = twig_offset(graph, run.cloud.xyz, measured, spacing)
     run.graph = graph.with_(radius=radius)
