@@ -255,3 +255,33 @@ def test_require_wood_gives_the_verdict_of_the_full_check():
     assert foliage.check_not_only_leaves(mixed) < foliage.SCATTER_LEAVES
     foliage.require_wood(mixed)
     foliage.require_wood(stem[:5])  # too few points: nothing to judge
+
+
+def test_memos_are_shared_safely_by_threads():
+    from concurrent.futures import ThreadPoolExecutor
+
+    from biomorph.tree import metrics
+
+    clouds = [_grid_cloud(1500, seed=s) for s in range(6)]
+    pos = np.c_[np.zeros(20), np.zeros(20), np.linspace(-1, 1, 20)]
+    graph = BranchGraph(pos, np.r_[-1, np.arange(19)])
+    want = [
+        (
+            estimate_spacing(c, sample=300),
+            metrics.segment_candidates(graph, c).d.copy(),
+        )
+        for c in clouds
+    ]
+
+    def work(i):
+        c = clouds[i % len(clouds)]
+        return (
+            i % len(clouds),
+            estimate_spacing(c, sample=300),
+            metrics.segment_candidates(graph, c).d,
+        )
+
+    with ThreadPoolExecutor(4) as ex:
+        for i, s, d in ex.map(work, range(48)):
+            assert s == want[i][0] and np.array_equal(d, want[i][1])
+    assert len(neighbours._SPACING_MEMO) <= neighbours._SPACING_MEMO_SIZE

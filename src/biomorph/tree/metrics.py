@@ -13,6 +13,7 @@ All distances are metres in the graphs' common frame; nothing here aligns frames
 from __future__ import annotations
 
 import hashlib
+import threading
 from dataclasses import dataclass, field
 
 import numba
@@ -110,6 +111,7 @@ def _skeleton_samples(graph: BranchGraph) -> _Samples:
 #: and points one after the other); larger ones are not kept (memory)
 CANDIDATES_MEMO_POINTS = 250_000
 _CANDIDATES_MEMO: dict[tuple, SegmentCandidates] = {}
+_CANDIDATES_LOCK = threading.Lock()  # runs in threads share the memo
 
 
 def _digest(a: NDArray) -> tuple:
@@ -132,7 +134,8 @@ def segment_candidates(
     key = None
     if _samples is None and xyz.shape[0] <= CANDIDATES_MEMO_POINTS:
         key = (_digest(graph.position), _digest(graph.parent), _digest(xyz), int(k))
-        hit = _CANDIDATES_MEMO.pop(key, None)
+        with _CANDIDATES_LOCK:
+            hit = _CANDIDATES_MEMO.pop(key, None)
         if hit is not None:
             return hit
     smp = _samples if _samples is not None else _skeleton_samples(graph)
@@ -146,8 +149,9 @@ def segment_candidates(
     if key is not None:
         for a in (node, par, t, d):
             a.setflags(write=False)
-        _CANDIDATES_MEMO.clear()
-        _CANDIDATES_MEMO[key] = out
+        with _CANDIDATES_LOCK:
+            _CANDIDATES_MEMO.clear()
+            _CANDIDATES_MEMO[key] = out
     return out
 
 

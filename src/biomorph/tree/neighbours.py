@@ -14,6 +14,7 @@ Split out of :mod:`biomorph.tree.livny` (issue 12).
 from __future__ import annotations
 
 import hashlib
+import threading
 from dataclasses import dataclass, field
 from itertools import chain
 
@@ -396,6 +397,7 @@ class NeighbourCache:
 #: the graph method and the radius stage (twice) ask it of the same prepared cloud
 _SPACING_MEMO: dict[tuple, float] = {}
 _SPACING_MEMO_SIZE = 4
+_SPACING_LOCK = threading.Lock()  # runs in threads share the memo
 
 
 def _points_key(xyz: NDArray[np.float64]) -> tuple:
@@ -419,18 +421,21 @@ def estimate_spacing(
         raise InputError(f"need at least 2 points to estimate a point spacing, got {n}")
     # an integer seed gives one sample; a Generator or None a different one each call
     key = (_points_key(xyz), sample, int(seed)) if isinstance(seed, (int, np.integer)) else None
-    hit = None if key is None else _SPACING_MEMO.get(key)
-    if hit is not None:
-        return hit
+    if key is not None:
+        with _SPACING_LOCK:
+            hit = _SPACING_MEMO.get(key)
+        if hit is not None:
+            return hit
     tree = kdtree if kdtree is not None else cKDTree(xyz)
     idx = np.random.default_rng(seed).choice(n, size=min(n, sample), replace=False)
     d, _ = query_ordered(tree, xyz[idx], 2)
     pos = d[:, 1][d[:, 1] > 0]
     out = float(np.median(pos)) if pos.size else 0.0
     if key is not None:
-        if len(_SPACING_MEMO) >= _SPACING_MEMO_SIZE:
-            _SPACING_MEMO.pop(next(iter(_SPACING_MEMO)))
-        _SPACING_MEMO[key] = out
+        with _SPACING_LOCK:
+            while len(_SPACING_MEMO) >= _SPACING_MEMO_SIZE:
+                _SPACING_MEMO.pop(next(iter(_SPACING_MEMO)))
+            _SPACING_MEMO[key] = out
     return out
 
 
