@@ -125,3 +125,22 @@ def test_the_voxel_method_gets_the_twig_offset_too():
     off = skeletonize(cloud, method="voxel", twig_scale=False)
     assert on.info["twig_offset"] and "twig_offset" not in off.info
     assert not np.array_equal(on.graph.radius, off.graph.radius)
+
+
+def test_an_envelope_of_points_is_not_a_surface_and_leaves_the_model():
+    # points filling a 4-12 mm shell around the twig (needles, a noise halo): each look
+    # with a thicker model finds as much outside as the one before
+    rng = np.random.default_rng(1)
+    n = 6000
+    rad = rng.uniform(0.004, 0.012, n)
+    a = rng.uniform(0, 2 * np.pi, n)
+    xyz = np.column_stack([rng.uniform(0, 0.5, n), rad * np.cos(a), rad * np.sin(a)])
+    g = _model(0.004)
+    r, info = twig_offset(g, xyz, np.zeros(g.n_nodes, bool), 0.004)
+    first, second = info[0]["looks"]
+    assert first > 0.0015 and abs(second) >= 0.9 * first
+    assert info[0]["surface"] is False and info[0]["offset"] == 0.0
+    assert np.array_equal(r, g.radius)
+    # the surface case records both looks, the second far smaller
+    r, info = twig_offset(g, _scan([0.006]), np.zeros(g.n_nodes, bool), 0.004)
+    assert info[0]["surface"] is True and abs(info[0]["looks"][1]) < 0.2 * info[0]["looks"][0]
