@@ -724,7 +724,8 @@ def twig_offset(
     Returns the new radii and, per tree, the applied ``offset`` (m; 0 where not applied),
     the two ``looks`` (m), ``surface``, the ``points`` behind the first look and the
     ``nodes`` concerned; trees without enough points are not in it and keep their radii.
-    Turned off by ``RadiusOptions.twig_scale = False`` (``--no-twig-scale``), e.g. when the species' twig radius is known (``--min-radius``, rTwig's way).
+    Turned off by ``RadiusOptions.twig_scale = False`` (``--no-twig-scale``), e.g. when
+    the species' twig radius is known (``--min-radius``, rTwig's way).
     """
     from biomorph.tree.metrics import segment_candidates, surface_distance
 
