@@ -720,7 +720,9 @@ def twig_offset(
     spacings either way, and no node more than doubles or halves; a branch then stays no
     thicker than its parent node (the continuation at most ``slack`` × it, as
     :func:`taper_radii`). It is applied only where the points behave as a surface: the
-    second look finds less than :data:`TWIG_SURFACE_RATIO` of what the first found.
+    second look finds less than :data:`TWIG_SURFACE_RATIO` of what the first found, and
+    less by more than two standard errors of the first look's median (a tree of a few
+    hundred points around its twigs cannot tell a surface from an envelope otherwise).
     Returns the new radii and, per tree, the applied ``offset`` (m; 0 where not applied),
     the two ``looks`` (m), ``surface``, the ``points`` behind the first look and the
     ``nodes`` concerned; trees without enough points are not in it and keep their radii.
@@ -757,6 +759,7 @@ def twig_offset(
 
     offset: dict[int, float] = {}
     looks: dict[int, list[float]] = {}
+    se: dict[int, float] = {}
     out = radius
     for look in range(2):
         sd, rd, near = surface_distance(graph.with_(radius=out), xyz, candidates=cand)
@@ -769,12 +772,19 @@ def twig_offset(
             looks.setdefault(t, []).append(med)
             offset[t] = float(np.clip(offset.get(t, 0.0) + med, -lim, lim))
             if look == 0:
+                # standard error of the median: 1.2533 σ / √n, σ = 1.4826 MAD
+                mad = float(np.median(np.abs(sd[m] - med)))
+                se[t] = 1.2533 * 1.4826 * mad / np.sqrt(m.sum())
                 info[t] = {"points": int(m.sum())}
         if not offset:
             return radius, info
         out = apply(offset)
-    # a surface the model can reach: the second look finds less missing than the first
-    surface = {t: abs(v[1]) < TWIG_SURFACE_RATIO * abs(v[0]) for t, v in looks.items()}
+    # a surface the model can reach: the second look finds less missing than the first,
+    # by a share and by more than two standard errors of the first look's median
+    surface = {
+        t: bool(abs(v[1]) < TWIG_SURFACE_RATIO * abs(v[0]) and abs(v[0]) - abs(v[1]) > 2 * se[t])
+        for t, v in looks.items()
+    }
     kept = {t: o for t, o in offset.items() if surface[t]}
     for t in info:
         info[t].update(
