@@ -136,7 +136,8 @@ def test_the_rtwig_twigs_are_thickened_to_their_points(method):
     for name, skel in (("on", on), ("off", off)):
         g = skel.world_graph()
         res[name] = cylinder_fit(g, cloud.xyz)["classes"]["<2.5cm"]["residual"]
-        vol[name] = float(np.sum(np.pi * g.radius[g.parent >= 0] ** 2 * g.edge_length[g.parent >= 0]))
+        e = g.parent >= 0
+        vol[name] = float(np.sum(np.pi * g.radius[e] ** 2 * g.edge_length[e]))
     assert res["off"] > 0.2 and abs(res["on"]) < 0.15, res
     assert vol["on"] > 1.1 * vol["off"]
 
