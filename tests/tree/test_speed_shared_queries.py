@@ -6,7 +6,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from biomorph.core.graph import BranchGraph
-from biomorph.tree import foliage, neighbours
+from biomorph.tree import foliage
 from biomorph.tree.neighbours import (
     NeighbourCache,
     ball_lists,
@@ -87,22 +87,14 @@ def test_neighbour_cache_blocks_equal_fresh_query(make):
         assert np.array_equal(d, d0[start:stop]) and np.array_equal(i, i0[start:stop])
 
 
-def test_estimate_spacing_remembers_by_value():
+def test_estimate_spacing_is_the_median_nearest_neighbour():
     xyz = _grid_cloud(3000)
-    tree = cKDTree(xyz)
     first = estimate_spacing(xyz, sample=500)
-    assert estimate_spacing(xyz.copy(), sample=500, kdtree=tree) == first  # same values
+    assert estimate_spacing(xyz, sample=500, kdtree=cKDTree(xyz)) == first
     idx = np.random.default_rng(0).choice(xyz.shape[0], size=500, replace=False)
     d, _ = cKDTree(xyz).query(xyz[idx], k=2)
     assert first == float(np.median(d[:, 1][d[:, 1] > 0]))
-    moved = xyz * 2.0  # changed values: a new estimate, not the remembered one
-    assert estimate_spacing(moved, sample=500) == pytest.approx(2 * first)
-    key = (neighbours._points_key(xyz), 500, 0)
-    assert neighbours._SPACING_MEMO[key] == first
-    assert len(neighbours._SPACING_MEMO) <= neighbours._SPACING_MEMO_SIZE
-    rng = np.random.default_rng(3)
-    estimate_spacing(xyz, sample=500, seed=rng)  # a Generator seed is never remembered
-    assert all(not isinstance(k[2], np.random.Generator) for k in neighbours._SPACING_MEMO)
+    assert estimate_spacing(xyz * 2.0, sample=500) == pytest.approx(2 * first)
 
 
 @pytest.mark.parametrize("make", CLOUDS)
@@ -150,24 +142,46 @@ def test_surface_refinement_reuses_the_samples():
     assert np.array_equal(sd, sd0) and np.array_equal(rd, rd0) and np.array_equal(near, near0)
 
 
-def test_segment_candidates_repeat_is_served_once_and_read_only():
+def test_segment_candidates_do_not_depend_on_radii():
     from biomorph.tree import metrics
 
     pos = np.c_[np.zeros(20), np.zeros(20), np.linspace(0, 2, 20)]
     graph = BranchGraph(pos, np.r_[-1, np.arange(19)], radius=np.full(20, 0.05))
     xyz = np.random.default_rng(1).normal(scale=0.2, size=(500, 3)) + [0.0, 0.0, 1.0]
     a = metrics.segment_candidates(graph, xyz)
-    thicker = graph.with_(radius=np.full(20, 0.08))  # radii do not enter the candidates
-    b = metrics.segment_candidates(thicker, xyz.copy())
-    assert b is a and not a.d.flags.writeable
-    c = metrics.segment_candidates(graph, xyz)  # the kept one was taken: a fresh search
-    assert c is not a
+    b = metrics.segment_candidates(graph.with_(radius=np.full(20, 0.08)), xyz)
     for name in ("node", "par", "t", "d"):
-        assert np.array_equal(getattr(a, name), getattr(c, name))
+        assert np.array_equal(getattr(a, name), getattr(b, name))
     moved = metrics.segment_candidates(graph, xyz + 0.01)
-    assert not np.array_equal(moved.d, c.d)
+    assert not np.array_equal(moved.d, a.d)
     bent = BranchGraph(pos + [0.01, 0.0, 0.0], graph.parent)
-    assert not np.array_equal(metrics.segment_candidates(bent, xyz).d, c.d)
+    assert not np.array_equal(metrics.segment_candidates(bent, xyz).d, a.d)
+
+
+def test_the_metrics_reuse_the_twig_phase_candidates(monkeypatch):
+    from biomorph.tree import metrics
+    from biomorph.tree.pipeline import skeletonize
+    from biomorph.tree.synthetic import generate_tree, simulate_scan
+
+    cloud = simulate_scan(generate_tree("aspen", seed=0), n_points=8000, seed=0)
+    searches = []
+    real = metrics.segment_candidates
+
+    def counting(graph, xyz, k=8, **kw):
+        if "_samples" not in kw:  # a fresh search (not a refinement on known samples)
+            searches.append((graph.position.copy(), xyz.shape[0]))
+        return real(graph, xyz, k, **kw)
+
+    monkeypatch.setattr(metrics, "segment_candidates", counting)
+    skel = skeletonize(cloud, method="graph")
+    assert skel.info["twig_offset"]
+    # of the finished skeleton, one search of the whole cloud: the twig phase's, which the
+    # metrics reuse (the residual stage searched the skeleton before it grew)
+    final = [n for pos, n in searches if np.array_equal(pos, skel.graph.position)]
+    assert final == [skel.cloud.n_points]
+    monkeypatch.setattr(metrics, "segment_candidates", real)
+    fresh = metrics.qsm_report(skel.graph, skel.cloud)["fit"]
+    assert fresh == skel.metrics["fit"]
 
 
 def test_collapse_round_equals_the_python_loop():
@@ -255,33 +269,3 @@ def test_require_wood_gives_the_verdict_of_the_full_check():
     assert foliage.check_not_only_leaves(mixed) < foliage.SCATTER_LEAVES
     foliage.require_wood(mixed)
     foliage.require_wood(stem[:5])  # too few points: nothing to judge
-
-
-def test_memos_are_shared_safely_by_threads():
-    from concurrent.futures import ThreadPoolExecutor
-
-    from biomorph.tree import metrics
-
-    clouds = [_grid_cloud(1500, seed=s) for s in range(6)]
-    pos = np.c_[np.zeros(20), np.zeros(20), np.linspace(-1, 1, 20)]
-    graph = BranchGraph(pos, np.r_[-1, np.arange(19)])
-    want = [
-        (
-            estimate_spacing(c, sample=300),
-            metrics.segment_candidates(graph, c).d.copy(),
-        )
-        for c in clouds
-    ]
-
-    def work(i):
-        c = clouds[i % len(clouds)]
-        return (
-            i % len(clouds),
-            estimate_spacing(c, sample=300),
-            metrics.segment_candidates(graph, c).d,
-        )
-
-    with ThreadPoolExecutor(4) as ex:
-        for i, s, d in ex.map(work, range(48)):
-            assert s == want[i][0] and np.array_equal(d, want[i][1])
-    assert len(neighbours._SPACING_MEMO) <= neighbours._SPACING_MEMO_SIZE

@@ -372,6 +372,27 @@ def tip_chains(graph: BranchGraph) -> NDArray[np.int64]:
     return np.where(lc == 1, lab - 1, -1).astype(np.int64)
 
 
+def _side_chains(
+    graph: BranchGraph,
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray]:
+    """The side tip chains (those not starting at a root): the :func:`tip_chains` labels,
+    the chains' nodes, each node's chain index into ``tops`` (the chains' top nodes), and
+    the chains' lengths (m)."""
+    lab = tip_chains(graph)
+    side = np.flatnonzero((lab >= 0) & (graph.parent[np.maximum(lab, 0)] >= 0))
+    tops, inv = np.unique(lab[side], return_inverse=True)
+    clen = np.bincount(inv, weights=graph.edge_length[side], minlength=tops.size)
+    return lab, side, inv, tops, clen
+
+
+def _without_chains(graph: BranchGraph, lab: NDArray[np.int64], bad: NDArray) -> BranchGraph:
+    """``graph`` without the tip chains whose tops are ``bad`` (``weight`` recomputed)."""
+    if bad.size == 0:
+        return graph
+    g = graph.subgraph(~np.isin(lab, bad))
+    return g.with_(weight=g.subtree_length())
+
+
 def prune_unsupported_tips(
     graph: BranchGraph, xyz: NDArray[np.float64], ratio: float = 0.3, max_length: float = np.inf
 ) -> BranchGraph:
@@ -395,22 +416,13 @@ def prune_unsupported_tips(
         return graph
     from scipy.spatial import cKDTree
 
-    lab = tip_chains(graph)
+    lab, side, inv, tops, clen = _side_chains(graph)
+    if side.size == 0:
+        return graph
     _, owner = cKDTree(graph.position).query(xyz, workers=-1)
     per_node = np.bincount(owner, minlength=graph.n_nodes).astype(float)
-    side = (lab >= 0) & (graph.parent[np.maximum(lab, 0)] >= 0)
-    if not side.any():
-        return graph
-    tops, inv = np.unique(lab[side], return_inverse=True)
-    pts = np.bincount(inv, weights=per_node[side])
-    nodes = np.bincount(inv).astype(float)
-    dens = pts / nodes
-    clen = np.bincount(inv, weights=graph.edge_length[side])
-    bad = tops[(dens < ratio * np.median(dens)) & (clen < max_length)]
-    if bad.size == 0:
-        return graph
-    g = graph.subgraph(~np.isin(lab, bad))
-    return g.with_(weight=g.subtree_length())
+    dens = np.bincount(inv, weights=per_node[side]) / np.bincount(inv)
+    return _without_chains(graph, lab, tops[(dens < ratio * np.median(dens)) & (clen < max_length)])
 
 
 #: a node is *empty* when no point lies within this many point spacings of it: a twig's
@@ -429,8 +441,6 @@ def empty_tips(
     xyz: NDArray[np.float64],
     spacing: float,
     max_length: float = np.inf,
-    *,
-    kdtree=None,
 ) -> NDArray[np.bool_]:
     """Nodes of the side tip chains (:func:`tip_chains`) shorter than ``max_length`` metres
     whose nodes are mostly *empty*: for at least :data:`EMPTY_SHARE` (half) of them no
@@ -451,22 +461,15 @@ def empty_tips(
         return drop
     from scipy.spatial import cKDTree
 
-    lab = tip_chains(graph)
-    side = np.flatnonzero((lab >= 0) & (graph.parent[np.maximum(lab, 0)] >= 0))
+    lab, side, inv, tops, clen = _side_chains(graph)
     if side.size == 0:
         return drop
-    kd = kdtree if kdtree is not None else cKDTree(xyz)
-    near = kd.query_ball_point(
+    near = cKDTree(xyz).query_ball_point(
         graph.position[side], EMPTY_REACH * spacing, return_length=True, workers=-1
     )
-    tops, inv = np.unique(lab[side], return_inverse=True)
     empty = np.bincount(inv, weights=(near == 0).astype(float))
-    nodes = np.bincount(inv).astype(float)
-    clen = np.bincount(inv, weights=graph.edge_length[side])
-    bad = tops[(empty >= EMPTY_SHARE * nodes) & (clen < max_length)]
-    if bad.size:
-        drop = np.isin(lab, bad)
-    return drop
+    bad = tops[(empty >= EMPTY_SHARE * np.bincount(inv)) & (clen < max_length)]
+    return np.isin(lab, bad)
 
 
 def prune_empty_tips(

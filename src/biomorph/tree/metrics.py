@@ -12,8 +12,6 @@ All distances are metres in the graphs' common frame; nothing here aligns frames
 
 from __future__ import annotations
 
-import hashlib
-import threading
 from dataclasses import dataclass, field
 
 import numba
@@ -106,38 +104,15 @@ def _skeleton_samples(graph: BranchGraph) -> _Samples:
     return _Samples(cKDTree(pts), ec)
 
 
-#: clouds up to this many points keep their last :func:`segment_candidates` for one
-#: repeated call (the pipeline's twig radii and its metrics ask for the same skeleton axes
-#: and points one after the other); larger ones are not kept (memory)
-CANDIDATES_MEMO_POINTS = 250_000
-_CANDIDATES_MEMO: dict[tuple, SegmentCandidates] = {}
-_CANDIDATES_LOCK = threading.Lock()  # runs in threads share the memo
-
-
-def _digest(a: NDArray) -> tuple:
-    a = np.ascontiguousarray(a)
-    return a.dtype.str, a.shape, hashlib.sha1(memoryview(a).cast("B")).digest()
-
-
 def segment_candidates(
     graph: BranchGraph, xyz: NDArray[np.float64], k: int = 8, *, _samples: _Samples | None = None
 ) -> SegmentCandidates:
     """The :class:`SegmentCandidates` of ``xyz`` on ``graph`` (samples spaced half the
-    median edge length; ``_samples``: those of an earlier call on the same graph).
-
-    They depend on the skeleton's positions and parents, the points and ``k`` alone (not
-    on radii): the last result is kept for one repeated call with the same values (a
-    digest of them, not the arrays' identity), its arrays read-only."""
+    median edge length; ``_samples``: those of an earlier call on the same graph). They
+    depend on the skeleton's positions and parents, the points and ``k``, not on radii."""
     if graph.n_nodes == 0:
         raise InputError("skeleton is empty; expected at least one node")
     xyz = np.asarray(xyz, dtype=float)
-    key = None
-    if _samples is None and xyz.shape[0] <= CANDIDATES_MEMO_POINTS:
-        key = (_digest(graph.position), _digest(graph.parent), _digest(xyz), int(k))
-        with _CANDIDATES_LOCK:
-            hit = _CANDIDATES_MEMO.pop(key, None)
-        if hit is not None:
-            return hit
     smp = _samples if _samples is not None else _skeleton_samples(graph)
     kk = min(k, smp.tree.n)
     _, idx = query_ordered(smp.tree, xyz, kk)
@@ -145,14 +120,7 @@ def segment_candidates(
     node = smp.edge[idx]  # child node of candidate edges (or a root)
     par = graph.parent[node]
     t, d = _segment_kernel(xyz, node, par, np.ascontiguousarray(graph.position, dtype=float))
-    out = SegmentCandidates(node, par, t, d, smp)
-    if key is not None:
-        for a in (node, par, t, d):
-            a.setflags(write=False)
-        with _CANDIDATES_LOCK:
-            _CANDIDATES_MEMO.clear()
-            _CANDIDATES_MEMO[key] = out
-    return out
+    return SegmentCandidates(node, par, t, d, smp)
 
 
 @numba.njit(cache=True)

@@ -13,8 +13,6 @@ Split out of :mod:`biomorph.tree.livny` (issue 12).
 
 from __future__ import annotations
 
-import hashlib
-import threading
 from dataclasses import dataclass, field
 from itertools import chain
 
@@ -393,50 +391,20 @@ class NeighbourCache:
         return out_d, out_i
 
 
-#: the last few :func:`estimate_spacing` results by (digest of the points, sample, seed):
-#: the graph method and the radius stage (twice) ask it of the same prepared cloud
-_SPACING_MEMO: dict[tuple, float] = {}
-_SPACING_MEMO_SIZE = 4
-_SPACING_LOCK = threading.Lock()  # runs in threads share the memo
-
-
-def _points_key(xyz: NDArray[np.float64]) -> tuple:
-    """The points' shape and a SHA-1 digest of their float64 values (~12 ms at 10⁶
-    points, a third of the spacing query it spares)."""
-    a = np.ascontiguousarray(xyz, dtype=np.float64)
-    return a.shape, hashlib.sha1(memoryview(a).cast("B")).digest()
-
-
 def estimate_spacing(
     xyz: NDArray[np.float64], sample: int = 20000, seed: int = 0, kdtree: cKDTree | None = None
 ) -> float:
     """Median nearest-neighbour distance of the points (metres), on a random subsample.
-
-    ``kdtree``: a k-d tree of ``xyz``, if one is built already. The result depends on the
-    points' values, ``sample`` and ``seed`` alone, so a repeated call on the same points
-    returns the remembered value (keyed by a digest of the values, not the array's
-    identity: a changed array is a new key)."""
+    ``kdtree``: a k-d tree of ``xyz``, if one is built already. The pipeline measures it
+    once per cloud and hands it on (``point_spacing`` in the run's record)."""
     n = xyz.shape[0]
     if n < 2:
         raise InputError(f"need at least 2 points to estimate a point spacing, got {n}")
-    # an integer seed gives one sample; a Generator or None a different one each call
-    key = (_points_key(xyz), sample, int(seed)) if isinstance(seed, (int, np.integer)) else None
-    if key is not None:
-        with _SPACING_LOCK:
-            hit = _SPACING_MEMO.get(key)
-        if hit is not None:
-            return hit
     tree = kdtree if kdtree is not None else cKDTree(xyz)
     idx = np.random.default_rng(seed).choice(n, size=min(n, sample), replace=False)
     d, _ = query_ordered(tree, xyz[idx], 2)
     pos = d[:, 1][d[:, 1] > 0]
-    out = float(np.median(pos)) if pos.size else 0.0
-    if key is not None:
-        with _SPACING_LOCK:
-            while len(_SPACING_MEMO) >= _SPACING_MEMO_SIZE:
-                _SPACING_MEMO.pop(next(iter(_SPACING_MEMO)))
-            _SPACING_MEMO[key] = out
-    return out
+    return float(np.median(pos)) if pos.size else 0.0
 
 
 def neighbour_graph(

@@ -182,6 +182,20 @@ class _Run:
     skeleton: BranchGraph | None = None
     #: the outlier filter's neighbour lists of ``cloud`` until the neighbour graph uses them
     knn: Any = None
+    #: (positions, parents, ``metrics.segment_candidates`` of ``cloud``) as the twig phase
+    #: searched them: the metrics phase reuses them while the skeleton's axes stay these
+    candidates: Any = None
+
+    def point_spacing(self) -> float:
+        """The cloud's point spacing: as the graph method measured it, else measured here
+        once (the voxel method does not) and recorded in ``info``."""
+        ps = float(self.info.get("point_spacing") or 0.0)
+        if ps <= 0 and self.cloud is not None and self.cloud.n_points >= 2:
+            from biomorph.tree.neighbours import estimate_spacing
+
+            ps = float(estimate_spacing(self.cloud.xyz))
+            self.info["point_spacing"] = ps
+        return ps
 
     def take_knn(self) -> Any:
         """The neighbour lists, released here (their 10⁶ × 17 arrays live no longer than
@@ -513,6 +527,7 @@ def radius_phase(run: _Run, tick: bool = True) -> None:
             min_radius=ro.min_radius,
             taper_exponent=ro.taper_exponent,
             seed=run.opts.seed,
+            spacing=run.point_spacing() or None,
         )
         run.fit = fit
         run.quality = {
@@ -567,15 +582,11 @@ def residual_phase(run: _Run) -> None:
     assert run.cloud is not None and run.skeleton is not None
     t0 = time.perf_counter()
     xyz = run.cloud.xyz
-    ps = run.info.get("point_spacing")
-    if not ps:
-        from biomorph.tree.neighbours import estimate_spacing
-
-        ps = estimate_spacing(xyz) if xyz.shape[0] >= 2 else 0.0
+    ps = run.point_spacing()
     ns = float(run.params.get("node_spacing") or 0.0)
-    if not (ps and ps > 0 and ns > 0):
+    if not (ps > 0 and ns > 0):
         return
-    grown, rec = residual_branches(run.graph, xyz, float(ps), ns, base=run.skeleton)
+    grown, rec = residual_branches(run.graph, xyz, ps, ns, base=run.skeleton)
     run.info.update({f"residual_{k}": v for k, v in rec.items()})
     run.timings["residual"] = time.perf_counter() - t0
     if rec["nodes_added"]:
@@ -585,7 +596,7 @@ def residual_phase(run: _Run) -> None:
 
 def empty_tips_phase(run: _Run) -> None:
     """Side tip chains through empty space pruned from the finished skeleton
-    (:func:`biomorph.tree.cleanup.prune_empty_tips`, chains shorter than
+    (:func:`biomorph.tree.cleanup.empty_tips`, chains shorter than
     ``TIP_SUPPORT_LENGTH`` node spacings), then the radius stage once more if any went.
     Graph method only; off with ``CleanupOptions.empty_tips = False``
     (``--no-empty-tips``)."""
@@ -596,7 +607,7 @@ def empty_tips_phase(run: _Run) -> None:
     if not co.empty_tips or run.opts.method != "graph" or run.graph is None:
         return
     assert run.cloud is not None and run.skeleton is not None
-    spacing = float(run.info.get("point_spacing") or 0.0)
+    spacing = run.point_spacing()
     ns = float(run.params.get("node_spacing") or 0.0)
     if spacing <= 0 or ns <= 0 or run.skeleton.n_nodes != run.graph.n_nodes:
         return
@@ -617,6 +628,7 @@ def twig_phase(run: _Run) -> None:
     """The modelled twigs' radii from their points (:func:`biomorph.tree.radius.twig_offset`),
     once the skeleton is complete (after the residual branches). Off with
     ``RadiusOptions.twig_scale = False`` (``--no-twig-scale``) or without the taper model."""
+    from biomorph.tree.metrics import segment_candidates
     from biomorph.tree.radius import twig_offset
 
     ro = run.opts.radius
@@ -626,15 +638,13 @@ def twig_phase(run: _Run) -> None:
         return
     assert run.cloud is not None and graph.radius is not None
     t0 = time.perf_counter()
-    spacing = float(run.info.get("point_spacing") or 0.0)
-    if spacing <= 0 and run.cloud.n_points >= 2:  # the voxel method does not measure it
-        from biomorph.tree.neighbours import estimate_spacing
-
-        spacing = float(estimate_spacing(run.cloud.xyz))
-    if spacing <= 0 or fit.ok.size != graph.n_nodes:
+    spacing = run.point_spacing()
+    if spacing <= 0 or fit.ok.size != graph.n_nodes or graph.n_nodes == 0:
         return
     measured = fit.reliable if fit.reliable is not None else fit.ok
-    radius, info = twig_offset(graph, run.cloud.xyz, measured, spacing)
+    cand = segment_candidates(graph, run.cloud.xyz)
+    run.candidates = (graph.position, graph.parent, cand)
+    radius, info = twig_offset(graph, run.cloud.xyz, measured, spacing, candidates=cand)
     run.graph = graph.with_(radius=radius)
     run.info["twig_offset"] = info
     run.timings["radius_fit"] = run.timings.get("radius_fit", 0.0) + time.perf_counter() - t0
@@ -691,7 +701,12 @@ def metrics_phase(run: _Run) -> None:
         pick = np.random.default_rng(run.opts.seed).choice(pc.n_points, MSE_POINTS, replace=False)
         mse_cloud = pc.select(np.sort(pick))
     # the nearest skeleton edges of the sample, shared by the MSE and the cylinder fit
-    cand = segment_candidates(graph, mse_cloud.xyz) if graph.n_nodes else None
+    # (the twig phase's, when it searched the same points on the same axes)
+    pos, par, cand = run.candidates or (None, None, None)
+    run.candidates = None
+    same = pos is not None and np.array_equal(pos, graph.position)
+    if not (mse_cloud is pc and same and np.array_equal(par, graph.parent)):
+        cand = segment_candidates(graph, mse_cloud.xyz) if graph.n_nodes else None
     metrics = skeleton_metrics(graph, mse_cloud, candidates=cand)
     metrics["mse_points"] = mse_cloud.n_points
     try:

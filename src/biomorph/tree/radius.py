@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -39,6 +40,9 @@ from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree.livny import allometric_radii, skeleton_distance, solve_tree_system
 from biomorph.tree.neighbours import ball_lists
+
+if TYPE_CHECKING:
+    from biomorph.tree.metrics import SegmentCandidates
 
 __all__ = [
     "RadiusFit",
@@ -518,6 +522,7 @@ def fit_radii(
     min_radius: float = MIN_RADIUS,
     taper_exponent: float = PIPE_EXPONENT,
     seed: int = 0,
+    spacing: float | None = None,
 ) -> tuple[BranchGraph, RadiusFit]:
     """Radii (and optionally re-centred positions) from the points; see the module doc.
 
@@ -528,8 +533,9 @@ def fit_radii(
     off-centre bias varies slowly along a branch, the fits' noise from node to node, and
     unsmoothed shifts add a wiggle (conifer preset, 240,000 points: TBL 109 → 106 %).
     Two passes by default: the first searches around a prior from the node's own points,
-    the second around the smoothed first-pass radii. Returns the new graph (``radius`` set,
-    ``weight`` = subtree length) and the last :class:`RadiusFit`.
+    the second around the smoothed first-pass radii. ``spacing``: the cloud's point spacing
+    (:func:`~biomorph.tree.neighbours.estimate_spacing`) if measured already. Returns the new
+    graph (``radius`` set, ``weight`` = subtree length) and the last :class:`RadiusFit`.
     """
     if graph.n_nodes == 0:
         return graph, RadiusFit(
@@ -541,9 +547,10 @@ def fit_radii(
             np.zeros(0),
         )
     kd = cKDTree(xyz)
-    from biomorph.tree.livny import estimate_spacing
+    if spacing is None and xyz.shape[0] >= 2:
+        from biomorph.tree.livny import estimate_spacing
 
-    spacing = estimate_spacing(xyz, kdtree=kd) if xyz.shape[0] >= 2 else None
+        spacing = estimate_spacing(xyz, kdtree=kd)
     el = graph.edge_length
     med_edge = float(np.median(el[el > 0])) if (el > 0).any() else 0.05
     d, near = skeleton_distance(xyz, graph.parent, graph.position)
@@ -699,6 +706,7 @@ def twig_offset(
     spacing: float,
     *,
     slack: float = 1.1,
+    candidates: SegmentCandidates | None = None,
 ) -> tuple[NDArray[np.float64], dict[int, dict]]:
     """The modelled twigs' radii set to what their points say, per tree.
 
@@ -726,8 +734,10 @@ def twig_offset(
     Returns the new radii and, per tree, the applied ``offset`` (m; 0 where not applied),
     the two ``looks`` (m), ``surface``, the ``points`` behind the first look and the
     ``nodes`` concerned; trees without enough points are not in it and keep their radii.
-    Turned off by ``RadiusOptions.twig_scale = False`` (``--no-twig-scale``), e.g. when
-    the species' twig radius is known (``--min-radius``, rTwig's way).
+    ``candidates``: the points' :func:`~biomorph.tree.metrics.segment_candidates` on this
+    skeleton, if searched already. Turned off by ``RadiusOptions.twig_scale = False``
+    (``--no-twig-scale``), e.g. when the species' twig radius is known (``--min-radius``,
+    rTwig's way).
     """
     from biomorph.tree.metrics import segment_candidates, surface_distance
 
@@ -741,58 +751,54 @@ def twig_offset(
         return radius, info
     trees = graph.trees
     lim = TWIG_MAX_OFFSET * spacing
-    carried = graph.subtree_length() + graph.edge_length
-    _, cont = branch_ids(graph, carried)
+    _, cont = branch_ids(graph)
     slack_v = np.where(cont, float(slack), 1.0)
-    cand = segment_candidates(graph, xyz)  # the axes do not move: one candidate search
-    target_trees = np.unique(trees[target])
+    # the axes do not move between the looks: one candidate search
+    cand = candidates if candidates is not None else segment_candidates(graph, xyz)
+
+    def look(r: NDArray[np.float64], among: NDArray[np.int64]) -> dict[int, NDArray]:
+        """Per tree of ``among``: the signed surface distances of the points within one
+        radius of its modelled twigs' surfaces, the twigs at radii ``r``."""
+        sd, rd, near = surface_distance(graph.with_(radius=r), xyz, candidates=cand)
+        sel = (np.abs(sd) <= rd) & target[near]
+        tree_of = trees[near]
+        return {int(t): sd[sel & (tree_of == t)] for t in among}
 
     def apply(offset: dict[int, float]) -> NDArray[np.float64]:
-        off = np.zeros(n)
-        has = np.isin(trees, list(offset))
-        if has.any():
-            off[has] = np.array([offset[int(t)] for t in trees[has]])
-        nodes = target & has
+        per_tree = np.zeros(int(trees.max()) + 1)
+        per_tree[list(offset)] = list(offset.values())
+        nodes = target & np.isin(trees, list(offset))
         out = radius.copy()
-        out[nodes] = np.clip(radius[nodes] + off[nodes], 0.5 * radius[nodes], 2 * radius[nodes])
+        out[nodes] = np.clip(
+            radius[nodes] + per_tree[trees[nodes]], 0.5 * radius[nodes], 2 * radius[nodes]
+        )
         return _cap_down_slack(graph.parent, graph.order, out, slack_v)
 
-    offset: dict[int, float] = {}
-    looks: dict[int, list[float]] = {}
-    se: dict[int, float] = {}
-    out = radius
-    for look in range(2):
-        sd, rd, near = surface_distance(graph.with_(radius=out), xyz, candidates=cand)
-        sel = (np.abs(sd) <= rd) & target[near]
-        for t in target_trees.tolist():
-            m = sel & (trees[near] == t)
-            if (look == 0 and m.sum() < TWIG_MIN_POINTS) or (look == 1 and t not in offset):
-                continue
-            med = float(np.median(sd[m])) if m.any() else 0.0
-            looks.setdefault(t, []).append(med)
-            offset[t] = float(np.clip(offset.get(t, 0.0) + med, -lim, lim))
-            if look == 0:
-                # standard error of the median: 1.2533 σ / √n, σ = 1.4826 MAD
-                mad = float(np.median(np.abs(sd[m] - med)))
-                se[t] = 1.2533 * 1.4826 * mad / np.sqrt(m.sum())
-                info[t] = {"points": int(m.sum())}
-        if not offset:
-            return radius, info
-        out = apply(offset)
-    # a surface the model can reach: the second look finds less missing than the first,
-    # by a share and by more than two standard errors of the first look's median
-    surface = {
-        t: bool(abs(v[1]) < TWIG_SURFACE_RATIO * abs(v[0]) and abs(v[0]) - abs(v[1]) > 2 * se[t])
-        for t, v in looks.items()
+    first = {
+        t: d for t, d in look(radius, np.unique(trees[target])).items() if d.size >= TWIG_MIN_POINTS
     }
-    kept = {t: o for t, o in offset.items() if surface[t]}
-    for t in info:
-        info[t].update(
-            offset=kept.get(t, 0.0),
-            looks=looks[t],
-            surface=surface[t],
-            nodes=int((target & (trees == t)).sum()),
-        )
+    if not first:
+        return radius, info
+    m1 = {t: float(np.median(d)) for t, d in first.items()}
+    off1 = {t: float(np.clip(m, -lim, lim)) for t, m in m1.items()}
+    second = look(apply(off1), np.array(list(first)))
+    kept: dict[int, float] = {}
+    for t, d in first.items():
+        m2 = float(np.median(d2)) if (d2 := second[t]).size else 0.0
+        # standard error of the first look's median: 1.2533 σ / √n, σ = 1.4826 MAD
+        se = 1.2533 * 1.4826 * float(np.median(np.abs(d - m1[t]))) / np.sqrt(d.size)
+        # a surface the model can reach: the second look finds less missing than the
+        # first, by a share and by more than two standard errors
+        surface = abs(m2) < TWIG_SURFACE_RATIO * abs(m1[t]) and abs(m1[t]) - abs(m2) > 2 * se
+        if surface:
+            kept[t] = float(np.clip(off1[t] + m2, -lim, lim))
+        info[t] = {
+            "points": int(d.size),
+            "offset": kept.get(t, 0.0),
+            "looks": [m1[t], m2],
+            "surface": bool(surface),
+            "nodes": int((target & (trees == t)).sum()),
+        }
     return (apply(kept) if kept else radius), info
 
 
