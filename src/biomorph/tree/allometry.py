@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from biomorph.core import treeops
+from biomorph.tree.neighbours import query_ordered
 
 __all__ = ["allometric_radii", "skeleton_distance", "edge_length"]
 
@@ -67,12 +68,16 @@ def skeleton_distance(
     parent: NDArray[np.int64],
     position: NDArray[np.float64],
     step: float | None = None,
+    *,
+    order: NDArray | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Distance of every point to the skeleton polyline (metres) and the nearest node.
 
     Edges are sampled every ``step`` (default a quarter of the median edge length), so the
     error is at most ``step/2``. The nearest node is the parent or child end of the edge
-    sample, whichever is closer along the edge.
+    sample, whichever is closer along the edge. ``order``: a spatial order of ``points``
+    (the leaf order of their k-d tree): the queries run in it, the same answers faster
+    (:func:`~biomorph.tree.neighbours.query_ordered`).
     """
     ch = np.flatnonzero(parent >= 0)
     if ch.size == 0:
@@ -88,5 +93,8 @@ def skeleton_distance(
     b = position[ch][eid]
     samples = a + t[:, None] * (b - a)
     node = np.where(t < 0.5, parent[ch][eid], ch[eid])
-    d, j = cKDTree(samples).query(points, workers=-1)
+    if order is None:
+        d, j = cKDTree(samples).query(points, workers=-1)
+    else:
+        d, j = query_ordered(cKDTree(samples), points, order=order)
     return d, node[j]

@@ -105,17 +105,24 @@ def _skeleton_samples(graph: BranchGraph) -> _Samples:
 
 
 def segment_candidates(
-    graph: BranchGraph, xyz: NDArray[np.float64], k: int = 8, *, _samples: _Samples | None = None
+    graph: BranchGraph,
+    xyz: NDArray[np.float64],
+    k: int = 8,
+    *,
+    _samples: _Samples | None = None,
+    order: NDArray | None = None,
 ) -> SegmentCandidates:
     """The :class:`SegmentCandidates` of ``xyz`` on ``graph`` (samples spaced half the
     median edge length; ``_samples``: those of an earlier call on the same graph). They
-    depend on the skeleton's positions and parents, the points and ``k``, not on radii."""
+    depend on the skeleton's positions and parents, the points and ``k``, not on radii.
+    ``order``: a spatial order of ``xyz`` known already (the leaf order of its k-d tree),
+    which the query follows (:func:`~biomorph.tree.neighbours.query_ordered`)."""
     if graph.n_nodes == 0:
         raise InputError("skeleton is empty; expected at least one node")
     xyz = np.asarray(xyz, dtype=float)
     smp = _samples if _samples is not None else _skeleton_samples(graph)
     kk = min(k, smp.tree.n)
-    _, idx = query_ordered(smp.tree, xyz, kk)
+    _, idx = query_ordered(smp.tree, xyz, kk, order=order)
     idx = idx.reshape(xyz.shape[0], kk)
     node = smp.edge[idx]  # child node of candidate edges (or a root)
     par = graph.parent[node]

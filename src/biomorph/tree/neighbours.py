@@ -29,6 +29,7 @@ __all__ = [
     "estimate_spacing",
     "components",
     "NeighbourCache",
+    "PointIndex",
     "spatial_order",
     "query_ordered",
     "query_blocks",
@@ -110,6 +111,7 @@ def query_ordered(
     workers: int = -1,
     index_dtype: type = np.intp,
     block: int = QUERY_BLOCK,
+    order: NDArray | None = None,
     **kwargs,
 ) -> tuple[NDArray[np.float64], NDArray]:
     """``tree.query(points, k, workers=workers, **kwargs)``, the same arrays, faster.
@@ -119,13 +121,16 @@ def query_ordered(
     scattered back: consecutive queries then walk the same nodes, which halves the CPU
     time of a 10⁶-point query whose points come in scan order (each query is independent,
     so every row equals the one of a direct query). ``index_dtype`` may shrink the index
-    array (``np.int32``)."""
-    pts, perm = _query_order(tree, points)
+    array (``np.int32``). ``order``: a spatial order of ``points`` known already (the leaf
+    order of their own k-d tree, ``indices``), instead of :func:`spatial_order`."""
+    pts, perm = _query_order(tree, points, order)
     n = pts.shape[0]
     shape = (n,) if k == 1 else (n, k)
     dist = np.empty(shape, dtype=np.float64)
     idx = np.empty(shape, dtype=index_dtype)
-    for p, d, i in query_blocks(tree, points, k, workers=workers, block=block, **kwargs):
+    for p, d, i in query_blocks(
+        tree, points, k, workers=workers, block=block, order=perm, **kwargs
+    ):
         dist[p] = d
         idx[p] = i
     return dist, idx
@@ -146,11 +151,59 @@ def ball_lists(
     return counts, np.fromiter(chain.from_iterable(lists), dtype=np.int64, count=total)
 
 
-def _query_order(tree: cKDTree, points: NDArray | None) -> tuple[NDArray, NDArray]:
+#: the cells of a :class:`PointIndex` grid: at most this many per point of the cloud
+GRID_CELLS_PER_POINT = 2
+
+
+class PointIndex(cKDTree):
+    """A ``cKDTree`` of a cloud's points (built and queried exactly as ``cKDTree(xyz)``)
+    that also answers box-bounded searches in ball-query order: :meth:`grid` buckets the
+    points in a uniform grid, each cell's points in the tree's leaf order, so a search
+    through the cells that returns its hits sorted by leaf-order rank lists them as
+    ``query_ball_point(..., return_sorted=False)`` does (that order is the leaf order).
+    Built once per cloud and handed on (the pipeline's ``run.point_index()``)."""
+
+    _grid: tuple | None = None
+
+    def grid(self) -> tuple:
+        """``(lo, cell, dims, start, rank, pts)``: the grid's lower corner, cell size and
+        cell counts per axis, the CSR start of every cell (cells numbered ``(ix * ny + iy)
+        * nz + iz``), and per grid slot the point's leaf-order rank and coordinates. Built
+        on first use; at most :data:`GRID_CELLS_PER_POINT` cells per point."""
+        if self._grid is None:
+            self._grid = _build_grid(np.asarray(self.data), np.asarray(self.indices))
+        return self._grid
+
+
+def _build_grid(xyz: NDArray[np.float64], leaf_order: NDArray) -> tuple:
+    n = xyz.shape[0]
+    lo = xyz.min(axis=0) if n else np.zeros(3)
+    span = np.maximum(xyz.max(axis=0) - lo, 0.0) if n else np.zeros(3)
+    vol = float(np.prod(np.maximum(span, 1e-9)))
+    cell = max((vol / max(GRID_CELLS_PER_POINT * n, 1)) ** (1 / 3), 1e-6)
+    dims = (np.floor(span / cell).astype(np.int64) + 1).astype(np.int64)
+    while int(np.prod(dims)) > GRID_CELLS_PER_POINT * max(n, 1) + 8:  # flat clouds
+        cell *= 1.25
+        dims = (np.floor(span / cell).astype(np.int64) + 1).astype(np.int64)
+    rank = np.empty(n, dtype=np.int64)
+    rank[leaf_order] = np.arange(n, dtype=np.int64)
+    ijk = np.minimum(np.floor((xyz - lo) / cell).astype(np.int64), dims - 1)
+    cid = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+    # leaf order first, then a stable sort by cell: each cell's points stay in leaf order
+    slot = np.asarray(leaf_order, dtype=np.int64)[np.argsort(cid[leaf_order], kind="stable")]
+    start = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
+    np.cumsum(np.bincount(cid, minlength=start.size - 1), out=start[1:])
+    pts = np.ascontiguousarray(xyz[slot], dtype=np.float64)
+    return lo.astype(np.float64), float(cell), dims, start, rank[slot], pts
+
+
+def _query_order(
+    tree: cKDTree, points: NDArray | None, order: NDArray | None = None
+) -> tuple[NDArray, NDArray]:
     if points is None:
-        return tree.data, np.asarray(tree.indices)
+        return tree.data, np.asarray(tree.indices) if order is None else order
     pts = np.asarray(points, dtype=np.float64)
-    return pts, spatial_order(pts)
+    return pts, spatial_order(pts) if order is None else np.asarray(order)
 
 
 def query_blocks(
@@ -160,12 +213,14 @@ def query_blocks(
     *,
     workers: int = -1,
     block: int = QUERY_BLOCK,
+    order: NDArray | None = None,
     **kwargs,
 ):
     """The blocks of :func:`query_ordered`: ``(rows, dist, idx)`` per block of at most
     ``block`` query points (``rows`` indexes ``points``, or the tree's data), for callers
-    that reduce each block and never hold the whole ``n × k`` result."""
-    pts, perm = _query_order(tree, points)
+    that reduce each block and never hold the whole ``n × k`` result. ``order``: as in
+    :func:`query_ordered`."""
+    pts, perm = _query_order(tree, points, order)
     for a in range(0, pts.shape[0], block):
         p = perm[a : a + block]
         d, i = tree.query(pts[p], k=k, workers=workers, **kwargs)

@@ -185,6 +185,20 @@ class _Run:
     #: (positions, parents, ``metrics.segment_candidates`` of ``cloud``) as the twig phase
     #: searched them: the metrics phase reuses them while the skeleton's axes stay these
     candidates: Any = None
+    #: ``(cloud, its PointIndex)`` once :meth:`point_index` built it
+    index: Any = field(default=None, repr=False)
+
+    def point_index(self) -> Any:
+        """The k-d tree of ``cloud`` (a :class:`~biomorph.tree.neighbours.PointIndex`,
+        with the grid the radius stage's cross-sections search), built once and handed to
+        every stage that searches the cloud's points (the radius stage runs up to three
+        times, the twig phase queries in its leaf order)."""
+        if self.index is None or self.index[0] is not self.cloud:
+            from biomorph.tree.neighbours import PointIndex
+
+            assert self.cloud is not None
+            self.index = (self.cloud, PointIndex(self.cloud.xyz))
+        return self.index[1]
 
     def point_spacing(self) -> float:
         """The cloud's point spacing: as the graph method measured it, else measured here
@@ -193,7 +207,7 @@ class _Run:
         if ps <= 0 and self.cloud is not None and self.cloud.n_points >= 2:
             from biomorph.tree.neighbours import estimate_spacing
 
-            ps = float(estimate_spacing(self.cloud.xyz))
+            ps = float(estimate_spacing(self.cloud.xyz, kdtree=self.point_index()))
             self.info["point_spacing"] = ps
         return ps
 
@@ -528,6 +542,7 @@ def radius_phase(run: _Run, tick: bool = True) -> None:
             taper_exponent=ro.taper_exponent,
             seed=run.opts.seed,
             spacing=run.point_spacing() or None,
+            kdtree=run.point_index(),
         )
         run.fit = fit
         run.quality = {
@@ -642,7 +657,7 @@ def twig_phase(run: _Run) -> None:
     if spacing <= 0 or fit.ok.size != graph.n_nodes or graph.n_nodes == 0:
         return
     measured = fit.reliable if fit.reliable is not None else fit.ok
-    cand = segment_candidates(graph, run.cloud.xyz)
+    cand = segment_candidates(graph, run.cloud.xyz, order=run.point_index().indices)
     run.candidates = (graph.position, graph.parent, cand)
     radius, info = twig_offset(graph, run.cloud.xyz, measured, spacing, candidates=cand)
     run.graph = graph.with_(radius=radius)

@@ -39,7 +39,7 @@ from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree.livny import allometric_radii, skeleton_distance, solve_tree_system
-from biomorph.tree.neighbours import ball_lists
+from biomorph.tree.neighbours import PointIndex, _build_grid
 
 if TYPE_CHECKING:
     from biomorph.tree.metrics import SegmentCandidates
@@ -313,51 +313,108 @@ def _cross_sections(
 ) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
     """The points of each node's flat search cylinder (radius ``rs``, half-height ``depth``
     about ``axes`` through ``pos``) in its cross-section plane: the plane's tangents
-    ``t0``, ``t1`` and the CSR ``indptr``, ``u``, ``w`` of :func:`_slab_points`."""
+    ``t0``, ``t1`` and the CSR ``indptr``, ``u``, ``w`` of :func:`_slab_points`.
+
+    The cylinder's points are those of its bounding ball (``kd.query_ball_point``) inside
+    the slab, in the ball query's order (the k-d tree's leaf order, which the RANSAC's
+    draws index): found through the cells of a grid (:meth:`PointIndex.grid`) that the
+    cylinder's bounding box covers, not through the ball, which holds up to ``rs / depth``
+    times more points (the ball's test is repeated, so the lists are the same)."""
     t0, t1 = _tangents(axes)
-    counts, idx = ball_lists(kd, pos, np.sqrt(rs**2 + depth**2))
+    grid = kd.grid() if isinstance(kd, PointIndex) else _build_grid(xyz, np.asarray(kd.indices))
+    lo, cell, dims, start, rank, pts = grid
+    pos = np.ascontiguousarray(pos, dtype=np.float64)
+    rs = np.ascontiguousarray(rs, dtype=np.float64)
     indptr, u, w = _slab_points(
-        idx,
-        counts,
-        np.ascontiguousarray(xyz, dtype=np.float64),
-        np.ascontiguousarray(pos, dtype=np.float64),
+        start,
+        rank,
+        pts,
+        lo,
+        float(cell),
+        dims,
+        pos,
         axes,
         t0,
         t1,
         float(depth),
         rs,
+        np.sqrt(rs**2 + depth**2),  # the bounding ball's radius, as it was queried
     )
     return t0, t1, indptr, u, w
 
 
 @numba.njit(cache=True)
-def _slab_points(idx, counts, xyz, pos, axes, t0, t1, depth, rs):
-    """The ball-query candidates of every node that lie in its flat search cylinder,
-    projected onto its cross-section plane: CSR ``indptr`` and the in-plane ``u``, ``w``
-    (one pass, no per-candidate temporaries: 9·10⁶ candidates at 10⁶ points)."""
-    n = counts.size
+def _slab_points(start, rank, pts, lo, cell, dims, pos, axes, t0, t1, depth, rs, ball):
+    """Every node's points in its flat search cylinder that its bounding ball (radius
+    ``ball``, cKDTree's test: ``(dx² + dy²) + dz² <= ball²``) holds, projected onto its
+    cross-section plane, in leaf order (``rank``): CSR ``indptr`` and the in-plane ``u``,
+    ``w``. The candidates are the grid cells (``start`` of each, ``pts`` in cell order)
+    under the cylinder's bounding box, padded by a relative 10⁻⁷."""
+    n = pos.shape[0]
     indptr = np.zeros(n + 1, dtype=np.int64)
-    u = np.empty(idx.size)
-    w = np.empty(idx.size)
+    cap = max(1024, 8 * n)
+    u = np.empty(cap)
+    w = np.empty(cap)
+    hr = np.empty(64, dtype=np.int64)
+    hu = np.empty(64)
+    hw = np.empty(64)
+    ny = dims[1]
+    nz = dims[2]
+    box0 = np.empty(3, dtype=np.int64)
+    box1 = np.empty(3, dtype=np.int64)
     k = 0
-    a = 0
     for v in range(n):
         r2 = rs[v] * rs[v]
-        for j in range(a, a + counts[v]):
-            i = idx[j]
-            dx = xyz[i, 0] - pos[v, 0]
-            dy = xyz[i, 1] - pos[v, 1]
-            dz = xyz[i, 2] - pos[v, 2]
-            hn = dx * axes[v, 0] + dy * axes[v, 1] + dz * axes[v, 2]
-            if abs(hn) > depth:
-                continue
-            uu = dx * t0[v, 0] + dy * t0[v, 1] + dz * t0[v, 2]
-            ww = dx * t1[v, 0] + dy * t1[v, 1] + dz * t1[v, 2]
-            if uu * uu + ww * ww <= r2:
-                u[k] = uu
-                w[k] = ww
-                k += 1
-        a += counts[v]
+        b2 = ball[v] * ball[v]
+        px, py, pz = pos[v, 0], pos[v, 1], pos[v, 2]
+        for c in range(3):
+            a = abs(axes[v, c])
+            ext = depth * a + rs[v] * np.sqrt(max(1.0 - a * a, 0.0))
+            ext = min(ext, ball[v]) * (1.0 + 1e-7) + 1e-12
+            i0 = np.floor((pos[v, c] - ext - lo[c]) / cell)
+            i1 = np.floor((pos[v, c] + ext - lo[c]) / cell)
+            box0[c] = int(max(i0, 0.0))
+            box1[c] = int(min(i1, dims[c] - 1.0))
+        m = 0
+        for ix in range(box0[0], box1[0] + 1):
+            for iy in range(box0[1], box1[1] + 1):
+                col = (ix * ny + iy) * nz
+                for j in range(start[col + box0[2]], start[col + box1[2] + 1]):
+                    dx = pts[j, 0] - px
+                    dy = pts[j, 1] - py
+                    dz = pts[j, 2] - pz
+                    if (dx * dx + dy * dy) + dz * dz > b2:
+                        continue
+                    hn = dx * axes[v, 0] + dy * axes[v, 1] + dz * axes[v, 2]
+                    if abs(hn) > depth:
+                        continue
+                    uu = dx * t0[v, 0] + dy * t0[v, 1] + dz * t0[v, 2]
+                    ww = dx * t1[v, 0] + dy * t1[v, 1] + dz * t1[v, 2]
+                    if uu * uu + ww * ww <= r2:
+                        if m == hr.size:
+                            hr2 = np.empty(2 * m, dtype=np.int64)
+                            hu2 = np.empty(2 * m)
+                            hw2 = np.empty(2 * m)
+                            hr2[:m] = hr
+                            hu2[:m] = hu
+                            hw2[:m] = hw
+                            hr, hu, hw = hr2, hu2, hw2
+                        hr[m] = rank[j]
+                        hu[m] = uu
+                        hw[m] = ww
+                        m += 1
+        if k + m > u.size:
+            grow = max(2 * u.size, k + m)
+            u2 = np.empty(grow)
+            w2 = np.empty(grow)
+            u2[:k] = u[:k]
+            w2[:k] = w[:k]
+            u, w = u2, w2
+        o = np.argsort(hr[:m])
+        for q in range(m):
+            u[k + q] = hu[o[q]]
+            w[k + q] = hw[o[q]]
+        k += m
         indptr[v + 1] = k
     return indptr, u[:k].copy(), w[:k].copy()
 
@@ -416,7 +473,7 @@ def fit_circles(
     el = graph.edge_length
     if search_depth is None:
         search_depth = 0.5 * float(np.median(el[el > 0])) if (el > 0).any() else 0.02
-    kd = kdtree or cKDTree(xyz)
+    kd = kdtree if kdtree is not None else PointIndex(xyz)
     rs = np.maximum(search_factor * np.asarray(prior, dtype=float), min_search)
     rs = np.maximum(rs, 1e-4)
     t0, t1, indptr, u, w = _cross_sections(
@@ -523,6 +580,7 @@ def fit_radii(
     taper_exponent: float = PIPE_EXPONENT,
     seed: int = 0,
     spacing: float | None = None,
+    kdtree: cKDTree | None = None,
 ) -> tuple[BranchGraph, RadiusFit]:
     """Radii (and optionally re-centred positions) from the points; see the module doc.
 
@@ -534,7 +592,9 @@ def fit_radii(
     unsmoothed shifts add a wiggle (conifer preset, 240,000 points: TBL 109 → 106 %).
     Two passes by default: the first searches around a prior from the node's own points,
     the second around the smoothed first-pass radii. ``spacing``: the cloud's point spacing
-    (:func:`~biomorph.tree.neighbours.estimate_spacing`) if measured already. Returns the new
+    (:func:`~biomorph.tree.neighbours.estimate_spacing`) if measured already; ``kdtree``: a
+    k-d tree of ``xyz`` (a :class:`~biomorph.tree.neighbours.PointIndex`, whose grid the
+    cross-sections search, else one is built). Returns the new
     graph (``radius`` set, ``weight`` = subtree length) and the last :class:`RadiusFit`.
     """
     if graph.n_nodes == 0:
@@ -546,14 +606,14 @@ def fit_radii(
             np.zeros(0, bool),
             np.zeros(0),
         )
-    kd = cKDTree(xyz)
+    kd = kdtree if kdtree is not None else PointIndex(xyz)
     if spacing is None and xyz.shape[0] >= 2:
         from biomorph.tree.livny import estimate_spacing
 
         spacing = estimate_spacing(xyz, kdtree=kd)
     el = graph.edge_length
     med_edge = float(np.median(el[el > 0])) if (el > 0).any() else 0.05
-    d, near = skeleton_distance(xyz, graph.parent, graph.position)
+    d, near = skeleton_distance(xyz, graph.parent, graph.position, order=kd.indices)
     n = graph.n_nodes
     prior = np.full(n, np.nan)
     cnt = np.bincount(near, minlength=n)

@@ -1,0 +1,137 @@
+"""The cloud's k-d tree handed on through the pipeline (speed work): the radius stage's
+cross-sections searched through a grid instead of ball queries, queries in the tree's
+leaf order; every shortcut gives exactly the arrays of the code it replaces."""
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from biomorph.core.graph import BranchGraph
+from biomorph.tree import neighbours, radius
+from biomorph.tree.allometry import skeleton_distance
+from biomorph.tree.metrics import segment_candidates
+from biomorph.tree.neighbours import PointIndex, ball_lists, query_ordered
+
+
+def _stem_cloud(seed=0, n=6000):
+    """A leaning stem (a noisy surface, points on a 1 mm grid as LAS stores them) with a
+    few duplicates and a cloud of clutter around it."""
+    rng = np.random.default_rng(seed)
+    t = rng.random(n) * 2 * np.pi
+    z = rng.random(n) * 2.0
+    r = 0.08 - 0.02 * z
+    stem = np.c_[r * np.cos(t) + 0.1 * z, r * np.sin(t), z]
+    stem = np.round(stem + rng.normal(scale=0.002, size=stem.shape), 3)
+    clutter = rng.normal(scale=0.3, size=(n // 10, 3)) + [0.1, 0.0, 1.0]
+    xyz = np.concatenate([stem, clutter])
+    xyz[5] = xyz[6]
+    return xyz
+
+
+def _reference_sections(pos, axes, xyz, rs, depth):
+    """The cross-sections as first written: the bounding balls' points
+    (``query_ball_point``, unsorted) that lie in each flat cylinder, projected."""
+    t0, t1 = radius._tangents(axes)
+    counts, idx = ball_lists(cKDTree(xyz), pos, np.sqrt(rs**2 + depth**2))
+    node = np.repeat(np.arange(pos.shape[0]), counts)
+    d = xyz[idx] - pos[node]
+    hn = d[:, 0] * axes[node, 0] + d[:, 1] * axes[node, 1] + d[:, 2] * axes[node, 2]
+    uu = d[:, 0] * t0[node, 0] + d[:, 1] * t0[node, 1] + d[:, 2] * t0[node, 2]
+    ww = d[:, 0] * t1[node, 0] + d[:, 1] * t1[node, 1] + d[:, 2] * t1[node, 2]
+    keep = (np.abs(hn) <= depth) & (uu * uu + ww * ww <= rs[node] ** 2)
+    indptr = np.zeros(pos.shape[0] + 1, dtype=np.int64)
+    np.cumsum(np.bincount(node[keep], minlength=pos.shape[0]), out=indptr[1:])
+    return t0, t1, indptr, uu[keep], ww[keep]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("plain", [False, True])
+def test_cross_sections_equal_the_ball_query_sections(seed, plain):
+    xyz = _stem_cloud(seed)
+    rng = np.random.default_rng(seed + 10)
+    m = 300
+    pos = xyz[rng.choice(xyz.shape[0], m)] + rng.normal(scale=0.01, size=(m, 3))
+    pos[:20] = [50.0, 50.0, 50.0]  # outside the cloud: nothing found
+    axes = rng.normal(size=(m, 3))
+    axes[20:60] = [0.0, 0.0, 1.0]  # upright: the tangents' special case
+    axes /= np.linalg.norm(axes, axis=1)[:, None]
+    rs = rng.uniform(1e-4, 0.3, m)
+    kd = cKDTree(xyz) if plain else PointIndex(xyz)
+    for depth in (0.005, 0.02, 0.5):
+        got = radius._cross_sections(pos, axes, xyz, kd, rs, depth)
+        ref = _reference_sections(pos, axes, xyz, rs, depth)
+        assert got[2][-1] > 0
+        for a, b in zip(got, ref, strict=True):
+            assert np.array_equal(a, b)
+
+
+def test_point_index_is_the_cloud_kdtree():
+    xyz = _stem_cloud(2)
+    kd, pi = cKDTree(xyz), PointIndex(xyz)
+    assert np.array_equal(kd.indices, pi.indices)
+    q = xyz[::7] + 0.001
+    for a, b in zip(kd.query(q, k=5), pi.query(q, k=5), strict=True):
+        assert np.array_equal(a, b)
+    lo, cell, dims, start, rank, pts = pi.grid()
+    assert start[-1] == xyz.shape[0] and start.size - 1 <= 2 * xyz.shape[0] + 8
+    assert np.array_equal(np.sort(rank), np.arange(xyz.shape[0]))
+    assert np.array_equal(pts, xyz[pi.indices[rank]])
+    assert pi.grid() is pi.grid()  # built once
+
+
+def _chain_graph(xyz, n=40):
+    z = np.linspace(0.0, 2.0, n)
+    pos = np.c_[0.1 * z, np.zeros(n), z]
+    parent = np.arange(-1, n - 1)
+    side = np.c_[0.1 + 0.3 * np.linspace(0, 1, 8), np.zeros(8), 1.0 + 0.3 * np.linspace(0, 1, 8)]
+    pos = np.concatenate([pos, side])
+    parent = np.concatenate([parent, [n // 2] + list(range(n, n + 7))])
+    return BranchGraph(pos, parent)
+
+
+def test_queries_in_leaf_order_equal_the_direct_queries():
+    xyz = _stem_cloud(3)
+    g = _chain_graph(xyz)
+    order = PointIndex(xyz).indices
+    for a, b in zip(
+        skeleton_distance(xyz, g.parent, g.position),
+        skeleton_distance(xyz, g.parent, g.position, order=order),
+        strict=True,
+    ):
+        assert np.array_equal(a, b)
+    a = segment_candidates(g, xyz)
+    b = segment_candidates(g, xyz, order=order)
+    for f in ("node", "par", "t", "d"):
+        assert np.array_equal(getattr(a, f), getattr(b, f))
+    d, i = query_ordered(cKDTree(g.position), xyz, 3, order=order)
+    d0, i0 = cKDTree(g.position).query(xyz, 3)
+    assert np.array_equal(d, d0) and np.array_equal(i, i0)
+
+
+def test_fit_radii_with_the_handed_kdtree_equals_its_own():
+    xyz = _stem_cloud(4)
+    g = _chain_graph(xyz)
+    a_g, a_fit = radius.fit_radii(g, xyz, taper=True)
+    b_g, b_fit = radius.fit_radii(g, xyz, taper=True, kdtree=PointIndex(xyz))
+    assert np.array_equal(a_g.position, b_g.position)
+    assert np.array_equal(a_g.radius, b_g.radius)
+    assert np.array_equal(a_fit.radius, b_fit.radius)
+
+
+def test_the_pipeline_builds_the_cloud_kdtree_once(monkeypatch):
+    from biomorph.tree import skeletonize
+    from biomorph.tree.synthetic import generate_tree, simulate_scan
+
+    built = []
+
+    class Counted(PointIndex):
+        def __init__(self, *args, **kwargs):
+            built.append(1)
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(neighbours, "PointIndex", Counted)
+    monkeypatch.setattr(radius, "PointIndex", Counted)
+    cl = simulate_scan(generate_tree("conifer", seed=0), n_points=8000, seed=0, noise=0.004)
+    skel = skeletonize(cl, method="graph")
+    assert skel.graph.n_nodes > 0 and skel.graph.radius is not None
+    assert len(built) == 1
