@@ -135,3 +135,72 @@ def test_the_pipeline_builds_the_cloud_kdtree_once(monkeypatch):
     skel = skeletonize(cl, method="graph")
     assert skel.graph.n_nodes > 0 and skel.graph.radius is not None
     assert len(built) == 1
+
+
+def _reference_fit_kernel():
+    """The circle kernel before trials that cannot win were skipped (its RANSAC loop as
+    first written), compiled here."""
+    import numba
+
+    circle3, lsq = radius._circle3, radius._lsq_circle
+
+    @numba.njit
+    def kernel(u, w, indptr, rmax, rmin, tr, ta, tm, trials, min_inliers, seed, ocx, ocy, orr):  # noqa: PLR0913
+        np.random.seed(seed)  # noqa: NPY002
+        for v in range(indptr.size - 1):
+            a, b = indptr[v], indptr[v + 1]
+            k = b - a
+            orr[v] = -1.0
+            if k < 3:
+                continue
+            x, y = u[a:b], w[a:b]
+            best_n, best_res, bcx, bcy, br = 0, 1e300, 0.0, 0.0, -1.0
+            for _ in range(trials):
+                i1 = np.random.randint(k)  # noqa: NPY002
+                i2 = np.random.randint(k)  # noqa: NPY002
+                i3 = np.random.randint(k)  # noqa: NPY002
+                if i1 == i2 or i2 == i3 or i1 == i3:
+                    continue
+                cx, cy, r = circle3(x[i1], y[i1], x[i2], y[i2], x[i3], y[i3])
+                if r <= rmin[v] or r > rmax[v]:
+                    continue
+                tol = min(max(tr * r, ta), tm)
+                cnt, res = 0, 0.0
+                for i in range(k):
+                    d = abs(np.sqrt((x[i] - cx) ** 2 + (y[i] - cy) ** 2) - r)
+                    if d < tol:
+                        cnt += 1
+                        res += d
+                if cnt > best_n or (cnt == best_n and res < best_res):
+                    best_n, best_res, bcx, bcy, br = cnt, res, cx, cy, r
+            if br <= 0 or best_n < min_inliers:
+                continue
+            tol = min(max(tr * br, ta), tm)
+            sel = np.abs(np.sqrt((x - bcx) ** 2 + (y - bcy) ** 2) - br) < tol
+            ocx[v], ocy[v], orr[v] = lsq(x[sel], y[sel], bcx, bcy, br, rmax[v])
+
+    return kernel
+
+
+def test_fit_kernel_skips_only_trials_that_cannot_win():
+    rng = np.random.default_rng(7)
+    counts = rng.integers(0, 40, 400)
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    t = rng.random(indptr[-1]) * 2 * np.pi
+    rad = np.repeat(rng.uniform(0.005, 0.05, counts.size), counts)
+    noise = rng.normal(scale=0.002, size=(2, t.size))
+    out = rng.random(t.size) < 0.3  # clutter
+    u = np.where(out, rng.normal(scale=0.05, size=t.size), rad * np.cos(t) + noise[0])
+    w = np.where(out, rng.normal(scale=0.05, size=t.size), rad * np.sin(t) + noise[1])
+    rmax, rmin = np.full(counts.size, 0.08), np.full(counts.size, 1e-4)
+    ref = [np.zeros(counts.size) for _ in range(3)]
+    _reference_fit_kernel()(u, w, indptr, rmax, rmin, 0.15, 0.003, 0.01, 64, 8, 3, *ref)
+    got = [np.zeros(counts.size) for _ in range(3)] + [
+        np.zeros(counts.size, np.int64),
+        np.zeros(counts.size),
+        np.zeros(counts.size),
+    ]
+    radius._fit_kernel(u, w, indptr, rmax, rmin, 0.15, 0.003, 0.01, 64, 8, 3, *got)
+    assert (got[2] > 0).sum() > 100
+    for a, b in zip(got[:3], ref, strict=True):
+        assert np.array_equal(a, b)

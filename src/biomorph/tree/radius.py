@@ -268,6 +268,11 @@ def _fit_kernel(
             i3 = np.random.randint(k)  # noqa: NPY002
             if i1 == i2 or i2 == i3 or i1 == i3:
                 continue
+            # a trial that cannot reach the best count so far (nor ``min_inliers``: most
+            # twig sections hold fewer points) can neither become the best nor be kept:
+            # its draws are made, its circle and count skipped (the same fit is chosen)
+            if k < max(best_n, min_inliers):
+                continue
             cx, cy, r = _circle3(x[i1], y[i1], x[i2], y[i2], x[i3], y[i3])
             if r <= rmin[v] or r > rmax[v]:
                 continue
