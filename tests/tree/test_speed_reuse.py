@@ -7,10 +7,10 @@ import pytest
 from scipy.spatial import cKDTree
 
 from biomorph.core.graph import BranchGraph
-from biomorph.tree import neighbours, radius
+from biomorph.tree import metrics, neighbours, radius
 from biomorph.tree.allometry import skeleton_distance
 from biomorph.tree.metrics import segment_candidates
-from biomorph.tree.neighbours import PointIndex, ball_lists, query_ordered
+from biomorph.tree.neighbours import PointIndex, ball_lists, grid_query, query_ordered
 
 
 def _stem_cloud(seed=0, n=6000):
@@ -89,20 +89,40 @@ def _chain_graph(xyz, n=40):
     return BranchGraph(pos, parent)
 
 
-def test_queries_in_leaf_order_equal_the_direct_queries():
+def _skeleton_distance_reference(points, parent, position):
+    """``allometry.skeleton_distance`` as first written (one k-d tree query)."""
+    from biomorph.tree.allometry import edge_length
+
+    ch = np.flatnonzero(parent >= 0)
+    el = edge_length(parent, position)[ch]
+    step = max(float(np.median(el)) / 4, 1e-6)
+    m = np.maximum(np.ceil(el / step).astype(np.int64), 1)
+    eid = np.repeat(np.arange(ch.size), m + 1)
+    start = np.repeat(np.cumsum(m + 1) - (m + 1), m + 1)
+    t = (np.arange(eid.size) - start) / m[eid]
+    a = position[parent[ch]][eid]
+    samples = a + t[:, None] * (position[ch][eid] - a)
+    node = np.where(t < 0.5, parent[ch][eid], ch[eid])
+    d, j = cKDTree(samples).query(points)
+    return d, node[j]
+
+
+def test_queries_in_leaf_order_equal_the_direct_queries(monkeypatch):
     xyz = _stem_cloud(3)
     g = _chain_graph(xyz)
     order = PointIndex(xyz).indices
-    for a, b in zip(
-        skeleton_distance(xyz, g.parent, g.position),
-        skeleton_distance(xyz, g.parent, g.position, order=order),
-        strict=True,
-    ):
-        assert np.array_equal(a, b)
+    ref = _skeleton_distance_reference(xyz, g.parent, g.position)
+    for o in (None, order):
+        got = skeleton_distance(xyz, g.parent, g.position, order=o)
+        for a, b in zip(got, ref, strict=True):
+            assert np.array_equal(a, b)
     a = segment_candidates(g, xyz)
     b = segment_candidates(g, xyz, order=order)
+    monkeypatch.setattr(metrics, "GRID_K", 0)  # the k-d tree's query
+    c = segment_candidates(g, xyz)
     for f in ("node", "par", "t", "d"):
-        assert np.array_equal(getattr(a, f), getattr(b, f))
+        assert np.array_equal(getattr(a, f), getattr(c, f))
+        assert np.array_equal(getattr(b, f), getattr(c, f))
     d, i = query_ordered(cKDTree(g.position), xyz, 3, order=order)
     d0, i0 = cKDTree(g.position).query(xyz, 3)
     assert np.array_equal(d, d0) and np.array_equal(i, i0)
@@ -204,3 +224,32 @@ def test_fit_kernel_skips_only_trials_that_cannot_win():
     assert (got[2] > 0).sum() > 100
     for a, b in zip(got[:3], ref, strict=True):
         assert np.array_equal(a, b)
+
+
+def _tie_cloud(seed=0):
+    """Points on a 1 cm grid (many equal distances to other grid points), a duplicate
+    data point and a few far away."""
+    rng = np.random.default_rng(seed)
+    return np.round(rng.normal(size=(3000, 3)) * [0.1, 0.1, 0.4], 2)
+
+
+@pytest.mark.parametrize("k", [1, 2, 8])
+def test_grid_query_equals_the_kdtree_query(k):
+    rng = np.random.default_rng(k)
+    t = np.linspace(0, 1, 2000)
+    line = np.c_[0.1 * np.sin(6 * t), 0.1 * np.cos(5 * t), 2 * t]  # a skeleton-like curve
+    line[10] = line[11]  # a duplicate sample
+    grid = _tie_cloud(k)
+    far = rng.normal(scale=5.0, size=(50, 3))
+    for data, pts in (
+        (line, np.concatenate([line + rng.normal(scale=0.05, size=line.shape), far, line[:50]])),
+        (grid, np.concatenate([_tie_cloud(k + 10), far, grid[:100]])),
+        (np.c_[rng.random((500, 2)), np.zeros(500)], rng.random((800, 3)) - 0.5),  # flat
+        (line[: k + 1], line[::7]),  # too few data points: the tree alone
+    ):
+        ref = cKDTree(data).query(pts, k)
+        for order in (None, PointIndex(pts).indices):
+            got = grid_query(data, pts, k, order=order, block=300)
+            for a, b in zip(got, ref, strict=True):
+                assert a.shape == b.shape and a.dtype == b.dtype
+                assert np.array_equal(a, b)

@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 from biomorph.core.graph import BranchGraph
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
-from biomorph.tree.neighbours import query_ordered
+from biomorph.tree.neighbours import grid_query, query_ordered
 
 __all__ = [
     "skeleton_metrics",
@@ -104,6 +104,11 @@ def _skeleton_samples(graph: BranchGraph) -> _Samples:
     return _Samples(cKDTree(pts), ec)
 
 
+#: :func:`segment_candidates` finds up to this many candidates per point through a grid of
+#: the samples (:func:`~biomorph.tree.neighbours.grid_query`), more through their k-d tree
+GRID_K = 8
+
+
 def segment_candidates(
     graph: BranchGraph,
     xyz: NDArray[np.float64],
@@ -116,13 +121,17 @@ def segment_candidates(
     median edge length; ``_samples``: those of an earlier call on the same graph). They
     depend on the skeleton's positions and parents, the points and ``k``, not on radii.
     ``order``: a spatial order of ``xyz`` known already (the leaf order of its k-d tree),
-    which the query follows (:func:`~biomorph.tree.neighbours.query_ordered`)."""
+    which the query follows."""
     if graph.n_nodes == 0:
         raise InputError("skeleton is empty; expected at least one node")
     xyz = np.asarray(xyz, dtype=float)
     smp = _samples if _samples is not None else _skeleton_samples(graph)
     kk = min(k, smp.tree.n)
-    _, idx = query_ordered(smp.tree, xyz, kk, order=order)
+    if kk <= GRID_K:
+        # the k-d tree's answers, from a grid of the samples (ties, far points: the tree)
+        _, idx = grid_query(np.asarray(smp.tree.data), xyz, kk, tree=smp.tree, order=order)
+    else:
+        _, idx = query_ordered(smp.tree, xyz, kk, order=order)
     idx = idx.reshape(xyz.shape[0], kk)
     node = smp.edge[idx]  # child node of candidate edges (or a root)
     par = graph.parent[node]

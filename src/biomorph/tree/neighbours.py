@@ -30,6 +30,7 @@ __all__ = [
     "components",
     "NeighbourCache",
     "PointIndex",
+    "grid_query",
     "spatial_order",
     "query_ordered",
     "query_blocks",
@@ -195,6 +196,190 @@ def _build_grid(xyz: NDArray[np.float64], leaf_order: NDArray) -> tuple:
     np.cumsum(np.bincount(cid, minlength=start.size - 1), out=start[1:])
     pts = np.ascontiguousarray(xyz[slot], dtype=np.float64)
     return lo.astype(np.float64), float(cell), dims, start, rank[slot], pts
+
+
+#: :func:`grid_query`'s grid has about this many cells per data point
+KNN_CELLS_PER_POINT = 4
+#: ... and looks at most this many rings of cells around a query point before it leaves
+#: the point to the k-d tree (points far from every data point)
+KNN_MAX_RING = 4
+#: relative margin of :func:`grid_query`'s exactness tests: a point whose ``k``-th and
+#: ``k + 1``-th squared distances lie within it, or whose ``k + 1``-th could lie within it
+#: of the unsearched cells, goes to the k-d tree
+KNN_MARGIN = 1e-9
+
+
+@numba.njit(cache=True)
+def _insert(bd, bi, m, dd, j):  # pragma: no cover - numba
+    """``dd`` (index ``j``) into the ascending ``bd``/``bi`` holding ``m`` of at most
+    ``bd.size`` (after equal ones; dropped when no nearer than a full list's last);
+    returns the new count."""
+    kk = bd.size
+    if m == kk and not dd < bd[kk - 1]:
+        return m
+    p = m if m < kk else kk - 1
+    while p > 0 and bd[p - 1] > dd:
+        bd[p] = bd[p - 1]
+        bi[p] = bi[p - 1]
+        p -= 1
+    bd[p] = dd
+    bi[p] = j
+    return m + 1 if m < kk else m
+
+
+@numba.njit(cache=True)
+def _scan_ring(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
+    data, start, slot, dims, c0, r, q, i, bd, bi, m
+):  # pragma: no cover - numba
+    """The data points of the grid cells at Chebyshev distance ``r`` from cell ``c0``
+    into query point ``q[i]``'s nearest list ``bd``/``bi`` (squared distances summed as
+    cKDTree does, ``(dx² + dy²) + dz²``); returns its new count."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    cx, cy, cz = c0[0], c0[1], c0[2]
+    qx, qy, qz = q[i, 0], q[i, 1], q[i, 2]
+    for ix in range(max(cx - r, 0), min(cx + r, nx - 1) + 1):
+        ex = ix == cx - r or ix == cx + r
+        for iy in range(max(cy - r, 0), min(cy + r, ny - 1) + 1):
+            # on an x or y face of the ring every z of it, inside it only its z faces
+            if ex or iy == cy - r or iy == cy + r:
+                z0, z1, step = max(cz - r, 0), min(cz + r, nz - 1), 1
+            else:  # r > 0 here
+                z0, z1, step = cz - r, cz + r, 2 * r
+            for iz in range(z0, z1 + 1, step):
+                if iz < 0 or iz >= nz:
+                    continue
+                c = (ix * ny + iy) * nz + iz
+                for s in range(start[c], start[c + 1]):
+                    dx = qx - data[s, 0]
+                    dy = qy - data[s, 1]
+                    dz = qz - data[s, 2]
+                    m = _insert(bd, bi, m, (dx * dx + dy * dy) + dz * dz, slot[s])
+    return m
+
+
+@numba.njit(cache=True)
+def _ring_bound(lo, cell, dims, c0, r, q, i):  # pragma: no cover - numba
+    """Distance (m) from ``q[i]`` beyond which the cells outside rings 0..``r`` around cell
+    ``c0`` lie (inf: there are none)."""
+    bound = np.inf
+    for a in range(3):
+        if c0[a] - r > 0:
+            bound = min(bound, q[i, a] - (lo[a] + (c0[a] - r) * cell))
+        if c0[a] + r < dims[a] - 1:
+            bound = min(bound, lo[a] + (c0[a] + r + 1) * cell - q[i, a])
+    return bound
+
+
+@numba.njit(cache=True)
+def _knn_cells(data, start, slot, lo, cell, dims, q, kk, max_ring, margin):  # pragma: no cover
+    """The ``kk`` nearest data points of every query point (squared distances as cKDTree
+    sums them, ascending, and data indices; inf and -1 where missing), searched ring by
+    ring of grid cells around the point's cell until no unsearched cell can hold a nearer
+    one. ``sure`` is False where the answer may differ from cKDTree's: fewer than ``kk``
+    found within ``max_ring`` rings, equal distances among the first ``kk - 1`` (their
+    order is the tree's), or the ``kk - 1``-th and ``kk``-th within ``margin``."""
+    n = q.shape[0]
+    d2 = np.empty((n, kk))
+    idx = np.empty((n, kk), dtype=np.int64)
+    sure = np.zeros(n, dtype=np.bool_)
+    bd = np.empty(kk)
+    bi = np.empty(kk, dtype=np.int64)
+    c0 = np.empty(3, dtype=np.int64)
+    for i in range(n):
+        for a in range(3):
+            # the point's cell, clipped to a few cells outside the grid (a far point: no
+            # ring reaches the grid within ``max_ring``, the k-d tree answers it)
+            f = np.floor((q[i, a] - lo[a]) / cell)
+            c0[a] = int(min(max(f, -1.0 - max_ring), dims[a] + max_ring))
+        m = 0
+        ok = False
+        for r in range(max_ring + 1):
+            m = _scan_ring(data, start, slot, dims, c0, r, q, i, bd, bi, m)
+            bound = _ring_bound(lo, cell, dims, c0, r, q, i)
+            if m == kk and (bound == np.inf or bd[kk - 1] < bound * bound * (1.0 - margin)):
+                ok = True
+                break
+            if bound == np.inf:
+                break  # every cell searched, fewer than kk points
+        if ok:
+            for a in range(kk - 2):
+                ok = ok and bd[a] != bd[a + 1]
+            ok = ok and bd[kk - 1] > bd[kk - 2] * (1.0 + margin)
+        sure[i] = ok
+        for a in range(kk):
+            d2[i, a] = bd[a] if a < m else np.inf
+            idx[i, a] = bi[a] if a < m else -1
+    return d2, idx, sure
+
+
+def grid_query(
+    data: NDArray[np.float64],
+    points: NDArray[np.float64],
+    k: int = 1,
+    *,
+    tree: cKDTree | None = None,
+    order: NDArray | None = None,
+    block: int = QUERY_BLOCK,
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """``cKDTree(data).query(points, k)``, the same arrays (distances and indices, shapes
+    as the query's), faster for many points near the data (the resampled skeleton of a
+    cloud): the ``k + 1`` nearest by a ring search through a grid of the data
+    (:func:`_knn_cells`), in spatial order (``order``, else :func:`spatial_order`); the
+    points whose ``k`` nearest that does not decide as the tree does (ties, points far
+    from the data) are queried from ``tree`` (a k-d tree of ``data``; built if needed).
+    Needs more than ``k + 1`` data points (else the tree answers all). ``block``: query
+    points per pass (bounds the temporaries)."""
+    data = np.ascontiguousarray(data, dtype=np.float64)
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    n, nd = points.shape[0], data.shape[0]
+    kk = k + 1
+    if nd <= kk or n == 0:
+        tree = tree if tree is not None else cKDTree(data)
+        return tree.query(points, k, workers=-1)
+    lo = data.min(axis=0)
+    span = np.maximum(data.max(axis=0) - lo, 0.0)
+    vol = float(np.prod(np.maximum(span, 1e-9)))
+    cell = max((vol / (KNN_CELLS_PER_POINT * nd)) ** (1 / 3), 1e-9)
+    dims = np.floor(span / cell).astype(np.int64) + 1
+    while int(np.prod(dims)) > KNN_CELLS_PER_POINT * nd + 64:  # flat data
+        cell *= 1.25
+        dims = np.floor(span / cell).astype(np.int64) + 1
+    ijk = np.minimum(np.floor((data - lo) / cell).astype(np.int64), dims - 1)
+    cid = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+    slot = np.argsort(cid, kind="stable")
+    start = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
+    np.cumsum(np.bincount(cid, minlength=start.size - 1), out=start[1:])
+    sorted_data = np.ascontiguousarray(data[slot])
+    order = spatial_order(points) if order is None else np.asarray(order, dtype=np.int64)
+    dist = np.empty((n, k))
+    ind = np.empty((n, k), dtype=np.intp)
+    redo = []
+    for a in range(0, n, block):  # blocks of the spatial order: bounded temporaries
+        rows = order[a : a + block]
+        d2, idx, sure = _knn_cells(
+            sorted_data,
+            start,
+            slot,
+            lo,
+            float(cell),
+            dims,
+            points[rows],
+            kk,
+            KNN_MAX_RING,
+            KNN_MARGIN,
+        )
+        dist[rows] = np.sqrt(d2[:, :k])
+        ind[rows] = idx[:, :k]
+        redo.append(rows[~sure])
+    redo = np.concatenate(redo)
+    if redo.size:
+        tree = tree if tree is not None else cKDTree(data)
+        d, i = tree.query(points[redo], k, workers=-1)
+        dist[redo] = d.reshape(redo.size, k)
+        ind[redo] = i.reshape(redo.size, k)
+    if k == 1:
+        return dist[:, 0].copy(), ind[:, 0].copy()
+    return dist, ind
 
 
 def _query_order(
