@@ -249,7 +249,7 @@ def test_grid_query_equals_the_kdtree_query(k):
     ):
         ref = cKDTree(data).query(pts, k)
         for order in (None, PointIndex(pts).indices):
-            got = grid_query(data, pts, k, order=order, block=300)
+            got = grid_query(data, pts, k, order=order)
             for a, b in zip(got, ref, strict=True):
                 assert a.shape == b.shape and a.dtype == b.dtype
                 assert np.array_equal(a, b)

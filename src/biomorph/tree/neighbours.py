@@ -271,21 +271,22 @@ def _ring_bound(lo, cell, dims, c0, r, q, i):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
-def _knn_cells(data, start, slot, lo, cell, dims, q, kk, max_ring, margin):  # pragma: no cover
-    """The ``kk`` nearest data points of every query point (squared distances as cKDTree
-    sums them, ascending, and data indices; inf and -1 where missing), searched ring by
-    ring of grid cells around the point's cell until no unsearched cell can hold a nearer
-    one. ``sure`` is False where the answer may differ from cKDTree's: fewer than ``kk``
+def _knn_cells(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
+    data, start, slot, lo, cell, dims, q, order, kk, max_ring, margin, dist, ind
+):  # pragma: no cover - numba
+    """The ``kk`` nearest data points of every query point ``q[order[t]]``, searched ring
+    by ring of grid cells around the point's cell until no unsearched cell can hold a
+    nearer one; the first ``kk - 1`` into ``dist`` (the square roots of the squared
+    distances, summed as cKDTree sums them) and ``ind`` (data indices), ascending.
+    Returns ``sure``, False where the answer may differ from cKDTree's: fewer than ``kk``
     found within ``max_ring`` rings, equal distances among the first ``kk - 1`` (their
     order is the tree's), or the ``kk - 1``-th and ``kk``-th within ``margin``."""
-    n = q.shape[0]
-    d2 = np.empty((n, kk))
-    idx = np.empty((n, kk), dtype=np.int64)
-    sure = np.zeros(n, dtype=np.bool_)
+    sure = np.zeros(q.shape[0], dtype=np.bool_)
     bd = np.empty(kk)
     bi = np.empty(kk, dtype=np.int64)
     c0 = np.empty(3, dtype=np.int64)
-    for i in range(n):
+    for t in range(order.size):
+        i = order[t]
         for a in range(3):
             # the point's cell, clipped to a few cells outside the grid (a far point: no
             # ring reaches the grid within ``max_ring``, the k-d tree answers it)
@@ -306,10 +307,11 @@ def _knn_cells(data, start, slot, lo, cell, dims, q, kk, max_ring, margin):  # p
                 ok = ok and bd[a] != bd[a + 1]
             ok = ok and bd[kk - 1] > bd[kk - 2] * (1.0 + margin)
         sure[i] = ok
-        for a in range(kk):
-            d2[i, a] = bd[a] if a < m else np.inf
-            idx[i, a] = bi[a] if a < m else -1
-    return d2, idx, sure
+        if ok:
+            for a in range(kk - 1):
+                dist[i, a] = np.sqrt(bd[a])
+                ind[i, a] = bi[a]
+    return sure
 
 
 def grid_query(
@@ -319,7 +321,6 @@ def grid_query(
     *,
     tree: cKDTree | None = None,
     order: NDArray | None = None,
-    block: int = QUERY_BLOCK,
 ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """``cKDTree(data).query(points, k)``, the same arrays (distances and indices, shapes
     as the query's), faster for many points near the data (the resampled skeleton of a
@@ -327,13 +328,11 @@ def grid_query(
     (:func:`_knn_cells`), in spatial order (``order``, else :func:`spatial_order`); the
     points whose ``k`` nearest that does not decide as the tree does (ties, points far
     from the data) are queried from ``tree`` (a k-d tree of ``data``; built if needed).
-    Needs more than ``k + 1`` data points (else the tree answers all). ``block``: query
-    points per pass (bounds the temporaries)."""
+    Needs more than ``k + 1`` data points (else the tree answers all)."""
     data = np.ascontiguousarray(data, dtype=np.float64)
     points = np.ascontiguousarray(points, dtype=np.float64)
     n, nd = points.shape[0], data.shape[0]
-    kk = k + 1
-    if nd <= kk or n == 0:
+    if nd <= k + 1 or n == 0:
         tree = tree if tree is not None else cKDTree(data)
         return tree.query(points, k, workers=-1)
     lo = data.min(axis=0)
@@ -349,36 +348,32 @@ def grid_query(
     slot = np.argsort(cid, kind="stable")
     start = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
     np.cumsum(np.bincount(cid, minlength=start.size - 1), out=start[1:])
-    sorted_data = np.ascontiguousarray(data[slot])
     order = spatial_order(points) if order is None else np.asarray(order, dtype=np.int64)
     dist = np.empty((n, k))
     ind = np.empty((n, k), dtype=np.intp)
-    redo = []
-    for a in range(0, n, block):  # blocks of the spatial order: bounded temporaries
-        rows = order[a : a + block]
-        d2, idx, sure = _knn_cells(
-            sorted_data,
-            start,
-            slot,
-            lo,
-            float(cell),
-            dims,
-            points[rows],
-            kk,
-            KNN_MAX_RING,
-            KNN_MARGIN,
-        )
-        dist[rows] = np.sqrt(d2[:, :k])
-        ind[rows] = idx[:, :k]
-        redo.append(rows[~sure])
-    redo = np.concatenate(redo)
+    sure = _knn_cells(
+        np.ascontiguousarray(data[slot]),
+        start,
+        slot,
+        lo,
+        float(cell),
+        dims,
+        points,
+        order,
+        k + 1,
+        KNN_MAX_RING,
+        KNN_MARGIN,
+        dist,
+        ind,
+    )
+    redo = np.flatnonzero(~sure)
     if redo.size:
         tree = tree if tree is not None else cKDTree(data)
         d, i = tree.query(points[redo], k, workers=-1)
         dist[redo] = d.reshape(redo.size, k)
         ind[redo] = i.reshape(redo.size, k)
     if k == 1:
-        return dist[:, 0].copy(), ind[:, 0].copy()
+        return dist.reshape(n), ind.reshape(n)
     return dist, ind
 
 
