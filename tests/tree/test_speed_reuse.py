@@ -233,7 +233,7 @@ def _tie_cloud(seed=0):
     return np.round(rng.normal(size=(3000, 3)) * [0.1, 0.1, 0.4], 2)
 
 
-@pytest.mark.parametrize("k", [1, 2, 8])
+@pytest.mark.parametrize("k", [1, 2, 8, 32])
 def test_grid_query_equals_the_kdtree_query(k):
     rng = np.random.default_rng(k)
     t = np.linspace(0, 1, 2000)

@@ -105,8 +105,9 @@ def _skeleton_samples(graph: BranchGraph) -> _Samples:
 
 
 #: :func:`segment_candidates` finds up to this many candidates per point through a grid of
-#: the samples (:func:`~biomorph.tree.neighbours.grid_query`), more through their k-d tree
-GRID_K = 8
+#: the samples (:func:`~biomorph.tree.neighbours.grid_query`; 1.5-2x faster than their k-d
+#: tree for 8 to 32 on the spruce), more through their k-d tree
+GRID_K = 32
 
 
 def segment_candidates(
