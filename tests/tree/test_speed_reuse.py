@@ -253,3 +253,15 @@ def test_grid_query_equals_the_kdtree_query(k):
             for a, b in zip(got, ref, strict=True):
                 assert a.shape == b.shape and a.dtype == b.dtype
                 assert np.array_equal(a, b)
+
+
+def test_grid_query_with_many_duplicates_and_degenerate_data():
+    rng = np.random.default_rng(11)
+    data = np.concatenate([np.repeat([[0.1, 0.2, 0.3]], 20, axis=0), rng.random((300, 3))])
+    pts = np.concatenate([data[:3], rng.random((200, 3)), [[0.1, 0.2, 0.3 + 1e-15]]])
+    same = np.repeat([[1.0, 2.0, 3.0]], 30, axis=0)  # no extent at all
+    for d in (data, same):
+        for k in (1, 8):
+            ref = cKDTree(d).query(pts, k)
+            for a, b in zip(grid_query(d, pts, k), ref, strict=True):
+                assert np.array_equal(a, b)

@@ -203,9 +203,9 @@ KNN_CELLS_PER_POINT = 4
 #: ... and looks at most this many rings of cells around a query point before it leaves
 #: the point to the k-d tree (points far from every data point)
 KNN_MAX_RING = 4
-#: relative margin of :func:`grid_query`'s exactness tests: a point whose ``k``-th and
-#: ``k + 1``-th squared distances lie within it, or whose ``k + 1``-th could lie within it
-#: of the unsearched cells, goes to the k-d tree
+#: margin of :func:`grid_query`'s exactness tests: a point whose ``k``-th and ``k + 1``-th
+#: squared distances lie within it (relative), or whose ``k + 1``-th lies within this many
+#: cell sizes of the unsearched cells, goes to the k-d tree
 KNN_MARGIN = 1e-9
 
 
@@ -280,7 +280,8 @@ def _knn_cells(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
     distances, summed as cKDTree sums them) and ``ind`` (data indices), ascending.
     Returns ``sure``, False where the answer may differ from cKDTree's: fewer than ``kk``
     found within ``max_ring`` rings, equal distances among the first ``kk - 1`` (their
-    order is the tree's), or the ``kk - 1``-th and ``kk``-th within ``margin``."""
+    order is the tree's), or the ``kk - 1``-th and ``kk``-th within ``margin`` (relative;
+    the unsearched cells' distance bound less ``margin`` cells)."""
     sure = np.zeros(q.shape[0], dtype=np.bool_)
     bd = np.empty(kk)
     bi = np.empty(kk, dtype=np.int64)
@@ -296,8 +297,9 @@ def _knn_cells(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
         ok = False
         for r in range(max_ring + 1):
             m = _scan_ring(data, start, slot, dims, c0, r, q, i, bd, bi, m)
-            bound = _ring_bound(lo, cell, dims, c0, r, q, i)
-            if m == kk and (bound == np.inf or bd[kk - 1] < bound * bound * (1.0 - margin)):
+            # less an absolute slack for the rounding of the cell boundaries
+            bound = _ring_bound(lo, cell, dims, c0, r, q, i) - margin * cell
+            if m == kk and (bound == np.inf or (bound > 0 and bd[kk - 1] < bound * bound)):
                 ok = True
                 break
             if bound == np.inf:
