@@ -374,6 +374,14 @@ class OrderOptions:
         lo_open=True,
         kind="degrees",
     )
+    trunk_smooth: bool = _opt(
+        True,
+        "--trunk-smooth",
+        "Smooth the trunk's axis over a tenth of the tree's height once the trunk is "
+        "chosen (order.smooth_trunk): the skeleton's node-to-node wiggle made a straight "
+        "spruce's trunk 30 % longer than its height.",
+        kind="enabled",
+    )
     share: float = _opt(
         0.5, "--order-share", "Branch-order weight share (rule angle).", lo=0, hi=1, hi_open=True
     )
@@ -456,6 +464,7 @@ _LEGACY = {
     "order_angle": ("order", "angle"),
     "order_rule": ("order", "rule"),
     "order_tie": ("order", "tie"),
+    "trunk_smooth": ("order", "trunk_smooth"),
 }
 
 

@@ -679,8 +679,11 @@ def order_phase(run: _Run) -> None:
         graph = graph.with_(weight=graph.subtree_length())
     if graph.tree_id is None:
         graph = graph.with_(tree_id=graph.trees)
+    if oo.trunk_smooth:
+        graph = order.smooth_trunk(graph, run.segment)
     run.graph = graph
     run.params.update(
+        trunk_smooth=oo.trunk_smooth,
         order_rule=oo.rule,
         order_tie=oo.tie,
         order_share=oo.share,
