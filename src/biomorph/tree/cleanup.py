@@ -645,3 +645,204 @@ def merge_inside_tips_mapped(
         graph = graph.subgraph(~drop)
         graph = graph.with_(weight=graph.subtree_length())
     return graph, index
+
+
+#: a trunk path at least this factor longer than the straight line between two of its
+#: nodes is a detour (:func:`trunk_shortcuts`): a stem's sweep over a tenth of its height
+#: stays within a few per cent of the chord (an arc is 20 % longer only past 63° of bend)
+DETOUR_EXCESS = 1.2
+#: the shortcut must have a point within its interpolated radius plus this many point
+#: spacings of every sample one spacing apart: the stem's surface, seen along it
+SHORTCUT_REACH = 2.0
+#: ... and both ends at least this many point spacings thick: a stem whose surface the
+#: scan resolves, not a fork of twigs whose points lie within reach of any line
+SHORTCUT_MIN_RADIUS = 3.0
+#: ... and the stem's circle around the line in three of four slabs that can be fitted
+#: (whorl branches and needles in a slab pull some circles off)
+SHORTCUT_RING_SHARE = 0.75
+
+
+def trunk_shortcuts(
+    graph: BranchGraph,
+    xyz: NDArray[np.float64],
+    spacing: float,
+    max_span: float | None = None,
+) -> list[tuple[int, int]]:
+    """Detours of each tree's trunk out along a branch and back, as ``(i, j)`` pairs of
+    trunk nodes (``j`` downstream of ``i``) to join directly.
+
+    The trunk here is the path from the root always into the child carrying the most
+    length. Where the skeleton's stem breaks — the level set of a whorl merged with a
+    branch, the contraction pulled a stem piece out — the path runs out along a branch and
+    back (the TreeLS spruce: 0.4–0.6 m out at 4 and 5.7 m, beside a fully scanned stem
+    circle). A pair qualifies when the path between is :data:`DETOUR_EXCESS` × longer
+    than the straight line (and longer by two edges) and leaves the stem (a node a stem
+    diameter beyond its surface, at least :data:`SHORTCUT_REACH` spacings: not the
+    skeleton crossing between the arms of a fork), both ends are
+    :data:`SHORTCUT_MIN_RADIUS` spacings thick (a stem the scan resolves), the line spans
+    at most ``max_span``
+    (m; default a tenth of the tree's height, :data:`biomorph.tree.order.TRUNK_WAVELENGTH`),
+    heads within 60° of vertical, and the points show the stem around it
+    (:func:`_stem_support`). No bridge through empty space: the stem must be there in the
+    scan. For each ``i`` the farthest qualifying ``j`` is taken, then the
+    search goes on from ``j``."""
+    from scipy.spatial import cKDTree
+
+    from biomorph.tree.order import TRUNK_WAVELENGTH
+
+    if spacing <= 0:
+        raise ParameterError(f"point spacing must be > 0 m, got {spacing}")
+    out: list[tuple[int, int]] = []
+    if graph.n_nodes < 4 or xyz.shape[0] == 0 or graph.radius is None:
+        return out
+    pos, rad = graph.position, graph.radius
+    carried = graph.subtree_length() + graph.edge_length
+    indptr, idx = graph.children_csr
+    el = graph.edge_length
+    med = float(np.median(el[el > 0])) if (el > 0).any() else spacing
+    kd = cKDTree(xyz)
+    cos_max = np.cos(np.radians(60.0))
+    for root in graph.roots:
+        path = [int(root)]
+        while indptr[path[-1] + 1] > indptr[path[-1]]:
+            kids = idx[indptr[path[-1]] : indptr[path[-1] + 1]]
+            path.append(int(kids[np.argmax(carried[kids])]))
+        p = np.asarray(path)
+        if p.size < 4:
+            continue
+        z = pos[graph.trees == graph.trees[root], 2]
+        span = max_span if max_span is not None else TRUNK_WAVELENGTH * float(np.ptp(z))
+        cum = np.concatenate([[0.0], np.cumsum(el[p[1:]])])
+        i = 0
+        while i < p.size - 2:
+            d = np.linalg.norm(pos[p[i + 2 :]] - pos[p[i]], axis=1)
+            pl = cum[i + 2 :] - cum[i]
+            heading = (pos[p[i + 2 :], 2] - pos[p[i], 2]) / np.maximum(d, 1e-12)
+            thick = min(rad[p[i]], 1e9) >= SHORTCUT_MIN_RADIUS * spacing
+            cand = np.flatnonzero(
+                (d <= span)
+                & (pl >= DETOUR_EXCESS * d)
+                & (pl - d >= 2 * med)
+                & (heading >= cos_max)
+                & thick
+                & (rad[p[i + 2 :]] >= SHORTCUT_MIN_RADIUS * spacing)
+            )
+            done = False
+            for c in cand[::-1]:
+                j = i + 2 + int(c)
+                # a detour leaves the stem: some node between a stem diameter beyond its
+                # surface (a skeleton crossing between the arms of a fork stays nearer)
+                ab = pos[p[j]] - pos[p[i]]
+                w = pos[p[i + 1 : j]] - pos[p[i]]
+                tt = np.clip(w @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+                off = np.linalg.norm(w - tt[:, None] * ab, axis=1).max()
+                if off < rad[p[i]] + max(2 * rad[p[i]], SHORTCUT_REACH * spacing):
+                    continue
+                if _stem_support(kd, xyz, pos[p[i]], pos[p[j]], rad[p[i]], rad[p[j]], spacing):
+                    out.append((int(p[i]), int(p[j])))
+                    i, done = j, True
+                    break
+            if not done:
+                i += 1
+    return out
+
+
+def _stem_support(kd, xyz, a, b, ra: float, rb: float, spacing: float) -> bool:
+    """Whether the scan shows a stem around the straight line ``a → b`` (radii ``ra`` to
+    ``rb``): in every slab (two point spacings apart, one spacing thick) points within the
+    radius plus :data:`SHORTCUT_REACH` spacings of the line (no gap); at least half of them
+    hold 5 points or more, and in :data:`SHORTCUT_RING_SHARE` of those a circle through the
+    points (algebraic fit) is centred within half the radius of the line, its radius within
+    a factor 2 of the stem's. A circle fit finds the stem's own axis from an arc of it, so a line
+    leaving the stem fails where it runs outside, however one-sided the scan."""
+    ab = b - a
+    ln = float(np.linalg.norm(ab))
+    if ln <= 0:
+        return False
+    u = ab / ln
+    e1 = np.cross(u, [0.0, 0.0, 1.0] if abs(u[2]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    k = max(2, int(np.ceil(ln / (2 * spacing))) + 1)
+    good = fitted = 0
+    for t in np.linspace(0.0, 1.0, k):
+        c = a + t * ab
+        r = ra + t * (rb - ra)
+        reach = r + SHORTCUT_REACH * spacing
+        idx = kd.query_ball_point(c, float(np.hypot(reach, spacing)))
+        if not idx:
+            return False
+        d = xyz[idx] - c
+        x, y = d @ e1, d @ e2
+        m = (np.abs(d @ u) <= spacing) & (np.hypot(x, y) <= reach)
+        if not m.any():
+            return False
+        if m.sum() < 5:  # too few to fit: neither for nor against
+            continue
+        fitted += 1
+        x, y = x[m], y[m]
+        A = np.stack([x, y, np.ones_like(x)], axis=1)
+        sol, *_ = np.linalg.lstsq(A, -(x * x + y * y), rcond=None)
+        cx, cy = -0.5 * sol[0], -0.5 * sol[1]
+        rr2 = cx * cx + cy * cy - sol[2]
+        if rr2 > 0 and np.hypot(cx, cy) <= 0.5 * r and 0.5 * r <= np.sqrt(rr2) <= 2 * r:
+            good += 1
+    return fitted >= 0.5 * k and good >= SHORTCUT_RING_SHARE * fitted
+
+
+def reroute_detours(
+    graph: BranchGraph,
+    xyz: NDArray[np.float64],
+    spacing: float,
+    max_span: float | None = None,
+) -> tuple[NDArray[np.int64], NDArray[np.bool_], int]:
+    """New parents that take each trunk detour (:func:`trunk_shortcuts`) out of the trunk;
+    returns ``(parent, keep, detours)``: apply ``parent``, then keep the nodes in ``keep``.
+
+    For a shortcut ``(i, j)``: ``a`` is the last node after ``i`` and ``b`` the first before
+    ``j`` still on the straight stem (within its interpolated radius plus
+    :data:`SHORTCUT_REACH` point spacings of the line). ``b`` is joined to ``a`` (the long
+    new edge is to be densified by the caller). The way out, up to the node farthest from
+    the line, stays a branch of ``a`` (the branch the skeleton ran out along, whose own
+    continuation hangs from it). The way back is the skeleton crossing over to the stem
+    (between the arms of a fork, from one whorl branch to the next): it is dropped, except
+    the part from ``b`` out to the last of its nodes that carries other wood, which is
+    turned round into a branch of ``b``."""
+    parent = np.array(graph.parent, dtype=np.int64)
+    keep = np.ones(graph.n_nodes, dtype=bool)
+    pos, rad = graph.position, graph.radius
+    done = 0
+    if rad is None:
+        return parent, keep, done
+    n_kids = graph.n_children
+    for i, j in trunk_shortcuts(graph, xyz, spacing, max_span):
+        path = [j]
+        while path[-1] != i:
+            path.append(int(parent[path[-1]]))
+        p = np.asarray(path[::-1])  # i ... j
+        ab = pos[j] - pos[i]
+        ln2 = float(ab @ ab)
+        t = np.clip((pos[p] - pos[i]) @ ab / max(ln2, 1e-12), 0.0, 1.0)
+        off = np.linalg.norm(pos[p] - (pos[i] + t[:, None] * ab), axis=1)
+        on = off <= rad[i] + t * (rad[j] - rad[i]) + SHORTCUT_REACH * spacing
+        ka = 0
+        while ka + 1 < p.size and on[ka + 1]:
+            ka += 1
+        kb = p.size - 1
+        while kb - 1 > ka and on[kb - 1]:
+            kb -= 1
+        if kb - ka < 2:
+            continue
+        a, b = int(p[ka]), int(p[kb])
+        km = ka + 1 + int(np.argmax(off[ka + 1 : kb]))  # the far end of the detour
+        parent[b] = a
+        back = p[km + 1 : kb]  # from the far end towards b
+        carrying = np.flatnonzero(n_kids[back] > 1)  # other wood hangs from these
+        cut = int(carrying[0]) if carrying.size else back.size
+        keep[back[:cut]] = False
+        kept = back[cut:]
+        if kept.size:  # turned round: b <- kept[-1] <- ... <- kept[0]
+            parent[kept[-1]] = b
+            parent[kept[:-1]] = kept[1:]
+        done += 1
+    return parent, keep, done

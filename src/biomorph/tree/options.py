@@ -295,6 +295,14 @@ class CleanupOptions:
         "prune_empty_tips), then fit radii again (graph).",
         kind="enabled",
     )
+    detours: bool = _opt(
+        True,
+        "--detours",
+        "Take the trunk's detours out along a branch and back out of the trunk where the "
+        "stem's points cover the straight way (tree.cleanup.reroute_detours), then fit "
+        "radii again.",
+        kind="enabled",
+    )
 
 
 @dataclass(frozen=True)
@@ -452,6 +460,7 @@ _LEGACY = {
             "tip_support",
             "residual",
             "empty_tips",
+            "detours",
         )
     },
     "radius": ("radius", "method"),

@@ -268,6 +268,7 @@ def skeletonize(
     radius_phase(run)
     residual_phase(run)
     empty_tips_phase(run)
+    detour_phase(run)
     twig_phase(run)
     order_phase(run)
     metrics_phase(run)
@@ -635,6 +636,33 @@ def empty_tips_phase(run: _Run) -> None:
     run.timings["cleanup"] = run.timings.get("cleanup", 0.0) + time.perf_counter() - t0
     if removed:
         g = run.skeleton.subgraph(~drop)
+        run.graph = g.with_(weight=g.subtree_length())
+        radius_phase(run, tick=False)
+
+
+def detour_phase(run: _Run) -> None:
+    """Trunk detours out along a branch and back taken out of the trunk
+    (:func:`biomorph.tree.cleanup.reroute_detours`: the straight way must be covered by the
+    stem's points), then the radius stage once more if any was. Off with
+    ``CleanupOptions.detours = False`` (``--no-detours``)."""
+    from biomorph.tree import livny
+    from biomorph.tree.cleanup import reroute_detours
+
+    co = run.opts.cleanup
+    run.params.update(detours=co.detours)
+    if not co.detours or run.graph is None or run.skeleton is None:
+        return
+    assert run.cloud is not None
+    spacing = run.point_spacing()
+    ns = float(run.params.get("node_spacing") or 0.0)
+    if spacing <= 0 or ns <= 0 or run.skeleton.n_nodes != run.graph.n_nodes:
+        return
+    t0 = time.perf_counter()
+    parent, keep, n = reroute_detours(run.graph, run.cloud.xyz, spacing)
+    run.info["trunk_detours"] = n
+    run.timings["cleanup"] = run.timings.get("cleanup", 0.0) + time.perf_counter() - t0
+    if n:
+        g = livny.densify(run.skeleton.with_(parent=parent).subgraph(keep), ns)
         run.graph = g.with_(weight=g.subtree_length())
         radius_phase(run, tick=False)
 

@@ -1,0 +1,123 @@
+"""Trunk detours out along a branch and back (cleanup.trunk_shortcuts / reroute_detours,
+the pipeline's detour phase): taken out of the trunk only where the stem's points cover the
+straight way."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from biomorph.core.graph import BranchGraph
+from biomorph.tree.cleanup import reroute_detours, trunk_shortcuts
+
+SPACING = 0.017
+
+
+def _stem_points(r: float, z0: float, z1: float, gap: tuple[float, float] | None = None):
+    zs = np.arange(z0, z1, SPACING)
+    th = np.arange(0, 2 * np.pi, SPACING / r)
+    z, t = np.meshgrid(zs, th, indexing="ij")
+    pts = np.stack([r * np.cos(t), r * np.sin(t), z], axis=-1).reshape(-1, 3)
+    if gap is not None:
+        pts = pts[(pts[:, 2] < gap[0]) | (pts[:, 2] > gap[1])]
+    return pts
+
+
+def _detour_tree(r: float = 0.10):
+    """A 10 m trunk skeleton whose path leaves the stem at 3.0 m, runs 0.5 m out along a
+    branch and comes back at 3.6 m; a side branch hangs off the way back."""
+    step = 0.05
+    low = [(0.0, 0.0, z) for z in np.arange(0.0, 3.0 + 1e-9, step)]
+    out = [(0.1 * k, 0.0, 3.0 + 0.03 * k) for k in range(1, 6)]  # out to x = 0.5
+    back = [(0.5 - 0.1 * k, 0.0, 3.15 + 0.09 * k) for k in range(1, 5)]  # back to x = 0.1
+    high = [(0.0, 0.0, z) for z in np.arange(3.6, 10.0 + 1e-9, step)]
+    pos = np.array(low + out + back + high)
+    n = len(pos)
+    parent = np.arange(-1, n - 1)
+    twig = np.array([[0.3, 0.2, 3.35], [0.3, 0.3, 3.4]])
+    i_back = len(low) + len(out) + 1  # a node of the way back
+    pos = np.vstack([pos, twig])
+    parent = np.concatenate([parent, [i_back, n]])
+    radius = np.full(len(pos), r)
+    radius[n:] = 0.01
+    return BranchGraph(pos, parent, radius=radius), len(low), len(out), len(back)
+
+
+def test_a_detour_beside_a_scanned_stem_is_taken_out_of_the_trunk():
+    g, nl, no, nb = _detour_tree()
+    xyz = np.vstack([_stem_points(0.10, 0.0, 10.0), g.position[nl : nl + no + nb]])
+    pairs = trunk_shortcuts(g, xyz, SPACING)
+    assert len(pairs) == 1
+    parent, keep, n = reroute_detours(g, xyz, SPACING)
+    assert n == 1
+    new = g.with_(parent=parent).subgraph(keep)  # a valid forest: no cycle, one root
+    ids = np.flatnonzero(keep)
+    assert new.roots.tolist() == [0]
+    # the trunk (the heaviest path) now runs up the stem: within its radius of the axis
+    carried = new.subtree_length() + new.edge_length
+    indptr, idx = new.children_csr
+    path = [0]
+    while indptr[path[-1] + 1] > indptr[path[-1]]:
+        kids = idx[indptr[path[-1]] : indptr[path[-1] + 1]]
+        path.append(int(kids[np.argmax(carried[kids])]))
+    trunk = new.position[path]
+    path = ids[path]  # back to the ids of g
+    assert np.abs(trunk[:, 0]).max() <= 0.1 + 1e-9
+    assert trunk[-1, 2] == pytest.approx(10.0)
+    # the way out is still a branch of the stem; the way back crossed over to the stem:
+    # dropped up to the node the twig hangs from, the rest turned round into a branch of
+    # the stem above (no wood lost)
+    out_far = nl + no - 1
+    assert out_far not in path and parent[nl + 1] == nl
+    back = np.arange(nl + no, nl + no + nb - 1)  # its last node, 10 cm out, is stem again
+    assert not np.isin(back, path).any()
+    assert not keep[back[0]] and keep[back[1:]].all()
+    assert parent[back[2]] == back[2] + 1 and parent[back[1]] == back[2]
+    assert parent[-2] == g.parent[-2] and keep[-2:].all()
+    # the stem between is wood the skeleton had skipped: the model gains it
+    assert new.subtree_length()[0] > g.subtree_length()[0] - 0.2
+
+
+def test_no_shortcut_through_a_gap_in_the_scan():
+    g, nl, no, nb = _detour_tree()
+    xyz = np.vstack(
+        [_stem_points(0.10, 0.0, 10.0, gap=(2.95, 3.65)), g.position[nl : nl + no + nb]]
+    )
+    assert trunk_shortcuts(g, xyz, SPACING) == []
+    parent, keep, n = reroute_detours(g, xyz, SPACING)
+    assert n == 0 and np.array_equal(parent, g.parent) and keep.all()
+
+
+def test_no_shortcut_where_the_stem_is_a_few_points_across():
+    g, nl, no, nb = _detour_tree(r=0.02)  # about one point spacing: twigs, not a stem
+    xyz = np.vstack([_stem_points(0.02, 0.0, 10.0), g.position[nl : nl + no + nb]])
+    assert trunk_shortcuts(g, xyz, SPACING) == []
+
+
+def test_the_spruce_trunk_runs_up_its_stem(tmp_path):
+    from biomorph.io import read_points
+    from biomorph.tree import skeletonize
+    from tests.conftest import shared_file
+
+    cloud = read_points(shared_file("trees", "treels_spruce.laz"))
+    on = skeletonize(cloud, method="graph")
+    off = skeletonize(cloud, method="graph", detours=False)
+    assert on.params["detours"] is True and off.params["detours"] is False
+    assert on.info["trunk_detours"] >= 1 and "trunk_detours" not in off.info
+    t_on, t_off = on.metrics["trees"][0], off.metrics["trees"][0]
+    assert t_on["trunk_length"] < t_off["trunk_length"]
+    assert t_on["height"] <= t_on["trunk_length"] < 1.05 * t_on["height"]
+    assert t_on["trunk_top_gap"] < 1.0
+
+
+def test_no_detours_reaches_the_summary(tmp_path, capsys):
+    from biomorph.cli import run
+    from tests.tree.test_cli import _write_xyz
+    from tests.tree.test_livny import make_cloud
+
+    xyz = _write_xyz(tmp_path / "tree.xyz", make_cloud(n=4000, seed=21))
+    args = ["tree", "skeletonize", str(xyz), "--no-ground", "--json"]
+    assert run([*args, "--no-detours", "--out", str(tmp_path / "off")]) == 0
+    assert json.loads(capsys.readouterr().out)["params"]["detours"] is False
