@@ -447,7 +447,11 @@ def smooth_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:
     :data:`TRUNK_WAVELENGTH` of the tree's height (at least :data:`TRUNK_MIN_EDGES` edges
     of the trunk's median length). Run after the order rule: the trunk is chosen on the
     skeleton as built, only its geometry changes (length and volume; branches stay where
-    they are and keep their first edge to the moved trunk node)."""
+    they are and keep their first edge to the moved trunk node). No node moves farther than
+    its radius or the trunk's median edge: the node-to-node wiggle goes, the route stays
+    (where the trunk runs through a crown's branches, out of sight of the stem, a
+    straightened path would leave their wood without a cylinder; detours beside a visible
+    stem are :func:`biomorph.tree.cleanup.reroute_detours`' job)."""
     from biomorph.tree.resample import smooth_branches
 
     if graph.depth is None or graph.n_nodes < 3:
@@ -469,4 +473,15 @@ def smooth_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:
         step = float(np.median(e[e > 0])) if (e > 0).any() else 0.0
         if step > 0:
             wave[m] = max(TRUNK_MIN_EDGES, TRUNK_WAVELENGTH * h / step)
-    return smooth_branches(graph, cont, wave)
+    out = smooth_branches(graph, cont, wave)
+    if graph.radius is None:
+        return out
+    # the wiggle goes, not the route: no node moves farther than its radius or an edge
+    # (where the skeleton's trunk runs through a crown's branches, out of sight of the
+    # stem, a straightened path would leave their wood without a cylinder)
+    step = float(np.median(el[cont])) if cont.any() else 0.0
+    limit = np.maximum(graph.radius, step)
+    move = out.position - graph.position
+    norm = np.linalg.norm(move, axis=1)
+    scale = np.minimum(1.0, limit / np.maximum(norm, 1e-12))
+    return out.with_(position=graph.position + move * scale[:, None])
