@@ -122,3 +122,38 @@ def test_smooth_trunk_moves_no_node_farther_than_its_radius_or_an_edge():
     limit = max(0.05, float(np.median(g.edge_length[1:n])))  # radius 5 cm, edges ~7 cm
     assert 0.03 < move.max() <= limit + 1e-9
     assert out.position[:n, 0].max() > 0.4  # the bump is still there
+
+
+def test_taper_trunk_makes_the_trunk_radii_non_increasing_and_caps_its_branches():
+    from biomorph.tree.order import taper_trunk
+
+    g, segment, n = _wiggly_tree()
+    r = np.linspace(0.12, 0.02, n)
+    r[100] = 0.2  # a whorl's circle fit, swollen by its branch bases
+    radius = np.concatenate([r, np.full(20, 0.05)])
+    radius[n] = 0.08  # the side branch's first node: thicker than its parent will be
+    g = g.with_(radius=radius)
+    out = taper_trunk(g, segment)
+    assert np.all(np.diff(out.radius[:n]) <= 1e-12)
+    assert out.radius[100] < 0.13  # the swelling pooled with its neighbours
+    assert out.radius[0] == pytest.approx(0.12, abs=0.01)  # the base kept
+    assert out.radius[n] <= out.radius[100] + 1e-12
+    assert np.all(out.radius[n + 1 :] <= 1.1 * out.radius[n : n + 19] + 1e-12)
+
+
+def test_the_tube_rings_follow_their_own_branch_not_the_whorl():
+    from biomorph.tree.export import tube_mesh
+
+    # a vertical stem with two branches leaving one node horizontally
+    stem = np.array([[0, 0, z] for z in np.arange(0, 2.01, 0.1)])
+    n = len(stem)
+    side = np.array(
+        [[0.1 * k, 0, 1.0] for k in range(1, 6)] + [[0, 0.1 * k, 1.0] for k in range(1, 6)]
+    )
+    parent = np.concatenate(
+        [np.arange(-1, n - 1), [10, n, n + 1, n + 2, n + 3, 10, n + 5, n + 6, n + 7, n + 8]]
+    )
+    g = BranchGraph(np.vstack([stem, side]), parent, radius=np.full(n + 10, 0.05))
+    mesh = tube_mesh(g, sides=8)
+    ring = mesh.vertices[10 * 8 : 11 * 8]  # the fork node's own ring
+    assert np.ptp(ring[:, 2]) < 1e-9  # perpendicular to the stem, not tilted to the branches

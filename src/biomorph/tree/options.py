@@ -390,6 +390,13 @@ class OrderOptions:
         "spruce's trunk 30 % longer than its height.",
         kind="enabled",
     )
+    trunk_taper: bool = _opt(
+        True,
+        "--trunk-taper",
+        "Make the trunk's radii non-increasing from the base up once the trunk is chosen "
+        "(order.taper_trunk): circle fits at whorls take in branch bases and needles.",
+        kind="enabled",
+    )
     share: float = _opt(
         0.5, "--order-share", "Branch-order weight share (rule angle).", lo=0, hi=1, hi_open=True
     )
@@ -474,6 +481,7 @@ _LEGACY = {
     "order_rule": ("order", "rule"),
     "order_tie": ("order", "tie"),
     "trunk_smooth": ("order", "trunk_smooth"),
+    "trunk_taper": ("order", "trunk_taper"),
 }
 
 

@@ -709,9 +709,12 @@ def order_phase(run: _Run) -> None:
         graph = graph.with_(tree_id=graph.trees)
     if oo.trunk_smooth:
         graph = order.smooth_trunk(graph, run.segment)
+    if oo.trunk_taper:
+        graph = order.taper_trunk(graph, run.segment)
     run.graph = graph
     run.params.update(
         trunk_smooth=oo.trunk_smooth,
+        trunk_taper=oo.trunk_taper,
         order_rule=oo.rule,
         order_tie=oo.tie,
         order_share=oo.share,
