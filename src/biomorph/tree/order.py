@@ -487,6 +487,12 @@ def smooth_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:
     return out.with_(position=graph.position + move * scale[:, None])
 
 
+#: the trunk's radii go through a running median over this many nodes before the
+#: non-increasing fit (:func:`taper_trunk`): two nodes either side, about the reach of one
+#: whorl's branch bases in a cross-section slab at the default node spacing
+TRUNK_TAPER_WINDOW = 5
+
+
 def taper_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:
     """The graph with each tree's trunk radii (order 0, along ``segment``) made
     non-increasing from the base up: the least-squares non-increasing fit to them, each
@@ -499,6 +505,7 @@ def taper_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:
     swelled by 10–25 % at every whorl (beads in a render; 0.5 m windows spanning 8.0–11.3 cm).
     A stem's radius does not grow upwards; the fit pools each swelling with its neighbours
     and keeps the butt flare."""
+    from scipy.ndimage import median_filter
     from scipy.optimize import isotonic_regression
 
     from biomorph.tree.radius import _cap_down_slack
@@ -526,7 +533,10 @@ def taper_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:
         if len(path) < 3:
             continue
         p = np.asarray(path)
-        fit = isotonic_regression(radius[p], weights=w[p], increasing=False).x
+        # a running median first: one node swollen by a whorl's branch bases, or one hidden
+        # behind it and fitted too thin, must not move the fit of its neighbours
+        med = median_filter(radius[p], size=TRUNK_TAPER_WINDOW, mode="nearest")
+        fit = isotonic_regression(med, weights=w[p], increasing=False).x
         radius[p] = fit
         changed = True
     if not changed:
