@@ -72,6 +72,32 @@ def _accumulate_down(parent: np.ndarray, order: np.ndarray, values: np.ndarray) 
     return acc
 
 
+@numba.njit(cache=True)
+def _cap_down(parent: np.ndarray, order: np.ndarray, values: np.ndarray, factor: np.ndarray):
+    out = values.copy()
+    for k in range(order.size):
+        v = order[k]
+        p = parent[v]
+        if p >= 0 and out[v] > factor[v] * out[p]:
+            out[v] = factor[v] * out[p]
+    return out
+
+
+def cap_down(
+    parent: ArrayLike, values: ArrayLike, factor: ArrayLike, order: ArrayLike | None = None
+) -> NDArray[np.float64]:
+    """``values`` with every node limited to ``factor`` (per node) times its parent's
+    already limited value, parents first (a branch no thicker than the stem carrying it)."""
+    parent = np.asarray(parent, dtype=np.int64)
+    order = topological_order(parent) if order is None else np.asarray(order, dtype=np.int64)
+    return _cap_down(
+        parent,
+        order,
+        np.asarray(values, dtype=np.float64),
+        np.broadcast_to(np.asarray(factor, dtype=np.float64), parent.shape).copy(),
+    )
+
+
 def subtree_sum(
     parent: ArrayLike, values: ArrayLike, order: ArrayLike | None = None
 ) -> NDArray[np.float64]:

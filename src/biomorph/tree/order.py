@@ -508,7 +508,7 @@ def taper_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:
     from scipy.ndimage import median_filter
     from scipy.optimize import isotonic_regression
 
-    from biomorph.tree.radius import _cap_down_slack
+    from biomorph.core import treeops
 
     if graph.depth is None or graph.radius is None or graph.n_nodes < 2:
         return graph
@@ -545,4 +545,4 @@ def taper_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:
     ch = par >= 0
     slack[ch] = np.where(seg[ch] == seg[par[ch]], 1.1, 1.0)
     slack[trunk] = np.inf  # the fit is the trunk's radius
-    return graph.with_(radius=_cap_down_slack(par, graph.order, radius, slack))
+    return graph.with_(radius=treeops.cap_down(par, radius, slack, graph.order))

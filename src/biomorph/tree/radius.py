@@ -870,15 +870,9 @@ def twig_offset(
 # --------------------------------------------------------------- taper model (issue 13)
 
 
-@numba.njit(cache=True)
 def _cap_down_slack(parent, order, r, slack):
-    out = r.copy()
-    for k in range(order.size):
-        v = order[k]
-        p = parent[v]
-        if p >= 0 and out[v] > slack[v] * out[p]:
-            out[v] = slack[v] * out[p]
-    return out
+    """:func:`biomorph.core.treeops.cap_down` with a per-node ``slack``."""
+    return treeops.cap_down(parent, r, slack, order)
 
 
 def _robust_line(x: NDArray, y: NDArray, slope: float | None) -> tuple[float, float, float]:
