@@ -22,6 +22,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
@@ -414,8 +415,6 @@ def prune_unsupported_tips(
         )
     if graph.n_nodes < 3:
         return graph
-    from scipy.spatial import cKDTree
-
     lab, side, inv, tops, clen = _side_chains(graph)
     if side.size == 0:
         return graph
@@ -441,6 +440,7 @@ def empty_tips(
     xyz: NDArray[np.float64],
     spacing: float,
     max_length: float = np.inf,
+    kdtree: cKDTree | None = None,
 ) -> NDArray[np.bool_]:
     """Nodes of the side tip chains (:func:`tip_chains`) shorter than ``max_length`` metres
     whose nodes are mostly *empty*: for at least :data:`EMPTY_SHARE` (half) of them no
@@ -453,18 +453,17 @@ def empty_tips(
     (60,000 points) 181 of the skeleton's 315 tips were such chains, median 11 cm long,
     5–8 cm off every true branch, with no point within 2 spacings of most of their nodes
     (3–9 % of the true twig chains look like that). :func:`prune_empty_tips` removes them.
+    ``kdtree``: a k-d tree of ``xyz`` if the caller has one (the pipeline's, built once).
     """
     if spacing <= 0:
         raise ParameterError(f"point spacing must be > 0 m, got {spacing}")
     drop = np.zeros(graph.n_nodes, dtype=bool)
     if graph.n_nodes < 3 or xyz.shape[0] == 0:
         return drop
-    from scipy.spatial import cKDTree
-
     lab, side, inv, tops, clen = _side_chains(graph)
     if side.size == 0:
         return drop
-    near = cKDTree(xyz).query_ball_point(
+    near = (kdtree if kdtree is not None else cKDTree(xyz)).query_ball_point(
         graph.position[side], EMPTY_REACH * spacing, return_length=True, workers=-1
     )
     empty = np.bincount(inv, weights=(near == 0).astype(float))
@@ -509,8 +508,6 @@ def _host_edges(graph, vert, chain_of, lab, spacing):
     """For each chain vertex, up to 48 candidate host edges (child ids) near it, the
     distance to each and whether it is the vertex's own chain (edges sampled every 2
     spacings, a k-d tree over the samples)."""
-    from scipy.spatial import cKDTree
-
     par = graph.parent
     pos = graph.position
     e = np.flatnonzero(par >= 0)
@@ -587,8 +584,6 @@ def merge_inside_tips_mapped(
 ) -> tuple[BranchGraph, NDArray[np.int64]]:
     """:func:`merge_inside_tips` and, for every input node, its node in the result (a
     removed chain's nodes map to the fork the chain left: its points merge there)."""
-    from scipy.spatial import cKDTree
-
     xyz = np.asarray(xyz, dtype=np.float64)
     index = np.arange(graph.n_nodes, dtype=np.int64)
     for _ in range(max_rounds):
@@ -651,8 +646,10 @@ def merge_inside_tips_mapped(
 #: nodes is a detour (:func:`trunk_shortcuts`): a stem's sweep over a tenth of its height
 #: stays within a few per cent of the chord (an arc is 20 % longer only past 63° of bend)
 DETOUR_EXCESS = 1.2
-#: the shortcut must have a point within its interpolated radius plus this many point
-#: spacings of every sample one spacing apart: the stem's surface, seen along it
+#: a node within the stem's interpolated radius plus this many point spacings of the line
+#: is on the stem (the surface points' noise and the centroid's pull); a detour reaches a
+#: stem diameter or at least this reach beyond the surface; and a slab of
+#: :func:`_stem_support` searches this far beyond the radius
 SHORTCUT_REACH = 2.0
 #: ... and both ends at least this many point spacings thick: a stem whose surface the
 #: scan resolves, not a fork of twigs whose points lie within reach of any line
@@ -662,11 +659,20 @@ SHORTCUT_MIN_RADIUS = 3.0
 SHORTCUT_RING_SHARE = 0.75
 
 
+def _chord_offsets(pos: NDArray, a: NDArray, b: NDArray) -> tuple[NDArray, NDArray]:
+    """For points ``pos``, the parameter ``t`` in [0, 1] of the closest point of the
+    segment ``a → b`` and the distance to it."""
+    ab = b - a
+    t = np.clip((pos - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+    return t, np.linalg.norm(pos - (a + t[:, None] * ab), axis=1)
+
+
 def trunk_shortcuts(
     graph: BranchGraph,
     xyz: NDArray[np.float64],
     spacing: float,
     max_span: float | None = None,
+    kdtree: cKDTree | None = None,
 ) -> list[tuple[int, int]]:
     """Detours of each tree's trunk out along a branch and back, as ``(i, j)`` pairs of
     trunk nodes (``j`` downstream of ``i``) to join directly.
@@ -680,15 +686,13 @@ def trunk_shortcuts(
     diameter beyond its surface, at least :data:`SHORTCUT_REACH` spacings: not the
     skeleton crossing between the arms of a fork), both ends are
     :data:`SHORTCUT_MIN_RADIUS` spacings thick (a stem the scan resolves), the line spans
-    at most ``max_span``
-    (m; default a tenth of the tree's height, :data:`biomorph.tree.order.TRUNK_WAVELENGTH`),
-    heads within 60° of vertical, and the points show the stem around it
-    (:func:`_stem_support`). No bridge through empty space: the stem must be there in the
-    scan. For each ``i`` the farthest qualifying ``j`` is taken, then the
-    search goes on from ``j``."""
-    from scipy.spatial import cKDTree
-
-    from biomorph.tree.order import TRUNK_WAVELENGTH
+    at most ``max_span`` (m; default a tenth of the tree's height,
+    :data:`biomorph.tree.order.TRUNK_WAVELENGTH`), heads within 60° of vertical, and the
+    points show the stem around it (:func:`_stem_support`). No bridge through empty space:
+    the stem must be there in the scan. For each ``i`` the farthest qualifying ``j`` is
+    taken, then the search goes on from ``j``. ``kdtree``: a k-d tree of ``xyz`` if the
+    caller has one."""
+    from biomorph.tree.order import TRUNK_WAVELENGTH, tree_heights
 
     if spacing <= 0:
         raise ParameterError(f"point spacing must be > 0 m, got {spacing}")
@@ -700,8 +704,10 @@ def trunk_shortcuts(
     indptr, idx = graph.children_csr
     el = graph.edge_length
     med = float(np.median(el[el > 0])) if (el > 0).any() else spacing
-    kd = cKDTree(xyz)
+    kd = kdtree if kdtree is not None else cKDTree(xyz)
     cos_max = np.cos(np.radians(60.0))
+    thick = rad >= SHORTCUT_MIN_RADIUS * spacing
+    heights = tree_heights(graph)
     for root in graph.roots:
         path = [int(root)]
         while indptr[path[-1] + 1] > indptr[path[-1]]:
@@ -710,33 +716,29 @@ def trunk_shortcuts(
         p = np.asarray(path)
         if p.size < 4:
             continue
-        z = pos[graph.trees == graph.trees[root], 2]
-        span = max_span if max_span is not None else TRUNK_WAVELENGTH * float(np.ptp(z))
+        span = max_span if max_span is not None else TRUNK_WAVELENGTH * heights[root]
         cum = np.concatenate([[0.0], np.cumsum(el[p[1:]])])
         i = 0
         while i < p.size - 2:
-            d = np.linalg.norm(pos[p[i + 2 :]] - pos[p[i]], axis=1)
+            ahead = p[i + 2 :]
+            d = np.linalg.norm(pos[ahead] - pos[p[i]], axis=1)
             pl = cum[i + 2 :] - cum[i]
-            heading = (pos[p[i + 2 :], 2] - pos[p[i], 2]) / np.maximum(d, 1e-12)
-            thick = min(rad[p[i]], 1e9) >= SHORTCUT_MIN_RADIUS * spacing
+            heading = (pos[ahead, 2] - pos[p[i], 2]) / np.maximum(d, 1e-12)
             cand = np.flatnonzero(
-                (d <= span)
+                thick[p[i]]
+                & thick[ahead]
+                & (d <= span)
                 & (pl >= DETOUR_EXCESS * d)
                 & (pl - d >= 2 * med)
                 & (heading >= cos_max)
-                & thick
-                & (rad[p[i + 2 :]] >= SHORTCUT_MIN_RADIUS * spacing)
             )
             done = False
             for c in cand[::-1]:
                 j = i + 2 + int(c)
                 # a detour leaves the stem: some node between a stem diameter beyond its
                 # surface (a skeleton crossing between the arms of a fork stays nearer)
-                ab = pos[p[j]] - pos[p[i]]
-                w = pos[p[i + 1 : j]] - pos[p[i]]
-                tt = np.clip(w @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
-                off = np.linalg.norm(w - tt[:, None] * ab, axis=1).max()
-                if off < rad[p[i]] + max(2 * rad[p[i]], SHORTCUT_REACH * spacing):
+                _, off = _chord_offsets(pos[p[i + 1 : j]], pos[p[i]], pos[p[j]])
+                if off.max() < rad[p[i]] + max(2 * rad[p[i]], SHORTCUT_REACH * spacing):
                     continue
                 if _stem_support(kd, xyz, pos[p[i]], pos[p[j]], rad[p[i]], rad[p[j]], spacing):
                     out.append((int(p[i]), int(p[j])))
@@ -795,6 +797,7 @@ def reroute_detours(
     xyz: NDArray[np.float64],
     spacing: float,
     max_span: float | None = None,
+    kdtree: cKDTree | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.bool_], int]:
     """New parents that take each trunk detour (:func:`trunk_shortcuts`) out of the trunk;
     returns ``(parent, keep, detours)``: apply ``parent``, then keep the nodes in ``keep``.
@@ -807,7 +810,7 @@ def reroute_detours(
     continuation hangs from it). The way back is the skeleton crossing over to the stem
     (between the arms of a fork, from one whorl branch to the next): it is dropped, except
     the part from ``b`` out to the last of its nodes that carries other wood, which is
-    turned round into a branch of ``b``."""
+    turned round into a branch of ``b``. ``kdtree``: as :func:`trunk_shortcuts`."""
     parent = np.array(graph.parent, dtype=np.int64)
     keep = np.ones(graph.n_nodes, dtype=bool)
     pos, rad = graph.position, graph.radius
@@ -815,15 +818,12 @@ def reroute_detours(
     if rad is None:
         return parent, keep, done
     n_kids = graph.n_children
-    for i, j in trunk_shortcuts(graph, xyz, spacing, max_span):
+    for i, j in trunk_shortcuts(graph, xyz, spacing, max_span, kdtree):
         path = [j]
         while path[-1] != i:
             path.append(int(parent[path[-1]]))
         p = np.asarray(path[::-1])  # i ... j
-        ab = pos[j] - pos[i]
-        ln2 = float(ab @ ab)
-        t = np.clip((pos[p] - pos[i]) @ ab / max(ln2, 1e-12), 0.0, 1.0)
-        off = np.linalg.norm(pos[p] - (pos[i] + t[:, None] * ab), axis=1)
+        t, off = _chord_offsets(pos[p], pos[i], pos[j])
         on = off <= rad[i] + t * (rad[j] - rad[i]) + SHORTCUT_REACH * spacing
         ka = 0
         while ka + 1 < p.size and on[ka + 1]:

@@ -63,34 +63,6 @@ def _graph_of(obj: Any) -> BranchGraph:
     return g
 
 
-def _branch_axes(graph: BranchGraph, cont: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Unit direction of each node's own branch: the sum of the unit edge in (from the
-    parent) and the unit edge out to the child continuing the branch (``cont``), not to
-    all children (eq. 5.1's plane, which the radius stage uses, tilts a stem's ring towards
-    every branch of a whorl: the rings of a spruce's trunk showed as collars in a render)."""
-    n = graph.n_nodes
-    pos = graph.position
-    par = graph.parent
-
-    def unit(d):
-        ln = np.linalg.norm(d, axis=1)
-        return np.where(ln[:, None] > 0, d / np.maximum(ln, 1e-300)[:, None], 0.0)
-
-    e_in = np.zeros((n, 3))
-    ch = np.flatnonzero(par >= 0)
-    e_in[ch] = unit(pos[ch] - pos[par[ch]])
-    e_out = np.zeros((n, 3))
-    has = np.flatnonzero(cont >= 0)
-    e_out[has] = unit(pos[cont[has]] - pos[has])
-    ax = e_in + e_out
-    an = np.linalg.norm(ax, axis=1)
-    bad = an < 1e-9
-    ax[bad] = np.where(
-        np.linalg.norm(e_in[bad], axis=1)[:, None] > 0, e_in[bad], np.array([0.0, 0.0, 1.0])
-    )
-    return ax / np.linalg.norm(ax, axis=1)[:, None]
-
-
 def tube_mesh(
     graph: BranchGraph,
     sides: int = 8,
@@ -109,7 +81,7 @@ def tube_mesh(
     """
     from biomorph.core.mesh import Mesh
     from biomorph.tree.order import continuation, continuation_from_segments
-    from biomorph.tree.radius import _tangents
+    from biomorph.tree.radius import _tangents, node_axes
 
     if sides < 3:
         raise ParameterError(f"sides must be >= 3, got {sides}")
@@ -120,7 +92,7 @@ def tube_mesh(
     r = np.maximum(graph.radius, min_radius)
     par = graph.parent
     cont = continuation(graph) if segment is None else continuation_from_segments(graph, segment)
-    axes = _branch_axes(graph, cont)
+    axes = node_axes(graph, continuation=cont)  # each ring along its own branch
     ch = np.flatnonzero(par >= 0)
     branch_start = ch[cont[par[ch]] != ch]  # children that start a new branch
     # ring centres, axes and radii: one per node, then one per branch start (at the parent)

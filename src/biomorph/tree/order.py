@@ -441,13 +441,26 @@ TRUNK_WAVELENGTH = 0.1
 TRUNK_MIN_EDGES = 10.0
 
 
+def tree_heights(graph: BranchGraph) -> NDArray[np.float64]:
+    """Per node, the height of its tree: the span in z of the tree's nodes (m)."""
+    _, inv = np.unique(graph.trees, return_inverse=True)
+    inv = inv.reshape(-1)
+    z = graph.position[:, 2]
+    hi = np.full(int(inv.max()) + 1 if inv.size else 0, -np.inf)
+    lo = np.full(hi.size, np.inf)
+    np.maximum.at(hi, inv, z)
+    np.minimum.at(lo, inv, z)
+    return (hi - lo)[inv]
+
+
 def smooth_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:
     """The graph with each tree's trunk (order 0, ``graph.depth == 0``, along ``segment``)
     smoothed by :func:`biomorph.tree.resample.smooth_branches` over
-    :data:`TRUNK_WAVELENGTH` of the tree's height (at least :data:`TRUNK_MIN_EDGES` edges
-    of the trunk's median length). Run after the order rule: the trunk is chosen on the
-    skeleton as built, only its geometry changes (length and volume; branches stay where
-    they are and keep their first edge to the moved trunk node). No node moves farther than
+    :data:`TRUNK_WAVELENGTH` of the tree's height (:func:`tree_heights`; at least
+    :data:`TRUNK_MIN_EDGES` edges of the trunks' median length). Run after the order rule:
+    the trunk is chosen on the skeleton as built, only its geometry changes (length and
+    volume; branches stay where they are and keep their first edge to the moved trunk
+    node). No node moves farther than
     its radius or the trunk's median edge: the node-to-node wiggle goes, the route stays
     (where the trunk runs through a crown's branches, out of sight of the stem, a
     straightened path would leave their wood without a cylinder; detours beside a visible
@@ -463,23 +476,30 @@ def smooth_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:
     ch = par >= 0
     cont[ch] = trunk[ch] & (seg[ch] == seg[par[ch]])
     el = graph.edge_length
-    trees = graph.trees
-    wave = np.zeros(graph.n_nodes)
-    for t in np.unique(trees[cont]):
-        m = trees == t
-        z = graph.position[m, 2]
-        h = float(z.max() - z.min())
-        e = el[m & cont]
-        step = float(np.median(e[e > 0])) if (e > 0).any() else 0.0
-        if step > 0:
-            wave[m] = max(TRUNK_MIN_EDGES, TRUNK_WAVELENGTH * h / step)
+    # each trunk's median edge is the unit of its wavelength (a voxel skeleton's edges
+    # differ from tree to tree); the loop runs over the trunks' nodes only
+    uniq, inv = np.unique(graph.trees, return_inverse=True)
+    inv = inv.reshape(-1)
+    nodes = np.flatnonzero(cont)
+    per_tree = np.zeros(uniq.size)
+    for k in np.unique(inv[nodes]):
+        e = el[nodes[inv[nodes] == k]]
+        per_tree[k] = float(np.median(e[e > 0])) if (e > 0).any() else 0.0
+    edge = per_tree[inv]
+    wave = np.where(
+        edge > 0,
+        np.maximum(
+            TRUNK_MIN_EDGES, TRUNK_WAVELENGTH * tree_heights(graph) / np.maximum(edge, 1e-12)
+        ),
+        0.0,
+    )
+    step = float(np.median(el[cont])) if cont.any() else 0.0
     out = smooth_branches(graph, cont, wave)
     if graph.radius is None:
         return out
     # the wiggle goes, not the route: no node moves farther than its radius or an edge
     # (where the skeleton's trunk runs through a crown's branches, out of sight of the
     # stem, a straightened path would leave their wood without a cylinder)
-    step = float(np.median(el[cont])) if cont.any() else 0.0
     limit = np.maximum(graph.radius, step)
     move = out.position - graph.position
     norm = np.linalg.norm(move, axis=1)

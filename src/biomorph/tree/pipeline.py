@@ -630,7 +630,9 @@ def empty_tips_phase(run: _Run) -> None:
     t0 = time.perf_counter()
     # judged where the radius stage put the nodes; removed from the skeleton it started
     # from (same nodes), which the radius stage then fits once more
-    drop = empty_tips(run.graph, run.cloud.xyz, spacing, TIP_SUPPORT_LENGTH * ns)
+    drop = empty_tips(
+        run.graph, run.cloud.xyz, spacing, TIP_SUPPORT_LENGTH * ns, kdtree=run.point_index()
+    )
     removed = int(drop[run.graph.leaves].sum())  # one tip per chain
     run.info["empty_tips_removed"] = removed
     run.timings["cleanup"] = run.timings.get("cleanup", 0.0) + time.perf_counter() - t0
@@ -658,7 +660,7 @@ def detour_phase(run: _Run) -> None:
     if spacing <= 0 or ns <= 0 or run.skeleton.n_nodes != run.graph.n_nodes:
         return
     t0 = time.perf_counter()
-    parent, keep, n = reroute_detours(run.graph, run.cloud.xyz, spacing)
+    parent, keep, n = reroute_detours(run.graph, run.cloud.xyz, spacing, kdtree=run.point_index())
     run.info["trunk_detours"] = n
     run.timings["cleanup"] = run.timings.get("cleanup", 0.0) + time.perf_counter() - t0
     if n:

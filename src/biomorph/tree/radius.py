@@ -102,8 +102,15 @@ BRANCH_PRIOR_FITS = 3
 KEEP_MAX_RATIO = 2.0
 
 
-def node_axes(graph: BranchGraph) -> NDArray[np.float64]:
-    """Unit branch direction at every node (eq. 5.1); ``e_z`` where undefined."""
+def node_axes(
+    graph: BranchGraph, continuation: NDArray[np.int64] | None = None
+) -> NDArray[np.float64]:
+    """Unit branch direction at every node (eq. 5.1): the unit edge in plus the normalised
+    sum of the unit edges out to the children; ``e_z`` where undefined. With
+    ``continuation`` (per node the child continuing its branch, -1 at tips), only the edge
+    to that child counts: the axis of the node's own branch (the tube mesh: eq. 5.1's
+    plane, which the cross-sections need, tilts a stem's ring towards every branch of a
+    whorl — collars in a render of the spruce)."""
     n = graph.n_nodes
     pos = graph.position
     par = graph.parent
@@ -114,7 +121,12 @@ def node_axes(graph: BranchGraph) -> NDArray[np.float64]:
     e_in = np.zeros((n, 3))
     e_in[ch] = e
     out = np.zeros((n, 3))
-    np.add.at(out, par[ch], e)
+    if continuation is None:
+        np.add.at(out, par[ch], e)
+    else:
+        cont = np.asarray(continuation)
+        has = np.flatnonzero(cont >= 0)
+        out[has] = e_in[cont[has]]
     on = np.linalg.norm(out, axis=1)
     out = np.where(on[:, None] > 0, out / np.maximum(on, 1e-300)[:, None], 0.0)
     ax = e_in + out
