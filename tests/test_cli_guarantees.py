@@ -22,10 +22,24 @@ from biomorph.cli import run
 CLI = [sys.executable, "-m", "biomorph.cli"]
 
 
-def _interrupt(args: list[str], wait_for: Path | None, delay: float) -> tuple[int, str, float]:
-    """Start the CLI, wait until ``wait_for`` exists (the command body has begun) plus
-    ``delay`` s, send SIGINT to its process group; return (exit code, stderr, seconds to
-    stop)."""
+def _maps_numpy(pid: int) -> bool:
+    """True once the process has mapped numpy's C core: ``biomorph.cli`` has installed its
+    start-up Ctrl-C handler (the ``biomorph`` package itself imports nothing heavy) and is
+    inside its imports. Before that the interpreter is still starting (``site``), where
+    Python's own default applies."""
+    try:
+        return "_multiarray_umath" in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return False
+
+
+def _interrupt(
+    args: list[str], wait_for: Path | str | None, delay: float
+) -> tuple[int, str, float]:
+    """Start the CLI, wait until ``wait_for`` exists (the command body has begun; the string
+    ``"numpy"``: numpy is being imported) plus ``delay`` s, send SIGINT to its process
+    group; return (exit code, stderr, seconds to stop). Waiting on an event instead of a
+    fixed time keeps the test meaningful on a loaded machine."""
     proc = subprocess.Popen(
         CLI + args,
         stdout=subprocess.PIPE,
@@ -34,13 +48,16 @@ def _interrupt(args: list[str], wait_for: Path | None, delay: float) -> tuple[in
         start_new_session=True,
     )
     t0 = time.monotonic()
-    while (
-        wait_for is not None
-        and not wait_for.exists()
-        and proc.poll() is None
-        and time.monotonic() - t0 < 90
-    ):
-        time.sleep(0.01)
+
+    def started() -> bool:
+        if wait_for is None:
+            return True
+        if wait_for == "numpy":
+            return _maps_numpy(proc.pid)
+        return Path(wait_for).exists()
+
+    while not started() and proc.poll() is None and time.monotonic() - t0 < 90:
+        time.sleep(0.002)
     assert proc.poll() is None, proc.communicate()
     time.sleep(delay)
     os.killpg(proc.pid, signal.SIGINT)
@@ -60,7 +77,7 @@ def _temp_files(folder: Path) -> list[Path]:
 
 
 def test_ctrl_c_during_imports_one_line_exit_130(tmp_path):
-    code, err, took = _interrupt(["tree", "synth", "--out", str(tmp_path / "o")], None, 0.3)
+    code, err, took = _interrupt(["tree", "synth", "--out", str(tmp_path / "o")], "numpy", 0.0)
     assert code == 130
     _one_interrupt_line(err)
     assert took < 1.0
