@@ -767,7 +767,15 @@ def _stem_support(kd, xyz, a, b, ra: float, rb: float, spacing: float) -> bool:
     e2 = np.cross(u, e1)
     k = max(2, int(np.ceil(ln / (2 * spacing))) + 1)
     good = fitted = 0
-    for t in np.linspace(0.0, 1.0, k):
+    ts = np.linspace(0.0, 1.0, k)
+    # the middle first: a line beside the stem leaves it there (the answer does not
+    # depend on the order)
+    for n, t in enumerate(ts[np.argsort(np.abs(ts - 0.5), kind="stable")]):
+        # the answer is known once even every slab left fitted and good cannot meet
+        # the two shares (a bad slab only lowers them): stop there, the same answer
+        left = k - n
+        if fitted + left < 0.5 * k or good + left < SHORTCUT_RING_SHARE * (fitted + left):
+            return False
         c = a + t * ab
         r = ra + t * (rb - ra)
         reach = r + SHORTCUT_REACH * spacing
