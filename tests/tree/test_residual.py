@@ -81,25 +81,6 @@ def test_a_stem_path_off_axis_does_not_sprout_a_surface_strip():
     assert info["pieces"] == 0 and grown.n_nodes == g.n_nodes
 
 
-def test_a_stub_on_a_measured_stem_is_modelled():
-    """A dead branch stub 14 cm out from a 10 cm stem: beside a cylinder whose radius is a
-    trusted circle fit it stands out enough (half a radius beyond the threshold and the
-    minimum length), beside a modelled radius it does not (a whole radius)."""
-    rng = np.random.default_rng(4)
-    stem = _surface((0, 0, 0), (0, 0, 2), 0.10, rng)
-    stub = _surface((0.09, 0, 1.0), (0.24, 0, 1.05), 0.015, rng)
-    xyz = np.vstack([stem, stub])
-    g = _stem_model()
-    _, plain = residual_branches(g, xyz, SPACING, NODE)
-    grown, fitted = residual_branches(g, xyz, SPACING, NODE, measured=np.ones(g.n_nodes, bool))
-    assert plain["pieces"] == 0
-    assert fitted["pieces"] == 1 and grown.leaves.size == 2
-    tip = grown.position[grown.leaves[grown.leaves >= g.n_nodes][0]]
-    assert 0.17 < tip[0] < 0.26
-    with pytest.raises(ParameterError, match="one per node"):
-        residual_branches(g, xyz, SPACING, NODE, measured=np.ones(3, bool))
-
-
 def test_a_branch_reached_by_a_shortcut_is_rerouted_through_its_base():
     """The skeleton joins a branch to the stem 30 cm above where its wood leaves the stem
     (a level set's shortcut). The piece of wood below is not a new tip: the branch is

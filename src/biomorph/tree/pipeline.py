@@ -602,10 +602,7 @@ def residual_phase(run: _Run) -> None:
     ns = float(run.params.get("node_spacing") or 0.0)
     if not (ps > 0 and ns > 0):
         return
-    measured = None
-    if run.quality is not None and run.quality["reliable"].size == run.graph.n_nodes:
-        measured = run.quality["reliable"]
-    grown, rec = residual_branches(run.graph, xyz, ps, ns, base=run.skeleton, measured=measured)
+    grown, rec = residual_branches(run.graph, xyz, ps, ns, base=run.skeleton)
     run.info.update({f"residual_{k}": v for k, v in rec.items()})
     run.timings["residual"] = time.perf_counter() - t0
     if rec["nodes_added"]:

@@ -54,7 +54,6 @@ __all__ = [
     "RESIDUAL_THRESHOLD",
     "RESIDUAL_RADIUS",
     "RESIDUAL_PROTRUDE",
-    "RESIDUAL_PROTRUDE_MEASURED",
     "RESIDUAL_MIN_ANGLE",
     "RESIDUAL_LINK",
     "RESIDUAL_MIN_LENGTH",
@@ -74,11 +73,6 @@ RESIDUAL_RADIUS = 0.5
 #: cylinder: the stem-surface strips beside an off-axis stem path on the toy Y tree of
 #: the tests (10 cm stem, path 10 cm off) reach 0.7 radii, a spruce shoot 5–10 radii
 RESIDUAL_PROTRUDE = 1.0
-#: ... or this many radii where that cylinder's radius is a circle fit the radius stage
-#: trusts: the fit centred the axis on the wood, so no strip of its own bark lies off
-#: it, and only the radius error (:data:`RESIDUAL_RADIUS`) is left to allow for; a
-#: pine's dead branch stubs (10-25 cm out from a 7-11 cm stem) are modelled then
-RESIDUAL_PROTRUDE_MEASURED = 0.5
 #: a piece must leave its host's axis at more than this angle (radians; 30°) unless the
 #: host is a tip: side shoots leave at 30–90° (conifer branches 60–90°), strips of the
 #: host's own wood run along it
@@ -105,7 +99,6 @@ def residual_branches(
     threshold: float | None = None,
     link: float | None = None,
     min_length: float | None = None,
-    measured: NDArray[np.bool_] | None = None,
 ) -> tuple[BranchGraph, dict[str, Any]]:
     """Grow the skeleton into the wood its cylinders leave unexplained (module doc).
 
@@ -114,9 +107,6 @@ def residual_branches(
     the pipeline passes the skeleton *before* its radius stage so that stage can run once
     more on the grown skeleton. ``threshold`` and ``min_length`` are in metres (defaults
     from ``node_spacing``), ``link`` in metres (default from ``point_spacing``).
-    ``measured``: per node of ``graph``, whether its radius is a trusted circle fit (a
-    piece needs to stand out :data:`RESIDUAL_PROTRUDE_MEASURED` radii beyond such a
-    cylinder instead of :data:`RESIDUAL_PROTRUDE`); default none is.
 
     Returns the grown graph (new nodes after the old ones, ``radius`` copied from the
     attachment node, ``tree_id`` the attachment's tree, ``weight`` recomputed) and a
@@ -151,12 +141,7 @@ def residual_branches(
     xyz = np.asarray(xyz, dtype=float)
     if graph.n_nodes == 0 or xyz.shape[0] == 0:
         return base, info
-    if measured is not None and np.shape(measured) != (graph.n_nodes,):
-        raise ParameterError(
-            f"measured has {np.size(measured)} values for {graph.n_nodes} nodes; "
-            "expected one per node"
-        )
-    pieces = _pieces(graph, xyz, tau, lk, ml, node_spacing, info, measured)
+    pieces = _pieces(graph, xyz, tau, lk, ml, node_spacing, info)
     if pieces is None:
         return base, info
     _classify(graph, pieces, tau, ml)
@@ -197,7 +182,6 @@ def _pieces(
     ml: float,
     node_spacing: float,
     info: dict[str, Any],
-    measured: NDArray[np.bool_] | None = None,
 ) -> _Pieces | None:
     """Steps 1–3 of the module doc: unexplained points, their pieces, the candidates."""
     from biomorph.tree.metrics import surface_distance
@@ -241,10 +225,7 @@ def _pieces(
     np.add.at(e_sum, comp[end], pu[end])
     e_cnt = np.bincount(comp[end], minlength=n_comp)
     top = np.full(n_comp, -np.inf)
-    protrude = np.full(u.size, RESIDUAL_PROTRUDE)
-    if measured is not None:
-        protrude[np.asarray(measured, dtype=bool)[near_node[u]]] = RESIDUAL_PROTRUDE_MEASURED
-    np.maximum.at(top, comp[end], (sd_raw[u] - protrude * rad[u])[end])
+    np.maximum.at(top, comp[end], (sd_raw[u] - RESIDUAL_PROTRUDE * rad[u])[end])
     return _Pieces(
         u=u,
         pu=pu,
