@@ -413,7 +413,7 @@ def _rad_at(chunks: list[NDArray], i: int) -> float:
 
 
 # ------------------------------------------------------------------------- LiDAR simulator
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, parallel=True)
 def _visible(
     occ: NDArray[np.bool_],
     origin: NDArray[np.float64],
@@ -431,7 +431,7 @@ def _visible(
     out = np.ones(n, dtype=np.bool_)
     nx, ny, nz = occ.shape
     h = 0.5 * cell
-    for i in range(n):
+    for i in numba.prange(n):  # every ray on its own: the same answer on any core count
         dx = scanner[0] - pts[i, 0]
         dy = scanner[1] - pts[i, 1]
         dz = scanner[2] - pts[i, 2]
