@@ -228,3 +228,32 @@ def test_a_fit_over_twice_the_model_is_not_kept_however_noisy_the_stem(monkeypat
     monkeypatch.setattr(rad, "KEEP_MAX_RATIO", 1e9)  # the old rule: 3 scatters
     _, old = taper_radii(g, _fit(g, fitted, ok))
     assert old.reliable[53:56].all()
+
+
+def test_a_run_of_consistent_fits_is_kept_outside_other_wood_only():
+    """Ten consistent, tight fits along the side branch (a run spanning 13 of its
+    diameters), 1.75x what the pipe model gives it: the wood is measured there (the model
+    follows a skeleton that may have routed the branch's load elsewhere), so the run keeps
+    its fits. The same run lying inside the stem's cylinder (a branch's first nodes inside
+    the stem fit the stem's circle) is the stem's wood counted twice: the model stays."""
+    from biomorph.tree.radius import RUN_DIAMETERS
+
+    g = _tree()
+    carried = g.subtree_length() + g.edge_length
+    fitted = 0.02 * carried**0.5
+    fitted[51:] = 0.035
+    ok = np.ones(g.n_nodes, dtype=bool)
+    r, fit = taper_radii(g, _fit(g, fitted, ok), min_radius=0.0)
+    assert 0.9 >= RUN_DIAMETERS * 2 * 0.035
+    assert np.allclose(r[51:], 0.035, rtol=0.02) and fit.reliable[51:].all()
+    # the same branch inside the stem (1 cm off its axis, the stem 4 cm thick there)
+    pos = g.position.copy()
+    pos[51:, 0] = 0.01
+    pos[51:, 2] = 2.0 + 0.1 * np.arange(1, 11)
+    inside = g.with_(position=pos)
+    r2, fit2 = taper_radii(inside, _fit(inside, fitted, ok), min_radius=0.0)
+    assert r2[51:].max() < 0.03 and not fit2.reliable[51:].any()
+    # a run 3x thicker than the stem it leaves is a needle clump: not kept
+    fitted[51:] = 0.12
+    r3, fit3 = taper_radii(g, _fit(g, fitted, ok), min_radius=0.0)
+    assert not fit3.reliable[51:].any() and r3[51:].max() < 0.05
