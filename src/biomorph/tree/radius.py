@@ -1258,13 +1258,14 @@ def _plausible_runs(
     other = np.flatnonzero(~run)
     if not run.any() or other.size == 0:
         return run
-    kd = cKDTree(graph.position[other])
-    reach = float(radius[other].max())
-    for i in np.flatnonzero(run):
-        j = other[np.asarray(kd.query_ball_point(graph.position[i], reach), dtype=np.int64)]
-        j = j[bid[j] != bid[i]]
-        if (np.linalg.norm(graph.position[j] - graph.position[i], axis=1) < radius[j]).any():
-            run[i] = False
+    # each other node's cylinder (its radius around it) against the run nodes: one query
+    cand = np.flatnonzero(run)
+    hits = cKDTree(graph.position[cand]).query_ball_point(graph.position[other], radius[other])
+    lens = np.fromiter((len(h) for h in hits), dtype=np.int64, count=other.size)
+    if lens.sum():
+        i = cand[np.concatenate([h for h in hits if h]).astype(np.int64)]
+        j = np.repeat(other, lens)
+        run[i[bid[j] != bid[i]]] = False
     return run
 
 
