@@ -29,6 +29,19 @@ def children_csr(parent: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64
     return indptr, indices.astype(np.int64)
 
 
+def main_child(parent: ArrayLike, weight: ArrayLike) -> NDArray[np.int64]:
+    """Per node, its child of largest ``weight`` (ties: the lower index); -1 at tips."""
+    par = np.asarray(parent, dtype=np.int64)
+    w = np.asarray(weight, dtype=np.float64)
+    c = np.flatnonzero(par >= 0)
+    o = c[np.lexsort((c, -w[c], par[c]))]
+    first = np.ones(o.size, dtype=bool)
+    first[1:] = par[o[1:]] != par[o[:-1]]
+    main = np.full(par.size, -1, dtype=np.int64)
+    main[par[o[first]]] = o[first]
+    return main
+
+
 def topological_order(parent: ArrayLike) -> NDArray[np.int64]:
     """Breadth-first order from all roots (parents before children).
 

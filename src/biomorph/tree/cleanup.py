@@ -700,8 +700,7 @@ def trunk_shortcuts(
     if graph.n_nodes < 4 or xyz.shape[0] == 0 or graph.radius is None:
         return out
     pos, rad = graph.position, graph.radius
-    carried = graph.subtree_length() + graph.edge_length
-    indptr, idx = graph.children_csr
+    main = treeops.main_child(graph.parent, graph.subtree_length() + graph.edge_length)
     el = graph.edge_length
     med = float(np.median(el[el > 0])) if (el > 0).any() else spacing
     kd = kdtree if kdtree is not None else cKDTree(xyz)
@@ -710,9 +709,8 @@ def trunk_shortcuts(
     heights = tree_heights(graph)
     for root in graph.roots:
         path = [int(root)]
-        while indptr[path[-1] + 1] > indptr[path[-1]]:
-            kids = idx[indptr[path[-1]] : indptr[path[-1] + 1]]
-            path.append(int(kids[np.argmax(carried[kids])]))
+        while main[path[-1]] >= 0:
+            path.append(int(main[path[-1]]))
         p = np.asarray(path)
         if p.size < 4:
             continue

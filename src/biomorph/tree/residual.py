@@ -46,6 +46,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree.neighbours import contract, shortest_path_forest
@@ -410,15 +411,7 @@ def _reroute(
 def _main_child(graph: BranchGraph) -> NDArray[np.int64]:
     """The child carrying the most length (its subtree + its edge) of every node, -1 at
     tips; ties go to the lower index."""
-    par = graph.parent
-    w = graph.subtree_length() + graph.edge_length
-    c = np.flatnonzero(par >= 0)
-    o = c[np.lexsort((c, -w[c], par[c]))]
-    first = np.ones(o.size, dtype=bool)
-    first[1:] = par[o[1:]] != par[o[:-1]]
-    main = np.full(graph.n_nodes, -1, dtype=np.int64)
-    main[par[o[first]]] = o[first]
-    return main
+    return treeops.main_child(graph.parent, graph.subtree_length() + graph.edge_length)
 
 
 def _join_targets(
