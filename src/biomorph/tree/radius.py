@@ -1094,7 +1094,7 @@ def taper_radii(
     radius = floor + np.exp(model + sm)
     # a run's fits are its own radii (measured), without passing their ratio to the
     # model on: the model under a run is wrong where the run is, not downstream of it
-    run = _plausible_runs(graph, run & ~keep, r_fit, radius, bid, anc)
+    run = _plausible_runs(graph, run & ~keep, r_fit, radius, bid, cont, anc)
     radius[run] = r_fit[run]
     keep |= run
     slack_v = np.where(cont, float(slack), 1.0)
@@ -1235,6 +1235,7 @@ def _plausible_runs(
     r_fit: NDArray,
     radius: NDArray,
     bid: NDArray,
+    cont: NDArray,
     anc: NDArray,
 ) -> NDArray[np.bool_]:
     """The nodes of ``run`` whose fits are kept as their radii (:func:`taper_radii`, step
@@ -1247,10 +1248,9 @@ def _plausible_runs(
     run = run.copy()
     if not run.any():
         return run
-    par = graph.parent
-    first = np.flatnonzero((par < 0) | (bid != bid[np.maximum(par, 0)]))
+    first = np.flatnonzero(~cont)  # each branch's first node (``branch_ids``)
     fork = np.full(int(bid.max()) + 1, -1, dtype=np.int64)
-    fork[bid[first]] = par[first]
+    fork[bid[first]] = graph.parent[first]
     fp = fork[bid]
     ka = np.where(fp >= 0, anc[np.maximum(fp, 0)], -1)
     bound = np.where(ka >= 0, r_fit[np.maximum(ka, 0)], radius[np.maximum(fp, 0)])
