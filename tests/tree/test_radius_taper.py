@@ -257,3 +257,24 @@ def test_a_run_of_consistent_fits_is_kept_outside_other_wood_only():
     fitted[51:] = 0.12
     r3, fit3 = taper_radii(g, _fit(g, fitted, ok), min_radius=0.0)
     assert not fit3.reliable[51:].any() and r3[51:].max() < 0.05
+
+
+def test_a_tree_without_stem_fits_is_scaled_by_the_wood_it_carries():
+    """A fragment (its own root, no fits: an understorey piece, a branch the voxel skeleton
+    left apart) takes the stems' model scaled by the pipe rule across trees, not the
+    stem's base radius."""
+    g = _tree()
+    frag = np.column_stack([np.full(11, 3.0), np.zeros(11), 0.5 + 0.1 * np.arange(11)])
+    pos = np.vstack([g.position, frag])
+    parent = np.concatenate([g.parent, [-1], g.n_nodes + np.arange(10)])
+    both = BranchGraph(pos, parent)
+    carried = both.subtree_length() + both.edge_length
+    truth = 0.02 * carried ** (1 / PIPE_EXPONENT)
+    ok = np.zeros(both.n_nodes, dtype=bool)
+    ok[:40] = True  # the stem's fits only
+    r, fit = taper_radii(both, _fit(both, np.where(ok, truth, -1.0), ok))
+    f0 = g.n_nodes
+    assert fit.model[int(both.trees[f0])]["anchor"] == "all trees"
+    # the stems' level scaled by (1 m / 6 m)^0.5, as a side branch of that size would be
+    assert np.isclose(r[f0], truth[f0], rtol=0.25)
+    assert r[f0] < 0.5 * r[0]

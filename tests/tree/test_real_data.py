@@ -106,3 +106,29 @@ def test_pine_plot_ground_removal_and_tree_segmentation():
     assert np.allclose(
         np.median(roots[:, :2], axis=0), np.median(cloud.world_xyz[:, :2], axis=0), atol=3.0
     )
+
+
+def test_the_voxel_method_roots_each_pine_at_its_stem():
+    """The voxel skeleton of the plot joins crowns into one component; the stems found in
+    the points root one tree each (before: 4 trees, one spanning several stems, a 27 m
+    trunk and order 8)."""
+    from scipy.spatial.distance import pdist
+
+    skel = skeletonize(read_points(shared_file("trees", "treels_pine_plot.laz")), method="voxel")
+    assert 15 <= skel.metrics["n_trees"] <= 32
+    g = skel.graph
+    assert pdist(g.position[g.roots][:, :2]).min() > 0.5
+    big = [t for t in skel.metrics["trees"] if t["height"] > 10]
+    assert len(big) >= 10
+    assert all(t["trunk_length"] < 1.4 * t["height"] and t["max_order"] <= 8 for t in big)
+
+
+def test_the_voxel_method_roots_the_spruce_at_its_stem_not_a_low_branch():
+    """A low branch's tip is the spruce's lowest skeleton voxel; rooted there the trunk ran
+    out along the branch and its stem taper put 0.53 m³ in the > 20 cm class (graph
+    method 0.15 m³)."""
+    skel = skeletonize(read_points(shared_file("trees", "treels_spruce.laz")), method="voxel")
+    t = skel.metrics["trees"][0]
+    assert skel.metrics["n_trees"] == 1
+    assert t["trunk_length"] < 1.15 * t["height"]
+    assert skel.metrics["classes"][">20cm"]["volume"] < 0.25

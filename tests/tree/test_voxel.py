@@ -148,3 +148,27 @@ def test_real_coffee_tree_against_qsm():
     assert 0.6 * 31.43 < g.total_length < 1.1 * 31.43
     assert 20 <= g.leaves.size <= 100
     assert g.position[g.roots[0], 2] < 0.2  # rooted at the stem base
+
+
+def test_each_stem_roots_its_own_tree_and_a_low_branch_is_not_a_tree():
+    """Two stems whose crowns touch (one skeleton component) and a branch piece lying low,
+    2 m from either stem, cut off by an occlusion gap: with the stems found in the points
+    each stem roots a tree (no tree spans two stems) and the piece is no tree."""
+    skel = np.zeros((40, 12, 30), bool)
+    skel[5, 5, 0:25] = True  # stem A
+    skel[25, 5, 0:25] = True  # stem B
+    skel[5:26, 5, 24] = True  # crowns touching at the top
+    skel[30:38, 5, 4] = True  # a low branch piece, 5 voxels from B, on no stem
+    stems = np.array([[5.0, 5.0], [25.0, 5.0]])
+    ijk, parent, comp = skeleton_graph(skel, base_height=10.0, stems=stems, stem_reach=2.0)
+    roots = {tuple(v) for v in ijk[parent < 0]}
+    assert roots == {(5, 5, 0), (25, 5, 0)}
+    for t in np.unique(comp):  # each tree holds one stem only
+        on = ijk[comp == t]
+        assert len({x for x in on[on[:, 2] < 20][:, 0]} & {5, 25}) == 1
+    piece = (ijk[:, 0] >= 30) & (ijk[:, 2] == 4)  # joined to B's tree (or dropped)
+    assert (comp[piece] == comp[(ijk[:, 0] == 25) & (ijk[:, 2] == 0)]).all()
+    # without the stems (the thesis' lowest-voxel rule) the piece is a tree of its own and
+    # the two stems one tree
+    ijk, parent, comp = skeleton_graph(skel, base_height=10.0)
+    assert (parent < 0).sum() == 2 and ((ijk[:, 0] >= 30) & (comp == comp.max())).any()

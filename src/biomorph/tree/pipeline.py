@@ -471,7 +471,11 @@ def voxel_phase(run: _Run) -> None:
     vkw = run.opts.voxel.as_kwargs()
     progress = run.progress
     vres = skeletonize_voxel(
-        run.cloud, **vkw, progress=None if progress is None else lambda s: progress(1, s)
+        run.cloud,
+        **vkw,
+        stems=_stem_bases(run),
+        stem_reach=run.opts.graph.min_tree_distance,
+        progress=None if progress is None else lambda s: progress(1, s),
     )
     graph = vres.graph
     run.timings.update(
@@ -509,6 +513,36 @@ def voxel_phase(run: _Run) -> None:
         run.timings["cleanup"] = time.perf_counter() - t0
     run.graph = graph
     _check_skeleton(run)
+
+
+def _stem_bases(run: _Run) -> NDArray | None:
+    """XY of each stem base the graph method's step i finds in the points
+    (:func:`biomorph.tree.roots.find_roots`: stems at breast height standing on the ground
+    where a ground was removed), for the voxel method's trees; None if none is found."""
+    from biomorph.tree.roots import find_roots
+
+    assert run.cloud is not None
+    go = run.opts.graph
+    xyz = run.cloud.xyz
+    if xyz.shape[0] < 3:
+        return None
+    pts, tree = find_roots(
+        xyz,
+        n_trees=go.n_trees,
+        height=_height_above_ground(xyz, run.ground),
+        root_slice=go.root_slice,
+        min_tree_distance=go.min_tree_distance,
+        seed=run.opts.seed,
+    )
+    if pts.size == 0:
+        return None
+    cnt = np.bincount(tree).astype(float)
+    keep = cnt > 0
+    xy = (
+        np.column_stack([np.bincount(tree, weights=xyz[pts, c]) for c in (0, 1)])[keep]
+        / cnt[keep, None]
+    )
+    return xy
 
 
 def _check_skeleton(run: _Run) -> None:

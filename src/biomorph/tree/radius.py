@@ -960,8 +960,11 @@ def taper_radii(
        The scale is fitted robustly on the reliable fits of the lower half of the stem (the
        best-seen sections of every scan; on a needled spruce, fits on branches are needle
        envelopes and anchoring on all fits made the stem 0.9 m thick). A tree with fewer
-       than three stem fits (an understorey fragment of a plot) takes the model of all
-       trees' stems (its own fits — stumps, ground bumps — gave a 1.4 m fragment 1.7 m³),
+       than three stem fits (an understorey fragment of a plot, a branch the voxel
+       skeleton left apart) takes the model of all trees' stems, its level set by the pipe
+       rule across trees — each tree's base scaled by ``(its whole length)^b`` (its own
+       fits — stumps, ground bumps — gave a 1.4 m fragment 1.7 m³; the stems' base level
+       unscaled gave four 0.7–1.1 m branch pieces of a noisy conifer the stem's 18 cm),
        then its own reliable fits, then 1 cm at L = 1 m.
     4. **Blend**: reliable fits up to 3 model scatters *above* the model, and every
        reliable fit below it, are kept (one-sided: the artefacts of a circle fit — needle
@@ -1018,6 +1021,7 @@ def taper_radii(
     tree_bw = _tree_slopes(x, y, bid, trees, reliable, b_fork, within)
     bw_node = np.array([tree_bw[int(t)][0] for t in uniq])[np.searchsorted(uniq, trees)]
     stem = _stem_mask(graph, carried)
+    x_top = _per_tree_max(x, trees, uniq)  # log of each tree's whole length, per node
     # the stem is anchored on its own fits (lower half) and tapered once chosen: runs
     # there are left to that
     run = _fit_runs(graph, r_fit, reliable) & ~stem
@@ -1036,7 +1040,10 @@ def taper_radii(
         pooled = None
         pool = reliable & stem if (reliable & stem).sum() >= 3 else reliable
         if pool.sum() >= 3:
-            pooled = _robust_line(cum[pool], y[pool], 1.0)
+            # across trees the pipe rule scales each tree's base with the wood it carries:
+            # the pooled level is that of a tree carrying 1 m, shifted per tree by
+            # b_fork x log(its total length)
+            pooled = _robust_line(cum[pool] + b_fork * x_top[pool], y[pool], 1.0)
         scale: dict = {}
         for t in uniq:
             m = trees == t
@@ -1047,6 +1054,7 @@ def taper_radii(
                 src = "stem"
             elif pooled is not None:  # a fragment without a measured stem: the plot's stems
                 a, _, sc = pooled
+                a += b_fork * float(x[m].max())
                 src = "all trees"
             elif rm.sum() >= 3:
                 a, _, sc = _robust_line(cum[rm], y[rm], 1.0)
@@ -1100,6 +1108,14 @@ def taper_radii(
     slack_v = np.where(cont, float(slack), 1.0)
     radius = _cap_down_slack(par, graph.order, radius, slack_v)
     return radius, dataclasses.replace(fit, reliable=reliable & keep, model=info)
+
+
+def _per_tree_max(v: NDArray, trees: NDArray, uniq: NDArray) -> NDArray[np.float64]:
+    """The largest ``v`` of each node's tree (``uniq``: the sorted tree labels), per node."""
+    tix = np.searchsorted(uniq, trees)
+    top = np.full(uniq.size, -np.inf)
+    np.maximum.at(top, tix, v)
+    return top[tix]
 
 
 @numba.njit(cache=True)

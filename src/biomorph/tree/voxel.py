@@ -330,14 +330,22 @@ def _components26(ijk: NDArray[np.int64], shape: tuple[int, ...]) -> NDArray[np.
 
 
 def _attach_fragments(
-    ijk: NDArray[np.int64], lab: NDArray[np.int64], base: float, gap: float
+    ijk: NDArray[np.int64],
+    lab: NDArray[np.int64],
+    base: float,
+    gap: float,
+    stem_roots: NDArray[np.int64] | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]]:
     """Join every skeleton component whose lowest voxel is more than ``base`` voxels above
     the lowest skeleton voxel (a fragment: no tree stands on it) to the nearest voxel of a
     rooted component, where the gap is supported (:func:`~biomorph.tree.neighbours.
-    bridge_supported`, voxel units, ``gap`` = the always-bridged length). Repeats while
-    fragments join. Returns the added edges ``(rows, cols, weights)`` and the voxels of
-    fragments left unattached (to drop)."""
+    bridge_supported`, voxel units, ``gap`` = the always-bridged length). With
+    ``stem_roots`` (the voxels where the stems found in the points start,
+    :func:`_stem_root_voxels`) the rooted components are those holding one (a low branch
+    whose end hangs near the ground is not a tree). Repeats while fragments join. Returns
+    the added edges ``(rows, cols, weights)`` and the mask of the voxels of the rooted
+    components (a piece joined only to other fragments — through one of its ends — is not
+    part of a tree: the caller drops what the edges leave unconnected to these)."""
     from scipy.spatial import cKDTree
 
     from biomorph.tree.neighbours import BridgeRule, bridge_supported
@@ -347,8 +355,12 @@ def _attach_fragments(
     low = np.full(ncomp, np.inf)
     np.minimum.at(low, lab, pts[:, 2])
     rooted = low <= pts[:, 2].min() + base
+    if stem_roots is not None and stem_roots.size:
+        rooted = np.zeros(ncomp, dtype=bool)
+        rooted[lab[stem_roots]] = True
     kd_all = cKDTree(pts)
     rule = BridgeRule(short=gap, spacing=1.0)
+    seeds = rooted[lab]
     rows: list[int] = []
     cols: list[int] = []
     wts: list[float] = []
@@ -374,7 +386,7 @@ def _attach_fragments(
         np.asarray(rows, np.int64),
         np.asarray(cols, np.int64),
         np.asarray(wts, np.float64),
-        ~rooted[lab],
+        seeds,
     )
 
 
@@ -385,6 +397,8 @@ def skeleton_graph(
     min_component_voxels: int = 1,
     bridge_gap: float = 0.0,
     base_height: float | None = None,
+    stems: NDArray[np.float64] | None = None,
+    stem_reach: float = 0.0,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """Shortest-path forest over the 26-adjacent skeleton voxels (step iv, v).
 
@@ -399,7 +413,9 @@ def skeleton_graph(
     With ``base_height`` (voxels), components whose lowest voxel lies higher than that
     above the lowest skeleton voxel are *fragments*, not trees: each joins the nearest
     rooted component where the gap is supported (:func:`_attach_fragments`) or is dropped
-    -- one connected skeleton per tree.
+    -- one connected skeleton per tree. ``stems`` (XY of stem bases, voxel units) and
+    ``stem_reach`` (voxels): the components rooted are those holding a stem's base
+    (:func:`_stem_root_voxels`), and each stem roots a tree of its own.
     """
     ijk = np.argwhere(skel).astype(np.int64)
     n = ijk.shape[0]
@@ -408,6 +424,9 @@ def skeleton_graph(
     r, c, w = _adjacency26(ijk, skel.shape)
     g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
     ncomp, lab = connected_components(g, directed=False)
+    stem_roots = None
+    if stems is not None and len(stems):
+        stem_roots = _stem_root_voxels(ijk, np.asarray(stems, float), float(stem_reach))
     if bridge_gap > 0 and ncomp > 1:
         from scipy.spatial import cKDTree
 
@@ -431,11 +450,14 @@ def skeleton_graph(
             g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
             ncomp, lab = connected_components(g, directed=False)
     if base_height is not None and ncomp > 1:
-        fr, fc, fw, drop = _attach_fragments(ijk, lab, float(base_height), max(bridge_gap, 1.0))
+        fr, fc, fw, seeds = _attach_fragments(
+            ijk, lab, float(base_height), max(bridge_gap, 1.0), stem_roots
+        )
         if fr.size:
             r, c, w = np.concatenate([r, fr]), np.concatenate([c, fc]), np.concatenate([w, fw])
             g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
         ncomp, lab = connected_components(g, directed=False)
+        drop = ~np.isin(lab, np.unique(lab[seeds]))
         if drop.any():  # unattached fragments: below any size limit
             lab = np.where(drop, ncomp, lab)
             ncomp += 1
@@ -459,14 +481,48 @@ def skeleton_graph(
     o = np.lexsort((d2, ijk[:, 2], lab))
     first = o[np.r_[True, lab[o][1:] != lab[o][:-1]]]
     roots = first[rank[lab[first]] >= 0]
-    _, pred, _ = dijkstra(g, directed=False, indices=roots, min_only=True, return_predecessors=True)
+    if stem_roots is not None and stem_roots.size:
+        # every stem its own tree, also where crowns or a fallen branch join two stems'
+        # skeletons into one component (each voxel goes to the stem it is nearest along
+        # the skeleton, the graph method's shortest-path forest from its root sets)
+        sr = stem_roots[rank[lab[stem_roots]] >= 0]
+        has = np.zeros(ncomp, dtype=bool)
+        has[lab[sr]] = True
+        roots = np.concatenate([sr, roots[~has[lab[roots]]]])
+    _, pred, src = dijkstra(
+        g, directed=False, indices=roots, min_only=True, return_predecessors=True
+    )
     parent = np.where(pred < 0, -1, pred).astype(np.int64)
     sel = np.flatnonzero(keep)
     new = np.full(n, -1, dtype=np.int64)
     new[sel] = np.arange(sel.size)
     par = parent[sel]
     par = np.where(par >= 0, new[np.maximum(par, 0)], -1)
-    return ijk[sel], par, rank[lab[sel]]
+    at = np.full(n, -1, dtype=np.int64)
+    at[roots] = np.arange(roots.size)
+    tree = at[np.where(src[sel] >= 0, src[sel], sel)]
+    size = np.bincount(tree, minlength=roots.size)
+    tree_rank = np.empty(roots.size, dtype=np.int64)
+    tree_rank[np.argsort(-size, kind="stable")] = np.arange(roots.size)
+    return ijk[sel], par, tree_rank[tree]
+
+
+def _stem_root_voxels(
+    ijk: NDArray[np.int64], stems: NDArray[np.float64], reach: float
+) -> NDArray[np.int64]:
+    """For each stem base (XY, voxel units) the lowest skeleton voxel within ``reach``
+    voxels of it horizontally (ties: the nearest), where the stem's skeleton starts."""
+    from scipy.spatial import cKDTree
+
+    out = []
+    kd = cKDTree(ijk[:, :2].astype(np.float64))
+    for xy, near in zip(stems, kd.query_ball_point(stems[:, :2], reach), strict=True):
+        if not near:
+            continue
+        near = np.asarray(near)
+        d2 = ((ijk[near, :2] - xy[:2]) ** 2).sum(axis=1)
+        out.append(int(near[np.lexsort((d2, ijk[near, 2]))[0]]))
+    return np.unique(np.asarray(out, dtype=np.int64))
 
 
 def _inscribed_radius(vol: NDArray[np.bool_], ijk: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -565,6 +621,8 @@ def skeletonize_voxel(
     full_symmetry: bool = False,
     max_disc_radius: float = 0.4,
     root_slice: float | None = 0.5,
+    stems: NDArray[np.float64] | None = None,
+    stem_reach: float = 0.6,
     progress: Callable[[str], None] | None = None,
 ) -> VoxelSkeleton:
     """Skeletonise a tree point cloud with the voxel method of Gorte & Pfeifer (2004).
@@ -599,6 +657,11 @@ def skeletonize_voxel(
         join the nearest rooted component where the gap is supported (the graph method's
         rule, :class:`~biomorph.tree.neighbours.BridgeRule`) or are dropped, so each tree
         is one connected skeleton. ``None``: every component is its own tree (the thesis).
+    stems, stem_reach : XY (m, cloud frame) of the stem bases found in the points
+        (:func:`biomorph.tree.roots.find_roots`, the graph method's trees); with them a
+        component within the root slice is a tree only if its lowest voxel lies within
+        ``stem_reach`` m of one — a low branch of a conifer, cut off from the stem by
+        occlusion, whose end hangs below 10 % of the height, is a fragment.
     progress : called with the name of each phase as it starts.
 
     Returns
@@ -657,6 +720,10 @@ def skeletonize_voxel(
         min_component_voxels=min_component_voxels,
         bridge_gap=gap / cell,
         base_height=base,
+        stems=None
+        if stems is None
+        else (np.asarray(stems, float)[:, :2] - origin[:2]) / cell - 0.5,
+        stem_reach=float(stem_reach) / cell,
     )
     if ijk.shape[0] == 0:
         raise InputError(
