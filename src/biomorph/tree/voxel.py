@@ -17,7 +17,11 @@ t4 (iv, v) **graph** -- 26-adjacency of the skeleton voxels with weights 3/4/5 (
    corner neighbours, Verwer 1991), connected components sorted by size (keep the ``n``
    largest and/or those of at least ``min_component_voxels``), Dijkstra shortest-path tree
    from the lowest voxel of each component (``scipy.sparse.csgraph``), one tree id per
-   component; then the post-processing below.
+   component. With ``stems`` (the stem bases the graph method's step i finds in the
+   points; the pipeline passes them) each stem's lowest nearby voxel is a root instead: a
+   component without one is a fragment (joined where the gap is supported, else dropped),
+   and a component holding several stems — crowns touching — is split into one tree per
+   stem by a multi-source Dijkstra. Then the post-processing below.
 
 Post-processing against the thesis's known weaknesses (each can be switched off):
 
@@ -34,7 +38,7 @@ Post-processing against the thesis's known weaknesses (each can be switched off)
   moved outward along their last edge by their radius (at most two cells).
 
 Positions are in metres in the cloud's frame (add ``cloud.offset`` for the original
-frame); the graph's ``tree_id`` is the component rank (0 = largest).
+frame); the graph's ``tree_id`` is the tree's rank by size (0 = largest).
 """
 
 from __future__ import annotations
