@@ -402,6 +402,7 @@ def graph_phase(run: _Run) -> None:
         seed=run.opts.seed,
         progress=run.progress,
         neighbours=run.take_knn(),
+        source=run.source,
     )
     spacing = float(res.info["node_spacing"])
     run.timings.update(dict(res.timings.items()))
@@ -518,18 +519,32 @@ def voxel_phase(run: _Run) -> None:
 def _stem_bases(run: _Run) -> NDArray | None:
     """XY of each stem base the graph method's step i finds in the points
     (:func:`biomorph.tree.roots.find_roots`: stems at breast height standing on the ground
-    where a ground was removed), for the voxel method's trees; None if none is found."""
-    from biomorph.tree.roots import find_roots
+    where a ground was removed), for the voxel method's trees; None if none is found. The
+    graph method's checks run first: a trunk must reach the ground, and a one-tree run
+    (``n_trees=1``) must hold one stem (:class:`~biomorph.errors.InputError` otherwise)."""
+    from biomorph.tree.roots import check_single_tree, check_trunk_reaches_ground, find_roots
 
     assert run.cloud is not None
     go = run.opts.graph
     xyz = run.cloud.xyz
     if xyz.shape[0] < 3:
         return None
+    height = _height_above_ground(xyz, run.ground)
+    # the graph method's bad-input rules: no trunk reaching the ground, two stems in a
+    # one-tree run -- one line, not a silent wrong model
+    check_trunk_reaches_ground(height, source=run.source)
+    if go.n_trees == 1:
+        check_single_tree(
+            xyz,
+            height=height,
+            root_slice=go.root_slice,
+            min_tree_distance=go.min_tree_distance,
+            source=run.source,
+        )
     pts, tree = find_roots(
         xyz,
         n_trees=go.n_trees,
-        height=_height_above_ground(xyz, run.ground),
+        height=height,
         root_slice=go.root_slice,
         min_tree_distance=go.min_tree_distance,
         seed=run.opts.seed,
