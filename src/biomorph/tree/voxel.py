@@ -662,10 +662,11 @@ def skeletonize_voxel(
         rule, :class:`~biomorph.tree.neighbours.BridgeRule`) or are dropped, so each tree
         is one connected skeleton. ``None``: every component is its own tree (the thesis).
     stems, stem_reach : XY (m, cloud frame) of the stem bases found in the points
-        (:func:`biomorph.tree.roots.find_roots`, the graph method's trees); with them a
-        component within the root slice is a tree only if its lowest voxel lies within
-        ``stem_reach`` m of one — a low branch of a conifer, cut off from the stem by
-        occlusion, whose end hangs below 10 % of the height, is a fragment.
+        (:func:`biomorph.tree.roots.find_roots`, the graph method's trees); with them each
+        stem's tree starts at the lowest skeleton voxel within ``stem_reach`` m of it, a
+        component holding no such voxel is a fragment (a low branch of a conifer, cut off
+        from the stem by occlusion, whose end hangs below 10 % of the height) and a
+        component holding several (crowns touching) is split, one tree per stem.
     progress : called with the name of each phase as it starts.
 
     Returns
