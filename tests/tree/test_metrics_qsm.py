@@ -89,3 +89,36 @@ def test_measures_need_radii_and_orders():
         volume_by_order(g.with_(depth=None))
     with pytest.raises(InputError):
         cylinder_fit(g.with_(radius=None), np.zeros((3, 3)))
+
+
+def test_tree_kinds_tell_measured_stems_from_fragments():
+    """A tree stands on a stem the scan measured and reaches breast height; an
+    understorey piece, a stump or a stem without circle fits is a fragment."""
+    from biomorph.tree.metrics import BREAST_HEIGHT, STEM_FITS, tree_kinds
+
+    def chain(x, height, n):
+        z = np.linspace(0.0, height, n)
+        return np.column_stack([np.full(n, x), np.zeros(n), z])
+
+    parts = [chain(0.0, 10.0, 21), chain(3.0, 1.0, 6), chain(6.0, 9.0, 19)]
+    pos = np.vstack(parts)
+    parent, start = [], 0
+    for p in parts:
+        parent += [-1] + list(range(start, start + len(p) - 1))
+        start += len(p)
+    g = BranchGraph(pos, np.array(parent), depth=np.zeros(len(pos), dtype=np.int64))
+    labels = [int(g.trees[0]), int(g.trees[21]), int(g.trees[27])]
+    heights = {labels[0]: 10.0, labels[1]: 1.0, labels[2]: 9.0}
+    reliable = np.zeros(g.n_nodes, dtype=bool)
+    reliable[1 : 1 + STEM_FITS] = True  # the first stem's lower half is measured
+    reliable[21:27] = True  # the short piece: fits, but below breast height
+    kinds = tree_kinds(g, reliable, heights)
+    assert kinds == {labels[0]: "tree", labels[1]: "fragment", labels[2]: "fragment"}
+    reliable[1] = False  # one fit short of a measured stem
+    assert tree_kinds(g, reliable, heights)[labels[0]] == "fragment"
+    # no fit quality (allometric radii): the height alone decides
+    assert tree_kinds(g, None, heights) == {
+        labels[0]: "tree",
+        labels[1]: "fragment" if 1.0 < BREAST_HEIGHT else "tree",
+        labels[2]: "tree",
+    }

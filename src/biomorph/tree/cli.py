@@ -31,6 +31,19 @@ Method = Annotated[str, typer.Option("--method", "-m", help="graph (Livny) or vo
 Seed = Annotated[int, typer.Option(help="Random seed.")]
 
 
+def _trees_line(m: dict) -> str:
+    """``24 (16 measured stems, 8 fragments)``: fragments are no trees (understorey,
+    stumps, crown pieces; :func:`biomorph.tree.metrics.tree_kinds`)."""
+    n, frag = m.get("n_trees"), m.get("n_fragments")
+    if not frag:
+        return str(n)
+    stems = m.get("n_stems")
+    return (
+        f"{n} ({stems} measured stem{'' if stems == 1 else 's'}, "
+        f"{frag} fragment{'' if frag == 1 else 's'})"
+    )
+
+
 def _print_table(title: str, rows: list[tuple[str, Any]]) -> None:
     from rich.table import Table
 
@@ -128,7 +141,7 @@ def skeletonize(
         f"{cloud.name}: {method} skeleton",
         [
             ("points", skel.info.get("points")),
-            ("trees", m.get("n_trees")),
+            ("trees", _trees_line(m)),
             ("nodes", m.get("n_nodes")),
             ("NOB (tips)", m.get("nob")),
             ("TBL (m)", m.get("tbl")),
@@ -251,6 +264,8 @@ def batch_item(item: tuple[str, str, SkeletonizeOptions, bool]) -> dict[str, Any
         "nob": m.get("nob"),
         "tbl": m.get("tbl"),
         "trees": m.get("n_trees"),
+        "stems": m.get("n_stems"),
+        "fragments": m.get("n_fragments"),
         "seconds": skel.timings.get("total"),
     }
 

@@ -29,6 +29,9 @@ __all__ = [
     "compare_to_truth",
     "dbh",
     "dbh_per_tree",
+    "tree_kinds",
+    "BREAST_HEIGHT",
+    "STEM_FITS",
     "volume",
     "resample_graph",
     "point_to_skeleton_distance",
@@ -251,6 +254,43 @@ def _interp_radius(graph: BranchGraph, ec: NDArray, t: NDArray) -> NDArray:
     par = graph.parent[ec]
     rp = np.where(par >= 0, r[np.maximum(par, 0)], r[ec])
     return rp + (r[ec] - rp) * t
+
+
+#: breast height (m): a stem reaching it has a DBH, the inventory's threshold for a tree
+BREAST_HEIGHT = 1.3
+#: reliable circle fits the lower half of a trunk must hold for a tree to stand on a stem
+#: the scan measured (the taper model's own anchoring rule, :func:`biomorph.tree.radius.
+#: taper_radii`: fewer leave the stem to the plot's pooled model)
+STEM_FITS = 3
+
+
+def tree_kinds(
+    graph: BranchGraph, reliable: NDArray[np.bool_] | None, heights: dict[int, float]
+) -> dict[int, str]:
+    """``"tree"`` or ``"fragment"`` per tree label: a tree reaches breast height
+    (:data:`BREAST_HEIGHT`, ``heights`` per label) and its trunk (order 0) holds at least
+    :data:`STEM_FITS` ``reliable`` circle fits in its lower half — a stem the scan
+    measured. Anything else (an understorey plant, a stump, a piece of crown or a stem the
+    scan does not show) is a fragment, reported as such rather than counted as a tree. With
+    no fit quality (``reliable`` None or of another size: allometric radii) only the height
+    decides."""
+    z = graph.position[:, 2]
+    labels = graph.trees
+    have = reliable is not None and np.size(reliable) == graph.n_nodes
+    out: dict[int, str] = {}
+    for t in np.unique(labels):
+        tall = heights.get(int(t), 0.0) >= BREAST_HEIGHT
+        measured = True
+        if have and tall:
+            trunk = np.flatnonzero((labels == t) & (graph.depth == 0))
+            if trunk.size:
+                zb, zt = z[trunk].min(), z[trunk].max()
+                low = trunk[z[trunk] <= zb + 0.5 * (zt - zb)]
+                measured = int(np.count_nonzero(np.asarray(reliable)[low])) >= STEM_FITS
+            else:
+                measured = False
+        out[int(t)] = "tree" if tall and measured else "fragment"
+    return out
 
 
 def dbh_per_tree(graph: BranchGraph, height: float = 1.3) -> NDArray[np.float64]:

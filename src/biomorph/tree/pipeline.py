@@ -785,12 +785,15 @@ def metrics_phase(run: _Run) -> None:
     """NOB, TBL, MSE, DBH, trunk radius, max order, segment count, and the QSM measures
     (:func:`biomorph.tree.metrics.qsm_report`: ``classes`` volume/length per diameter
     class, ``orders`` per branch order, ``trees`` TreeQSM-style attributes, ``fit`` far
-    share and signed residual per class on the MSE sample)."""
+    share and signed residual per class on the MSE sample); each tree's ``kind``
+    (:func:`biomorph.tree.metrics.tree_kinds`: a measured stem reaching breast height, or
+    a fragment) and the counts ``n_stems`` / ``n_fragments``."""
     from biomorph.tree.metrics import (
         dbh_per_tree,
         qsm_report,
         segment_candidates,
         skeleton_metrics,
+        tree_kinds,
     )
 
     graph, pc = run.graph, run.cloud
@@ -821,6 +824,15 @@ def metrics_phase(run: _Run) -> None:
     attrs = {a["tree"]: a for a in qsm.pop("trees")}
     for rec in metrics["trees"]:
         rec.update(attrs.get(rec["tree"], {}))
+    kinds = tree_kinds(
+        graph,
+        (run.quality or {}).get("reliable"),
+        {int(r["tree"]): float(r.get("height", 0.0)) for r in metrics["trees"]},
+    )
+    for rec in metrics["trees"]:
+        rec["kind"] = kinds.get(int(rec["tree"]), "tree")
+    metrics["n_stems"] = sum(k == "tree" for k in kinds.values())
+    metrics["n_fragments"] = len(kinds) - metrics["n_stems"]
     metrics.update(qsm)
     seg = run.segment
     metrics["n_segments"] = int(seg.max() + 1) if seg is not None and seg.size else 0
