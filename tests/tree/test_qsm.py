@@ -96,6 +96,12 @@ def test_tables_describe_the_tree():
     assert td["TrunkLength"][0] == pytest.approx(4.0)
     assert td["NumberBranches"][0] == 1 and td["MaxBranchOrder"][0] == 1
     assert td["DBHqsm"][0] == pytest.approx(2 * (0.1 - 0.04 * 1.3 / 4))
+    # a 4 m tree: a measured stem with its fits, a fragment without (no fit quality: height)
+    assert td["MeasuredStem"][0] == 1
+    none = {"reliable": np.zeros(g.n_nodes, dtype=bool)}
+    assert treedata_table(g, cyl, none)["MeasuredStem"][0] == 0
+    every = {"reliable": np.ones(g.n_nodes, dtype=bool)}
+    assert treedata_table(g, cyl, every)["MeasuredStem"][0] == 1
 
 
 def test_written_tables_read_back(tmp_path):

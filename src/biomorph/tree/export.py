@@ -216,7 +216,7 @@ def write_qsm_tables(
         "csv": _write_table(out / "cylinders.csv", cyl, CYLINDER_COLUMNS),
         "branches": _write_table(out / "branches.csv", branch_table(graph, cyl), BRANCH_COLUMNS),
         "treedata": _write_table(
-            out / "treedata.csv", treedata_table(graph, cyl), TREEDATA_COLUMNS
+            out / "treedata.csv", treedata_table(graph, cyl, quality), TREEDATA_COLUMNS
         ),
     }
 

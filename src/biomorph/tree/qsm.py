@@ -25,7 +25,10 @@ number, 1-based, is the cylinder's id):
     ``TreeHeight``, ``TrunkLength``, ``BranchLength``, ``TotalLength`` (m),
     ``NumberBranches`` (order-1 branches, TreeQSM's count), ``MaxBranchOrder``,
     ``TrunkArea``, ``BranchArea``, ``TotalArea`` (m²), ``DBHqsm`` (m), ``CrownDiamAve``
-    (m), ``CrownBaseHeight``, ``CrownLength`` (m), ``CrownRatio``; then ``tree_id``.
+    (m), ``CrownBaseHeight``, ``CrownLength`` (m), ``CrownRatio``; then ``tree_id`` and
+    ``MeasuredStem`` (1: a tree standing on a stem the scan measured and reaching breast
+    height, 0: a fragment — understorey, stump, piece of crown;
+    :func:`biomorph.tree.metrics.tree_kinds`).
 
 Cylinder volumes follow :func:`biomorph.tree.metrics.edge_volumes` (frusta inside a branch,
 the branch's own radius where it leaves its parent).
@@ -100,6 +103,7 @@ TREEDATA_COLUMNS = (
     "CrownLength",
     "CrownRatio",
     "tree_id",
+    "MeasuredStem",
 )
 #: integer columns of the three tables (written without decimals)
 INTEGER_COLUMNS = {
@@ -114,6 +118,7 @@ INTEGER_COLUMNS = {
     "order",
     "NumberBranches",
     "MaxBranchOrder",
+    "MeasuredStem",
 }
 
 
@@ -230,12 +235,20 @@ def branch_table(graph: BranchGraph, cyl: dict[str, NDArray]) -> dict[str, NDArr
     }
 
 
-def treedata_table(graph: BranchGraph, cyl: dict[str, NDArray]) -> dict[str, NDArray]:
-    """TreeQSM tree attributes per tree (module doc)."""
-    from biomorph.tree.metrics import tree_attributes
+def treedata_table(
+    graph: BranchGraph, cyl: dict[str, NDArray], quality: dict[str, NDArray] | None = None
+) -> dict[str, NDArray]:
+    """TreeQSM tree attributes per tree (module doc); ``quality``: the per-node fit
+    quality (``reliable``) that tells a measured stem from a fragment."""
+    from biomorph.tree.metrics import tree_attributes, tree_kinds
 
     _, area = _cylinder_volume_area(graph, cyl)
     attrs = tree_attributes(graph)
+    kinds = tree_kinds(
+        graph,
+        None if quality is None else quality.get("reliable"),
+        {int(a["tree"]): float(a["height"]) for a in attrs},
+    )
     out: dict[str, list] = {c: [] for c in TREEDATA_COLUMNS}
     for a in attrs:
         m = cyl["tree_id"] == a["tree"]
@@ -259,6 +272,7 @@ def treedata_table(graph: BranchGraph, cyl: dict[str, NDArray]) -> dict[str, NDA
             "CrownLength": a["crown_length"],
             "CrownRatio": a["crown_length"] / a["height"] if a["height"] else np.nan,
             "tree_id": a["tree"],
+            "MeasuredStem": int(kinds.get(int(a["tree"])) == "tree"),
         }
         for c in TREEDATA_COLUMNS:
             out[c].append(row[c])
