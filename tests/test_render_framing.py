@@ -45,3 +45,11 @@ def test_graph_preview_has_a_legend_for_its_colours():
     scene = _Scene()
     _add_graph(scene, plot, "z")
     assert [lab for lab, _ in scene.legend] == ["tree 0", "tree 1"]
+    # a plot's fragments (no tree: understorey, stumps) are one dark-grey legend entry
+    scene = _Scene()
+    _add_graph(scene, plot, "z", muted={1})
+    assert [lab for lab, _ in scene.legend] == ["tree 0", "1 fragment"]
+    _, colors, _ = scene.segments[0]
+    child = np.flatnonzero(plot.parent >= 0)
+    assert np.allclose(colors[plot.trees[child] == 1, :3], 0.25)
+    assert not np.allclose(colors[plot.trees[child] == 0, :3], 0.25)

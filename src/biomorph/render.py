@@ -275,7 +275,12 @@ def render_cloud(
 
 
 def _add_graph(
-    scene: _Scene, graph: Any, up: str, extent: float | None = None, color: str | None = None
+    scene: _Scene,
+    graph: Any,
+    up: str,
+    extent: float | None = None,
+    color: str | None = None,
+    muted: Any = None,
 ) -> None:
     from biomorph.core.graph import BranchGraph
 
@@ -305,8 +310,16 @@ def _add_graph(
         colors = _rgba(graph.depth[e[:, 1]], "plasma")
         _legend_of(scene, graph.depth[e[:, 1]], colors, "order {}")
     elif graph.roots.size > 1:
-        colors = _rgba(graph.trees[e[:, 1]] % 10, "tab10")
-        _legend_of(scene, graph.trees[e[:, 1]], colors, "tree {}")
+        tree = graph.trees[e[:, 1]]
+        colors = _rgba(tree % 10, "tab10")
+        off = np.isin(tree, np.asarray(list(muted or ()), dtype=tree.dtype))
+        _legend_of(scene, tree[~off], colors[~off], "tree {}")
+        if off.any():  # fragments (no tree: understorey, stumps, crown pieces) in dark grey
+            colors[off] = (0.25, 0.25, 0.25, 1.0)
+            n_off = np.unique(tree[off]).size
+            scene.legend.append(
+                (f"{n_off} fragment{'' if n_off == 1 else 's'}", tuple(colors[off][0]))
+            )
     else:
         colors = _rgba(graph.node_depth[e[:, 1]], "plasma")
     scene.segments.append((segs, colors, widths))
@@ -322,10 +335,16 @@ def _legend_of(scene: _Scene, values: NDArray, colors: NDArray, fmt: str, most: 
 
 
 def render_graph(
-    graph: Any, out_png: PathLike, up: str = "z", title: str | None = None, cloud: Any = None
+    graph: Any,
+    out_png: PathLike,
+    up: str = "z",
+    title: str | None = None,
+    cloud: Any = None,
+    muted: Any = None,
 ) -> Path:
     """Preview a BranchGraph: line width by radius (true scale), colour by branch order
-    (``depth``; else tree, else topological depth); optionally over a point cloud (grey)."""
+    (``depth``; else tree, else topological depth); optionally over a point cloud (grey).
+    ``muted``: tree labels drawn in dark grey under one legend entry (a plot's fragments)."""
     scene = _Scene()
     if cloud is not None:
         from biomorph.core.pointcloud import PointCloud
@@ -336,7 +355,7 @@ def render_graph(
         scene.points.append(
             (_to_zup(xyz, up), np.tile([0.6, 0.6, 0.6, 0.35], (xyz.shape[0], 1)), 0.3)
         )
-    _add_graph(scene, graph, up)
+    _add_graph(scene, graph, up, muted=muted)
     g = getattr(graph, "graph", graph)
     label = title or (
         f"skeleton graph: {g.n_nodes:,} nodes, {g.leaves.size:,} tips, {g.total_length:.2f} m"

@@ -301,15 +301,17 @@ def write_per_tree(out: Path, skel: Any, world: bool) -> dict[str, Path]:
 
 def write_preview(path: PathLike, skel: Any, title: str | None = None) -> Path:
     """Cloud (grey) + skeleton (width by radius; coloured by branch order for one tree, by
-    tree for a plot): three views + 3-D."""
+    tree for a plot, a plot's fragments in dark grey): three views + 3-D."""
     from biomorph.render import render_graph
 
     g = _graph_of(skel)
     if np.unique(g.trees).size > 1:
         g = g.with_(depth=None, tree_id=g.trees)  # render_graph colours by tree then
     cloud = getattr(skel, "cloud", None)
+    trees = (getattr(skel, "metrics", None) or {}).get("trees") or []
+    fragments = {int(t["tree"]) for t in trees if t.get("kind") == "fragment"}
     with atomic_path(path) as tmp:
-        render_graph(g, tmp, cloud=cloud, title=title)
+        render_graph(g, tmp, cloud=cloud, title=title, muted=fragments)
     return Path(path)
 
 
