@@ -82,3 +82,13 @@ def test_large_chain_has_no_recursion_limit():
     assert d[-1] == n - 1
     s = treeops.subtree_sum(parent, np.ones(n))
     assert s[0] == n
+
+
+def test_per_label_reduces_over_each_label():
+    from biomorph.core.treeops import per_label
+
+    labels = np.array([3, 1, 3, 1, 7])
+    z = np.array([2.0, 5.0, 9.0, -1.0, 4.0])
+    assert per_label(labels, z).tolist() == [9.0, 5.0, 9.0, 5.0, 4.0]
+    assert per_label(labels, z, np.minimum).tolist() == [2.0, -1.0, 2.0, -1.0, 4.0]
+    assert per_label(np.zeros(0, int), np.zeros(0)).size == 0

@@ -117,8 +117,9 @@ def test_tree_kinds_tell_measured_stems_from_fragments():
     reliable[1] = False  # one fit short of a measured stem
     assert tree_kinds(g, reliable, heights)[labels[0]] == "fragment"
     # no fit quality (allometric radii): the height alone decides
+    assert 1.0 < BREAST_HEIGHT
     assert tree_kinds(g, None, heights) == {
         labels[0]: "tree",
-        labels[1]: "fragment" if 1.0 < BREAST_HEIGHT else "tree",
+        labels[1]: "fragment",
         labels[2]: "tree",
     }

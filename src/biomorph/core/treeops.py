@@ -42,6 +42,17 @@ def main_child(parent: ArrayLike, weight: ArrayLike) -> NDArray[np.int64]:
     return main
 
 
+def per_label(labels: ArrayLike, values: ArrayLike, reduce: np.ufunc = np.maximum) -> NDArray:
+    """Per element, the ``reduce`` (an idempotent ufunc: ``np.maximum`` or ``np.minimum``)
+    of ``values`` over all elements sharing its label (e.g. a tree's highest node)."""
+    v = np.asarray(values)
+    _, first, inv = np.unique(np.asarray(labels), return_index=True, return_inverse=True)
+    inv = inv.reshape(-1)
+    out = v[first].copy()
+    reduce.at(out, inv, v)
+    return out[inv]
+
+
 def topological_order(parent: ArrayLike) -> NDArray[np.int64]:
     """Breadth-first order from all roots (parents before children).
 

@@ -443,14 +443,12 @@ TRUNK_MIN_EDGES = 10.0
 
 def tree_heights(graph: BranchGraph) -> NDArray[np.float64]:
     """Per node, the height of its tree: the span in z of the tree's nodes (m)."""
-    _, inv = np.unique(graph.trees, return_inverse=True)
-    inv = inv.reshape(-1)
+    from biomorph.core import treeops
+
     z = graph.position[:, 2]
-    hi = np.full(int(inv.max()) + 1 if inv.size else 0, -np.inf)
-    lo = np.full(hi.size, np.inf)
-    np.maximum.at(hi, inv, z)
-    np.minimum.at(lo, inv, z)
-    return (hi - lo)[inv]
+    return treeops.per_label(graph.trees, z, np.maximum) - treeops.per_label(
+        graph.trees, z, np.minimum
+    )
 
 
 def smooth_trunk(graph: BranchGraph, segment: NDArray[np.int64]) -> BranchGraph:

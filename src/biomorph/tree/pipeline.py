@@ -522,7 +522,12 @@ def _stem_bases(run: _Run) -> NDArray | None:
     where a ground was removed), for the voxel method's trees; None if none is found. The
     graph method's checks run first: a trunk must reach the ground, and a one-tree run
     (``n_trees=1``) must hold one stem (:class:`~biomorph.errors.InputError` otherwise)."""
-    from biomorph.tree.roots import check_single_tree, check_trunk_reaches_ground, find_roots
+    from biomorph.tree.roots import (
+        check_single_tree,
+        check_trunk_reaches_ground,
+        find_roots,
+        root_centres,
+    )
 
     assert run.cloud is not None
     go = run.opts.graph
@@ -549,15 +554,9 @@ def _stem_bases(run: _Run) -> NDArray | None:
         min_tree_distance=go.min_tree_distance,
         seed=run.opts.seed,
     )
-    if pts.size == 0:
-        return None
-    cnt = np.bincount(tree).astype(float)
-    keep = cnt > 0
-    xy = (
-        np.column_stack([np.bincount(tree, weights=xyz[pts, c]) for c in (0, 1)])[keep]
-        / cnt[keep, None]
-    )
-    return xy
+    # find_roots' trees, not stem_bases' (which drops small stems for the one-tree check):
+    # the voxel method gets the graph method's trees
+    return root_centres(xyz, pts, tree) if pts.size else None
 
 
 def _check_skeleton(run: _Run) -> None:

@@ -1021,7 +1021,7 @@ def taper_radii(
     tree_bw = _tree_slopes(x, y, bid, trees, reliable, b_fork, within)
     bw_node = np.array([tree_bw[int(t)][0] for t in uniq])[np.searchsorted(uniq, trees)]
     stem = _stem_mask(graph, carried)
-    x_top = _per_tree_max(x, trees, uniq)  # log of each tree's whole length, per node
+    x_top = treeops.per_label(trees, x)  # log of each tree's whole length, per node
     # the stem is anchored on its own fits (lower half) and tapered once chosen: runs
     # there are left to that
     run = _fit_runs(graph, r_fit, reliable) & ~stem
@@ -1054,7 +1054,7 @@ def taper_radii(
                 src = "stem"
             elif pooled is not None:  # a fragment without a measured stem: the plot's stems
                 a, _, sc = pooled
-                a += b_fork * float(x[m].max())
+                a += b_fork * float(x_top[m][0])
                 src = "all trees"
             elif rm.sum() >= 3:
                 a, _, sc = _robust_line(cum[rm], y[rm], 1.0)
@@ -1108,14 +1108,6 @@ def taper_radii(
     slack_v = np.where(cont, float(slack), 1.0)
     radius = _cap_down_slack(par, graph.order, radius, slack_v)
     return radius, dataclasses.replace(fit, reliable=reliable & keep, model=info)
-
-
-def _per_tree_max(v: NDArray, trees: NDArray, uniq: NDArray) -> NDArray[np.float64]:
-    """The largest ``v`` of each node's tree (``uniq``: the sorted tree labels), per node."""
-    tix = np.searchsorted(uniq, trees)
-    top = np.full(uniq.size, -np.inf)
-    np.maximum.at(top, tix, v)
-    return top[tix]
 
 
 @numba.njit(cache=True)

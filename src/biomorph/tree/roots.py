@@ -17,7 +17,13 @@ from scipy.spatial import cKDTree
 
 from biomorph.errors import InputError, ParameterError
 
-__all__ = ["find_roots", "stem_bases", "check_single_tree", "check_trunk_reaches_ground"]
+__all__ = [
+    "find_roots",
+    "root_centres",
+    "stem_bases",
+    "check_single_tree",
+    "check_trunk_reaches_ground",
+]
 
 #: a second stem counts (two trees touching in a one-tree run) when its base cluster holds at
 #: least this share of the points of the largest one: smaller base clusters are root
@@ -239,6 +245,17 @@ def find_roots(
     return np.concatenate(roots).astype(np.int64), np.concatenate(tree)
 
 
+def root_centres(
+    xyz: NDArray[np.float64], roots: NDArray[np.int64], tree: NDArray[np.int64]
+) -> NDArray[np.float64]:
+    """XY centre (m) of each tree's root points (:func:`find_roots`' output), by tree."""
+    roots = np.asarray(roots, dtype=np.int64)
+    tree = np.asarray(tree, dtype=np.int64)
+    cnt = np.bincount(tree).astype(float)
+    xy = np.column_stack([np.bincount(tree, weights=xyz[roots, c]) for c in (0, 1)])
+    return xy[cnt > 0] / cnt[cnt > 0, None]
+
+
 def stem_bases(
     xyz: NDArray[np.float64],
     *,
@@ -261,8 +278,8 @@ def stem_bases(
         if found is not None:
             roots, tree = found
             cnt = np.bincount(tree)
-            keep = np.flatnonzero(cnt >= SECOND_STEM_SHARE * cnt.max())
-            return np.array([xyz[roots[tree == t], :2].mean(axis=0) for t in keep])
+            cnt = cnt[cnt > 0]  # root_centres' rows
+            return root_centres(xyz, roots, tree)[cnt >= SECOND_STEM_SHARE * cnt.max()]
     z = xyz[:, 2] - xyz[:, 2].min()
     sl = np.flatnonzero(z <= root_slice)
     if sl.size < 10:
