@@ -47,3 +47,28 @@ def test_failures_do_not_count_as_latency_and_the_tab_recovers(app):
 
 def test_url_is_loopback(app):
     assert app.url.startswith("http://127.0.0.1:")
+
+
+def test_stop_waits_at_most_its_timeout_for_the_web_server(tmp_path):
+    """After Ctrl-C the studio stops within the interrupt guard's grace: a web server
+    whose teardown hangs (viser joins its loop for up to 6 s) is left to finish alone."""
+    import threading
+    import time
+
+    class SlowServer:
+        def __init__(self):
+            self.done = threading.Event()
+
+        def stop(self):
+            time.sleep(1.0)
+            self.done.set()
+
+    a = StudioApp(tmp_path, port=0, tabs=["files"])
+    slow = a.server = SlowServer()
+    t0 = time.monotonic()
+    a.stop(timeout=0.1)
+    assert time.monotonic() - t0 < 0.6 and a.server is None and not slow.done.is_set()
+    assert slow.done.wait(5.0)  # the teardown still ran, in the background
+    slow = a.server = SlowServer()
+    a.stop()  # no timeout: waits for it
+    assert slow.done.is_set()

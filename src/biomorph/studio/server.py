@@ -211,15 +211,24 @@ class StudioApp:
     def session_of_client(self, client: Any) -> Session | None:
         return self._by_client.get(client.client_id)
 
-    def stop(self) -> None:
-        """Stop background work and the web server (idempotent)."""
+    def stop(self, timeout: float | None = None) -> None:
+        """Stop background work and the web server (idempotent). ``timeout`` (s): wait at
+        most this long for the web server's own teardown (viser joins its event loop for
+        up to 1 + 5 s; on a loaded machine that outlasts Ctrl-C's grace,
+        :data:`biomorph._cli.INTERRUPT_GRACE`), which then finishes in a daemon thread or
+        ends with the process; None waits for it."""
         with self._lock:
             sessions = list(self.sessions.values())
         for s in sessions:
             s.close()
-        if self.server is not None:
-            self.server.stop()
-            self.server = None
+        server, self.server = self.server, None
+        if server is not None:
+            if timeout is None:
+                server.stop()
+            else:
+                t = threading.Thread(target=server.stop, name="studio-stop", daemon=True)
+                t.start()
+                t.join(timeout)
         self._stopped.set()
 
     def wait(self) -> None:
