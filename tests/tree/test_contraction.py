@@ -35,14 +35,16 @@ def _twins(gap: float = 0.08, seed: int = 0):
     return np.vstack([cylinder_points(a, b, r, n, rng, 0.001) for a, b, r, n in parts])
 
 
-def _levels(xyz, spacing, merge):
+def _levels(xyz, spacing, merge, point_spacing=None, cell=None):
     g, _ = bridge_components(xyz, neighbour_graph(xyz, k=10))
     roots = np.flatnonzero(xyz[:, 2] < 0.02)
     geo = g.copy()
     geo.data = np.sqrt(geo.data)
     plen, _ = shortest_path_forest(geo, roots)
     tree = np.where(np.isfinite(plen), 0, -1)
-    return contract(xyz, g, plen, tree, spacing, merge=merge)
+    return contract(
+        xyz, g, plen, tree, spacing, merge=merge, point_spacing=point_spacing, cell=cell
+    )
 
 
 def test_twigs_side_by_side_stay_two_vertices():
@@ -144,9 +146,48 @@ def test_adaptive_keeps_sparse_twig_pieces_in_their_levels():
     assert np.any(lo2[t2] != hi2[t2])
 
 
+def test_two_scale_keeps_a_twiglet_beside_its_branch_apart():
+    """Two 1 cm twigs 8 cm apart (6 cm of air between their surfaces): as far as voxels
+    of the fine cell (3 point spacings of 1 cm) can reach, well within the 4.5 cm coarse
+    cell's. The default of this function ("adjacent") puts vertices between them; the
+    graph method's "two-scale" keeps every vertex on a twig."""
+    xyz = _twins(gap=0.08)
+    two = _levels(xyz, 0.03, "two-scale", point_spacing=0.01)
+    high = two.position[:, 2] > 0.9
+    assert high.sum() >= 20
+    assert np.all(np.abs(np.abs(two.position[high, 0]) - 0.04) < 0.015)
+    adj = _levels(xyz, 0.03, "adjacent", point_spacing=0.01)
+    ha = adj.position[:, 2] > 0.9
+    assert np.any(np.abs(adj.position[ha, 0]) < 0.02)
+
+
+def test_two_scale_closes_an_occluded_stem_ring():
+    """A 30 cm stem scanned from two sides: two 7 cm occlusion gaps in every ring, beyond
+    the fine cell's reach (two 3 cm voxels), within the coarse cell's (8 cm here). The
+    arcs are wider than their gap, so every level of the stem is one vertex on its axis,
+    as with "adjacent"; joining at the fine scale alone leaves two arcs per level."""
+    rng = np.random.default_rng(5)
+    p = cylinder_points((0, 0, 0), (0, 0, 0.6), 0.3, 40000, rng, 0.001)
+    ang = np.arctan2(p[:, 1], p[:, 0])
+    half = 0.07 / 0.3 / 2  # half-angle of a 7 cm gap
+    xyz = p[(np.abs(ang - np.pi / 2) > half) & (np.abs(ang + np.pi / 2) > half)]
+
+    def off_axis(merge, cell):
+        con = _levels(xyz, 0.03, merge, point_spacing=0.01, cell=cell)
+        mid = (con.position[:, 2] > 0.1) & (con.position[:, 2] < 0.5)
+        assert mid.sum() >= 10
+        return np.hypot(con.position[mid, 0], con.position[mid, 1])
+
+    assert np.all(off_axis("two-scale", 0.08) < 0.1)
+    assert np.all(off_axis("adjacent", 0.08) < 0.1)
+    assert np.median(off_axis("adjacent", 0.03)) > 0.15  # the fine scale alone
+
+
 def test_graph_level_merge_option():
     xyz = _twins(gap=0.3)
-    assert livny.LEVEL_MERGE_DEFAULT == "adjacent"
-    assert livny.skeletonize_graph(xyz).info["level_merge"] == "adjacent"
+    assert livny.LEVEL_MERGE_DEFAULT == "two-scale"
+    assert livny.skeletonize_graph(xyz).info["level_merge"] == "two-scale"
+    adj = livny.skeletonize_graph(xyz, level_merge="adjacent")
+    assert adj.info["level_merge"] == "adjacent" and adj.graph.leaves.size >= 2
     res = livny.skeletonize_graph(xyz, level_merge="adaptive")
     assert res.info["level_merge"] == "adaptive" and res.graph.leaves.size >= 2

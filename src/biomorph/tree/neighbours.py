@@ -49,6 +49,7 @@ __all__ = [
     "NODE_SPACING_MIN",
     "LEVEL_CELL",
     "LEVEL_MERGE",
+    "FINE_CELL",
 ]
 
 
@@ -1107,7 +1108,12 @@ NODE_SPACING = 3.0  #: default contraction level width, in median point spacings
 NODE_SPACING_MIN = 0.002
 LEVEL_CELL = 1.5  #: voxel size of the level-set connectivity, in node spacings
 #: how adjacent pieces of one level join (:func:`contract`)
-LEVEL_MERGE = ("adjacent", "overlap", "adaptive")
+LEVEL_MERGE = ("adjacent", "overlap", "adaptive", "two-scale")
+#: ``merge="two-scale"``: pieces of a level whose voxels of this size (in point spacings)
+#: touch always join — a level band's own sampling gaps. 3 = ``LEVEL_CELL`` × the 2 point
+#: spacings a kNN neighbourhood spans on a scanned surface (its 10th neighbour lies ~1.8
+#: spacings away), half the coarse cell of the default 3-spacing level
+FINE_CELL = 3.0
 
 
 def _merge_overlapping(
@@ -1205,7 +1211,7 @@ def contract(
     ``path_length`` is the distance along the shortest-path forest from the root set;
     ``point_tree`` the tree of each point (-1 unreachable: dropped). ``merge``: how the
     kNN pieces of one level that are 26-adjacent in voxels of ``cell`` (default
-    ``LEVEL_CELL`` node spacings) join: ``"adjacent"`` (the graph method's default) all
+    ``LEVEL_CELL`` node spacings) join: ``"adjacent"`` (this function's default) all
     of them (closes the sparse rings of thick stems, but also merges twigs
     up to ~2 cells apart into one vertex between them); ``"overlap"`` only when the gap is
     smaller than their spreads (:func:`_merge_overlapping`; ``point_spacing`` is the floor
@@ -1215,7 +1221,12 @@ def contract(
     fragments join only pieces of at least ``k + 1`` points (``k``: the kNN graph's
     neighbours): on sparse scans most pieces hold 1–3 points (a 5 cm-thinned birch: median
     2), and absorbing them into the next level's 3-point piece merged twigs across levels
-    (F1 0.79 → 0.50 there).
+    (F1 0.79 → 0.50 there). ``"two-scale"`` (the graph method's default): pieces
+    26-adjacent in voxels of :data:`FINE_CELL` point spacings always join, and pieces
+    adjacent only at ``cell`` join by the adaptive test (gap below the sum of their spreads,
+    or both spreads at least the level width) — a side twiglet a few cm off its branch
+    stays its own vertex while the arcs of a thick stem's ring still close; where
+    ``cell`` is no coarser than the fine cell it is ``"adjacent"``.
     """
     if merge not in LEVEL_MERGE:
         raise ParameterError(f"merge {merge!r}; expected one of {', '.join(LEVEL_MERGE)}")
@@ -1252,6 +1263,18 @@ def contract(
             lab = _canonical_labels(root)[1]
             wide = spacing if merge == "adaptive" else 0.0
             lab = _merge_overlapping(xyz, lab, vr, vc, floor, wide)
+        elif (
+            merge == "two-scale"
+            and point_spacing
+            and FINE_CELL * point_spacing < (cell if cell else LEVEL_CELL * spacing)
+        ):
+            # fine scale: pieces whose voxels touch at FINE_CELL point spacings are one
+            # piece; coarse scale (the "adjacent" cell): pieces join only where the gap is
+            # below their spreads or both are wider than the level (arcs of a stem ring)
+            fr, fc = _voxel_level_edges(xyz, level, point_tree, ok, FINE_CELL * point_spacing)
+            _union_pairs(root, fr, fc)
+            lab = _canonical_labels(root)[1]
+            lab = _merge_overlapping(xyz, lab, vr, vc, point_spacing, spacing)
         else:  # "adjacent": every voxel-adjacent piece of a level joins
             _union_pairs(root, vr, vc)
             lab = _canonical_labels(root)[1]
