@@ -191,3 +191,17 @@ def test_graph_level_merge_option():
     assert adj.info["level_merge"] == "adjacent" and adj.graph.leaves.size >= 2
     res = livny.skeletonize_graph(xyz, level_merge="adaptive")
     assert res.info["level_merge"] == "adaptive" and res.graph.leaves.size >= 2
+
+
+def test_segment_trees_gives_each_point_the_tree_of_the_root_it_hangs_from():
+    from scipy import sparse
+
+    from biomorph.tree.neighbours import segment_trees
+
+    # a path 0-1-2-3-4 (squared lengths 1, 1, 5, 1) and a lone vertex 5
+    r = np.array([0, 1, 2, 3])
+    c = np.array([1, 2, 3, 4])
+    g = sparse.csr_matrix((np.array([1.0, 1.0, 5.0, 1.0]), (r, c)), shape=(6, 6))
+    g = g.maximum(g.T).tocsr()
+    tree = segment_trees(g, np.array([0, 4]), np.array([7, 3]))
+    assert tree.tolist() == [7, 7, 7, 3, 3, -1]

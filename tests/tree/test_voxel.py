@@ -172,3 +172,49 @@ def test_each_stem_roots_its_own_tree_and_a_low_branch_is_not_a_tree():
     # the two stems one tree
     ijk, parent, comp = skeleton_graph(skel, base_height=10.0)
     assert (parent < 0).sum() == 2 and ((ijk[:, 0] >= 30) & (comp == comp.max())).any()
+
+
+def test_a_crown_goes_to_the_stem_its_points_belong_to():
+    """Stem B's skeleton breaks at 8 voxels (a sparse stem the thinning cut); its crown
+    (z 12-20) touches stem A's top through a twig. Along the skeleton the crown is A's;
+    the points say B's (the graph method's segmentation): with them the crown joins B's
+    stem at their nearest voxels and A keeps only its own wood."""
+    skel = np.zeros((20, 8, 24), bool)
+    skel[2, 4, 0:21] = True  # stem A, z 0-20
+    skel[14, 4, 0:9] = True  # stem B, broken above z 8
+    skel[14, 4, 12:21] = True  # B's crown
+    skel[3:14, 4, 20] = True  # a twig of A touching B's crown at the top
+    stems = np.array([[2.0, 4.0], [14.0, 4.0]])
+    ijk = np.argwhere(skel)
+    tree = np.where(ijk[:, 0] == 14, 1, 0)  # points on every voxel: B's column is B's
+    tree[(ijk[:, 0] == 14) & (ijk[:, 2] == 20)] = 1
+    pts = ijk + 0.5
+    crown = lambda v: (v[:, 0] == 14) & (v[:, 2] >= 12)  # noqa: E731
+    base_b = lambda v: (v[:, 0] == 14) & (v[:, 2] == 0)  # noqa: E731
+    base_a = lambda v: (v[:, 0] == 2) & (v[:, 2] == 0)  # noqa: E731
+    plain, _, comp0 = skeleton_graph(skel, stems=stems, stem_reach=2.0)
+    assert (comp0[crown(plain)] == comp0[base_a(plain)][0]).all()  # nearest along it: A
+    ijk2, parent, comp = skeleton_graph(skel, stems=stems, stem_reach=2.0, labelled=(pts, tree))
+    assert (comp[crown(ijk2)] == comp[base_b(ijk2)][0]).all()
+    assert not (comp[ijk2[:, 0] == 2] == comp[base_b(ijk2)][0]).any()
+    assert (parent < 0).sum() == 2
+
+
+def test_a_stem_roots_on_its_own_wood_not_at_a_shrub_or_a_lost_voxel_beside_it():
+    """Within the stem's reach a shrub (another tree by the points' segmentation) and an
+    isolated voxel (a component too small to keep) start lower than the stem's skeleton:
+    the stem roots on its own wood (before: at the shrub, the stem hung from it; or at the
+    lone voxel, dropped with it, and the stem was lost)."""
+    skel = np.zeros((14, 8, 24), bool)
+    skel[4, 4, 3:22] = True  # the stem's skeleton starts 3 voxels up
+    skel[8, 4, 0:5] = True  # a shrub beside it, from the ground
+    skel[5:8, 4, 4] = True  # touching the stem
+    skel[3, 3, 0] = True  # a lone voxel
+    stems = np.array([[4.0, 4.0], [8.0, 4.0]])
+    ijk = np.argwhere(skel)
+    tree = np.where(ijk[:, 0] >= 7, 1, 0)  # the shrub's points are the second stem's
+    kw = dict(stems=stems[:1], stem_reach=6.0, min_component_voxels=2)
+    ijk2, parent, _ = skeleton_graph(skel, labelled=(ijk + 0.5, tree), **kw)
+    assert [tuple(v) for v in ijk2[parent < 0]] == [(4, 4, 3)]
+    ijk3, parent3, _ = skeleton_graph(skel, **kw)  # no segmentation: the lowest voxel
+    assert [tuple(v) for v in ijk3[parent3 < 0]] == [(8, 4, 0)]

@@ -87,6 +87,7 @@ from biomorph.tree.neighbours import (
     contract,
     estimate_spacing,
     neighbour_graph,
+    segment_trees,
     shortest_path_forest,
     spatial_order,
 )
@@ -392,12 +393,7 @@ def skeletonize_graph(
     if np.unique(root_tree).size > 1:
         # Livny's segmentation: the squared-weight shortest-path forest from the virtual
         # root assigns every point to the tree whose root it reaches
-        _, ppar = shortest_path_forest(p_graph, roots)
-        order = treeops.topological_order(ppar)
-        proot = treeops.root_of(ppar, order)
-        tree_of_root = np.full(n, -1, dtype=np.int64)
-        tree_of_root[roots] = root_tree
-        point_tree = tree_of_root[proot]
+        point_tree = segment_trees(p_graph, roots, root_tree)
     else:  # one tree: every reachable point belongs to it
         point_tree = np.where(np.isfinite(plen), 0, -1).astype(np.int64)
     t0 = tick("dijkstra", t0)

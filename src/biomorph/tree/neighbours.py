@@ -23,6 +23,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
+from biomorph.core import treeops
 from biomorph.errors import InputError, ParameterError
 
 __all__ = [
@@ -37,6 +38,7 @@ __all__ = [
     "neighbour_graph",
     "bridge_components",
     "shortest_path_forest",
+    "segment_trees",
     "BridgeRule",
     "bridge_supported",
     "GAP_SHORT",
@@ -1042,6 +1044,21 @@ def shortest_path_forest(
     parent = pred[:n].astype(np.int64)
     parent[(parent == n) | (parent < 0)] = -1
     return dist[:n], parent
+
+
+def segment_trees(
+    graph: sparse.csr_matrix, roots: NDArray[np.int64], root_tree: NDArray[np.int64]
+) -> NDArray[np.int64]:
+    """Livny's segmentation: the tree of every vertex (-1 where no root is reached). The
+    shortest-path forest of ``graph``'s weights (the graph method's squared lengths) from
+    all root vertices at once gives each vertex the tree of the root it hangs from;
+    ``root_tree[i]`` is the tree of ``roots[i]``."""
+    n = graph.shape[0]
+    _, par = shortest_path_forest(graph, roots)
+    proot = treeops.root_of(par, treeops.topological_order(par))
+    tree_of_root = np.full(n, -1, dtype=np.int64)
+    tree_of_root[np.asarray(roots, dtype=np.int64)] = np.asarray(root_tree, dtype=np.int64)
+    return tree_of_root[proot]
 
 
 @dataclass

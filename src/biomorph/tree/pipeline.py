@@ -471,11 +471,13 @@ def voxel_phase(run: _Run) -> None:
     assert run.cloud is not None
     vkw = run.opts.voxel.as_kwargs()
     progress = run.progress
+    stems, point_tree = _stem_bases(run)
     vres = skeletonize_voxel(
         run.cloud,
         **vkw,
-        stems=_stem_bases(run),
+        stems=stems,
         stem_reach=run.opts.graph.min_tree_distance,
+        point_tree=point_tree,
         progress=None if progress is None else lambda s: progress(1, s),
     )
     graph = vres.graph
@@ -516,12 +518,16 @@ def voxel_phase(run: _Run) -> None:
     _check_skeleton(run)
 
 
-def _stem_bases(run: _Run) -> NDArray | None:
+def _stem_bases(run: _Run) -> tuple[NDArray | None, NDArray | None]:
     """XY of each stem base the graph method's step i finds in the points
     (:func:`biomorph.tree.roots.find_roots`: stems at breast height standing on the ground
-    where a ground was removed), for the voxel method's trees; None if none is found. The
-    graph method's checks run first: a trunk must reach the ground, and a one-tree run
-    (``n_trees=1``) must hold one stem (:class:`~biomorph.errors.InputError` otherwise)."""
+    where a ground was removed), for the voxel method's trees, and with two stems or more
+    the tree of each point by the graph method's segmentation (step ii's kNN graph,
+    :func:`biomorph.tree.neighbours.segment_trees`; stem ``i`` is tree ``i``); None where
+    there is none. The graph method's checks run first: a trunk must reach the ground, and
+    a one-tree run (``n_trees=1``) must hold one stem (:class:`~biomorph.errors.InputError`
+    otherwise)."""
+    from biomorph.tree.neighbours import neighbour_graph, segment_trees
     from biomorph.tree.roots import (
         check_single_tree,
         check_trunk_reaches_ground,
@@ -533,7 +539,7 @@ def _stem_bases(run: _Run) -> NDArray | None:
     go = run.opts.graph
     xyz = run.cloud.xyz
     if xyz.shape[0] < 3:
-        return None
+        return None, None
     height = _height_above_ground(xyz, run.ground)
     # the graph method's bad-input rules: no trunk reaching the ground, two stems in a
     # one-tree run -- one line, not a silent wrong model
@@ -556,7 +562,14 @@ def _stem_bases(run: _Run) -> NDArray | None:
     )
     # find_roots' trees, not stem_bases' (which drops small stems for the one-tree check):
     # the voxel method gets the graph method's trees
-    return root_centres(xyz, pts, tree) if pts.size else None
+    if not pts.size:
+        return None, None
+    _, tree = np.unique(tree, return_inverse=True)  # stem i is tree i
+    tree = tree.reshape(-1)
+    stems = root_centres(xyz, pts, tree)
+    if stems.shape[0] < 2:
+        return stems, None
+    return stems, segment_trees(neighbour_graph(xyz, k=go.k), pts, tree)
 
 
 def _check_skeleton(run: _Run) -> None:

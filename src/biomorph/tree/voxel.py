@@ -403,6 +403,7 @@ def skeleton_graph(
     base_height: float | None = None,
     stems: NDArray[np.float64] | None = None,
     stem_reach: float = 0.0,
+    labelled: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """Shortest-path forest over the 26-adjacent skeleton voxels (step iv, v).
 
@@ -419,7 +420,13 @@ def skeleton_graph(
     rooted component where the gap is supported (:func:`_attach_fragments`) or is dropped
     -- one connected skeleton per tree. ``stems`` (XY of stem bases, voxel units) and
     ``stem_reach`` (voxels): the components rooted are those holding a stem's base
-    (:func:`_stem_root_voxels`), and each stem roots a tree of its own.
+    (:func:`_stem_root_voxels`), and each stem roots a tree of its own. ``labelled``:
+    points (voxel units) and the tree of each (-1: none), the graph method's segmentation
+    of the points (:func:`~biomorph.tree.neighbours.segment_trees`, stem ``i`` is tree
+    ``i``): a skeleton voxel takes the tree of its nearest point within two voxels, and
+    skeleton edges between voxels of two trees cost :data:`CROSS_TREE` times more, so each
+    stem's tree keeps the crown its points hold (where the skeleton links that crown to
+    its stem at all).
     """
     ijk = np.argwhere(skel).astype(np.int64)
     n = ijk.shape[0]
@@ -429,30 +436,15 @@ def skeleton_graph(
     g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
     ncomp, lab = connected_components(g, directed=False)
     stem_roots = None
+    vt = None if labelled is None else _voxel_trees(ijk, labelled)
     if stems is not None and len(stems):
-        stem_roots = _stem_root_voxels(ijk, np.asarray(stems, float), float(stem_reach))
+        big = np.bincount(lab, minlength=ncomp)[lab] >= max(min_component_voxels, 1)
+        stem_of = _stem_root_voxels(ijk, np.asarray(stems, float), float(stem_reach), vt, big)
+        stem_roots = np.unique(stem_of[stem_of >= 0])
     if bridge_gap > 0 and ncomp > 1:
-        from scipy.spatial import cKDTree
-
-        deg = np.bincount(r, minlength=n) + np.bincount(c, minlength=n)
-        ep = np.flatnonzero(deg <= 1)
-        if ep.size:
-            k = min(64, n)
-            d, nb = cKDTree(ijk).query(ijk[ep], k=k, distance_upper_bound=bridge_gap + 1e-9)
-            d, nb = d.reshape(ep.size, k), nb.reshape(ep.size, k)
-            ok = np.isfinite(d)
-            other = np.zeros_like(ok)
-            other[ok] = lab[nb[ok]] != np.repeat(lab[ep], k).reshape(ep.size, k)[ok]
-            has = other.any(axis=1)
-            j = np.argmax(other, axis=1)
-            src = ep[has]
-            dst = nb[has, j[has]]
-            bw = 3.0 * d[has, j[has]]
-            r = np.concatenate([r, src])
-            c = np.concatenate([c, dst])
-            w = np.concatenate([w, bw])
-            g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
-            ncomp, lab = connected_components(g, directed=False)
+        r, c, w = _bridge_ends(ijk, r, c, w, lab, bridge_gap)
+        g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
+        ncomp, lab = connected_components(g, directed=False)
     if base_height is not None and ncomp > 1:
         fr, fc, fw, seeds = _attach_fragments(
             ijk, lab, float(base_height), max(bridge_gap, 1.0), stem_roots
@@ -493,6 +485,9 @@ def skeleton_graph(
         has = np.zeros(ncomp, dtype=bool)
         has[lab[sr]] = True
         roots = np.concatenate([sr, roots[~has[lab[roots]]]])
+        if vt is not None:
+            r, c, w = _follow_point_trees(ijk, r, c, w, vt, stem_of, roots)
+            g = coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
     _, pred, src = dijkstra(
         g, directed=False, indices=roots, min_only=True, return_predecessors=True
     )
@@ -511,22 +506,139 @@ def skeleton_graph(
     return ijk[sel], par, tree_rank[tree]
 
 
-def _stem_root_voxels(
-    ijk: NDArray[np.int64], stems: NDArray[np.float64], reach: float
-) -> NDArray[np.int64]:
-    """For each stem base (XY, voxel units) the lowest skeleton voxel within ``reach``
-    voxels of it horizontally (ties: the nearest), where the stem's skeleton starts."""
+def _bridge_ends(ijk, r, c, w, lab, bridge_gap: float):
+    """Edges ``(r, c, w)`` plus one from every end voxel (at most one neighbour) to the
+    nearest voxel of another component within ``bridge_gap`` voxels, weight 3 × the
+    distance (:func:`skeleton_graph`)."""
     from scipy.spatial import cKDTree
 
-    out = []
+    n = ijk.shape[0]
+    deg = np.bincount(r, minlength=n) + np.bincount(c, minlength=n)
+    ep = np.flatnonzero(deg <= 1)
+    if not ep.size:
+        return r, c, w
+    k = min(64, n)
+    d, nb = cKDTree(ijk).query(ijk[ep], k=k, distance_upper_bound=bridge_gap + 1e-9)
+    d, nb = d.reshape(ep.size, k), nb.reshape(ep.size, k)
+    ok = np.isfinite(d)
+    other = np.zeros_like(ok)
+    other[ok] = lab[nb[ok]] != np.repeat(lab[ep], k).reshape(ep.size, k)[ok]
+    has = other.any(axis=1)
+    j = np.argmax(other, axis=1)
+    src = ep[has]
+    dst = nb[has, j[has]]
+    bw = 3.0 * d[has, j[has]]
+    return np.concatenate([r, src]), np.concatenate([c, dst]), np.concatenate([w, bw])
+
+
+def _voxel_trees(ijk: NDArray[np.int64], labelled) -> NDArray[np.int64]:
+    """The tree of each skeleton voxel: that of its nearest point (a voxel the closing
+    added between the points takes their tree); ``labelled`` = (points in voxel units,
+    tree of each point, -1: none)."""
+    from scipy.spatial import cKDTree
+
+    pts, tree = labelled
+    _, j = cKDTree(np.asarray(pts, float)).query(ijk + 0.5)
+    return np.asarray(tree, dtype=np.int64)[j]
+
+
+def _follow_point_trees(ijk, r, c, w, vt, stem_of, roots):
+    """Skeleton edges ``(r, c, w)`` re-wired so each stem's tree keeps the crown its points
+    hold (:func:`skeleton_graph`'s ``labelled``). Edges between voxels of two trees go; a
+    piece of tree ``t`` (its voxels' majority) that is then cut off from every root joins
+    the part of tree ``t`` holding stem ``t``'s root at their nearest voxels (weight 3 ×
+    the distance, as a bridge): the points link that crown to its stem, the skeleton had
+    lost the way (a sparse stem the thinning broke). A piece with no tree, or whose stem
+    has no root voxel, keeps its edges across."""
+    from scipy.spatial import cKDTree
+
+    n = ijk.shape[0]
+    cross = (vt[r] >= 0) & (vt[c] >= 0) & (vt[r] != vt[c])
+    if not cross.any():
+        return r, c, w
+    keep = ~cross
+    g = coo_matrix((w[keep], (r[keep], c[keep])), shape=(n, n))
+    ncomp, lab = connected_components(g, directed=False)
+    rooted = np.zeros(ncomp, dtype=bool)
+    rooted[lab[roots]] = True
+    # majority tree of each piece
+    ok = vt >= 0
+    key = lab[ok] * (int(vt.max()) + 1) + vt[ok]
+    uk, cnt = np.unique(key, return_counts=True)
+    best = np.full(ncomp, -1, dtype=np.int64)
+    o = np.lexsort((cnt, uk // (int(vt.max()) + 1)))
+    best[uk[o] // (int(vt.max()) + 1)] = uk[o] % (int(vt.max()) + 1)  # the last (largest) wins
+    add_r: list[int] = []
+    add_c: list[int] = []
+    add_w: list[float] = []
+    restore = np.zeros(ncomp, dtype=bool)
+    home = {}
+    for piece in np.flatnonzero(~rooted):
+        t = int(best[piece])
+        if t < 0 or t >= stem_of.size or stem_of[t] < 0 or not rooted[lab[stem_of[t]]]:
+            restore[piece] = True
+            continue
+        if t not in home:
+            own = np.flatnonzero(lab == lab[stem_of[t]])
+            home[t] = (own, cKDTree(ijk[own].astype(float)))
+        own, kd = home[t]
+        mine = np.flatnonzero(lab == piece)
+        d, j = kd.query(ijk[mine].astype(float))
+        k = int(np.argmin(d))
+        add_r.append(int(mine[k]))
+        add_c.append(int(own[j[k]]))
+        add_w.append(3.0 * float(d[k]))
+    ar = np.asarray(add_r, dtype=np.int64)
+    ac = np.asarray(add_c, dtype=np.int64)
+    aw = np.asarray(add_w, dtype=float)
+    is_root = np.zeros(n, dtype=bool)
+    is_root[roots] = True
+    while True:  # a piece reaching no root keeps its edges across, as before
+        keep |= cross & (restore[lab[r]] | restore[lab[c]])
+        g = coo_matrix((np.r_[w[keep], aw], (np.r_[r[keep], ar], np.r_[c[keep], ac])), shape=(n, n))
+        _, lab2 = connected_components(g, directed=False)
+        reached = np.zeros(int(lab2.max()) + 1, dtype=bool)
+        reached[lab2[is_root]] = True
+        lost = ~reached[lab2] & ~restore[lab]
+        if not lost.any():
+            break
+        restore[np.unique(lab[lost])] = True
+    return np.r_[r[keep], ar], np.r_[c[keep], ac], np.r_[w[keep], aw]
+
+
+def _stem_root_voxels(
+    ijk: NDArray[np.int64],
+    stems: NDArray[np.float64],
+    reach: float,
+    voxel_tree: NDArray[np.int64] | None = None,
+    eligible: NDArray[np.bool_] | None = None,
+) -> NDArray[np.int64]:
+    """For each stem base (XY, voxel units) the lowest skeleton voxel within ``reach``
+    voxels of it horizontally (ties: the nearest), where the stem's skeleton starts; -1
+    where none lies within reach. With ``voxel_tree`` (the tree of each voxel by the
+    points' segmentation, stem ``i`` is tree ``i``) only the stem's own voxels count where
+    it has any within reach: a neighbour's low branch or a shrub beside the stem may start
+    lower than the stem's own skeleton. ``eligible``: the voxels that may root a tree (in a
+    component large enough to be kept)."""
+    from scipy.spatial import cKDTree
+
+    out = np.full(len(stems), -1, dtype=np.int64)
     kd = cKDTree(ijk[:, :2].astype(np.float64))
-    for xy, near in zip(stems, kd.query_ball_point(stems[:, :2], reach), strict=True):
+    for k, (xy, near) in enumerate(
+        zip(stems, kd.query_ball_point(stems[:, :2], reach), strict=True)
+    ):
         if not near:
             continue
         near = np.asarray(near)
+        if eligible is not None:
+            near = near[eligible[near]]
+            if not near.size:
+                continue
+        if voxel_tree is not None and (voxel_tree[near] == k).any():
+            near = near[voxel_tree[near] == k]
         d2 = ((ijk[near, :2] - xy[:2]) ** 2).sum(axis=1)
-        out.append(int(near[np.lexsort((d2, ijk[near, 2]))[0]]))
-    return np.unique(np.asarray(out, dtype=np.int64))
+        out[k] = int(near[np.lexsort((d2, ijk[near, 2]))[0]])
+    return out
 
 
 def _inscribed_radius(vol: NDArray[np.bool_], ijk: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -627,6 +739,7 @@ def skeletonize_voxel(
     root_slice: float | None = 0.5,
     stems: NDArray[np.float64] | None = None,
     stem_reach: float = 0.6,
+    point_tree: NDArray[np.int64] | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> VoxelSkeleton:
     """Skeletonise a tree point cloud with the voxel method of Gorte & Pfeifer (2004).
@@ -661,12 +774,18 @@ def skeletonize_voxel(
         join the nearest rooted component where the gap is supported (the graph method's
         rule, :class:`~biomorph.tree.neighbours.BridgeRule`) or are dropped, so each tree
         is one connected skeleton. ``None``: every component is its own tree (the thesis).
-    stems, stem_reach : XY (m, cloud frame) of the stem bases found in the points
-        (:func:`biomorph.tree.roots.find_roots`, the graph method's trees); with them each
-        stem's tree starts at the lowest skeleton voxel within ``stem_reach`` m of it, a
+    stems, stem_reach : rows ``x, y[, radius]`` (m, cloud frame) of the stem bases found in
+        the points (:func:`biomorph.tree.roots.find_roots`, the graph method's trees); with
+        them each stem's tree starts at the lowest skeleton voxel within ``stem_reach`` m of
+        it (of its own voxels by ``point_tree`` where given: :func:`_stem_root_voxels`), a
         component holding no such voxel is a fragment (a low branch of a conifer, cut off
         from the stem by occlusion, whose end hangs below 10 % of the height) and a
         component holding several (crowns touching) is split, one tree per stem.
+    point_tree : the tree of each point of ``cloud`` (stem ``i`` is tree ``i``; -1 none),
+        the graph method's segmentation (:func:`~biomorph.tree.neighbours.segment_trees`):
+        where crowns touch, each skeleton voxel goes to its points' stem wherever the
+        skeleton links it to that stem (:func:`skeleton_graph`); without it, to the stem
+        nearest along the skeleton.
     progress : called with the name of each phase as it starts.
 
     Returns
@@ -729,6 +848,9 @@ def skeletonize_voxel(
         if stems is None
         else (np.asarray(stems, float)[:, :2] - origin[:2]) / cell - 0.5,
         stem_reach=float(stem_reach) / cell,
+        labelled=None
+        if point_tree is None
+        else ((cloud.xyz - origin) / cell, np.asarray(point_tree, dtype=np.int64)),
     )
     if ijk.shape[0] == 0:
         raise InputError(
