@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from biomorph.core import treeops
-from biomorph.tree.neighbours import grid_query
+from biomorph.tree.neighbours import grid_nearest_label
 
 __all__ = ["allometric_radii", "skeleton_distance", "edge_length"]
 
@@ -76,7 +76,7 @@ def skeleton_distance(
     Edges are sampled every ``step`` (default a quarter of the median edge length), so the
     error is at most ``step/2``. The nearest node is the parent or child end of the edge
     sample, whichever is closer along the edge. ``order``: a spatial order of ``points``
-    (the leaf order of their k-d tree) for :func:`~biomorph.tree.neighbours.grid_query`,
+    (the leaf order of their k-d tree) for :func:`~biomorph.tree.neighbours.grid_nearest_label`,
     which answers as ``cKDTree(samples).query(points)``.
     """
     ch = np.flatnonzero(parent >= 0)
@@ -93,6 +93,7 @@ def skeleton_distance(
     b = position[ch][eid]
     samples = a + t[:, None] * (b - a)
     node = np.where(t < 0.5, parent[ch][eid], ch[eid])
-    # the k-d tree's answers, from a grid of the samples (ties and far points: the tree)
-    d, j = grid_query(samples, np.asarray(points, dtype=np.float64), 1, order=order)
-    return d, node[j]
+    # the k-d tree's answers, from a grid of the samples (a node's position repeats as
+    # the end of each edge meeting there: ties of one node decide; other ties, far points:
+    # the tree)
+    return grid_nearest_label(samples, np.asarray(points, dtype=np.float64), node, order=order)
