@@ -236,23 +236,29 @@ def _scan_ring(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
 ):  # pragma: no cover - numba
     """The data points of the grid cells at Chebyshev distance ``r`` from cell ``c0``
     into query point ``q[i]``'s nearest list ``bd``/``bi`` (squared distances summed as
-    cKDTree does, ``(dx² + dy²) + dz²``); returns its new count."""
+    cKDTree does, ``(dx² + dy²) + dz²``); returns its new count. A column's cells are
+    consecutive slots: on an x or y face of the ring its z range is one run of them."""
     nx, ny, nz = dims[0], dims[1], dims[2]
     cx, cy, cz = c0[0], c0[1], c0[2]
     qx, qy, qz = q[i, 0], q[i, 1], q[i, 2]
+    zlo, zhi = max(cz - r, 0), min(cz + r, nz - 1)
     for ix in range(max(cx - r, 0), min(cx + r, nx - 1) + 1):
         ex = ix == cx - r or ix == cx + r
         for iy in range(max(cy - r, 0), min(cy + r, ny - 1) + 1):
-            # on an x or y face of the ring every z of it, inside it only its z faces
-            if ex or iy == cy - r or iy == cy + r:
-                z0, z1, step = max(cz - r, 0), min(cz + r, nz - 1), 1
-            else:  # r > 0 here
-                z0, z1, step = cz - r, cz + r, 2 * r
-            for iz in range(z0, z1 + 1, step):
-                if iz < 0 or iz >= nz:
-                    continue
-                c = (ix * ny + iy) * nz + iz
-                for s in range(start[c], start[c + 1]):
+            col = (ix * ny + iy) * nz
+            face = ex or iy == cy - r or iy == cy + r
+            # on a face every z of the ring (one run), inside it only its two z faces
+            for h in range(1 if face else 2):
+                if face:
+                    if zlo > zhi:
+                        break
+                    a, b = start[col + zlo], start[col + zhi + 1]
+                else:  # r > 0 here
+                    iz = cz - r if h == 0 else cz + r
+                    if iz < 0 or iz >= nz:
+                        continue
+                    a, b = start[col + iz], start[col + iz + 1]
+                for s in range(a, b):
                     dx = qx - data[s, 0]
                     dy = qy - data[s, 1]
                     dz = qz - data[s, 2]
@@ -333,10 +339,27 @@ def _knn_grid(data: NDArray[np.float64]) -> tuple:
         dims = np.floor(span / cell).astype(np.int64) + 1
     ijk = np.minimum(np.floor((data - lo) / cell).astype(np.int64), dims - 1)
     cid = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-    slot = np.argsort(cid, kind="stable")
-    start = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
-    np.cumsum(np.bincount(cid, minlength=start.size - 1), out=start[1:])
+    start, slot = _bucket(cid, int(np.prod(dims)))
     return lo, float(cell), dims, start, slot
+
+
+@numba.njit(cache=True)
+def _bucket(cid, m):  # pragma: no cover - numba
+    """A counting sort of the labels ``cid`` (``0..m-1``): the CSR ``start`` of every
+    label and ``slot``, the indices by label, in index order within one (the permutation
+    ``np.argsort(cid, kind="stable")`` gives)."""
+    start = np.zeros(m + 1, dtype=np.int64)
+    for i in range(cid.size):
+        start[cid[i] + 1] += 1
+    for c in range(m):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    slot = np.empty(cid.size, dtype=np.int64)
+    for i in range(cid.size):
+        c = cid[i]
+        slot[fill[c]] = i
+        fill[c] += 1
+    return start, slot
 
 
 #: a query of fewer points than this runs in the calling thread: scipy starts a thread
