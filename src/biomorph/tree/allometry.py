@@ -93,7 +93,23 @@ def skeleton_distance(
     b = position[ch][eid]
     samples = a + t[:, None] * (b - a)
     node = np.where(t < 0.5, parent[ch][eid], ch[eid])
-    # the k-d tree's answers, from a grid of the samples (a node's position repeats as
-    # the end of each edge meeting there: ties of one node decide; other ties, far points:
-    # the tree)
-    return grid_nearest_label(samples, np.asarray(points, dtype=np.float64), node, order=order)
+    # a node's position repeats as the start of each edge leaving it (exactly) and, mostly,
+    # as the end of the edge reaching it: the grid searches one of each, the answer is
+    # the same (same point, same node)
+    keep = t > 0
+    start_of = np.flatnonzero(t == 0)  # one per edge, in edge order
+    keep[start_of[np.unique(parent[ch], return_index=True)[1]]] = True
+    n_kids = np.bincount(parent[ch], minlength=parent.size)
+    end = np.flatnonzero(t == 1)
+    c = ch[eid[end]]
+    keep[end[(n_kids[c] > 0) & (samples[end] == position[c]).all(axis=1)]] = False
+    # the k-d tree's answers, from a grid of the samples (ties of one node decide; other
+    # ties, far points: the tree of all the samples)
+    return grid_nearest_label(
+        samples[keep],
+        np.asarray(points, dtype=np.float64),
+        node[keep],
+        order=order,
+        ties=2,
+        full=(samples, node),
+    )

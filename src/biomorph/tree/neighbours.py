@@ -481,19 +481,25 @@ def grid_nearest_label(
     label: NDArray[np.int64],
     *,
     order: NDArray | None = None,
+    ties: int = LABEL_TIES,
+    full: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """``d, j = cKDTree(data).query(points)`` as ``(d, label[j])``: :func:`grid_query`
     for the label of the nearest data point, where exact ties of one label (a skeleton's
-    samples at a node shared by its edges) decide as well as a unique nearest; the other
-    points (ties of different labels, near ties, points far from the data) are queried
-    from a k-d tree of ``data``. ``order``: a spatial order of ``points``."""
+    samples at a node shared by its edges) decide as well as a unique nearest (among the
+    ``ties`` nearest); the other points (ties of different labels, near ties, points far
+    from the data) are queried from a k-d tree of ``data``. ``full``: ``(data, label)``
+    whose answer this is, ``data`` holding their points less exact repeats of a point with
+    the same label (the same answer, from fewer points; the k-d tree is of ``full``'s).
+    ``order``: a spatial order of ``points``."""
     data = np.ascontiguousarray(data, dtype=np.float64)
     points = np.ascontiguousarray(points, dtype=np.float64)
     label = np.ascontiguousarray(label, dtype=np.int64)
+    all_data, all_label = (data, label) if full is None else full
     n, nd = points.shape[0], data.shape[0]
-    if nd <= LABEL_TIES or n == 0:
-        d, j = cKDTree(data).query(points, workers=-1)
-        return d, label[j]
+    if nd <= ties or n == 0:
+        d, j = cKDTree(all_data).query(points, workers=query_workers(n))
+        return d, all_label[j]
     lo, cell, dims, start, slot = _knn_grid(data)
     order = spatial_order(points) if order is None else np.asarray(order, dtype=np.int64)
     dist = np.empty(n)
@@ -508,7 +514,7 @@ def grid_nearest_label(
         dims,
         points,
         order,
-        LABEL_TIES,
+        ties,
         KNN_MAX_RING,
         KNN_MARGIN,
         dist,
@@ -516,9 +522,9 @@ def grid_nearest_label(
     )
     redo = np.flatnonzero(~sure)
     if redo.size:
-        d, j = cKDTree(data).query(points[redo], workers=query_workers(redo.size))
+        d, j = cKDTree(all_data).query(points[redo], workers=query_workers(redo.size))
         dist[redo] = d
-        lab[redo] = label[j]
+        lab[redo] = all_label[j]
     return dist, lab
 
 
