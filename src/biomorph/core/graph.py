@@ -6,6 +6,7 @@ Z-up, metres. ``parent[i] == -1`` marks a root; one graph may hold several trees
 
 from __future__ import annotations
 
+from contextvars import ContextVar
 from dataclasses import dataclass, replace
 from functools import cached_property
 
@@ -14,6 +15,14 @@ from numpy.typing import NDArray
 
 from biomorph.core import treeops
 from biomorph.errors import InputError
+
+#: the cached properties that depend on ``parent`` alone, and those that also depend on
+#: ``position``: :meth:`BranchGraph.with_` hands them to the copy where those are unchanged
+_PARENT_CACHED = ("order", "roots", "children_csr", "n_children", "leaves", "edges")
+_PARENT_CACHED += ("node_depth", "root_index")
+_POSITION_CACHED = ("edge_length",)
+#: the cached values :meth:`BranchGraph.with_` hands to the graph being built
+_INHERIT: ContextVar[dict | None] = ContextVar("_INHERIT", default=None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,6 +77,9 @@ class BranchGraph:
             val = getattr(self, name)
             if val is not None:
                 val.setflags(write=False)
+        inherit = _INHERIT.get()
+        if inherit:
+            self.__dict__.update(inherit)  # a copy's: same parents (validated there)
         _ = self.order  # validates acyclicity eagerly
 
     # ------------------------------------------------------------------ structure
@@ -156,8 +168,20 @@ class BranchGraph:
         return self.subtree_sum(self.edge_length) - self.edge_length
 
     def with_(self, **changes: object) -> BranchGraph:
-        """A copy with some fields replaced."""
-        return replace(self, **changes)  # type: ignore[arg-type]
+        """A copy with some fields replaced. Where ``parent`` (and ``position``) stay, the
+        copy starts with this graph's cached order, children, depths and roots (and edge
+        lengths): the same values, not computed again."""
+        keys: tuple[str, ...] = ()
+        if changes.get("parent", self.parent) is self.parent:
+            keys = _PARENT_CACHED
+            if changes.get("position", self.position) is self.position:
+                keys += _POSITION_CACHED
+        inherit = {k: self.__dict__[k] for k in keys if k in self.__dict__}
+        token = _INHERIT.set(inherit)
+        try:
+            return replace(self, **changes)  # type: ignore[arg-type]
+        finally:
+            _INHERIT.reset(token)
 
     def subgraph(self, keep: NDArray[np.bool_]) -> BranchGraph:
         """Nodes where ``keep`` is true; a kept node whose parent is dropped becomes a root."""

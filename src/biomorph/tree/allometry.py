@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from biomorph.core import treeops
-from biomorph.tree.neighbours import grid_query
+from biomorph.tree.neighbours import grid_nearest_label
 
 __all__ = ["allometric_radii", "skeleton_distance", "edge_length"]
 
@@ -76,7 +76,7 @@ def skeleton_distance(
     Edges are sampled every ``step`` (default a quarter of the median edge length), so the
     error is at most ``step/2``. The nearest node is the parent or child end of the edge
     sample, whichever is closer along the edge. ``order``: a spatial order of ``points``
-    (the leaf order of their k-d tree) for :func:`~biomorph.tree.neighbours.grid_query`,
+    (the leaf order of their k-d tree) for :func:`~biomorph.tree.neighbours.grid_nearest_label`,
     which answers as ``cKDTree(samples).query(points)``.
     """
     ch = np.flatnonzero(parent >= 0)
@@ -93,6 +93,23 @@ def skeleton_distance(
     b = position[ch][eid]
     samples = a + t[:, None] * (b - a)
     node = np.where(t < 0.5, parent[ch][eid], ch[eid])
-    # the k-d tree's answers, from a grid of the samples (ties and far points: the tree)
-    d, j = grid_query(samples, np.asarray(points, dtype=np.float64), 1, order=order)
-    return d, node[j]
+    # a node's position repeats as the start of each edge leaving it (exactly) and, mostly,
+    # as the end of the edge reaching it: the grid searches one of each, the answer is
+    # the same (same point, same node)
+    keep = t > 0
+    start_of = np.flatnonzero(t == 0)  # one per edge, in edge order
+    keep[start_of[np.unique(parent[ch], return_index=True)[1]]] = True
+    n_kids = np.bincount(parent[ch], minlength=parent.size)
+    end = np.flatnonzero(t == 1)
+    c = ch[eid[end]]
+    keep[end[(n_kids[c] > 0) & (samples[end] == position[c]).all(axis=1)]] = False
+    # the k-d tree's answers, from a grid of the samples (ties of one node decide; other
+    # ties, far points: the tree of all the samples)
+    return grid_nearest_label(
+        samples[keep],
+        np.asarray(points, dtype=np.float64),
+        node[keep],
+        order=order,
+        ties=2,
+        full=(samples, node),
+    )

@@ -19,6 +19,8 @@ same ray-intersection simplification.
 
 from __future__ import annotations
 
+from itertools import chain
+
 import numba
 import numpy as np
 from numpy.typing import NDArray
@@ -27,6 +29,7 @@ from scipy.spatial import cKDTree
 from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
+from biomorph.tree.neighbours import query_workers
 
 __all__ = [
     "remove_false_branches",
@@ -464,7 +467,10 @@ def empty_tips(
     if side.size == 0:
         return drop
     near = (kdtree if kdtree is not None else cKDTree(xyz)).query_ball_point(
-        graph.position[side], EMPTY_REACH * spacing, return_length=True, workers=-1
+        graph.position[side],
+        EMPTY_REACH * spacing,
+        return_length=True,
+        workers=query_workers(side.size),
     )
     empty = np.bincount(inv, weights=(near == 0).astype(float))
     bad = tops[(empty >= EMPTY_SHARE * np.bincount(inv)) & (clen < max_length)]
@@ -518,7 +524,7 @@ def _host_edges(graph, vert, chain_of, lab, spacing):
     frac = (np.arange(se.size) - off) / np.repeat(np.maximum(ns - 1, 1), ns)
     samples = pos[par[se]] + frac[:, None] * (pos[se] - pos[par[se]])
     k = int(min(48, se.size))
-    _, nb = cKDTree(samples).query(pos[vert], k=k, workers=-1)
+    _, nb = cKDTree(samples).query(pos[vert], k=k, workers=query_workers(vert.size))
     host = se[nb.reshape(vert.size, k)]
     own = chain_of[host] == lab[vert][:, None]
     a = pos[par[host]]
@@ -747,6 +753,47 @@ def trunk_shortcuts(
     return out
 
 
+#: :func:`_stem_support` gathers the slabs in its walk order in chunks of this many, then
+#: twice as many each time (a line that fails usually does so within the first few)
+SLAB_CHUNK = 6
+
+
+def _cross3(a, b) -> NDArray[np.float64]:
+    """``np.cross(a, b)`` of two 3-vectors, the same products and differences (without
+    its broadcasting machinery, ~30x slower for one pair)."""
+    a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
+    b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
+def _slab_chunk(kd, xyz, c, reach, axes, spacing) -> list | None:
+    """For the slabs centred at ``c`` (reach ``reach``; ``axes`` the rows ``e1``, ``e2``,
+    ``u``): per slab the in-plane ``x``, ``y`` of its ball's points (sorted by index) and
+    which of them lie in the slab, as :func:`_stem_support` computes them slab by slab
+    (one ball query and one product per axis for the chunk: a product's rows are those of
+    each slab's own array, save a one-point slab's, which is recomputed as such). None if
+    a slab holds no point near the line (none in its ball, or none in the slab)."""
+    lists = kd.query_ball_point(c, np.hypot(reach, spacing), return_sorted=True)
+    cnt = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+    if not cnt.all():
+        return None
+    start = np.concatenate([[0], np.cumsum(cnt)])
+    d = xyz[np.fromiter(chain.from_iterable(lists), dtype=np.int64, count=int(start[-1]))]
+    d -= np.repeat(c, cnt, axis=0)
+    e1, e2, u = axes
+    x, y, h = d @ e1, d @ e2, d @ u
+    for s in start[:-1][cnt == 1]:
+        one = d[s : s + 1]
+        x[s], y[s], h[s] = (one @ e1)[0], (one @ e2)[0], (one @ u)[0]
+    inside = (np.abs(h) <= spacing) & (np.hypot(x, y) <= np.repeat(reach, cnt))
+    if not np.add.reduceat(inside.astype(np.int64), start[:-1]).all():
+        return None
+    return [
+        (x[start[j] : start[j + 1]], y[start[j] : start[j + 1]], inside[start[j] : start[j + 1]])
+        for j in range(cnt.size)
+    ]
+
+
 def _stem_support(kd, xyz, a, b, ra: float, rb: float, spacing: float) -> bool:
     """Whether the scan shows a stem around the straight line ``a → b`` (radii ``ra`` to
     ``rb``): in every slab (two point spacings apart, one spacing thick) points within the
@@ -754,47 +801,52 @@ def _stem_support(kd, xyz, a, b, ra: float, rb: float, spacing: float) -> bool:
     hold 5 points or more, and in :data:`SHORTCUT_RING_SHARE` of those a circle through the
     points (algebraic fit) is centred within half the radius of the line, its radius within
     a factor 2 of the stem's. A circle fit finds the stem's own axis from an arc of it, so a line
-    leaving the stem fails where it runs outside, however one-sided the scan."""
+    leaving the stem fails where it runs outside, however one-sided the scan. The slabs'
+    points are gathered a chunk at a time (:func:`_slab_chunk`)."""
     ab = b - a
     ln = float(np.linalg.norm(ab))
     if ln <= 0:
         return False
     u = ab / ln
-    e1 = np.cross(u, [0.0, 0.0, 1.0] if abs(u[2]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 = _cross3(u, (0.0, 0.0, 1.0) if abs(u[2]) < 0.9 else (1.0, 0.0, 0.0))
     e1 /= np.linalg.norm(e1)
-    e2 = np.cross(u, e1)
+    e2 = _cross3(u, e1)
     k = max(2, int(np.ceil(ln / (2 * spacing))) + 1)
-    good = fitted = 0
     ts = np.linspace(0.0, 1.0, k)
+    r = ra + ts * (rb - ra)
+    reach = r + SHORTCUT_REACH * spacing
     # the middle first: a line beside the stem leaves it there (the answer does not
     # depend on the order)
-    for n, t in enumerate(ts[np.argsort(np.abs(ts - 0.5), kind="stable")]):
-        # the answer is known once even every slab left fitted and good cannot meet
-        # the two shares (a bad slab only lowers them): stop there, the same answer
-        left = k - n
-        if fitted + left < 0.5 * k or good + left < SHORTCUT_RING_SHARE * (fitted + left):
+    walk = np.argsort(np.abs(ts - 0.5), kind="stable")
+    good = fitted = done = 0
+    size = SLAB_CHUNK
+    while done < k:
+        chunk = walk[done : done + size]
+        got = _slab_chunk(kd, xyz, a + ts[chunk, None] * ab, reach[chunk], (e1, e2, u), spacing)
+        if got is None:
+            # an empty slab (no ball points, or none near the line) is the answer wherever
+            # the walk meets it
             return False
-        c = a + t * ab
-        r = ra + t * (rb - ra)
-        reach = r + SHORTCUT_REACH * spacing
-        idx = kd.query_ball_point(c, float(np.hypot(reach, spacing)))
-        if not idx:
-            return False
-        d = xyz[idx] - c
-        x, y = d @ e1, d @ e2
-        m = (np.abs(d @ u) <= spacing) & (np.hypot(x, y) <= reach)
-        if not m.any():
-            return False
-        if m.sum() < 5:  # too few to fit: neither for nor against
-            continue
-        fitted += 1
-        x, y = x[m], y[m]
-        A = np.stack([x, y, np.ones_like(x)], axis=1)
-        sol, *_ = np.linalg.lstsq(A, -(x * x + y * y), rcond=None)
-        cx, cy = -0.5 * sol[0], -0.5 * sol[1]
-        rr2 = cx * cx + cy * cy - sol[2]
-        if rr2 > 0 and np.hypot(cx, cy) <= 0.5 * r and 0.5 * r <= np.sqrt(rr2) <= 2 * r:
-            good += 1
+        for q, j in enumerate(chunk):
+            # the answer is known once even every slab left fitted and good cannot meet
+            # the two shares (a bad slab only lowers them): stop there, the same answer
+            left = k - done - q
+            if fitted + left < 0.5 * k or good + left < SHORTCUT_RING_SHARE * (fitted + left):
+                return False
+            if got[q][2].sum() < 5:  # too few to fit: neither for nor against
+                continue
+            fitted += 1
+            x, y, m = got[q]
+            x, y = x[m], y[m]
+            A = np.stack([x, y, np.ones_like(x)], axis=1)
+            sol, *_ = np.linalg.lstsq(A, -(x * x + y * y), rcond=None)
+            cx, cy = -0.5 * sol[0], -0.5 * sol[1]
+            rr2 = cx * cx + cy * cy - sol[2]
+            rj = r[j]
+            if rr2 > 0 and np.hypot(cx, cy) <= 0.5 * rj and 0.5 * rj <= np.sqrt(rr2) <= 2 * rj:
+                good += 1
+        done += chunk.size
+        size *= 2
     return fitted >= 0.5 * k and good >= SHORTCUT_RING_SHARE * fitted
 
 

@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from biomorph.errors import InputError, ParameterError
-from biomorph.tree.neighbours import NeighbourCache, query_blocks
+from biomorph.tree.neighbours import NeighbourCache, query_blocks, query_workers
 
 __all__ = [
     "neighbourhood_thickness",
@@ -305,7 +305,7 @@ def require_wood(xyz: NDArray[np.float64], source: str = "point cloud") -> None:
         rows = np.arange(j, m, _WOOD_PARTS)
         if not rows.size:
             continue
-        d, idx = tree.query(xyz[rows], k=k, workers=-1)
+        d, idx = tree.query(xyz[rows], k=k, workers=query_workers(rows.size))
         r = _scatter_ratios(xyz, d, idx, k)
         parts.append(r)
         low += int(np.count_nonzero(r <= SCATTER_LEAVES))

@@ -93,18 +93,25 @@ class SegmentCandidates:
 
 @dataclass(frozen=True)
 class _Samples:
-    """A skeleton resampled for :func:`segment_candidates`: the samples' k-d tree and
-    the edge (child node, or a root) of each sample."""
+    """A skeleton resampled for :func:`segment_candidates`: the samples, the edge (child
+    node, or a root) of each sample and their k-d tree, built on first use (the grid
+    search asks it only for the points it does not decide, often none)."""
 
-    tree: cKDTree
+    points: NDArray[np.float64]
     edge: NDArray[np.int64]
+    _tree: list = field(default_factory=list, repr=False, compare=False)
+
+    def tree(self) -> cKDTree:
+        if not self._tree:
+            self._tree.append(cKDTree(self.points))
+        return self._tree[0]
 
 
 def _skeleton_samples(graph: BranchGraph) -> _Samples:
     el = graph.edge_length[graph.parent >= 0]
     step = max(float(np.median(el)) / 2 if el.size else 1.0, 1e-4)
     pts, ec, _ = resample_graph(graph, step)
-    return _Samples(cKDTree(pts), ec)
+    return _Samples(np.ascontiguousarray(pts, dtype=np.float64), ec)
 
 
 #: :func:`segment_candidates` finds up to this many candidates per point through a grid of
@@ -130,12 +137,12 @@ def segment_candidates(
         raise InputError("skeleton is empty; expected at least one node")
     xyz = np.asarray(xyz, dtype=float)
     smp = _samples if _samples is not None else _skeleton_samples(graph)
-    kk = min(k, smp.tree.n)
+    kk = min(k, smp.points.shape[0])
     if kk <= GRID_K:
         # the k-d tree's answers, from a grid of the samples (ties, far points: the tree)
-        _, idx = grid_query(np.asarray(smp.tree.data), xyz, kk, tree=smp.tree, order=order)
+        _, idx = grid_query(smp.points, xyz, kk, tree=smp.tree, order=order)
     else:
-        _, idx = query_ordered(smp.tree, xyz, kk, order=order)
+        _, idx = query_ordered(smp.tree(), xyz, kk, order=order)
     idx = idx.reshape(xyz.shape[0], kk)
     node = smp.edge[idx]  # child node of candidate edges (or a root)
     par = graph.parent[node]

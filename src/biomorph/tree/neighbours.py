@@ -13,6 +13,7 @@ Split out of :mod:`biomorph.tree.livny` (issue 12).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from itertools import chain
 
@@ -32,6 +33,8 @@ __all__ = [
     "NeighbourCache",
     "PointIndex",
     "grid_query",
+    "grid_nearest_label",
+    "query_workers",
     "spatial_order",
     "query_ordered",
     "query_blocks",
@@ -236,23 +239,29 @@ def _scan_ring(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
 ):  # pragma: no cover - numba
     """The data points of the grid cells at Chebyshev distance ``r`` from cell ``c0``
     into query point ``q[i]``'s nearest list ``bd``/``bi`` (squared distances summed as
-    cKDTree does, ``(dx² + dy²) + dz²``); returns its new count."""
+    cKDTree does, ``(dx² + dy²) + dz²``); returns its new count. A column's cells are
+    consecutive slots: on an x or y face of the ring its z range is one run of them."""
     nx, ny, nz = dims[0], dims[1], dims[2]
     cx, cy, cz = c0[0], c0[1], c0[2]
     qx, qy, qz = q[i, 0], q[i, 1], q[i, 2]
+    zlo, zhi = max(cz - r, 0), min(cz + r, nz - 1)
     for ix in range(max(cx - r, 0), min(cx + r, nx - 1) + 1):
         ex = ix == cx - r or ix == cx + r
         for iy in range(max(cy - r, 0), min(cy + r, ny - 1) + 1):
-            # on an x or y face of the ring every z of it, inside it only its z faces
-            if ex or iy == cy - r or iy == cy + r:
-                z0, z1, step = max(cz - r, 0), min(cz + r, nz - 1), 1
-            else:  # r > 0 here
-                z0, z1, step = cz - r, cz + r, 2 * r
-            for iz in range(z0, z1 + 1, step):
-                if iz < 0 or iz >= nz:
-                    continue
-                c = (ix * ny + iy) * nz + iz
-                for s in range(start[c], start[c + 1]):
+            col = (ix * ny + iy) * nz
+            face = ex or iy == cy - r or iy == cy + r
+            # on a face every z of the ring (one run), inside it only its two z faces
+            for h in range(1 if face else 2):
+                if face:
+                    if zlo > zhi:
+                        break
+                    a, b = start[col + zlo], start[col + zhi + 1]
+                else:  # r > 0 here
+                    iz = cz - r if h == 0 else cz + r
+                    if iz < 0 or iz >= nz:
+                        continue
+                    a, b = start[col + iz], start[col + iz + 1]
+                for s in range(a, b):
                     dx = qx - data[s, 0]
                     dy = qy - data[s, 1]
                     dz = qz - data[s, 2]
@@ -319,27 +328,10 @@ def _knn_cells(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
     return sure
 
 
-def grid_query(
-    data: NDArray[np.float64],
-    points: NDArray[np.float64],
-    k: int = 1,
-    *,
-    tree: cKDTree | None = None,
-    order: NDArray | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
-    """``cKDTree(data).query(points, k)``, the same arrays (distances and indices, shapes
-    as the query's), faster for many points near the data (the resampled skeleton of a
-    cloud): the ``k + 1`` nearest by a ring search through a grid of the data
-    (:func:`_knn_cells`), in spatial order (``order``, else :func:`spatial_order`); the
-    points whose ``k`` nearest that does not decide as the tree does (ties, points far
-    from the data) are queried from ``tree`` (a k-d tree of ``data``; built if needed).
-    Needs more than ``k + 1`` data points (else the tree answers all)."""
-    data = np.ascontiguousarray(data, dtype=np.float64)
-    points = np.ascontiguousarray(points, dtype=np.float64)
-    n, nd = points.shape[0], data.shape[0]
-    if nd <= k + 1 or n == 0:
-        tree = tree if tree is not None else cKDTree(data)
-        return tree.query(points, k, workers=-1)
+def _knn_grid(data: NDArray[np.float64]) -> tuple:
+    """The grid of :func:`grid_query`: ``(lo, cell, dims, start, slot)``, about
+    :data:`KNN_CELLS_PER_POINT` cells per data point, ``slot`` the data in cell order."""
+    nd = data.shape[0]
     lo = data.min(axis=0)
     span = np.maximum(data.max(axis=0) - lo, 0.0)
     vol = float(np.prod(np.maximum(span, 1e-9)))
@@ -350,9 +342,68 @@ def grid_query(
         dims = np.floor(span / cell).astype(np.int64) + 1
     ijk = np.minimum(np.floor((data - lo) / cell).astype(np.int64), dims - 1)
     cid = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-    slot = np.argsort(cid, kind="stable")
-    start = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
-    np.cumsum(np.bincount(cid, minlength=start.size - 1), out=start[1:])
+    start, slot = _bucket(cid, int(np.prod(dims)))
+    return lo, float(cell), dims, start, slot
+
+
+@numba.njit(cache=True)
+def _bucket(cid, m):  # pragma: no cover - numba
+    """A counting sort of the labels ``cid`` (``0..m-1``): the CSR ``start`` of every
+    label and ``slot``, the indices by label, in index order within one (the permutation
+    ``np.argsort(cid, kind="stable")`` gives)."""
+    start = np.zeros(m + 1, dtype=np.int64)
+    for i in range(cid.size):
+        start[cid[i] + 1] += 1
+    for c in range(m):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    slot = np.empty(cid.size, dtype=np.int64)
+    for i in range(cid.size):
+        c = cid[i]
+        slot[fill[c]] = i
+        fill[c] += 1
+    return start, slot
+
+
+#: a query of fewer points than this runs in the calling thread: scipy starts a thread
+#: per worker and query, which costs more than it saves on a few thousand points
+THREAD_MIN_QUERIES = 16384
+
+
+def query_workers(n: int) -> int:
+    """``workers`` for a k-d tree query of ``n`` points (all cores from
+    :data:`THREAD_MIN_QUERIES` on; the answers do not depend on it)."""
+    return -1 if n >= THREAD_MIN_QUERIES else 1
+
+
+def _tree_of(data: NDArray[np.float64], tree) -> cKDTree:
+    if tree is None:
+        return cKDTree(data)
+    return tree if isinstance(tree, cKDTree) else tree()
+
+
+def grid_query(
+    data: NDArray[np.float64],
+    points: NDArray[np.float64],
+    k: int = 1,
+    *,
+    tree: cKDTree | Callable[[], cKDTree] | None = None,
+    order: NDArray | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """``cKDTree(data).query(points, k)``, the same arrays (distances and indices, shapes
+    as the query's), faster for many points near the data (the resampled skeleton of a
+    cloud): the ``k + 1`` nearest by a ring search through a grid of the data
+    (:func:`_knn_cells`), in spatial order (``order``, else :func:`spatial_order`); the
+    points whose ``k`` nearest that does not decide as the tree does (ties, points far
+    from the data) are queried from ``tree`` (a k-d tree of ``data``, or a function
+    returning one, called only then; built if None). Needs more than ``k + 1`` data
+    points (else the tree answers all)."""
+    data = np.ascontiguousarray(data, dtype=np.float64)
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    n, nd = points.shape[0], data.shape[0]
+    if nd <= k + 1 or n == 0:
+        return _tree_of(data, tree).query(points, k, workers=-1)
+    lo, cell, dims, start, slot = _knn_grid(data)
     order = spatial_order(points) if order is None else np.asarray(order, dtype=np.int64)
     dist = np.empty((n, k))
     ind = np.empty((n, k), dtype=np.intp)
@@ -361,7 +412,7 @@ def grid_query(
         start,
         slot,
         lo,
-        float(cell),
+        cell,
         dims,
         points,
         order,
@@ -373,13 +424,111 @@ def grid_query(
     )
     redo = np.flatnonzero(~sure)
     if redo.size:
-        tree = tree if tree is not None else cKDTree(data)
-        d, i = tree.query(points[redo], k, workers=-1)
+        d, i = _tree_of(data, tree).query(points[redo], k, workers=query_workers(redo.size))
         dist[redo] = d.reshape(redo.size, k)
         ind[redo] = i.reshape(redo.size, k)
     if k == 1:
         return dist.reshape(n), ind.reshape(n)
     return dist, ind
+
+
+#: :func:`grid_nearest_label` searches this many nearest data points: a skeleton's
+#: samples repeat a node's position at most once per edge meeting there (a fork of two)
+LABEL_TIES = 4
+
+
+@numba.njit(cache=True)
+def _label_cells(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
+    data, start, slot, label, lo, cell, dims, q, order, kk, max_ring, margin, dist, lab
+):  # pragma: no cover - numba
+    """:func:`_knn_cells` for the nearest data point's ``label``: the ``kk`` nearest found
+    by the same ring search, and ``sure`` also where the nearest are exact ties (equal
+    squared distances) of one label, the first beyond them more than ``margin`` farther
+    (relative); the distance into ``dist``, the label into ``lab``."""
+    sure = np.zeros(q.shape[0], dtype=np.bool_)
+    bd = np.empty(kk)
+    bi = np.empty(kk, dtype=np.int64)
+    c0 = np.empty(3, dtype=np.int64)
+    for t in range(order.size):
+        i = order[t]
+        for a in range(3):
+            f = np.floor((q[i, a] - lo[a]) / cell)
+            c0[a] = int(min(max(f, -1.0 - max_ring), dims[a] + max_ring))
+        m = 0
+        ok = False
+        for r in range(max_ring + 1):
+            m = _scan_ring(data, start, slot, dims, c0, r, q, i, bd, bi, m)
+            bound = _ring_bound(lo, cell, dims, c0, r, q, i) - margin * cell
+            if m == kk and (bound == np.inf or (bound > 0 and bd[kk - 1] < bound * bound)):
+                ok = True
+                break
+            if bound == np.inf:
+                break
+        if ok:
+            first = label[bi[0]]
+            c = 1
+            while c < kk and not bd[c] > bd[0] * (1.0 + margin):
+                ok = ok and bd[c] == bd[0] and label[bi[c]] == first
+                c += 1
+            ok = ok and c < kk
+        sure[i] = ok
+        if ok:
+            dist[i] = np.sqrt(bd[0])
+            lab[i] = label[bi[0]]
+    return sure
+
+
+def grid_nearest_label(
+    data: NDArray[np.float64],
+    points: NDArray[np.float64],
+    label: NDArray[np.int64],
+    *,
+    order: NDArray | None = None,
+    ties: int = LABEL_TIES,
+    full: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """``d, j = cKDTree(data).query(points)`` as ``(d, label[j])``: :func:`grid_query`
+    for the label of the nearest data point, where exact ties of one label (a skeleton's
+    samples at a node shared by its edges) decide as well as a unique nearest (among the
+    ``ties`` nearest); the other points (ties of different labels, near ties, points far
+    from the data) are queried from a k-d tree of ``data``. ``full``: ``(data, label)``
+    whose answer this is, ``data`` holding their points less exact repeats of a point with
+    the same label (the same answer, from fewer points; the k-d tree is of ``full``'s).
+    ``order``: a spatial order of ``points``."""
+    data = np.ascontiguousarray(data, dtype=np.float64)
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    label = np.ascontiguousarray(label, dtype=np.int64)
+    all_data, all_label = (data, label) if full is None else full
+    n, nd = points.shape[0], data.shape[0]
+    if nd <= ties or n == 0:
+        d, j = cKDTree(all_data).query(points, workers=query_workers(n))
+        return d, all_label[j]
+    lo, cell, dims, start, slot = _knn_grid(data)
+    order = spatial_order(points) if order is None else np.asarray(order, dtype=np.int64)
+    dist = np.empty(n)
+    lab = np.empty(n, dtype=np.int64)
+    sure = _label_cells(
+        np.ascontiguousarray(data[slot]),
+        start,
+        slot,
+        label,
+        lo,
+        cell,
+        dims,
+        points,
+        order,
+        ties,
+        KNN_MAX_RING,
+        KNN_MARGIN,
+        dist,
+        lab,
+    )
+    redo = np.flatnonzero(~sure)
+    if redo.size:
+        d, j = cKDTree(all_data).query(points[redo], workers=query_workers(redo.size))
+        dist[redo] = d
+        lab[redo] = all_label[j]
+    return dist, lab
 
 
 def _query_order(
@@ -408,7 +557,8 @@ def query_blocks(
     pts, perm = _query_order(tree, points, order)
     for a in range(0, pts.shape[0], block):
         p = perm[a : a + block]
-        d, i = tree.query(pts[p], k=k, workers=workers, **kwargs)
+        w = query_workers(p.size) if workers == -1 else workers
+        d, i = tree.query(pts[p], k=k, workers=w, **kwargs)
         yield p, d, i
 
 

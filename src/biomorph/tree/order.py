@@ -249,15 +249,28 @@ def _trunk_path(root: int, cont: NDArray[np.int64]) -> list[int]:
     return path
 
 
-def _ahead(v: int, indptr, idx, carried, el, reach: float) -> int:
+@numba.njit(cache=True)
+def _heaviest_child(v, indptr, idx, carried):  # pragma: no cover - numba
+    """``v``'s child carrying the most (the first of equal ones, as ``np.argmax``); -1
+    at a tip."""
+    best = -1
+    for e in range(indptr[v], indptr[v + 1]):
+        w = idx[e]
+        if best < 0 or carried[w] > carried[best]:
+            best = w
+    return best
+
+
+@numba.njit(cache=True)
+def _ahead(v, indptr, idx, carried, el, reach):  # pragma: no cover - numba
     """The first node at least ``reach`` (m of path) down ``v``'s heaviest path (its tip if
     the path is shorter)."""
     run = 0.0
     while run < reach:
-        kids = idx[indptr[v] : indptr[v + 1]]
-        if kids.size == 0:
+        w = _heaviest_child(v, indptr, idx, carried)
+        if w < 0:
             break
-        v = int(kids[np.argmax(carried[kids])])
+        v = w
         run += el[v]
     return v
 
@@ -274,14 +287,15 @@ def _subtree_top(parent, order, h):
     return top
 
 
-def _highest_ahead(v: int, indptr, idx, carried, h) -> int:
+@numba.njit(cache=True)
+def _highest_ahead(v, indptr, idx, carried, h):  # pragma: no cover - numba
     """The node of ``v``'s heaviest path (to its tip) highest in ``h``."""
     best = v
     while True:
-        kids = idx[indptr[v] : indptr[v + 1]]
-        if kids.size == 0:
+        w = _heaviest_child(v, indptr, idx, carried)
+        if w < 0:
             return best
-        v = int(kids[np.argmax(carried[kids])])
+        v = w
         if h[v] > h[best]:
             best = v
 
@@ -348,8 +362,8 @@ def _trunk_candidates(v, kids, ctx, axis, reach: float, cos_max: float) -> list[
         # near, or to the highest node of its heaviest path: a skeleton detour through a
         # whorl (a kink, a stem routed out along a limb and back) ends up high; or to the
         # tree's top if this child holds it (the leader, however the skeleton routes wood)
-        heads = [_ahead(int(w), indptr, idx, carried, el, reach)]
-        heads.append(_highest_ahead(int(w), indptr, idx, carried, h))
+        heads = [int(_ahead(int(w), indptr, idx, carried, el, float(reach)))]
+        heads.append(int(_highest_ahead(int(w), indptr, idx, carried, h)))
         if top[w] == tree_top:
             heads.append(int(top[w]))
         for x in heads:

@@ -587,6 +587,30 @@ def smooth_log_ratio(
     return solve_tree_system(par, diag, off, rhs, graph.order)
 
 
+@numba.njit(cache=True)
+def _group_medians(group, values, n):  # pragma: no cover - numba
+    """Per group ``0..n-1`` the value at position ``count // 2`` of its values sorted
+    ascending (NaN for an empty group): the element ``np.lexsort((values, group))``
+    puts there, without sorting all the values."""
+    cnt = np.zeros(n, dtype=np.int64)
+    for i in range(group.size):
+        cnt[group[i]] += 1
+    start = np.zeros(n + 1, dtype=np.int64)
+    for v in range(n):
+        start[v + 1] = start[v] + cnt[v]
+    fill = start[:-1].copy()
+    vals = np.empty(group.size)
+    for i in range(group.size):
+        g = group[i]
+        vals[fill[g]] = values[i]
+        fill[g] += 1
+    out = np.full(n, np.nan)
+    for v in range(n):
+        if cnt[v]:
+            out[v] = np.sort(vals[start[v] : start[v + 1]])[cnt[v] // 2]
+    return out
+
+
 def fit_radii(
     graph: BranchGraph,
     xyz: NDArray[np.float64],
@@ -644,13 +668,8 @@ def fit_radii(
     med_edge = float(np.median(el[el > 0])) if (el > 0).any() else 0.05
     d, near = skeleton_distance(xyz, graph.parent, graph.position, order=kd.indices)
     n = graph.n_nodes
-    prior = np.full(n, np.nan)
-    cnt = np.bincount(near, minlength=n)
-    if near.size:
-        o = np.lexsort((d, near))  # by node, then distance
-        starts = np.concatenate([[0], np.cumsum(cnt)])[:-1]
-        has = cnt > 0
-        prior[has] = d[o][starts[has] + cnt[has] // 2]  # per-node median distance
+    # per-node median distance (the upper one of an even count)
+    prior = _group_medians(np.asarray(near, dtype=np.int64), np.asarray(d, dtype=np.float64), n)
     weight = graph.subtree_length()
     tree = graph.trees
     md = float(np.nanmedian(prior)) if np.isfinite(prior).any() else med_edge
