@@ -573,16 +573,19 @@ def _follow_point_trees(ijk, r, c, w, vt, stem_of, roots):
     add_w: list[float] = []
     restore = np.zeros(ncomp, dtype=bool)
     home = {}
+    by_piece = np.argsort(lab, kind="stable")  # the voxels of each piece, contiguous
+    start = np.searchsorted(lab[by_piece], np.arange(ncomp + 1))
     for piece in np.flatnonzero(~rooted):
         t = int(best[piece])
         if t < 0 or t >= stem_of.size or stem_of[t] < 0 or not rooted[lab[stem_of[t]]]:
             restore[piece] = True
             continue
         if t not in home:
-            own = np.flatnonzero(lab == lab[stem_of[t]])
+            h = lab[stem_of[t]]
+            own = by_piece[start[h] : start[h + 1]]
             home[t] = (own, cKDTree(ijk[own].astype(float)))
         own, kd = home[t]
-        mine = np.flatnonzero(lab == piece)
+        mine = by_piece[start[piece] : start[piece + 1]]
         d, j = kd.query(ijk[mine].astype(float))
         k = int(np.argmin(d))
         add_r.append(int(mine[k]))
