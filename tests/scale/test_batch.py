@@ -320,6 +320,22 @@ def test_creature_batch_resume_is_keyed_by_format(tmp_path, capsys):
     assert "0 failed" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("address", ["bogus", "tcp://", "tcp://host"])
+def test_malformed_address_is_refused_before_any_client(address, monkeypatch):
+    """No Client is made for an address without a port: a Client failing in __init__
+    closes itself in __del__, and when the garbage collector ran that inside the next
+    Client's loop start-up it waited for the lock that start-up held (the test below hung
+    the suite)."""
+    from biomorph.errors import BiomorphError
+
+    def no_client(*a, **k):
+        raise AssertionError("a Client was made for a malformed address")
+
+    monkeypatch.setattr(distributed, "Client", no_client)
+    with pytest.raises(BiomorphError, match="missing port"):
+        run_batch(range(3), square_stats, scheduler=address, progress=False)
+
+
 @pytest.mark.parametrize("address", ["bogus", "tcp://"])
 def test_malformed_scheduler_address_is_one_error(address):
     from biomorph.errors import BiomorphError

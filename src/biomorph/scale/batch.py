@@ -40,6 +40,7 @@ importable module are the safe choice (dask's cloudpickle also ships lambdas and
 from __future__ import annotations
 
 import contextlib
+import gc
 import logging
 import os
 import re
@@ -197,8 +198,13 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
         with _held_interrupt() as interrupted:
             if scheduler is not None:
                 try:
+                    _check_address(scheduler)
                     client = Client(scheduler, timeout="20s")
                 except (OSError, ValueError, TypeError) as exc:  # unreachable or malformed
+                    # a Client that failed in __init__ closes itself in __del__; let that
+                    # run now: run by the garbage collector inside the next Client's loop
+                    # start-up it waits for the lock that start-up holds (a hang)
+                    gc.collect()
                     raise BiomorphError(
                         f"cannot reach the dask scheduler at {scheduler!r} "
                         f"({exc}); expected an address like tcp://host:8786"
@@ -243,6 +249,15 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
                     cluster.close()
         if interrupted():
             raise KeyboardInterrupt
+
+
+def _check_address(scheduler: str) -> None:
+    """ValueError unless ``scheduler`` reads as a dask address with a port
+    (``tcp://host:8786``), before any Client is made for it."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    _, location = parse_address(scheduler)
+    parse_host_port(location)
 
 
 @contextlib.contextmanager
