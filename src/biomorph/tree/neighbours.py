@@ -283,12 +283,36 @@ def _ring_bound(lo, cell, dims, c0, r, q, i):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
+def _ring_search(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
+    data, start, slot, lo, cell, dims, q, i, kk, max_ring, margin, bd, bi, c0
+):  # pragma: no cover - numba
+    """The ``kk`` nearest data points of ``q[i]`` into ``bd`` (squared distances,
+    ascending) and ``bi``, searched ring by ring of grid cells around the point's cell
+    until no unsearched cell can hold a nearer one; False where fewer than ``kk`` were
+    found within ``max_ring`` rings (or the bound, less ``margin`` cells, is not sure)."""
+    for a in range(3):
+        # the point's cell, clipped to a few cells outside the grid (a far point: no
+        # ring reaches the grid within ``max_ring``, the k-d tree answers it)
+        f = np.floor((q[i, a] - lo[a]) / cell)
+        c0[a] = int(min(max(f, -1.0 - max_ring), dims[a] + max_ring))
+    m = 0
+    for r in range(max_ring + 1):
+        m = _scan_ring(data, start, slot, dims, c0, r, q, i, bd, bi, m)
+        # less an absolute slack for the rounding of the cell boundaries
+        bound = _ring_bound(lo, cell, dims, c0, r, q, i) - margin * cell
+        if m == kk and (bound == np.inf or (bound > 0 and bd[kk - 1] < bound * bound)):
+            return True
+        if bound == np.inf:
+            return False  # every cell searched, fewer than kk points
+    return False
+
+
+@numba.njit(cache=True)
 def _knn_cells(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
     data, start, slot, lo, cell, dims, q, order, kk, max_ring, margin, dist, ind
 ):  # pragma: no cover - numba
-    """The ``kk`` nearest data points of every query point ``q[order[t]]``, searched ring
-    by ring of grid cells around the point's cell until no unsearched cell can hold a
-    nearer one; the first ``kk - 1`` into ``dist`` (the square roots of the squared
+    """The ``kk`` nearest data points of every query point ``q[order[t]]``
+    (:func:`_ring_search`); the first ``kk - 1`` into ``dist`` (the square roots of the squared
     distances, summed as cKDTree sums them) and ``ind`` (data indices), ascending.
     Returns ``sure``, False where the answer may differ from cKDTree's: fewer than ``kk``
     found within ``max_ring`` rings, equal distances among the first ``kk - 1`` (their
@@ -300,22 +324,7 @@ def _knn_cells(  # noqa: PLR0913 - a compiled kernel takes its arrays one by one
     c0 = np.empty(3, dtype=np.int64)
     for t in range(order.size):
         i = order[t]
-        for a in range(3):
-            # the point's cell, clipped to a few cells outside the grid (a far point: no
-            # ring reaches the grid within ``max_ring``, the k-d tree answers it)
-            f = np.floor((q[i, a] - lo[a]) / cell)
-            c0[a] = int(min(max(f, -1.0 - max_ring), dims[a] + max_ring))
-        m = 0
-        ok = False
-        for r in range(max_ring + 1):
-            m = _scan_ring(data, start, slot, dims, c0, r, q, i, bd, bi, m)
-            # less an absolute slack for the rounding of the cell boundaries
-            bound = _ring_bound(lo, cell, dims, c0, r, q, i) - margin * cell
-            if m == kk and (bound == np.inf or (bound > 0 and bd[kk - 1] < bound * bound)):
-                ok = True
-                break
-            if bound == np.inf:
-                break  # every cell searched, fewer than kk points
+        ok = _ring_search(data, start, slot, lo, cell, dims, q, i, kk, max_ring, margin, bd, bi, c0)
         if ok:
             for a in range(kk - 2):
                 ok = ok and bd[a] != bd[a + 1]
@@ -451,19 +460,7 @@ def _label_cells(  # noqa: PLR0913 - a compiled kernel takes its arrays one by o
     c0 = np.empty(3, dtype=np.int64)
     for t in range(order.size):
         i = order[t]
-        for a in range(3):
-            f = np.floor((q[i, a] - lo[a]) / cell)
-            c0[a] = int(min(max(f, -1.0 - max_ring), dims[a] + max_ring))
-        m = 0
-        ok = False
-        for r in range(max_ring + 1):
-            m = _scan_ring(data, start, slot, dims, c0, r, q, i, bd, bi, m)
-            bound = _ring_bound(lo, cell, dims, c0, r, q, i) - margin * cell
-            if m == kk and (bound == np.inf or (bound > 0 and bd[kk - 1] < bound * bound)):
-                ok = True
-                break
-            if bound == np.inf:
-                break
+        ok = _ring_search(data, start, slot, lo, cell, dims, q, i, kk, max_ring, margin, bd, bi, c0)
         if ok:
             first = label[bi[0]]
             c = 1

@@ -569,7 +569,7 @@ def _stem_bases(run: _Run) -> tuple[NDArray | None, NDArray | None]:
     stems = root_centres(xyz, pts, tree)
     if stems.shape[0] < 2:
         return stems, None
-    return stems, segment_trees(neighbour_graph(xyz, k=go.k), pts, tree)
+    return stems, segment_trees(neighbour_graph(xyz, k=go.k, tree=run.point_index()), pts, tree)
 
 
 def _check_skeleton(run: _Run) -> None:

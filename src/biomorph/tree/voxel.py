@@ -561,13 +561,16 @@ def _follow_point_trees(ijk, r, c, w, vt, stem_of, roots):
     ncomp, lab = connected_components(g, directed=False)
     rooted = np.zeros(ncomp, dtype=bool)
     rooted[lab[roots]] = True
-    # majority tree of each piece
+    # majority tree of each piece: (piece, tree) counts sorted by piece, then count; the
+    # last row of each piece holds its largest
     ok = vt >= 0
-    key = lab[ok] * (int(vt.max()) + 1) + vt[ok]
-    uk, cnt = np.unique(key, return_counts=True)
+    nt = int(vt.max()) + 1
+    uk, cnt = np.unique(lab[ok] * nt + vt[ok], return_counts=True)
+    piece, tree = uk // nt, uk % nt
+    o = np.lexsort((cnt, piece))
+    last = o[np.r_[piece[o][1:] != piece[o][:-1], True]]
     best = np.full(ncomp, -1, dtype=np.int64)
-    o = np.lexsort((cnt, uk // (int(vt.max()) + 1)))
-    best[uk[o] // (int(vt.max()) + 1)] = uk[o] % (int(vt.max()) + 1)  # the last (largest) wins
+    best[piece[last]] = tree[last]
     add_r: list[int] = []
     add_c: list[int] = []
     add_w: list[float] = []
