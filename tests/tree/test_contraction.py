@@ -205,3 +205,26 @@ def test_segment_trees_gives_each_point_the_tree_of_the_root_it_hangs_from():
     g = g.maximum(g.T).tocsr()
     tree = segment_trees(g, np.array([0, 4]), np.array([7, 3]))
     assert tree.tolist() == [7, 7, 7, 3, 3, -1]
+
+
+def test_contracted_graph_joins_no_two_trees():
+    """Two stems 6 cm apart whose points touch: the points' segmentation gives each its
+    tree, and Q has no edge between the trees' vertices (the spanning forest on Q and its
+    re-weighting could otherwise hang one stem's upper part from the other)."""
+    rng = np.random.default_rng(1)
+    a = cylinder_points((0, 0, 0), (0, 0, 1.0), 0.02, 1500, rng)
+    b = cylinder_points((0.06, 0, 0), (0.06, 0, 1.0), 0.02, 1500, rng)
+    xyz = np.vstack([a, b])
+    tree = np.r_[np.zeros(len(a), np.int64), np.ones(len(b), np.int64)]
+    g = neighbour_graph(xyz, k=10)
+    roots = np.array([int(np.argmin(a[:, 2])), len(a) + int(np.argmin(b[:, 2]))])
+    geo = g.copy()
+    geo.data = np.sqrt(geo.data)
+    plen, _ = shortest_path_forest(geo, roots)
+    # the points of both stems are neighbours: the kNN graph joins the trees
+    coo = g.tocoo()
+    assert np.any(tree[coo.row] != tree[coo.col])
+    con = contract(xyz, g, plen, tree, 0.05, point_spacing=0.005, merge="two-scale")
+    q = con.graph.tocoo()
+    assert q.nnz > 0
+    assert np.all(con.tree[q.row] == con.tree[q.col])

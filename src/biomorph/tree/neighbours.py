@@ -1477,6 +1477,10 @@ def contract(
     # contracted neighbour graph Q
     key = np.unique(_cross_keys(g.indptr, g.indices, label, m))
     qr, qc = key // m, key % m
+    # no edge between two trees' vertices: the points' segmentation is final, so the
+    # spanning forest on Q (and its re-weighting) cannot move a stem from its tree
+    same = vtree[qr] == vtree[qc]
+    qr, qc = qr[same], qc[same]
     w = np.maximum(np.sum((pos[qr] - pos[qc]) ** 2, axis=1), 1e-18)
     q = sparse.coo_matrix((w, (qr, qc)), shape=(m, m)).tocsr()
     q = q.maximum(q.T).tocsr()

@@ -9,6 +9,9 @@ of the thesis (Blender Sapling presets B4–B6: japanese maple NOB 286 / TBL 460
 birch 291 / 599.07 m, quaking aspen 30 / 116.83 m) plus a conifer; the measured tip counts
 and total lengths of our presets are tabulated in ``docs/tree_voxel.md``.
 
+:func:`generate_stand` places several such trees on a jittered grid (a plot with truth
+for the crown partition: ``tree_id`` per node).
+
 :func:`simulate_scan` turns such a truth :class:`~biomorph.core.graph.BranchGraph` into a
 terrestrial-LiDAR-like :class:`~biomorph.core.pointcloud.PointCloud` (see its docstring).
 
@@ -28,7 +31,7 @@ from biomorph.core.graph import BranchGraph
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 
-__all__ = ["Level", "TreeParams", "PRESETS", "generate_tree", "simulate_scan"]
+__all__ = ["Level", "TreeParams", "PRESETS", "generate_stand", "generate_tree", "simulate_scan"]
 
 
 @dataclass(frozen=True)
@@ -393,6 +396,85 @@ def generate_tree(
         np.concatenate(par_chunks),
         radius=np.concatenate(rad_chunks),
         depth=np.concatenate(dep_chunks),
+    )
+
+
+def generate_stand(
+    preset: str = "conifer",
+    n_trees: int = 7,
+    spacing: float = 2.5,
+    seed: int = 0,
+    *,
+    height: float = 14.0,
+    height_range: tuple[float, float] = (0.6, 1.15),
+    branch_scale: float = 0.5,
+    crown_base: float = 0.45,
+) -> BranchGraph:
+    """A plot of ``n_trees`` synthetic trees with truth: ``tree_id`` per node (tree ``i``
+    stands ``i``-th nearest to the origin; tree 0 at the origin).
+
+    Stems stand on a square grid of ``spacing`` (m) around the origin, jittered by a
+    quarter spacing and kept at least 0.4 spacings apart. Each tree is ``preset`` grown
+    with its own seed, a height drawn uniformly in ``height_range`` × ``height`` (a stand
+    has dominant and suppressed trees), first-order branches ``branch_scale`` times the
+    preset's length and a crown base at least ``crown_base`` of the height: trees grown
+    close together self-prune and keep short crowns (a plantation's crown ratio is
+    30–55 %). Crowns touch and interleave like a thinned pine plot's; scanned with
+    :func:`simulate_scan` (``distance`` past the plot's edge), the neighbours occlude the
+    upper stems, which is what a plot's crown partition has to survive."""
+    if n_trees < 1:
+        raise ParameterError(f"n_trees must be >= 1; got {n_trees}")
+    if not spacing > 0:
+        raise ParameterError(f"spacing must be > 0 (metres); got {spacing}")
+    if not 0 < height_range[0] <= height_range[1]:
+        raise ParameterError(f"height_range must be 0 < low <= high; got {height_range}")
+    if preset not in PRESETS:
+        raise ParameterError(
+            f"unknown tree preset {preset!r}; expected one of {', '.join(sorted(PRESETS))}"
+        )
+    rng = np.random.default_rng(seed)
+    k = int(np.ceil(np.sqrt(n_trees)))
+    grid = (
+        np.stack(np.meshgrid(np.arange(k), np.arange(k), indexing="ij"), -1).reshape(-1, 2)
+        - (k - 1) / 2
+    ) * spacing
+    xy = grid[np.argsort(np.hypot(grid[:, 0], grid[:, 1]), kind="stable")][:n_trees]
+    xy = xy + rng.normal(0.0, 0.25 * spacing, xy.shape)
+    xy[0] = 0.0
+    for a in range(n_trees):  # no two stems closer than 0.4 spacings
+        for b in range(a):
+            d = xy[a] - xy[b]
+            dist = float(np.hypot(d[0], d[1]))
+            if dist < 0.4 * spacing:
+                xy[a] = xy[b] + d / max(dist, 1e-9) * 0.4 * spacing
+    base = PRESETS[preset]
+    first = base.levels[0] if base.levels else None
+    levels = (
+        (replace(first, length=first.length * branch_scale),) + tuple(base.levels[1:])
+        if first is not None
+        else ()
+    )
+    parts = []
+    offset = 0
+    for t in range(n_trees):
+        h = float(rng.uniform(*height_range)) * height
+        g = generate_tree(
+            base,
+            seed=seed * 1000 + t,
+            height=h,
+            base_size=max(base.base_size, crown_base),
+            levels=levels,
+        )
+        par = g.parent.copy()
+        par[par >= 0] += offset
+        parts.append((g.position + np.r_[xy[t], 0.0], par, g.radius, g.depth, t))
+        offset += g.n_nodes
+    return BranchGraph(
+        np.concatenate([p[0] for p in parts]),
+        np.concatenate([p[1] for p in parts]),
+        radius=np.concatenate([p[2] for p in parts]),
+        depth=np.concatenate([p[3] for p in parts]),
+        tree_id=np.concatenate([np.full(p[0].shape[0], p[4], dtype=np.int64) for p in parts]),
     )
 
 
