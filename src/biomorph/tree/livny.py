@@ -19,14 +19,17 @@ ii.  **neighbour graph** P: symmetric kNN (or radius) graph from ``cKDTree`` wit
      inter-component edges (Borůvka rounds = a minimum spanning forest over components),
      so no point is lost. A virtual root joined by 0-weight edges to every root point;
      ``scipy.sparse.csgraph.dijkstra`` with predecessors gives the shortest-path forest,
-     which segments the trees automatically.
+     which segments the trees automatically; on a plot, the pieces it reaches only
+     across a gap are re-decided by the stems they continue and stand over
+     (:mod:`biomorph.tree.crowns`: tops behind occluded upper stems).
      **Contraction** (documented deviation for scale): a Livny graph over all points has
      one vertex per point. We contract it to about one vertex per ``node_spacing``: points
      are binned by their geodesic distance along the shortest-path forest
      (``floor(path_length / node_spacing)``), each bin is split into its connected pieces
      in P (per tree), and every piece becomes one vertex at its centroid (Xu et al. 2007's
      level sets, which also centres vertices on fully scanned stems). The contracted
-     neighbour graph Q joins pieces that share an edge of P; the Livny steps iii–viii then
+     neighbour graph Q joins pieces of one tree that share an edge of P (the segmentation
+     is final: no edge joins two trees' vertices); the Livny steps iii–viii then
      run on Q exactly as on P (``node_spacing=0`` keeps one vertex per point).
 iii. importance weights ``c_v`` = total edge length of the subtree of ``v``.
 iv.  orientation field: minimise ΣO + ΣE exactly (three independent tree systems).
@@ -74,6 +77,7 @@ from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import InputError, ParameterError
 from biomorph.tree.allometry import allometric_radii, skeleton_distance
+from biomorph.tree.crowns import add_edges, partition_trees, same_tree_edges
 from biomorph.tree.foliage import require_wood
 from biomorph.tree.neighbours import (
     GAP_SHORT,
@@ -85,9 +89,9 @@ from biomorph.tree.neighbours import (
     NeighbourCache,
     bridge_components,
     contract,
+    default_node_spacing,
     estimate_spacing,
     neighbour_graph,
-    segment_trees,
     shortest_path_forest,
     spatial_order,
 )
@@ -360,10 +364,7 @@ def skeletonize_graph(
     spacing_pts = estimate_spacing(xyz, kdtree=kd)
     extent = float(np.ptp(xyz[:, 2]))
     if node_spacing is None:
-        node_spacing = float(
-            np.clip(NODE_SPACING * spacing_pts, NODE_SPACING_MIN * extent, 0.02 * extent)
-        )
-        node_spacing = max(node_spacing, 1e-4)
+        node_spacing = default_node_spacing(spacing_pts, extent)
     roots, root_tree = find_roots(
         xyz,
         n_trees=n_trees,
@@ -386,15 +387,18 @@ def skeletonize_graph(
     rule = None if np.isinf(gap) else BridgeRule(short=gap, spacing=max(spacing_pts, 1e-6))
     p_graph, n_comp = bridge_components(xyz, p_graph, tree=kd, rule=rule, anchors=roots)
     t0 = tick("bridging", t0)
-    # geodesic distance (Euclidean edge lengths) for the contraction levels
-    geo = p_graph.copy()
+    several = np.unique(root_tree).size > 1
+    if several:
+        # Livny's segmentation (the squared-weight shortest-path forest from all roots),
+        # with the pieces it reaches across a gap given to the stem they stand over
+        point_tree, br, bc = partition_trees(xyz, p_graph, roots, root_tree, gap)
+        p_graph = add_edges(xyz, p_graph, br, bc)
+    # geodesic distance (Euclidean edge lengths) for the contraction levels, within each
+    # tree on a plot (a level counts along the point's own tree)
+    geo = same_tree_edges(p_graph, point_tree) if several else p_graph.copy()
     geo.data = np.sqrt(geo.data)
     plen, _ = shortest_path_forest(geo, roots)
-    if np.unique(root_tree).size > 1:
-        # Livny's segmentation: the squared-weight shortest-path forest from the virtual
-        # root assigns every point to the tree whose root it reaches
-        point_tree = segment_trees(p_graph, roots, root_tree)
-    else:  # one tree: every reachable point belongs to it
+    if not several:  # one tree: every reachable point belongs to it
         point_tree = np.where(np.isfinite(plen), 0, -1).astype(np.int64)
     t0 = tick("dijkstra", t0)
     con = contract(

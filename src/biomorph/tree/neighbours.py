@@ -52,6 +52,7 @@ __all__ = [
     "contract",
     "NODE_SPACING",
     "NODE_SPACING_MIN",
+    "default_node_spacing",
     "LEVEL_CELL",
     "LEVEL_MERGE",
     "FINE_CELL",
@@ -1270,6 +1271,16 @@ NODE_SPACING = 3.0  #: default contraction level width, in median point spacings
 #: clouds). 0.2 %: on the synthetic presets 0.3 % (5 cm on an 18 m birch) merged sparse
 #: twigs (F1 0.88 on noisy scans), 0.2 % gives F1 ≥ 0.91, 0.15 % adds spurious tips
 NODE_SPACING_MIN = 0.002
+
+
+def default_node_spacing(point_spacing: float, extent: float) -> float:
+    """The graph method's level width (metres) for a cloud of median point spacing
+    ``point_spacing`` and height ``extent``: :data:`NODE_SPACING` point spacings, bounded
+    to [:data:`NODE_SPACING_MIN`, 2 %] of the height (and at least 0.1 mm)."""
+    ns = float(np.clip(NODE_SPACING * point_spacing, NODE_SPACING_MIN * extent, 0.02 * extent))
+    return max(ns, 1e-4)
+
+
 LEVEL_CELL = 1.5  #: voxel size of the level-set connectivity, in node spacings
 #: how adjacent pieces of one level join (:func:`contract`)
 LEVEL_MERGE = ("adjacent", "overlap", "adaptive", "two-scale")

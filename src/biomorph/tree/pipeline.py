@@ -522,12 +522,13 @@ def _stem_bases(run: _Run) -> tuple[NDArray | None, NDArray | None]:
     """XY of each stem base the graph method's step i finds in the points
     (:func:`biomorph.tree.roots.find_roots`: stems at breast height standing on the ground
     where a ground was removed), for the voxel method's trees, and with two stems or more
-    the tree of each point by the graph method's segmentation (step ii's kNN graph,
-    :func:`biomorph.tree.neighbours.segment_trees`; stem ``i`` is tree ``i``); None where
+    the tree of each point by the graph method's crown partition (step ii's kNN graph,
+    :func:`biomorph.tree.crowns.partition_trees`; stem ``i`` is tree ``i``); None where
     there is none. The graph method's checks run first: a trunk must reach the ground, and
     a one-tree run (``n_trees=1``) must hold one stem (:class:`~biomorph.errors.InputError`
     otherwise)."""
-    from biomorph.tree.neighbours import neighbour_graph, segment_trees
+    from biomorph.tree.crowns import partition_trees
+    from biomorph.tree.neighbours import GAP_SHORT, default_node_spacing, neighbour_graph
     from biomorph.tree.roots import (
         check_single_tree,
         check_trunk_reaches_ground,
@@ -569,7 +570,10 @@ def _stem_bases(run: _Run) -> tuple[NDArray | None, NDArray | None]:
     stems = root_centres(xyz, pts, tree)
     if stems.shape[0] < 2:
         return stems, None
-    return stems, segment_trees(neighbour_graph(xyz, k=go.k, tree=run.point_index()), pts, tree)
+    # the graph method's crown partition (biomorph.tree.crowns), its gap from this cloud
+    gap = GAP_SHORT * default_node_spacing(run.point_spacing(), float(np.ptp(xyz[:, 2])))
+    graph = neighbour_graph(xyz, k=go.k, tree=run.point_index())
+    return stems, partition_trees(xyz, graph, pts, tree, gap)[0]
 
 
 def _check_skeleton(run: _Run) -> None:
