@@ -439,13 +439,34 @@ def _slab_points(start, rank, pts, lo, cell, dims, pos, axes, t0, t1, depth, rs,
             u2[:k] = u[:k]
             w2[:k] = w[:k]
             u, w = u2, w2
-        o = np.argsort(hr[:m])
-        for q in range(m):
-            u[k + q] = hu[o[q]]
-            w[k + q] = hw[o[q]]
+        _by_rank(hr, hu, hw, m)
+        u[k : k + m] = hu[:m]
+        w[k : k + m] = hw[:m]
         k += m
         indptr[v + 1] = k
     return indptr, u[:k].copy(), w[:k].copy()
+
+
+#: :func:`_by_rank` sorts at most this many hits by insertion, more by ``np.argsort``
+INSERTION_SORT_MAX = 32
+
+
+@numba.njit(cache=True)
+def _by_rank(hr, hu, hw, m):  # pragma: no cover - numba
+    """The first ``m`` hits of a slab put in order of their (unique) ranks ``hr``, their
+    ``hu``, ``hw`` with them, in place: by insertion for the few hits of most slabs (an
+    argsort's allocations took longer), else by ``np.argsort`` (the same order)."""
+    if m > INSERTION_SORT_MAX:
+        o = np.argsort(hr[:m])
+        hr[:m], hu[:m], hw[:m] = hr[o], hu[o], hw[o]
+        return
+    for q in range(1, m):
+        rq, uq, wq = hr[q], hu[q], hw[q]
+        p = q
+        while p > 0 and hr[p - 1] > rq:
+            hr[p], hu[p], hw[p] = hr[p - 1], hu[p - 1], hw[p - 1]
+            p -= 1
+        hr[p], hu[p], hw[p] = rq, uq, wq
 
 
 @dataclass
