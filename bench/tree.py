@@ -6,6 +6,7 @@
     .venv/bin/python bench/tree.py --only peers [--clouds rtwig_cloud.txt] [--no-pytlidar]
     .venv/bin/python bench/tree.py --only truth [--seeds 3] [--sizes 60000 240000]
     .venv/bin/python bench/tree.py --only sparse [--seeds 2]   # twig recall at 5 cm
+    .venv/bin/python bench/tree.py --only stand [--seeds 4]    # plot crown partition
 
 ``peers`` prints one table per real cloud: measure × (each reference model, biomorph graph,
 biomorph voxel, pytlidar -- PyPI's Python TreeQSM, install with ``pip install --no-deps
@@ -657,10 +658,73 @@ def sparse_twigs(seeds: int, voxel: float = 0.05, variant: bool = False) -> None
                 sys.stdout.flush()
 
 
+def stand_table(seeds: int, methods: tuple[str, ...]) -> None:
+    """A plot's crown partition against synthetic truth (issue 13): stands of conifers
+    (:func:`~biomorph.tree.synthetic.generate_stand`) scanned once from outside, clean
+    (2 mm, 4 scanners) and noisy (8 mm, 3 scanners), both with occlusion. Per run: stems
+    found, share of wood points on their true tree (each point takes its nearest skeleton
+    node's tree), height error against the tree's highest scanned point (median / worst)
+    and the range of trunk length / scanned height."""
+    from scipy.spatial import cKDTree
+
+    from biomorph.tree.pipeline import skeletonize
+    from biomorph.tree.synthetic import generate_stand, simulate_scan
+
+    conditions = {
+        "clean": dict(noise=0.002, occlusion=True, scanners=4),
+        "8 mm": dict(noise=0.008, occlusion=True, scanners=3),
+    }
+    print("\n### Plot crown partition against synthetic stands (conifers, one scan)\n")
+    print(
+        "| trees | points | condition | seed | method | stems | on their tree | "
+        "|dh| median / max m | trunk / height | s |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for n_trees, n_points in ((7, 150_000), (4, 50_000)):
+        for cname, kw in conditions.items():
+            for seed in range(seeds):
+                truth = generate_stand("conifer", n_trees, seed=seed)
+                cloud = simulate_scan(truth, n_points=n_points, seed=seed, ground=True, **kw)
+                node = cloud.attributes["node"]
+                t_true = np.where(node >= 0, truth.tree_id[np.maximum(node, 0)], -1)
+                base = truth.position[truth.roots]
+                for method in methods:
+                    t0 = time.perf_counter()
+                    s = skeletonize(cloud, method=method)
+                    dt = time.perf_counter() - t0
+                    g = s.world_graph()
+                    d, j = cKDTree(base[:, :2]).query(g.position[g.roots, :2])
+                    match = {
+                        int(g.tree_id[r]): int(truth.tree_id[truth.roots][jj]) if dd < 0.5 else -1
+                        for r, jj, dd in zip(g.roots, j, d, strict=True)
+                    }
+                    _, near = cKDTree(g.position).query(cloud.xyz)
+                    label = np.array([match.get(int(t), -1) for t in g.tree_id])[near]
+                    wood = t_true >= 0
+                    dh, ratio = [], []
+                    for r in g.roots:
+                        t = int(g.tree_id[r])
+                        if match[t] < 0:
+                            continue
+                        top = cloud.xyz[t_true == match[t], 2].max()
+                        dh.append(abs(g.position[g.tree_id == t, 2].max() - g.position[r, 2] - top))
+                        ratio.append(s.metrics["trees"][t]["trunk_length"] / top)
+                    found = len({v for v in match.values() if v >= 0})
+                    print(
+                        f"| {n_trees} | {n_points:,} | {cname} | {seed} | {method} | "
+                        f"{found}/{n_trees} | {np.mean(label[wood] == t_true[wood]):.3f} | "
+                        f"{np.median(dh):.2f} / {np.max(dh):.2f} | "
+                        f"{min(ratio):.2f}–{max(ratio):.2f} | {dt:.1f} |"
+                    )
+                    sys.stdout.flush()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also time 1,000,000 points")
-    ap.add_argument("--only", choices=("speed", "accuracy", "real", "peers", "truth", "sparse"))
+    ap.add_argument(
+        "--only", choices=("speed", "accuracy", "real", "peers", "truth", "sparse", "stand")
+    )
     ap.add_argument(
         "--clouds",
         nargs="*",
@@ -716,6 +780,8 @@ def main() -> None:
         truth_table(a.seeds, tuple(a.sizes), tuple(a.methods))
     if a.only in (None, "sparse"):
         sparse_twigs(a.seeds, variant=a.variant)
+    if a.only in (None, "stand"):
+        stand_table(a.seeds, tuple(a.methods))
 
 
 if __name__ == "__main__":

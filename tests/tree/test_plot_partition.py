@@ -157,3 +157,26 @@ def test_sparse_stand_tops_go_to_their_own_stems():
         scanned_top = cloud.xyz[t_true == match[t], 2].max()
         height = g.position[g.tree_id == t, 2].max() - g.position[r, 2]
         assert abs(height - scanned_top) < 2.5
+
+
+def test_a_top_no_root_reaches_goes_to_the_stem_it_continues():
+    """The same stand without bridging: B's top is a piece of its own (the bridging rule
+    refused it, as it refuses sparse tops above a long occlusion gap). It continues B's
+    measured stem and stands over it, so it joins B instead of dropping out."""
+    from biomorph.tree.crowns import partition_trees
+    from biomorph.tree.neighbours import neighbour_graph
+
+    rng = np.random.default_rng(1)
+    a = _ring(rng, (0, 0), 0.0, 10.0, 0.1, 8000)
+    b_low = _ring(rng, (1.5, 0), 0.0, 6.0, 0.08, 4000)
+    b_top = _ring(rng, (1.5, 0), 7.6, 9.0, 0.04, 600)
+    far = _ring(rng, (6.0, 6.0), 3.0, 3.5, 0.05, 200)  # a piece over no stem
+    xyz = np.vstack([a, b_low, b_top, far])
+    top = np.arange(len(a) + len(b_low), len(a) + len(b_low) + len(b_top))
+    roots = np.r_[np.flatnonzero(a[:, 2] < 0.1), len(a) + np.flatnonzero(b_low[:, 2] < 0.1)]
+    root_tree = np.r_[np.zeros((a[:, 2] < 0.1).sum(), int), np.ones((b_low[:, 2] < 0.1).sum(), int)]
+    g = neighbour_graph(xyz, k=10)
+    tree, br, bc = partition_trees(xyz, g, roots, root_tree, gap=0.3)
+    assert np.all(tree[top] == 1)
+    assert np.all(tree[-len(far) :] == -1)  # stays out
+    assert br.size == 1 and np.isin(br, top).sum() + np.isin(bc, top).sum() == 1

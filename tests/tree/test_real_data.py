@@ -97,13 +97,15 @@ def test_pine_plot_ground_removal_and_tree_segmentation():
     n = skel.metrics["n_trees"]
     assert 15 <= n <= 32  # ~20 pine stems in the 10 x 10 m plot
     # understorey pieces are reported as fragments, not trees: 16 measured pine stems
-    # (8.8-16.6 m) and 8 pieces under 1.7 m
+    # (11.9-16.6 m since session 16's crown partition) and 8 understorey pieces
     trees = skel.metrics["trees"]
     stems = [t for t in trees if t["kind"] == "tree"]
     frags = [t for t in trees if t["kind"] == "fragment"]
     assert skel.metrics["n_stems"] == len(stems) and skel.metrics["n_fragments"] == len(frags)
     assert 12 <= len(stems) <= 20 and len(stems) + len(frags) == n
-    assert min(t["height"] for t in stems) > 5.0 and max(t["height"] for t in frags) < 2.0
+    # fragments stay in the understorey: the tallest, a sapling at (-3.9, 4.5) whose
+    # sparse upper stem the crown partition adopts (session 16), reaches 3.2 m
+    assert min(t["height"] for t in stems) > 5.0 and max(t["height"] for t in frags) < 4.0
     g = skel.world_graph()
     roots = g.position[g.roots]
     # stems stand apart: no two roots closer than 0.5 m

@@ -25,11 +25,16 @@ piece moves to another tree when two independent tests name the same tree:
   partition of the stems that forest plot tools use where the scan cannot tell, here
   applied only where the graph has no wood to follow.
 
+The same two tests adopt the pieces no root reaches at all -- the bridging rule refuses a
+sparse top above a long occlusion gap, and its points dropped out of the skeleton. Every
+moved or adopted piece is bridged to its new tree at their nearest points.
+
 A measured stem is followed up from its root points (:func:`track_stems`), slab by slab,
 through at most one gap's height of missing points; its axis is the line from the stem's
 base centre to the highest point found on it. On the synthetic stands (4-7 conifers,
-50-150 k points, 14 runs) the share of points on their true tree went 0.975 -> 0.984 on
-average and the worst height error per run 2.3 -> 1.5 m (``bench/tree.py --only stand``).
+50-150 k points, 14 runs) the share of points on their true tree went 0.975 -> 0.985 on
+average and the worst height error per run 2.3 -> 1.2 m (``bench/tree.py --only stand``,
+figures in docs/tree.md, session 16).
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from biomorph.core import treeops
@@ -288,7 +294,8 @@ def partition_trees(
     the roots outwards, every piece the forest reaches across an edge longer than ``gap``
     (metres) moves to another tree when both tests name that tree: the measured stem it
     continues with the nearest stem top (:func:`_cones`) and the stem most of its points
-    stand over (:func:`_owners`). See the module doc."""
+    stand over (:func:`_owners`); the pieces no root reaches join a tree by the same
+    tests (:func:`_adopt_unreached`). See the module doc."""
     n = xyz.shape[0]
     roots = np.asarray(roots, dtype=np.int64)
     root_tree = np.asarray(root_tree, dtype=np.int64)
@@ -301,7 +308,7 @@ def partition_trees(
     edge = np.zeros(n)
     edge[has] = np.linalg.norm(xyz[has] - xyz[par[has]], axis=1)
     cut = np.flatnonzero(has & (edge > gap) & (tree >= 0))
-    if cut.size == 0:
+    if cut.size == 0 and np.all(tree >= 0):
         return tree, empty, empty
     zs = np.argsort(xyz[:, 2], kind="stable")
     axes = track_stems(xyz, roots, root_tree, ntree, gap / 2, gap, zs)
@@ -325,9 +332,43 @@ def partition_trees(
             continue  # most of it does not stand over that stem
         tree[members] = u
         moved.append((members, u))
+    moved += _adopt_unreached(graph, tree, who, dist, owner, ntree)
     if not moved:
         return tree, empty, empty
     return tree, *_bridges(xyz, tree, first, moved)
+
+
+def _adopt_unreached(
+    graph: sparse.csr_matrix,
+    tree: NDArray[np.int64],
+    who: NDArray[np.int64],
+    dist: NDArray[np.float64],
+    owner: NDArray[np.int64],
+    ntree: int,
+) -> list[tuple[NDArray[np.int64], int]]:
+    """The pieces no root reaches (the bridging rule refused them: a sparse top above an
+    occluded stretch of stem) that pass both tests for one stem go to it (``tree`` is
+    updated); returns them as ``(points, tree)``."""
+    un = np.flatnonzero(tree < 0)
+    if un.size == 0:
+        return []
+    sub = sparse.csr_matrix(graph)[un][:, un]
+    _, lab = connected_components(sub, directed=False)
+    order = np.argsort(lab, kind="stable")
+    bounds = np.flatnonzero(np.r_[True, np.diff(lab[order]) != 0, True])
+    out = []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        members = un[order[a:b]]
+        j = members[int(np.argmin(dist[members]))]
+        u = int(who[j])
+        if u < 0:
+            continue
+        own = owner[members]
+        if 2 * np.bincount(own[own >= 0], minlength=ntree)[u] <= members.size:
+            continue
+        tree[members] = u
+        out.append((members, u))
+    return out
 
 
 def _bridges(
