@@ -180,6 +180,3 @@ def test_a_top_no_root_reaches_goes_to_the_stem_it_continues():
     assert np.all(tree[top] == 1)
     assert np.all(tree[-len(far) :] == -1)  # stays out
     assert br.size == 1 and np.isin(br, top).sum() + np.isin(bc, top).sum() == 1
-    # it hangs from the top of B's measured stem: the stem continues through the gap
-    stem_end = bc[0] if br[0] in set(top) else br[0]
-    assert xyz[stem_end, 2] > 5.9 and abs(xyz[stem_end, 0] - 1.5) < 0.1

@@ -67,13 +67,12 @@ MIN_AXIS_Z = 0.5
 @dataclass
 class StemAxes:
     """Per tree: ``base`` (the stem's centre at its root points) and ``top`` (the highest
-    point found on the stem, ``top_index`` its row; -1 if none) of the measured stem,
-    metres; ``ok`` where the stem rises more than two slabs above its base."""
+    point found on the stem) of the measured stem, metres; ``ok`` where the stem rises
+    more than two slabs above its base."""
 
     base: NDArray[np.float64]
     top: NDArray[np.float64]
     ok: NDArray[np.bool_]
-    top_index: NDArray[np.int64]
 
     @property
     def length(self) -> NDArray[np.float64]:
@@ -161,7 +160,6 @@ def track_stems(
     base = np.zeros((ntree, 3))
     top = np.zeros((ntree, 3))
     ok = np.zeros(ntree, dtype=bool)
-    top_index = np.full(ntree, -1, dtype=np.int64)
     for u in range(ntree):
         r = roots[root_tree == u]
         if r.size == 0:
@@ -174,9 +172,8 @@ def track_stems(
         hi = _track_one(xyz, zs, zsorted, c, radius, step, max_gap)
         if hi >= 0:
             top[u] = xyz[hi]
-            top_index[u] = hi
             ok[u] = xyz[hi, 2] - c[2] > 2 * step
-    return StemAxes(base, top, ok, top_index)
+    return StemAxes(base, top, ok)
 
 
 def _owners(xyz: NDArray[np.float64], axes: StemAxes, block: int = 65536) -> NDArray[np.int64]:
@@ -322,7 +319,7 @@ def partition_trees(
     pre, pos = _preorder(indptr, indices, np.flatnonzero((par < 0) & (tree >= 0)))
     size = treeops.subtree_sum(par, np.ones(n), order).astype(np.int64)
     cut = cut[np.argsort(treeops.depth(par, order)[cut], kind="stable")]  # roots outwards
-    moved: list[tuple[NDArray[np.int64], int, int]] = []
+    moved: list[tuple[NDArray[np.int64], int]] = []
     first = tree.copy()
     for v in cut:
         u = int(who[arg[v]])
@@ -334,11 +331,11 @@ def partition_trees(
         if 2 * votes[u] <= members.size:
             continue  # most of it does not stand over that stem
         tree[members] = u
-        moved.append((members, u, int(arg[v])))
+        moved.append((members, u))
     moved += _adopt_unreached(graph, tree, who, dist, owner, ntree)
     if not moved:
         return tree, empty, empty
-    return tree, *_bridges(xyz, tree, first, moved, axes.top_index)
+    return tree, *_bridges(xyz, tree, first, moved)
 
 
 def _adopt_unreached(
@@ -348,10 +345,10 @@ def _adopt_unreached(
     dist: NDArray[np.float64],
     owner: NDArray[np.int64],
     ntree: int,
-) -> list[tuple[NDArray[np.int64], int, int]]:
+) -> list[tuple[NDArray[np.int64], int]]:
     """The pieces no root reaches (the bridging rule refused them: a sparse top above an
     occluded stretch of stem) that pass both tests for one stem go to it (``tree`` is
-    updated); returns them as ``(points, tree, the point nearest the stem's top)``."""
+    updated); returns them as ``(points, tree)``."""
     un = np.flatnonzero(tree < 0)
     if un.size == 0:
         return []
@@ -370,7 +367,7 @@ def _adopt_unreached(
         if 2 * np.bincount(own[own >= 0], minlength=ntree)[u] <= members.size:
             continue
         tree[members] = u
-        out.append((members, u, int(j)))
+        out.append((members, u))
     return out
 
 
@@ -378,28 +375,19 @@ def _bridges(
     xyz: NDArray[np.float64],
     tree: NDArray[np.int64],
     first: NDArray[np.int64],
-    moved: list[tuple[NDArray[np.int64], int, int]],
-    top_index: NDArray[np.int64],
+    moved: list[tuple[NDArray[np.int64], int]],
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Edges that join every moved piece to the part of its new tree its root reaches.
-    Per tree, the points it kept from the shortest-path forest (``first``: the trees
-    before any move) are joined. A piece whose point nearest the stem's top (the third
-    entry of ``moved``) is still its own hangs from that top when the top is joined: the
-    stem continues through the gap. The others, nearest first, are bridged to the joined
-    part at their nearest pair of points and join it (Prim's order: a piece hangs from a
-    nearer moved piece rather than across the whole crown)."""
+    """Edges that join every moved piece to the part of its new tree its root reaches:
+    per tree, the points it kept from the shortest-path forest (``first``: the trees
+    before any move) are joined; then, nearest first, the piece closest to the joined part
+    is bridged to it at their nearest pair of points and joins it (Prim's order: a piece
+    hangs from a nearer moved piece rather than across the whole crown)."""
     rows: list[int] = []
     cols: list[int] = []
     by_tree: dict[int, list[NDArray[np.int64]]] = {}
-    for members, u, anchor in moved:
+    for members, u in moved:
         members = members[tree[members] == u]
-        if members.size == 0:
-            continue
-        t = int(top_index[u])
-        if tree[anchor] == u and t >= 0 and first[t] == u and tree[t] == u:
-            rows.append(anchor)
-            cols.append(t)
-        else:
+        if members.size:
             by_tree.setdefault(u, []).append(members)
     for u, pieces in by_tree.items():
         joined = np.flatnonzero((tree == u) & (first == u))
