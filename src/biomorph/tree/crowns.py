@@ -32,9 +32,10 @@ moved or adopted piece is bridged to its new tree at their nearest points.
 A measured stem is followed up from its root points (:func:`track_stems`), slab by slab,
 through at most one gap's height of missing points; its axis is the line from the stem's
 base centre to the highest point found on it. On the synthetic stands (4-7 conifers,
-50-150 k points, 14 runs) the share of points on their true tree went 0.975 -> 0.985 on
-average and the worst height error per run 2.3 -> 1.2 m (``bench/tree.py --only stand``,
-figures in docs/tree.md, session 16).
+50-150 k points, 16 runs, ``bench/tree.py --only stand``) the graph method's share of points
+on their true tree went 0.952 -> 0.987 and its worst height error per run 4.6 -> 0.9 m on
+average, together with the contracted graph keeping to one tree per edge (figures in
+docs/tree.md, session 16).
 """
 
 from __future__ import annotations
