@@ -189,11 +189,14 @@ def test_skeletonize_json_and_outputs(good_xyz, tmp_path, capsys):
                 "branch",
                 "--tip-support",
                 "0.3",
+                "--no-crown-partition",
             ]
         )
         == 0
     )
     data2 = json.loads(capsys.readouterr().out)
+    assert data["params"]["crown_partition"] is True
+    assert data2["params"]["crown_partition"] is False
     assert data2["params"]["foliage"] is None and data2["params"]["edge_weights"] == "branch"
     assert data2["params"]["tip_support"] == 0.3
     assert data["params"]["min_cylinder_radius"] == 0.01 and "tip_support" not in data["params"]

@@ -92,6 +92,7 @@ from biomorph.tree.neighbours import (
     default_node_spacing,
     estimate_spacing,
     neighbour_graph,
+    segment_trees,
     shortest_path_forest,
     spatial_order,
 )
@@ -210,6 +211,29 @@ def _optimise(q, qpos, roots, parent, max_iter, reweight, edge_weights, limit):
     return parent, pos, iterations
 
 
+def _segment(xyz, p_graph, roots, root_tree, gap, crown_partition):
+    """Step ii's segmentation: the tree of every point (-1: no root reaches it), the
+    neighbour graph with the partition's bridges, and every point's geodesic distance from
+    its root (Euclidean edge lengths, within its own tree on a plot: a contraction level
+    counts along the point's own tree). One tree: every reachable point is its. Several:
+    Livny's squared-weight shortest-path forest from all roots, the pieces it reaches across
+    a gap (or not at all) re-decided by :func:`~biomorph.tree.crowns.partition_trees`."""
+    if np.unique(root_tree).size < 2:
+        geo = p_graph.copy()
+        geo.data = np.sqrt(geo.data)
+        plen, _ = shortest_path_forest(geo, roots)
+        return p_graph, np.where(np.isfinite(plen), 0, -1).astype(np.int64), plen
+    if crown_partition:
+        point_tree, br, bc = partition_trees(xyz, p_graph, roots, root_tree, gap)
+        p_graph = add_edges(xyz, p_graph, br, bc)
+    else:
+        point_tree = segment_trees(p_graph, roots, root_tree)
+    geo = same_tree_edges(p_graph, point_tree)
+    geo.data = np.sqrt(geo.data)
+    plen, _ = shortest_path_forest(geo, roots)
+    return p_graph, point_tree, plen
+
+
 @dataclass
 class LivnyResult:
     """Output of :func:`skeletonize_graph`.
@@ -279,6 +303,7 @@ def skeletonize_graph(
     bridge_gap: float | None = None,
     reach: float | None = REACH,
     level_merge: str = LEVEL_MERGE_DEFAULT,
+    crown_partition: bool = True,
     inside_tips: bool | None = None,
     neighbours: NeighbourCache | None = None,
 ) -> LivnyResult:
@@ -317,6 +342,9 @@ def skeletonize_graph(
         skeleton (:func:`~biomorph.tree.cleanup.merge_inside_tips`: parallel paths and
         split branch ends from stem-surface pieces); default :data:`INSIDE_TIPS` (off;
         ``None``: with ``level_merge="adaptive"`` only).
+    crown_partition : on a plot, re-decide the pieces Livny's segmentation reaches across a
+        gap (or not at all) by the stems they continue and stand over
+        (:func:`~biomorph.tree.crowns.partition_trees`); ``False``: the segmentation alone.
     neighbours : neighbour lists of ``xyz`` from an earlier query with at least ``k + 1``
         neighbours (:class:`~biomorph.tree.neighbours.NeighbourCache`, e.g. the outlier
         filter's): the kNN graph takes its rows from them where they decide it (the same
@@ -387,19 +415,7 @@ def skeletonize_graph(
     rule = None if np.isinf(gap) else BridgeRule(short=gap, spacing=max(spacing_pts, 1e-6))
     p_graph, n_comp = bridge_components(xyz, p_graph, tree=kd, rule=rule, anchors=roots)
     t0 = tick("bridging", t0)
-    several = np.unique(root_tree).size > 1
-    if several:
-        # Livny's segmentation (the squared-weight shortest-path forest from all roots),
-        # with the pieces it reaches across a gap given to the stem they stand over
-        point_tree, br, bc = partition_trees(xyz, p_graph, roots, root_tree, gap)
-        p_graph = add_edges(xyz, p_graph, br, bc)
-    # geodesic distance (Euclidean edge lengths) for the contraction levels, within each
-    # tree on a plot (a level counts along the point's own tree)
-    geo = same_tree_edges(p_graph, point_tree) if several else p_graph.copy()
-    geo.data = np.sqrt(geo.data)
-    plen, _ = shortest_path_forest(geo, roots)
-    if not several:  # one tree: every reachable point belongs to it
-        point_tree = np.where(np.isfinite(plen), 0, -1).astype(np.int64)
+    p_graph, point_tree, plen = _segment(xyz, p_graph, roots, root_tree, gap, crown_partition)
     t0 = tick("dijkstra", t0)
     con = contract(
         xyz,

@@ -226,6 +226,13 @@ class GraphOptions:
     edge_weights: str = _opt(
         "livny", "--edge-weights", "Weights of Livny steps iv-v: livny (the paper's) or branch."
     )
+    crown_partition: bool = _opt(
+        True,
+        "--crown-partition",
+        "Plots: pieces reached across a gap go to the stem they continue and stand over "
+        "(tree/crowns.py); off = Livny's segmentation alone.",
+        kind="enabled",
+    )
 
 
 @dataclass(frozen=True)
@@ -453,6 +460,7 @@ _LEGACY = {
             "min_tree_distance",
             "allometry_exponent",
             "edge_weights",
+            "crown_partition",
         )
     },
     "cleanup": ("cleanup", "enabled"),

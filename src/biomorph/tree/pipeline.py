@@ -399,6 +399,7 @@ def graph_phase(run: _Run) -> None:
         min_tree_distance=go.min_tree_distance,
         allometry_exponent=go.allometry_exponent,
         edge_weights=go.edge_weights,
+        crown_partition=go.crown_partition,
         seed=run.opts.seed,
         progress=run.progress,
         neighbours=run.take_knn(),
@@ -418,6 +419,7 @@ def graph_phase(run: _Run) -> None:
         min_tree_distance=go.min_tree_distance,
         allometry_exponent=go.allometry_exponent,
         edge_weights=go.edge_weights,
+        crown_partition=go.crown_partition,
     )
     t0 = time.perf_counter()
     graph = _graph_cleanup(run, res.graph, spacing)
@@ -528,7 +530,12 @@ def _stem_bases(run: _Run) -> tuple[NDArray | None, NDArray | None]:
     a one-tree run (``n_trees=1``) must hold one stem (:class:`~biomorph.errors.InputError`
     otherwise)."""
     from biomorph.tree.crowns import partition_trees
-    from biomorph.tree.neighbours import GAP_SHORT, default_node_spacing, neighbour_graph
+    from biomorph.tree.neighbours import (
+        GAP_SHORT,
+        default_node_spacing,
+        neighbour_graph,
+        segment_trees,
+    )
     from biomorph.tree.roots import (
         check_single_tree,
         check_trunk_reaches_ground,
@@ -573,6 +580,8 @@ def _stem_bases(run: _Run) -> tuple[NDArray | None, NDArray | None]:
     # the graph method's crown partition (biomorph.tree.crowns), its gap from this cloud
     gap = GAP_SHORT * default_node_spacing(run.point_spacing(), float(np.ptp(xyz[:, 2])))
     graph = neighbour_graph(xyz, k=go.k, tree=run.point_index())
+    if not go.crown_partition:
+        return stems, segment_trees(graph, pts, tree)
     return stems, partition_trees(xyz, graph, pts, tree, gap)[0]
 
 
