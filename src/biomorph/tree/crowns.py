@@ -50,7 +50,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from biomorph.core import treeops
-from biomorph.tree.neighbours import GAP_ANGLE, _with_entries, shortest_path_forest
+from biomorph.tree.neighbours import GAP_ANGLE, _with_entries, segmentation_forest
 
 __all__ = [
     "StemAxes",
@@ -193,12 +193,10 @@ def _owners(xyz: NDArray[np.float64], axes: StemAxes, block: int = 65536) -> NDA
     cand = np.flatnonzero(axes.ok)
     if cand.size == 0:
         return out
-    d = axes.direction()[cand]
-    d = d / np.maximum(d[:, 2:3], MIN_AXIS_Z)  # per metre of height
+    unit = axes.direction()[cand]
+    d = unit / np.maximum(unit[:, 2:3], MIN_AXIS_Z)  # per metre of height
     b = axes.base[cand]
-    reach_top = axes.top[cand, 2] + axes.length[cand] * np.maximum(d[:, 2], 0) / np.maximum(
-        np.linalg.norm(d, axis=1), 1e-12
-    )
+    reach_top = axes.top[cand, 2] + axes.length[cand] * np.maximum(unit[:, 2], 0)
     for s in range(0, n, block):
         p = xyz[s : s + block]
         dz = p[:, 2:3] - b[None, :, 2]
@@ -222,7 +220,6 @@ def _preorder(indptr, indices, starts):  # pragma: no cover - numba
     stack = np.empty(n, dtype=np.int64)
     k = 0
     for s in starts:
-        top = 0
         stack[0] = s
         top = 1
         while top > 0:
@@ -235,17 +232,6 @@ def _preorder(indptr, indices, starts):  # pragma: no cover - numba
                 stack[top] = indices[e]
                 top += 1
     return pre[:k], pos
-
-
-def _forest(graph, roots, root_tree, n):
-    """Livny's segmentation: the shortest-path forest of ``graph`` from all root points;
-    per point its parent, the forest's order, its root point and its tree."""
-    _, par = shortest_path_forest(graph, roots)
-    order = treeops.topological_order(par)
-    proot = treeops.root_of(par, order)
-    tree_of_root = np.full(n, -1, dtype=np.int64)
-    tree_of_root[roots] = root_tree
-    return par, order, proot, tree_of_root[proot]
 
 
 def _cones(
@@ -307,7 +293,7 @@ def partition_trees(
     n = xyz.shape[0]
     roots = np.asarray(roots, dtype=np.int64)
     root_tree = np.asarray(root_tree, dtype=np.int64)
-    par, order, _, tree = _forest(graph, roots, root_tree, n)
+    par, order, tree = segmentation_forest(graph, roots, root_tree)
     empty = np.zeros(0, dtype=np.int64)
     ntree = int(root_tree.max()) + 1 if root_tree.size else 0
     if ntree < 2 or not np.isfinite(gap):

@@ -42,6 +42,7 @@ __all__ = [
     "bridge_components",
     "shortest_path_forest",
     "segment_trees",
+    "segmentation_forest",
     "BridgeRule",
     "bridge_supported",
     "GAP_SHORT",
@@ -1194,19 +1195,29 @@ def shortest_path_forest(
     return dist[:n], parent
 
 
+def segmentation_forest(
+    graph: sparse.csr_matrix, roots: NDArray[np.int64], root_tree: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """Livny's segmentation with its forest: the shortest-path forest of ``graph``'s
+    weights (the graph method's squared lengths) from all root vertices at once, as
+    ``(parent, order, tree)``: each vertex's parent in it (-1 at roots and unreached
+    vertices), a topological order, and the tree of the root it hangs from (-1 where no
+    root is reached); ``root_tree[i]`` is the tree of ``roots[i]``."""
+    n = graph.shape[0]
+    _, par = shortest_path_forest(graph, roots)
+    order = treeops.topological_order(par)
+    proot = treeops.root_of(par, order)
+    tree_of_root = np.full(n, -1, dtype=np.int64)
+    tree_of_root[np.asarray(roots, dtype=np.int64)] = np.asarray(root_tree, dtype=np.int64)
+    return par, order, tree_of_root[proot]
+
+
 def segment_trees(
     graph: sparse.csr_matrix, roots: NDArray[np.int64], root_tree: NDArray[np.int64]
 ) -> NDArray[np.int64]:
-    """Livny's segmentation: the tree of every vertex (-1 where no root is reached). The
-    shortest-path forest of ``graph``'s weights (the graph method's squared lengths) from
-    all root vertices at once gives each vertex the tree of the root it hangs from;
-    ``root_tree[i]`` is the tree of ``roots[i]``."""
-    n = graph.shape[0]
-    _, par = shortest_path_forest(graph, roots)
-    proot = treeops.root_of(par, treeops.topological_order(par))
-    tree_of_root = np.full(n, -1, dtype=np.int64)
-    tree_of_root[np.asarray(roots, dtype=np.int64)] = np.asarray(root_tree, dtype=np.int64)
-    return tree_of_root[proot]
+    """Livny's segmentation: the tree of every vertex (-1 where no root is reached), from
+    :func:`segmentation_forest`."""
+    return segmentation_forest(graph, roots, root_tree)[2]
 
 
 @dataclass
