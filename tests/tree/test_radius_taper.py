@@ -278,3 +278,35 @@ def test_a_tree_without_stem_fits_is_scaled_by_the_wood_it_carries():
     # the stems' level scaled by (1 m / 6 m)^0.5, as a side branch of that size would be
     assert np.isclose(r[f0], truth[f0], rtol=0.25)
     assert r[f0] < 0.5 * r[0]
+
+
+def test_a_tree_whose_stem_fits_dwarf_the_pool_takes_the_pooled_model():
+    """A short second "tree" whose stem holds consistent fits far thicker than the pipe rule
+    across trees allows (needle envelopes of a spruce's ground-reaching crown, 34 cm on a
+    1.8 m piece beside an 11 cm stem) takes the pooled model of the stems; one within
+    STEM_POOL_RATIO of the pool keeps its own fits."""
+    from biomorph.tree.radius import STEM_POOL_RATIO
+
+    g = _tree()
+    frag = np.column_stack([np.full(11, 3.0), np.zeros(11), 0.5 + 0.1 * np.arange(11)])
+    pos = np.vstack([g.position, frag])
+    parent = np.concatenate([g.parent, [-1], g.n_nodes + np.arange(10)])
+    both = BranchGraph(pos, parent)
+    carried = both.subtree_length() + both.edge_length
+    truth = 0.02 * carried ** (1 / PIPE_EXPONENT)
+    f0 = g.n_nodes
+    ok = np.zeros(both.n_nodes, dtype=bool)
+    ok[:40] = True
+    ok[f0 : f0 + 6] = True  # the piece's lower half: tight, consistent circles
+    t = int(both.trees[f0])
+    for factor, anchor in ((20.0, "all trees (own stem fits too thick)"), (2.0, "stem")):
+        fitted = np.where(ok, truth, -1.0)
+        fitted[f0 : f0 + 6] = factor * truth[f0 : f0 + 6]
+        r, fit = taper_radii(both, _fit(both, fitted, ok))
+        assert fit.model[t]["anchor"] == anchor
+        assert fit.model[t]["stem_fits"] >= 3
+        if factor > STEM_POOL_RATIO:
+            # the pool's level, not the envelopes': no kept fit, a fragment's radius
+            assert r[f0] < 2 * truth[f0] and not fit.reliable[f0 : f0 + 6].any()
+        else:
+            assert np.isclose(r[f0], factor * truth[f0], rtol=0.25)

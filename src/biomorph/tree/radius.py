@@ -65,6 +65,7 @@ __all__ = [
     "TWIG_MIN_POINTS",
     "TWIG_MAX_OFFSET",
     "TWIG_SURFACE_RATIO",
+    "STEM_POOL_RATIO",
 ]
 
 #: a circle fit is kept as measured only where at least a third of the circumference holds
@@ -958,6 +959,35 @@ def _robust_line(x: NDArray, y: NDArray, slope: float | None) -> tuple[float, fl
     return float(a), float(b), max(mad, 1e-3)
 
 
+#: a tree whose own stem fits put it more than this factor above the pooled model of all
+#: the trees' stems (the pipe rule's level for the wood it carries) takes the pooled model:
+#: its "stem" is not one. On the TreeLS pine plot the 16 measured pines lie within 0.49-1.39x
+#: of the pool; at a quarter of the TreeLS spruce's points (`/tmp` density study, session
+#: 17) a needle clump of its ground-reaching crown passed the breast-height stem test as a
+#: 1.8 m tree, and its circles (needle envelopes, 34 cm) put it 27x above the pool: 937 L,
+#: twice the spruce
+STEM_POOL_RATIO = 3.0
+
+
+def _tree_anchor(cum, y, rm, sm_, pooled, shift: float) -> tuple[float, float, str]:
+    """One tree's taper-model level ``a``, its scatter and where it came from
+    (:func:`taper_radii`, step 3): its stem's reliable fits (``sm_``), unless they lie over
+    :data:`STEM_POOL_RATIO` above the ``pooled`` line of all trees' stems (shifted by
+    ``shift`` for the wood this tree carries); without three stem fits the pooled line,
+    else the tree's own reliable fits (``rm``), else 1 cm at the root."""
+    if sm_.sum() >= 3:  # anchored on the stem: its sections are the best seen
+        a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0)
+        if pooled is None or a <= pooled[0] + shift + np.log(STEM_POOL_RATIO):
+            return a, sc, "stem"
+        return pooled[0] + shift, pooled[2], "all trees (own stem fits too thick)"
+    if pooled is not None:  # a fragment without a measured stem: the plot's stems
+        return pooled[0] + shift, pooled[2], "all trees"
+    if rm.sum() >= 3:
+        a, _, sc = _robust_line(cum[rm], y[rm], 1.0)
+        return a, sc, "tree"
+    return float(np.log(0.01)), 1.0, "none"  # no fit at all: 1 cm at the root
+
+
 def taper_radii(
     graph: BranchGraph,
     fit: RadiusFit,
@@ -1005,7 +1035,9 @@ def taper_radii(
        rule across trees — each tree's base scaled by ``(its whole length)^b`` (its own
        fits — stumps, ground bumps — gave a 1.4 m fragment 1.7 m³; the stems' base level
        unscaled gave four 0.7–1.1 m branch pieces of a noisy conifer the stem's 18 cm),
-       then its own reliable fits, then 1 cm at L = 1 m.
+       then its own reliable fits, then 1 cm at L = 1 m. So does a tree whose own stem
+       fits lie more than :data:`STEM_POOL_RATIO` above that pooled level (a needle clump
+       taken for a stem, :func:`_tree_anchor`).
     4. **Blend**: reliable fits up to 3 model scatters *above* the model, and every
        reliable fit below it, are kept (one-sided: the artefacts of a circle fit — needle
        envelopes, neighbouring twigs in the slab, junctions — inflate it; a well-covered,
@@ -1089,19 +1121,7 @@ def taper_radii(
             m = trees == t
             rm = m & reliable
             sm_ = rm & stem
-            if sm_.sum() >= 3:  # anchored on the stem: its sections are the best seen
-                a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0)
-                src = "stem"
-            elif pooled is not None:  # a fragment without a measured stem: the plot's stems
-                a, _, sc = pooled
-                a += b_fork * float(x_top[m][0])
-                src = "all trees"
-            elif rm.sum() >= 3:
-                a, _, sc = _robust_line(cum[rm], y[rm], 1.0)
-                src = "tree"
-            else:
-                a, sc = np.log(0.01), 1.0  # no fit at all: 1 cm at the root
-                src = "none"
+            a, sc, src = _tree_anchor(cum, y, rm, sm_, pooled, b_fork * float(x_top[m][0]))
             model[m] = a + cum[m]
             # one-sided: a reliable fit thinner than the model is kept (artefacts — needle
             # envelopes, neighbouring twigs in the slab, junctions — inflate circles)
