@@ -7,6 +7,7 @@
     .venv/bin/python bench/tree.py --only truth [--seeds 3] [--sizes 60000 240000]
     .venv/bin/python bench/tree.py --only sparse [--seeds 2]   # twig recall at 5 cm
     .venv/bin/python bench/tree.py --only stand [--seeds 4]    # plot crown partition
+    .venv/bin/python bench/tree.py --only density [--clouds ...]  # real clouds thinned
 
 ``peers`` prints one table per real cloud: measure × (each reference model, biomorph graph,
 biomorph voxel, pytlidar -- PyPI's Python TreeQSM, install with ``pip install --no-deps
@@ -719,11 +720,75 @@ def stand_table(seeds: int, methods: tuple[str, ...]) -> None:
                     sys.stdout.flush()
 
 
+#: shares of a real cloud's points kept by :func:`density_table` (random, seed 0)
+DENSITY_FRACTIONS = (1.0, 0.5, 0.25)
+
+
+def density_table(names: tuple[str, ...], methods: tuple[str, ...]) -> None:
+    """The same real cloud thinned at random to half and a quarter of its points: how far
+    the model moves from the full cloud's (a sparser scan of the same tree, as an MLS or
+    UAV scan, or TLS from fewer positions, would give). Volume, length, trunk length and
+    the share of the *full* cloud's points > 10 cm from every cylinder, per method; ratios
+    to the full-density model, F1@5 cm against the full-density model's skeleton."""
+    from biomorph.io import read_points
+    from biomorph.tree.metrics import cylinder_fit, tree_attributes
+    from biomorph.tree.pipeline import skeletonize
+    from biomorph.tree.reference import compare_to_reference
+
+    if not DATA.is_dir():
+        print(f"\n(real data not found at {DATA}; skipped)")
+        return
+    print("\n### Real clouds thinned at random (seed 0): the model against the full cloud's\n")
+    print(
+        "| cloud | method | points kept | volume L (× full) | length m (× full) | "
+        "trunk m (× full) | trees (fragments) | far % of all points | F1 vs full | s |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name in names:
+        cloud = read_points(DATA / name)
+        for method in methods:
+            full = None
+            rng = np.random.default_rng(0)
+            for frac in DENSITY_FRACTIONS:
+                n = int(round(frac * cloud.n_points))
+                keep = np.sort(rng.choice(cloud.n_points, n, replace=False))
+                t0 = time.perf_counter()
+                try:
+                    s = skeletonize(cloud.select(keep), method=method)
+                except Exception as exc:  # noqa: BLE001 - reported in the table
+                    print(f"| {name} | {method} | {frac:.0%} | {type(exc).__name__}: {exc} |")
+                    continue
+                dt = time.perf_counter() - t0
+                g = s.world_graph()
+                attrs = tree_attributes(g)
+                row = (
+                    sum(a["total_volume"] for a in attrs) * 1e3,
+                    sum(a["total_length"] for a in attrs),
+                    max(a["trunk_length"] for a in attrs),
+                )
+                if full is None:
+                    full = (row, g)
+                cells = [
+                    f"{v:.1f} ({v / f:.2f})" if f > 0 else f"{v:.1f}"
+                    for v, f in zip(row, full[0], strict=True)
+                ]
+                f1 = compare_to_reference(g, full[1], tolerance=0.05)["f1"]
+                far = 100 * cylinder_fit(g, cloud.xyz)["far_share"]
+                trees = f"{s.metrics.get('n_trees')} ({s.metrics.get('n_fragments', 0)})"
+                print(
+                    f"| {name} | {method} | {frac:.0%} ({n:,}) | "
+                    + " | ".join(cells)
+                    + f" | {trees} | {far:.1f} | {f1:.3f} | {dt:.1f} |"
+                )
+                sys.stdout.flush()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also time 1,000,000 points")
     ap.add_argument(
-        "--only", choices=("speed", "accuracy", "real", "peers", "truth", "sparse", "stand")
+        "--only",
+        choices=("speed", "accuracy", "real", "peers", "truth", "sparse", "stand", "density"),
     )
     ap.add_argument(
         "--clouds",
@@ -782,6 +847,8 @@ def main() -> None:
         sparse_twigs(a.seeds, variant=a.variant)
     if a.only in (None, "stand"):
         stand_table(a.seeds, tuple(a.methods))
+    if a.only in (None, "density"):
+        density_table(tuple(a.clouds), tuple(a.methods))
 
 
 if __name__ == "__main__":

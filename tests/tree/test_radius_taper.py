@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from biomorph.core.graph import BranchGraph
@@ -310,3 +312,64 @@ def test_a_tree_whose_stem_fits_dwarf_the_pool_takes_the_pooled_model():
             assert r[f0] < 2 * truth[f0] and not fit.reliable[f0 : f0 + 6].any()
         else:
             assert np.isclose(r[f0], factor * truth[f0], rtol=0.25)
+
+
+def test_stem_circles_with_points_inside_do_not_anchor_the_model():
+    """Envelope circles on the stem (a whorl's needles around it: three times its radius,
+    the stem's own ring inside them) outnumber the true sections of the lower stem. With
+    the slabs' inside counts the model anchors on the true ones; without them (no
+    ``inside``) the envelopes set the stem."""
+    from biomorph.tree.radius import STEM_INSIDE
+
+    g = _tree()
+    carried = g.subtree_length() + g.edge_length
+    truth = 0.02 * carried**0.5
+    fitted = truth.copy()
+    envelope = np.zeros(g.n_nodes, dtype=bool)
+    envelope[0:25:5] = envelope[1:25:5] = envelope[2:25:5] = True  # 15 of the lower 25
+    fitted[envelope] = 3 * truth[envelope]
+    ok = np.zeros(g.n_nodes, dtype=bool)
+    ok[:25] = True
+    blind = _fit(g, fitted, ok)
+    seen = dataclasses.replace(blind, inside=np.where(envelope, 20, 0).astype(np.int64))
+    assert 20 > STEM_INSIDE * 50
+    r_blind, _ = taper_radii(g, blind, min_radius=0.0)
+    r_seen, fit = taper_radii(g, seen, min_radius=0.0)
+    assert r_blind[10] > 1.5 * truth[10]
+    assert np.isclose(r_seen[10], truth[10], rtol=0.1)
+    assert not fit.reliable[envelope].any() and fit.reliable[:25][~envelope[:25]].all()
+
+
+def test_the_circle_kernel_counts_the_points_inside_its_circle():
+    """A stem ring alone: nothing inside. The same ring as an envelope around a thinner
+    stem (the inner ring's points at a third of its radius): they are counted."""
+    from biomorph.tree import radius
+
+    t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    ring = np.c_[0.1 * np.cos(t), 0.1 * np.sin(t)]
+    inner = np.c_[0.03 * np.cos(t[::3]), 0.03 * np.sin(t[::3])]
+    for pts, want in ((ring, 0), (np.vstack([ring, inner]), inner.shape[0])):
+        out = [np.zeros(1) for _ in range(3)] + [
+            np.zeros(1, np.int64),
+            np.zeros(1),
+            np.zeros(1),
+            np.zeros(1, np.int64),
+        ]
+        u, w = np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
+        indptr = np.array([0, pts.shape[0]])
+        radius._fit_kernel(
+            u,
+            w,
+            indptr,
+            np.full(1, 0.3),
+            np.full(1, 1e-4),
+            0.15,
+            0.003,
+            0.01,
+            64,
+            8,
+            0,
+            *out,
+            radius.INSIDE_RADIUS,
+        )
+        assert np.isclose(out[2][0], 0.1, rtol=0.02) and out[6][0] == want

@@ -219,8 +219,9 @@ def test_fit_kernel_skips_only_trials_that_cannot_win():
         np.zeros(counts.size, np.int64),
         np.zeros(counts.size),
         np.zeros(counts.size),
+        np.zeros(counts.size, np.int64),
     ]
-    radius._fit_kernel(u, w, indptr, rmax, rmin, 0.15, 0.003, 0.01, 64, 8, 3, *got)
+    radius._fit_kernel(u, w, indptr, rmax, rmin, 0.15, 0.003, 0.01, 64, 8, 3, *got, 0.5)
     assert (got[2] > 0).sum() > 100
     for a, b in zip(got[:3], ref, strict=True):
         assert np.array_equal(a, b)

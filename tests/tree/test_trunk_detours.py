@@ -111,7 +111,9 @@ def test_the_spruce_trunk_runs_up_its_stem(tmp_path):
     assert on.info["trunk_detours"] >= 1 and "trunk_detours" not in off.info
     t_on, t_off = on.metrics["trees"][0], off.metrics["trees"][0]
     assert t_on["trunk_length"] < t_off["trunk_length"]
-    assert t_on["height"] <= t_on["trunk_length"] < 1.05 * t_on["height"]
+    # the RANSAC seed alone moves this trunk 1.03-1.07x the height (seeds 0-3, 2 to 4
+    # detours); without the detours it is 1.30x (21.7 m)
+    assert t_on["height"] <= t_on["trunk_length"] < 1.1 * t_on["height"]
     assert t_on["trunk_top_gap"] < 1.0
 
 
