@@ -8,6 +8,7 @@
     .venv/bin/python bench/tree.py --only sparse [--seeds 2]   # twig recall at 5 cm
     .venv/bin/python bench/tree.py --only stand [--seeds 4]    # plot crown partition
     .venv/bin/python bench/tree.py --only density [--clouds ...]  # real clouds thinned
+    .venv/bin/python bench/tree.py --only seeds [--clouds ...]    # repeatability over seeds
 
 ``peers`` prints one table per real cloud: measure × (each reference model, biomorph graph,
 biomorph voxel, pytlidar -- PyPI's Python TreeQSM, install with ``pip install --no-deps
@@ -783,12 +784,57 @@ def density_table(names: tuple[str, ...], methods: tuple[str, ...]) -> None:
                 sys.stdout.flush()
 
 
+def seed_table(names: tuple[str, ...], methods: tuple[str, ...], seeds: int) -> None:
+    """Repeatability: the same cloud through the same pipeline with ``seeds`` random seeds
+    (the RANSAC circle fits draw from it): total volume, trunk length and tips, their
+    range and spread ((max - min) / mean)."""
+    from biomorph.io import read_points
+    from biomorph.tree.metrics import tree_attributes
+    from biomorph.tree.pipeline import skeletonize
+
+    if not DATA.is_dir():
+        print(f"\n(real data not found at {DATA}; skipped)")
+        return
+    print(f"\n### Repeatability over random seeds 0..{seeds - 1} (same cloud, same options)\n")
+    print("| cloud | method | volume L: range (spread) | trunk m: range (spread) | tips: range |")
+    print("|---|---|---|---|---|")
+
+    def span(v: list[float], f: str) -> str:
+        return f"{f.format(min(v))}–{f.format(max(v))} ({(max(v) - min(v)) / np.mean(v):.0%})"
+
+    for name in names:
+        cloud = read_points(DATA / name)
+        for method in methods:
+            vol, trunk, tips = [], [], []
+            for seed in range(seeds):
+                g = skeletonize(cloud, method=method, seed=seed).world_graph()
+                attrs = tree_attributes(g)
+                vol.append(sum(a["total_volume"] for a in attrs) * 1e3)
+                trunk.append(max(a["trunk_length"] for a in attrs))
+                tips.append(int(g.leaves.size))
+            print(
+                f"| {name} | {method} | {span(vol, '{:.1f}')} | {span(trunk, '{:.2f}')} | "
+                f"{min(tips)}–{max(tips)} |"
+            )
+            sys.stdout.flush()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also time 1,000,000 points")
     ap.add_argument(
         "--only",
-        choices=("speed", "accuracy", "real", "peers", "truth", "sparse", "stand", "density"),
+        choices=(
+            "speed",
+            "accuracy",
+            "real",
+            "peers",
+            "truth",
+            "sparse",
+            "stand",
+            "density",
+            "seeds",
+        ),
     )
     ap.add_argument(
         "--clouds",
@@ -849,6 +895,8 @@ def main() -> None:
         stand_table(a.seeds, tuple(a.methods))
     if a.only in (None, "density"):
         density_table(tuple(a.clouds), tuple(a.methods))
+    if a.only in (None, "seeds"):
+        seed_table(tuple(a.clouds), tuple(a.methods), max(a.seeds, 4))
 
 
 if __name__ == "__main__":
