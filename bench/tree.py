@@ -8,7 +8,7 @@
     .venv/bin/python bench/tree.py --only sparse [--seeds 2]   # twig recall at 5 cm
     .venv/bin/python bench/tree.py --only stand [--seeds 4]    # plot crown partition
     .venv/bin/python bench/tree.py --only density [--clouds ...]  # real clouds thinned
-    .venv/bin/python bench/tree.py --only seeds [--clouds ...]    # repeatability over seeds
+    .venv/bin/python bench/tree.py --only seeds [--clouds ...]    # repeatability, >= 4 seeds
 
 ``peers`` prints one table per real cloud: measure × (each reference model, biomorph graph,
 biomorph voxel, pytlidar -- PyPI's Python TreeQSM, install with ``pip install --no-deps

@@ -261,21 +261,27 @@ def test_a_run_of_consistent_fits_is_kept_outside_other_wood_only():
     assert not fit3.reliable[51:].any() and r3[51:].max() < 0.05
 
 
-def test_a_tree_without_stem_fits_is_scaled_by_the_wood_it_carries():
-    """A fragment (its own root, no fits: an understorey piece, a branch the voxel skeleton
-    left apart) takes the stems' model scaled by the pipe rule across trees, not the
-    stem's base radius."""
+def _tree_and_fragment():
+    """:func:`_tree` and a 1 m piece with a root of its own 3 m beside it (11 nodes from
+    0.5 m up): the graph, the piece's first node, and radii following the pipe rule
+    (2 cm at 1 m of wood carried)."""
     g = _tree()
     frag = np.column_stack([np.full(11, 3.0), np.zeros(11), 0.5 + 0.1 * np.arange(11)])
     pos = np.vstack([g.position, frag])
     parent = np.concatenate([g.parent, [-1], g.n_nodes + np.arange(10)])
     both = BranchGraph(pos, parent)
     carried = both.subtree_length() + both.edge_length
-    truth = 0.02 * carried ** (1 / PIPE_EXPONENT)
+    return both, g.n_nodes, 0.02 * carried ** (1 / PIPE_EXPONENT)
+
+
+def test_a_tree_without_stem_fits_is_scaled_by_the_wood_it_carries():
+    """A fragment (its own root, no fits: an understorey piece, a branch the voxel skeleton
+    left apart) takes the stems' model scaled by the pipe rule across trees, not the
+    stem's base radius."""
+    both, f0, truth = _tree_and_fragment()
     ok = np.zeros(both.n_nodes, dtype=bool)
     ok[:40] = True  # the stem's fits only
     r, fit = taper_radii(both, _fit(both, np.where(ok, truth, -1.0), ok))
-    f0 = g.n_nodes
     assert fit.model[int(both.trees[f0])]["anchor"] == "all trees"
     # the stems' level scaled by (1 m / 6 m)^0.5, as a side branch of that size would be
     assert np.isclose(r[f0], truth[f0], rtol=0.25)
@@ -289,14 +295,7 @@ def test_a_tree_whose_stem_fits_dwarf_the_pool_takes_the_pooled_model():
     STEM_POOL_RATIO of the pool keeps its own fits."""
     from biomorph.tree.radius import STEM_POOL_RATIO
 
-    g = _tree()
-    frag = np.column_stack([np.full(11, 3.0), np.zeros(11), 0.5 + 0.1 * np.arange(11)])
-    pos = np.vstack([g.position, frag])
-    parent = np.concatenate([g.parent, [-1], g.n_nodes + np.arange(10)])
-    both = BranchGraph(pos, parent)
-    carried = both.subtree_length() + both.edge_length
-    truth = 0.02 * carried ** (1 / PIPE_EXPONENT)
-    f0 = g.n_nodes
+    both, f0, truth = _tree_and_fragment()
     ok = np.zeros(both.n_nodes, dtype=bool)
     ok[:40] = True
     ok[f0 : f0 + 6] = True  # the piece's lower half: tight, consistent circles

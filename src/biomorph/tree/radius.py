@@ -993,11 +993,11 @@ def _robust_line(x: NDArray, y: NDArray, slope: float | None) -> tuple[float, fl
 
 #: a tree whose own stem fits put it more than this factor above the pooled model of all
 #: the trees' stems (the pipe rule's level for the wood it carries) takes the pooled model:
-#: its "stem" is not one. On the TreeLS pine plot the 16 measured pines lie within 0.49-1.39x
-#: of the pool; at a quarter of the TreeLS spruce's points (`/tmp` density study, session
-#: 17) a needle clump of its ground-reaching crown passed the breast-height stem test as a
-#: 1.8 m tree, and its circles (needle envelopes, 34 cm) put it 27x above the pool: 937 L,
-#: twice the spruce
+#: its "stem" is not one. On the TreeLS pine plot the 16 measured pines lie within
+#: 0.49-1.39x of the pool; at a quarter of the TreeLS spruce's points (`bench/tree.py
+#: --only density`, session 17) a needle clump of its ground-reaching crown passed the
+#: breast-height stem test as a 1.8 m tree, and its circles (needle envelopes, 34 cm) put
+#: it 27x above the pool: 937 L, twice the spruce
 STEM_POOL_RATIO = 3.0
 
 
