@@ -77,7 +77,8 @@ class TreeSkeleton:
     segment : branch (segment) id per node.
     quality : per node, the radius fit's quality: ``reliable`` (the radius is the fit's,
         not the taper model's), ``mad`` (m), ``coverage`` (0–1), ``fitted_radius`` (m, -1 =
-        no fit); None for allometric radii.
+        no fit), ``segment`` (the radius follows the cylinder of its run of nodes,
+        :mod:`biomorph.tree.run_cylinders`); None for allometric radii.
     """
 
     graph: BranchGraph
@@ -269,6 +270,7 @@ def skeletonize(
     residual_phase(run)
     empty_tips_phase(run)
     detour_phase(run)
+    segment_phase(run)
     twig_phase(run)
     order_phase(run)
     metrics_phase(run)
@@ -625,6 +627,7 @@ def radius_phase(run: _Run, tick: bool = True) -> None:
             "mad": fit.mad if fit.mad is not None else np.zeros(fit.ok.size),
             "coverage": fit.coverage,
             "fitted_radius": fit.radius,
+            "segment": fit.segment if fit.segment is not None else np.zeros(fit.ok.size, bool),
         }
         run.info["radius_fit_ok"] = float(fit.ok.mean()) if fit.ok.size else 0.0
         if fit.reliable is not None:
@@ -741,6 +744,41 @@ def detour_phase(run: _Run) -> None:
         g = livny.densify(run.skeleton.with_(parent=parent).subgraph(keep), ns)
         run.graph = g.with_(weight=g.subtree_length())
         radius_phase(run, tick=False)
+
+
+def segment_phase(run: _Run) -> None:
+    """The final skeleton's radii again, with the cylinders of runs of nodes where no circle
+    fit is reliable (:func:`biomorph.tree.radius.segment_radii`); the earlier radius passes,
+    which the cleanup rules read, use circle fits alone. Opt-in (``RadiusOptions.run_cylinders``,
+    ``--run-cylinders``); off without the taper model."""
+    from biomorph.tree import radius as rd
+    from biomorph.tree.cleanup import smooth_chains
+
+    ro = run.opts.radius
+    graph, fit = run.graph, run.fit
+    run.params.update(run_cylinders=ro.run_cylinders)
+    if not (ro.run_cylinders and ro.method == "fit" and ro.taper) or graph is None or fit is None:
+        return
+    assert run.cloud is not None
+    spacing = run.point_spacing()
+    if spacing <= 0 or fit.ok.size != graph.n_nodes or graph.n_nodes == 0:
+        return
+    t0 = time.perf_counter()
+    radius, fit = rd.segment_radii(
+        graph,
+        run.cloud.xyz,
+        fit,
+        spacing,
+        min_radius=ro.min_radius,
+        exponent=ro.taper_exponent,
+        kdtree=run.point_index(),
+    )
+    run.graph = smooth_chains(graph.with_(radius=radius), ro.smooth)
+    run.fit = fit
+    if run.quality is not None and fit.segment is not None:
+        run.quality["segment"] = fit.segment
+    run.info["taper_model"] = fit.model
+    run.timings["radius_fit"] = run.timings.get("radius_fit", 0.0) + time.perf_counter() - t0
 
 
 def twig_phase(run: _Run) -> None:

@@ -156,6 +156,8 @@ def cylinder_table(
     pib[order_in] = np.arange(m) - np.repeat(first, counts)[np.arange(m)] + 1
     q = quality or {}
     reliable = np.asarray(q.get("reliable", np.ones(graph.n_nodes, bool)))[ch]
+    if "segment" in q:  # a run's cylinder measured the section too
+        reliable = reliable | np.asarray(q["segment"])[ch]
     unmod = np.asarray(
         q.get(
             "fitted_radius", graph.radius if graph.radius is not None else np.zeros(graph.n_nodes)

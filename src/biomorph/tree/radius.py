@@ -40,6 +40,7 @@ from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree.livny import allometric_radii, skeleton_distance, solve_tree_system
 from biomorph.tree.neighbours import PointIndex, _build_grid
+from biomorph.tree.run_cylinders import SegmentFit, fit_segments
 
 if TYPE_CHECKING:
     from biomorph.tree.metrics import SegmentCandidates
@@ -52,6 +53,7 @@ __all__ = [
     "smooth_log_ratio",
     "cap_down",
     "taper_radii",
+    "segment_radii",
     "MIN_RADIUS",
     "PIPE_EXPONENT",
     "RELIABLE_COVERAGE",
@@ -516,6 +518,7 @@ class RadiusFit:
     reliable: NDArray[np.bool_] | None = None
     model: dict | None = None
     inside: NDArray[np.int64] | None = None
+    segment: NDArray[np.bool_] | None = None
 
 
 def fit_circles(
@@ -793,6 +796,37 @@ def fit_radii(
     return g.with_(radius=radius, weight=g.subtree_length()), fit
 
 
+def segment_radii(
+    graph: BranchGraph,
+    xyz: NDArray[np.float64],
+    fit: RadiusFit,
+    spacing: float,
+    *,
+    min_radius: float = MIN_RADIUS,
+    exponent: float = PIPE_EXPONENT,
+    slack: float = 1.1,
+    kdtree: PointIndex | None = None,
+) -> tuple[NDArray[np.float64], RadiusFit]:
+    """The taper model again (:func:`taper_radii`), now with the cylinders of runs of
+    nodes (:func:`biomorph.tree.run_cylinders.fit_segments`) as measurements where no circle fit
+    is reliable, off the stem. Run once on the final skeleton (``fit``: its last circle
+    fits; ``graph.radius``: the radii so far, the runs' estimate): the skeleton's cleanup
+    decisions are left as the circle fits made them."""
+    if graph.radius is None or fit.ok.size != graph.n_nodes or spacing <= 0:
+        raise ParameterError("segment_radii needs a skeleton with radii and its circle fits")
+    kd = kdtree if kdtree is not None else PointIndex(xyz)
+    carried = np.maximum(graph.subtree_length() + graph.edge_length, 1e-6)
+    reliable, stem = _reliable_fits(graph, fit, carried)
+    d, near = skeleton_distance(xyz, graph.parent, graph.position, order=kd.indices)
+    bid, _ = branch_ids(graph, carried)
+    segs = fit_segments(
+        graph, xyz, near, d, graph.radius, bid, spacing, RELIABLE_COVERAGE, need=~reliable & ~stem
+    )
+    return taper_radii(
+        graph, fit, min_radius=min_radius, exponent=exponent, slack=slack, segments=segs
+    )
+
+
 #: a node without a circle fit is moved to the centroid of its cross-section's points when
 #: its radius is at most this many point spacings: a twig a few points across, whose
 #: contracted vertex lies wherever its level piece's points happened to be (rTwig: 10.8 mm
@@ -1030,6 +1064,7 @@ def taper_radii(
     support: str = "length",
     slack: float = 1.1,
     within: bool = True,
+    segments: SegmentFit | None = None,
 ) -> tuple[NDArray[np.float64], RadiusFit]:
     """Final radii: reliable circle fits where the scan measured the cross-section, a
     taper (pipe) model fitted on them elsewhere.
@@ -1098,16 +1133,8 @@ def taper_radii(
     ``b_within``, ``branch_slopes``, ``scatter``, ``fits``) filled in.
     """
     n = graph.n_nodes
-    mad = fit.mad if fit.mad is not None else np.zeros(n)
-    reliable = (
-        fit.ok
-        & (fit.coverage >= RELIABLE_COVERAGE)
-        & (mad <= RELIABLE_MAD * np.maximum(fit.radius, 1e-12))
-    )
     carried = np.maximum(graph.subtree_length() + graph.edge_length, 1e-6)
-    stem = _stem_mask(graph, carried)
-    if fit.inside is not None:  # a stem circle with points inside it is an envelope
-        reliable &= ~stem | (fit.inside <= STEM_INSIDE * fit.inliers)
+    reliable, stem = _reliable_fits(graph, fit, carried)
     if support == "tips":
         x = np.log(graph.subtree_sum((graph.n_children == 0).astype(float)))
         exponent = 2.0
@@ -1188,20 +1215,32 @@ def taper_radii(
             "anchor": src,
             "b_free": _free_slope(x[rm], y[rm]),
         }
-    delta = np.where(keep, y - model, 0.0)
-    near = _smooth_with_decay(graph, delta, keep, decay)
-    anc = _kept_ancestor(graph.parent, graph.order, keep)
+    seg_keep = np.zeros(n, dtype=bool)
+    if segments is not None:
+        # a run's cylinder where no circle was kept: the same one-sided test as a fit
+        sc_node = np.array([scale[int(t)][1] for t in uniq])[np.searchsorted(uniq, trees)]
+        rs = np.maximum(segments.radius, 1e-12)
+        ys = np.log(np.maximum(rs - floor, 0.5 * rs))
+        seg_keep = segments.ok & ~reliable & ~stem
+        seg_keep &= ys - model <= np.minimum(3 * sc_node, np.log(KEEP_MAX_RATIO))
+        y = np.where(seg_keep, ys, y)
+        for t in uniq:
+            info[int(t)]["segments"] = int(seg_keep[trees == t].sum())
+    measured = keep | seg_keep
+    delta = np.where(measured, y - model, 0.0)
+    near = _smooth_with_decay(graph, delta, measured, decay)
+    anc = _kept_ancestor(graph.parent, graph.order, measured)
     upstream = np.where(anc >= 0, near[np.maximum(anc, 0)], 0.0)
-    sm = _smooth_with_decay(graph, delta, keep, decay, prior=upstream)
+    sm = _smooth_with_decay(graph, delta, measured, decay, prior=upstream)
     radius = floor + np.exp(model + sm)
     # a run's fits are its own radii (measured), without passing their ratio to the
     # model on: the model under a run is wrong where the run is, not downstream of it
-    run = _plausible_runs(graph, run & ~keep, r_fit, radius, bid, cont, anc)
+    run = _plausible_runs(graph, run & ~measured, r_fit, radius, bid, cont, anc)
     radius[run] = r_fit[run]
     keep |= run
     slack_v = np.where(cont, float(slack), 1.0)
     radius = _cap_down_slack(par, graph.order, radius, slack_v)
-    return radius, dataclasses.replace(fit, reliable=reliable & keep, model=info)
+    return radius, dataclasses.replace(fit, reliable=reliable & keep, model=info, segment=seg_keep)
 
 
 @numba.njit(cache=True)
@@ -1396,6 +1435,23 @@ def _fit_runs(graph: BranchGraph, r_fit: NDArray, reliable: NDArray) -> NDArray[
     length = np.bincount(lab, weights=np.where(link, graph.edge_length, 0.0), minlength=k)
     rmed = np.asarray(median(r_fit, lab, np.arange(k)), dtype=float)
     return reliable & (length[lab] >= RUN_DIAMETERS * 2 * rmed[lab])
+
+
+def _reliable_fits(
+    graph: BranchGraph, fit: RadiusFit, carried: NDArray
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """The reliable circle fits (:func:`taper_radii`, step 1) and the stem mask
+    (:func:`_stem_mask`)."""
+    mad = fit.mad if fit.mad is not None else np.zeros(graph.n_nodes)
+    reliable = (
+        fit.ok
+        & (fit.coverage >= RELIABLE_COVERAGE)
+        & (mad <= RELIABLE_MAD * np.maximum(fit.radius, 1e-12))
+    )
+    stem = _stem_mask(graph, carried)
+    if fit.inside is not None:  # a stem circle with points inside it is an envelope
+        reliable &= ~stem | (fit.inside <= STEM_INSIDE * fit.inliers)
+    return reliable, stem
 
 
 def _stem_mask(graph: BranchGraph, carried: NDArray) -> NDArray[np.bool_]:
