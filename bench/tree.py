@@ -379,7 +379,8 @@ def run_biomorph(cloud, method: str, graph_kw: dict | None = None) -> dict:
     if graph_kw:
         livny.skeletonize_graph = functools.partial(orig, **graph_kw)
     try:
-        skel = skeletonize(cloud, method=method)
+        base, kw = method_options(method)
+        skel = skeletonize(cloud, method=base, **kw)
         out: dict = {"graph": skel.world_graph(), "trees": skel.metrics.get("n_trees")}
         if skel.cloud is not None:
             out["wood"] = skel.cloud.xyz + skel.offset  # above ground, no foliage/outliers
@@ -389,6 +390,13 @@ def run_biomorph(cloud, method: str, graph_kw: dict | None = None) -> dict:
         livny.skeletonize_graph = orig
     out.update(wall=time.perf_counter() - t0, cpu=time.process_time() - c0)
     return out
+
+
+def method_options(method: str) -> tuple[str, dict]:
+    """``"graph+runs"`` / ``"voxel+runs"``: the method with the opt-in run cylinders
+    (``run_cylinders=True``, session 18); anything else as given (before a ``+``)."""
+    base, _, extra = method.partition("+")
+    return base, ({"run_cylinders": True} if extra == "runs" else {})
 
 
 #: graph variant shown beside the default by ``--variant`` (docs/tree.md "Topology, peers
@@ -457,7 +465,25 @@ def _warm_up(with_pytlidar: bool) -> None:
     print(f"(warm-up, untimed: {time.perf_counter() - t0:.1f} s)")
 
 
-def peers(names: tuple[str, ...], with_pytlidar: bool = True, variant: bool = False) -> None:
+def _peer_columns(cloud, refs: dict, with_pytlidar: bool, variant: bool, runs: bool) -> dict:
+    """The peer table's columns: each reference, our methods (and variants), pytlidar."""
+    cols: dict[str, dict] = {k: {"graph": g, "wall": None, "cpu": None} for k, g in refs.items()}
+    cols["biomorph graph"] = run_biomorph(cloud, "graph")
+    if variant:
+        cols["graph " + ", ".join(map(str, VARIANT.values()))] = run_biomorph(
+            cloud, "graph", VARIANT
+        )
+    cols["biomorph voxel"] = run_biomorph(cloud, "voxel")
+    if runs:
+        cols["graph+runs"] = run_biomorph(cloud, "graph+runs")
+    if with_pytlidar:
+        cols["pytlidar"] = run_pytlidar(cloud.xyz)
+    return cols
+
+
+def peers(
+    names: tuple[str, ...], with_pytlidar: bool = True, variant: bool = False, runs: bool = False
+) -> None:
     from biomorph.io import read_graph, read_points
     from biomorph.tree.metrics import class_labels
     from biomorph.tree.reference import read_qsm_csv
@@ -476,17 +502,9 @@ def peers(names: tuple[str, ...], with_pytlidar: bool = True, variant: bool = Fa
         if name == "plantscan3d_A3B4.asc":
             m = read_graph(DATA / "plantscan3d_A3B4.mtg")
             refs["plantscan3d"] = m.with_(position=m.position + xyz.mean(axis=0))
-        cols: dict[str, dict] = {
-            k: {"graph": g, "wall": None, "cpu": None} for k, g in refs.items()
-        }
-        cols["biomorph graph"] = run_biomorph(cloud, "graph")
-        if variant:
-            cols["graph " + ", ".join(map(str, VARIANT.values()))] = run_biomorph(
-                cloud, "graph", VARIANT
-            )
-        cols["biomorph voxel"] = run_biomorph(cloud, "voxel")
-        if with_pytlidar and name not in SINGLE_TREE_ONLY:
-            cols["pytlidar"] = run_pytlidar(xyz)
+        cols = _peer_columns(
+            cloud, refs, with_pytlidar and name not in SINGLE_TREE_ONLY, variant, runs
+        )
         meas = {}
         for k, c in cols.items():
             if "graph" in c:
@@ -570,7 +588,8 @@ def truth_table(seeds: int, sizes: tuple[int, ...], methods: tuple[str, ...]) ->
                         if method == "graph+variant":
                             livny.skeletonize_graph = functools.partial(orig, **VARIANT)
                         try:
-                            g = skeletonize(cloud, method=method.split("+")[0]).world_graph()
+                            base, mkw = method_options(method)
+                            g = skeletonize(cloud, method=base, **mkw).world_graph()
                         except Exception as exc:  # noqa: BLE001 - report and carry on
                             print(f"<!-- {preset} {cname} {n} {method} {seed}: {exc} -->")
                             continue
@@ -755,7 +774,8 @@ def density_table(names: tuple[str, ...], methods: tuple[str, ...]) -> None:
                 keep = np.sort(rng.choice(cloud.n_points, n, replace=False))
                 t0 = time.perf_counter()
                 try:
-                    s = skeletonize(cloud.select(keep), method=method)
+                    base, kw = method_options(method)
+                    s = skeletonize(cloud.select(keep), method=base, **kw)
                 except Exception as exc:  # noqa: BLE001 - reported in the table
                     print(f"| {name} | {method} | {frac:.0%} | {type(exc).__name__}: {exc} |")
                     continue
@@ -807,7 +827,8 @@ def seed_table(names: tuple[str, ...], methods: tuple[str, ...], seeds: int) -> 
         for method in methods:
             vol, trunk, tips = [], [], []
             for seed in range(seeds):
-                g = skeletonize(cloud, method=method, seed=seed).world_graph()
+                base, kw = method_options(method)
+                g = skeletonize(cloud, method=base, seed=seed, **kw).world_graph()
                 attrs = tree_attributes(g)
                 vol.append(sum(a["total_volume"] for a in attrs) * 1e3)
                 trunk.append(max(a["trunk_length"] for a in attrs))
@@ -849,13 +870,23 @@ def main() -> None:
         help="peers/sparse: also the graph variant VARIANT (adaptive level merge)",
     )
     ap.add_argument(
+        "--runs",
+        action="store_true",
+        help="peers: also the graph method with --run-cylinders (column graph+runs)",
+    )
+    ap.add_argument(
         "--sizes",
         type=int,
         nargs="*",
         default=[60_000, 240_000],
         help="points per synthetic scan of the truth table",
     )
-    ap.add_argument("--methods", nargs="*", default=["graph", "voxel"])
+    ap.add_argument(
+        "--methods",
+        nargs="*",
+        default=["graph", "voxel"],
+        help="graph, voxel, graph+variant (truth), graph+runs / voxel+runs (--run-cylinders)",
+    )
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--points", type=int, default=60_000, help="points per synthetic scan")
     ap.add_argument(
@@ -886,7 +917,7 @@ def main() -> None:
     if a.only in (None, "real"):
         real()
     if a.only in (None, "peers"):
-        peers(tuple(a.clouds), not a.no_pytlidar, a.variant)
+        peers(tuple(a.clouds), not a.no_pytlidar, a.variant, a.runs)
     if a.only in (None, "truth"):
         truth_table(a.seeds, tuple(a.sizes), tuple(a.methods))
     if a.only in (None, "sparse"):

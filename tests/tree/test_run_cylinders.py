@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from biomorph.core.graph import BranchGraph
@@ -151,3 +153,30 @@ def test_the_cli_turns_run_cylinders_on(tmp_path, capsys):
     off = json.loads(capsys.readouterr().out)
     assert on["params"]["run_cylinders"] is True and off["params"]["run_cylinders"] is False
     assert on["metrics"]["nob"] == off["metrics"]["nob"] == 3  # the same Y
+
+
+def test_a_run_too_thin_for_the_scan_s_noise_only_bounds_the_radius():
+    """Runs under SEGMENT_NOISE_RADII times the scan's surface scatter are upper bounds: the
+    taper model takes them where they are thinner than the model, never where thicker."""
+    g, pts = _half_branch(150)
+    d, near = skeleton_distance(pts, g.parent, g.position)
+    args = (g, pts, near, d, np.full(g.n_nodes, 0.02), np.zeros(g.n_nodes, np.int64), 0.01)
+    quiet = fit_segments(*args, rd.RELIABLE_COVERAGE, noise=0.001)
+    loud = fit_segments(*args, rd.RELIABLE_COVERAGE, noise=0.004)  # 4 x 4 mm > 1 cm
+    assert quiet.bound is not None and not quiet.bound[quiet.ok].any()
+    assert loud.bound is not None and loud.bound[loud.ok].all()
+    tree = _tree()
+    carried = tree.subtree_length() + tree.edge_length
+    model = 0.02 * carried**0.5
+    ok = np.zeros(tree.n_nodes, dtype=bool)
+    ok[:40] = True
+    scatter = np.exp(np.random.default_rng(0).normal(0.0, 0.2, tree.n_nodes))
+    fit = _fit(tree, model * scatter, ok)  # stem fits scattered as on real stems
+    on_branch = np.arange(tree.n_nodes) >= 51
+    for factor, taken in ((0.5, True), (1.5, False)):
+        seg = _with_segments(tree, factor * model, on_branch)
+        seg = dataclasses.replace(seg, bound=on_branch.copy())
+        _, out = rd.taper_radii(tree, fit, segments=seg)
+        assert bool(out.segment[51:].all()) is taken and not out.segment[:51].any()
+        free = dataclasses.replace(seg, bound=np.zeros(tree.n_nodes, bool))
+        assert rd.taper_radii(tree, fit, segments=free)[1].segment[51:].all()

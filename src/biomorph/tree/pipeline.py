@@ -799,6 +799,8 @@ def twig_phase(run: _Run) -> None:
     if spacing <= 0 or fit.ok.size != graph.n_nodes or graph.n_nodes == 0:
         return
     measured = fit.reliable if fit.reliable is not None else fit.ok
+    if fit.segment is not None:  # measured by its run's cylinder (--run-cylinders)
+        measured = measured | fit.segment
     cand = segment_candidates(graph, run.cloud.xyz, order=run.point_index().indices)
     run.candidates = (graph.position, graph.parent, cand)
     radius, info = twig_offset(graph, run.cloud.xyz, measured, spacing, candidates=cand)

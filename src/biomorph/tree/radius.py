@@ -811,7 +811,8 @@ def segment_radii(
     nodes (:func:`biomorph.tree.run_cylinders.fit_segments`) as measurements where no circle fit
     is reliable, off the stem. Run once on the final skeleton (``fit``: its last circle
     fits; ``graph.radius``: the radii so far, the runs' estimate): the skeleton's cleanup
-    decisions are left as the circle fits made them."""
+    decisions are left as the circle fits made them. Without three reliable circle fits
+    (no measure of the scan's noise) the runs are not used."""
     if graph.radius is None or fit.ok.size != graph.n_nodes or spacing <= 0:
         raise ParameterError("segment_radii needs a skeleton with radii and its circle fits")
     kd = kdtree if kdtree is not None else PointIndex(xyz)
@@ -819,8 +820,23 @@ def segment_radii(
     reliable, stem = _reliable_fits(graph, fit, carried)
     d, near = skeleton_distance(xyz, graph.parent, graph.position, order=kd.indices)
     bid, _ = branch_ids(graph, carried)
+    # the scan's surface scatter, from the stem's well-measured circles (else all of them)
+    mad = fit.mad if fit.mad is not None else np.zeros(graph.n_nodes)
+    pool = reliable & stem if (reliable & stem).sum() >= 3 else reliable
+    if pool.sum() < 3:
+        return taper_radii(graph, fit, min_radius=min_radius, exponent=exponent, slack=slack)
+    noise = float(np.median(mad[pool]))
     segs = fit_segments(
-        graph, xyz, near, d, graph.radius, bid, spacing, RELIABLE_COVERAGE, need=~reliable & ~stem
+        graph,
+        xyz,
+        near,
+        d,
+        graph.radius,
+        bid,
+        spacing,
+        RELIABLE_COVERAGE,
+        need=~reliable & ~stem,
+        noise=noise,
     )
     return taper_radii(
         graph, fit, min_radius=min_radius, exponent=exponent, slack=slack, segments=segs
@@ -1223,6 +1239,8 @@ def taper_radii(
         ys = np.log(np.maximum(rs - floor, 0.5 * rs))
         seg_keep = segments.ok & ~reliable & ~stem
         seg_keep &= ys - model <= np.minimum(3 * sc_node, np.log(KEEP_MAX_RATIO))
+        if segments.bound is not None:  # too thin for the scan's noise: an upper bound
+            seg_keep &= ~segments.bound | (ys <= model)
         y = np.where(seg_keep, ys, y)
         for t in uniq:
             info[int(t)]["segments"] = int(seg_keep[trees == t].sum())
