@@ -9,6 +9,7 @@
     .venv/bin/python bench/tree.py --only stand [--seeds 4]    # plot crown partition
     .venv/bin/python bench/tree.py --only density [--clouds ...]  # real clouds thinned
     .venv/bin/python bench/tree.py --only seeds [--clouds ...]    # repeatability, >= 4 seeds
+    .venv/bin/python bench/tree.py --only runs    # run cylinders vs pytlidar's LSF cylinder
 
 ``peers`` prints one table per real cloud: measure × (each reference model, biomorph graph,
 biomorph voxel, pytlidar -- PyPI's Python TreeQSM, install with ``pip install --no-deps
@@ -840,6 +841,129 @@ def seed_table(names: tuple[str, ...], methods: tuple[str, ...], seeds: int) -> 
             sys.stdout.flush()
 
 
+def _radius_error(v: NDArray, r: float) -> str:
+    """Median (IQR) of the relative radius error, %."""
+    e = 100 * (np.asarray(v) / r - 1)
+    if e.size == 0:
+        return "—"
+    q1, q2, q3 = np.percentile(e, [25, 50, 75])
+    return f"{q2:+.0f} ({q1:+.0f}…{q3:+.0f})"
+
+
+def _run_sections(r: float, noise: float, half: bool, npts: int, rng) -> tuple:
+    """One synthetic run: ``npts`` points on a 10-radius piece of a cylinder of radius ``r``
+    along x (the half facing a scanner on +z, or all of it), Gaussian range noise along z;
+    the start guess as a one-sided skeleton gives it: 0.6 r towards the viewer, the axis
+    tilted 5°, the radius twice the truth."""
+    s = rng.uniform(0.0, 10 * r, npts)
+    th = rng.uniform(0.0, np.pi if half else 2 * np.pi, npts)
+    pts = np.column_stack([s, r * np.cos(th), r * np.sin(th)])
+    pts[:, 2] += rng.normal(0.0, noise, npts)
+    mid = np.array([5 * r, 0.0, 0.6 * r])
+    tilt = np.radians(5.0)
+    a0 = np.array([np.cos(tilt), 0.0, np.sin(tilt)])
+    return pts, mid, a0, 2 * r
+
+
+def run_cylinder_table(trials: int = 200) -> None:
+    """Cylinders fitted to runs of points (tree/run_cylinders.py, ``--run-cylinders``)
+    against pytlidar's TreeQSM least-squares cylinder on the same synthetic runs, same
+    start guess: radius error, and the share our quality tests keep."""
+    from biomorph.tree import radius as rd
+    from biomorph.tree import run_cylinders as rc
+
+    try:
+        from PyTLidar.TreeQSMSteps.LSF import least_squares_cylinder
+    except ImportError:  # pragma: no cover - the peers extra is missing
+        least_squares_cylinder = None
+    print(
+        f"\n### Run cylinders vs pytlidar's least-squares cylinder ({trials} runs per row, "
+        "same points and start; radius error median (IQR) %)\n"
+    )
+    print(
+        "| radius mm | range noise mm | seen | points | ours | ours kept (share) | "
+        "pytlidar | time pytlidar / ours |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    rng = np.random.default_rng(0)
+    # the kernel compiled (or loaded from numba's cache) before any timing
+    p, m, a, r0 = _run_sections(0.01, 0.001, True, 12, rng)
+    z = np.zeros(1)
+    rc._segments_kernel(
+        p,
+        np.array([0, 12]),
+        np.arange(12),
+        m[None],
+        a[None],
+        np.array([r0]),
+        z.copy(),
+        np.zeros(1, dtype=np.int64),
+        z.copy(),
+        z.copy(),
+        z.copy(),
+        z.copy(),
+        z.copy(),
+        48,
+    )
+    for r, noise, half, npts in (
+        (0.004, 0.001, True, 24),
+        (0.01, 0.001, True, 12),
+        (0.01, 0.001, True, 48),
+        (0.01, 0.002, False, 24),
+        (0.01, 0.004, True, 48),
+        (0.025, 0.002, True, 24),
+        (0.025, 0.008, True, 48),
+    ):
+        runs = [_run_sections(r, noise, half, npts, rng) for _ in range(trials)]
+        xyz = np.vstack([p for p, *_ in runs])
+        indptr = np.arange(trials + 1, dtype=np.int64) * npts
+        out = {k: np.zeros(trials) for k in ("r", "cov", "se", "tilt", "shift", "inside")}
+        n_in = np.zeros(trials, dtype=np.int64)
+        t0 = time.perf_counter()
+        rc._segments_kernel(
+            xyz,
+            indptr,
+            np.arange(xyz.shape[0], dtype=np.int64),
+            np.array([m for _, m, _, _ in runs]),
+            np.array([a for _, _, a, _ in runs]),
+            np.array([r0 for *_, r0 in runs]),
+            out["r"],
+            n_in,
+            out["cov"],
+            out["se"],
+            out["tilt"],
+            out["shift"],
+            out["inside"],
+            rc.SEGMENT_MAX_POINTS,
+        )
+        t_ours = time.perf_counter() - t0
+        mad = out["se"] * np.sqrt(np.maximum(n_in - 5, 1)) / 1.4826
+        kept = (
+            (out["r"] > 0)
+            & (n_in >= rc.SEGMENT_POINTS)
+            & (out["cov"] >= rd.RELIABLE_COVERAGE)
+            & (out["se"] <= rc.SEGMENT_SE * out["r"])
+            & (mad <= rc.SEGMENT_MAX_MAD * out["r"])
+        )
+
+        peer, t_peer = "—", float("nan")
+        if least_squares_cylinder is not None:
+            t0 = time.perf_counter()
+            pr = []
+            for p, m, a, r0 in runs:
+                c = least_squares_cylinder(p, {"axis": a, "start": m - 5 * r * a, "radius": r0})
+                pr.append(abs(c["radius"]))
+            t_peer = time.perf_counter() - t0
+            peer = _radius_error(pr, r)
+        print(
+            f"| {1e3 * r:.0f} | {1e3 * noise:.0f} | {'half' if half else 'all'} | {npts} | "
+            f"{_radius_error(out['r'][out['r'] > 0], r)} | "
+            f"{_radius_error(out['r'][kept], r)} ({kept.mean():.0%}) | "
+            f"{peer} | {t_peer / t_ours:.0f}× |"
+        )
+        sys.stdout.flush()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also time 1,000,000 points")
@@ -855,6 +979,7 @@ def main() -> None:
             "stand",
             "density",
             "seeds",
+            "runs",
         ),
     )
     ap.add_argument(
@@ -928,6 +1053,8 @@ def main() -> None:
         density_table(tuple(a.clouds), tuple(a.methods))
     if a.only in (None, "seeds"):
         seed_table(tuple(a.clouds), tuple(a.methods), max(a.seeds, 4))
+    if a.only in (None, "runs"):
+        run_cylinder_table()
 
 
 if __name__ == "__main__":
