@@ -13,13 +13,22 @@ one cylinder — axis point, axis direction and radius, five parameters — is f
 run's points by iteratively reweighted Gauss–Newton on the geometric distance
 ``‖(x − c) − ((x − c)·a) a‖ − r`` (Huber weights at 1.345 robust standard deviations).
 
-A segment fit is *usable* (``ok``) when its inliers cover at least
+The outward bias of the noise across the surface, ``s²/(2r)``, is taken off. A run's fit
+is *usable* (``ok``) when its inliers cover at least
 :data:`~biomorph.tree.radius.RELIABLE_COVERAGE` of the circumference, its radius is
 determined to :data:`SEGMENT_SE` of itself (``1.4826 · MAD / √n``, the standard error of
-a mean distance), its axis turns by at most :data:`SEGMENT_MAX_TILT` from the run's chord
-and its axis stays within the search radius of the skeleton. The taper model
-(:func:`~biomorph.tree.radius.taper_radii`) takes usable segment fits as measured cross-
-sections where no circle fit was kept, under the same one-sided test as circle fits.
+a mean distance), the inliers' median absolute residual is at most
+:data:`SEGMENT_MAX_MAD` of it, its axis turns by at most :data:`SEGMENT_MAX_TILT` from the
+run's chord and stays within the search radius of the skeleton. A run thinner than
+:data:`SEGMENT_NOISE_RADII` times the scan's surface scatter is an upper bound only
+(``bound``). :func:`biomorph.tree.radius.segment_radii` hands usable runs to the taper
+model (:func:`~biomorph.tree.radius.taper_radii`) as measured cross-sections where no
+circle fit is reliable, under the same one-sided test as circle fits; the pipeline does
+so once, on the final skeleton, with ``--run-cylinders`` (session 18, opt-in).
+
+``bench/tree.py --only runs`` checks the fit against pytlidar's TreeQSM least-squares
+cylinder on the same synthetic runs; ``--only truth --methods graph graph+runs`` the
+whole pipeline against the presets' truth.
 """
 
 from __future__ import annotations
@@ -86,7 +95,9 @@ class SegmentFit:
     """Per node: ``radius`` of its run's cylinder (m, -1 where the node is in no fitted
     run), ``ok`` where that fit is usable, ``run`` the run id (-1: none); per run:
     ``run_radius``, ``run_points`` (inliers), ``run_coverage``, ``run_se`` (standard error of
-    the radius, m), ``run_tilt`` (rad)."""
+    the radius, m), ``run_tilt`` (rad), ``run_inside`` (share of the run's points within
+    half the radius of the axis); per node ``bound``: the run is too thin for the scan's
+    noise and bounds the radius from above only."""
 
     radius: NDArray[np.float64]
     ok: NDArray[np.bool_]
