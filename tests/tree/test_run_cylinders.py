@@ -180,3 +180,28 @@ def test_a_run_too_thin_for_the_scan_s_noise_only_bounds_the_radius():
         assert bool(out.segment[51:].all()) is taken and not out.segment[:51].any()
         free = dataclasses.replace(seg, bound=np.zeros(tree.n_nodes, bool))
         assert rd.taper_radii(tree, fit, segments=free)[1].segment[51:].all()
+
+
+def test_without_a_measure_of_the_noise_or_the_taper_model_runs_change_nothing():
+    """No three reliable circles (nothing tells the scan's noise): the taper model alone.
+    Without the taper model (``taper=False``) the option is inert."""
+    from biomorph.tree.options import SkeletonizeOptions
+    from biomorph.tree.pipeline import skeletonize
+    from tests.tree.test_livny import make_cloud
+
+    g, pts = _half_branch(150)
+    g = g.with_(radius=np.full(g.n_nodes, 0.02))
+    fit = _fit(g, np.full(g.n_nodes, 0.02), np.zeros(g.n_nodes, dtype=bool))
+    r, out = rd.segment_radii(g, pts, fit, 0.01)
+    r0, _ = rd.taper_radii(g, fit)
+    assert np.allclose(r, r0) and not out.segment.any()
+    cloud = make_cloud(n=3000, seed=3)
+    base = SkeletonizeOptions()
+    flat = dataclasses.replace(base.radius, taper=False)
+    on = skeletonize(
+        cloud,
+        options=dataclasses.replace(base, radius=dataclasses.replace(flat, run_cylinders=True)),
+    )
+    off = skeletonize(cloud, options=dataclasses.replace(base, radius=flat))
+    assert on.params["run_cylinders"] is True and on.params["taper"] is False
+    assert np.allclose(on.graph.radius, off.graph.radius)
