@@ -131,6 +131,15 @@ def test_run_cylinders_bring_the_birch_preset_s_mid_class_towards_the_truth():
         vc = volume_by_class(sk.world_graph())
         total = sum(v["volume"] for v in vc.values()) / sum(v["volume"] for v in vt.values())
         out[on] = (vc["2.5-7cm"]["volume"] / vt["2.5-7cm"]["volume"], total, sk.info)
+        if on:  # the QSM table counts a run's cylinder as measured, not added
+            from biomorph.tree.qsm import cylinder_table
+
+            q = sk.quality
+            assert q is not None and q["segment"].sum() > 500
+            tab = cylinder_table(sk.graph, sk.segment, q)
+            rows = sk.graph.order[sk.graph.parent[sk.graph.order] >= 0]
+            measured = q["reliable"][rows] | q["segment"][rows]
+            assert np.array_equal(tab["added"], (~measured).astype(np.int64))
     mid, total, info = out[True]
     assert abs(mid - 1) < 0.35 and abs(mid - 1) < abs(out[False][0] - 1) - 0.2
     assert abs(total - 1) < 0.1
