@@ -5,7 +5,7 @@
     .venv/bin/python bench/tree.py --only speed|accuracy|real [--seeds 3]
     .venv/bin/python bench/tree.py --only peers [--clouds rtwig_cloud.txt] [--no-pytlidar]
     .venv/bin/python bench/tree.py --only truth [--seeds 3] [--sizes 60000 240000]
-    .venv/bin/python bench/tree.py --only sparse [--seeds 2]   # twig recall at 5 cm
+    .venv/bin/python bench/tree.py --only sparse [--seeds 2]   # twig recall, volume at 5 cm
     .venv/bin/python bench/tree.py --only stand [--seeds 4]    # plot crown partition
     .venv/bin/python bench/tree.py --only density [--clouds ...]  # real clouds thinned
     .venv/bin/python bench/tree.py --only seeds [--clouds ...]    # repeatability, >= 4 seeds
@@ -680,6 +680,37 @@ def sparse_twigs(seeds: int, voxel: float = 0.05, variant: bool = False) -> None
                 sys.stdout.flush()
 
 
+def sparse_volume_table(seeds: int, voxel: float = 0.05) -> None:
+    """Wood volume per diameter class on sparse scans (the presets at 60,000 points, 5 mm
+    noise, occlusion, voxel-thinned to one point per ``voxel`` m), % of the truth: the
+    graph method by default and with ``--run-cylinders`` (session 18)."""
+    from biomorph.tree.cloud import downsample
+    from biomorph.tree.metrics import class_labels, volume_by_class
+    from biomorph.tree.pipeline import skeletonize
+    from biomorph.tree.synthetic import PRESETS, generate_tree, simulate_scan
+
+    labs = class_labels()
+    print(f"\n### Sparse scans, volume per class: one point per {voxel * 100:.0f} cm voxel\n")
+    print("| preset | seed | points | method | volume | " + " | ".join(labs) + " |")
+    print("|---|---|---|---|---|" + "---|" * len(labs))
+    for preset in sorted(PRESETS):
+        for seed in range(seeds):
+            truth = generate_tree(preset, seed=seed)
+            scan = simulate_scan(
+                truth, n_points=60_000, seed=seed, noise=0.005, ground=False, occlusion=True
+            )
+            cl = downsample(scan, "voxel", voxel_size=voxel, seed=seed)
+            vt = volume_by_class(truth)
+            tv = sum(v["volume"] for v in vt.values())
+            for method in ("graph", "graph+runs"):
+                base, kw = method_options(method)
+                vc = volume_by_class(skeletonize(cl, method=base, **kw).world_graph())
+                cells = " | ".join(f"{100 * vc[k]['volume'] / vt[k]['volume']:.0f}" for k in labs)
+                total = 100 * sum(v["volume"] for v in vc.values()) / tv
+                print(f"| {preset} | {seed} | {cl.n_points:,} | {method} | {total:.0f} | {cells} |")
+                sys.stdout.flush()
+
+
 def stand_table(seeds: int, methods: tuple[str, ...]) -> None:
     """A plot's crown partition against synthetic truth (issue 13): stands of conifers
     (:func:`~biomorph.tree.synthetic.generate_stand`) scanned once from outside, clean
@@ -1047,6 +1078,7 @@ def main() -> None:
         truth_table(a.seeds, tuple(a.sizes), tuple(a.methods))
     if a.only in (None, "sparse"):
         sparse_twigs(a.seeds, variant=a.variant)
+        sparse_volume_table(a.seeds)
     if a.only in (None, "stand"):
         stand_table(a.seeds, tuple(a.methods))
     if a.only in (None, "density"):
