@@ -773,7 +773,20 @@ def segment_phase(run: _Run) -> None:
         exponent=ro.taper_exponent,
         kdtree=run.point_index(),
     )
-    run.graph = smooth_chains(graph.with_(radius=radius), ro.smooth)
+    new = smooth_chains(graph.with_(radius=radius), ro.smooth)
+    if fit.segment is not None and graph.radius is not None and new.radius is not None:
+        # what the runs changed on the twigs they measured (radius within two point
+        # spacings): the model's twig deficit where it could be measured, beside the
+        # twig offset's estimate from every modelled twig (twig_phase)
+        seg = fit.segment
+        thin = seg & (graph.radius <= rd.CENTROID_MAX_RADIUS * spacing)
+        shift = (new.radius - graph.radius)[thin]
+        run.info["run_cylinders"] = {
+            "nodes": int(seg.sum()),
+            "twig_nodes": int(thin.sum()),
+            "twig_shift": float(np.median(shift)) if shift.size else None,
+        }
+    run.graph = new
     run.fit = fit
     if run.quality is not None and fit.segment is not None:
         run.quality["segment"] = fit.segment
