@@ -144,6 +144,10 @@ def test_run_cylinders_bring_the_birch_preset_s_mid_class_towards_the_truth():
     assert abs(mid - 1) < 0.35 and abs(mid - 1) < abs(out[False][0] - 1) - 0.2
     assert abs(total - 1) < 0.1
     assert sum(t.get("segments", 0) for t in info["taper_model"].values()) > 500
+    rc = info["run_cylinders"]  # the runs' change on the twigs they measured
+    assert rc["nodes"] > 500 and 0 < rc["twig_nodes"] <= rc["nodes"]
+    assert rc["twig_shift"] is not None and abs(rc["twig_shift"]) < 0.01
+    assert "run_cylinders" not in out[False][2]
     assert "segments" not in str(out[False][2]["taper_model"])
 
 
