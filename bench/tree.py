@@ -919,23 +919,7 @@ def run_cylinder_table(trials: int = 200) -> None:
     rng = np.random.default_rng(0)
     # the kernel compiled (or loaded from numba's cache) before any timing
     p, m, a, r0 = _run_sections(0.01, 0.001, True, 12, rng)
-    z = np.zeros(1)
-    rc._segments_kernel(
-        p,
-        np.array([0, 12]),
-        np.arange(12),
-        m[None],
-        a[None],
-        np.array([r0]),
-        z.copy(),
-        np.zeros(1, dtype=np.int64),
-        z.copy(),
-        z.copy(),
-        z.copy(),
-        z.copy(),
-        z.copy(),
-        48,
-    )
+    rc.fit_run_cylinders(p, np.array([0, 12]), np.arange(12), m[None], a[None], np.array([r0]))
     for r, noise, half, npts in (
         (0.004, 0.001, True, 24),
         (0.01, 0.001, True, 12),
@@ -948,34 +932,18 @@ def run_cylinder_table(trials: int = 200) -> None:
         runs = [_run_sections(r, noise, half, npts, rng) for _ in range(trials)]
         xyz = np.vstack([p for p, *_ in runs])
         indptr = np.arange(trials + 1, dtype=np.int64) * npts
-        out = {k: np.zeros(trials) for k in ("r", "cov", "se", "tilt", "shift", "inside")}
-        n_in = np.zeros(trials, dtype=np.int64)
         t0 = time.perf_counter()
-        rc._segments_kernel(
+        fits = rc.fit_run_cylinders(
             xyz,
             indptr,
-            np.arange(xyz.shape[0], dtype=np.int64),
+            np.arange(xyz.shape[0]),
             np.array([m for _, m, _, _ in runs]),
             np.array([a for _, _, a, _ in runs]),
             np.array([r0 for *_, r0 in runs]),
-            out["r"],
-            n_in,
-            out["cov"],
-            out["se"],
-            out["tilt"],
-            out["shift"],
-            out["inside"],
-            rc.SEGMENT_MAX_POINTS,
         )
         t_ours = time.perf_counter() - t0
-        mad = out["se"] * np.sqrt(np.maximum(n_in - 5, 1)) / 1.4826
-        kept = (
-            (out["r"] > 0)
-            & (n_in >= rc.SEGMENT_POINTS)
-            & (out["cov"] >= rd.RELIABLE_COVERAGE)
-            & (out["se"] <= rc.SEGMENT_SE * out["r"])
-            & (mad <= rc.SEGMENT_MAX_MAD * out["r"])
-        )
+        kept = fits.usable(rd.RELIABLE_COVERAGE)
+        fitted = fits.radius
 
         peer, t_peer = "—", float("nan")
         if least_squares_cylinder is not None:
@@ -988,8 +956,8 @@ def run_cylinder_table(trials: int = 200) -> None:
             peer = _radius_error(pr, r)
         print(
             f"| {1e3 * r:.0f} | {1e3 * noise:.0f} | {'half' if half else 'all'} | {npts} | "
-            f"{_radius_error(out['r'][out['r'] > 0], r)} | "
-            f"{_radius_error(out['r'][kept], r)} ({kept.mean():.0%}) | "
+            f"{_radius_error(fitted[fitted > 0], r)} | "
+            f"{_radius_error(fitted[kept], r)} ({kept.mean():.0%}) | "
             f"{peer} | {t_peer / t_ours:.0f}× |"
         )
         sys.stdout.flush()

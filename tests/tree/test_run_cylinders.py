@@ -218,3 +218,28 @@ def test_without_a_measure_of_the_noise_or_the_taper_model_runs_change_nothing()
     off = skeletonize(cloud, options=dataclasses.replace(base, radius=flat))
     assert on.params["run_cylinders"] is True and on.params["taper"] is False
     assert np.allclose(on.graph.radius, off.graph.radius)
+
+
+def test_fit_run_cylinders_measures_each_run_and_flags_what_cannot_be_measured():
+    """Two runs in one call: a 2 cm cylinder seen all round (radius within 2 %, usable) and
+    five points (no fit: radius -1, infinite standard error, not usable)."""
+    from biomorph.tree.run_cylinders import fit_run_cylinders
+
+    rng = np.random.default_rng(1)
+    s = rng.uniform(0.0, 0.2, 40)
+    th = rng.uniform(0.0, 2 * np.pi, 40)
+    full = np.column_stack([s, 0.02 * np.cos(th), 0.02 * np.sin(th)])
+    full += rng.normal(0.0, 0.0005, full.shape)
+    few = full[:5] + [1.0, 0.0, 0.0]
+    xyz = np.vstack([full, few])
+    fits = fit_run_cylinders(
+        xyz,
+        np.array([0, 40, 45]),
+        np.arange(45),
+        np.array([[0.1, 0.01, 0.0], [1.1, 0.0, 0.0]]),
+        np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]),
+        np.array([0.04, 0.04]),
+    )
+    assert abs(fits.radius[0] - 0.02) < 0.0004 and fits.coverage[0] > 0.9
+    assert fits.radius[1] == -1.0 and np.isinf(fits.se[1])
+    assert fits.usable(rd.RELIABLE_COVERAGE).tolist() == [True, False]

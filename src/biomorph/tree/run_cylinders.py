@@ -43,6 +43,8 @@ from biomorph.core.graph import BranchGraph
 
 __all__ = [
     "SegmentFit",
+    "RunCylinders",
+    "fit_run_cylinders",
     "fit_segments",
     "segment_runs",
     "SEGMENT_POINTS",
@@ -95,9 +97,8 @@ class SegmentFit:
     """Per node: ``radius`` of its run's cylinder (m, -1 where the node is in no fitted
     run), ``ok`` where that fit is usable, ``run`` the run id (-1: none); per run:
     ``run_radius``, ``run_points`` (inliers), ``run_coverage``, ``run_se`` (standard error of
-    the radius, m), ``run_tilt`` (rad), ``run_inside`` (share of the run's points within
-    half the radius of the axis); per node ``bound``: the run is too thin for the scan's
-    noise and bounds the radius from above only."""
+    the radius, m), ``run_tilt`` (rad); per node ``bound``: the run is too thin for the
+    scan's noise and bounds the radius from above only."""
 
     radius: NDArray[np.float64]
     ok: NDArray[np.bool_]
@@ -107,8 +108,36 @@ class SegmentFit:
     run_coverage: NDArray[np.float64]
     run_se: NDArray[np.float64]
     run_tilt: NDArray[np.float64]
-    run_inside: NDArray[np.float64] | None = None
     bound: NDArray[np.bool_] | None = None
+
+
+@dataclass(frozen=True)
+class RunCylinders:
+    """Per run: fitted ``radius`` (m, -1 = no fit), ``inliers`` count, angular
+    ``coverage`` (0–1), ``mad`` (median absolute residual of the inliers, m), ``se``
+    (standard error of the radius, m), ``tilt`` of the axis from the start axis (rad),
+    ``shift`` of the axis from the start point across it (m)."""
+
+    radius: NDArray[np.float64]
+    inliers: NDArray[np.int64]
+    coverage: NDArray[np.float64]
+    mad: NDArray[np.float64]
+    se: NDArray[np.float64]
+    tilt: NDArray[np.float64]
+    shift: NDArray[np.float64]
+
+    def usable(self, min_coverage: float) -> NDArray[np.bool_]:
+        """The fits that pass the quality tests of the module doc that need no skeleton:
+        count, coverage, standard error, scatter and tilt."""
+        r = self.radius
+        return (
+            (r > 0)
+            & (self.inliers >= SEGMENT_POINTS)
+            & (self.coverage >= min_coverage)
+            & (self.se <= SEGMENT_SE * r)
+            & (self.mad <= SEGMENT_MAX_MAD * r)
+            & (self.tilt <= SEGMENT_MAX_TILT)
+        )
 
 
 @numba.njit(cache=True)
@@ -256,10 +285,9 @@ def _segments_kernel(
     out_r,
     out_n,
     out_cov,
-    out_se,
+    out_mad,
     out_tilt,
     out_shift,
-    out_inside,
     max_points,
 ):
     nr = indptr.size - 1
@@ -289,11 +317,8 @@ def _segments_kernel(
         b2 = np.cross(a, b1)
         occ = np.zeros(12, dtype=np.bool_)
         n_in = 0
-        n_inner = 0
         dev = np.empty(m)
         for i in range(m):
-            if res[i] < -0.5 * r:  # within half the radius of the axis
-                n_inner += 1
             if abs(res[i]) <= band:
                 d0 = x[i, 0] - c[0]
                 d1 = x[i, 1] - c[1]
@@ -312,12 +337,49 @@ def _segments_kernel(
         out_r[k] = r
         out_n[k] = n_in
         out_cov[k] = occ.sum() / 12.0
-        out_se[k] = 1.4826 * mad / np.sqrt(max(n_in - 5, 1))
+        out_mad[k] = mad
         cosang = abs(np.sum(a * a0))
         out_tilt[k] = np.arccos(min(cosang, 1.0))
         # the axis' distance from the chord midpoint, across the chord
         out_shift[k] = np.sqrt(p[0] * p[0] + p[1] * p[1])
-        out_inside[k] = n_inner / m
+
+
+def fit_run_cylinders(
+    xyz: NDArray[np.float64],
+    indptr: NDArray[np.int64],
+    index: NDArray[np.int64],
+    start: NDArray[np.float64],
+    axis: NDArray[np.float64],
+    radius: NDArray[np.float64],
+) -> RunCylinders:
+    """One cylinder per run: run ``k`` holds the points ``xyz[index[indptr[k]:indptr[k+1]]]``
+    (at most :data:`SEGMENT_MAX_POINTS` of them used, evenly spread); the fit starts from
+    the axis through ``start[k]`` along the unit ``axis[k]`` and the radius ``radius[k]``."""
+    nr = indptr.size - 1
+    out_r = np.full(nr, -1.0)
+    out_n = np.zeros(nr, dtype=np.int64)
+    out_cov = np.zeros(nr)
+    out_mad = np.zeros(nr)
+    out_tilt = np.zeros(nr)
+    out_shift = np.zeros(nr)
+    _segments_kernel(
+        np.ascontiguousarray(xyz, dtype=np.float64),
+        np.ascontiguousarray(indptr, dtype=np.int64),
+        np.ascontiguousarray(index, dtype=np.int64),
+        np.ascontiguousarray(start, dtype=np.float64),
+        np.ascontiguousarray(axis, dtype=np.float64),
+        np.ascontiguousarray(radius, dtype=np.float64),
+        out_r,
+        out_n,
+        out_cov,
+        out_mad,
+        out_tilt,
+        out_shift,
+        SEGMENT_MAX_POINTS,
+    )
+    # the standard error of a mean distance, sigma = 1.4826 MAD, five parameters fitted
+    se = np.where(out_r > 0, 1.4826 * out_mad / np.sqrt(np.maximum(out_n - 5, 1)), np.inf)
+    return RunCylinders(out_r, out_n, out_cov, out_mad, se, out_tilt, out_shift)
 
 
 def fit_segments(
@@ -376,39 +438,11 @@ def fit_segments(
     ln = np.linalg.norm(chord, axis=1)
     a0 = chord / np.maximum(ln, 1e-12)[:, None]
     mid = 0.5 * (p0 + p1)
-    out_r = np.full(nr, -1.0)
-    out_n = np.zeros(nr, dtype=np.int64)
-    out_cov = np.zeros(nr)
-    out_se = np.full(nr, np.inf)
-    out_tilt = np.zeros(nr)
-    out_shift = np.zeros(nr)
-    out_inside = np.zeros(nr)
-    _segments_kernel(
-        np.ascontiguousarray(xyz, dtype=np.float64),
-        indptr,
-        srt.astype(np.int64),
-        np.ascontiguousarray(mid),
-        np.ascontiguousarray(a0),
-        np.ascontiguousarray(r0),
-        out_r,
-        out_n,
-        out_cov,
-        out_se,
-        out_tilt,
-        out_shift,
-        out_inside,
-        SEGMENT_MAX_POINTS,
-    )
-    # the inliers' median absolute residual, back from the standard error
-    mad = out_se * np.sqrt(np.maximum(out_n - 5, 1)) / 1.4826
+    fits = fit_run_cylinders(xyz, indptr, srt, mid, a0, r0)
+    out_r = fits.radius
     ok_run = (
-        (out_r > 0)
-        & (out_n >= SEGMENT_POINTS)
-        & (out_cov >= min_coverage)
-        & (out_se <= SEGMENT_SE * out_r)
-        & (mad <= SEGMENT_MAX_MAD * out_r)
-        & (out_tilt <= SEGMENT_MAX_TILT)
-        & (out_shift <= 2.0 * r0 + spacing)
+        fits.usable(min_coverage)
+        & (fits.shift <= 2.0 * r0 + spacing)
         & (out_r <= 2.0 * r0 + spacing)
     )
     # noise only lengthens the distances to the axis: a run too thin for the scan's noise
@@ -418,5 +452,5 @@ def fit_segments(
     ok_node = (run >= 0) & ok_run[np.maximum(run, 0)]
     bound = (run >= 0) & bound_run[np.maximum(run, 0)]
     return SegmentFit(
-        r_node, ok_node, run, out_r, out_n, out_cov, out_se, out_tilt, out_inside, bound
+        r_node, ok_node, run, out_r, fits.inliers, fits.coverage, fits.se, fits.tilt, bound
     )
