@@ -8,7 +8,15 @@ import pytest
 
 from biomorph.core.graph import BranchGraph
 from biomorph.tree.metrics import cylinder_fit
-from biomorph.tree.radius import TWIG_MAX_OFFSET, TWIG_MIN_POINTS, twig_offset
+from biomorph.tree.radius import (
+    NOISE_PER_MAD,
+    TWIG_LOOKS,
+    TWIG_MAX_OFFSET,
+    TWIG_MIN_POINTS,
+    TWIG_SURFACE_RATIO,
+    _noise_median,
+    twig_offset,
+)
 
 
 def _scan(radii, spacing: float = 0.004, seed: int = 0):
@@ -154,10 +162,52 @@ def test_an_envelope_of_points_is_not_a_surface_and_leaves_the_model():
     xyz = np.column_stack([rng.uniform(0, 0.5, n), rad * np.cos(a), rad * np.sin(a)])
     g = _model(0.004)
     r, info = twig_offset(g, xyz, np.zeros(g.n_nodes, bool), 0.004)
-    first, second = info[0]["looks"]
-    assert first > 0.0015 and abs(second) >= 0.9 * first
+    looks = info[0]["looks"]
+    assert len(looks) == TWIG_LOOKS
+    assert looks[0] > 0.0015 and abs(looks[-1]) >= TWIG_SURFACE_RATIO * looks[0]
     assert info[0]["surface"] is False and info[0]["offset"] == 0.0
     assert np.array_equal(r, g.radius)
-    # the surface case records both looks, the second far smaller
+    # the surface case records every look, the later ones far smaller
     r, info = twig_offset(g, _scan([0.006]), np.zeros(g.n_nodes, bool), 0.004)
-    assert info[0]["surface"] is True and abs(info[0]["looks"][1]) < 0.2 * info[0]["looks"][0]
+    looks = info[0]["looks"]
+    assert info[0]["surface"] is True and abs(looks[-1]) < 0.2 * looks[0]
+
+
+def _noisy_scan(r: float, sigma: float, n: int = 4000, seed: int = 2):
+    """Points about a 0.5 m twig of radius ``r`` along x, scattered by ``sigma`` per
+    direction across the axis."""
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(0, 2 * np.pi, n)
+    e = rng.normal(0, sigma, (n, 2))
+    y = r * np.cos(a) + e[:, 0] * np.cos(a) - e[:, 1] * np.sin(a)
+    z = r * np.sin(a) + e[:, 0] * np.sin(a) + e[:, 1] * np.cos(a)
+    return np.column_stack([rng.uniform(0, 0.5, n), y, z])
+
+
+def test_the_scans_noise_is_not_taken_for_missing_wood():
+    # an exact 6 mm model, points scattered 3 mm across the surface: they lie farther from
+    # the axis than 6 mm on average, which the raw looks read as a missing millimetre
+    xyz = _noisy_scan(0.006, 0.003)
+    g = _model(0.006)
+    _, info = twig_offset(g, xyz, np.zeros(g.n_nodes, bool), 0.004)
+    raw = info[0]["offset"]
+    assert raw > 8e-4 and info[0]["bias"] == 0.0
+    mad = 0.003 / NOISE_PER_MAD  # what the stem circles of such a scan would report
+    r, info = twig_offset(g, xyz, np.zeros(g.n_nodes, bool), 0.004, noise=mad)
+    assert info[0]["noise"] == mad and info[0]["bias"] > 4e-4
+    # most of it was noise (the two looks leave about a quarter of it)
+    assert abs(info[0]["offset"]) < 0.3 * raw
+    assert np.allclose(r, 0.006, atol=3e-4)
+    # a twig modelled 2 mm too thin in 2 mm of noise still gets its 2 mm (raw: 2.45)
+    xyz = _noisy_scan(0.006, 0.002)
+    mad = 0.002 / NOISE_PER_MAD
+    r, info = twig_offset(_model(0.004), xyz, np.zeros(g.n_nodes, bool), 0.006, noise=mad)
+    assert info[0]["offset"] == pytest.approx(0.002, abs=2e-4)
+
+
+def test_noise_median_grows_as_the_twig_thins():
+    rd = np.full(200, 0.004)
+    thin, thick = _noise_median(rd, 0.002), _noise_median(4 * rd, 0.002)
+    assert thin > thick > 0 and _noise_median(rd, 0.0) == 0.0
+    # the same stream every call: a cloud gives the same offset twice
+    assert _noise_median(rd, 0.002) == thin

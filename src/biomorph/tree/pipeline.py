@@ -798,6 +798,7 @@ def twig_phase(run: _Run) -> None:
     """The modelled twigs' radii from their points (:func:`biomorph.tree.radius.twig_offset`),
     once the skeleton is complete (after the residual branches). Off with
     ``RadiusOptions.twig_scale = False`` (``--no-twig-scale``) or without the taper model."""
+    from biomorph.tree import radius as rd
     from biomorph.tree.metrics import segment_candidates
     from biomorph.tree.radius import twig_offset
 
@@ -816,7 +817,10 @@ def twig_phase(run: _Run) -> None:
         measured = measured | fit.segment
     cand = segment_candidates(graph, run.cloud.xyz, order=run.point_index().indices)
     run.candidates = (graph.position, graph.parent, cand)
-    radius, info = twig_offset(graph, run.cloud.xyz, measured, spacing, candidates=cand)
+    noise = rd.surface_scatter(graph, fit)
+    radius, info = twig_offset(
+        graph, run.cloud.xyz, measured, spacing, candidates=cand, noise=noise
+    )
     run.graph = graph.with_(radius=radius)
     run.info["twig_offset"] = info
     run.timings["radius_fit"] = run.timings.get("radius_fit", 0.0) + time.perf_counter() - t0

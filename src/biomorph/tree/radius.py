@@ -818,14 +818,11 @@ def segment_radii(
     kd = kdtree if kdtree is not None else PointIndex(xyz)
     carried = np.maximum(graph.subtree_length() + graph.edge_length, 1e-6)
     reliable, stem = _reliable_fits(graph, fit, carried)
+    noise = surface_scatter(graph, fit)
+    if noise <= 0:
+        return taper_radii(graph, fit, min_radius=min_radius, exponent=exponent, slack=slack)
     d, near = skeleton_distance(xyz, graph.parent, graph.position, order=kd.indices)
     bid, _ = branch_ids(graph, carried)
-    # the scan's surface scatter, from the stem's well-measured circles (else all of them)
-    mad = fit.mad if fit.mad is not None else np.zeros(graph.n_nodes)
-    pool = reliable & stem if (reliable & stem).sum() >= 3 else reliable
-    if pool.sum() < 3:
-        return taper_radii(graph, fit, min_radius=min_radius, exponent=exponent, slack=slack)
-    noise = float(np.median(mad[pool]))
     segs = fit_segments(
         graph,
         xyz,
@@ -898,16 +895,21 @@ TWIG_MIN_POINTS = 30
 #: ... and is at most this many point spacings either way: a scan cannot place a surface
 #: more finely than its spacing, so a larger offset is clutter (needles, leaves), not wood
 TWIG_MAX_OFFSET = 0.5
-#: the offset is measured twice, the second time on the model thickened by the first: the
-#: points within one radius of a surface are a window that widens with the radius, so one
-#: look sees only part of what a too-thin twig leaves outside (rTwig: residual +0.29 →
-#: +0.20 after one look, +0.12 after two). Where the second look finds at least this share
-#: of what the first found, the points around the twigs are an envelope, not a surface the
-#: model can reach — needles around a spruce's shoots, the halo of a sparse, noisy scan —
-#: and the tree keeps its model: on the real clouds and synthetic scans measured the second
-#: look found 0.71–0.89 of the first on twig surfaces (rTwig, A3B4, aRchi, the presets
-#: clean and the conifer and maple at 8 mm) and 0.98–1.25 around envelopes (TreeLS spruce,
-#: AdTree tree1 and tree7, the birch preset at 8 mm noise)
+#: the model is looked at this many times, each look on the model thickened by the looks
+#: before it; the first two set the offset (session 17: the points within one radius of a
+#: surface are a window that widens with the radius, so one look sees only part of what a
+#: too-thin twig leaves outside; rTwig: residual +0.29 → +0.20 after one look, +0.12 after
+#: two), all of them say whether the points are a surface the model can reach
+TWIG_LOOKS = 6
+#: ... which they are where the last look finds less than this share of what the first
+#: found: around a surface the looks shrink as the model nears it, around an envelope
+#: (needles about a spruce's shoots, the halo of a sparse, noisy scan) the widening window
+#: keeps finding more. Over six looks the real clouds and synthetic scans measured (session
+#: 19) gave 0.31–0.88 on twig surfaces (rTwig, A3B4, aRchi, graph and voxel, with and without
+#: run cylinders; the presets clean and at 8 mm) and 1.00–1.64 around envelopes (TreeLS
+#: spruce, AdTree tree1 and tree7). Two looks alone (sessions 17–18) left 0.71–0.89 against
+#: 0.98–1.25 and flipped on the voxel models once runs had measured the thicker twigs: a
+#: model far thinner than its twig first reads *more* missing as its window reaches the bark
 TWIG_SURFACE_RATIO = 0.95
 
 
@@ -919,6 +921,7 @@ def twig_offset(
     *,
     slack: float = 1.1,
     candidates: SegmentCandidates | None = None,
+    noise: float = 0.0,
 ) -> tuple[NDArray[np.float64], dict[int, dict]]:
     """The modelled twigs' radii set to what their points say, per tree.
 
@@ -939,13 +942,19 @@ def twig_offset(
     second on the model thickened by the first), clipped to :data:`TWIG_MAX_OFFSET` point
     spacings either way, and no node more than doubles or halves; a branch then stays no
     thicker than its parent node (the continuation at most ``slack`` × it, as
-    :func:`taper_radii`). It is applied only where the points behave as a surface: the
-    second look finds less than :data:`TWIG_SURFACE_RATIO` of what the first found, and
-    less by more than two standard errors of the first look's median (a tree of a few
-    hundred points around its twigs cannot tell a surface from an envelope otherwise).
-    Returns the new radii and, per tree, the applied ``offset`` (m; 0 where not applied),
-    the two ``looks`` (m), ``surface``, the ``points`` behind the first look and the
-    ``nodes`` concerned; trees without enough points are not in it and keep their radii.
+    :func:`taper_radii`). With the scan's surface scatter ``noise`` (m, the mean absolute
+    residual of its stem circles, :func:`surface_scatter`) each look is read against what
+    it would show about an exact model (:func:`_noise_median`): points scattered about a
+    thin twig lie farther from its axis than its radius, a deficit that is noise, not wood
+    (at 8 mm range noise the presets' twigs took +0.9 mm from it). It is applied only where
+    the points behave as a surface: after :data:`TWIG_LOOKS` looks, each on the model
+    thickened by those before, the last finds less than :data:`TWIG_SURFACE_RATIO` of what
+    the first found, and less by more than two standard errors of the first look's median
+    (a tree of a few hundred points around its twigs cannot tell a surface from an envelope
+    otherwise). Returns the new radii and, per tree, the applied ``offset`` (m; 0 where not
+    applied), the raw ``looks`` (m), the ``noise`` and the first look's noise ``bias`` (m),
+    ``surface``, the ``points`` behind the first look and the ``nodes`` concerned; trees
+    without enough points are not in it and keep their radii.
     ``candidates``: the points' :func:`~biomorph.tree.metrics.segment_candidates` on this
     skeleton, if searched already. Turned off by ``RadiusOptions.twig_scale = False``
     (``--no-twig-scale``), e.g. when the species' twig radius is known (``--min-radius``,
@@ -968,13 +977,24 @@ def twig_offset(
     # the axes do not move between the looks: one candidate search
     cand = candidates if candidates is not None else segment_candidates(graph, xyz)
 
-    def look(r: NDArray[np.float64], among: NDArray[np.int64]) -> dict[int, NDArray]:
+    def look(r: NDArray[np.float64], among) -> dict[int, tuple[NDArray, NDArray]]:
         """Per tree of ``among``: the signed surface distances of the points within one
-        radius of its modelled twigs' surfaces, the twigs at radii ``r``."""
+        radius of its modelled twigs' surfaces, the twigs at radii ``r``, and the radius of
+        each point's cylinder."""
         sd, rd, near = surface_distance(graph.with_(radius=r), xyz, candidates=cand)
         sel = (np.abs(sd) <= rd) & target[near]
         tree_of = trees[near]
-        return {int(t): sd[sel & (tree_of == t)] for t in among}
+        out = {}
+        for t in among:
+            ts = sel & (tree_of == t)
+            out[int(t)] = (sd[ts], rd[ts])
+        return out
+
+    def read(x: tuple[NDArray, NDArray], debias: bool = False) -> float:
+        """A look's reading: the median signed distance, less the noise's (``debias``)."""
+        d, rd = x
+        m = float(np.median(d)) if d.size else 0.0
+        return m - _noise_median(rd, noise) if debias else m
 
     def apply(offset: dict[int, float]) -> NDArray[np.float64]:
         per_tree = np.zeros(int(trees.max()) + 1)
@@ -987,31 +1007,85 @@ def twig_offset(
         return _cap_down_slack(graph.parent, graph.order, out, slack_v)
 
     first = {
-        t: d for t, d in look(radius, np.unique(trees[target])).items() if d.size >= TWIG_MIN_POINTS
+        t: x
+        for t, x in look(radius, np.unique(trees[target])).items()
+        if x[0].size >= TWIG_MIN_POINTS
     }
     if not first:
         return radius, info
-    m1 = {t: float(np.median(d)) for t, d in first.items()}
-    off1 = {t: float(np.clip(m, -lim, lim)) for t, m in m1.items()}
-    second = look(apply(off1), np.array(list(first)))
+    among = list(first)
+    # the raw looks, each on the model thickened by the looks before it
+    looks = {t: [read(x)] for t, x in first.items()}
+    for _ in range(TWIG_LOOKS - 1):
+        cum = {t: float(np.clip(sum(m), -lim, lim)) for t, m in looks.items()}
+        for t, x in look(apply(cum), among).items():
+            looks[t].append(read(x))
+    # the offset: two looks, read against the noise (without it, the raw looks' first two)
+    bias = {t: read(x) - read(x, debias=True) for t, x in first.items()}
+    off1 = {t: float(np.clip(m[0] - bias[t], -lim, lim)) for t, m in looks.items()}
+    second = look(apply(off1), among) if noise > 0 else {}
+    offset = {
+        t: float(np.clip(off1[t] + (read(second[t], True) if noise > 0 else m[1]), -lim, lim))
+        for t, m in looks.items()
+    }
     kept: dict[int, float] = {}
-    for t, d in first.items():
-        m2 = float(np.median(d2)) if (d2 := second[t]).size else 0.0
+    for t, x in first.items():
+        m = looks[t]
         # standard error of the first look's median: 1.2533 σ / √n, σ = 1.4826 MAD
-        se = 1.2533 * 1.4826 * float(np.median(np.abs(d - m1[t]))) / np.sqrt(d.size)
-        # a surface the model can reach: the second look finds less missing than the
+        d = x[0]
+        se = 1.2533 * 1.4826 * float(np.median(np.abs(d - m[0]))) / np.sqrt(d.size)
+        # a surface the model can reach: the last look finds less missing than the
         # first, by a share and by more than two standard errors
-        surface = abs(m2) < TWIG_SURFACE_RATIO * abs(m1[t]) and abs(m1[t]) - abs(m2) > 2 * se
+        surface = abs(m[-1]) < TWIG_SURFACE_RATIO * abs(m[0]) and abs(m[0]) - abs(m[-1]) > 2 * se
         if surface:
-            kept[t] = float(np.clip(off1[t] + m2, -lim, lim))
+            kept[t] = offset[t]
         info[t] = {
             "points": int(d.size),
             "offset": kept.get(t, 0.0),
-            "looks": [m1[t], m2],
+            "looks": m,
+            "noise": noise,
+            "bias": bias[t],
             "surface": bool(surface),
             "nodes": int((target & (trees == t)).sum()),
         }
     return (apply(kept) if kept else radius), info
+
+
+#: a scan's scatter about a surface per direction, from the mean absolute residual of its
+#: stem circles (which see only the radial part): range noise of spread σ along rays
+#: meeting a cylinder at uniform incidence has an RMS of σ/√2 both radially and
+#: tangentially, and a mean absolute radial residual of about 0.8 × that RMS
+NOISE_PER_MAD = 1.25
+
+
+def surface_scatter(graph: BranchGraph, fit: RadiusFit) -> float:
+    """The scan's surface scatter (m): the median mean-absolute residual of the reliable
+    circle fits on the stems' lower halves (of all reliable fits with fewer than three
+    there); 0 without three reliable fits."""
+    if fit.mad is None or fit.ok.size != graph.n_nodes:
+        return 0.0
+    carried = np.maximum(graph.subtree_length() + graph.edge_length, 1e-6)
+    reliable, stem = _reliable_fits(graph, fit, carried)
+    pool = reliable & stem if (reliable & stem).sum() >= 3 else reliable
+    return float(np.median(fit.mad[pool])) if pool.sum() >= 3 else 0.0
+
+
+def _noise_median(rd: NDArray[np.float64], noise: float, reps: int = 16) -> float:
+    """The median signed surface distance a look would read at cylinders of radii ``rd``
+    if the model were exact and the scan scattered its points by ``noise`` (mean absolute
+    residual, :data:`NOISE_PER_MAD`): points about a thin cylinder lie farther from its
+    axis than its radius on average (a tangential error lengthens the distance whichever
+    way it goes), and the look's window (within one radius of the surface) cuts the
+    spread asymmetrically. A fixed stream of Gaussian errors (seeded: the same cloud gives
+    the same offset)."""
+    if rd.size == 0 or noise <= 0:
+        return 0.0
+    rng = np.random.default_rng(0)
+    r = np.repeat(rd, reps)
+    e = rng.normal(0.0, NOISE_PER_MAD * noise, (r.size, 2))
+    sd = np.hypot(r + e[:, 0], e[:, 1]) - r
+    keep = np.abs(sd) <= r
+    return float(np.median(sd[keep])) if keep.any() else 0.0
 
 
 # --------------------------------------------------------------- taper model (issue 13)
