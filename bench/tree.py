@@ -394,8 +394,11 @@ def run_biomorph(cloud, method: str, graph_kw: dict | None = None) -> dict:
 
 
 def method_options(method: str) -> tuple[str, dict]:
-    """``"graph+runs"`` / ``"voxel+runs"``: the method with the opt-in run cylinders
-    (``run_cylinders=True``, session 18); anything else as given (before a ``+``)."""
+    """``"graph-runs"`` / ``"voxel-runs"``: the method without the run cylinders
+    (``run_cylinders=False``; the graph method's default since session 19);
+    ``"graph+runs"`` / ``"voxel+runs"``: with them; anything else as given (its default)."""
+    if method.endswith("-runs"):
+        return method[: -len("-runs")], {"run_cylinders": False}
     base, _, extra = method.partition("+")
     return base, ({"run_cylinders": True} if extra == "runs" else {})
 
@@ -476,7 +479,7 @@ def _peer_columns(cloud, refs: dict, with_pytlidar: bool, variant: bool, runs: b
         )
     cols["biomorph voxel"] = run_biomorph(cloud, "voxel")
     if runs:
-        cols["graph+runs"] = run_biomorph(cloud, "graph+runs")
+        cols["graph-runs"] = run_biomorph(cloud, "graph-runs")
     if with_pytlidar:
         cols["pytlidar"] = run_pytlidar(cloud.xyz)
     return cols
@@ -683,7 +686,7 @@ def sparse_twigs(seeds: int, voxel: float = 0.05, variant: bool = False) -> None
 def sparse_volume_table(seeds: int, voxel: float = 0.05) -> None:
     """Wood volume per diameter class on sparse scans (the presets at 60,000 points, 5 mm
     noise, occlusion, voxel-thinned to one point per ``voxel`` m), % of the truth: the
-    graph method by default and with ``--run-cylinders`` (session 18)."""
+    graph method without run cylinders (``graph-runs``) and by default (with them)."""
     from biomorph.tree.cloud import downsample
     from biomorph.tree.metrics import class_labels, volume_by_class
     from biomorph.tree.pipeline import skeletonize
@@ -702,7 +705,7 @@ def sparse_volume_table(seeds: int, voxel: float = 0.05) -> None:
             cl = downsample(scan, "voxel", voxel_size=voxel, seed=seed)
             vt = volume_by_class(truth)
             tv = sum(v["volume"] for v in vt.values())
-            for method in ("graph", "graph+runs"):
+            for method in ("graph-runs", "graph"):
                 base, kw = method_options(method)
                 vc = volume_by_class(skeletonize(cl, method=base, **kw).world_graph())
                 cells = " | ".join(f"{100 * vc[k]['volume'] / vt[k]['volume']:.0f}" for k in labs)
@@ -964,9 +967,11 @@ def run_cylinder_table(trials: int = 200) -> None:
 
 
 def run_twig_table(names: tuple[str, ...]) -> None:
-    """On the real clouds, with ``--run-cylinders``: what the runs change on the twigs they
-    measure (median, mm) beside the twig offset's two looks at every modelled twig, and
-    the volume by default and with runs."""
+    """On the real clouds: what the run cylinders change on the twigs they measure
+    (median, mm) beside the twig offset's looks at every modelled twig (first … last, the
+    applied offset and the scan's noise bias), the volume and the < 2.5 cm class's
+    surface residual without and with run cylinders (the graph method's default, opt-in
+    for voxel)."""
     from biomorph.io import read_points
     from biomorph.tree.pipeline import skeletonize
 
@@ -976,23 +981,27 @@ def run_twig_table(names: tuple[str, ...]) -> None:
     print("\n### Run cylinders on real twigs beside the twig offset\n")
     print(
         "| cloud | method | run nodes | twig nodes | runs − model on twigs mm | "
-        "twig offset looks mm (applied) | volume L default → runs |"
+        "twig looks mm first … last (applied; noise bias) | volume L no runs → runs | "
+        "residual < 2.5 cm no runs → runs |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for name in names:
         cloud = read_points(DATA / name)
         for method in ("graph", "voxel"):
             on = skeletonize(cloud, method=method, run_cylinders=True)
-            off = skeletonize(cloud, method=method)
+            off = skeletonize(cloud, method=method, run_cylinders=False)
             rc = on.info.get("run_cylinders") or {}
             tw = (on.info.get("twig_offset") or {}).get(0, {})
-            looks = "/".join(f"{1e3 * x:.2f}" for x in tw.get("looks", []))
+            lk = tw.get("looks", [])
+            looks = f"{1e3 * lk[0]:.2f} … {1e3 * lk[-1]:.2f}" if lk else "–"
             shift = rc.get("twig_shift")
             vol = [sum(t["total_volume"] for t in s.metrics["trees"]) * 1e3 for s in (off, on)]
+            res = [s.metrics["fit"]["classes"]["<2.5cm"]["residual"] for s in (off, on)]
             print(
                 f"| {name} | {method} | {rc.get('nodes', 0)} | {rc.get('twig_nodes', 0)} | "
                 f"{_fmt(None if shift is None else 1e3 * shift, '{:+.2f}')} | {looks} "
-                f"({1e3 * tw.get('offset', 0.0):.2f}) | {vol[0]:.1f} → {vol[1]:.1f} |"
+                f"({1e3 * tw.get('offset', 0.0):.2f}; {1e3 * tw.get('bias', 0.0):.2f}) | "
+                f"{vol[0]:.1f} → {vol[1]:.1f} | {res[0]:+.3f} → {res[1]:+.3f} |"
             )
             sys.stdout.flush()
 
@@ -1030,7 +1039,7 @@ def main() -> None:
     ap.add_argument(
         "--runs",
         action="store_true",
-        help="peers: also the graph method with --run-cylinders (column graph+runs)",
+        help="peers: also the graph method without run cylinders (column graph-runs)",
     )
     ap.add_argument(
         "--sizes",
@@ -1043,7 +1052,7 @@ def main() -> None:
         "--methods",
         nargs="*",
         default=["graph", "voxel"],
-        help="graph, voxel, graph+variant (truth), graph+runs / voxel+runs (--run-cylinders)",
+        help="graph, voxel, graph+variant (truth), graph-runs / voxel-runs (--no-run-cylinders)",
     )
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--points", type=int, default=60_000, help="points per synthetic scan")

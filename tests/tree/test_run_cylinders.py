@@ -48,6 +48,20 @@ def test_a_run_cylinder_measures_a_thin_branch_seen_from_one_side():
     assert (seg.run_points[seg.run_radius > 0] >= SEGMENT_POINTS).all()
 
 
+def test_a_run_cylinder_puts_its_nodes_on_the_branch_axis():
+    """The skeleton sits 6 mm off the axis towards the scanner; the feet of its nodes on
+    the runs' fitted axes lie within 2 mm of the true axis (y = 0, z = 1; 1.5 mm noise)."""
+    g, pts = _half_branch(150)
+    seg = _segments(g, pts, 0.02)
+    assert seg.centre is not None
+    c = seg.centre[seg.ok]
+    off = np.hypot(c[:, 1], c[:, 2] - 1.0)
+    before = np.hypot(g.position[seg.ok, 1], g.position[seg.ok, 2] - 1.0)
+    assert np.median(before) > 0.005 and np.median(off) < 0.002
+    # the feet stay where their nodes were along the branch
+    assert np.allclose(c[:, 0], g.position[seg.ok, 0], atol=0.005)
+
+
 def test_a_run_with_too_few_points_is_not_used():
     g, pts = _half_branch(20)  # 4 points per run of 10 diameters: under SEGMENT_POINTS
     seg = _segments(g, pts, 0.01)
@@ -151,7 +165,7 @@ def test_run_cylinders_bring_the_birch_preset_s_mid_class_towards_the_truth():
     assert "segments" not in str(out[False][2]["taper_model"])
 
 
-def test_the_cli_turns_run_cylinders_on(tmp_path, capsys):
+def test_run_cylinders_are_on_for_the_graph_method_and_the_cli_turns_them_off(tmp_path, capsys):
     import json
 
     from biomorph.cli import run
@@ -160,12 +174,18 @@ def test_the_cli_turns_run_cylinders_on(tmp_path, capsys):
 
     src = _write_xyz(tmp_path / "y.xyz", make_cloud(n=4000, seed=21))
     args = ["tree", "skeletonize", str(src), "--json", "--no-ground"]
-    assert run([*args, "--out", str(tmp_path / "on"), "--run-cylinders"]) == 0
+    assert run([*args, "--out", str(tmp_path / "on")]) == 0
     on = json.loads(capsys.readouterr().out)
-    assert run([*args, "--out", str(tmp_path / "off")]) == 0
+    assert run([*args, "--out", str(tmp_path / "off"), "--no-run-cylinders"]) == 0
     off = json.loads(capsys.readouterr().out)
     assert on["params"]["run_cylinders"] is True and off["params"]["run_cylinders"] is False
     assert on["metrics"]["nob"] == off["metrics"]["nob"] == 3  # the same Y
+    # the voxel method keeps them off unless asked
+    vox = [*args, "--method", "voxel"]
+    assert run([*vox, "--out", str(tmp_path / "v0")]) == 0
+    assert json.loads(capsys.readouterr().out)["params"]["run_cylinders"] is False
+    assert run([*vox, "--out", str(tmp_path / "v1"), "--run-cylinders"]) == 0
+    assert json.loads(capsys.readouterr().out)["params"]["run_cylinders"] is True
 
 
 def test_a_run_too_thin_for_the_scan_s_noise_only_bounds_the_radius():

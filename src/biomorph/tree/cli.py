@@ -66,7 +66,8 @@ def _option_parameters() -> list[inspect.Parameter]:
         check = None
         if spec.lo is not None or spec.hi is not None:
             check = bounded(spec.lo, spec.hi, lo_open=spec.lo_open, hi_open=spec.hi_open)
-        decls = [spec.flag] if typ is not bool else [f"{spec.flag}/--no-{spec.flag[2:]}"]
+        flag = typ is bool or typ == bool | None
+        decls = [f"{spec.flag}/--no-{spec.flag[2:]}"] if flag else [spec.flag]
         opt = typer.Option(
             *decls, help=spec.help, callback=check, rich_help_panel=f"{stage.capitalize()} options"
         )

@@ -749,15 +749,17 @@ def detour_phase(run: _Run) -> None:
 def segment_phase(run: _Run) -> None:
     """The final skeleton's radii again, with the cylinders of runs of nodes where no circle
     fit is reliable (:func:`biomorph.tree.radius.segment_radii`); the earlier radius passes,
-    which the cleanup rules read, use circle fits alone. Opt-in (``RadiusOptions.run_cylinders``,
-    ``--run-cylinders``); off without the taper model."""
+    which the cleanup rules read, use circle fits alone. ``RadiusOptions.run_cylinders``
+    (``--run-cylinders/--no-run-cylinders``; None: on for the graph method, off for voxel);
+    off without the taper model."""
     from biomorph.tree import radius as rd
     from biomorph.tree.cleanup import smooth_chains
 
     ro = run.opts.radius
     graph, fit = run.graph, run.fit
-    run.params.update(run_cylinders=ro.run_cylinders)
-    if not (ro.run_cylinders and ro.method == "fit" and ro.taper) or graph is None or fit is None:
+    on = ro.run_cylinders if ro.run_cylinders is not None else run.opts.method == "graph"
+    run.params.update(run_cylinders=on)
+    if not (on and ro.method == "fit" and ro.taper) or graph is None or fit is None:
         return
     assert run.cloud is not None
     spacing = run.point_spacing()
@@ -773,7 +775,15 @@ def segment_phase(run: _Run) -> None:
         exponent=ro.taper_exponent,
         kdtree=run.point_index(),
     )
-    new = smooth_chains(graph.with_(radius=radius), ro.smooth)
+    graph_r = graph.with_(radius=radius)
+    if ro.recentre and fit.segment_centre is not None:
+        # the run-measured nodes onto their run's axis, as the circle fits recentre theirs
+        move = np.isfinite(fit.segment_centre[:, 0])
+        if move.any():
+            pos = graph.position.copy()
+            pos[move] = fit.segment_centre[move]
+            graph_r = graph_r.with_(position=pos)
+    new = smooth_chains(graph_r, ro.smooth)
     if fit.segment is not None and graph.radius is not None and new.radius is not None:
         # what the runs changed on the twigs they measured (radius within two point
         # spacings): the model's twig deficit where it could be measured, beside the

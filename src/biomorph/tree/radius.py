@@ -506,7 +506,9 @@ class RadiusFit:
     inlier, TreeQSM's ``SurfCov`` in one slab), ``ok`` mask of usable fits, ``mad`` mean
     absolute residual of the inliers (m, TreeQSM's ``mad``), ``reliable`` mask of the fits
     kept as measured (set by :func:`taper_radii`; None before), ``inside`` the count of the
-    slab's points within :data:`INSIDE_RADIUS` of the radius from the centre."""
+    slab's points within :data:`INSIDE_RADIUS` of the radius from the centre;
+    ``segment`` the nodes whose radius a run's cylinder measured (``--run-cylinders``) and
+    ``segment_centre`` the foot of each such node on its run's axis (NaN elsewhere)."""
 
     centre: NDArray[np.float64]
     radius: NDArray[np.float64]
@@ -519,6 +521,7 @@ class RadiusFit:
     model: dict | None = None
     inside: NDArray[np.int64] | None = None
     segment: NDArray[np.bool_] | None = None
+    segment_centre: NDArray[np.float64] | None = None
 
 
 def fit_circles(
@@ -1332,7 +1335,23 @@ def taper_radii(
     keep |= run
     slack_v = np.where(cont, float(slack), 1.0)
     radius = _cap_down_slack(par, graph.order, radius, slack_v)
-    return radius, dataclasses.replace(fit, reliable=reliable & keep, model=info, segment=seg_keep)
+    return radius, dataclasses.replace(
+        fit,
+        reliable=reliable & keep,
+        model=info,
+        segment=seg_keep,
+        segment_centre=_segment_centres(segments, seg_keep),
+    )
+
+
+def _segment_centres(segments: SegmentFit | None, kept: NDArray[np.bool_]) -> NDArray | None:
+    """Where a run measured the radius (``kept``), its axis is the branch's: the feet of
+    those nodes on it (NaN elsewhere; a run that only bounds the radius is no measurement
+    of the axis either)."""
+    if segments is None or segments.centre is None:
+        return None
+    moved = kept & ~segments.bound if segments.bound is not None else kept
+    return np.where(moved[:, None], segments.centre, np.nan)
 
 
 @numba.njit(cache=True)

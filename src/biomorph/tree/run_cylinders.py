@@ -98,7 +98,9 @@ class SegmentFit:
     run), ``ok`` where that fit is usable, ``run`` the run id (-1: none); per run:
     ``run_radius``, ``run_points`` (inliers), ``run_coverage``, ``run_se`` (standard error of
     the radius, m), ``run_tilt`` (rad); per node ``bound``: the run is too thin for the
-    scan's noise and bounds the radius from above only."""
+    scan's noise and bounds the radius from above only; ``centre``: the node moved onto
+    its run's fitted axis (the foot of the perpendicular; NaN where the node is in no
+    fitted run)."""
 
     radius: NDArray[np.float64]
     ok: NDArray[np.bool_]
@@ -109,6 +111,7 @@ class SegmentFit:
     run_se: NDArray[np.float64]
     run_tilt: NDArray[np.float64]
     bound: NDArray[np.bool_] | None = None
+    centre: NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True)
@@ -116,7 +119,8 @@ class RunCylinders:
     """Per run: fitted ``radius`` (m, -1 = no fit), ``inliers`` count, angular
     ``coverage`` (0–1), ``mad`` (median absolute residual of the inliers, m), ``se``
     (standard error of the radius, m), ``tilt`` of the axis from the start axis (rad),
-    ``shift`` of the axis from the start point across it (m)."""
+    ``shift`` of the axis from the start point across it (m); the fitted axis as a
+    ``centre`` point on it (m) and unit ``axis`` direction (NaN where not fitted)."""
 
     radius: NDArray[np.float64]
     inliers: NDArray[np.int64]
@@ -125,6 +129,8 @@ class RunCylinders:
     se: NDArray[np.float64]
     tilt: NDArray[np.float64]
     shift: NDArray[np.float64]
+    centre: NDArray[np.float64]
+    axis: NDArray[np.float64]
 
     def usable(self, min_coverage: float) -> NDArray[np.bool_]:
         """The fits that pass the quality tests of the module doc that need no skeleton:
@@ -288,6 +294,8 @@ def _segments_kernel(
     out_mad,
     out_tilt,
     out_shift,
+    out_centre,
+    out_axis,
     max_points,
 ):
     nr = indptr.size - 1
@@ -342,6 +350,8 @@ def _segments_kernel(
         out_tilt[k] = np.arccos(min(cosang, 1.0))
         # the axis' distance from the chord midpoint, across the chord
         out_shift[k] = np.sqrt(p[0] * p[0] + p[1] * p[1])
+        out_centre[k] = mid[k] + c
+        out_axis[k] = a
 
 
 def fit_run_cylinders(
@@ -362,6 +372,8 @@ def fit_run_cylinders(
     out_mad = np.zeros(nr)
     out_tilt = np.zeros(nr)
     out_shift = np.zeros(nr)
+    out_centre = np.full((nr, 3), np.nan)
+    out_axis = np.full((nr, 3), np.nan)
     _segments_kernel(
         np.ascontiguousarray(xyz, dtype=np.float64),
         np.ascontiguousarray(indptr, dtype=np.int64),
@@ -375,11 +387,15 @@ def fit_run_cylinders(
         out_mad,
         out_tilt,
         out_shift,
+        out_centre,
+        out_axis,
         SEGMENT_MAX_POINTS,
     )
     # the standard error of a mean distance, sigma = 1.4826 MAD, five parameters fitted
     se = np.where(out_r > 0, 1.4826 * out_mad / np.sqrt(np.maximum(out_n - 5, 1)), np.inf)
-    return RunCylinders(out_r, out_n, out_cov, out_mad, se, out_tilt, out_shift)
+    return RunCylinders(
+        out_r, out_n, out_cov, out_mad, se, out_tilt, out_shift, out_centre, out_axis
+    )
 
 
 def fit_segments(
@@ -451,6 +467,20 @@ def fit_segments(
     r_node = np.where(run >= 0, out_r[np.maximum(run, 0)], -1.0)
     ok_node = (run >= 0) & ok_run[np.maximum(run, 0)]
     bound = (run >= 0) & bound_run[np.maximum(run, 0)]
+    centre = np.full((n, 3), np.nan)
+    if nodes.size:
+        c, a = fits.centre[run[nodes]], fits.axis[run[nodes]]
+        t = np.einsum("ij,ij->i", pos[nodes] - c, a)
+        centre[nodes] = c + t[:, None] * a
     return SegmentFit(
-        r_node, ok_node, run, out_r, fits.inliers, fits.coverage, fits.se, fits.tilt, bound
+        r_node,
+        ok_node,
+        run,
+        out_r,
+        fits.inliers,
+        fits.coverage,
+        fits.se,
+        fits.tilt,
+        bound,
+        centre,
     )
