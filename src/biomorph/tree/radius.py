@@ -910,8 +910,8 @@ TWIG_LOOKS = 6
 #: keeps finding more. Over six looks the real clouds and synthetic scans measured (session
 #: 19) gave 0.31–0.88 on twig surfaces (rTwig, A3B4, aRchi, graph and voxel, with and without
 #: run cylinders; the presets clean and at 8 mm) and 1.00–1.64 around envelopes (TreeLS
-#: spruce, AdTree tree1 and tree7). Two looks alone (sessions 17–18) left 0.71–0.89 against
-#: 0.98–1.25 and flipped on the voxel models once runs had measured the thicker twigs: a
+#: spruce, AdTree tree1 and tree7). Two looks alone (sessions 17–18) gave 0.72–1.04 against
+#: 1.02–1.33 and flipped on the voxel models once runs had measured the thicker twigs: a
 #: model far thinner than its twig first reads *more* missing as its window reaches the bark
 TWIG_SURFACE_RATIO = 0.95
 
