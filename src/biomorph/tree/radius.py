@@ -899,10 +899,11 @@ TWIG_MIN_POINTS = 30
 #: more finely than its spacing, so a larger offset is clutter (needles, leaves), not wood
 TWIG_MAX_OFFSET = 0.5
 #: the model is looked at this many times, each look on the model thickened by the looks
-#: before it; the first two set the offset (session 17: the points within one radius of a
-#: surface are a window that widens with the radius, so one look sees only part of what a
-#: too-thin twig leaves outside; rTwig: residual +0.29 → +0.20 after one look, +0.12 after
-#: two), all of them say whether the points are a surface the model can reach
+#: before it (the points within one radius of a surface are a window that widens with the
+#: radius, so one look sees only part of what a too-thin twig leaves outside); together
+#: they say whether the points are a surface the model can reach, and their sum is the
+#: offset (sessions 17–18 summed two: rTwig's twig residual +0.29 → +0.20 → +0.12 after
+#: one and two looks, +0.06 after six; the rTwig voxel model +0.144 → +0.106)
 TWIG_LOOKS = 6
 #: ... which they are where the last look finds less than this share of what the first
 #: found: around a surface the looks shrink as the model nears it, around an envelope
@@ -941,18 +942,17 @@ def twig_offset(
     the twig's size; on the rTwig cloud the thinnest twigs miss 2.1 mm, those of 1–1.5 and
     1.5–2 spacings 1.5 and 0.8 mm, where a factor would thicken the thicker ones most).
 
-    The offset is measured on at least :data:`TWIG_MIN_POINTS` points, in two looks (the
-    second on the model thickened by the first), clipped to :data:`TWIG_MAX_OFFSET` point
-    spacings either way, and no node more than doubles or halves; a branch then stays no
+    The offset is measured on at least :data:`TWIG_MIN_POINTS` points, in
+    :data:`TWIG_LOOKS` looks (each on the model thickened by those before; their sum),
+    clipped to :data:`TWIG_MAX_OFFSET` point spacings either way, and no node more than doubles or halves; a branch then stays no
     thicker than its parent node (the continuation at most ``slack`` × it, as
     :func:`taper_radii`). With the scan's surface scatter ``noise`` (m, the mean absolute
     residual of its stem circles, :func:`surface_scatter`) each look is read against what
     it would show about an exact model (:func:`_noise_median`): points scattered about a
     thin twig lie farther from its axis than its radius, a deficit that is noise, not wood
     (at 8 mm range noise the presets' twigs took +0.9 mm from it). It is applied only where
-    the points behave as a surface: after :data:`TWIG_LOOKS` looks, each on the model
-    thickened by those before, the last finds less than :data:`TWIG_SURFACE_RATIO` of what
-    the first found, and less by more than two standard errors of the first look's median
+    the points behave as a surface: the last raw look finds less than
+    :data:`TWIG_SURFACE_RATIO` of what the first found, and less by more than two standard errors of the first look's median
     (a tree of a few hundred points around its twigs cannot tell a surface from an envelope
     otherwise). Returns the new radii and, per tree, the applied ``offset`` (m; 0 where not
     applied), the raw ``looks`` (m), the ``noise`` and the first look's noise ``bias`` (m),
@@ -1023,15 +1023,8 @@ def twig_offset(
         cum = {t: float(np.clip(sum(m), -lim, lim)) for t, m in looks.items()}
         for t, x in look(apply(cum), among).items():
             looks[t].append(read(x))
-    # the offset: two looks, read against the noise (without it, the raw looks' first two)
     bias = {t: read(x) - read(x, debias=True) for t, x in first.items()}
-    off1 = {t: float(np.clip(m[0] - bias[t], -lim, lim)) for t, m in looks.items()}
-    second = look(apply(off1), among) if noise > 0 else {}
-    offset = {
-        t: float(np.clip(off1[t] + (read(second[t], True) if noise > 0 else m[1]), -lim, lim))
-        for t, m in looks.items()
-    }
-    kept: dict[int, float] = {}
+    surface: dict[int, bool] = {}
     for t, x in first.items():
         m = looks[t]
         # standard error of the first look's median: 1.2533 σ / √n, σ = 1.4826 MAD
@@ -1039,16 +1032,23 @@ def twig_offset(
         se = 1.2533 * 1.4826 * float(np.median(np.abs(d - m[0]))) / np.sqrt(d.size)
         # a surface the model can reach: the last look finds less missing than the
         # first, by a share and by more than two standard errors
-        surface = abs(m[-1]) < TWIG_SURFACE_RATIO * abs(m[0]) and abs(m[0]) - abs(m[-1]) > 2 * se
-        if surface:
-            kept[t] = offset[t]
+        surface[t] = abs(m[-1]) < TWIG_SURFACE_RATIO * abs(m[0]) and abs(m[0]) - abs(m[-1]) > 2 * se
+    # the offset, on surfaces: the looks summed (without noise, the raw ones); with the
+    # scan's noise, as many looks again, each read against it
+    kept = {t: float(np.clip(sum(looks[t]), -lim, lim)) for t in first if surface[t]}
+    if noise > 0 and kept:
+        kept = {t: float(np.clip(looks[t][0] - bias[t], -lim, lim)) for t in kept}
+        for _ in range(TWIG_LOOKS - 1):
+            nxt = look(apply(kept), list(kept))
+            kept = {t: float(np.clip(o + read(nxt[t], True), -lim, lim)) for t, o in kept.items()}
+    for t, x in first.items():
         info[t] = {
-            "points": int(d.size),
+            "points": int(x[0].size),
             "offset": kept.get(t, 0.0),
-            "looks": m,
+            "looks": looks[t],
             "noise": noise,
             "bias": bias[t],
-            "surface": bool(surface),
+            "surface": bool(surface[t]),
             "nodes": int((target & (trees == t)).sum()),
         }
     return (apply(kept) if kept else radius), info
