@@ -810,7 +810,6 @@ def twig_phase(run: _Run) -> None:
     ``RadiusOptions.twig_scale = False`` (``--no-twig-scale``) or without the taper model."""
     from biomorph.tree import radius as rd
     from biomorph.tree.metrics import segment_candidates
-    from biomorph.tree.radius import twig_offset
 
     ro = run.opts.radius
     run.params.update(twig_scale=ro.twig_scale)
@@ -827,8 +826,9 @@ def twig_phase(run: _Run) -> None:
         measured = measured | fit.segment
     cand = segment_candidates(graph, run.cloud.xyz, order=run.point_index().indices)
     run.candidates = (graph.position, graph.parent, cand)
+    # the scan's scatter, which the offset must not take for missing wood
     noise = rd.surface_scatter(graph, fit)
-    radius, info = twig_offset(
+    radius, info = rd.twig_offset(
         graph, run.cloud.xyz, measured, spacing, candidates=cand, noise=noise
     )
     run.graph = graph.with_(radius=radius)

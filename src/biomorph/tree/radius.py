@@ -944,15 +944,16 @@ def twig_offset(
 
     The offset is measured on at least :data:`TWIG_MIN_POINTS` points, in
     :data:`TWIG_LOOKS` looks (each on the model thickened by those before; their sum),
-    clipped to :data:`TWIG_MAX_OFFSET` point spacings either way, and no node more than doubles or halves; a branch then stays no
-    thicker than its parent node (the continuation at most ``slack`` × it, as
-    :func:`taper_radii`). With the scan's surface scatter ``noise`` (m, the mean absolute
-    residual of its stem circles, :func:`surface_scatter`) each look is read against what
-    it would show about an exact model (:func:`_noise_median`): points scattered about a
-    thin twig lie farther from its axis than its radius, a deficit that is noise, not wood
-    (at 8 mm range noise the presets' twigs took +0.9 mm from it). It is applied only where
-    the points behave as a surface: the last raw look finds less than
-    :data:`TWIG_SURFACE_RATIO` of what the first found, and less by more than two standard errors of the first look's median
+    clipped to :data:`TWIG_MAX_OFFSET` point spacings either way, and no node more than
+    doubles or halves; a branch then stays no thicker than its parent node (the
+    continuation at most ``slack`` × it, as :func:`taper_radii`). With the scan's surface
+    scatter ``noise`` (m, the mean absolute residual of its stem circles,
+    :func:`surface_scatter`) each look is read against what it would show about an exact
+    model (:func:`_noise_median`): points scattered about a thin twig lie farther from its
+    axis than its radius, a deficit that is noise, not wood (at 8 mm range noise the
+    presets' twigs took +0.9 mm from it). It is applied only where the points behave as a
+    surface: the last raw look finds less than :data:`TWIG_SURFACE_RATIO` of what the
+    first found, and less by more than two standard errors of the first look's median
     (a tree of a few hundred points around its twigs cannot tell a surface from an envelope
     otherwise). Returns the new radii and, per tree, the applied ``offset`` (m; 0 where not
     applied), the raw ``looks`` (m), the ``noise`` and the first look's noise ``bias`` (m),
