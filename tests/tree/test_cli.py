@@ -309,3 +309,26 @@ def test_no_twig_scale_reaches_the_summary(good_xyz, tmp_path, capsys):
     off = json.loads(capsys.readouterr().out)
     assert on["params"]["twig_scale"] is True and off["params"]["twig_scale"] is False
     assert "twig_offset" not in off["info"]
+
+
+def test_the_summary_table_gives_the_wood_volume_height_and_dbh(good_xyz, tmp_path, capsys):
+    """What a forester reads first, without --json: the volume in all and per diameter
+    class, and for one tree its height, trunk length and DBH, matching summary.json."""
+    from biomorph.tree.metrics import summary_rows
+
+    out = tmp_path / "out"
+    assert run(["tree", "skeletonize", str(good_xyz), "--out", str(out), "--no-ground"]) == 0
+    text = capsys.readouterr().out
+    data = json.loads((out / "summary.json").read_text())
+    rows = dict(summary_rows(data["metrics"]))
+    tree = data["metrics"]["trees"][0]
+    assert rows["wood volume (L)"] == f"{1e3 * tree['total_volume']:,.1f}"
+    assert rows["height / trunk (m)"] == f"{tree['height']:.2f} / {tree['trunk_length']:.2f}"
+    assert "<2.5cm" in rows["volume by diameter (L)"]
+    for label in ("wood volume (L)", "volume by diameter (L)", "height / trunk (m)"):
+        assert label in text
+    # a plot: the total and the classes, no single height
+    two = dict(data["metrics"], trees=[tree, tree])
+    rows2 = dict(summary_rows(two))
+    assert rows2["wood volume (L)"] == f"{2e3 * tree['total_volume']:,.1f}"
+    assert "height / trunk (m)" not in rows2 and "DBH (cm)" not in rows2

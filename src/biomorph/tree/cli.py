@@ -126,6 +126,7 @@ def skeletonize(
     Example: biomorph tree skeletonize scan.laz --method graph --out out/ --json
     """
     from biomorph.tree.export import export_skeleton
+    from biomorph.tree.metrics import summary_rows
     from biomorph.tree.pipeline import skeletonize as run
 
     skel = run(cloud, options=options)
@@ -149,6 +150,7 @@ def skeletonize(
             ("MSE (m²)", m.get("mse")),
             ("max order", m.get("max_order")),
             ("trunk radius (m)", ", ".join(f"{r:.3f}" for r in m.get("trunk_radius", []))),
+            *summary_rows(m),
             ("seconds", skel.timings.get("total")),
             ("output", str(out)),
         ],

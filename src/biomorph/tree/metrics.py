@@ -46,6 +46,7 @@ __all__ = [
     "tree_attributes",
     "cylinder_fit",
     "qsm_report",
+    "summary_rows",
 ]
 
 
@@ -730,3 +731,24 @@ def qsm_report(
     if cloud is not None:
         out["fit"] = cylinder_fit(graph, cloud, candidates=candidates)
     return out
+
+
+def summary_rows(m: dict) -> list[tuple[str, str]]:
+    """What a forester reads first, from a run's ``metrics`` (:func:`qsm_report`'s keys):
+    wood volume in all and per diameter class (L), and for a single tree its height, trunk
+    length and DBH (a plot's per-tree figures are in treedata.csv); label and text pairs
+    for the CLI's summary table and the studio's."""
+    rows: list[tuple[str, str]] = []
+    trees = m.get("trees") or []
+    if trees:
+        rows.append(("wood volume (L)", f"{1e3 * sum(t['total_volume'] for t in trees):,.1f}"))
+    classes = m.get("classes") or {}
+    if classes:
+        cells = ", ".join(f"{k} {1e3 * v['volume']:,.1f}" for k, v in classes.items())
+        rows.append(("volume by diameter (L)", cells))
+    if len(trees) == 1:
+        t = trees[0]
+        rows.append(("height / trunk (m)", f"{t['height']:.2f} / {t['trunk_length']:.2f}"))
+        if t.get("dbh") is not None and np.isfinite(t["dbh"]):
+            rows.append(("DBH (cm)", f"{100 * t['dbh']:.1f}"))
+    return rows

@@ -428,6 +428,8 @@ class TreeTab(StudioTab):
                 return ", ".join(fmt(x) for x in v[:4]) + (" …" if len(v) > 4 else "")
             return str(v)
 
+        from biomorph.tree.metrics import summary_rows
+
         rows = [
             ("method", self.result.method),
             ("nodes", m.get("n_nodes")),
@@ -438,6 +440,7 @@ class TreeTab(StudioTab):
             ("DBH (m)", m.get("dbh")),
             ("trunk radius (m)", m.get("trunk_radius")),
             ("max order", m.get("max_order")),
+            *summary_rows(m),
             ("time (s)", t.get("total")),
         ]
         if self.truth is not None:
