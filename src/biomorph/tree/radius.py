@@ -964,7 +964,7 @@ def twig_offset(
     (``--no-twig-scale``), e.g. when the species' twig radius is known (``--min-radius``,
     rTwig's way).
     """
-    from biomorph.tree.metrics import segment_candidates, surface_distance
+    from biomorph.tree.metrics import SegmentCandidates, segment_candidates, surface_distance
 
     radius = np.asarray(graph.radius, dtype=float)
     info: dict[int, dict] = {}
@@ -978,8 +978,15 @@ def twig_offset(
     lim = TWIG_MAX_OFFSET * spacing
     _, cont = branch_ids(graph)
     slack_v = np.where(cont, float(slack), 1.0)
-    # the axes do not move between the looks: one candidate search
+    # the axes do not move between the looks: one candidate search, and only the points
+    # with a modelled twig among their candidate edges' ends can count in a look
     cand = candidates if candidates is not None else segment_candidates(graph, xyz)
+    ends = np.where(cand.par >= 0, cand.par, cand.node)
+    near_twig = (target[cand.node] | target[ends]).any(axis=1)
+    cand = SegmentCandidates(
+        cand.node[near_twig], cand.par[near_twig], cand.t[near_twig], cand.d[near_twig]
+    )
+    xyz = xyz[near_twig]
 
     def look(r: NDArray[np.float64], among) -> dict[int, tuple[NDArray, NDArray]]:
         """Per tree of ``among``: the signed surface distances of the points within one
@@ -1074,6 +1081,12 @@ def surface_scatter(graph: BranchGraph, fit: RadiusFit) -> float:
     return float(np.median(fit.mad[pool])) if pool.sum() >= 3 else 0.0
 
 
+#: :func:`_noise_median` draws this many simulated points at most (a median of 50,000
+#: draws is within 0.5 % of its spread of the exact one; a 10⁶-point cloud's look holds
+#: 160,000 points, 16 draws each took a second over the twig offset's looks)
+NOISE_DRAWS = 50_000
+
+
 def _noise_median(rd: NDArray[np.float64], noise: float, reps: int = 16) -> float:
     """The median signed surface distance a look would read at cylinders of radii ``rd``
     if the model were exact and the scan scattered its points by ``noise`` (mean absolute
@@ -1081,11 +1094,15 @@ def _noise_median(rd: NDArray[np.float64], noise: float, reps: int = 16) -> floa
     axis than its radius on average (a tangential error lengthens the distance whichever
     way it goes), and the look's window (within one radius of the surface) cuts the
     spread asymmetrically. A fixed stream of Gaussian errors (seeded: the same cloud gives
-    the same offset)."""
+    the same offset), ``reps`` per radius, at most :data:`NOISE_DRAWS` in all (then at
+    radii drawn from ``rd``)."""
     if rd.size == 0 or noise <= 0:
         return 0.0
     rng = np.random.default_rng(0)
-    r = np.repeat(rd, reps)
+    if rd.size * reps <= NOISE_DRAWS:
+        r = np.repeat(rd, reps)
+    else:
+        r = rd[rng.integers(0, rd.size, NOISE_DRAWS)]
     e = rng.normal(0.0, NOISE_PER_MAD * noise, (r.size, 2))
     sd = np.hypot(r + e[:, 0], e[:, 1]) - r
     keep = np.abs(sd) <= r
