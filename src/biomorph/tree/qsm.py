@@ -11,8 +11,8 @@ number, 1-based, is the cylinder's id):
     ``extension`` (row of the cylinder continuing this one in its branch, 0 if none),
     ``branch`` (1-based branch id), ``BranchOrder`` (0 = trunk), ``PositionInBranch``
     (1-based), ``added`` (1 where the radius is the taper model's because no reliable
-    circle fit — nor, with ``--run-cylinders``, its run's cylinder — measured it; TreeQSM
-    marks gap-filling cylinders so), ``mad`` (mean
+    circle fit — nor its run's cylinder, the graph method's default ``--run-cylinders`` —
+    measured it; TreeQSM marks gap-filling cylinders so), ``mad`` (mean
     absolute residual of the circle fit, m), ``SurfCov`` (angular coverage of the fit,
     0–1), ``UnmodRadius`` (the fitted circle radius before the taper model, m);
     then biomorph's ``ID`` (= row) and ``tree_id``.

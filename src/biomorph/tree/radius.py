@@ -821,7 +821,7 @@ def segment_radii(
     kd = kdtree if kdtree is not None else PointIndex(xyz)
     carried = np.maximum(graph.subtree_length() + graph.edge_length, 1e-6)
     reliable, stem = _reliable_fits(graph, fit, carried)
-    noise = surface_scatter(graph, fit)
+    noise = _scatter(fit, reliable, stem)
     if noise <= 0:
         return taper_radii(graph, fit, min_radius=min_radius, exponent=exponent, slack=slack)
     d, near = skeleton_distance(xyz, graph.parent, graph.position, order=kd.indices)
@@ -1076,7 +1076,13 @@ def surface_scatter(graph: BranchGraph, fit: RadiusFit) -> float:
     if fit.mad is None or fit.ok.size != graph.n_nodes:
         return 0.0
     carried = np.maximum(graph.subtree_length() + graph.edge_length, 1e-6)
-    reliable, stem = _reliable_fits(graph, fit, carried)
+    return _scatter(fit, *_reliable_fits(graph, fit, carried))
+
+
+def _scatter(fit: RadiusFit, reliable: NDArray[np.bool_], stem: NDArray[np.bool_]) -> float:
+    """:func:`surface_scatter` from the reliable fits and stem mask already found."""
+    if fit.mad is None:
+        return 0.0
     pool = reliable & stem if (reliable & stem).sum() >= 3 else reliable
     return float(np.median(fit.mad[pool])) if pool.sum() >= 3 else 0.0
 
