@@ -10,6 +10,7 @@
     .venv/bin/python bench/tree.py --only density [--clouds ...]  # real clouds thinned
     .venv/bin/python bench/tree.py --only seeds [--clouds ...]    # repeatability, >= 4 seeds
     .venv/bin/python bench/tree.py --only runs    # run cylinders vs pytlidar's LSF cylinder
+    .venv/bin/python bench/tree.py --only models [--models 5]  # uncertainty, chosen model
 
 ``peers`` prints one table per real cloud: measure × (each reference model, biomorph graph,
 biomorph voxel, pytlidar -- PyPI's Python TreeQSM, install with ``pip install --no-deps
@@ -485,12 +486,26 @@ def _peer_columns(cloud, refs: dict, with_pytlidar: bool, variant: bool, runs: b
     return cols
 
 
+def reference_models(name: str, xyz: NDArray) -> dict:
+    """The published reference models of a shared cloud, in its frame (name → graph)."""
+    from biomorph.io import read_graph
+    from biomorph.tree.reference import read_qsm_csv
+
+    refs: dict = {}
+    if name == "rtwig_cloud.txt":
+        refs["TreeQSM"] = read_treeqsm_mat(DATA / "rtwig_QSM_treeqsm.mat")
+        refs["SimpleForest"] = read_qsm_csv(DATA / "rtwig_QSM_simpleforest.csv")
+    if name == "plantscan3d_A3B4.asc":
+        m = read_graph(DATA / "plantscan3d_A3B4.mtg")
+        refs["plantscan3d"] = m.with_(position=m.position + xyz.mean(axis=0))
+    return refs
+
+
 def peers(
     names: tuple[str, ...], with_pytlidar: bool = True, variant: bool = False, runs: bool = False
 ) -> None:
-    from biomorph.io import read_graph, read_points
+    from biomorph.io import read_points
     from biomorph.tree.metrics import class_labels
-    from biomorph.tree.reference import read_qsm_csv
 
     if not DATA.is_dir():
         print(f"\n(real data not found at {DATA}; skipped)")
@@ -499,13 +514,7 @@ def peers(
     for name in names:
         cloud = read_points(DATA / name)
         xyz = cloud.xyz
-        refs: dict = {}
-        if name == "rtwig_cloud.txt":
-            refs["TreeQSM"] = read_treeqsm_mat(DATA / "rtwig_QSM_treeqsm.mat")
-            refs["SimpleForest"] = read_qsm_csv(DATA / "rtwig_QSM_simpleforest.csv")
-        if name == "plantscan3d_A3B4.asc":
-            m = read_graph(DATA / "plantscan3d_A3B4.mtg")
-            refs["plantscan3d"] = m.with_(position=m.position + xyz.mean(axis=0))
+        refs = reference_models(name, xyz)
         cols = _peer_columns(
             cloud, refs, with_pytlidar and name not in SINGLE_TREE_ONLY, variant, runs
         )
@@ -1006,6 +1015,103 @@ def run_twig_table(names: tuple[str, ...]) -> None:
             sys.stdout.flush()
 
 
+def _models_summary(cloud, n: int, method: str) -> tuple:
+    """Model 0 and the chosen one of :func:`~biomorph.tree.models.reconstruct_models`
+    (world graphs), its stats and the CPU seconds."""
+    from biomorph.tree.models import reconstruct_models
+    from biomorph.tree.options import SkeletonizeOptions
+
+    c0 = time.process_time()
+    m = reconstruct_models(cloud, n, options=SkeletonizeOptions(method=method))
+    cpu = time.process_time() - c0
+    st = m.skeleton.info["models"]
+    return m, st, cpu
+
+
+def models_table(
+    seeds: int, sizes: tuple[int, ...], n: int, names: tuple[str, ...], methods: tuple[str, ...]
+) -> None:
+    """Several models per cloud (:mod:`biomorph.tree.models`): model 0 (the default run)
+    against the model nearest to the points, the volume's spread over the models; on the
+    synthetic presets against the truth, on the real clouds against their references."""
+    from biomorph.io import read_points
+    from biomorph.tree.metrics import compare_to_truth, tree_attributes, volume_by_class
+    from biomorph.tree.pipeline import skeletonize
+    from biomorph.tree.reference import compare_to_reference
+    from biomorph.tree.synthetic import PRESETS, generate_tree, simulate_scan
+
+    conditions = {
+        "clean": dict(noise=0.002, occlusion=False, scanners=4),
+        "8 mm+occl.": dict(noise=0.008, occlusion=True, scanners=2, leaves=0.05),
+    }
+    print(f"\n### {n} models per cloud: model 0 (default) vs the nearest to the points\n")
+    print(
+        "| preset | condition | points | seed | method | volume % model 0 → chosen (scale) | "
+        "models: mean ± sd (min–max) % | length % | trunk % model 0 → chosen | "
+        "F1 model 0 → chosen | cpu × |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for preset in sorted(PRESETS):
+        for cname, kw in conditions.items():
+            for size in sizes:
+                for seed in range(seeds):
+                    truth = generate_tree(preset, seed=seed)
+                    cloud = simulate_scan(truth, n_points=size, seed=seed, ground=True, **kw)
+                    tv = sum(v["volume"] for v in volume_by_class(truth).values())
+                    tt = max(a["trunk_length"] for a in tree_attributes(truth))
+                    for method in methods:
+                        c0 = time.process_time()
+                        g0 = skeletonize(cloud, method=method).world_graph()
+                        one = time.process_time() - c0
+                        f0 = compare_to_truth(g0, truth)["f1"]
+                        m, st, cpu = _models_summary(cloud, n, method)
+                        r0, rb = m.runs[0], m.runs[m.best]
+                        cb = compare_to_truth(m.skeleton.world_graph(), truth)
+                        v = st["volume_L"]
+                        print(
+                            f"| {preset} | {cname} | {size:,} | {seed} | {method} | "
+                            f"{100 * r0.volume / tv:.0f} → {100 * rb.volume / tv:.0f} "
+                            f"({rb.scale:.3g}) | {v['mean'] / 10 / tv:.0f} ± "
+                            f"{v['sd'] / 10 / tv:.0f} ({v['min'] / 10 / tv:.0f}–"
+                            f"{v['max'] / 10 / tv:.0f}) | {100 * cb['tbl_ratio']:.0f} | "
+                            f"{100 * r0.trunk_length / tt:.0f} → "
+                            f"{100 * rb.trunk_length / tt:.0f} | "
+                            f"{f0:.3f} → {cb['f1']:.3f} | "
+                            f"{cpu / max(one, 1e-9):.1f} |"
+                        )
+                        sys.stdout.flush()
+    if not DATA.is_dir():
+        print(f"\n(real data not found at {DATA}; skipped)")
+        return
+    print(f"\n### {n} models per real cloud\n")
+    print(
+        "| cloud | method | volume L model 0 → chosen (scale) | "
+        "models: mean ± sd (min–max) L, CV | trunk m model 0 → chosen | "
+        "distance mm model 0 → chosen | F1 vs references |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for name in names:
+        cloud = read_points(DATA / name)
+        refs = reference_models(name, cloud.xyz)
+        for method in methods:
+            m, st, _ = _models_summary(cloud, n, method)
+            r0, rb = m.runs[0], m.runs[m.best]
+            g = m.skeleton.world_graph()
+            v = st["volume_L"]
+            f1 = ", ".join(
+                f"{k} {compare_to_reference(g, ref, tolerance=0.05)['f1']:.3f}"
+                for k, ref in refs.items()
+            )
+            print(
+                f"| {name} | {method} | {1e3 * r0.volume:.1f} → {1e3 * rb.volume:.1f} "
+                f"({rb.scale:.3g}) | {v['mean']:.1f} ± {v['sd']:.1f} ({v['min']:.1f}–"
+                f"{v['max']:.1f}), {100 * v['cv']:.1f} % | {r0.trunk_length:.2f} → "
+                f"{rb.trunk_length:.2f} | {1e3 * r0.distance:.2f} → {1e3 * rb.distance:.2f} | "
+                f"{f1 or '—'} |"
+            )
+            sys.stdout.flush()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also time 1,000,000 points")
@@ -1022,6 +1128,7 @@ def main() -> None:
             "density",
             "seeds",
             "runs",
+            "models",
         ),
     )
     ap.add_argument(
@@ -1055,6 +1162,7 @@ def main() -> None:
         help="graph, voxel, graph+variant (truth), graph-runs / voxel-runs (--no-run-cylinders)",
     )
     ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--models", type=int, default=5, help="models per cloud (--only models)")
     ap.add_argument("--points", type=int, default=60_000, help="points per synthetic scan")
     ap.add_argument(
         "--tip-support",
@@ -1099,6 +1207,8 @@ def main() -> None:
     if a.only in (None, "runs"):
         run_cylinder_table()
         run_twig_table(tuple(a.clouds))
+    if a.only in (None, "models"):
+        models_table(a.seeds, tuple(a.sizes), a.models, tuple(a.clouds), tuple(a.methods))
 
 
 if __name__ == "__main__":

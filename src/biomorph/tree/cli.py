@@ -44,6 +44,25 @@ def _trees_line(m: dict) -> str:
     )
 
 
+def _models_rows(st: dict | None) -> list[tuple[str, str]]:
+    """The summary rows of several models (:meth:`biomorph.tree.models.Models.stats`)."""
+    if not st:
+        return []
+    v, t = st["volume_L"], st["trunk_length_m"]
+    return [
+        (
+            "models: wood volume (L)",
+            f"{v['mean']:.4g} ± {v['sd']:.2g} (CV {100 * v['cv']:.1f} %, "
+            f"{v['min']:.4g}–{v['max']:.4g}) over {st['n']}",
+        ),
+        ("models: trunk length (m)", f"{t['mean']:.3g} ± {t['sd']:.2g}"),
+        (
+            "models: chosen",
+            f"#{st['best']} (point–model distance {st['best_distance_mm']:.2f} mm)",
+        ),
+    ]
+
+
 def _print_table(title: str, rows: list[tuple[str, Any]]) -> None:
     from rich.table import Table
 
@@ -115,6 +134,15 @@ def skeletonize(
         bool, typer.Option(help="Write original (e.g. georeferenced) coordinates.")
     ] = True,
     seed: Seed = 0,
+    models: Annotated[
+        int,
+        typer.Option(
+            help="Reconstruct N models (seed + i, level width 0.85-1.15 x the derived one), "
+            "keep the one nearest to the points and report the volume's spread over all "
+            "(models.csv, summary.json 'models'; TreeQSM's practice).",
+            callback=bounded(1, 64),
+        ),
+    ] = 1,
     options: SkeletonizeOptions | None = None,
 ) -> None:
     """Skeletonise a tree cloud and write skeleton.ply/.mtg, tube.glb/.obj, the TreeQSM
@@ -129,8 +157,23 @@ def skeletonize(
     from biomorph.tree.metrics import summary_rows
     from biomorph.tree.pipeline import skeletonize as run
 
-    skel = run(cloud, options=options)
+    assert options is not None
+    ensemble = None
+    if models > 1:
+        from biomorph.progress import task
+        from biomorph.tree.models import reconstruct_models
+        from biomorph.tree.pipeline import PHASES
+
+        with task(f"{models} models", total=models * len(PHASES)) as advance:
+            ensemble = reconstruct_models(cloud, models, options=options, progress=advance)
+        skel = ensemble.skeleton
+    else:
+        skel = run(cloud, options=options)
     files = export_skeleton(skel, out, world=world, title=f"{cloud.name} ({method})")
+    if ensemble is not None:
+        from biomorph.io.atomic import write_text
+
+        files["models"] = write_text(Path(out) / "models.csv", ensemble.csv())
     summary = skel.summary()
     summary["files"] = {k_: str(v) for k_, v in files.items()}
     if as_json:
@@ -151,6 +194,7 @@ def skeletonize(
             ("max order", m.get("max_order")),
             ("trunk radius (m)", ", ".join(f"{r:.3f}" for r in m.get("trunk_radius", []))),
             *summary_rows(m),
+            *_models_rows(skel.info.get("models")),
             ("seconds", skel.timings.get("total")),
             ("output", str(out)),
         ],

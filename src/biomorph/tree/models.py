@@ -1,0 +1,268 @@
+"""Several models of one cloud: the volume's uncertainty and the best-fitting model.
+
+A QSM is one reconstruction among the many the same points allow: the skeleton's level
+width (the graph method's node spacing, the voxel method's cell) is a choice within a
+range, and the circle fits draw random triples. TreeQSM's practice is to reconstruct each
+tree several times — random cover sets, a few patch sizes — and to report the volume's
+mean and standard deviation over the models, keeping as *the* model the one whose
+cylinders lie closest to the points. :func:`reconstruct_models` does the same here:
+
+- model 0 is the run with the given options; model ``i ≥ 1`` takes seed ``seed + i``
+  and the level width of model 0 (derived from the cloud's point spacing) times a
+  scale in ``1 ± MODEL_SCALE_SPREAD`` (:func:`model_scales`: the extremes first, then
+  halving the gaps), so the models span the same range whatever ``n``;
+- every model is scored by its **point–model distance** (:func:`point_model_distance`):
+  the mean distance of the prepared points to the nearest cylinder surface, each
+  counted at most :data:`FIT_CAP` (a branch the model missed costs a fixed 10 cm per
+  point instead of its length; a stray point cannot decide);
+- the model with the smallest distance is returned, with every model's volume (total and
+  per diameter class), trunk length, tips and distance, and the spread of each.
+
+Why ±15 %: on the synthetic presets (``bench/tree.py --only models``) the volume of a
+model at 0.85–1.15 × the derived node spacing stays within a few per cent of model 0's on
+the broadleaf presets, while the conifer at 0.85 loses its trunk in some draws (73–83 %
+of the true volume, point–model distance 1.5–2 × the others'): the range is wide enough
+to show where the reconstruction is fragile and the distance picks the models that are
+not. Choosing by the distance moved the presets' total volume towards the truth on 10 of
+16 runs and away by more than a point on none (docs/tree.md, session 20).
+
+Plots: the models are whole-cloud reconstructions and one is chosen for the whole cloud;
+for per-tree uncertainty, run each tree's points (``tree_<id>/points.laz``) on its own.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from biomorph.errors import ParameterError
+from biomorph.tree.options import SkeletonizeOptions
+
+__all__ = [
+    "MODEL_SCALE_SPREAD",
+    "FIT_CAP",
+    "MAX_MODELS",
+    "ModelRun",
+    "Models",
+    "model_scales",
+    "point_model_distance",
+    "reconstruct_models",
+]
+
+#: the models' level widths span ``1 ± MODEL_SCALE_SPREAD`` × the derived one (module doc)
+MODEL_SCALE_SPREAD = 0.15
+#: a point farther than this (m) from every cylinder surface counts this much in the
+#: point–model distance: the far-point threshold of the reference-free fit
+#: (:func:`biomorph.tree.metrics.cylinder_fit`, 10 cm)
+FIT_CAP = 0.10
+#: more models than this would not narrow the spread further (the scales repeat at the
+#: 1/64 level) and only cost time
+MAX_MODELS = 64
+
+
+def model_scales(n: int) -> list[float]:
+    """The level-width scale of each of ``n`` models: 1, then ``1 − s``, ``1 + s``,
+    ``1 − s/2``, ``1 + s/2``, ``1 − 3s/4``, … (``s`` = :data:`MODEL_SCALE_SPREAD`): the
+    whole range first, then ever finer between."""
+    if n < 1:
+        raise ParameterError(f"number of models must be >= 1, got {n}")
+    out = [1.0]
+    k = 1
+    while len(out) < n:
+        # the odd multiples of 1/k of the spread (k = 1, 2, 4, …), outermost first, each
+        # on both sides: ±s, ±s/2, ±3s/4, ±s/4, ±7s/8, …
+        for j in range(k if k == 1 else k - 1, 0, -2):
+            for sign in (-1.0, 1.0):
+                if len(out) < n:
+                    out.append(1.0 + sign * MODEL_SCALE_SPREAD * j / k)
+        k *= 2
+    return out
+
+
+def point_model_distance(skel: Any) -> float:
+    """Mean distance (m) of the skeleton's prepared points to the nearest cylinder
+    surface, each capped at :data:`FIT_CAP` (TreeQSM's model-selection measure, bounded)."""
+    from biomorph.tree.metrics import surface_distance
+
+    if skel.cloud is None or skel.cloud.n_points == 0 or skel.graph.n_nodes == 0:
+        return float("inf")
+    sd, _, _ = surface_distance(skel.graph, skel.cloud.xyz, refine=FIT_CAP)
+    return float(np.mean(np.minimum(np.abs(sd), FIT_CAP)))
+
+
+@dataclass(frozen=True)
+class ModelRun:
+    """One model: its scale, seed and level width (m), total volume (m³), volume per
+    diameter class (m³), trunk length (m, the longest trunk), tips, point–model
+    distance (m)."""
+
+    index: int
+    scale: float
+    seed: int
+    spacing: float
+    volume: float
+    classes: dict[str, float]
+    trunk_length: float
+    tips: int
+    distance: float
+
+    def row(self) -> dict[str, Any]:
+        """The model as one flat table row (litres and millimetres, as foresters read)."""
+        out: dict[str, Any] = {
+            "model": self.index,
+            "scale": round(self.scale, 4),
+            "seed": self.seed,
+            "spacing_m": self.spacing,
+            "volume_L": 1e3 * self.volume,
+        }
+        out.update({f"volume_{k}_L": 1e3 * v for k, v in self.classes.items()})
+        out.update(
+            trunk_length_m=self.trunk_length, tips=self.tips, distance_mm=1e3 * self.distance
+        )
+        return out
+
+
+@dataclass
+class Models:
+    """The chosen model (``skeleton``, index ``best``) and every model's record."""
+
+    skeleton: Any
+    best: int
+    runs: list[ModelRun] = field(default_factory=list)
+
+    def stats(self) -> dict[str, Any]:
+        """Mean, standard deviation, coefficient of variation, min and max over the models
+        of the total volume (L), each class's volume (L) and the trunk length (m); the
+        chosen model's index and distance (mm)."""
+
+        def spread(values: list[float]) -> dict[str, float]:
+            v = np.asarray(values, dtype=float)
+            mean = float(v.mean())
+            sd = float(v.std(ddof=1)) if v.size > 1 else 0.0
+            return {
+                "mean": mean,
+                "sd": sd,
+                "cv": sd / mean if mean > 0 else 0.0,
+                "min": float(v.min()),
+                "max": float(v.max()),
+            }
+
+        labels = list(self.runs[0].classes) if self.runs else []
+        return {
+            "n": len(self.runs),
+            "best": self.best,
+            "best_distance_mm": 1e3 * self.runs[self.best].distance,
+            "volume_L": spread([1e3 * r.volume for r in self.runs]),
+            "classes_L": {k: spread([1e3 * r.classes[k] for r in self.runs]) for k in labels},
+            "trunk_length_m": spread([r.trunk_length for r in self.runs]),
+            "runs": [r.row() for r in self.runs],
+        }
+
+    def csv(self) -> str:
+        """Every model as CSV (one row each; :meth:`ModelRun.row`'s columns)."""
+        rows = [r.row() for r in self.runs]
+        if not rows:
+            return ""
+        cols = list(rows[0])
+        lines = [",".join(cols)]
+        for r in rows:
+            lines.append(",".join(_cell(r[c]) for c in cols))
+        return "\n".join(lines) + "\n"
+
+
+def _cell(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def _level_options(
+    opts: SkeletonizeOptions, skel: Any, scale: float
+) -> tuple[SkeletonizeOptions, float]:
+    """``opts`` with the level width of ``skel`` (model 0) times ``scale``."""
+    if opts.method == "graph":
+        base = float(skel.params.get("node_spacing") or skel.info.get("node_spacing") or 0.0)
+        width = base * scale
+        return opts.replace(graph=dataclasses.replace(opts.graph, node_spacing=width)), width
+    from biomorph.tree.voxel import auto_cell_size
+
+    base = opts.voxel.cell_size or auto_cell_size(skel.cloud)
+    width = base * scale
+    return opts.replace(voxel=dataclasses.replace(opts.voxel, cell_size=width)), width
+
+
+def _record(index: int, scale: float, seed: int, width: float, skel: Any) -> ModelRun:
+    from biomorph.tree.metrics import tree_attributes, volume_by_class
+
+    g = skel.graph
+    classes = {k: float(v["volume"]) for k, v in volume_by_class(g).items()}
+    attrs = tree_attributes(g) if g.n_nodes else []
+    return ModelRun(
+        index=index,
+        scale=scale,
+        seed=seed,
+        spacing=width,
+        volume=float(sum(classes.values())),
+        classes=classes,
+        trunk_length=max((a["trunk_length"] for a in attrs), default=0.0),
+        tips=int(g.leaves.size),
+        distance=point_model_distance(skel),
+    )
+
+
+def reconstruct_models(
+    cloud: Any,
+    n: int,
+    *,
+    options: SkeletonizeOptions | None = None,
+    progress: Callable[..., None] | None = None,
+) -> Models:
+    """``n`` models of ``cloud`` (module doc); the one nearest to its points is returned
+    as ``Models.skeleton`` (a :class:`~biomorph.tree.pipeline.TreeSkeleton` whose
+    ``info["models"]`` holds :meth:`Models.stats`). ``progress``: ``advance(n=1,
+    description=None)``, called once per pipeline phase of each model."""
+    from biomorph.tree.pipeline import load_cloud, skeletonize
+
+    if not 1 <= int(n) <= MAX_MODELS:
+        raise ParameterError(f"number of models must be 1..{MAX_MODELS}, got {n}")
+    opts = options or SkeletonizeOptions()
+    pc = load_cloud(cloud)
+    scales = model_scales(int(n))
+    runs: list[ModelRun] = []
+    best_skel, best_distance = None, np.inf
+    first = None
+    for i, scale in enumerate(scales):
+        label = f"model {i + 1}/{n}"
+
+        def step(k: float = 1, description: str | None = None, _label: str = label) -> None:
+            if progress is not None:
+                progress(k, f"{_label}: {description}" if description else _label)
+
+        if i == 0:
+            o, width = opts, 0.0
+        else:
+            o, width = _level_options(opts.replace(seed=opts.seed + i), first, scale)
+        skel = skeletonize(pc, options=o, progress=step if progress is not None else None)
+        if i == 0:
+            first = skel
+            _, width = _level_options(opts, skel, 1.0)
+        rec = _record(i, scale, o.seed, width, skel)
+        runs.append(rec)
+        if best_skel is None or rec.distance < best_distance:
+            best_skel, best_distance = skel, rec.distance  # only the best is kept
+        del skel
+    assert best_skel is not None
+    out = Models(best_skel, best_index(runs), runs)
+    best_skel.info["models"] = out.stats()
+    return out
+
+
+def best_index(runs: list[ModelRun]) -> int:
+    """Index of the model with the smallest point–model distance (the first of equals)."""
+    if not runs:
+        return -1
+    return int(np.argmin([r.distance for r in runs]))

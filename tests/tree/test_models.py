@@ -1,0 +1,101 @@
+"""Several models of one cloud (``tree.models``): the scales, the point–model distance,
+the choice of the nearest model, the volume's spread, and ``--models`` on the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from biomorph.cli import run
+from biomorph.errors import ParameterError
+from biomorph.tree.models import (
+    MODEL_SCALE_SPREAD,
+    model_scales,
+    point_model_distance,
+    reconstruct_models,
+)
+from biomorph.tree.options import SkeletonizeOptions
+from biomorph.tree.pipeline import skeletonize
+from tests.tree.test_livny import make_cloud
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    return make_cloud(n=4000, seed=21)
+
+
+def test_scales_cover_the_range_first_then_between():
+    assert model_scales(1) == [1.0]
+    s = MODEL_SCALE_SPREAD
+    assert model_scales(5) == pytest.approx([1.0, 1 - s, 1 + s, 1 - s / 2, 1 + s / 2])
+    nine = model_scales(9)
+    assert len(set(np.round(nine, 9))) == 9  # no scale twice before the grid is full
+    assert min(nine) == pytest.approx(1 - s) and max(nine) == pytest.approx(1 + s)
+    with pytest.raises(ParameterError, match=">= 1"):
+        model_scales(0)
+
+
+def test_the_distance_grows_when_the_cylinders_are_wrong(cloud):
+    """The selection measure sees an over-thick and an over-thin model."""
+    skel = skeletonize(cloud, method="graph", ground=None)
+    d = point_model_distance(skel)
+    assert 0 < d < 0.02
+    g = skel.graph
+    for factor in (2.0, 0.3):
+        skel.graph = g.with_(radius=g.radius * factor)
+        assert point_model_distance(skel) > 1.5 * d
+    skel.graph = g
+
+
+def test_models_choose_the_nearest_and_report_the_spread(cloud):
+    opts = SkeletonizeOptions(seed=4)
+    opts = opts.replace(prepare=opts.prepare.__class__(ground=None))
+    m = reconstruct_models(cloud, 3, options=opts)
+    assert [r.seed for r in m.runs] == [4, 5, 6]
+    assert [r.scale for r in m.runs] == pytest.approx(model_scales(3))
+    # the level width of model i is model 0's (derived from the cloud) times its scale
+    w0 = m.runs[0].spacing
+    assert w0 > 0
+    assert m.runs[1].spacing == pytest.approx((1 - MODEL_SCALE_SPREAD) * w0)
+    assert m.runs[2].spacing == pytest.approx((1 + MODEL_SCALE_SPREAD) * w0)
+    dist = [r.distance for r in m.runs]
+    assert m.best == int(np.argmin(dist))
+    # the returned skeleton is the chosen model
+    assert point_model_distance(m.skeleton) == pytest.approx(min(dist))
+    st = m.skeleton.info["models"]
+    vols = [1e3 * r.volume for r in m.runs]
+    assert st["n"] == 3 and st["best"] == m.best
+    assert st["volume_L"]["mean"] == pytest.approx(np.mean(vols))
+    assert st["volume_L"]["sd"] == pytest.approx(np.std(vols, ddof=1))
+    assert st["volume_L"]["min"] <= st["volume_L"]["mean"] <= st["volume_L"]["max"]
+    lines = m.csv().splitlines()
+    assert lines[0].startswith("model,scale,seed,spacing_m,volume_L")
+    assert len(lines) == 4
+    # model 0 is the plain run with the same options
+    plain = skeletonize(cloud, options=opts)
+    assert m.runs[0].distance == pytest.approx(point_model_distance(plain))
+    with pytest.raises(ParameterError, match="1..64"):
+        reconstruct_models(cloud, 0)
+
+
+def test_cli_models_writes_the_table_and_the_summary(cloud, tmp_path, capsys):
+    src = tmp_path / "tree.xyz"
+    np.savetxt(src, cloud.xyz if hasattr(cloud, "xyz") else cloud, fmt="%.6f")
+    out = tmp_path / "out"
+    code = run(["tree", "skeletonize", str(src), "--out", str(out), "--no-ground", "--models", "2"])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "models: wood volume (L)" in text and "models: chosen" in text
+    rows = (out / "models.csv").read_text().splitlines()
+    assert len(rows) == 3 and rows[1].startswith("0,1,0,")
+    data = json.loads((out / "summary.json").read_text())
+    assert data["info"]["models"]["n"] == 2
+    assert len(data["info"]["models"]["runs"]) == 2
+    # out of range: one line, exit 2, nothing written
+    bad = tmp_path / "bad"
+    assert run(["tree", "skeletonize", str(src), "--out", str(bad), "--models", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--models" in err[0]
+    assert not bad.exists()
