@@ -11,6 +11,7 @@
     .venv/bin/python bench/tree.py --only seeds [--clouds ...]    # repeatability, >= 4 seeds
     .venv/bin/python bench/tree.py --only runs    # run cylinders vs pytlidar's LSF cylinder
     .venv/bin/python bench/tree.py --only models [--models 5]  # uncertainty, chosen model
+    .venv/bin/python bench/tree.py --only peers --with-models    # + column: 5 models, chosen
 
 ``peers`` prints one table per real cloud: measure × (each reference model, biomorph graph,
 biomorph voxel, pytlidar -- PyPI's Python TreeQSM, install with ``pip install --no-deps
@@ -470,10 +471,30 @@ def _warm_up(with_pytlidar: bool) -> None:
     print(f"(warm-up, untimed: {time.perf_counter() - t0:.1f} s)")
 
 
-def _peer_columns(cloud, refs: dict, with_pytlidar: bool, variant: bool, runs: bool) -> dict:
-    """The peer table's columns: each reference, our methods (and variants), pytlidar."""
+def run_models(cloud, n: int) -> dict:
+    """``n`` graph models, the nearest to the points kept (:mod:`biomorph.tree.models`),
+    as a peer-table column."""
+    from biomorph.tree.models import reconstruct_models
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    try:
+        m = reconstruct_models(cloud, n)
+        out: dict = {"graph": m.skeleton.world_graph()}
+    except Exception as exc:  # noqa: BLE001 - reported in the table
+        out = {"error": f"{type(exc).__name__}: {str(exc)[:80]}"}
+    out.update(wall=time.perf_counter() - t0, cpu=time.process_time() - c0)
+    return out
+
+
+def _peer_columns(
+    cloud, refs: dict, with_pytlidar: bool, variant: bool, runs: bool, models: int = 0
+) -> dict:
+    """The peer table's columns: each reference, our methods (and variants), pytlidar;
+    ``models`` > 1: also the graph method's chosen model of that many."""
     cols: dict[str, dict] = {k: {"graph": g, "wall": None, "cpu": None} for k, g in refs.items()}
     cols["biomorph graph"] = run_biomorph(cloud, "graph")
+    if models > 1:
+        cols[f"graph, {models} models"] = run_models(cloud, models)
     if variant:
         cols["graph " + ", ".join(map(str, VARIANT.values()))] = run_biomorph(
             cloud, "graph", VARIANT
@@ -502,7 +523,11 @@ def reference_models(name: str, xyz: NDArray) -> dict:
 
 
 def peers(
-    names: tuple[str, ...], with_pytlidar: bool = True, variant: bool = False, runs: bool = False
+    names: tuple[str, ...],
+    with_pytlidar: bool = True,
+    variant: bool = False,
+    runs: bool = False,
+    models: int = 0,
 ) -> None:
     from biomorph.io import read_points
     from biomorph.tree.metrics import class_labels
@@ -516,7 +541,7 @@ def peers(
         xyz = cloud.xyz
         refs = reference_models(name, xyz)
         cols = _peer_columns(
-            cloud, refs, with_pytlidar and name not in SINGLE_TREE_ONLY, variant, runs
+            cloud, refs, with_pytlidar and name not in SINGLE_TREE_ONLY, variant, runs, models
         )
         meas = {}
         for k, c in cols.items():
@@ -1162,7 +1187,14 @@ def main() -> None:
         help="graph, voxel, graph+variant (truth), graph-runs / voxel-runs (--no-run-cylinders)",
     )
     ap.add_argument("--seeds", type=int, default=2)
-    ap.add_argument("--models", type=int, default=5, help="models per cloud (--only models)")
+    ap.add_argument(
+        "--models", type=int, default=5, help="models per cloud (--only models, --with-models)"
+    )
+    ap.add_argument(
+        "--with-models",
+        action="store_true",
+        help="peers: also the graph method's chosen model of --models (column 'graph, N models')",
+    )
     ap.add_argument("--points", type=int, default=60_000, help="points per synthetic scan")
     ap.add_argument(
         "--tip-support",
@@ -1192,7 +1224,9 @@ def main() -> None:
     if a.only in (None, "real"):
         real()
     if a.only in (None, "peers"):
-        peers(tuple(a.clouds), not a.no_pytlidar, a.variant, a.runs)
+        peers(
+            tuple(a.clouds), not a.no_pytlidar, a.variant, a.runs, a.models if a.with_models else 0
+        )
     if a.only in (None, "truth"):
         truth_table(a.seeds, tuple(a.sizes), tuple(a.methods))
     if a.only in (None, "sparse"):

@@ -99,3 +99,39 @@ def test_cli_models_writes_the_table_and_the_summary(cloud, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--models" in err[0]
     assert not bad.exists()
+
+
+def test_batch_models_per_cloud_and_a_changed_count_redoes_it(cloud, tmp_path, capsys):
+    src = tmp_path / "a.xyz"
+    np.savetxt(src, cloud.xyz if hasattr(cloud, "xyz") else cloud, fmt="%.6f")
+    out = tmp_path / "b"
+    argv = ["tree", "batch", str(src), "--out", str(out), "--workers", "0", "--no-ground"]
+    assert run([*argv, "--models", "2", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert len((out / "a" / "models.csv").read_text().splitlines()) == 3
+    assert rep["results"]["a"]["chosen_model"] in (0, 1)
+    # another model count is another output: not taken for done
+    assert run([*argv, "--models", "3", "--json"]) == 0
+    capsys.readouterr()
+    assert len((out / "a" / "models.csv").read_text().splitlines()) == 4
+
+
+def test_a_model_whose_trunk_disagrees_is_not_chosen_however_near():
+    from biomorph.tree.models import TRUNK_AGREEMENT, ModelRun, best_index
+
+    def mk(i, trunk, dist):
+        return ModelRun(i, 1.0, i, 0.03, 0.02, {}, trunk, 10, dist)
+
+    runs = [mk(0, 3.40, 5.4e-3), mk(1, 3.15, 4.7e-3), mk(2, 3.33, 6.1e-3), mk(3, 3.15, 4.9e-3)]
+    runs.append(mk(4, 3.33, 6.1e-3))
+    # the 3.15 m trunks lie 7 % off model 0's 3.40 m: not chosen however near; of the
+    # others model 0 is the nearest
+    assert 3.40 * (1 - TRUNK_AGREEMENT) > 3.15
+    assert best_index(runs) == 0
+    # model 0's trunk is the reference, not the majority's: three models running the
+    # trunk 6.3 m up a tree where model 0 says 4.75 m are not chosen
+    tall = [mk(0, 4.75, 18.1e-3), mk(1, 6.29, 17.3e-3), mk(2, 6.3, 17.0e-3), mk(3, 4.8, 18.0e-3)]
+    assert best_index(tall) == 3
+    # with agreeing trunks the nearest model is chosen
+    assert best_index([mk(0, 3.40, 5.4e-3), mk(1, 3.38, 4.7e-3)]) == 1
+    assert best_index([]) == -1

@@ -153,27 +153,12 @@ def skeletonize(
 
     Example: biomorph tree skeletonize scan.laz --method graph --out out/ --json
     """
-    from biomorph.tree.export import export_skeleton
     from biomorph.tree.metrics import summary_rows
-    from biomorph.tree.pipeline import skeletonize as run
 
     assert options is not None
-    ensemble = None
-    if models > 1:
-        from biomorph.progress import task
-        from biomorph.tree.models import reconstruct_models
-        from biomorph.tree.pipeline import PHASES
-
-        with task(f"{models} models", total=models * len(PHASES)) as advance:
-            ensemble = reconstruct_models(cloud, models, options=options, progress=advance)
-        skel = ensemble.skeleton
-    else:
-        skel = run(cloud, options=options)
-    files = export_skeleton(skel, out, world=world, title=f"{cloud.name} ({method})")
-    if ensemble is not None:
-        from biomorph.io.atomic import write_text
-
-        files["models"] = write_text(Path(out) / "models.csv", ensemble.csv())
+    skel, files = _skeletonize_and_export(
+        cloud, out, options, world, models, f"{cloud.name} ({method})", progress=True
+    )
     summary = skel.summary()
     summary["files"] = {k_: str(v) for k_, v in files.items()}
     if as_json:
@@ -298,16 +283,52 @@ def evaluate(
     _print_table(f"{skeleton.name}", rows)
 
 
-def batch_item(item: tuple[str, str, SkeletonizeOptions, bool]) -> dict[str, Any]:
-    """Skeletonise one cloud into ``out/<stem>/`` (module level: picklable for dask)."""
+def _skeletonize_and_export(
+    cloud: Path | str,
+    out: Path | str,
+    options: SkeletonizeOptions,
+    world: bool,
+    models: int,
+    title: str,
+    *,
+    progress: bool = False,
+) -> tuple[Any, dict[str, Path]]:
+    """One run, or ``models`` runs of which the nearest to the points is kept
+    (:func:`biomorph.tree.models.reconstruct_models`; ``models.csv`` beside the outputs),
+    exported into ``out``. ``progress``: a progress bar over the models' phases."""
     from biomorph.tree.export import export_skeleton
-    from biomorph.tree.pipeline import skeletonize as run
 
-    path, out, options, world = item
-    skel = run(path, options=options)
-    export_skeleton(skel, out, world=world, title=Path(path).name)
+    if models <= 1:
+        from biomorph.tree.pipeline import skeletonize as run
+
+        skel = run(cloud, options=options)
+        return skel, export_skeleton(skel, out, world=world, title=title)
+    import contextlib
+
+    from biomorph.io.atomic import write_text
+    from biomorph.progress import task
+    from biomorph.tree.models import reconstruct_models
+    from biomorph.tree.pipeline import PHASES
+
+    bar = (
+        task(f"{models} models", total=models * len(PHASES))
+        if progress
+        else contextlib.nullcontext(None)
+    )
+    with bar as advance:
+        ensemble = reconstruct_models(cloud, models, options=options, progress=advance)
+    files = export_skeleton(ensemble.skeleton, out, world=world, title=title)
+    files["models"] = write_text(Path(out) / "models.csv", ensemble.csv())
+    return ensemble.skeleton, files
+
+
+def batch_item(item: tuple[str, str, SkeletonizeOptions, bool, int]) -> dict[str, Any]:
+    """Skeletonise one cloud (``models`` models, the nearest kept) into ``out/<stem>/``
+    (module level: picklable for dask)."""
+    path, out, options, world, models = item
+    skel, _ = _skeletonize_and_export(path, out, options, world, models, Path(path).name)
     m = skel.metrics
-    return {
+    res = {
         "nob": m.get("nob"),
         "tbl": m.get("tbl"),
         "trees": m.get("n_trees"),
@@ -315,6 +336,11 @@ def batch_item(item: tuple[str, str, SkeletonizeOptions, bool]) -> dict[str, Any
         "fragments": m.get("n_fragments"),
         "seconds": skel.timings.get("total"),
     }
+    st = skel.info.get("models")
+    if st:
+        res["volume_L"] = st["volume_L"]
+        res["chosen_model"] = st["best"]
+    return res
 
 
 @app.command()
@@ -334,6 +360,13 @@ def batch(
         bool, typer.Option("--json", help="Print the batch report as JSON.")
     ] = False,
     seed: Seed = 0,
+    models: Annotated[
+        int,
+        typer.Option(
+            help="Models per cloud, the one nearest to the points kept (as skeletonize).",
+            callback=bounded(1, 64),
+        ),
+    ] = 1,
     options: SkeletonizeOptions | None = None,
 ) -> None:
     """Skeletonise many clouds in parallel on dask.distributed (LocalCluster by default),
@@ -352,7 +385,8 @@ def batch(
     stems = [p.stem for p in inputs]
     if len(set(stems)) != len(stems):
         raise ParameterError("input file names must be unique (outputs go to OUT/<name>/)")
-    items = [(str(p), str(out / p.stem), options, world) for p in inputs]
+    assert options is not None
+    items = [(str(p), str(out / p.stem), options, world, models) for p in inputs]
     report = run_batch(
         items,
         batch_item,
