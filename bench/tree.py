@@ -1073,9 +1073,9 @@ def models_table(
     print(
         "| preset | condition | points | seed | method | volume % model 0 → chosen (scale) | "
         "models: mean ± sd (min–max) % | length % | trunk % model 0 → chosen | "
-        "F1 model 0 → chosen | cpu × |"
+        "classes ±20 % model 0 → chosen | F1 model 0 → chosen | cpu × |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for preset in sorted(PRESETS):
         for cname, kw in conditions.items():
             for size in sizes:
@@ -1093,6 +1093,16 @@ def models_table(
                         r0, rb = m.runs[0], m.runs[m.best]
                         cb = compare_to_truth(m.skeleton.world_graph(), truth)
                         v = st["volume_L"]
+                        vt = volume_by_class(truth)
+
+                        def within(r, vt=vt) -> str:
+                            ok = [
+                                abs(r.classes[k] / c["volume"] - 1) <= 0.2
+                                for k, c in vt.items()
+                                if c["volume"] > 1e-6
+                            ]
+                            return f"{sum(ok)}/{len(ok)}"
+
                         print(
                             f"| {preset} | {cname} | {size:,} | {seed} | {method} | "
                             f"{100 * r0.volume / tv:.0f} → {100 * rb.volume / tv:.0f} "
@@ -1101,7 +1111,7 @@ def models_table(
                             f"{v['max'] / 10 / tv:.0f}) | {100 * cb['tbl_ratio']:.0f} | "
                             f"{100 * r0.trunk_length / tt:.0f} → "
                             f"{100 * rb.trunk_length / tt:.0f} | "
-                            f"{f0:.3f} → {cb['f1']:.3f} | "
+                            f"{within(r0)} → {within(rb)} | {f0:.3f} → {cb['f1']:.3f} | "
                             f"{cpu / max(one, 1e-9):.1f} |"
                         )
                         sys.stdout.flush()

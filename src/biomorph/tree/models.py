@@ -20,13 +20,15 @@ cylinders lie closest to the points. :func:`reconstruct_models` does the same he
   returned, with every model's volume (total and per diameter class), trunk length, tips
   and distance, and the spread of each.
 
-Why ±15 %: on the synthetic presets (``bench/tree.py --only models``) the volume of a
-model at 0.85–1.15 × the derived node spacing stays within a few per cent of model 0's on
-the broadleaf presets, while the conifer at 0.85 loses its trunk in some draws (73–83 %
-of the true volume, point–model distance 1.5–2 × the others'): the range is wide enough
-to show where the reconstruction is fragile and the distance picks the models that are
-not. Choosing by the distance moved the presets' total volume towards the truth on 10 of
-16 runs and away by more than a point on none (docs/tree.md, session 20).
+Why ±15 %: on the synthetic presets (``bench/tree.py --only models --sizes 60000
+--methods graph``, session 20) the models at 0.85–1.15 × the derived node spacing stay
+within a few per cent of model 0's volume on the broadleaf presets, while the conifer at
+0.85 loses a fifth to a quarter of its wood in some draws (73–83 % of the true volume,
+point–model distance 1.2–1.8 × the others'): the range is wide enough to show where a
+reconstruction is fragile, and the distance passes over the fragile models. Against
+the truth the chosen model's total volume was closer than model 0's on 6 of 16 runs
+(conifer at 8 mm noise 89 → 98 %, birch 94 → 99 %), the same on 9, one point farther on
+1; F1 higher on 9, 0.001 lower on 1.
 
 Plots: the models are whole-cloud reconstructions and one is chosen for the whole cloud;
 for per-tree uncertainty, run each tree's points (``tree_<id>/points.laz``) on its own.
