@@ -135,3 +135,49 @@ def test_a_model_whose_trunk_disagrees_is_not_chosen_however_near():
     # with agreeing trunks the nearest model is chosen
     assert best_index([mk(0, 3.40, 5.4e-3), mk(1, 3.38, 4.7e-3)]) == 1
     assert best_index([]) == -1
+
+
+def test_voxel_models_scale_the_cell(cloud):
+    opts = SkeletonizeOptions(method="voxel")
+    opts = opts.replace(prepare=opts.prepare.__class__(ground=None))
+    m = reconstruct_models(cloud, 2, options=opts)
+    w0, w1 = m.runs[0].spacing, m.runs[1].spacing
+    assert w0 > 0 and w1 == pytest.approx((1 - MODEL_SCALE_SPREAD) * w0)
+    chosen = m.skeleton.params["voxel"].get("cell_size")
+    # model 0 runs with the derived cell (no option set), model 1 with the scaled one
+    assert chosen is None if m.best == 0 else chosen == pytest.approx(w1)
+
+
+def test_a_plot_gets_each_trees_spread_matched_by_its_stem_base(tmp_path, capsys):
+    from biomorph.core.pointcloud import PointCloud
+
+    a = make_cloud(n=3000, seed=3)
+    b = make_cloud(n=3000, seed=4) + [4.0, 0.0, 0.0]
+    pc = PointCloud(np.vstack([a, b]) + [500.0, 800.0, 20.0])
+    opts = SkeletonizeOptions()
+    opts = opts.replace(prepare=opts.prepare.__class__(ground=None))
+    m = reconstruct_models(pc, 3, options=opts)
+    trees = m.skeleton.info["models"]["trees"]
+    assert len(trees) == 2 and all(t["found"] == 3 for t in trees)
+    # the stem bases are in the original coordinates, 4 m apart
+    xs = sorted(t["x"] for t in trees)
+    assert xs[0] == pytest.approx(500.0, abs=0.3) and xs[1] == pytest.approx(504.0, abs=0.3)
+    # each tree's spread is over its own volume in each model
+    for t in trees:
+        vols = []
+        for r in m.runs:
+            j = int(np.argmin([np.hypot(x - t["x"], y - t["y"]) for x, y, _, _ in r.trees]))
+            vols.append(1e3 * r.trees[j][2])
+        assert t["volume_L"]["mean"] == pytest.approx(np.mean(vols))
+        assert t["volume_L"]["sd"] == pytest.approx(np.std(vols, ddof=1))
+    assert sum(1e3 * v[2] for v in m.runs[0].trees) == pytest.approx(1e3 * m.runs[0].volume)
+    rows = m.trees_csv().splitlines()
+    assert rows[0].startswith("tree,x,y,found,volume_mean_L") and len(rows) == 3
+    # on the CLI: models_trees.csv beside models.csv, a per-tree row in the table
+    src = tmp_path / "plot.xyz"
+    np.savetxt(src, pc.xyz + pc.offset, fmt="%.6f")
+    out = tmp_path / "out"
+    argv = ["tree", "skeletonize", str(src), "-o", str(out), "--no-ground", "--models", "2"]
+    assert run(argv) == 0
+    assert "models: per tree" in capsys.readouterr().out
+    assert len((out / "models_trees.csv").read_text().splitlines()) == 3

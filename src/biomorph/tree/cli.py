@@ -56,10 +56,27 @@ def _models_rows(st: dict | None) -> list[tuple[str, str]]:
             f"{v['min']:.4g}–{v['max']:.4g}) over {st['n']}",
         ),
         ("models: trunk length (m)", f"{t['mean']:.3g} ± {t['sd']:.2g}"),
+        *_models_tree_rows(st.get("trees") or [], st["n"]),
         (
             "models: chosen",
             f"#{st['best']} (point–model distance {st['best_distance_mm']:.2f} mm)",
         ),
+    ]
+
+
+def _models_tree_rows(trees: list[dict], n: int) -> list[tuple[str, str]]:
+    """For a plot: the spread of the trees' volumes over the ``n`` models
+    (models_trees.csv)."""
+    cv = sorted(t["volume_L"]["cv"] for t in trees if t["found"] > 1)
+    if not cv:
+        return []
+    every = sum(t["found"] == n for t in trees)
+    return [
+        (
+            "models: per tree",
+            f"{len(trees)} trees, {every} found in all {n} models; volume CV median "
+            f"{100 * cv[len(cv) // 2]:.1f} %, max {100 * cv[-1]:.0f} % (models_trees.csv)",
+        )
     ]
 
 
@@ -319,6 +336,8 @@ def _skeletonize_and_export(
         ensemble = reconstruct_models(cloud, models, options=options, progress=advance)
     files = export_skeleton(ensemble.skeleton, out, world=world, title=title)
     files["models"] = write_text(Path(out) / "models.csv", ensemble.csv())
+    if len(ensemble.runs[0].trees) > 1:
+        files["models_trees"] = write_text(Path(out) / "models_trees.csv", ensemble.trees_csv())
     return ensemble.skeleton, files
 
 

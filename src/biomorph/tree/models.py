@@ -113,7 +113,7 @@ def point_model_distance(skel: Any) -> float:
 class ModelRun:
     """One model: its scale, seed and level width (m), total volume (m³), volume per
     diameter class (m³), trunk length (m, the longest trunk), tips, point–model
-    distance (m)."""
+    distance (m) and, per tree, its stem base and volume."""
 
     index: int
     scale: float
@@ -124,6 +124,8 @@ class ModelRun:
     trunk_length: float
     tips: int
     distance: float
+    #: per tree: stem base x, y (m, original coordinates), volume (m³), trunk length (m)
+    trees: tuple[tuple[float, float, float, float], ...] = ()
 
     def row(self) -> dict[str, Any]:
         """The model as one flat table row (litres and millimetres, as foresters read)."""
@@ -148,24 +150,17 @@ class Models:
     skeleton: Any
     best: int
     runs: list[ModelRun] = field(default_factory=list)
+    #: a tree of model i is model 0's tree whose stem base is nearest in x, y, within this
+    #: distance (m; the graph options' ``min_tree_distance``: stems closer are one tree)
+    match: float = 0.6
 
     def stats(self) -> dict[str, Any]:
         """Mean, standard deviation, coefficient of variation, min and max over the models
         of the total volume (L), each class's volume (L) and the trunk length (m); the
-        chosen model's index and distance (mm)."""
+        chosen model's index and distance (mm); for a plot, ``trees``
+        (:meth:`tree_stats`)."""
 
-        def spread(values: list[float]) -> dict[str, float]:
-            v = np.asarray(values, dtype=float)
-            mean = float(v.mean())
-            sd = float(v.std(ddof=1)) if v.size > 1 else 0.0
-            return {
-                "mean": mean,
-                "sd": sd,
-                "cv": sd / mean if mean > 0 else 0.0,
-                "min": float(v.min()),
-                "max": float(v.max()),
-            }
-
+        spread = _spread
         labels = list(self.runs[0].classes) if self.runs else []
         return {
             "n": len(self.runs),
@@ -175,7 +170,49 @@ class Models:
             "classes_L": {k: spread([1e3 * r.classes[k] for r in self.runs]) for k in labels},
             "trunk_length_m": spread([r.trunk_length for r in self.runs]),
             "runs": [r.row() for r in self.runs],
+            "trees": self.tree_stats() if len(self.runs[0].trees) > 1 else [],
         }
+
+    def tree_stats(self) -> list[dict[str, Any]]:
+        """Per tree of model 0 (a plot): its stem base, in how many models it was found
+        (a stem base within :attr:`match` in x, y) and the spread of its volume (L) and
+        trunk length (m) over those models."""
+        out = []
+        for t, (x, y, _, _) in enumerate(self.runs[0].trees):
+            vols, trunks = [], []
+            for r in self.runs:
+                if not r.trees:
+                    continue
+                base = np.array([[a[0], a[1]] for a in r.trees])
+                d = np.hypot(base[:, 0] - x, base[:, 1] - y)
+                j = int(np.argmin(d))
+                if d[j] <= self.match:
+                    vols.append(1e3 * r.trees[j][2])
+                    trunks.append(r.trees[j][3])
+            out.append(
+                {
+                    "tree": t,
+                    "x": x,
+                    "y": y,
+                    "found": len(vols),
+                    "volume_L": _spread(vols),
+                    "trunk_length_m": _spread(trunks),
+                }
+            )
+        return out
+
+    def trees_csv(self) -> str:
+        """:meth:`tree_stats` as CSV: one row per tree of model 0."""
+        lines = [
+            "tree,x,y,found,volume_mean_L,volume_sd_L,volume_cv,volume_min_L,volume_max_L,"
+            "trunk_mean_m,trunk_sd_m"
+        ]
+        for t in self.tree_stats():
+            v, k = t["volume_L"], t["trunk_length_m"]
+            cells = [t["tree"], t["x"], t["y"], t["found"], v["mean"], v["sd"], v["cv"]]
+            cells += [v["min"], v["max"], k["mean"], k["sd"]]
+            lines.append(",".join(_cell(c) for c in cells))
+        return "\n".join(lines) + "\n"
 
     def csv(self) -> str:
         """Every model as CSV (one row each; :meth:`ModelRun.row`'s columns)."""
@@ -187,6 +224,24 @@ class Models:
         for r in rows:
             lines.append(",".join(_cell(r[c]) for c in cols))
         return "\n".join(lines) + "\n"
+
+
+def _spread(values: list[float]) -> dict[str, float]:
+    """Mean, sample standard deviation, coefficient of variation, min and max (NaN for no
+    values, sd 0 for one)."""
+    v = np.asarray(values, dtype=float)
+    if v.size == 0:
+        nan = float("nan")
+        return {"mean": nan, "sd": nan, "cv": nan, "min": nan, "max": nan}
+    mean = float(v.mean())
+    sd = float(v.std(ddof=1)) if v.size > 1 else 0.0
+    return {
+        "mean": mean,
+        "sd": sd,
+        "cv": sd / mean if mean > 0 else 0.0,
+        "min": float(v.min()),
+        "max": float(v.max()),
+    }
 
 
 def _cell(v: Any) -> str:
@@ -216,6 +271,17 @@ def _record(index: int, scale: float, seed: int, width: float, skel: Any) -> Mod
     g = skel.graph
     classes = {k: float(v["volume"]) for k, v in volume_by_class(g).items()}
     attrs = tree_attributes(g) if g.n_nodes else []
+    # each tree's stem base: its (lowest) root node, in the original coordinates
+    off = np.asarray(getattr(skel, "offset", np.zeros(3)), dtype=float)
+    labels = g.trees if g.n_nodes else np.zeros(0, np.int64)
+    trees = []
+    for a in attrs:
+        nodes = np.flatnonzero(labels == a["tree"])
+        roots = nodes[g.parent[nodes] < 0]
+        cand = roots if roots.size else nodes
+        low = cand[np.argmin(g.position[cand, 2])]
+        x, y = (g.position[low, :2] + off[:2]).tolist()
+        trees.append((float(x), float(y), float(a["total_volume"]), float(a["trunk_length"])))
     return ModelRun(
         index=index,
         scale=scale,
@@ -226,6 +292,7 @@ def _record(index: int, scale: float, seed: int, width: float, skel: Any) -> Mod
         trunk_length=max((a["trunk_length"] for a in attrs), default=0.0),
         tips=int(g.leaves.size),
         distance=point_model_distance(skel),
+        trees=tuple(trees),
     )
 
 
@@ -268,7 +335,7 @@ def reconstruct_models(
         runs.append(_record(i, scale, o.seed, width, skel))
         skels.append(skel)
     best = best_index(runs)
-    out = Models(skels[best], best, runs)
+    out = Models(skels[best], best, runs, match=float(opts.graph.min_tree_distance or 0.6))
     out.skeleton.info["models"] = out.stats()
     return out
 
