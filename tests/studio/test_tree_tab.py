@@ -54,6 +54,20 @@ def test_tree_tab(studio, tmp_path):
     rows = (out / f"{stem}.csv").read_text().splitlines()
     assert len(rows) > 10 and "radius" in rows[0].lower()
 
+    # several models: the bar spans them all, the table gives the volume's spread
+    tab.models.value = 2
+    single = tab.result
+    studio.click("Run")
+    wait_for(
+        lambda: (tab.result is not single and tab.progress.value == 100.0) or tab.last_error,
+        timeout=120,
+        what="two models",
+    )
+    assert tab.last_error is None, tab.last_error
+    assert tab.result.info["models"]["n"] == 2
+    studio.expect_text("models: wood volume")
+    tab.models.value = 1
+
     # cancel: a second run stopped at its next step keeps the first result
     first = tab.result
     tab._cancel.clear()

@@ -44,42 +44,6 @@ def _trees_line(m: dict) -> str:
     )
 
 
-def _models_rows(st: dict | None) -> list[tuple[str, str]]:
-    """The summary rows of several models (:meth:`biomorph.tree.models.Models.stats`)."""
-    if not st:
-        return []
-    v, t = st["volume_L"], st["trunk_length_m"]
-    return [
-        (
-            "models: wood volume (L)",
-            f"{v['mean']:.4g} ± {v['sd']:.2g} (CV {100 * v['cv']:.1f} %, "
-            f"{v['min']:.4g}–{v['max']:.4g}) over {st['n']}",
-        ),
-        ("models: trunk length (m)", f"{t['mean']:.3g} ± {t['sd']:.2g}"),
-        *_models_tree_rows(st.get("trees") or [], st["n"]),
-        (
-            "models: chosen",
-            f"#{st['best']} (point–model distance {st['best_distance_mm']:.2f} mm)",
-        ),
-    ]
-
-
-def _models_tree_rows(trees: list[dict], n: int) -> list[tuple[str, str]]:
-    """For a plot: the spread of the trees' volumes over the ``n`` models
-    (models_trees.csv)."""
-    cv = sorted(t["volume_L"]["cv"] for t in trees if t["found"] > 1)
-    if not cv:
-        return []
-    every = sum(t["found"] == n for t in trees)
-    return [
-        (
-            "models: per tree",
-            f"{len(trees)} trees, {every} found in all {n} models; volume CV median "
-            f"{100 * cv[len(cv) // 2]:.1f} %, max {100 * cv[-1]:.0f} % (models_trees.csv)",
-        )
-    ]
-
-
 def _print_table(title: str, rows: list[tuple[str, Any]]) -> None:
     from rich.table import Table
 
@@ -171,6 +135,7 @@ def skeletonize(
     Example: biomorph tree skeletonize scan.laz --method graph --out out/ --json
     """
     from biomorph.tree.metrics import summary_rows
+    from biomorph.tree.models import summary_rows as models_summary_rows
 
     assert options is not None
     skel, files = _skeletonize_and_export(
@@ -196,7 +161,7 @@ def skeletonize(
             ("max order", m.get("max_order")),
             ("trunk radius (m)", ", ".join(f"{r:.3f}" for r in m.get("trunk_radius", []))),
             *summary_rows(m),
-            *_models_rows(skel.info.get("models")),
+            *models_summary_rows(skel.info.get("models")),
             ("seconds", skel.timings.get("total")),
             ("output", str(out)),
         ],

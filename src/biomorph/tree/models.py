@@ -56,6 +56,7 @@ __all__ = [
     "model_scales",
     "point_model_distance",
     "reconstruct_models",
+    "summary_rows",
 ]
 
 #: the models' level widths span ``1 ± MODEL_SCALE_SPREAD`` × the derived one (module doc)
@@ -321,7 +322,7 @@ def reconstruct_models(
 
         def step(k: float = 1, description: str | None = None, _label: str = label) -> None:
             if progress is not None:
-                progress(k, f"{_label}: {description}" if description else _label)
+                progress(k, f"{_label}: {description or ''}")
 
         if i == 0:
             o, width = opts, 0.0
@@ -362,3 +363,40 @@ def best_index(runs: list[ModelRun]) -> int:
     ok = np.abs(trunk - trunk[0]) <= TRUNK_AGREEMENT * trunk[0]
     dist = np.where(ok, [r.distance for r in runs], np.inf)
     return int(np.argmin(dist))
+
+
+def summary_rows(st: dict | None) -> list[tuple[str, str]]:
+    """The summary-table rows of :meth:`Models.stats` (``info["models"]``; none for one
+    model): the volume's mean ± sd, CV and range, the trunk's spread, for a plot the
+    trees' spread, and the chosen model. Shared by the CLI and the studio."""
+    if not st:
+        return []
+    v, t = st["volume_L"], st["trunk_length_m"]
+    return [
+        (
+            "models: wood volume (L)",
+            f"{v['mean']:.4g} ± {v['sd']:.2g} (CV {100 * v['cv']:.1f} %, "
+            f"{v['min']:.4g}–{v['max']:.4g}) over {st['n']}",
+        ),
+        ("models: trunk length (m)", f"{t['mean']:.3g} ± {t['sd']:.2g}"),
+        *_tree_rows(st.get("trees") or [], st["n"]),
+        (
+            "models: chosen",
+            f"#{st['best']} (point–model distance {st['best_distance_mm']:.2f} mm)",
+        ),
+    ]
+
+
+def _tree_rows(trees: list[dict], n: int) -> list[tuple[str, str]]:
+    """For a plot: the spread of the trees' volumes over the ``n`` models."""
+    cv = sorted(t["volume_L"]["cv"] for t in trees if t["found"] > 1)
+    if not cv:
+        return []
+    every = sum(t["found"] == n for t in trees)
+    return [
+        (
+            "models: per tree",
+            f"{len(trees)} trees, {every} found in all {n} models; volume CV median "
+            f"{100 * cv[len(cv) // 2]:.1f} %, max {100 * cv[-1]:.0f} % (models_trees.csv)",
+        )
+    ]

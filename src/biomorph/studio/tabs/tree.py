@@ -104,6 +104,9 @@ class TreeTab(StudioTab):
                 "Radius", options=("fit", "allometric"), initial_value="fit"
             )
             self.cleanup = gui.add_checkbox("Cleanup", initial_value=True)
+            self.models = gui.add_slider(
+                "Models (nearest kept)", min=1, max=9, step=1, initial_value=1
+            )
         self.buttons = gui.add_button_group("Skeleton", ("Run", "Cancel"))
         self.buttons.on_click(self._run_clicked)
         self.progress = gui.add_progress_bar(0.0, animated=False)
@@ -244,7 +247,7 @@ class TreeTab(StudioTab):
             target=self._work,
             daemon=True,
             name="studio-tree-job",
-            args=(self.cloud, opts, self.generation, self._cancel, release),
+            args=(self.cloud, opts, self.generation, self._cancel, release, int(self.models.value)),
         )
         self.job.start()
 
@@ -286,31 +289,64 @@ class TreeTab(StudioTab):
         from biomorph.tree.pipeline import PHASES
 
         n = len(PHASES)
+        state = {"model": 1, "of": 1, "value": 0.0}  # value: % of the current model
 
         def advance(_n: float = 1, description: str | None = None) -> None:
             if cancel.is_set():
                 raise Cancelled("skeletonisation cancelled")
+            description = self._model_step(description, state)
             self.ticks.append(description or "")
             main = len(self.ticks) == 1 or description == "skeleton" or self._phase >= 2
             if main:
                 self._phase = min(self._phase + 1, n)
                 value = 100.0 * self._phase / n
             else:  # a sub-phase of the skeleton method
-                value = self.progress.value + (100.0 * 2 / n - self.progress.value) / 2
-            self.progress.value = min(99.0, value)
+                value = state["value"] + (100.0 * 2 / n - state["value"]) / 2
+            state["value"] = value
+            i, of = int(state["model"]), int(state["of"])
+            self.progress.value = min(99.0, (i - 1 + value / 100.0) / of * 100.0)
             label = PHASES[self._phase - 1] if main else description
-            self.set_status(f"Running … {plain(label)} ({self._phase}/{n} phases done)")
+            which = f"model {i}/{of} " if of > 1 else ""
+            self.set_status(f"Running {which}… {plain(label)} ({self._phase}/{n} phases done)")
 
         return advance
 
+    def _model_step(self, description: str | None, state: dict[str, float]) -> str | None:
+        """Strip ``reconstruct_models``' ``"model i/n: "`` prefix from a phase name; a new
+        model restarts the phase count (its bar spans 1/n of the whole)."""
+        if not description or not description.startswith("model ") or ": " not in description:
+            return description
+        head, _, rest = description.partition(": ")
+        i, _, of = head[len("model ") :].partition("/")
+        if i.isdigit() and of.isdigit():
+            if int(i) != state["model"]:
+                self._phase = 0
+                self.ticks = []
+                state["value"] = 0.0
+            state["model"], state["of"] = int(i), int(of)
+        return rest or None
+
     def _work(
-        self, cloud: Any, opts: Any, generation: int, cancel: threading.Event, release: Any
+        self,
+        cloud: Any,
+        opts: Any,
+        generation: int,
+        cancel: threading.Event,
+        release: Any,
+        models: int = 1,
     ) -> None:
         from biomorph.tree.pipeline import skeletonize
 
         t0 = time.perf_counter()
         try:
-            result = skeletonize(cloud, options=opts, progress=self._progress(cancel))
+            if models > 1:
+                from biomorph.tree.models import reconstruct_models
+
+                result = reconstruct_models(
+                    cloud, models, options=opts, progress=self._progress(cancel)
+                ).skeleton
+            else:
+                result = skeletonize(cloud, options=opts, progress=self._progress(cancel))
             with self.lock:
                 if cancel.is_set() or generation != self.generation:
                     raise Cancelled("skeletonisation cancelled")
@@ -429,6 +465,7 @@ class TreeTab(StudioTab):
             return str(v)
 
         from biomorph.tree.metrics import summary_rows
+        from biomorph.tree.models import summary_rows as models_summary_rows
 
         rows = [
             ("method", self.result.method),
@@ -441,6 +478,7 @@ class TreeTab(StudioTab):
             ("trunk radius (m)", m.get("trunk_radius")),
             ("max order", m.get("max_order")),
             *summary_rows(m),
+            *models_summary_rows(self.result.info.get("models")),
             ("time (s)", t.get("total")),
         ]
         if self.truth is not None:
