@@ -181,3 +181,22 @@ def test_a_plot_gets_each_trees_spread_matched_by_its_stem_base(tmp_path, capsys
     assert run(argv) == 0
     assert "models: per tree" in capsys.readouterr().out
     assert len((out / "models_trees.csv").read_text().splitlines()) == 3
+
+
+def test_the_cli_bar_steps_once_per_phase_of_each_model(cloud):
+    """The skeletonize command's bar has PHASES steps per model: sub-phases only name
+    themselves, so the bar ends at its total (one model and several)."""
+    from biomorph.tree.cli import _phase_steps
+    from biomorph.tree.pipeline import PHASES
+
+    seen: list[tuple[float, str | None]] = []
+    step = _phase_steps(lambda n=1, description=None: seen.append((n, description)))
+    skeletonize(cloud, method="graph", ground=None, progress=step)
+    assert sum(n for n, _ in seen) == len(PHASES)
+    assert any(n == 0 for n, _ in seen)  # the graph method's sub-phases
+    seen.clear()
+    opts = SkeletonizeOptions()
+    opts = opts.replace(prepare=opts.prepare.__class__(ground=None))
+    reconstruct_models(cloud, 2, options=opts, progress=step)
+    assert sum(n for n, _ in seen) == 2 * len(PHASES)
+    assert seen[-1][1].startswith("model 2/2: ")
