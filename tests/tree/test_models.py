@@ -200,3 +200,35 @@ def test_the_cli_bar_steps_once_per_phase_of_each_model(cloud):
     reconstruct_models(cloud, 2, options=opts, progress=step)
     assert sum(n for n, _ in seen) == 2 * len(PHASES)
     assert seen[-1][1].startswith("model 2/2: ")
+
+
+def test_a_failed_model_is_reported_and_model_0_failing_fails(cloud, monkeypatch):
+    import biomorph.tree.pipeline as pipeline
+    from biomorph.errors import InputError
+    from biomorph.tree.models import summary_rows
+
+    real = pipeline.skeletonize
+
+    def flaky(c, *a, options=None, **k):
+        if options is not None and options.seed == 1:
+            raise InputError("no trunk found at this level width")
+        return real(c, *a, options=options, **k)
+
+    monkeypatch.setattr(pipeline, "skeletonize", flaky)
+    opts = SkeletonizeOptions()
+    opts = opts.replace(prepare=opts.prepare.__class__(ground=None))
+    m = reconstruct_models(cloud, 3, options=opts)
+    assert [r.index for r in m.runs] == [0, 2]
+    st = m.skeleton.info["models"]
+    assert st["n"] == 2 and st["best"] in (0, 2)
+    assert st["failed"] == [
+        {
+            "model": 1,
+            "scale": model_scales(3)[1],
+            "seed": 1,
+            "error": "no trunk found at this level width",
+        }
+    ]
+    assert any("#1 failed" in k for k, _ in summary_rows(st))
+    with pytest.raises(InputError, match="no trunk"):
+        reconstruct_models(cloud, 2, options=opts.replace(seed=1))

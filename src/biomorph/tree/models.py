@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from biomorph.errors import ParameterError
+from biomorph.errors import InputError, ParameterError
 from biomorph.tree.options import SkeletonizeOptions
 
 __all__ = [
@@ -146,7 +146,8 @@ class ModelRun:
 
 @dataclass
 class Models:
-    """The chosen model (``skeleton``, index ``best``) and every model's record."""
+    """The chosen model (``skeleton``; ``best`` its index in ``runs``) and the record of
+    every model that ran (``runs``) or failed (``failed``)."""
 
     skeleton: Any
     best: int
@@ -154,6 +155,8 @@ class Models:
     #: a tree of model i is model 0's tree whose stem base is nearest in x, y, within this
     #: distance (m; the graph options' ``min_tree_distance``: stems closer are one tree)
     match: float = 0.6
+    #: the models that failed (model number, scale, seed, the error's message)
+    failed: list[dict[str, Any]] = field(default_factory=list)
 
     def stats(self) -> dict[str, Any]:
         """Mean, standard deviation, coefficient of variation, min and max over the models
@@ -165,7 +168,8 @@ class Models:
         labels = list(self.runs[0].classes) if self.runs else []
         return {
             "n": len(self.runs),
-            "best": self.best,
+            "best": self.runs[self.best].index,
+            "failed": list(self.failed),
             "best_distance_mm": 1e3 * self.runs[self.best].distance,
             "volume_L": spread([1e3 * r.volume for r in self.runs]),
             "classes_L": {k: spread([1e3 * r.classes[k] for r in self.runs]) for k in labels},
@@ -317,6 +321,7 @@ def reconstruct_models(
     scales = model_scales(int(n))
     runs: list[ModelRun] = []
     skels: list[Any] = []
+    failed: list[dict[str, Any]] = []
     for i, scale in enumerate(scales):
         label = f"model {i + 1}/{n}"
 
@@ -328,7 +333,15 @@ def reconstruct_models(
             o, width = opts, 0.0
         else:
             o, width = _level_options(opts.replace(seed=opts.seed + i), skels[0], scale)
-        skel = skeletonize(pc, options=o, progress=step if progress is not None else None)
+        try:
+            skel = skeletonize(pc, options=o, progress=step if progress is not None else None)
+        except (InputError, ParameterError) as exc:
+            if i == 0:
+                raise  # the run as configured fails: so does the command
+            # another level width may find no trunk where model 0 found one: that
+            # model is reported, not the whole reconstruction lost
+            failed.append({"model": i, "scale": scale, "seed": o.seed, "error": str(exc)})
+            continue
         if i == 0:
             _, width = _level_options(opts, skel, 1.0)
         elif _same_cloud(skel.cloud, skels[0].cloud):
@@ -336,7 +349,9 @@ def reconstruct_models(
         runs.append(_record(i, scale, o.seed, width, skel))
         skels.append(skel)
     best = best_index(runs)
-    out = Models(skels[best], best, runs, match=float(opts.graph.min_tree_distance or 0.6))
+    out = Models(
+        skels[best], best, runs, match=float(opts.graph.min_tree_distance or 0.6), failed=failed
+    )
     out.skeleton.info["models"] = out.stats()
     return out
 
@@ -384,6 +399,10 @@ def summary_rows(st: dict | None) -> list[tuple[str, str]]:
             "models: chosen",
             f"#{st['best']} (point–model distance {st['best_distance_mm']:.2f} mm)",
         ),
+        *[
+            (f"models: #{f['model']} failed", f"scale {f['scale']:.3g}: {f['error']}")
+            for f in st.get("failed") or []
+        ],
     ]
 
 
