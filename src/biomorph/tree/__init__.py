@@ -11,7 +11,8 @@ Modules: :mod:`~biomorph.tree.cloud` (preparation), :mod:`~biomorph.tree.ground`
 :mod:`~biomorph.tree.synthetic`, :mod:`~biomorph.tree.export`,
 :mod:`~biomorph.tree.reference`, :mod:`~biomorph.tree.pipeline`,
 :mod:`~biomorph.tree.options` (one typed options dataclass per stage),
-:mod:`~biomorph.tree.qsm` (TreeQSM tables). Names are imported lazily.
+:mod:`~biomorph.tree.qsm` (TreeQSM tables), :mod:`~biomorph.tree.models` (several models
+of one cloud). Names are imported lazily.
 """
 
 from __future__ import annotations
@@ -42,6 +43,9 @@ _EXPORTS = {
     "tree_attributes": "metrics",
     "cylinder_fit": "metrics",
     "qsm_report": "metrics",
+    # several models of one cloud: the volume's spread, the nearest model
+    "reconstruct_models": "models",
+    "Models": "models",
     # graph method and extensions
     "skeletonize_graph": "livny",
     "LivnyResult": "livny",
