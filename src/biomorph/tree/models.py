@@ -345,8 +345,11 @@ def reconstruct_models(
             continue
         if i == 0:
             _, width = _level_options(opts, skel, 1.0)
-        elif _same_cloud(skel.cloud, skels[0].cloud):
-            skel.cloud = skels[0].cloud  # one prepared cloud in memory, not n
+        else:  # one prepared cloud (and ground) in memory, not n
+            if _same_cloud(skel.cloud, skels[0].cloud):
+                skel.cloud = skels[0].cloud
+            if _same_cloud(skel.ground, skels[0].ground):
+                skel.ground = skels[0].ground
         runs.append(_record(i, scale, o.seed, width, skel))
         skels.append(skel)
     best = best_index(runs)
