@@ -332,3 +332,30 @@ def test_the_summary_table_gives_the_wood_volume_height_and_dbh(good_xyz, tmp_pa
     rows2 = dict(summary_rows(two))
     assert rows2["wood volume (L)"] == f"{2e3 * tree['total_volume']:,.1f}"
     assert "height / trunk (m)" not in rows2 and "DBH (cm)" not in rows2
+
+
+def test_evaluate_reports_agreement_with_reference_models(good_xyz, tmp_path, capsys):
+    """``tree evaluate --reference``: the agreement a forester reads against a QSM (here
+    the model against itself and against a thinner copy); a missing reference is one
+    line and exit 2."""
+    from biomorph.io import read_graph, write_graph
+
+    out = tmp_path / "out"
+    assert run(["tree", "skeletonize", str(good_xyz), "--out", str(out), "--no-ground"]) == 0
+    capsys.readouterr()
+    skel = out / "skeleton.ply"
+    g = read_graph(skel)
+    thin = write_graph(tmp_path / "thin.ply", g.with_(radius=g.radius * 0.5))
+    argv = ["tree", "evaluate", str(skel), "--reference", str(skel), "--reference", str(thin)]
+    assert run([*argv, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)["references"]
+    same, half = data[str(skel)], data[str(thin)]
+    assert same["f1"] == pytest.approx(1.0) and same["volume_ratio"] == pytest.approx(1.0)
+    assert same["trunk_length_ratio"] == pytest.approx(1.0)
+    assert half["volume_ratio"] == pytest.approx(4.0)  # ours against a model half as thick
+    assert run(argv) == 0
+    text = capsys.readouterr().out
+    assert "volume ours / ref." in text and "(4.00×)" in text and "F1 @ 5 cm" in text
+    assert run(["tree", "evaluate", str(skel), "--reference", str(tmp_path / "no.mat")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no.mat" in err[0]

@@ -59,6 +59,13 @@ def test_agreement_of_a_model_with_itself_and_a_shortened_copy(tmp_path):
     assert same["f1"] == pytest.approx(1.0)
     assert same["tips_ratio"] == 1.0 and same["length_ratio"] == pytest.approx(1.0)
     assert same["radius_profile_error"] == pytest.approx(0.0)
+    # the wood: volume in all and per class, the trunk (the csv carries branch orders)
+    assert same["volume"] == pytest.approx(same["volume_reference"]) and same["volume"] > 0
+    assert same["volume_ratio"] == pytest.approx(1.0)
+    assert sum(a for a, _ in same["classes"].values()) == pytest.approx(same["volume"])
+    assert same["trunk_length_ratio"] == pytest.approx(1.0) and same["trunk_length"] > 0
+    thin = compare_to_reference(g.with_(radius=g.radius * 0.5), g, tolerance=0.05)
+    assert thin["volume_ratio"] == pytest.approx(0.25)
     # drop the lateral branch: recall falls to 3/4 of the length, precision stays 1
     keep = np.ones(g.n_nodes, bool)
     keep[3] = False

@@ -237,12 +237,22 @@ def evaluate(
         ),
     ] = None,
     tolerance: Annotated[float | None, typer.Option(help="Match tolerance, m.")] = None,
+    reference: Annotated[
+        list[Path] | None,
+        typer.Option(
+            help="Reference QSM in the skeleton's frame (TreeQSM .mat, SimpleForest-style "
+            ".csv, .ply, .mtg); repeatable. Reports the agreement with each: volume (all "
+            "and per diameter class), length, trunk length, tips, F1 (5 cm unless "
+            "--tolerance), radius profile."
+        ),
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
     """NOB, TBL, MSE of a skeleton; with --truth also precision/recall/F1, NOB/TBL ratios,
-    radius error, DBH and volume error.
+    radius error, DBH and volume error; with --reference the agreement with each
+    reference model.
 
-    Example: biomorph tree evaluate out/skeleton.ply --truth synth/truth.ply --json
+    Example: biomorph tree evaluate out/skeleton.ply --reference tree_QSM.mat --json
     """
     from biomorph.core.jsonable import to_jsonable
     from biomorph.io import read_graph, read_points
@@ -254,6 +264,14 @@ def evaluate(
     if truth is not None:
         res["truth"] = str(truth)
         res["comparison"] = compare_to_truth(g, read_graph(truth), tolerance, cloud=pc)
+    if reference:
+        from biomorph.tree.reference import compare_to_reference, read_reference
+
+        refs = {str(p): read_reference(p) for p in reference}  # all read before reporting
+        res["references"] = {
+            k_: compare_to_reference(g, r, 0.05 if tolerance is None else tolerance)
+            for k_, r in refs.items()
+        }
     res = to_jsonable(res)
     if as_json:
         from biomorph._cli import print_json
@@ -262,7 +280,37 @@ def evaluate(
         return
     rows = [(k_, v) for k_, v in res.items() if not isinstance(v, (dict, list))]
     rows += [(f"truth {k_}", v) for k_, v in res.get("comparison", {}).items()]
+    for name, c in res.get("references", {}).items():
+        rows += _reference_rows(Path(name).name, c)
     _print_table(f"{skeleton.name}", rows)
+
+
+def _reference_rows(name: str, c: dict[str, Any]) -> list[tuple[str, str]]:
+    """The summary rows of one :func:`~biomorph.tree.reference.compare_to_reference`."""
+
+    def pair(key: str, unit: str, scale: float = 1.0, fmt: str = "{:.3g}") -> str:
+        a, b = c.get(key), c.get(f"{key}_reference")
+        if a is None or b is None:
+            return "—"
+        ratio = f" ({a / b:.2f}×)" if b else ""
+        unit = f" {unit}" if unit else ""
+        return f"{fmt.format(scale * a)} / {fmt.format(scale * b)}{unit}{ratio}"
+
+    rows = [
+        (f"{name}: volume ours / ref.", pair("volume", "L", 1e3, "{:.4g}")),
+        (f"{name}: length", pair("length", "m")),
+        (f"{name}: trunk length", pair("trunk_length", "m")),
+        (f"{name}: tips", pair("tips", "", 1.0, "{:.0f}")),
+        (f"{name}: F1 @ {100 * c['tolerance']:.0f} cm", f"{c['f1']:.3f}"),
+    ]
+    if c.get("classes"):
+        cells = ", ".join(
+            f"{k} {1e3 * a:.3g}/{1e3 * b:.3g}" for k, (a, b) in c["classes"].items() if a or b
+        )
+        rows.append((f"{name}: volume by diameter (L)", cells))
+    if c.get("radius_profile_error") is not None:
+        rows.append((f"{name}: radius profile error", f"{100 * c['radius_profile_error']:.0f} %"))
+    return rows
 
 
 def _skeletonize_and_export(

@@ -192,8 +192,11 @@ def compare_to_reference(
     """Agreement of a skeleton with a reference model in the same frame.
 
     Returns tips and total length of both (and their ratios), base radius of both, the
-    radius profile over ``n_bins`` height bins (and the median relative difference), and
-    precision/recall/F1 within ``tolerance`` from :func:`biomorph.tree.metrics.compare_to_truth`.
+    radius profile over ``n_bins`` height bins (and the median relative difference),
+    precision/recall/F1 within ``tolerance`` from :func:`biomorph.tree.metrics.compare_to_truth`
+    and, where both carry radii, the wood volume (m³) of both in all and per diameter
+    class (``classes``: label → [ours, reference]) and, where both carry branch orders,
+    the longest trunk of each (m) — what issue 13 asks a model to agree on.
     """
     from biomorph.tree.metrics import compare_to_truth
 
@@ -230,4 +233,33 @@ def compare_to_reference(
         "f1": cmp["f1"],
         "tolerance": cmp["tolerance"],
         "mean_distance": cmp.get("mean_distance"),
+        **_wood_agreement(graph, reference),
     }
+
+
+def _wood_agreement(graph: BranchGraph, reference: BranchGraph) -> dict[str, Any]:
+    """Volume in all and per class, and trunk length, of a model and its reference (the
+    keys present only where both models carry what they need)."""
+    from biomorph.tree.metrics import tree_attributes, volume_by_class
+
+    out: dict[str, Any] = {}
+    if graph.radius is None or reference.radius is None:
+        return out
+    va, vb = volume_by_class(graph), volume_by_class(reference)
+    ta = sum(v["volume"] for v in va.values())
+    tb = sum(v["volume"] for v in vb.values())
+    out.update(
+        volume=ta,
+        volume_reference=tb,
+        volume_ratio=ta / tb if tb > 0 else None,
+        classes={k: [va[k]["volume"], vb[k]["volume"]] for k in va},
+    )
+    if graph.depth is not None and reference.depth is not None:
+        la = max((a["trunk_length"] for a in tree_attributes(graph)), default=0.0)
+        lb = max((a["trunk_length"] for a in tree_attributes(reference)), default=0.0)
+        out.update(
+            trunk_length=la,
+            trunk_length_reference=lb,
+            trunk_length_ratio=la / lb if lb > 0 else None,
+        )
+    return out
