@@ -128,7 +128,9 @@ def skeletonize(
 ) -> None:
     """Skeletonise a tree cloud and write skeleton.ply/.mtg, tube.glb/.obj, the TreeQSM
     tables (cylinders.csv, branches.csv, treedata.csv), points.laz (tree_id per point),
-    one tree_<id>/ folder per tree of a plot, summary.json and preview.png into OUT.
+    one tree_<id>/ folder per tree of a plot, summary.json and preview.png into OUT; with
+    --models N the model nearest to the points, models.csv (and models_trees.csv for a
+    plot).
 
     Every option of the pipeline stages is listed below (biomorph.tree.options).
 
