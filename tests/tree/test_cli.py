@@ -274,9 +274,17 @@ def test_batch_reports_failures_and_resumes(tmp_path, good_xyz, capsys):
     rep = json.loads(capsys.readouterr().out)
     assert rep["n_ok"] == 1 and rep["n_failed"] == 1
     assert (out / "tree" / "summary.json").is_file()
+    # the inventory: every tree of the finished input (none of the failed one), its
+    # treedata row and location
+    inv = (out / "inventory.csv").read_text().splitlines()
+    tree_rows = (out / "tree" / "treedata.csv").read_text().splitlines()
+    assert inv[0] == "input," + tree_rows[0] and "location_x" in inv[0]
+    assert inv[1:] == [f"{good_xyz.name},{r}" for r in tree_rows[1:]]
     code = run(["tree", "batch", str(good_xyz), "--out", str(out), "--workers", "0", "--json"])
     rep = json.loads(capsys.readouterr().out)
     assert code == 0 and rep["n_skipped"] == 1
+    # a resumed (skipped) input stays in the inventory
+    assert (out / "inventory.csv").read_text().splitlines() == inv
 
 
 @pytest.mark.parametrize(

@@ -102,6 +102,10 @@ def test_tables_describe_the_tree():
     assert treedata_table(g, cyl, none)["MeasuredStem"][0] == 0
     every = {"reliable": np.ones(g.n_nodes, dtype=bool)}
     assert treedata_table(g, cyl, every)["MeasuredStem"][0] == 1
+    # the tree's location: the base of its trunk, in the graph's frame
+    moved = g.with_(position=g.position + [500.0, 800.0, 20.0])
+    td2 = treedata_table(moved, cylinder_table(moved))
+    assert [td2[f"location_{c}"][0] for c in "xyz"] == pytest.approx([500.0, 800.0, 20.0])
 
 
 def test_written_tables_read_back(tmp_path):

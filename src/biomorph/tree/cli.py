@@ -380,6 +380,34 @@ def _phase_steps(advance: Callable[..., None]) -> Callable[..., None]:
     return step
 
 
+def _write_inventory(out: Path, done: list[Path]) -> Path | None:
+    """``OUT/inventory.csv``: every tree of every finished input, one row each — the
+    input's file name, then its ``treedata.csv`` row (TreeQSM's attributes, the tree's
+    location) — written atomically; None when no input has a tree table."""
+    import csv
+    import io
+
+    from biomorph.io.atomic import write_text
+
+    header: list[str] = []
+    rows: list[dict[str, str]] = []
+    for p in done:
+        table = out / p.stem / "treedata.csv"
+        if not table.is_file():
+            continue
+        with table.open(newline="", encoding="utf-8") as f:
+            for row in csv.DictReader(f):
+                header += [c for c in row if c not in header]
+                rows.append({"input": p.name, **row})
+    if not rows:
+        return None
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, ["input", *header], restval="", lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return write_text(out / "inventory.csv", buf.getvalue())
+
+
 def batch_item(item: tuple[str, str, SkeletonizeOptions, bool, int]) -> dict[str, Any]:
     """Skeletonise one cloud (``models`` models, the nearest kept) into ``out/<stem>/``
     (module level: picklable for dask)."""
@@ -432,7 +460,8 @@ def batch(
 
     Failed inputs are reported without stopping the others; an input counts as done once
     all its files are written (a completion marker keyed by the options), so a re-run
-    resumes exactly. Exit code 1 if any input failed.
+    resumes exactly. Exit code 1 if any input failed. OUT/inventory.csv lists every tree
+    of every finished input (its treedata row: volumes, height, DBH, crown, location).
 
     Example: biomorph tree batch plots/*.laz --out results/ --workers 4
     """
@@ -454,6 +483,7 @@ def batch(
         scheduler=scheduler,
         description="trees",
     )
+    _write_inventory(out, [p for p in inputs if p.stem in {*report.ok, *report.skipped}])
     if as_json:
         from biomorph._cli import print_json
 

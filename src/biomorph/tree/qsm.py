@@ -29,7 +29,9 @@ number, 1-based, is the cylinder's id):
     (m), ``CrownBaseHeight``, ``CrownLength`` (m), ``CrownRatio``; then ``tree_id`` and
     ``MeasuredStem`` (1: a tree standing on a stem the scan measured and reaching breast
     height, 0: a fragment — understorey, stump, piece of crown;
-    :func:`biomorph.tree.metrics.tree_kinds`).
+    :func:`biomorph.tree.metrics.tree_kinds`), and ``location_x/_y/_z`` (m, the base of
+    the trunk: the tree's lowest root, in the graph's frame — TreeQSM's
+    ``treedata.location``), so the trees of a plot or a batch form an inventory.
 
 Cylinder volumes follow :func:`biomorph.tree.metrics.edge_volumes` (frusta inside a branch,
 the branch's own radius where it leaves its parent).
@@ -105,6 +107,9 @@ TREEDATA_COLUMNS = (
     "CrownRatio",
     "tree_id",
     "MeasuredStem",
+    "location_x",
+    "location_y",
+    "location_z",
 )
 #: integer columns of the three tables (written without decimals)
 INTEGER_COLUMNS = {
@@ -253,7 +258,11 @@ def treedata_table(
         {int(a["tree"]): float(a["height"]) for a in attrs},
     )
     out: dict[str, list] = {c: [] for c in TREEDATA_COLUMNS}
+    labels = graph.trees
+    roots = graph.roots
     for a in attrs:
+        own = roots[labels[roots] == a["tree"]]
+        base = graph.position[own[np.argmin(graph.position[own, 2])]] if own.size else [np.nan] * 3
         m = cyl["tree_id"] == a["tree"]
         trunk = m & (cyl["BranchOrder"] == 0)
         row = {
@@ -276,6 +285,9 @@ def treedata_table(
             "CrownRatio": a["crown_length"] / a["height"] if a["height"] else np.nan,
             "tree_id": a["tree"],
             "MeasuredStem": int(kinds.get(int(a["tree"])) == "tree"),
+            "location_x": float(base[0]),
+            "location_y": float(base[1]),
+            "location_z": float(base[2]),
         }
         for c in TREEDATA_COLUMNS:
             out[c].append(row[c])
