@@ -183,23 +183,31 @@ def test_a_plot_gets_each_trees_spread_matched_by_its_stem_base(tmp_path, capsys
     assert len((out / "models_trees.csv").read_text().splitlines()) == 3
 
 
-def test_the_cli_bar_steps_once_per_phase_of_each_model(cloud):
-    """The skeletonize command's bar has PHASES steps per model: sub-phases only name
-    themselves, so the bar ends at its total (one model and several)."""
-    from biomorph.tree.cli import _phase_steps
+def test_progress_steps_once_per_phase_of_each_model(cloud):
+    """The pipeline steps a bar once per finished phase (n = 1) and only names the skeleton
+    method's sub-phases (n = 0), so a bar of PHASES steps per model ends at its total
+    (the CLI's and the studio's); each model's descriptions carry its "model i/n: "."""
+    from biomorph.tree.models import model_step
     from biomorph.tree.pipeline import PHASES
 
     seen: list[tuple[float, str | None]] = []
-    step = _phase_steps(lambda n=1, description=None: seen.append((n, description)))
+
+    def step(n=1, description=None):
+        seen.append((n, description))
+
     skeletonize(cloud, method="graph", ground=None, progress=step)
     assert sum(n for n, _ in seen) == len(PHASES)
-    assert any(n == 0 for n, _ in seen)  # the graph method's sub-phases
+    assert [d for n, d in seen if n == 0]  # the graph method's sub-phases, named
     seen.clear()
     opts = SkeletonizeOptions()
     opts = opts.replace(prepare=opts.prepare.__class__(ground=None))
     reconstruct_models(cloud, 2, options=opts, progress=step)
     assert sum(n for n, _ in seen) == 2 * len(PHASES)
-    assert seen[-1][1].startswith("model 2/2: ")
+    steps = [model_step(d) for _, d in seen]
+    assert {(i, of) for i, of, _ in steps} == {(1, 2), (2, 2)}
+    assert steps[-1] == (2, 2, "metrics")
+    assert model_step("contraction") == (1, 1, "contraction")
+    assert model_step("model 3/5: ") == (3, 5, None)
 
 
 def test_a_failed_model_is_reported_and_model_0_failing_fails(cloud, monkeypatch):

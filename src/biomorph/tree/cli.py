@@ -336,16 +336,15 @@ def _skeletonize_and_export(
 
     label = f"{models} models" if models > 1 else "skeleton"
     bar = task(label, total=models * len(PHASES)) if progress else contextlib.nullcontext(None)
-    with bar as advance:
-        step = None if advance is None else _phase_steps(advance)
+    with bar as advance:  # a step per finished phase of each model
         if models <= 1:
             from biomorph.tree.pipeline import skeletonize as run
 
-            skel = run(cloud, options=options, progress=step)
+            skel = run(cloud, options=options, progress=advance)
             return skel, export_skeleton(skel, out, world=world, title=title)
         from biomorph.tree.models import reconstruct_models
 
-        ensemble = reconstruct_models(cloud, models, options=options, progress=step)
+        ensemble = reconstruct_models(cloud, models, options=options, progress=advance)
     from biomorph.io.atomic import write_text
 
     files = export_skeleton(ensemble.skeleton, out, world=world, title=title)
@@ -353,31 +352,6 @@ def _skeletonize_and_export(
     if len(ensemble.runs[0].trees) > 1:
         files["models_trees"] = write_text(Path(out) / "models_trees.csv", ensemble.trees_csv())
     return ensemble.skeleton, files
-
-
-#: the pipeline's ``progress`` descriptions that end its phases (:data:`PHASES`), in order;
-#: the skeleton methods report sub-phases between them (the graph method's own "radii"
-#: among them, before "skeleton")
-_PHASE_ENDS = ("prepared", "skeleton", "radii", "order", "metrics")
-
-
-def _phase_steps(advance: Callable[..., None]) -> Callable[..., None]:
-    """A pipeline progress callback moving a bar of ``PHASES`` steps per model: one step
-    as each phase ends, in order; the sub-phases are only named. A new ``"model i/n: "``
-    prefix (:func:`biomorph.tree.models.reconstruct_models`) starts the order again."""
-    state = {"model": "", "next": 0}
-
-    def step(_n: float = 1, description: str | None = None) -> None:
-        model, _, name = (description or "").rpartition(": ")
-        if model != state["model"]:
-            state.update(model=model, next=0)
-        k = int(state["next"])
-        done = k < len(_PHASE_ENDS) and name == _PHASE_ENDS[k]
-        if done:
-            state["next"] = k + 1
-        advance(1 if done else 0, description)
-
-    return step
 
 
 def _write_inventory(out: Path, done: list[Path]) -> Path | None:

@@ -55,6 +55,7 @@ __all__ = [
     "ModelRun",
     "Models",
     "model_scales",
+    "model_step",
     "point_model_distance",
     "reconstruct_models",
     "summary_rows",
@@ -312,7 +313,8 @@ def reconstruct_models(
     """``n`` models of ``cloud`` (module doc); the one nearest to its points is returned
     as ``Models.skeleton`` (a :class:`~biomorph.tree.pipeline.TreeSkeleton` whose
     ``info["models"]`` holds :meth:`Models.stats`). ``progress``: ``advance(n=1,
-    description=None)``, called once per pipeline phase of each model."""
+    description=None)``, as the pipeline calls it (``n = 1`` per finished phase), each
+    description prefixed ``"model i/n: "`` (:func:`model_step` reads it back)."""
     from biomorph.tree.pipeline import load_cloud, skeletonize
 
     if not 1 <= int(n) <= MAX_MODELS:
@@ -324,11 +326,11 @@ def reconstruct_models(
     skels: list[Any] = []
     failed: list[dict[str, Any]] = []
     for i, scale in enumerate(scales):
-        label = f"model {i + 1}/{n}"
+        label = f"model {i + 1}/{n}: "
 
         def step(k: float = 1, description: str | None = None, _label: str = label) -> None:
             if progress is not None:
-                progress(k, f"{_label}: {description or ''}")
+                progress(k, _label + (description or ""))
 
         if i == 0:
             o, width = opts, 0.0
@@ -358,6 +360,17 @@ def reconstruct_models(
     )
     out.skeleton.info["models"] = out.stats()
     return out
+
+
+def model_step(description: str | None) -> tuple[int, int, str | None]:
+    """``(i, n, phase)`` of a progress description of :func:`reconstruct_models`
+    (``"model i/n: phase"``, i counted from 1); ``(1, 1, description)`` for one of a
+    single run."""
+    head, sep, rest = (description or "").partition(": ")
+    i, _, n = head.removeprefix("model ").partition("/")
+    if not (sep and head.startswith("model ") and i.isdigit() and n.isdigit()):
+        return 1, 1, description
+    return int(i), int(n), rest or None
 
 
 def _same_cloud(a: Any, b: Any) -> bool:

@@ -55,7 +55,8 @@ __all__ = [
     "metrics_phase",
 ]
 
-#: the tree pipeline's phases, in order; ``progress(1, phase)`` is called as each ends
+#: the tree pipeline's phases, in order; ``progress(1, …)`` is called as each ends (the
+#: skeleton method's sub-phases call ``progress(0, name)``)
 PHASES = ("prepare", "skeleton", "radii", "order", "metrics")
 
 
@@ -226,8 +227,16 @@ class _Run:
         return self.raw.source or "point cloud"
 
     def tick(self, description: str) -> None:
+        """A phase of :data:`PHASES` ended."""
         if self.progress is not None:
             self.progress(1, description)
+
+    def sub_progress(self) -> Progress:
+        """The callback for the skeleton method's sub-phases: named, no step of the bar."""
+        progress = self.progress
+        if progress is None:
+            return None
+        return lambda _n=1, description=None: progress(0, description)
 
 
 def skeletonize(
@@ -250,8 +259,9 @@ def skeletonize(
         :mod:`biomorph.tree.options` for every field, its unit and where its default comes
         from). Default: all defaults.
     progress : optional ``advance(n=1, description=None)`` callback (see
-        :func:`biomorph.progress.task`), called once per finished phase (:data:`PHASES`)
-        and per sub-phase of the skeleton method; raising from it stops the run.
+        :func:`biomorph.progress.task`): ``n = 1`` as each phase of :data:`PHASES` ends
+        (a bar of ``len(PHASES)`` steps ends at its total), ``n = 0`` naming each
+        sub-phase of the skeleton method; raising from it stops the run.
     **kwargs : the flat keywords of the pre-options API (``k=12``, ``order_angle=…``,
         ``voxel={"cell_size": 0.05}``, …), applied on top of ``options``
         (:meth:`SkeletonizeOptions.from_kwargs`); kept for compatibility.
@@ -406,7 +416,7 @@ def graph_phase(run: _Run) -> None:
         edge_weights=go.edge_weights,
         crown_partition=go.crown_partition,
         seed=run.opts.seed,
-        progress=run.progress,
+        progress=run.sub_progress(),
         neighbours=run.take_knn(),
         source=run.source,
     )
@@ -485,7 +495,7 @@ def voxel_phase(run: _Run) -> None:
         stems=stems,
         stem_reach=run.opts.graph.min_tree_distance,
         point_tree=point_tree,
-        progress=None if progress is None else lambda s: progress(1, s),
+        progress=None if progress is None else lambda s: progress(0, s),
     )
     graph = vres.graph
     run.timings.update(

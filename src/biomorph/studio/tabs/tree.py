@@ -284,47 +284,36 @@ class TreeTab(StudioTab):
 
     def _progress(self, cancel: threading.Event) -> Any:
         """The pipeline's progress callback: one step of the bar per finished phase of
-        :data:`biomorph.tree.pipeline.PHASES`; the skeleton method's own sub-phases move
-        the bar within the skeleton phase (each halves the distance to its end)."""
+        :data:`biomorph.tree.pipeline.PHASES` (``n = 1``); the skeleton method's own
+        sub-phases (``n = 0``) move the bar within the skeleton phase (each halves the
+        distance to its end). With several models each spans 1/n of the bar."""
+        from biomorph.tree.models import model_step
         from biomorph.tree.pipeline import PHASES
 
         n = len(PHASES)
-        state = {"model": 1, "of": 1, "value": 0.0}  # value: % of the current model
+        state = {"model": 1, "value": 0.0}  # value: % of the current model
 
-        def advance(_n: float = 1, description: str | None = None) -> None:
+        def advance(step: float = 1, description: str | None = None) -> None:
             if cancel.is_set():
                 raise Cancelled("skeletonisation cancelled")
-            description = self._model_step(description, state)
+            i, of, description = model_step(description)
+            if i != state["model"]:  # a new model: its phases count from 0 again
+                self._phase = 0
+                self.ticks = []
+                state.update(model=i, value=0.0)
             self.ticks.append(description or "")
-            main = len(self.ticks) == 1 or description == "skeleton" or self._phase >= 2
-            if main:
+            if step > 0:
                 self._phase = min(self._phase + 1, n)
                 value = 100.0 * self._phase / n
             else:  # a sub-phase of the skeleton method
                 value = state["value"] + (100.0 * 2 / n - state["value"]) / 2
             state["value"] = value
-            i, of = int(state["model"]), int(state["of"])
             self.progress.value = min(99.0, (i - 1 + value / 100.0) / of * 100.0)
-            label = PHASES[self._phase - 1] if main else description
+            label = PHASES[self._phase - 1] if step > 0 else description
             which = f"model {i}/{of} " if of > 1 else ""
             self.set_status(f"Running {which}… {plain(label)} ({self._phase}/{n} phases done)")
 
         return advance
-
-    def _model_step(self, description: str | None, state: dict[str, float]) -> str | None:
-        """Strip ``reconstruct_models``' ``"model i/n: "`` prefix from a phase name; a new
-        model restarts the phase count (its bar spans 1/n of the whole)."""
-        if not description or not description.startswith("model ") or ": " not in description:
-            return description
-        head, _, rest = description.partition(": ")
-        i, _, of = head[len("model ") :].partition("/")
-        if i.isdigit() and of.isdigit():
-            if int(i) != state["model"]:
-                self._phase = 0
-                self.ticks = []
-                state["value"] = 0.0
-            state["model"], state["of"] = int(i), int(of)
-        return rest or None
 
     def _work(
         self,
