@@ -166,11 +166,17 @@ def test_a_plot_gets_each_trees_spread_matched_by_its_stem_base(tmp_path, capsys
     for t in trees:
         vols = []
         for r in m.runs:
-            j = int(np.argmin([np.hypot(x - t["x"], y - t["y"]) for x, y, _, _ in r.trees]))
-            vols.append(1e3 * r.trees[j][2])
+            j = int(np.argmin([np.hypot(b.x - t["x"], b.y - t["y"]) for b in r.trees]))
+            vols.append(1e3 * r.trees[j].volume)
         assert t["volume_L"]["mean"] == pytest.approx(np.mean(vols))
         assert t["volume_L"]["sd"] == pytest.approx(np.std(vols, ddof=1))
-    assert sum(1e3 * v[2] for v in m.runs[0].trees) == pytest.approx(1e3 * m.runs[0].volume)
+    assert sum(1e3 * b.volume for b in m.runs[0].trees) == pytest.approx(1e3 * m.runs[0].volume)
+    # each tree is named by its tree_id, as treedata.csv names it
+    from biomorph.tree.metrics import tree_attributes
+
+    ids = [a["tree"] for a in tree_attributes(m.skeleton.graph)]
+    assert [b.tree for b in m.runs[m.best].trees] == ids
+    assert [t["tree"] for t in trees] == [b.tree for b in m.runs[0].trees]
     rows = m.trees_csv().splitlines()
     assert rows[0].startswith("tree,x,y,found,volume_mean_L") and len(rows) == 3
     # on the CLI: models_trees.csv beside models.csv, a per-tree row in the table

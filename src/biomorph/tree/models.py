@@ -40,7 +40,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -53,6 +53,7 @@ __all__ = [
     "TRUNK_AGREEMENT",
     "MAX_MODELS",
     "ModelRun",
+    "TreeBase",
     "Models",
     "model_scales",
     "model_step",
@@ -112,6 +113,17 @@ def point_model_distance(skel: Any) -> float:
     return float(np.mean(np.minimum(np.abs(sd), FIT_CAP)))
 
 
+class TreeBase(NamedTuple):
+    """One tree of a model: its ``tree_id`` (as in treedata.csv), stem base ``x``, ``y``
+    (m, original coordinates), ``volume`` (m³) and ``trunk_length`` (m)."""
+
+    tree: int
+    x: float
+    y: float
+    volume: float
+    trunk_length: float
+
+
 @dataclass(frozen=True)
 class ModelRun:
     """One model: its scale, seed and level width (m), total volume (m³), volume per
@@ -127,8 +139,8 @@ class ModelRun:
     trunk_length: float
     tips: int
     distance: float
-    #: per tree: stem base x, y (m, original coordinates), volume (m³), trunk length (m)
-    trees: tuple[tuple[float, float, float, float], ...] = ()
+    #: per tree: its id, stem base, volume and trunk length
+    trees: tuple[TreeBase, ...] = ()
 
     def row(self) -> dict[str, Any]:
         """The model as one flat table row (litres and millimetres, as foresters read)."""
@@ -166,44 +178,42 @@ class Models:
         chosen model's index and distance (mm); for a plot, ``trees``
         (:meth:`tree_stats`)."""
 
-        spread = _spread
         labels = list(self.runs[0].classes) if self.runs else []
         return {
             "n": len(self.runs),
             "best": self.runs[self.best].index,
             "failed": list(self.failed),
             "best_distance_mm": 1e3 * self.runs[self.best].distance,
-            "volume_L": spread([1e3 * r.volume for r in self.runs]),
-            "classes_L": {k: spread([1e3 * r.classes[k] for r in self.runs]) for k in labels},
-            "trunk_length_m": spread([r.trunk_length for r in self.runs]),
+            "volume_L": _spread([1e3 * r.volume for r in self.runs]),
+            "classes_L": {k: _spread([1e3 * r.classes[k] for r in self.runs]) for k in labels},
+            "trunk_length_m": _spread([r.trunk_length for r in self.runs]),
             "runs": [r.row() for r in self.runs],
             "trees": self.tree_stats() if len(self.runs[0].trees) > 1 else [],
         }
 
     def tree_stats(self) -> list[dict[str, Any]]:
-        """Per tree of model 0 (a plot): its stem base, in how many models it was found
-        (a stem base within :attr:`match` in x, y) and the spread of its volume (L) and
-        trunk length (m) over those models."""
+        """Per tree of model 0 (a plot): its id and stem base, in how many models it was
+        found (a stem base within :attr:`match` in x, y) and the spread of its volume (L)
+        and trunk length (m) over those models."""
+        bases = [np.array([[t.x, t.y] for t in r.trees]).reshape(-1, 2) for r in self.runs]
         out = []
-        for t, (x, y, _, _) in enumerate(self.runs[0].trees):
-            vols, trunks = [], []
-            for r in self.runs:
+        for t in self.runs[0].trees:
+            found = []
+            for r, b in zip(self.runs, bases, strict=True):
                 if not r.trees:
                     continue
-                base = np.array([[a[0], a[1]] for a in r.trees])
-                d = np.hypot(base[:, 0] - x, base[:, 1] - y)
+                d = np.hypot(b[:, 0] - t.x, b[:, 1] - t.y)
                 j = int(np.argmin(d))
                 if d[j] <= self.match:
-                    vols.append(1e3 * r.trees[j][2])
-                    trunks.append(r.trees[j][3])
+                    found.append(r.trees[j])
             out.append(
                 {
-                    "tree": t,
-                    "x": x,
-                    "y": y,
-                    "found": len(vols),
-                    "volume_L": _spread(vols),
-                    "trunk_length_m": _spread(trunks),
+                    "tree": t.tree,
+                    "x": t.x,
+                    "y": t.y,
+                    "found": len(found),
+                    "volume_L": _spread([1e3 * f.volume for f in found]),
+                    "trunk_length_m": _spread([f.trunk_length for f in found]),
                 }
             )
         return out
@@ -288,7 +298,7 @@ def _record(index: int, scale: float, seed: int, width: float, skel: Any) -> Mod
         cand = roots if roots.size else nodes
         low = cand[np.argmin(g.position[cand, 2])]
         x, y = (g.position[low, :2] + off[:2]).tolist()
-        trees.append((float(x), float(y), float(a["total_volume"]), float(a["trunk_length"])))
+        trees.append(TreeBase(int(a["tree"]), x, y, a["total_volume"], a["trunk_length"]))
     return ModelRun(
         index=index,
         scale=scale,
