@@ -70,8 +70,10 @@ def test_models_choose_the_nearest_and_report_the_spread(cloud):
     assert st["volume_L"]["mean"] == pytest.approx(np.mean(vols))
     assert st["volume_L"]["sd"] == pytest.approx(np.std(vols, ddof=1))
     assert st["volume_L"]["min"] <= st["volume_L"]["mean"] <= st["volume_L"]["max"]
+    assert all(r.seconds > 0 for r in m.runs)
     lines = m.csv().splitlines()
     assert lines[0].startswith("model,scale,seed,spacing_m,volume_L")
+    assert lines[0].endswith(",distance_mm,seconds")
     assert len(lines) == 4
     # model 0 is the plain run with the same options
     plain = skeletonize(cloud, options=opts)

@@ -128,7 +128,7 @@ class TreeBase(NamedTuple):
 class ModelRun:
     """One model: its scale, seed and level width (m), total volume (m³), volume per
     diameter class (m³), trunk length (m, the longest trunk), tips, point–model
-    distance (m) and, per tree, its stem base and volume."""
+    distance (m), run time (s) and, per tree, its stem base and volume."""
 
     index: int
     scale: float
@@ -139,6 +139,8 @@ class ModelRun:
     trunk_length: float
     tips: int
     distance: float
+    #: the run's wall time (s, the pipeline's ``timings["total"]``)
+    seconds: float = 0.0
     #: per tree: its id, stem base, volume and trunk length
     trees: tuple[TreeBase, ...] = ()
 
@@ -153,7 +155,10 @@ class ModelRun:
         }
         out.update({f"volume_{k}_L": 1e3 * v for k, v in self.classes.items()})
         out.update(
-            trunk_length_m=self.trunk_length, tips=self.tips, distance_mm=1e3 * self.distance
+            trunk_length_m=self.trunk_length,
+            tips=self.tips,
+            distance_mm=1e3 * self.distance,
+            seconds=self.seconds,
         )
         return out
 
@@ -309,6 +314,7 @@ def _record(index: int, scale: float, seed: int, width: float, skel: Any) -> Mod
         trunk_length=max((a["trunk_length"] for a in attrs), default=0.0),
         tips=int(g.leaves.size),
         distance=point_model_distance(skel),
+        seconds=float(skel.timings.get("total", 0.0)),
         trees=tuple(trees),
     )
 
