@@ -398,7 +398,11 @@ def run_biomorph(cloud, method: str, graph_kw: dict | None = None) -> dict:
 def method_options(method: str) -> tuple[str, dict]:
     """``"graph-runs"`` / ``"voxel-runs"``: the method without the run cylinders
     (``run_cylinders=False``; the graph method's default since session 19);
-    ``"graph+runs"`` / ``"voxel+runs"``: with them; anything else as given (its default)."""
+    ``"graph+runs"`` / ``"voxel+runs"``: with them; ``"graph-limbs"`` / ``"voxel-limbs"``:
+    without turning reversed limbs round (``reversed_limbs=False``, session 21); anything
+    else as given (its default)."""
+    if method.endswith("-limbs"):
+        return method[: -len("-limbs")], {"reversed_limbs": False}
     if method.endswith("-runs"):
         return method[: -len("-runs")], {"run_cylinders": False}
     base, _, extra = method.partition("+")
@@ -1199,7 +1203,8 @@ def main() -> None:
         "--methods",
         nargs="*",
         default=["graph", "voxel"],
-        help="graph, voxel, graph+variant (truth), graph-runs / voxel-runs (--no-run-cylinders)",
+        help="graph, voxel, graph+variant (truth), graph-runs / voxel-runs (--no-run-cylinders), "
+        "graph-limbs / voxel-limbs (--no-reversed-limbs)",
     )
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument(

@@ -302,6 +302,14 @@ class CleanupOptions:
         "prune_empty_tips), then fit radii again (graph).",
         kind="enabled",
     )
+    reversed_limbs: bool = _opt(
+        True,
+        "--reversed-limbs",
+        "Turn round limbs the skeleton entered from a thin branch above and ran down to a "
+        "thick base ending against the stem (tree.limbs.reversed_limbs), then fit radii "
+        "again.",
+        kind="enabled",
+    )
     detours: bool = _opt(
         True,
         "--detours",
@@ -484,6 +492,7 @@ _LEGACY = {
             "tip_support",
             "residual",
             "empty_tips",
+            "reversed_limbs",
             "detours",
         )
     },

@@ -49,6 +49,7 @@ __all__ = [
     "voxel_phase",
     "radius_phase",
     "residual_phase",
+    "limbs_phase",
     "empty_tips_phase",
     "twig_phase",
     "order_phase",
@@ -281,6 +282,7 @@ def skeletonize(
     (graph_phase if opts.method == "graph" else voxel_phase)(run)
     radius_phase(run)
     residual_phase(run)
+    limbs_phase(run)
     empty_tips_phase(run)
     detour_phase(run)
     segment_phase(run)
@@ -699,6 +701,33 @@ def residual_phase(run: _Run) -> None:
     if rec["nodes_added"]:
         run.graph = grown
         radius_phase(run, tick=False)
+
+
+def limbs_phase(run: _Run) -> None:
+    """Limbs the skeleton hung the wrong way round, entered from a thin branch above and
+    running down to a base that ends against the stem, turned round
+    (:func:`biomorph.tree.limbs.reversed_limbs`); the radius stage runs once more after
+    :func:`detour_phase`. Needs the circle fits (``--radius fit``); off with
+    ``CleanupOptions.reversed_limbs = False`` (``--no-reversed-limbs``)."""
+    from biomorph.tree.limbs import reversed_limbs
+
+    co = run.opts.cleanup
+    run.params.update(reversed_limbs=co.reversed_limbs)
+    graph, fit, skel = run.graph, run.fit, run.skeleton
+    if not co.reversed_limbs or graph is None or fit is None or skel is None:
+        return
+    if not (fit.radius.size == graph.n_nodes == skel.n_nodes):
+        return
+    t0 = time.perf_counter()
+    parent, limbs = reversed_limbs(graph, fit)
+    run.info["reversed_limbs"] = len(limbs)
+    run.timings["cleanup"] = run.timings.get("cleanup", 0.0) + time.perf_counter() - t0
+    if limbs:
+        g = graph.with_(parent=parent)
+        run.graph = g.with_(weight=g.subtree_length())
+        s = skel.with_(parent=parent)
+        run.skeleton = s.with_(weight=s.subtree_length())
+        run.radii_pending = True
 
 
 def empty_tips_phase(run: _Run) -> None:

@@ -1,0 +1,325 @@
+"""Limbs the skeleton hung the wrong way round (issue 13, session 21).
+
+The graph method's shortest-path forest reaches each point by the cheapest way from the
+root. Where the scan misses a limb's junction (occlusion, a shadow behind the stem) the
+cheapest way into the limb can come from *above*: along another branch, across where the
+two touch, then down the limb to its base. The skeleton then runs the limb backwards: its
+base is a tip that ends against the stem, and the limb hangs from the thin branch it was
+entered from. The pipe model gives a limb hung from a twig a twig's radius and the taper
+model sets its circle fits aside as envelopes (a fit 10× the model): on the synthetic
+maple at 240,000 points with 8 mm noise one such limb (58 mm, 2 m) held 7 % of its volume.
+
+:func:`reversed_limbs` finds such limbs and turns them round. A tip ``e`` is the base of a
+reversed limb when all of these hold:
+
+1. **The tip is thick.** The reliable circle fits (:data:`~biomorph.tree.radius.
+   RELIABLE_COVERAGE`, :data:`~biomorph.tree.radius.RELIABLE_MAD`, the taper model's own
+   thresholds) along the way up from ``e`` span :data:`STRETCH_RADII` of their median
+   radius ``m`` (three diameters, as the taper model's runs), at least :data:`MIN_FITS` of
+   them, the first within :data:`MAX_GAP` nodes and none further apart, their quartiles
+   within :data:`CONSISTENT` of the median (a needle envelope's fits scatter far wider;
+   a real tip is not several centimetres thick), and ``m`` at least twice the model's
+   radius at ``e`` (the model contradicts the fits: otherwise nothing is lost).
+2. **The stretch is the limb's own wood**: at most a third of its nodes lie inside the
+   cylinder of another branch at least as thick (a side branch's first nodes running
+   inside the stem measure the stem), and its far end stands :data:`CLEARANCE` radii
+   clear of the host's branch (the host's edges up and down from it as far as the stretch
+   reaches): a chain running beside the stem does not.
+3. **It ends against thicker wood**: a node ``t`` of the same tree, outside the stretch,
+   modelled at least :data:`HOST_RATIO` ``m`` thick (the pipe model's parent, no thinner
+   than its child, less the fits' scatter), whose edge passes within its own radius plus
+   ``m`` of ``e``.
+4. **The way through ``t`` is shorter**: path length root → ``t`` → ``e`` shorter than the
+   skeleton's root → ``e``. The nodes turned round are those on the way up from ``e`` that
+   this new way reaches by a shorter path (what the shortest-path forest would have given
+   had the junction been seen), stopping before the first node modelled and measured under
+   half of ``m`` (the thin wood the limb was entered from keeps its own parent). The whole
+   measured stretch must be among them.
+5. **The old attachment contradicts the limb**: the node the turned-round part hung from
+   is modelled under half of ``m`` (a limb hung from a twig), else the skeleton is
+   consistent and left alone.
+
+Every test reads the cloud's own measures (fitted radii, the model's radii, node spacing
+through the path lengths); the constants are ratios of those. The caller fits radii
+again on the new skeleton. Measured: ``docs/tree.md``, session 21.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from biomorph.core import treeops
+from biomorph.core.graph import BranchGraph
+from biomorph.tree.radius import RELIABLE_COVERAGE, RELIABLE_MAD, RadiusFit
+
+__all__ = ["reversed_limbs", "STRETCH_RADII", "MIN_FITS", "CONSISTENT", "CLEARANCE"]
+
+#: the measured stretch at the tip spans this many of its median radius (3 diameters)
+STRETCH_RADII = 6.0
+#: at least this many reliable fits in the stretch
+MIN_FITS = 5
+#: at most this many nodes in a row without a reliable fit (the tip node included)
+MAX_GAP = 3
+#: the fits' quartiles lie within this factor of their median
+CONSISTENT = 1.2
+#: the stretch's far end stands this many of its radii clear of the host's surface
+CLEARANCE = 3.0
+#: share of the stretch's nodes allowed inside another, thicker branch's cylinder
+INSIDE_SHARE = 1 / 3
+#: the host is at least this share of the limb's radius (a parent no thinner than its
+#: child, with the fits' scatter)
+HOST_RATIO = 0.8
+#: a limb's old attachment (and the thin wood it was entered from) is under this share of
+#: its radius
+THIN_RATIO = 0.5
+
+
+@numba.njit(cache=True)
+def _stretches(step, step_len, starts, fit, reliable, radii, min_fits, max_gap):  # pragma: no cover
+    """For each start node: the median reliable fit ``m`` over the way from it along
+    ``step`` (the parent, or the main child; ``step_len`` the length of that move) until
+    the way spans ``radii * m`` (NaN if the fits run out first), the stretch's last node
+    and the fits' quartiles."""
+    k = starts.size
+    med = np.full(k, np.nan)
+    q1 = np.full(k, np.nan)
+    q3 = np.full(k, np.nan)
+    end = np.full(k, -1, dtype=np.int64)
+    buf = np.empty(4096)
+    for i in range(k):
+        x = starts[i]
+        s = 0.0
+        nf = 0
+        gap = 0
+        while True:
+            if reliable[x]:
+                buf[nf] = fit[x]
+                nf += 1
+                gap = 0
+            else:
+                gap += 1
+                if gap > max_gap:
+                    break
+            if nf >= min_fits:
+                m = np.median(buf[:nf])
+                if s >= radii * m:
+                    med[i] = m
+                    q1[i] = np.quantile(buf[:nf], 0.25)
+                    q3[i] = np.quantile(buf[:nf], 0.75)
+                    end[i] = x
+                    break
+            if step[x] < 0 or nf >= buf.size:
+                break
+            s += step_len[x]
+            x = step[x]
+    return med, q1, q3, end
+
+
+def _segment_distance(p: NDArray, a: NDArray, b: NDArray) -> NDArray[np.float64]:
+    """Distance from ``p`` to the segments ``a[i]``–``b[i]``."""
+    ab = b - a
+    ll = np.einsum("ij,ij->i", ab, ab)
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(ll, 1e-18), 0.0, 1.0)
+    return np.linalg.norm(a + t[:, None] * ab - p, axis=1)
+
+
+def _way(step: NDArray, a: int, b: int) -> NDArray[np.int64] | None:
+    """The nodes from ``a`` to ``b`` following ``step``; None if ``b`` is not on the way
+    (an earlier limb turned round changed it)."""
+    way = [a]
+    while way[-1] != b:
+        nxt = int(step[way[-1]])
+        if nxt < 0:
+            return None
+        way.append(nxt)
+    return np.asarray(way, dtype=np.int64)
+
+
+class _Finder:
+    """State shared by the tests of one skeleton."""
+
+    def __init__(self, graph: BranchGraph, fit: RadiusFit, reliable: NDArray):
+        self.pos = graph.position
+        self.radius = np.array(graph.radius, dtype=float)
+        self.tree = graph.trees
+        self.fit = fit.radius
+        self.usable = fit.radius > 0  # any circle found: where to cut, not what to keep
+        self.kd = cKDTree(self.pos)
+        self.rmax = float(self.radius.max()) if self.radius.size else 0.0
+
+    def inside_share(self, parent: NDArray, nodes: NDArray, m: float) -> float:
+        """Share of ``nodes`` inside the cylinder of another branch at least
+        :data:`HOST_RATIO` ``m`` thick."""
+        own = set(nodes.tolist())
+        inside = 0
+        for u, near in zip(
+            nodes, self.kd.query_ball_point(self.pos[nodes], self.rmax), strict=True
+        ):
+            c = np.asarray([w for w in near if w not in own and parent[w] >= 0], dtype=np.int64)
+            if c.size == 0:
+                continue
+            c = c[(self.tree[c] == self.tree[u]) & (self.radius[c] >= HOST_RATIO * m)]
+            if c.size == 0:
+                continue
+            d = _segment_distance(self.pos[u], self.pos[parent[c]], self.pos[c])
+            inside += bool((d < 0.9 * self.radius[c]).any())
+        return inside / nodes.size
+
+    def host(self, parent: NDArray, pl: NDArray, e: int, own: NDArray, m: float):
+        """The thicker node ``e`` ends against with the shortest way from the root, and
+        that way's length to ``e``; None if there is none or that way is no shorter than
+        the skeleton's."""
+        near = np.asarray(self.kd.query_ball_point(self.pos[e], self.rmax + m), dtype=np.int64)
+        near = near[(parent[near] >= 0) & (self.tree[near] == self.tree[e])]
+        near = near[(self.radius[near] >= HOST_RATIO * m) & ~np.isin(near, own)]
+        if near.size == 0:
+            return None
+        d = _segment_distance(self.pos[e], self.pos[parent[near]], self.pos[near])
+        near = near[d <= self.radius[near] + m]
+        if near.size == 0:
+            return None
+        way = pl[near] + np.linalg.norm(self.pos[near] - self.pos[e], axis=1)
+        k = int(np.argmin(way))
+        if way[k] >= pl[e]:
+            return None
+        return int(near[k]), float(way[k])
+
+    def clearance(self, parent: NDArray, main: NDArray, t: int, far: int, reach: float) -> float:
+        """How far ``far`` stands outside the host's branch: the cylinders of the edges
+        along ``t``'s ancestors and main descendants within ``reach`` of ``t`` (a chain
+        beside the stem stays near it; a limb leaving it, or continuing it beyond its end,
+        does not)."""
+        way = [t]
+        for step in (parent, main):
+            x, s = t, 0.0
+            while s < reach and step[x] >= 0:
+                s += float(np.linalg.norm(self.pos[step[x]] - self.pos[x]))
+                x = int(step[x])
+                way.append(x)
+        w = np.asarray(way, dtype=np.int64)
+        w = w[parent[w] >= 0]
+        if w.size == 0:
+            return np.inf
+        d = _segment_distance(self.pos[far], self.pos[parent[w]], self.pos[w])
+        return float(np.min(d - self.radius[w]))
+
+    def turned(self, parent: NDArray, pl: NDArray, e: int, way_in: float, m: float, n: int):
+        """The nodes from ``e`` up that the way through the host reaches first, up to the
+        last thick one before :data:`MAX_GAP` thin nodes in a row beyond the measured
+        stretch (its first ``n`` nodes); thick: modelled or measured (any usable circle
+        fit: where to cut, not what radius to keep) at least :data:`THIN_RATIO` ``m``."""
+        out = [e]
+        last_thick = 1
+        x = int(parent[e])
+        while x >= 0 and way_in + (pl[e] - pl[x]) < pl[x]:
+            out.append(x)
+            fitted = self.fit[x] if self.usable[x] else 0.0
+            if len(out) <= n or max(self.radius[x], fitted) >= THIN_RATIO * m:
+                last_thick = len(out)
+            elif len(out) - last_thick > MAX_GAP:
+                break
+            x = int(parent[x])
+        return np.asarray(out[:last_thick], dtype=np.int64)
+
+
+def _reliable(fit: RadiusFit) -> NDArray[np.bool_]:
+    mad = fit.mad if fit.mad is not None else np.zeros(fit.radius.size)
+    return (
+        fit.ok
+        & (fit.coverage >= RELIABLE_COVERAGE)
+        & (mad <= RELIABLE_MAD * np.maximum(fit.radius, 1e-12))
+    )
+
+
+class _Skeleton:
+    """The parents being edited and what the tests read from them."""
+
+    def __init__(self, graph: BranchGraph, fit: RadiusFit):
+        self.graph = graph
+        self.fit = fit
+        self.parent = np.array(graph.parent, dtype=np.int64)
+        self.reliable = _reliable(fit)
+        self.find = _Finder(graph, fit, self.reliable)
+        self.done: list[dict[str, float]] = []
+        self.update()
+
+    def update(self) -> None:
+        par, pos = self.parent, self.graph.position
+        self.edge = np.where(par >= 0, np.linalg.norm(pos - pos[np.maximum(par, 0)], axis=1), 0.0)
+        self.pl = treeops.accumulate_down(par, self.edge)
+
+    def stretches(self, step: NDArray, step_len: NDArray, starts: NDArray):
+        """The starts whose stretch along ``step`` is consistent, thickest first, with the
+        stretch's median fit and last node."""
+        med, q1, q3, end = _stretches(
+            step,
+            step_len,
+            starts,
+            self.fit.radius,
+            self.reliable,
+            STRETCH_RADII,
+            MIN_FITS,
+            MAX_GAP,
+        )
+        ok = np.isfinite(med)
+        ok[ok] &= (q3[ok] <= CONSISTENT * med[ok]) & (q1[ok] >= med[ok] / CONSISTENT)
+        idx = np.flatnonzero(ok)
+        idx = idx[np.argsort(-med[idx], kind="stable")]
+        return starts[idx], med[idx], end[idx]
+
+    def clear(self, t: int, start: int, last: int, m: float) -> bool:
+        """The stretch ``start`` … ``last`` ends :data:`CLEARANCE` ``m`` outside the host's
+        branch around ``t``."""
+        par = self.parent
+        main = treeops.main_child(par, treeops.subtree_sum(par, self.edge))
+        reach = float(np.linalg.norm(self.graph.position[last] - self.graph.position[start]))
+        reach += CLEARANCE * m
+        return self.find.clearance(par, main, t, last, reach) >= CLEARANCE * m
+
+    def own_wood(self, stretch: NDArray, m: float) -> bool:
+        return self.find.inside_share(self.parent, stretch, m) <= INSIDE_SHARE
+
+    def turn_tips(self) -> None:
+        """Reversed limbs (module doc): a thick tip against thicker wood, turned round."""
+        par, radius = self.parent, self.graph.radius
+        assert radius is not None
+        leaves = np.flatnonzero(np.bincount(par[par >= 0], minlength=par.size) == 0)
+        tips, med, end = self.stretches(par, self.edge, leaves)
+        for e, m, last in zip(tips.tolist(), med.tolist(), end.tolist(), strict=True):
+            if m < 2.0 * radius[e] or np.any(par == e):  # not contradicted / no longer a tip
+                continue
+            stretch = _way(par, e, last)
+            if stretch is None or not self.own_wood(stretch, m):
+                continue
+            hit = self.find.host(par, self.pl, e, stretch, m)
+            if hit is None or not self.clear(hit[0], e, last, m):
+                continue
+            turn = self.find.turned(par, self.pl, e, hit[1], m, stretch.size)
+            old = int(par[turn[-1]])
+            if turn.size < stretch.size or (old >= 0 and radius[old] >= THIN_RATIO * m):
+                continue
+            length = float(self.pl[e] - self.pl[turn[-1]])
+            par[turn[1:]] = turn[:-1]
+            par[e] = hit[0]
+            self.done.append({"tip": e, "host": hit[0], "radius": m, "length": length})
+            self.update()
+
+
+def reversed_limbs(
+    graph: BranchGraph, fit: RadiusFit
+) -> tuple[NDArray[np.int64], list[dict[str, float]]]:
+    """New parents with every reversed limb (module doc) turned round, and one record per
+    limb (``tip``: its base, a tip before; ``host``: the node it now hangs from;
+    ``radius`` m: its fits' median; ``length`` m turned round).
+
+    ``graph``: the fitted skeleton (model radii); ``fit``: its circle fits, node for node.
+    Limbs are taken thickest first; each later one is tested on the skeleton as the earlier
+    ones left it."""
+    if graph.radius is None or graph.n_nodes < 3 or fit.radius.size != graph.n_nodes:
+        return np.array(graph.parent, dtype=np.int64), []
+    sk = _Skeleton(graph, fit)
+    sk.turn_tips()
+    return sk.parent, sk.done
