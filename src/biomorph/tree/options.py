@@ -302,13 +302,13 @@ class CleanupOptions:
         "prune_empty_tips), then fit radii again (graph).",
         kind="enabled",
     )
-    reversed_limbs: bool = _opt(
-        True,
+    reversed_limbs: bool | None = _opt(
+        None,
         "--reversed-limbs",
         "Turn round limbs the skeleton entered from a thin branch above and ran down to a "
         "thick base ending against the stem (tree.limbs.reversed_limbs), then fit radii "
-        "again.",
-        kind="enabled",
+        "again. Default: on for the graph method (the noisy synthetic maple's 67 mm limb); "
+        "off for voxel (no preset has one; its one turn on the TreeLS spruce is unchecked).",
     )
     detours: bool = _opt(
         True,

@@ -707,14 +707,16 @@ def limbs_phase(run: _Run) -> None:
     """Limbs the skeleton hung the wrong way round, entered from a thin branch above and
     running down to a base that ends against the stem, turned round
     (:func:`biomorph.tree.limbs.reversed_limbs`); the radius stage runs once more after
-    :func:`detour_phase`. Needs the circle fits (``--radius fit``); off with
-    ``CleanupOptions.reversed_limbs = False`` (``--no-reversed-limbs``)."""
+    :func:`detour_phase`. Needs the circle fits (``--radius fit``);
+    ``CleanupOptions.reversed_limbs`` (``--reversed-limbs/--no-reversed-limbs``; None: on
+    for the graph method, off for voxel)."""
     from biomorph.tree.limbs import reversed_limbs
 
     co = run.opts.cleanup
-    run.params.update(reversed_limbs=co.reversed_limbs)
+    on = co.reversed_limbs if co.reversed_limbs is not None else run.opts.method == "graph"
+    run.params.update(reversed_limbs=on)
     graph, fit, skel = run.graph, run.fit, run.skeleton
-    if not co.reversed_limbs or graph is None or fit is None or skel is None:
+    if not on or graph is None or fit is None or skel is None:
         return
     if not (fit.radius.size == graph.n_nodes == skel.n_nodes):
         return
