@@ -172,7 +172,9 @@ def test_the_pipeline_turns_the_noisy_maples_reversed_limb():
     assert on[0].info["reversed_limbs"] >= 1 and "reversed_limbs" not in off[0].info
     assert off[1] > 3 * true_path  # hung the wrong way round
     assert on[1] < 1.2 * true_path  # from the stem at its base
-    assert on[2] > 3 * off[2]  # its radius no longer a twig's
+    assert on[2] > 3 * off[2]  # its radius no longer a twig's: its own circle fits'
+    r_true = truth.radius[x]
+    assert abs(on[2] / r_true - 1) < 0.2, (on[2], r_true)
     # the trunk stays (its radius pass moves nodes by fractions of a millimetre)
     t_on, t_off = (s[0].metrics["trees"][0]["trunk_length"] for s in (on, off))
     assert abs(t_on - t_off) < 1e-3
@@ -197,3 +199,24 @@ def test_no_reversed_limbs_reaches_the_summary(tmp_path, capsys):
     vox_on = [*args, "--method", "voxel", "--reversed-limbs", "--out", str(tmp_path / "v2")]
     assert run(vox_on) == 0
     assert json.loads(capsys.readouterr().out)["params"]["reversed_limbs"] is True
+
+
+def test_a_turned_limbs_radii_are_its_own_fits():
+    """``taper_radii(trusted=…)``: the trusted nodes take their reliable fits, the ones
+    between them (here one without a fit) the nearest such fit along the limb, whatever
+    the taper model says about the length they carry."""
+    import dataclasses
+
+    from biomorph.tree.radius import taper_radii
+
+    g, fits, k0, nl, _ = _tree(reversed_=False)
+    fit = _fit(fits)
+    gap = k0 + nl // 2
+    fit = dataclasses.replace(fit, coverage=np.where(np.arange(g.n_nodes) == gap, 0.0, 1.0))
+    limb = np.zeros(g.n_nodes, bool)
+    limb[k0 : k0 + nl] = True
+    r_model, _ = taper_radii(g, fit)
+    r_own, f_own = taper_radii(g, fit, trusted=limb)
+    assert np.allclose(r_own[limb], R_LIMB)  # the fits, and the gap filled from them
+    assert f_own.reliable[limb].sum() == nl - 1  # all reported kept, bar the gap
+    assert np.array_equal(r_own[~limb], r_model[~limb])  # nothing else moves

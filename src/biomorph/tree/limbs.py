@@ -46,6 +46,8 @@ again on the new skeleton. Measured: ``docs/tree.md``, session 21.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numba
 import numpy as np
 from numpy.typing import NDArray
@@ -243,7 +245,7 @@ class _Skeleton:
         self.parent = np.array(graph.parent, dtype=np.int64)
         self.reliable = _reliable(fit)
         self.find = _Finder(graph, fit, self.reliable)
-        self.done: list[dict[str, float]] = []
+        self.done: list[dict[str, Any]] = []
         self.update()
 
     def update(self) -> None:
@@ -304,16 +306,19 @@ class _Skeleton:
             length = float(self.pl[e] - self.pl[turn[-1]])
             par[turn[1:]] = turn[:-1]
             par[e] = hit[0]
-            self.done.append({"tip": e, "host": hit[0], "radius": m, "length": length})
+            self.done.append(
+                {"tip": e, "host": hit[0], "radius": m, "length": length, "nodes": turn}
+            )
             self.update()
 
 
 def reversed_limbs(
     graph: BranchGraph, fit: RadiusFit
-) -> tuple[NDArray[np.int64], list[dict[str, float]]]:
+) -> tuple[NDArray[np.int64], list[dict[str, Any]]]:
     """New parents with every reversed limb (module doc) turned round, and one record per
     limb (``tip``: its base, a tip before; ``host``: the node it now hangs from;
-    ``radius`` m: its fits' median; ``length`` m turned round).
+    ``radius`` m: its fits' median; ``length`` m turned round; ``nodes``: those turned
+    round, from the base up).
 
     ``graph``: the fitted skeleton (model radii); ``fit``: its circle fits, node for node.
     Limbs are taken thickest first; each later one is tested on the skeleton as the earlier

@@ -193,6 +193,21 @@ class _Run:
     #: the skeleton changed since the radius stage last ran (tips pruned): the next phase
     #: that re-fits anyway does it once for both, or :func:`detour_phase` does
     radii_pending: bool = False
+    #: positions (skeleton frame, as the radius stage receives them) of the nodes of limbs
+    #: turned round (:func:`limbs_phase`): their circle fits are their radii
+    limb_points: NDArray[np.float64] | None = None
+    #: :meth:`limb_mask` of the skeleton the radius stage last fitted (node for node with
+    #: ``graph`` after it)
+    limb_nodes: NDArray[np.bool_] | None = None
+
+    def limb_mask(self, graph: BranchGraph) -> NDArray[np.bool_] | None:
+        """The nodes of ``graph`` at :attr:`limb_points` (None: no limb turned)."""
+        if self.limb_points is None or graph.n_nodes == 0:
+            return None
+        from scipy.spatial import cKDTree
+
+        d, _ = cKDTree(self.limb_points).query(graph.position)
+        return np.asarray(d <= 1e-9)
 
     def point_index(self) -> Any:
         """The k-d tree of ``cloud`` (a :class:`~biomorph.tree.neighbours.PointIndex`,
@@ -624,9 +639,11 @@ def radius_phase(run: _Run, tick: bool = True) -> None:
     t0 = time.perf_counter()
     exponent = run.opts.graph.allometry_exponent
     if ro.method == "fit":
+        run.limb_nodes = run.limb_mask(graph)
         graph, fit = fit_radii(
             graph,
             xyz,
+            trusted=run.limb_nodes,
             recentre=ro.recentre,
             search_factor=ro.search_factor,
             allometry_exponent=exponent,
@@ -730,6 +747,8 @@ def limbs_phase(run: _Run) -> None:
         s = skel.with_(parent=parent)
         run.skeleton = s.with_(weight=s.subtree_length())
         run.radii_pending = True
+        turned = np.concatenate([limb["nodes"] for limb in limbs])
+        run.limb_points = skel.position[turned]
 
 
 def empty_tips_phase(run: _Run) -> None:
@@ -829,6 +848,7 @@ def segment_phase(run: _Run) -> None:
     if spacing <= 0 or fit.ok.size != graph.n_nodes or graph.n_nodes == 0:
         return
     t0 = time.perf_counter()
+    limbs = run.limb_nodes
     radius, fit = rd.segment_radii(
         graph,
         run.cloud.xyz,
@@ -837,6 +857,7 @@ def segment_phase(run: _Run) -> None:
         min_radius=ro.min_radius,
         exponent=ro.taper_exponent,
         kdtree=run.point_index(),
+        trusted=limbs if limbs is not None and limbs.size == graph.n_nodes else None,
     )
     graph_r = graph.with_(radius=radius)
     if ro.recentre and fit.segment_centre is not None:

@@ -694,8 +694,10 @@ def fit_radii(
     seed: int = 0,
     spacing: float | None = None,
     kdtree: cKDTree | None = None,
+    trusted: NDArray[np.bool_] | None = None,
 ) -> tuple[BranchGraph, RadiusFit]:
     """Radii (and optionally re-centred positions) from the points; see the module doc.
+    ``trusted``: as :func:`taper_radii`.
 
     Radii never exceed ``slack`` times the parent's (:func:`cap_down`; pipe model: a
     branch is not thicker than the stem carrying it). With ``recentre`` the shifts to the
@@ -792,7 +794,12 @@ def fit_radii(
             g = g.with_(position=pos)
     if taper and fit is not None:
         radius, fit = taper_radii(
-            g, fit, min_radius=min_radius, exponent=taper_exponent, slack=slack
+            g,
+            fit,
+            min_radius=min_radius,
+            exponent=taper_exponent,
+            slack=slack,
+            trusted=trusted,
         )
     if recentre and fit is not None and spacing:
         g = centre_thin_nodes(g, xyz, radius, fit.ok, spacing, search_depth, kdtree=kd)
@@ -809,13 +816,15 @@ def segment_radii(
     exponent: float = PIPE_EXPONENT,
     slack: float = 1.1,
     kdtree: PointIndex | None = None,
+    trusted: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.float64], RadiusFit]:
-    """The taper model again (:func:`taper_radii`), now with the cylinders of runs of
-    nodes (:func:`biomorph.tree.run_cylinders.fit_segments`) as measurements where no circle fit
-    is reliable, off the stem. Run once on the final skeleton (``fit``: its last circle
-    fits; ``graph.radius``: the radii so far, the runs' estimate): the skeleton's cleanup
-    decisions are left as the circle fits made them. Without three reliable circle fits
-    (no measure of the scan's noise) the runs are not used."""
+    """The taper model again (:func:`taper_radii`, ``trusted`` as there), now with the
+    cylinders of runs of nodes (:func:`biomorph.tree.run_cylinders.fit_segments`) as
+    measurements where no circle fit is reliable, off the stem. Run once on the final
+    skeleton (``fit``: its last circle fits; ``graph.radius``: the radii so far, the runs'
+    estimate): the skeleton's cleanup decisions are left as the circle fits made them.
+    Without three reliable circle fits (no measure of the scan's noise) the runs are not
+    used."""
     if graph.radius is None or fit.ok.size != graph.n_nodes or spacing <= 0:
         raise ParameterError("segment_radii needs a skeleton with radii and its circle fits")
     kd = kdtree if kdtree is not None else PointIndex(xyz)
@@ -823,7 +832,9 @@ def segment_radii(
     reliable, stem = _reliable_fits(graph, fit, carried)
     noise = _scatter(fit, reliable, stem)
     if noise <= 0:
-        return taper_radii(graph, fit, min_radius=min_radius, exponent=exponent, slack=slack)
+        return taper_radii(
+            graph, fit, min_radius=min_radius, exponent=exponent, slack=slack, trusted=trusted
+        )
     d, near = skeleton_distance(xyz, graph.parent, graph.position, order=kd.indices)
     bid, _ = branch_ids(graph, carried)
     segs = fit_segments(
@@ -839,7 +850,13 @@ def segment_radii(
         noise=noise,
     )
     return taper_radii(
-        graph, fit, min_radius=min_radius, exponent=exponent, slack=slack, segments=segs
+        graph,
+        fit,
+        min_radius=min_radius,
+        exponent=exponent,
+        slack=slack,
+        segments=segs,
+        trusted=trusted,
     )
 
 
@@ -1182,9 +1199,15 @@ def taper_radii(
     slack: float = 1.1,
     within: bool = True,
     segments: SegmentFit | None = None,
+    trusted: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.float64], RadiusFit]:
     """Final radii: reliable circle fits where the scan measured the cross-section, a
     taper (pipe) model fitted on them elsewhere.
+
+    ``trusted``: nodes whose reliable fits are their radii whatever the model says, the
+    nodes between them filled from the nearest such fit along the tree (limbs turned round,
+    :mod:`biomorph.tree.limbs`: their fits were checked consistent over three diameters,
+    while the model under them still lacks the wood the skeleton hangs elsewhere).
 
     1. **Fit quality**: a fit is *reliable* when usable (``fit.ok``), covering at least
        :data:`RELIABLE_COVERAGE` of the circumference and scattering by at most
@@ -1357,6 +1380,8 @@ def taper_radii(
     run = _plausible_runs(graph, run & ~measured, r_fit, radius, bid, cont, anc)
     radius[run] = r_fit[run]
     keep |= run
+    if trusted is not None and trusted.any():
+        keep |= _own_fits(graph, radius, r_fit, reliable, trusted)
     slack_v = np.where(cont, float(slack), 1.0)
     radius = _cap_down_slack(par, graph.order, radius, slack_v)
     return radius, dataclasses.replace(
@@ -1637,6 +1662,34 @@ def _kept_ancestor_kernel(parent, order, keep):
             out[v] = v
         elif parent[v] >= 0:
             out[v] = out[parent[v]]
+    return out
+
+
+def _own_fits(
+    graph: BranchGraph, radius: NDArray, r_fit: NDArray, reliable: NDArray, trusted: NDArray
+) -> NDArray[np.bool_]:
+    """``radius`` of the ``trusted`` nodes set to their reliable fits, the others among
+    them filled along the tree (:func:`_fill_along`); returns the fits now kept."""
+    own = _fill_along(graph, np.where(trusted & reliable, r_fit, np.nan), trusted)
+    take = trusted & np.isfinite(own)
+    radius[take] = own[take]
+    return trusted & reliable
+
+
+def _fill_along(graph: BranchGraph, values: NDArray, mask: NDArray) -> NDArray[np.float64]:
+    """``values`` (NaN = unknown) filled within ``mask`` from the nearest known value
+    towards the root, else from a child's (parents first, then children first)."""
+    out = np.array(values, dtype=float)
+    par, order = graph.parent, graph.order
+    order = order[mask[order]]
+    for v in order:
+        p = par[v]
+        if mask[v] and np.isnan(out[v]) and p >= 0 and mask[p]:
+            out[v] = out[p]
+    for v in order[::-1]:
+        p = par[v]
+        if p >= 0 and mask[p] and mask[v] and np.isnan(out[p]):
+            out[p] = out[v]
     return out
 
 
