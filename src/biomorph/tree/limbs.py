@@ -41,7 +41,10 @@ reversed limb when all of these hold:
 
 Every test reads the cloud's own measures (fitted radii, the model's radii, node spacing
 through the path lengths); the constants are ratios of those. The caller fits radii
-again on the new skeleton. Measured: ``docs/tree.md``, session 21.
+again on the new skeleton, the turned limbs' radii from their own fits
+(:func:`biomorph.tree.radius.taper_radii`'s ``trusted``: the pipe model under a turned
+limb still lacks whatever the skeleton hangs elsewhere). Measured: ``docs/tree.md``,
+session 21.
 """
 
 from __future__ import annotations
