@@ -36,18 +36,21 @@ def _fit(radius: np.ndarray, scatter: np.ndarray | None = None) -> RadiusFit:
     )
 
 
+def _stem() -> tuple[list, list, list, list]:
+    """A 5 m stem of radius :data:`R_STEM`, measured so: positions, parents, model radii
+    and fits, as lists to extend."""
+    stem = np.vstack([[0, 0, 0], _line((0, 0, 0), (0, 0, 5))])
+    n = len(stem)
+    return [*stem], list(range(-1, n - 1)), [R_STEM] * n, [R_STEM] * n
+
+
 def _tree(reversed_: bool = True):
     """A 5 m stem, a thin branch from 3.5 m out to (1.4, 0, 3.6), and a 1.8 m limb whose
     true base is on the stem at 1.5 m. ``reversed_``: the limb hangs from the thin
     branch's end, running down to its base, which ends against the stem (the model gives it
     the thin branch's radius); else it hangs from the stem at its base."""
-    stem = _line((0, 0, 0), (0, 0, 5))
-    stem = np.vstack([[0, 0, 0], stem])
-    n_stem = len(stem)
-    parent = list(range(-1, n_stem - 1))
-    pos = [*stem]
-    radius = [R_STEM] * n_stem
-    fits = [R_STEM] * n_stem
+    pos, parent, radius, fits = _stem()
+    stem = np.asarray(pos)
     i35 = int(round(3.5 / STEP))
     thin = _line(stem[i35], (1.4, 0, 3.6))
     k0 = len(pos)
@@ -113,13 +116,9 @@ def test_scattered_fits_are_an_envelope_not_a_limb():
 
 
 def test_a_chain_inside_the_stem_is_not_a_limb():
-    """A tip chain running up inside the stem, its circles the stem's: not turned."""
-    stem = np.vstack([[0, 0, 0], _line((0, 0, 0), (0, 0, 5))])
-    n = len(stem)
-    parent = list(range(-1, n - 1))
-    pos = [*stem]
-    radius = [R_STEM] * n
-    fits = [R_STEM] * n
+    """A tip chain hung from the stem at 3.5 m and running down inside it, its circles the
+    stem's: not turned."""
+    pos, parent, radius, fits = _stem()
     i35 = int(round(3.5 / STEP))
     inner = _line((0.03, 0, 3.45), (0.03, 0, 1.0))  # hangs from 3.5 m, runs down inside
     for k, p in enumerate(inner):

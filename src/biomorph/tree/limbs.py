@@ -12,10 +12,10 @@ maple at 240,000 points with 8 mm noise one such limb (58 mm, 2 m) held 7 % of i
 :func:`reversed_limbs` finds such limbs and turns them round. A tip ``e`` is the base of a
 reversed limb when all of these hold:
 
-1. **The tip is thick.** The reliable circle fits (:data:`~biomorph.tree.radius.
-   RELIABLE_COVERAGE`, :data:`~biomorph.tree.radius.RELIABLE_MAD`, the taper model's own
-   thresholds) along the way up from ``e`` span :data:`STRETCH_RADII` of their median
-   radius ``m`` (three diameters, as the taper model's runs), at least :data:`MIN_FITS` of
+1. **The tip is thick.** The reliable circle fits
+   (:func:`~biomorph.tree.radius.well_covered`, the taper model's own thresholds) along
+   the way up from ``e`` span :data:`STRETCH_RADII` of their median radius ``m`` (three
+   diameters, as the taper model's runs), at least :data:`MIN_FITS` of
    them, the first within :data:`MAX_GAP` nodes and none further apart, their quartiles
    within :data:`CONSISTENT` of the median (a needle envelope's fits scatter far wider;
    a real tip is not several centimetres thick), and ``m`` at least twice the model's
@@ -58,7 +58,7 @@ from scipy.spatial import cKDTree
 
 from biomorph.core import treeops
 from biomorph.core.graph import BranchGraph
-from biomorph.tree.radius import RELIABLE_COVERAGE, RELIABLE_MAD, RadiusFit
+from biomorph.tree.radius import RadiusFit, well_covered
 
 __all__ = ["reversed_limbs", "STRETCH_RADII", "MIN_FITS", "CONSISTENT", "CLEARANCE"]
 
@@ -83,19 +83,18 @@ THIN_RATIO = 0.5
 
 
 @numba.njit(cache=True)
-def _stretches(step, step_len, starts, fit, reliable, radii, min_fits, max_gap):  # pragma: no cover
-    """For each start node: the median reliable fit ``m`` over the way from it along
-    ``step`` (the parent, or the main child; ``step_len`` the length of that move) until
-    the way spans ``radii * m`` (NaN if the fits run out first), the stretch's last node
-    and the fits' quartiles."""
-    k = starts.size
+def _tip_stretches(parent, edge, tips, fit, reliable, radii, min_fits, max_gap):  # pragma: no cover
+    """For each tip: the median reliable fit ``m`` over the way up from it until the way
+    spans ``radii * m`` (NaN if the fits run out first), the stretch's last node and the
+    fits' quartiles."""
+    k = tips.size
     med = np.full(k, np.nan)
     q1 = np.full(k, np.nan)
     q3 = np.full(k, np.nan)
     end = np.full(k, -1, dtype=np.int64)
     buf = np.empty(4096)
     for i in range(k):
-        x = starts[i]
+        x = tips[i]
         s = 0.0
         nf = 0
         gap = 0
@@ -116,10 +115,10 @@ def _stretches(step, step_len, starts, fit, reliable, radii, min_fits, max_gap):
                     q3[i] = np.quantile(buf[:nf], 0.75)
                     end[i] = x
                     break
-            if step[x] < 0 or nf >= buf.size:
+            if parent[x] < 0 or nf >= buf.size:
                 break
-            s += step_len[x]
-            x = step[x]
+            s += edge[x]
+            x = parent[x]
     return med, q1, q3, end
 
 
@@ -131,58 +130,84 @@ def _segment_distance(p: NDArray, a: NDArray, b: NDArray) -> NDArray[np.float64]
     return np.linalg.norm(a + t[:, None] * ab - p, axis=1)
 
 
-def _way(step: NDArray, a: int, b: int) -> NDArray[np.int64] | None:
-    """The nodes from ``a`` to ``b`` following ``step``; None if ``b`` is not on the way
-    (an earlier limb turned round changed it)."""
-    way = [a]
-    while way[-1] != b:
-        nxt = int(step[way[-1]])
-        if nxt < 0:
-            return None
-        way.append(nxt)
-    return np.asarray(way, dtype=np.int64)
+class _Limbs:
+    """One skeleton's parents being edited, and the tests of the module doc on them."""
 
-
-class _Finder:
-    """State shared by the tests of one skeleton."""
-
-    def __init__(self, graph: BranchGraph, fit: RadiusFit, reliable: NDArray):
+    def __init__(self, graph: BranchGraph, fit: RadiusFit):
+        assert graph.radius is not None
         self.pos = graph.position
-        self.radius = np.array(graph.radius, dtype=float)
+        self.radius = np.asarray(graph.radius, dtype=float)
         self.tree = graph.trees
         self.fit = fit.radius
+        self.reliable = well_covered(fit)
         self.usable = fit.radius > 0  # any circle found: where to cut, not what to keep
         self.kd = cKDTree(self.pos)
-        self.rmax = float(self.radius.max()) if self.radius.size else 0.0
+        self.rmax = float(self.radius.max())
+        self.parent = np.array(graph.parent, dtype=np.int64)
+        self.done: list[dict[str, Any]] = []
+        self.update()
 
-    def inside_share(self, parent: NDArray, nodes: NDArray, m: float) -> float:
-        """Share of ``nodes`` inside the cylinder of another branch at least
-        :data:`HOST_RATIO` ``m`` thick."""
-        own = set(nodes.tolist())
+    def update(self) -> None:
+        """Edge lengths, path lengths from the root and main children of the parents."""
+        par, pos = self.parent, self.pos
+        self.edge = np.where(par >= 0, np.linalg.norm(pos - pos[np.maximum(par, 0)], axis=1), 0.0)
+        self.pl = treeops.accumulate_down(par, self.edge)
+        self.main = treeops.main_child(par, treeops.subtree_sum(par, self.edge))
+
+    def tips(self):
+        """The tips whose measured stretch is consistent, thickest first, with its median
+        fit and last node."""
+        par = self.parent
+        leaves = np.flatnonzero(np.bincount(par[par >= 0], minlength=par.size) == 0)
+        med, q1, q3, end = _tip_stretches(
+            par, self.edge, leaves, self.fit, self.reliable, STRETCH_RADII, MIN_FITS, MAX_GAP
+        )
+        ok = np.isfinite(med)
+        ok[ok] &= (q3[ok] <= CONSISTENT * med[ok]) & (q1[ok] >= med[ok] / CONSISTENT)
+        idx = np.flatnonzero(ok)
+        idx = idx[np.argsort(-med[idx], kind="stable")]
+        return zip(leaves[idx].tolist(), med[idx].tolist(), end[idx].tolist(), strict=True)
+
+    def way_up(self, a: int, b: int) -> NDArray[np.int64] | None:
+        """The nodes from ``a`` up to ``b``; None if ``b`` is no longer on the way (an
+        earlier limb turned round changed it)."""
+        way = [a]
+        while way[-1] != b:
+            nxt = int(self.parent[way[-1]])
+            if nxt < 0:
+                return None
+            way.append(nxt)
+        return np.asarray(way, dtype=np.int64)
+
+    def own_wood(self, nodes: NDArray, m: float) -> bool:
+        """At most :data:`INSIDE_SHARE` of ``nodes`` inside the cylinder of another branch
+        at least :data:`HOST_RATIO` ``m`` thick."""
+        par, own = self.parent, set(nodes.tolist())
         inside = 0
         for u, near in zip(
             nodes, self.kd.query_ball_point(self.pos[nodes], self.rmax), strict=True
         ):
-            c = np.asarray([w for w in near if w not in own and parent[w] >= 0], dtype=np.int64)
+            c = np.asarray([w for w in near if w not in own and par[w] >= 0], dtype=np.int64)
             if c.size == 0:
                 continue
             c = c[(self.tree[c] == self.tree[u]) & (self.radius[c] >= HOST_RATIO * m)]
             if c.size == 0:
                 continue
-            d = _segment_distance(self.pos[u], self.pos[parent[c]], self.pos[c])
+            d = _segment_distance(self.pos[u], self.pos[par[c]], self.pos[c])
             inside += bool((d < 0.9 * self.radius[c]).any())
-        return inside / nodes.size
+        return inside <= INSIDE_SHARE * nodes.size
 
-    def host(self, parent: NDArray, pl: NDArray, e: int, own: NDArray, m: float):
+    def host(self, e: int, own: NDArray, m: float) -> tuple[int, float] | None:
         """The thicker node ``e`` ends against with the shortest way from the root, and
         that way's length to ``e``; None if there is none or that way is no shorter than
         the skeleton's."""
+        par, pl = self.parent, self.pl
         near = np.asarray(self.kd.query_ball_point(self.pos[e], self.rmax + m), dtype=np.int64)
-        near = near[(parent[near] >= 0) & (self.tree[near] == self.tree[e])]
+        near = near[(par[near] >= 0) & (self.tree[near] == self.tree[e])]
         near = near[(self.radius[near] >= HOST_RATIO * m) & ~np.isin(near, own)]
         if near.size == 0:
             return None
-        d = _segment_distance(self.pos[e], self.pos[parent[near]], self.pos[near])
+        d = _segment_distance(self.pos[e], self.pos[par[near]], self.pos[near])
         near = near[d <= self.radius[near] + m]
         if near.size == 0:
             return None
@@ -192,33 +217,35 @@ class _Finder:
             return None
         return int(near[k]), float(way[k])
 
-    def clearance(self, parent: NDArray, main: NDArray, t: int, far: int, reach: float) -> float:
-        """How far ``far`` stands outside the host's branch: the cylinders of the edges
-        along ``t``'s ancestors and main descendants within ``reach`` of ``t`` (a chain
-        beside the stem stays near it; a limb leaving it, or continuing it beyond its end,
-        does not)."""
+    def clear(self, t: int, start: int, last: int, m: float) -> bool:
+        """The stretch ``start`` … ``last`` ends :data:`CLEARANCE` ``m`` outside the host's
+        branch: the cylinders of the edges along ``t``'s ancestors and main descendants as
+        far as the stretch reaches (a chain beside the stem stays near it; a limb leaving
+        it, or continuing it beyond its end, does not)."""
+        reach = float(np.linalg.norm(self.pos[last] - self.pos[start])) + CLEARANCE * m
         way = [t]
-        for step in (parent, main):
+        for step in (self.parent, self.main):
             x, s = t, 0.0
             while s < reach and step[x] >= 0:
                 s += float(np.linalg.norm(self.pos[step[x]] - self.pos[x]))
                 x = int(step[x])
                 way.append(x)
         w = np.asarray(way, dtype=np.int64)
-        w = w[parent[w] >= 0]
+        w = w[self.parent[w] >= 0]
         if w.size == 0:
-            return np.inf
-        d = _segment_distance(self.pos[far], self.pos[parent[w]], self.pos[w])
-        return float(np.min(d - self.radius[w]))
+            return True
+        d = _segment_distance(self.pos[last], self.pos[self.parent[w]], self.pos[w])
+        return float(np.min(d - self.radius[w])) >= CLEARANCE * m
 
-    def turned(self, parent: NDArray, pl: NDArray, e: int, way_in: float, m: float, n: int):
+    def turned(self, e: int, way_in: float, m: float, n: int) -> NDArray[np.int64]:
         """The nodes from ``e`` up that the way through the host reaches first, up to the
         last thick one before :data:`MAX_GAP` thin nodes in a row beyond the measured
         stretch (its first ``n`` nodes); thick: modelled or measured (any usable circle
         fit: where to cut, not what radius to keep) at least :data:`THIN_RATIO` ``m``."""
+        par, pl = self.parent, self.pl
         out = [e]
         last_thick = 1
-        x = int(parent[e])
+        x = int(par[e])
         while x >= 0 and way_in + (pl[e] - pl[x]) < pl[x]:
             out.append(x)
             fitted = self.fit[x] if self.usable[x] else 0.0
@@ -226,83 +253,22 @@ class _Finder:
                 last_thick = len(out)
             elif len(out) - last_thick > MAX_GAP:
                 break
-            x = int(parent[x])
+            x = int(par[x])
         return np.asarray(out[:last_thick], dtype=np.int64)
-
-
-def _reliable(fit: RadiusFit) -> NDArray[np.bool_]:
-    mad = fit.mad if fit.mad is not None else np.zeros(fit.radius.size)
-    return (
-        fit.ok
-        & (fit.coverage >= RELIABLE_COVERAGE)
-        & (mad <= RELIABLE_MAD * np.maximum(fit.radius, 1e-12))
-    )
-
-
-class _Skeleton:
-    """The parents being edited and what the tests read from them."""
-
-    def __init__(self, graph: BranchGraph, fit: RadiusFit):
-        self.graph = graph
-        self.fit = fit
-        self.parent = np.array(graph.parent, dtype=np.int64)
-        self.reliable = _reliable(fit)
-        self.find = _Finder(graph, fit, self.reliable)
-        self.done: list[dict[str, Any]] = []
-        self.update()
-
-    def update(self) -> None:
-        par, pos = self.parent, self.graph.position
-        self.edge = np.where(par >= 0, np.linalg.norm(pos - pos[np.maximum(par, 0)], axis=1), 0.0)
-        self.pl = treeops.accumulate_down(par, self.edge)
-
-    def stretches(self, step: NDArray, step_len: NDArray, starts: NDArray):
-        """The starts whose stretch along ``step`` is consistent, thickest first, with the
-        stretch's median fit and last node."""
-        med, q1, q3, end = _stretches(
-            step,
-            step_len,
-            starts,
-            self.fit.radius,
-            self.reliable,
-            STRETCH_RADII,
-            MIN_FITS,
-            MAX_GAP,
-        )
-        ok = np.isfinite(med)
-        ok[ok] &= (q3[ok] <= CONSISTENT * med[ok]) & (q1[ok] >= med[ok] / CONSISTENT)
-        idx = np.flatnonzero(ok)
-        idx = idx[np.argsort(-med[idx], kind="stable")]
-        return starts[idx], med[idx], end[idx]
-
-    def clear(self, t: int, start: int, last: int, m: float) -> bool:
-        """The stretch ``start`` … ``last`` ends :data:`CLEARANCE` ``m`` outside the host's
-        branch around ``t``."""
-        par = self.parent
-        main = treeops.main_child(par, treeops.subtree_sum(par, self.edge))
-        reach = float(np.linalg.norm(self.graph.position[last] - self.graph.position[start]))
-        reach += CLEARANCE * m
-        return self.find.clearance(par, main, t, last, reach) >= CLEARANCE * m
-
-    def own_wood(self, stretch: NDArray, m: float) -> bool:
-        return self.find.inside_share(self.parent, stretch, m) <= INSIDE_SHARE
 
     def turn_tips(self) -> None:
         """Reversed limbs (module doc): a thick tip against thicker wood, turned round."""
-        par, radius = self.parent, self.graph.radius
-        assert radius is not None
-        leaves = np.flatnonzero(np.bincount(par[par >= 0], minlength=par.size) == 0)
-        tips, med, end = self.stretches(par, self.edge, leaves)
-        for e, m, last in zip(tips.tolist(), med.tolist(), end.tolist(), strict=True):
+        par, radius = self.parent, self.radius
+        for e, m, last in self.tips():
             if m < 2.0 * radius[e] or np.any(par == e):  # not contradicted / no longer a tip
                 continue
-            stretch = _way(par, e, last)
+            stretch = self.way_up(e, last)
             if stretch is None or not self.own_wood(stretch, m):
                 continue
-            hit = self.find.host(par, self.pl, e, stretch, m)
+            hit = self.host(e, stretch, m)
             if hit is None or not self.clear(hit[0], e, last, m):
                 continue
-            turn = self.find.turned(par, self.pl, e, hit[1], m, stretch.size)
+            turn = self.turned(e, hit[1], m, stretch.size)
             old = int(par[turn[-1]])
             if turn.size < stretch.size or (old >= 0 and radius[old] >= THIN_RATIO * m):
                 continue
@@ -328,6 +294,6 @@ def reversed_limbs(
     ones left it."""
     if graph.radius is None or graph.n_nodes < 3 or fit.radius.size != graph.n_nodes:
         return np.array(graph.parent, dtype=np.int64), []
-    sk = _Skeleton(graph, fit)
-    sk.turn_tips()
-    return sk.parent, sk.done
+    limbs = _Limbs(graph, fit)
+    limbs.turn_tips()
+    return limbs.parent, limbs.done

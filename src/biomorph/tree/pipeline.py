@@ -194,7 +194,9 @@ class _Run:
     #: that re-fits anyway does it once for both, or :func:`detour_phase` does
     radii_pending: bool = False
     #: positions (skeleton frame, as the radius stage receives them) of the nodes of limbs
-    #: turned round (:func:`limbs_phase`): their circle fits are their radii
+    #: turned round (:func:`limbs_phase`): their circle fits are their radii. Positions, not
+    #: indices: the empty-tip pruning and the detours' densifying renumber the nodes after
+    #: the turn but move none of these
     limb_points: NDArray[np.float64] | None = None
     #: :meth:`limb_mask` of the skeleton the radius stage last fitted (node for node with
     #: ``graph`` after it)

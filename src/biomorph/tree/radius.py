@@ -1597,17 +1597,24 @@ def _fit_runs(graph: BranchGraph, r_fit: NDArray, reliable: NDArray) -> NDArray[
     return reliable & (length[lab] >= RUN_DIAMETERS * 2 * rmed[lab])
 
 
+def well_covered(fit: RadiusFit) -> NDArray[np.bool_]:
+    """Usable circle fits covering at least :data:`RELIABLE_COVERAGE` of the circumference
+    and scattering by at most :data:`RELIABLE_MAD` of their radius (the quality test of
+    :func:`taper_radii`, step 1, before its stem-envelope test)."""
+    mad = fit.mad if fit.mad is not None else np.zeros(fit.radius.size)
+    return (
+        fit.ok
+        & (fit.coverage >= RELIABLE_COVERAGE)
+        & (mad <= RELIABLE_MAD * np.maximum(fit.radius, 1e-12))
+    )
+
+
 def _reliable_fits(
     graph: BranchGraph, fit: RadiusFit, carried: NDArray
 ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """The reliable circle fits (:func:`taper_radii`, step 1) and the stem mask
     (:func:`_stem_mask`)."""
-    mad = fit.mad if fit.mad is not None else np.zeros(graph.n_nodes)
-    reliable = (
-        fit.ok
-        & (fit.coverage >= RELIABLE_COVERAGE)
-        & (mad <= RELIABLE_MAD * np.maximum(fit.radius, 1e-12))
-    )
+    reliable = well_covered(fit)
     stem = _stem_mask(graph, carried)
     if fit.inside is not None:  # a stem circle with points inside it is an envelope
         reliable &= ~stem | (fit.inside <= STEM_INSIDE * fit.inliers)
