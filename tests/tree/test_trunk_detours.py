@@ -83,23 +83,6 @@ def test_a_detour_beside_a_scanned_stem_is_taken_out_of_the_trunk():
     assert 10.0 <= length(trunk) < 10.15
 
 
-def test_a_detour_is_found_when_the_stem_above_carries_the_branch_radius():
-    # past a detour the radius stage carries the branch's radius up the stem (the noisy
-    # conifer preset: a 102 mm stem modelled at 53 mm above one); the stem's slabs are
-    # searched at the thicker end's radius, not inside the stem's surface
-    g, nl, no, nb = _detour_tree(r=0.10)
-    radius = np.array(g.radius)
-    radius[nl + 1 : -2] = 0.06  # the way out, the way back and the stem above: 6 cm
-    g = g.with_(radius=radius)
-    xyz = np.vstack([_stem_points(0.10, 0.0, 10.0), g.position[nl : nl + no + nb]])
-    assert len(trunk_shortcuts(g, xyz, SPACING)) == 1
-    # still no bridge through a gap in the scan
-    gap = np.vstack(
-        [_stem_points(0.10, 0.0, 10.0, gap=(2.95, 3.65)), g.position[nl : nl + no + nb]]
-    )
-    assert trunk_shortcuts(g, gap, SPACING) == []
-
-
 def test_no_shortcut_through_a_gap_in_the_scan():
     g, nl, no, nb = _detour_tree()
     xyz = np.vstack(

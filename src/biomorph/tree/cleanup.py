@@ -744,12 +744,7 @@ def trunk_shortcuts(
                 _, off = _chord_offsets(pos[p[i + 1 : j]], pos[p[i]], pos[p[j]])
                 if off.max() < rad[p[i]] + max(2 * rad[p[i]], SHORTCUT_REACH * spacing):
                     continue
-                # the stem around the line at its thicker end's radius: past a detour the
-                # radius stage has carried the branch's radius up the stem (a 102 mm
-                # stem modelled at 53 mm above one), so the far end's own radius would
-                # put its slabs' reach inside the stem and find them empty
-                r_line = max(rad[p[i]], rad[p[j]])
-                if _stem_support(kd, xyz, pos[p[i]], pos[p[j]], r_line, r_line, spacing):
+                if _stem_support(kd, xyz, pos[p[i]], pos[p[j]], rad[p[i]], rad[p[j]], spacing):
                     out.append((int(p[i]), int(p[j])))
                     i, done = j, True
                     break
