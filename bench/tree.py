@@ -1156,6 +1156,58 @@ def models_table(
             sys.stdout.flush()
 
 
+def twig_noise_table(seeds: int, n: int) -> None:
+    """What the twig offset's noise model (:func:`biomorph.tree.radius._noise_median`)
+    predicts an exact twig model would read, beside what the scan's points read about the
+    truth itself (session 23): the synthetic presets, clean and at 8 mm range noise."""
+    from biomorph.tree.metrics import surface_distance
+    from biomorph.tree.pipeline import skeletonize
+    from biomorph.tree.radius import _noise_median
+    from biomorph.tree.synthetic import PRESETS, generate_tree, simulate_scan
+
+    conditions = {
+        "clean": dict(noise=0.002, occlusion=False, scanners=4),
+        "8 mm+occl.": dict(noise=0.008, occlusion=True, scanners=2, leaves=0.05),
+    }
+    bins = ((0.003, 0.005), (0.005, 0.0075), (0.0075, 0.0125))
+    print(
+        f"\n### The twig look about the exact truth vs the noise model ({n:,} points; "
+        "median signed distance of the points within one radius of the truth's surface, mm; "
+        "predicted at the scan's measured scatter)\n"
+    )
+    head = " | ".join(f"r {1e3 * a:g}-{1e3 * b:g} mm read / predicted" for a, b in bins)
+    print(f"| preset | condition | seed | scatter mm | {head} | applied offset mm |")
+    print("|---|---|---|---|" + "---|" * len(bins) + "---|")
+    for preset in sorted(PRESETS):
+        for cname, kw in conditions.items():
+            for seed in range(seeds):
+                truth = generate_tree(preset, seed=seed)
+                cloud = simulate_scan(truth, n_points=n, seed=seed, ground=True, **kw)
+                run = skeletonize(cloud, method="graph")
+                info = run.info.get("twig_offset", {})
+                noise = max((v["noise"] for v in info.values()), default=0.0)
+                offset = sum(v["offset"] for v in info.values())
+                drop = np.zeros(cloud.n_points, bool)
+                for name in ("is_leaf", "is_ground"):
+                    if name in cloud.attributes:
+                        drop |= np.asarray(cloud.attributes[name], bool)
+                sd, rd, _ = surface_distance(truth, cloud.xyz[~drop])
+                cells = []
+                for a, b in bins:
+                    sel = (np.abs(sd) <= rd) & (rd >= a) & (rd < b)
+                    if sel.sum() < 30:
+                        cells.append("–")
+                        continue
+                    read = 1e3 * float(np.median(sd[sel]))
+                    cells.append(f"{read:+.2f} / {1e3 * _noise_median(rd[sel], noise):+.2f}")
+                print(
+                    f"| {preset} | {cname} | {seed} | {1e3 * noise:.2f} | "
+                    + " | ".join(cells)
+                    + f" | {1e3 * offset:+.2f} |"
+                )
+                sys.stdout.flush()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also time 1,000,000 points")
@@ -1173,6 +1225,7 @@ def main() -> None:
             "seeds",
             "runs",
             "models",
+            "twignoise",
         ),
     )
     ap.add_argument(
@@ -1263,6 +1316,8 @@ def main() -> None:
         run_twig_table(tuple(a.clouds))
     if a.only in (None, "models"):
         models_table(a.seeds, tuple(a.sizes), a.models, tuple(a.clouds), tuple(a.methods))
+    if a.only == "twignoise":
+        twig_noise_table(a.seeds, a.points)
 
 
 if __name__ == "__main__":
