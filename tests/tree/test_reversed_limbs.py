@@ -174,9 +174,10 @@ def test_the_pipeline_turns_the_noisy_maples_reversed_limb():
     assert on[2] > 3 * off[2]  # its radius no longer a twig's: its own circle fits'
     r_true = truth.radius[x]
     assert abs(on[2] / r_true - 1) < 0.2, (on[2], r_true)
-    # the trunk stays (its radius pass moves nodes by fractions of a millimetre)
+    # the trunk stays (the radius passes after the limb's turn, and the side pieces inside
+    # the stem's wood pruned from either skeleton, move its nodes by millimetres)
     t_on, t_off = (s[0].metrics["trees"][0]["trunk_length"] for s in (on, off))
-    assert abs(t_on - t_off) < 1e-3
+    assert abs(t_on - t_off) < 5e-3
 
 
 def test_no_reversed_limbs_reaches_the_summary(tmp_path, capsys):

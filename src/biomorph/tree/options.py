@@ -302,6 +302,14 @@ class CleanupOptions:
         "prune_empty_tips), then fit radii again (graph).",
         kind="enabled",
     )
+    inside_wood: bool = _opt(
+        True,
+        "--inside-wood",
+        "Prune side branches lying (90 % of their length) inside a branch at least twice "
+        "as thick, by the fitted radii (pieces of a stem's surface; tree.cleanup."
+        "inside_wood), then fit radii again (graph).",
+        kind="enabled",
+    )
     reversed_limbs: bool | None = _opt(
         None,
         "--reversed-limbs",
@@ -492,6 +500,7 @@ _LEGACY = {
             "tip_support",
             "residual",
             "empty_tips",
+            "inside_wood",
             "reversed_limbs",
             "detours",
         )

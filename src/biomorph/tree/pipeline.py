@@ -754,16 +754,18 @@ def limbs_phase(run: _Run) -> None:
 
 
 def empty_tips_phase(run: _Run) -> None:
-    """Side tip chains through empty space pruned from the finished skeleton
-    (:func:`biomorph.tree.cleanup.empty_tips`, chains shorter than
-    ``TIP_SUPPORT_LENGTH`` node spacings); the radius stage runs once more after
-    :func:`detour_phase` if any went. Graph method only; off with
-    ``CleanupOptions.empty_tips = False`` (``--no-empty-tips``)."""
-    from biomorph.tree.cleanup import empty_tips
+    """Side tip chains through empty space (:func:`biomorph.tree.cleanup.empty_tips`,
+    chains shorter than ``TIP_SUPPORT_LENGTH`` node spacings) and side branches inside
+    thicker wood (:func:`biomorph.tree.cleanup.inside_wood`) pruned from the finished
+    skeleton; the radius stage runs once more after :func:`detour_phase` if any went.
+    Graph method only; off with ``CleanupOptions.empty_tips = False``
+    (``--no-empty-tips``) and ``CleanupOptions.inside_wood = False``
+    (``--no-inside-wood``)."""
+    from biomorph.tree.cleanup import empty_tips, inside_wood
 
     co = run.opts.cleanup
-    run.params.update(empty_tips=co.empty_tips)
-    if not co.empty_tips or run.opts.method != "graph" or run.graph is None:
+    run.params.update(empty_tips=co.empty_tips, inside_wood=co.inside_wood)
+    if not (co.empty_tips or co.inside_wood) or run.opts.method != "graph" or run.graph is None:
         return
     assert run.cloud is not None and run.skeleton is not None
     spacing = run.point_spacing()
@@ -773,11 +775,17 @@ def empty_tips_phase(run: _Run) -> None:
     t0 = time.perf_counter()
     # judged where the radius stage put the nodes; removed from the skeleton it started
     # from (same nodes), which the radius stage then fits once more
-    drop = empty_tips(
-        run.graph, run.cloud.xyz, spacing, TIP_SUPPORT_LENGTH * ns, kdtree=run.point_index()
-    )
-    removed = int(drop[run.graph.leaves].sum())  # one tip per chain
-    run.info["empty_tips_removed"] = removed
+    drop = np.zeros(run.graph.n_nodes, dtype=bool)
+    if co.empty_tips:
+        drop = empty_tips(
+            run.graph, run.cloud.xyz, spacing, TIP_SUPPORT_LENGTH * ns, kdtree=run.point_index()
+        )
+        run.info["empty_tips_removed"] = int(drop[run.graph.leaves].sum())  # a tip per chain
+    if co.inside_wood:
+        inside = inside_wood(run.graph, spacing) & ~drop
+        run.info["inside_wood_removed_m"] = float(run.graph.edge_length[inside].sum())
+        drop |= inside
+    removed = int(drop.sum())
     run.timings["cleanup"] = run.timings.get("cleanup", 0.0) + time.perf_counter() - t0
     if removed:
         # the radius stage runs once more after the detour search, which reads the
