@@ -531,12 +531,12 @@ def _inside_hosts(
 
 
 def inside_wood(graph: BranchGraph, spacing: float, k: int = 8) -> NDArray[np.bool_]:
-    """Nodes of the side subtrees lying wholly inside thicker wood: every node of the
-    subtree lies within the modelled cylinder of another edge (its radius interpolated
-    along it, plus one point ``spacing``), at least :data:`INSIDE_HOST_RATIO` times the
-    node's own radius thick. Host edges are those thicker than two point spacings (a
-    section the scan resolves); a side subtree is one hanging off a fork other than the
-    fork's heaviest child (by carried length).
+    """Nodes of the side subtrees lying inside thicker wood: :data:`INSIDE_SHARE` of the
+    subtree's length (edges into nodes so placed) lies within the modelled cylinder of
+    another edge (its radius interpolated along it, plus one point ``spacing``), at least
+    :data:`INSIDE_HOST_RATIO` times the node's own radius thick. Host edges are those
+    thicker than two point spacings (a section the scan resolves); a side subtree is one
+    hanging off a fork other than the fork's heaviest child (by carried length).
 
     Why: a branch is wood outside its parent's. On the noisy conifer (8 mm noise,
     occlusion, 240,000 points) the contraction left pieces of the stem's surface as side
