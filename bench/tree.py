@@ -1160,7 +1160,9 @@ def twig_noise_table(seeds: int, n: int) -> None:
     """What the twig offset's noise model (:func:`biomorph.tree.radius._noise_median`)
     predicts an exact twig model would read, beside what the scan's points read about the
     truth itself (session 23): the synthetic presets, clean and at 8 mm range noise."""
-    from biomorph.tree.metrics import surface_distance
+    from scipy.spatial import cKDTree
+
+    from biomorph.tree.metrics import resample_graph, surface_distance
     from biomorph.tree.pipeline import skeletonize
     from biomorph.tree.radius import _noise_median
     from biomorph.tree.synthetic import PRESETS, generate_tree, simulate_scan
@@ -1173,11 +1175,14 @@ def twig_noise_table(seeds: int, n: int) -> None:
     print(
         f"\n### The twig look about the exact truth vs the noise model ({n:,} points; "
         "median signed distance of the points within one radius of the truth's surface, mm; "
-        "predicted at the scan's measured scatter)\n"
+        "predicted at the scan's measured scatter; the model's radius over the truth's at "
+        "the model's nodes within 3 cm of a true axis, same bins)\n"
     )
     head = " | ".join(f"r {1e3 * a:g}-{1e3 * b:g} mm read / predicted" for a, b in bins)
-    print(f"| preset | condition | seed | scatter mm | {head} | applied offset mm |")
-    print("|---|---|---|---|" + "---|" * len(bins) + "---|")
+    print(
+        f"| preset | condition | seed | scatter mm | {head} | applied offset mm | model / true r |"
+    )
+    print("|---|---|---|---|" + "---|" * len(bins) + "---|---|")
     for preset in sorted(PRESETS):
         for cname, kw in conditions.items():
             for seed in range(seeds):
@@ -1200,10 +1205,19 @@ def twig_noise_table(seeds: int, n: int) -> None:
                         continue
                     read = 1e3 * float(np.median(sd[sel]))
                     cells.append(f"{read:+.2f} / {1e3 * _noise_median(rd[sel], noise):+.2f}")
+                # what the model made of them: its radius over the truth's, per bin
+                g = run.world_graph()
+                tp, tch, tt = resample_graph(truth, 0.005)
+                tr = (1 - tt) * truth.radius[truth.parent[tch]] + tt * truth.radius[tch]
+                d, j = cKDTree(tp).query(g.position)
+                ratios = []
+                for a, b in bins:
+                    m = (d < 0.03) & (tr[j] >= a) & (tr[j] < b)
+                    ratios.append(f"{np.median(g.radius[m] / tr[j[m]]):.2f}" if m.any() else "–")
                 print(
                     f"| {preset} | {cname} | {seed} | {1e3 * noise:.2f} | "
                     + " | ".join(cells)
-                    + f" | {1e3 * offset:+.2f} |"
+                    + f" | {1e3 * offset:+.2f} | {' / '.join(ratios)} |"
                 )
                 sys.stdout.flush()
 
