@@ -71,16 +71,11 @@ def test_long_chains_the_stem_and_bad_spacing():
         empty_tips(g, xyz, 0.0)
 
 
-def test_the_pipeline_prunes_clutter_chains_and_the_option_keeps_them():
+def test_the_pipeline_prunes_clutter_chains_and_the_option_keeps_them(noisy_conifer):
     from biomorph.tree import skeletonize
     from biomorph.tree.metrics import compare_to_truth
-    from biomorph.tree.synthetic import generate_tree, simulate_scan
 
-    truth = generate_tree("conifer", seed=0)
-    cloud = simulate_scan(
-        truth, n_points=30_000, seed=0, noise=0.008, occlusion=True, scanners=2, leaves=0.05
-    )
-    on = skeletonize(cloud, method="graph")
+    truth, cloud, on = noisy_conifer
     off = skeletonize(cloud, method="graph", empty_tips=False)
     assert on.params["empty_tips"] is True and off.params["empty_tips"] is False
     assert on.info["empty_tips_removed"] > 0 and "empty_tips_removed" not in off.info

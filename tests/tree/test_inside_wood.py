@@ -75,16 +75,11 @@ def test_the_stem_itself_never_goes_and_bad_input_is_refused():
     assert not inside_wood(thin, SPACING).any()
 
 
-def test_the_pipeline_prunes_stem_surface_pieces_and_the_option_keeps_them():
+def test_the_pipeline_prunes_stem_surface_pieces_and_the_option_keeps_them(noisy_conifer):
     from biomorph.tree import skeletonize
     from biomorph.tree.metrics import compare_to_truth
-    from biomorph.tree.synthetic import generate_tree, simulate_scan
 
-    truth = generate_tree("conifer", seed=0)
-    cloud = simulate_scan(
-        truth, n_points=30_000, seed=0, noise=0.008, occlusion=True, scanners=2, leaves=0.05
-    )
-    on = skeletonize(cloud, method="graph")
+    truth, cloud, on = noisy_conifer
     off = skeletonize(cloud, method="graph", inside_wood=False)
     assert on.params["inside_wood"] is True and off.params["inside_wood"] is False
     assert on.info["inside_wood_removed_m"] > 1.0 and "inside_wood_removed_m" not in off.info

@@ -503,21 +503,16 @@ INSIDE_SHARE = 0.9
 
 
 def _inside_hosts(
-    graph: BranchGraph, host: NDArray[np.int64], step: float, spacing: float, k: int
+    graph: BranchGraph, samples: NDArray, sample_edge: NDArray[np.int64], spacing: float, k: int
 ) -> NDArray[np.bool_]:
-    """Per node: inside the modelled cylinder (+ ``spacing``) of one of the edges ``host``
-    (child nodes) nearest to it (their ``k`` nearest samples, ``step`` apart), at least
+    """Per node: inside the modelled cylinder (+ ``spacing``) of one of the edges (child
+    nodes ``sample_edge``) of its ``k`` nearest ``samples``, at least
     :data:`INSIDE_HOST_RATIO` times the node's radius thick and not its own edge."""
     n = graph.n_nodes
     par, r, pos = graph.parent, np.asarray(graph.radius, dtype=float), graph.position
-    a, b = pos[par[host]], pos[host]
-    m = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) / step).astype(np.int64), 1)
-    eid = np.repeat(np.arange(host.size), m + 1)
-    t = (np.arange(eid.size) - np.repeat(np.cumsum(m + 1) - (m + 1), m + 1)) / m[eid]
-    samples = a[eid] + t[:, None] * (b - a)[eid]
     kk = min(k, samples.shape[0])
     _, idx = cKDTree(samples).query(pos, kk, workers=query_workers(n))
-    hc = host[eid[np.asarray(idx).reshape(n, kk)]]
+    hc = sample_edge[np.asarray(idx).reshape(n, kk)]
     hp = par[hc]
     ab = pos[hc] - pos[hp]
     ap = pos[:, None, :] - pos[hp]
@@ -543,6 +538,8 @@ def inside_wood(graph: BranchGraph, spacing: float, k: int = 8) -> NDArray[np.bo
     branches — 0.6–2.3 m each, 5–12 mm thick, up to 8 tips, their nodes a median 2–14 mm
     inside the true stem surface (session 23): length with no wood of its own, which the
     F1 and the total length count as branches. ``graph.radius`` must be set."""
+    from biomorph.tree.metrics import resample_graph
+
     if graph.radius is None:
         raise ParameterError("inside_wood needs radii (fit them first)")
     if spacing <= 0:
@@ -553,30 +550,27 @@ def inside_wood(graph: BranchGraph, spacing: float, k: int = 8) -> NDArray[np.bo
         return drop
     par, r = graph.parent, np.asarray(graph.radius, dtype=float)
     ch = np.flatnonzero(par >= 0)
-    host = ch[0.5 * (r[ch] + r[par[ch]]) > 2 * spacing]
-    if host.size == 0:
+    # host edges (by child node) and their thickness class, a factor 2 apart: the nearest
+    # axes are the thin ones beside a node, while a stem holding it has its axis a stem
+    # radius away, so each class is searched on its own
+    cls = np.full(n, -1, dtype=np.int64)
+    rm = 0.5 * (r[ch] + r[par[ch]])
+    thick = rm > 2 * spacing
+    if not thick.any():
         return drop
+    cls[ch[thick]] = np.floor(np.log2(rm[thick] / (2 * spacing))).astype(np.int64)
     el = graph.edge_length[ch]
     step = max(0.5 * float(np.median(el[el > 0])) if (el > 0).any() else 0.01, 1e-4)
+    pts, edge, _ = resample_graph(graph, step)
     inside = np.zeros(n, dtype=bool)
-    rm = 0.5 * (r[host] + r[par[host]])
-    # hosts by thickness (classes a factor 2 apart): the nearest axes are the thin ones
-    # beside a node, while a stem holding it has its axis a stem radius away
-    cls = np.floor(np.log2(rm / (2 * spacing))).astype(np.int64)
-    for c in np.unique(cls):
-        hs = host[cls == c]
-        inside |= _inside_hosts(graph, hs, step, spacing, k)
-    # side children of forks: not the heaviest child
-    carried = _carried(graph)
-    fork = graph.n_children[par[ch]] >= 2
-    srt = ch[np.lexsort((ch, carried[ch], par[ch]))]  # by parent, then carried length
-    last = np.r_[par[srt][1:] != par[srt][:-1], True]  # each parent's heaviest child
-    heavy = np.full(n, -1, dtype=np.int64)
-    heavy[par[srt[last]]] = srt[last]
-    side = ch[fork & (heavy[par[ch]] != ch)]
-    el_all = graph.edge_length
-    share = graph.subtree_sum(np.where(inside, el_all, 0.0)) / np.maximum(
-        graph.subtree_sum(el_all), 1e-300
+    for c in np.unique(cls[ch[thick]]):
+        m = cls[edge] == c
+        inside |= _inside_hosts(graph, pts[m], edge[m], spacing, k)
+    heavy = treeops.main_child(par, _carried(graph))
+    side = ch[(graph.n_children[par[ch]] >= 2) & (heavy[par[ch]] != ch)]
+    length = graph.edge_length
+    share = graph.subtree_sum(np.where(inside, length, 0.0)) / np.maximum(
+        graph.subtree_sum(length), 1e-300
     )
     bad = side[share[side] >= INSIDE_SHARE]
     if bad.size == 0:
