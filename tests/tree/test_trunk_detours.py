@@ -126,3 +126,47 @@ def test_no_detours_reaches_the_summary(tmp_path, capsys):
     args = ["tree", "skeletonize", str(xyz), "--no-ground", "--json"]
     assert run([*args, "--no-detours", "--out", str(tmp_path / "off")]) == 0
     assert json.loads(capsys.readouterr().out)["params"]["detours"] is False
+
+
+def test_the_bulk_gap_search_finds_exactly_the_stem_tests_empty_balls():
+    """cleanup._slab_gaps (one query for all of a trunk node's candidate lines) flags a
+    line exactly when one of _stem_support's slab balls holds no point, where that test
+    answers False: a line through the scanned stem is never flagged, one through the gap
+    always, and the search's shortcuts are the same with and without it."""
+    from scipy.spatial import cKDTree
+
+    from biomorph.tree import cleanup
+    from biomorph.tree.cleanup import SHORTCUT_REACH, _slab_gaps, _stem_support
+
+    xyz = _stem_points(0.10, 0.0, 4.0, gap=(1.5, 2.2))
+    kd = cKDTree(xyz)
+    rng = np.random.default_rng(3)
+    a = np.array([0.0, 0.0, 0.2])
+    ends = np.column_stack(
+        [rng.uniform(-0.4, 0.4, 60), rng.uniform(-0.4, 0.4, 60), rng.uniform(0.3, 3.9, 60)]
+    )
+    rb = rng.uniform(0.05, 0.12, 60)
+    gaps = _slab_gaps(kd, a, ends, 0.10, rb, SPACING)
+    for b, r, flagged in zip(ends, rb, gaps, strict=True):
+        ln = float(np.linalg.norm(b - a))
+        k = max(2, int(np.ceil(ln / (2 * SPACING))) + 1)
+        ts = np.linspace(0.0, 1.0, k)
+        ball = np.hypot(0.10 + ts * (r - 0.10) + SHORTCUT_REACH * SPACING, SPACING)
+        counts = kd.query_ball_point(a + ts[:, None] * (b - a), ball, return_length=True)
+        assert bool(flagged) == bool((counts == 0).any())
+        if flagged:
+            assert not _stem_support(kd, xyz, a, b, 0.10, r, SPACING)
+    # up the axis through the scanned stem: not flagged; across the gap: flagged
+    up = np.array([[0.0, 0.0, 1.4], [0.0, 0.0, 3.0]])
+    assert _slab_gaps(kd, a, up, 0.10, np.array([0.10, 0.10]), SPACING).tolist() == [False, True]
+    assert 0 < gaps.sum() < gaps.size
+    # the detour search finds the same shortcuts whether or not it skips the flagged lines
+    g, nl, no, nb = _detour_tree()
+    pts = np.vstack([_stem_points(0.10, 0.0, 10.0), g.position[nl : nl + no + nb]])
+    with_gaps = trunk_shortcuts(g, pts, SPACING)
+    orig = cleanup._slab_gaps
+    try:
+        cleanup._slab_gaps = lambda kd, a, b, ra, rb, sp: np.zeros(len(b), dtype=bool)
+        assert trunk_shortcuts(g, pts, SPACING) == with_gaps
+    finally:
+        cleanup._slab_gaps = orig

@@ -829,12 +829,19 @@ def trunk_shortcuts(
                 & (heading >= cos_max)
             )
             done = False
+            # a detour leaves the stem: some node between a stem diameter beyond its
+            # surface (a skeleton crossing between the arms of a fork stays nearer)
+            far = rad[p[i]] + max(2 * rad[p[i]], SHORTCUT_REACH * spacing)
+            js = []
             for c in cand[::-1]:
                 j = i + 2 + int(c)
-                # a detour leaves the stem: some node between a stem diameter beyond its
-                # surface (a skeleton crossing between the arms of a fork stays nearer)
-                _, off = _chord_offsets(pos[p[i + 1 : j]], pos[p[i]], pos[p[j]])
-                if off.max() < rad[p[i]] + max(2 * rad[p[i]], SHORTCUT_REACH * spacing):
+                if _chord_offsets(pos[p[i + 1 : j]], pos[p[i]], pos[p[j]])[1].max() >= far:
+                    js.append(j)
+            # most lines fail the stem test at a slab with no point in reach: found for all
+            # of them in one query (the same slabs; the test's answer is False there)
+            gap = _slab_gaps(kd, pos[p[i]], pos[p[js]], rad[p[i]], rad[p[js]], spacing)
+            for j, empty in zip(js, gap, strict=True):
+                if empty:
                     continue
                 if _stem_support(kd, xyz, pos[p[i]], pos[p[j]], rad[p[i]], rad[p[j]], spacing):
                     out.append((int(p[i]), int(p[j])))
@@ -884,6 +891,32 @@ def _slab_chunk(kd, xyz, c, reach, axes, spacing) -> list | None:
         (x[start[j] : start[j + 1]], y[start[j] : start[j + 1]], inside[start[j] : start[j + 1]])
         for j in range(cnt.size)
     ]
+
+
+def _slab_gaps(kd, a, b, ra: float, rb, spacing: float) -> NDArray[np.bool_]:
+    """For the lines from ``a`` to each row of ``b`` (radii ``ra`` to ``rb``): whether one
+    of :func:`_stem_support`'s slabs has no point within its ball (the same slab centres
+    and ball radii, computed the same way), where that test answers False. One
+    nearest-neighbour query for all the lines' slabs."""
+    b = np.asarray(b, dtype=float).reshape(-1, 3)
+    out = np.zeros(b.shape[0], dtype=bool)
+    if b.shape[0] == 0:
+        return out
+    rb = np.asarray(rb, dtype=float).reshape(-1)
+    ab = b - a
+    ln = np.linalg.norm(ab, axis=1)
+    k = np.maximum(2, np.ceil(ln / (2 * spacing)).astype(np.int64) + 1)
+    line = np.repeat(np.arange(b.shape[0]), k)
+    first = np.concatenate([[0], np.cumsum(k)[:-1]])
+    idx = np.arange(int(k.sum())) - np.repeat(first, k)
+    # np.linspace(0, 1, k): i × (1 / (k − 1)), the last exactly 1
+    ts = idx * (1.0 / (k - 1))[line]
+    ts[first + k - 1] = 1.0
+    r = ra + ts * (rb - ra)[line]
+    ball = np.hypot(r + SHORTCUT_REACH * spacing, spacing)
+    d, _ = kd.query(a + ts[:, None] * ab[line], k=1, distance_upper_bound=float(ball.max()))
+    out[np.unique(line[d > ball])] = True
+    return out & (ln > 0)
 
 
 def _stem_support(kd, xyz, a, b, ra: float, rb: float, spacing: float) -> bool:
