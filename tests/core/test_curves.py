@@ -121,3 +121,30 @@ def test_catmull_rom_tangent_is_centred_difference() -> None:
 def test_bad_keys_raise(x, y) -> None:
     with pytest.raises(ParameterError):
         curves.NaturalCubicSpline(x, y)
+
+
+def test_segment_projection_clips_to_the_segment_and_broadcasts() -> None:
+    a, b = np.array([0.0, 0.0, 0.0]), np.array([10.0, 0.0, 0.0])
+    t, d = curves.segment_projection(np.array([[5, 3, 4], [-3, 4, 0], [12, 0, 0]]), a, b)
+    np.testing.assert_allclose(t, [0.5, 0.0, 1.0])
+    np.testing.assert_allclose(d, [5, 5, 2])
+    # points (n, 1, 3) against per-point candidate segments (n, k, 3)
+    p = np.array([[[1.0, 1.0, 0.0]], [[0.0, 0.0, 2.0]]])
+    sa = np.zeros((2, 2, 3))
+    sb = np.array([[[2.0, 0, 0], [0, 2.0, 0]], [[0, 0, 4.0], [1.0, 0, 0]]])
+    t, d = curves.segment_projection(p, sa, sb)
+    assert t.shape == d.shape == (2, 2)
+    np.testing.assert_allclose(t, [[0.5, 0.5], [0.5, 0.0]])
+    np.testing.assert_allclose(d, [[1.0, 1.0], [0.0, 2.0]])
+    # a zero-length segment is its point
+    t, d = curves.segment_projection(np.array([3.0, 4.0, 0.0]), a, a)
+    assert t == 0.0 and d == pytest.approx(5.0)
+
+
+def test_kasa_circle_recovers_a_circle_from_an_arc() -> None:
+    a = np.linspace(0.2, 2.4, 40)  # a third of the way round
+    xy = np.column_stack([3.0 + 0.5 * np.cos(a), -1.0 + 0.5 * np.sin(a)])
+    u, c, r2 = curves.kasa_circle(xy)
+    np.testing.assert_allclose(u, xy - xy.mean(axis=0))
+    np.testing.assert_allclose(xy.mean(axis=0) + c, [3.0, -1.0], atol=1e-9)
+    assert r2 == pytest.approx(0.25)

@@ -143,6 +143,30 @@ def bezier_arclength_params(ctrl: ArrayLike, n: int, samples: int = 256) -> Arra
 
 
 # --------------------------------------------------------------------------- polylines
+def segment_projection(p: ArrayLike, a: ArrayLike, b: ArrayLike) -> tuple[Array, Array]:
+    """For points ``p`` and segments ``a → b`` (all broadcast over the leading axes, the
+    last one the coordinates): the parameter ``t`` in [0, 1] of the segment's point nearest
+    to ``p``, and the distance to it. A zero-length segment gives ``t = 0``."""
+    p, a, b = (np.asarray(v, dtype=float) for v in (p, a, b))
+    ab = b - a
+    ap = p - a
+    den = np.maximum(np.einsum("...k,...k->...", ab, ab), 1e-300)
+    t = np.clip(np.einsum("...k,...k->...", ap, ab) / den, 0.0, 1.0)
+    return t, np.linalg.norm(ap - t[..., None] * ab, axis=-1)
+
+
+def kasa_circle(xy: ArrayLike) -> tuple[Array, Array, float]:
+    """The algebraic (Kåsa) least-squares circle through 2-D points ``(n, 2)``, fitted about
+    their mean: returns the points less their mean, the circle's centre in those
+    coordinates and its squared radius (≤ 0 when no circle fits)."""
+    u = np.asarray(xy, dtype=float)
+    u = u - u.mean(axis=0)
+    a = np.column_stack([u, np.ones(u.shape[0])])
+    sol, *_ = np.linalg.lstsq(a, (u**2).sum(axis=1), rcond=None)
+    cx, cy = sol[0] / 2, sol[1] / 2
+    return u, np.array([cx, cy]), float(sol[2] + cx * cx + cy * cy)
+
+
 def polyline_arc_length(points: ArrayLike) -> Array:
     """Cumulative arc length ``s`` (starting at 0) along a polyline ``(..., n, d)``."""
     p = np.asarray(points, dtype=float)
@@ -372,6 +396,8 @@ __all__ = [
     "bezier_arclength_params",
     "polyline_arc_length",
     "resample_polyline",
+    "segment_projection",
+    "kasa_circle",
     "NaturalCubicSpline",
     "MonotoneSpline",
     "CatmullRomSpline",

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from biomorph.core import treeops
+from biomorph.core.curves import segment_projection
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree.neighbours import query_workers
@@ -514,11 +515,7 @@ def _inside_hosts(
     _, idx = cKDTree(samples).query(pos, kk, workers=query_workers(n))
     hc = sample_edge[np.asarray(idx).reshape(n, kk)]
     hp = par[hc]
-    ab = pos[hc] - pos[hp]
-    ap = pos[:, None, :] - pos[hp]
-    den = np.maximum(np.einsum("ijk,ijk->ij", ab, ab), 1e-300)
-    tt = np.clip(np.einsum("ijk,ijk->ij", ap, ab) / den, 0.0, 1.0)
-    d = np.linalg.norm(ap - tt[..., None] * ab, axis=2)
+    tt, d = segment_projection(pos[:, None, :], pos[hp], pos[hc])
     rh = (1 - tt) * r[hp] + tt * r[hc]
     me = np.arange(n)[:, None]
     ok = (d <= rh + spacing) & (rh >= INSIDE_HOST_RATIO * r[:, None]) & (hc != me) & (hp != me)
@@ -587,12 +584,7 @@ def _measured_radius(graph: BranchGraph, xyz: NDArray, owner: NDArray) -> NDArra
     pos = graph.position
     v = owner
     p = np.where(par[v] >= 0, par[v], v)
-    a, b = pos[p], pos[v]
-    d = b - a
-    l2 = np.einsum("ij,ij->i", d, d)
-    t = np.clip(np.einsum("ij,ij->i", xyz - a, d) / np.maximum(l2, 1e-300), 0, 1)
-    q = xyz - (a + t[:, None] * d)
-    d2 = np.einsum("ij,ij->i", q, q)
+    d2 = segment_projection(xyz, pos[p], pos[v])[1] ** 2
     n = graph.n_nodes
     cnt = np.bincount(v, minlength=n)
     ms = np.bincount(v, weights=d2, minlength=n)
@@ -619,12 +611,7 @@ def _host_edges(graph, vert, chain_of, lab, spacing):
     _, nb = cKDTree(samples).query(pos[vert], k=k, workers=query_workers(vert.size))
     host = se[nb.reshape(vert.size, k)]
     own = chain_of[host] == lab[vert][:, None]
-    a = pos[par[host]]
-    d = pos[host] - a
-    x = pos[vert][:, None, :]
-    l2 = np.einsum("ijk,ijk->ij", d, d)
-    t = np.clip(np.einsum("ijk,ijk->ij", x - a, d) / np.maximum(l2, 1e-300), 0, 1)
-    dist = np.linalg.norm(x - (a + t[..., None] * d), axis=2)
+    dist = segment_projection(pos[vert][:, None, :], pos[par[host]], pos[host])[1]
     return host, dist, own
 
 
@@ -757,14 +744,6 @@ SHORTCUT_MIN_RADIUS = 3.0
 SHORTCUT_RING_SHARE = 0.75
 
 
-def _chord_offsets(pos: NDArray, a: NDArray, b: NDArray) -> tuple[NDArray, NDArray]:
-    """For points ``pos``, the parameter ``t`` in [0, 1] of the closest point of the
-    segment ``a → b`` and the distance to it."""
-    ab = b - a
-    t = np.clip((pos - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
-    return t, np.linalg.norm(pos - (a + t[:, None] * ab), axis=1)
-
-
 def trunk_shortcuts(
     graph: BranchGraph,
     xyz: NDArray[np.float64],
@@ -835,7 +814,7 @@ def trunk_shortcuts(
             js = []
             for c in cand[::-1]:
                 j = i + 2 + int(c)
-                if _chord_offsets(pos[p[i + 1 : j]], pos[p[i]], pos[p[j]])[1].max() >= far:
+                if segment_projection(pos[p[i + 1 : j]], pos[p[i]], pos[p[j]])[1].max() >= far:
                     js.append(j)
             # most lines fail the stem test at a slab with no point in reach: found for all
             # of them in one query (the same slabs; the test's answer is False there)
@@ -1006,7 +985,7 @@ def reroute_detours(
         while path[-1] != i:
             path.append(int(parent[path[-1]]))
         p = np.asarray(path[::-1])  # i ... j
-        t, off = _chord_offsets(pos[p], pos[i], pos[j])
+        t, off = segment_projection(pos[p], pos[i], pos[j])
         on = off <= rad[i] + t * (rad[j] - rad[i]) + SHORTCUT_REACH * spacing
         ka = 0
         while ka + 1 < p.size and on[ka + 1]:

@@ -57,6 +57,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from biomorph.core import treeops
+from biomorph.core.curves import segment_projection
 from biomorph.core.graph import BranchGraph
 from biomorph.tree.radius import RadiusFit, well_covered
 
@@ -122,14 +123,6 @@ def _tip_stretches(parent, edge, tips, fit, reliable, radii, min_fits, max_gap):
     return med, q1, q3, end
 
 
-def _segment_distance(p: NDArray, a: NDArray, b: NDArray) -> NDArray[np.float64]:
-    """Distance from ``p`` to the segments ``a[i]``–``b[i]``."""
-    ab = b - a
-    ll = np.einsum("ij,ij->i", ab, ab)
-    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(ll, 1e-18), 0.0, 1.0)
-    return np.linalg.norm(a + t[:, None] * ab - p, axis=1)
-
-
 class _Limbs:
     """One skeleton's parents being edited, and the tests of the module doc on them."""
 
@@ -193,7 +186,7 @@ class _Limbs:
             c = c[(self.tree[c] == self.tree[u]) & (self.radius[c] >= HOST_RATIO * m)]
             if c.size == 0:
                 continue
-            d = _segment_distance(self.pos[u], self.pos[par[c]], self.pos[c])
+            d = segment_projection(self.pos[u], self.pos[par[c]], self.pos[c])[1]
             inside += bool((d < 0.9 * self.radius[c]).any())
         return inside <= INSIDE_SHARE * nodes.size
 
@@ -207,7 +200,7 @@ class _Limbs:
         near = near[(self.radius[near] >= HOST_RATIO * m) & ~np.isin(near, own)]
         if near.size == 0:
             return None
-        d = _segment_distance(self.pos[e], self.pos[par[near]], self.pos[near])
+        d = segment_projection(self.pos[e], self.pos[par[near]], self.pos[near])[1]
         near = near[d <= self.radius[near] + m]
         if near.size == 0:
             return None
@@ -234,7 +227,7 @@ class _Limbs:
         w = w[self.parent[w] >= 0]
         if w.size == 0:
             return True
-        d = _segment_distance(self.pos[last], self.pos[self.parent[w]], self.pos[w])
+        d = segment_projection(self.pos[last], self.pos[self.parent[w]], self.pos[w])[1]
         return float(np.min(d - self.radius[w])) >= CLEARANCE * m
 
     def turned(self, e: int, way_in: float, m: float, n: int) -> NDArray[np.int64]:

@@ -15,6 +15,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from biomorph.core.curves import kasa_circle
 from biomorph.errors import InputError, ParameterError
 
 __all__ = [
@@ -218,19 +219,14 @@ def _whole_ring(
     if ring.size < RING_SECTORS:
         return col
     xy = xyz[ring, :2]
-    o = xy.mean(axis=0)
-    u = xy - o
-    a = np.column_stack([u, np.ones(u.shape[0])])
-    sol, *_ = np.linalg.lstsq(a, (u * u).sum(axis=1), rcond=None)
-    c = 0.5 * sol[:2]
-    r2 = sol[2] + c @ c
+    u, c, r2 = kasa_circle(xy)
     if not r2 > 0:
         return col
     r = float(np.sqrt(r2))
     scatter = float(np.sqrt(np.mean((np.linalg.norm(u - c, axis=1) - r) ** 2)))
     if r > 0.5 or scatter > RING_MAX_SCATTER * r:
         return col
-    wide = below[kd.query_ball_point(o + c, r + cell)]
+    wide = below[kd.query_ball_point(xy.mean(axis=0) + c, r + cell)]
     return wide if wide.size > col.size else col
 
 

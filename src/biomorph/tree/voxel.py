@@ -56,6 +56,7 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 
+from biomorph.core.curves import kasa_circle
 from biomorph.core.graph import BranchGraph
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
@@ -229,11 +230,7 @@ def _estimate_stem_radius(xyz: NDArray[np.float64], cell: float) -> float:
     best = 0.0
     for k in np.flatnonzero(cnt >= 10):  # one small fit per cluster (a handful)
         q = sl[pl == k]
-        qc = q - q.mean(axis=0)
-        A = np.c_[qc, np.ones(qc.shape[0])]
-        sol, *_ = np.linalg.lstsq(A, (qc**2).sum(axis=1), rcond=None)
-        cx, cy = sol[0] / 2, sol[1] / 2
-        r2 = sol[2] + cx * cx + cy * cy
+        qc, (cx, cy), r2 = kasa_circle(q)
         if r2 <= 0:
             continue
         r = float(np.sqrt(r2))
