@@ -211,6 +211,32 @@ def test_the_trunk_follows_the_leader_to_the_top_through_a_whorl():
     assert (d_free[n_leader:] == 0).all()
 
 
+def test_of_two_arms_climbing_alike_the_trunk_takes_the_one_holding_the_top():
+    """Issue 13, rTwig: a fork at 5 m whose two arms both climb within a heading's reach
+    of the top (9.63 and 9.97 m) and carry about as much; the arm turning least (10°) is
+    not the one reaching the tree's top (30°, then upright): the trunk runs to the top."""
+    pos = [[0.0, 0.0, 0.1 * i] for i in range(51)]
+    parent = [-1] + list(range(50))
+    a = np.radians(10)
+    for i in range(1, 48):  # arm A: straight on, leaning 10°
+        pos.append([0.1 * i * np.sin(a), 0, 5 + 0.1 * i * np.cos(a)])
+        parent.append(50 if i == 1 else len(pos) - 2)
+    n_a = len(pos)
+    b = np.radians(30)
+    for i in range(1, 11):  # arm B: 30° off for 1 m ...
+        pos.append([-0.1 * i * np.sin(b), 0, 5 + 0.1 * i * np.cos(b)])
+        parent.append(50 if i == 1 else len(pos) - 2)
+    x, z = pos[-1][0], pos[-1][2]
+    for i in range(1, 42):  # ... then upright to the top
+        pos.append([x, 0, z + 0.1 * i])
+        parent.append(len(pos) - 2)
+    g = BranchGraph(np.array(pos), np.array(parent))
+    assert g.position[n_a:, 2].max() - g.position[51:n_a, 2].max() < 0.05 * 10
+    d = order.branch_order(g)
+    assert (d[n_a:] == 0).all() and (d[51:n_a] == 1).all()
+    assert metrics_top_gap(g, d) == pytest.approx(0.0)
+
+
 def test_the_trunk_reaches_a_top_held_by_a_child_heading_off_at_first():
     """The stem's skeleton leaves a whorl nearly horizontally for 1.5 m (further than a
     heading's reach) through a limb's wood and only then climbs to the top: the child holds

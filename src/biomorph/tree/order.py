@@ -26,7 +26,10 @@ all other children start a new branch with order + 1. Two rules choose it:
     passing, the trunk follows the *leader*: those whose subtree climbs within ``reach``
     of the highest along the axis, then the supported rule's choice or the heaviest (on
     the pine plot the least-turning child of a whorl fork topped out 1–2 m below the
-    leader on 4 of 16 pines). Step by step the heaviest child
+    leader on 4 of 16 pines); a leader holding the tree's top goes first (the trunk runs
+    from the base to the top, as TreeQSM's stem search does: on rTwig's coffee tree two
+    arms of a fork climb to 3.69 and 3.52 m, within ``reach`` of each other, and the trunk
+    took the lower one whenever it turned less). Step by step the heaviest child
     turns only a little, but on a decurrent crown those steps add up: rTwig's coffee
     tree's trunk bent over into a horizontal limb for 1.2 m (4.14 m of trunk for
     TreeQSM's 3.46 m). The axis, not the vertical, so a leaning stem stays one trunk.
@@ -341,6 +344,8 @@ def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float
                 if ok:  # the leaders: children climbing within ``reach`` of the highest
                     hi = max(h[top[w]] for w in ok)
                     ok = [w for w in ok if h[top[w]] >= hi - reach]
+                    # ... and of those the one holding the tree's top, if one does
+                    ok = [w for w in ok if top[w] == top[root]] or ok
                 if int(cont[v]) not in ok:
                     cont[v] = max(ok, key=lambda w: carried[w]) if ok else -1
             if cont[v] < 0:
