@@ -314,7 +314,9 @@ class CleanupOptions:
         None,
         "--reversed-limbs",
         "Turn round limbs the skeleton entered from a thin branch above and ran down to a "
-        "thick base ending against the stem (tree.limbs.reversed_limbs), then fit radii "
+        "thick base ending against the stem (tree.limbs.reversed_limbs), join stems and "
+        "limbs broken by a gap in the scan to the wood just ahead that the skeleton reached "
+        "the long way round (tree.limbs.broken_ends), then fit radii "
         "again. Default: on for the graph method (the noisy synthetic maple's 67 mm limb); "
         "off for voxel (no preset has one; its one turn on the TreeLS spruce is unchecked).",
     )

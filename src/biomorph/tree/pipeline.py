@@ -725,11 +725,13 @@ def residual_phase(run: _Run) -> None:
 def limbs_phase(run: _Run) -> None:
     """Limbs the skeleton hung the wrong way round, entered from a thin branch above and
     running down to a base that ends against the stem, turned round
-    (:func:`biomorph.tree.limbs.reversed_limbs`); the radius stage runs once more after
+    (:func:`biomorph.tree.limbs.reversed_limbs`), and stems and limbs broken by a gap in the
+    scan joined across it (:func:`biomorph.tree.limbs.broken_ends`); the radius stage runs
+    once more after
     :func:`detour_phase`. Needs the circle fits (``--radius fit``);
     ``CleanupOptions.reversed_limbs`` (``--reversed-limbs/--no-reversed-limbs``; None: on
     for the graph method, off for voxel)."""
-    from biomorph.tree.limbs import reversed_limbs
+    from biomorph.tree.limbs import broken_ends, reversed_limbs
 
     co = run.opts.cleanup
     on = co.reversed_limbs if co.reversed_limbs is not None else run.opts.method == "graph"
@@ -742,13 +744,16 @@ def limbs_phase(run: _Run) -> None:
     t0 = time.perf_counter()
     parent, limbs = reversed_limbs(graph, fit)
     run.info["reversed_limbs"] = len(limbs)
+    parent, joined = broken_ends(graph, fit, parent)
+    run.info["broken_ends"] = len(joined)
     run.timings["cleanup"] = run.timings.get("cleanup", 0.0) + time.perf_counter() - t0
-    if limbs:
+    if limbs or joined:
         g = graph.with_(parent=parent)
         run.graph = g.with_(weight=g.subtree_length())
         s = skel.with_(parent=parent)
         run.skeleton = s.with_(weight=s.subtree_length())
         run.radii_pending = True
+    if limbs:
         turned = np.concatenate([limb["nodes"] for limb in limbs])
         run.limb_points = skel.position[turned]
 
