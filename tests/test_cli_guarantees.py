@@ -107,15 +107,6 @@ def clouds(tmp_path_factory):
     return [write_points(d / f"{name}.ply", cloud) for name in ("a", "b", "c")]
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason=(
-        "known race (session 5 closing note): on a loaded machine a dask worker process that "
-        "is still starting when the group's SIGINT arrives prints its own interpreter-start "
-        "KeyboardInterrupt traceback (about half the runs with two busy cores beside the "
-        "test); SIGINT is blocked only in the thread that starts the LocalCluster"
-    ),
-)
 def test_ctrl_c_during_batch_worker_start_one_line(tmp_path, clouds):
     out = tmp_path / "batch"
     code, err, took = _interrupt(

@@ -150,6 +150,66 @@ def test_ctrl_c_during_cluster_start_leaves_no_workers(monkeypatch):
     assert _no_new_children(before)
 
 
+def test_a_held_ctrl_c_is_handed_to_the_handler_installed_before():
+    """A Ctrl-C deferred while the cluster starts reaches the handler that was there
+    before (the CLI's interrupt guard), which then raises: without it the CLI ended with
+    exit 130 but never printed its one-line message."""
+    import os
+    import signal
+
+    from biomorph.scale.batch import _held_interrupt
+
+    seen: list[int] = []
+
+    def guard(signum, frame):
+        seen.append(signum)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, guard)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with _held_interrupt() as interrupted:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.05)  # delivered to the holding handler, not raised here
+                assert interrupted() and seen == []
+        assert seen == [signal.SIGINT]
+        with _held_interrupt() as interrupted:  # no Ctrl-C: nothing handed on
+            pass
+        assert not interrupted() and seen == [signal.SIGINT]
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+WORKER_SIGNALS_PROBE = """
+import os
+from biomorph.scale.batch import _client
+if __name__ == "__main__":
+    with _client(2, None) as client:
+        for pid in client.run(os.getpid).values():
+            status = open(f"/proc/{pid}/status").read().splitlines()
+            print(int(next(l for l in status if l.startswith("SigIgn")).split()[1], 16) & 2)
+    import multiprocessing.spawn as s
+    print(os.fsdecode(s.get_executable()))
+"""
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/proc/self/status"), reason="needs /proc")
+def test_local_cluster_workers_start_with_ctrl_c_ignored(tmp_path):
+    """The workers are spawned with SIGINT ignored (a Ctrl-C to the process group while
+    one is still importing must not print its traceback); the parent handles Ctrl-C and
+    closes them. Spawning afterwards uses the interpreter itself again."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "probe.py"
+    script.write_text(WORKER_SIGNALS_PROBE)
+    out = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=120, check=True
+    ).stdout.split()
+    assert out[:2] == ["2", "2"], out
+    assert out[2] == sys.executable
+
+
 def test_dead_worker_fails_its_item_only(scheduler):
     rep = run_batch(range(6), die_on_two, scheduler=scheduler, progress=False)
     failed = dict(rep.failed)

@@ -212,11 +212,12 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
             else:
                 try:
                     # scheduler, workers, nannies and dashboard listen on the loopback
-                    # only: a batch run must not open ports to the network. SIGINT is
-                    # blocked meanwhile: the spawned workers inherit the mask, so a Ctrl-C
-                    # to the process group cannot interrupt their interpreter start-up (a
-                    # traceback per worker); here it stays pending and is handled below.
-                    with _blocked_sigint():
+                    # only: a batch run must not open ports to the network. The workers
+                    # start with SIGINT ignored, so a Ctrl-C to the process group cannot
+                    # interrupt their interpreter start-up (a traceback per worker; the
+                    # blocked mask of this thread does not reach them: dask spawns them
+                    # from threads whose mask is empty); here it is held and handled below.
+                    with _blocked_sigint(), _workers_ignore_sigint():
                         cluster = LocalCluster(
                             n_workers=workers,
                             threads_per_worker=1,
@@ -261,6 +262,41 @@ def _check_address(scheduler: str) -> None:
 
 
 @contextlib.contextmanager
+def _workers_ignore_sigint() -> Iterator[None]:
+    """Worker processes spawned during the block start with SIGINT ignored.
+
+    The blocked mask of :func:`_blocked_sigint` does not reach them: the threads dask's
+    cluster spawns its workers from run with an empty mask (``SigBlk: 0`` in
+    ``/proc/<pid>/status``, distributed 2026.8), so a Ctrl-C to the process group while a
+    worker's interpreter was still importing printed its KeyboardInterrupt traceback.
+    An ignored disposition survives ``exec`` and Python keeps it: multiprocessing's spawn
+    runs a two-line ``/bin/sh`` wrapper (``trap '' INT`` then ``exec`` the interpreter)
+    in a private temporary folder, removed after the block. The workers never act on
+    SIGINT; this process handles Ctrl-C and closes the cluster, which stops them. POSIX
+    with ``/bin/sh`` only; elsewhere the block runs unchanged."""
+    import multiprocessing.spawn as mp_spawn
+    import shlex
+    import shutil
+    import tempfile
+
+    exe = mp_spawn.get_executable()
+    if os.name != "posix" or not os.path.exists("/bin/sh") or not exe:
+        yield
+        return
+    folder = tempfile.mkdtemp(prefix="biomorph-workers-")
+    wrapper = os.path.join(folder, "python")
+    with open(wrapper, "w", encoding="utf-8") as fh:
+        fh.write(f"#!/bin/sh\ntrap '' INT\nexec {shlex.quote(os.fsdecode(exe))} \"$@\"\n")
+    os.chmod(wrapper, 0o700)
+    mp_spawn.set_executable(wrapper)
+    try:
+        yield
+    finally:
+        mp_spawn.set_executable(exe)
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextlib.contextmanager
 def _blocked_sigint() -> Iterator[None]:
     """Block SIGINT in this thread for the block (children started meanwhile inherit the
     mask); a Ctrl-C that arrives is delivered when the block ends."""
@@ -280,6 +316,10 @@ def _blocked_sigint() -> Iterator[None]:
 def _held_interrupt() -> Iterator[Callable[[], bool]]:
     """Defer SIGINT (Ctrl-C) for the duration of the block; yields ``interrupted()``.
 
+    A deferred Ctrl-C is handed on at the end to the handler that was there before (the
+    CLI's interrupt guard records it and raises ``KeyboardInterrupt``; Python's default
+    raises it too). Otherwise the guard never learnt of it: a Ctrl-C while the cluster
+    started ended the batch with exit 130 but without the CLI's one-line message.
     Only possible in the main thread; elsewhere the block runs unprotected.
     """
     import signal
@@ -294,6 +334,8 @@ def _held_interrupt() -> Iterator[Callable[[], bool]]:
         yield lambda: bool(hits)
     finally:
         signal.signal(signal.SIGINT, previous)
+        if hits and callable(previous):
+            previous(signal.SIGINT, None)
 
 
 def run_batch(
