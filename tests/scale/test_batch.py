@@ -210,6 +210,38 @@ def test_local_cluster_workers_start_with_ctrl_c_ignored(tmp_path):
     assert out[2] == sys.executable
 
 
+def test_the_worker_wrapper_is_skipped_where_it_cannot_run(monkeypatch):
+    """A temporary folder mounted noexec cannot run the wrapper: the spawn keeps the
+    interpreter itself (and the folder is removed either way)."""
+    import multiprocessing.spawn as mp_spawn
+    import os
+    import subprocess
+
+    from biomorph.scale.batch import _workers_ignore_sigint
+
+    exe = mp_spawn.get_executable()
+    made: list[str] = []
+    real_mkdtemp = __import__("tempfile").mkdtemp
+
+    def mkdtemp(*a, **k):
+        made.append(real_mkdtemp(*a, **k))
+        return made[-1]
+
+    def noexec(*a, **k):
+        raise PermissionError(13, "Permission denied", a[0][0])
+
+    monkeypatch.setattr("tempfile.mkdtemp", mkdtemp)
+    monkeypatch.setattr(subprocess, "run", noexec)
+    with _workers_ignore_sigint():
+        assert mp_spawn.get_executable() == exe
+    assert mp_spawn.get_executable() == exe and made and not os.path.exists(made[0])
+    monkeypatch.undo()
+    with _workers_ignore_sigint():  # where it runs, the spawn goes through it
+        assert os.fsdecode(mp_spawn.get_executable()).endswith("/python")
+        assert mp_spawn.get_executable() != exe
+    assert mp_spawn.get_executable() == exe
+
+
 def test_dead_worker_fails_its_item_only(scheduler):
     rep = run_batch(range(6), die_on_two, scheduler=scheduler, progress=False)
     failed = dict(rep.failed)

@@ -271,12 +271,14 @@ def _workers_ignore_sigint() -> Iterator[None]:
     worker's interpreter was still importing printed its KeyboardInterrupt traceback.
     An ignored disposition survives ``exec`` and Python keeps it: multiprocessing's spawn
     runs a two-line ``/bin/sh`` wrapper (``trap '' INT`` then ``exec`` the interpreter)
-    in a private temporary folder, removed after the block. The workers never act on
+    in a private temporary folder, removed after the block (checked by running it once: a
+    folder mounted noexec leaves the spawn as it was). The workers never act on
     SIGINT; this process handles Ctrl-C and closes the cluster, which stops them. POSIX
     with ``/bin/sh`` only; elsewhere the block runs unchanged."""
     import multiprocessing.spawn as mp_spawn
     import shlex
     import shutil
+    import subprocess
     import tempfile
 
     exe = mp_spawn.get_executable()
@@ -288,11 +290,17 @@ def _workers_ignore_sigint() -> Iterator[None]:
     with open(wrapper, "w", encoding="utf-8") as fh:
         fh.write(f"#!/bin/sh\ntrap '' INT\nexec {shlex.quote(os.fsdecode(exe))} \"$@\"\n")
     os.chmod(wrapper, 0o700)
-    mp_spawn.set_executable(wrapper)
+    try:  # a temporary folder mounted noexec cannot run it: spawn as before
+        usable = subprocess.run([wrapper, "-S", "-c", ""], timeout=30).returncode == 0
+    except (OSError, subprocess.SubprocessError):
+        usable = False
+    if usable:
+        mp_spawn.set_executable(wrapper)
     try:
         yield
     finally:
-        mp_spawn.set_executable(exe)
+        if usable:
+            mp_spawn.set_executable(exe)
         shutil.rmtree(folder, ignore_errors=True)
 
 
