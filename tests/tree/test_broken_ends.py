@@ -9,29 +9,10 @@ import numpy as np
 from biomorph.core.graph import BranchGraph
 from biomorph.tree import order
 from biomorph.tree.limbs import STRETCH_RADII, broken_ends
-from biomorph.tree.radius import RadiusFit
+from tests.tree.limb_helpers import STEP, measured_fit, noisy_scan
+from tests.tree.limb_helpers import line as _line
 
-STEP = 0.05
 R_STEM = 0.08
-
-
-def _line(a, b, step=STEP):
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    k = max(int(np.ceil(np.linalg.norm(b - a) / step)), 1)
-    return a + (b - a) * (np.arange(1, k + 1) / k)[:, None]
-
-
-def _fit(radius: np.ndarray) -> RadiusFit:
-    n = radius.size
-    return RadiusFit(
-        centre=np.zeros((n, 3)),
-        radius=radius,
-        inliers=np.full(n, 40),
-        coverage=np.ones(n),
-        ok=np.ones(n, bool),
-        search_radius=2 * np.maximum(radius, 1e-3),
-        mad=0.02 * np.maximum(radius, 1e-3),
-    )
 
 
 class _Builder:
@@ -57,7 +38,7 @@ class _Builder:
 
     def build(self):
         g = BranchGraph(np.array(self.pos), np.array(self.parent), radius=np.array(self.radius))
-        return g, _fit(np.array(self.fits))
+        return g, measured_fit(np.array(self.fits))
 
 
 def _broken_stem(gap: float = 0.1, ahead: bool = True):
@@ -127,19 +108,8 @@ def test_the_pipeline_joins_a_stem_broken_by_occlusion():
     from scipy.spatial import cKDTree
 
     from biomorph.tree.pipeline import skeletonize
-    from biomorph.tree.synthetic import generate_tree, simulate_scan
 
-    truth = generate_tree("maple", seed=3)
-    cloud = simulate_scan(
-        truth,
-        n_points=240_000,
-        seed=3,
-        ground=True,
-        noise=0.008,
-        occlusion=True,
-        scanners=2,
-        leaves=0.05,
-    )
+    truth, cloud = noisy_scan("maple", 3, 240_000)
     skel = skeletonize(cloud, method="graph")
     assert skel.info["broken_ends"] >= 1
     g = skel.world_graph()

@@ -9,31 +9,10 @@ import numpy as np
 
 from biomorph.core.graph import BranchGraph
 from biomorph.tree.limbs import reversed_limbs
-from biomorph.tree.radius import RadiusFit
+from tests.tree.limb_helpers import STEP, measured_fit, noisy_scan
+from tests.tree.limb_helpers import line as _line
 
-STEP = 0.05
 R_STEM, R_LIMB, R_TWIG = 0.10, 0.05, 0.01
-
-
-def _line(a, b, step=STEP):
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    k = max(int(np.ceil(np.linalg.norm(b - a) / step)), 1)
-    return a + (b - a) * (np.arange(1, k + 1) / k)[:, None]
-
-
-def _fit(radius: np.ndarray, scatter: np.ndarray | None = None) -> RadiusFit:
-    """Every node measured at ``radius`` (× ``scatter``): full coverage, tight circles."""
-    r = radius * (1.0 if scatter is None else scatter)
-    n = r.size
-    return RadiusFit(
-        centre=np.zeros((n, 3)),
-        radius=r,
-        inliers=np.full(n, 40),
-        coverage=np.ones(n),
-        ok=np.ones(n, bool),
-        search_radius=2 * r,
-        mad=0.02 * r,
-    )
 
 
 def _stem() -> tuple[list, list, list, list]:
@@ -81,7 +60,7 @@ def _tree(reversed_: bool = True):
 
 def test_a_limb_hung_the_wrong_way_round_is_turned_onto_the_stem():
     g, fits, k0, nl, i15 = _tree()
-    parent, moves = reversed_limbs(g, _fit(fits))
+    parent, moves = reversed_limbs(g, measured_fit(fits))
     assert len(moves) == 1
     move = moves[0]
     assert move["tip"] == k0  # the limb's base, a tip against the stem
@@ -101,7 +80,7 @@ def test_a_limb_hung_the_wrong_way_round_is_turned_onto_the_stem():
 
 def test_a_consistent_skeleton_is_left_alone():
     g, fits, *_ = _tree(reversed_=False)
-    parent, moves = reversed_limbs(g, _fit(fits))
+    parent, moves = reversed_limbs(g, measured_fit(fits))
     assert moves == []
     assert np.array_equal(parent, g.parent)
 
@@ -111,7 +90,7 @@ def test_scattered_fits_are_an_envelope_not_a_limb():
     rng = np.random.default_rng(0)
     scatter = np.ones(g.n_nodes)
     scatter[k0 : k0 + nl] = np.exp(rng.normal(0.0, 0.5, nl))  # needle-envelope scatter
-    _, moves = reversed_limbs(g, _fit(fits, scatter))
+    _, moves = reversed_limbs(g, measured_fit(fits, scatter))
     assert moves == []
 
 
@@ -127,7 +106,7 @@ def test_a_chain_inside_the_stem_is_not_a_limb():
         radius.append(0.003)
         fits.append(R_STEM)
     g = BranchGraph(np.array(pos), np.array(parent), radius=np.array(radius))
-    parent_new, moves = reversed_limbs(g, _fit(np.array(fits)))
+    parent_new, moves = reversed_limbs(g, measured_fit(np.array(fits)))
     assert moves == []
     assert np.array_equal(parent_new, g.parent)
 
@@ -139,19 +118,8 @@ def test_the_pipeline_turns_the_noisy_maples_reversed_limb():
     the limb hangs from the stem at its base and its radius follows its circle fits."""
     from biomorph.core import treeops
     from biomorph.tree import skeletonize
-    from biomorph.tree.synthetic import generate_tree, simulate_scan
 
-    truth = generate_tree("maple", seed=0)
-    cloud = simulate_scan(
-        truth,
-        n_points=120_000,
-        seed=0,
-        ground=True,
-        noise=0.008,
-        occlusion=True,
-        scanners=2,
-        leaves=0.05,
-    )
+    truth, cloud = noisy_scan("maple", 0, 120_000)
     limb = 185  # the truth node at the limb's base; a point 0.3 m up it:
     x = limb
     for _ in range(3):
@@ -210,7 +178,7 @@ def test_a_turned_limbs_radii_are_its_own_fits():
     from biomorph.tree.radius import taper_radii
 
     g, fits, k0, nl, _ = _tree(reversed_=False)
-    fit = _fit(fits)
+    fit = measured_fit(fits)
     gap = k0 + nl // 2
     fit = dataclasses.replace(fit, coverage=np.where(np.arange(g.n_nodes) == gap, 0.0, 1.0))
     limb = np.zeros(g.n_nodes, bool)

@@ -83,7 +83,15 @@ from biomorph.core.curves import segment_projection
 from biomorph.core.graph import BranchGraph
 from biomorph.tree.radius import RadiusFit, well_covered
 
-__all__ = ["reversed_limbs", "broken_ends", "STRETCH_RADII", "MIN_FITS", "CONSISTENT", "CLEARANCE"]
+__all__ = [
+    "reversed_limbs",
+    "broken_ends",
+    "mend_limbs",
+    "STRETCH_RADII",
+    "MIN_FITS",
+    "CONSISTENT",
+    "CLEARANCE",
+]
 
 #: the measured stretch at the tip spans this many of its median radius (3 diameters)
 STRETCH_RADII = 6.0
@@ -356,26 +364,32 @@ def reversed_limbs(
     ``graph``: the fitted skeleton (model radii); ``fit``: its circle fits, node for node.
     Limbs are taken thickest first; each later one is tested on the skeleton as the earlier
     ones left it."""
-    if graph.radius is None or graph.n_nodes < 3 or fit.radius.size != graph.n_nodes:
-        return np.array(graph.parent, dtype=np.int64), []
-    limbs = _Limbs(graph, fit)
-    limbs.turn_tips()
-    return limbs.parent, limbs.done
+    parent, turned, _ = mend_limbs(graph, fit, broken=False)
+    return parent, turned
 
 
 def broken_ends(
-    graph: BranchGraph, fit: RadiusFit, parent: NDArray[np.int64] | None = None
+    graph: BranchGraph, fit: RadiusFit
 ) -> tuple[NDArray[np.int64], list[dict[str, Any]]]:
     """New parents with every broken end (module doc) joined to the wood it breaks off
     from; one record per join (``tip``: the thick tip; ``to``: the node now hung from it;
     ``radius`` m: the tip's fits' median; ``gap`` m; ``saving`` m of path; ``nodes``: those
-    whose parent changed, from ``to`` up). ``parent``: start from these parents instead of
-    the graph's (e.g. after :func:`reversed_limbs`)."""
+    whose parent changed, from ``to`` up)."""
+    parent, _, joined = mend_limbs(graph, fit, reversed_=False)
+    return parent, joined
+
+
+def mend_limbs(
+    graph: BranchGraph, fit: RadiusFit, *, reversed_: bool = True, broken: bool = True
+) -> tuple[NDArray[np.int64], list[dict[str, Any]], list[dict[str, Any]]]:
+    """Reversed limbs turned round (:func:`reversed_limbs`), then broken ends joined on
+    the skeleton they left (:func:`broken_ends`), in one pass over the same fits:
+    ``(parent, turned, joined)``."""
     if graph.radius is None or graph.n_nodes < 3 or fit.radius.size != graph.n_nodes:
-        return np.array(graph.parent if parent is None else parent, dtype=np.int64), []
+        return np.array(graph.parent, dtype=np.int64), [], []
     limbs = _Limbs(graph, fit)
-    if parent is not None:
-        limbs.parent = np.array(parent, dtype=np.int64)
-        limbs.update()
-    limbs.join_ends()
-    return limbs.parent, limbs.joined
+    if reversed_:
+        limbs.turn_tips()
+    if broken:
+        limbs.join_ends()
+    return limbs.parent, limbs.done, limbs.joined

@@ -731,7 +731,7 @@ def limbs_phase(run: _Run) -> None:
     :func:`detour_phase`. Needs the circle fits (``--radius fit``);
     ``CleanupOptions.reversed_limbs`` (``--reversed-limbs/--no-reversed-limbs``; None: on
     for the graph method, off for voxel)."""
-    from biomorph.tree.limbs import broken_ends, reversed_limbs
+    from biomorph.tree.limbs import mend_limbs
 
     co = run.opts.cleanup
     on = co.reversed_limbs if co.reversed_limbs is not None else run.opts.method == "graph"
@@ -742,9 +742,8 @@ def limbs_phase(run: _Run) -> None:
     if not (fit.radius.size == graph.n_nodes == skel.n_nodes):
         return
     t0 = time.perf_counter()
-    parent, limbs = reversed_limbs(graph, fit)
+    parent, limbs, joined = mend_limbs(graph, fit)
     run.info["reversed_limbs"] = len(limbs)
-    parent, joined = broken_ends(graph, fit, parent)
     run.info["broken_ends"] = len(joined)
     run.timings["cleanup"] = run.timings.get("cleanup", 0.0) + time.perf_counter() - t0
     if limbs or joined:
