@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from biomorph.core import treeops
-from biomorph.core.curves import segment_projection
+from biomorph.core.curves import kasa_circle, segment_projection
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree.neighbours import query_workers
@@ -941,11 +941,9 @@ def _stem_support(kd, xyz, a, b, ra: float, rb: float, spacing: float) -> bool:
                 continue
             fitted += 1
             x, y, m = got[q]
-            x, y = x[m], y[m]
-            A = np.stack([x, y, np.ones_like(x)], axis=1)
-            sol, *_ = np.linalg.lstsq(A, -(x * x + y * y), rcond=None)
-            cx, cy = -0.5 * sol[0], -0.5 * sol[1]
-            rr2 = cx * cx + cy * cy - sol[2]
+            xy = np.column_stack([x[m], y[m]])
+            _, c, rr2 = kasa_circle(xy)
+            cx, cy = c + xy.mean(axis=0)  # about the line, not the points' mean
             rj = r[j]
             if rr2 > 0 and np.hypot(cx, cy) <= 0.5 * rj and 0.5 * rj <= np.sqrt(rr2) <= 2 * rj:
                 good += 1
