@@ -320,6 +320,15 @@ class CleanupOptions:
         "again. Default: on for the graph method (the noisy synthetic maple's 67 mm limb); "
         "off for voxel (no preset has one; its one turn on the TreeLS spruce is unchecked).",
     )
+    fork_hooks: bool | None = _opt(
+        None,
+        "--fork-hooks",
+        "Straighten hooks at forks, where the skeleton entered one arm from a node up the "
+        "other and came back down (tree.cleanup.fork_hooks; only where the points cover "
+        "the straight way), then fit radii again. Default: on for the graph method (whose "
+        "level sets merge a fork's arms); off for voxel (its TreeLS spruce went 607 → "
+        "778 L with it).",
+    )
     detours: bool = _opt(
         True,
         "--detours",
@@ -504,6 +513,7 @@ _LEGACY = {
             "empty_tips",
             "inside_wood",
             "reversed_limbs",
+            "fork_hooks",
             "detours",
         )
     },

@@ -805,12 +805,15 @@ def empty_tips_phase(run: _Run) -> None:
 def detour_phase(run: _Run) -> None:
     """Trunk detours out along a branch and back taken out of the trunk
     (:func:`biomorph.tree.cleanup.reroute_detours`: the straight way must be covered by the
-    stem's points), then the radius stage once more if any was. Off with
-    ``CleanupOptions.detours = False`` (``--no-detours``). The radius stage also runs here
+    stem's points) and hooks at forks straightened (:func:`biomorph.tree.cleanup.
+    fork_hooks`, graph method), then the radius stage once more if any was. Off with
+    ``CleanupOptions.detours = False`` (``--no-detours``) and ``fork_hooks = False``
+    (``--no-fork-hooks``; None: on for the graph method). The radius stage also runs here
     when :func:`empty_tips_phase` pruned chains (once for both)."""
     co = run.opts.cleanup
-    run.params.update(detours=co.detours)
-    rerouted = _detours(run, co.detours)
+    hooks = co.fork_hooks if co.fork_hooks is not None else run.opts.method == "graph"
+    run.params.update(detours=co.detours, fork_hooks=hooks)
+    rerouted = _detours(run, co.detours, hooks)
     if run.radii_pending:
         if not rerouted:  # fitted again from the pruned skeleton as it entered the stage
             assert run.skeleton is not None
@@ -818,13 +821,14 @@ def detour_phase(run: _Run) -> None:
         radius_phase(run, tick=False)
 
 
-def _detours(run: _Run, on: bool) -> bool:
-    """:func:`detour_phase`'s search; a rerouted trunk (returns True) leaves the radius
-    stage pending, on the rerouted skeleton."""
+def _detours(run: _Run, on: bool, hooks: bool = False) -> bool:
+    """:func:`detour_phase`'s search (trunk detours, then hooks at forks with ``hooks``,
+    :func:`biomorph.tree.cleanup.fork_hooks`); a changed skeleton (returns True) leaves
+    the radius stage pending, on the straightened skeleton."""
     from biomorph.tree import livny
-    from biomorph.tree.cleanup import reroute_detours
+    from biomorph.tree.cleanup import fork_hooks, reroute_detours
 
-    if not on or run.graph is None or run.skeleton is None:
+    if not (on or hooks) or run.graph is None or run.skeleton is None:
         return False
     assert run.cloud is not None
     spacing = run.point_spacing()
@@ -832,14 +836,26 @@ def _detours(run: _Run, on: bool) -> bool:
     if spacing <= 0 or ns <= 0 or run.skeleton.n_nodes != run.graph.n_nodes:
         return False
     t0 = time.perf_counter()
-    parent, keep, n = reroute_detours(run.graph, run.cloud.xyz, spacing, kdtree=run.point_index())
-    run.info["trunk_detours"] = n
+    g, sk = run.graph, run.skeleton
+    n = 0
+    if on:
+        parent, keep, n = reroute_detours(g, run.cloud.xyz, spacing, kdtree=run.point_index())
+        run.info["trunk_detours"] = n
+        if n:
+            g = g.with_(parent=parent).subgraph(keep)
+            sk = sk.with_(parent=parent).subgraph(keep)
+    found: list = []
+    if hooks:
+        parent, keep, found = fork_hooks(g, run.cloud.xyz, spacing, ns, run.point_index())
+        run.info["fork_hooks"] = len(found)
+        if found:
+            sk = sk.with_(parent=parent).subgraph(keep)
     run.timings["cleanup"] = run.timings.get("cleanup", 0.0) + time.perf_counter() - t0
-    if n:
-        g = livny.densify(run.skeleton.with_(parent=parent).subgraph(keep), ns)
+    if n or found:
+        g = livny.densify(sk, ns)
         run.graph = g.with_(weight=g.subtree_length())
         run.radii_pending = True
-    return bool(n)
+    return bool(n or found)
 
 
 def segment_phase(run: _Run) -> None:
