@@ -19,6 +19,7 @@ same ray-intersection simplification.
 
 from __future__ import annotations
 
+import math
 from itertools import chain
 
 import numba
@@ -1060,22 +1061,27 @@ def fork_hooks(
     kd = kdtree if kdtree is not None else cKDTree(xyz)
     reach = HOOK_REACH * node_spacing
     need = HOOK_SAVING * node_spacing
-    pl = np.zeros(n)  # path length from the root, on the straightened skeleton
+    # plain floats and math.dist: the walk visits every node and up to HOOK_REACH of its
+    # ancestors, numpy's per-call overhead would dominate
+    pts = [tuple(v) for v in pos.tolist()]
+    pl = [0.0] * n  # path length from the root, on the straightened skeleton
+    par = parent.tolist()
     had_children = graph.n_children > 0
-    for x in graph.order:
-        p = int(parent[x])
+    for x in graph.order.tolist():
+        p = par[x]
         if p < 0:
             continue
-        pl[x] = pl[p] + float(np.linalg.norm(pos[x] - pos[p]))
+        px = pts[x]
+        pl[x] = pl[p] + math.dist(px, pts[p])
         # a hook turns back: the way from q climbs away from x (farther than q is, by a
         # node spacing) before it comes down to it; a bend only ever draws nearer
-        ups, q, away = [], int(parent[p]), float(np.linalg.norm(pos[x] - pos[p]))
+        ups, q, away = [], par[p], math.dist(px, pts[p])
         while q >= 0 and pl[x] - pl[q] <= reach:
-            dq = float(np.linalg.norm(pos[x] - pos[q]))
+            dq = math.dist(px, pts[q])
             if away > dq + node_spacing:
                 ups.append((q, pl[x] - pl[q] - dq))
             away = max(away, dq)
-            q = int(parent[q])
+            q = par[q]
         top = max((sv for _, sv in ups), default=0.0)
         anchor, best = -1, 0.0
         if top >= need:
@@ -1089,8 +1095,8 @@ def fork_hooks(
                     break
         if anchor < 0:
             continue
-        parent[x] = anchor
-        pl[x] = pl[anchor] + float(np.linalg.norm(pos[x] - pos[anchor]))
+        parent[x] = par[x] = anchor
+        pl[x] = pl[anchor] + math.dist(px, pts[anchor])
         hooks.append({"node": int(x), "anchor": int(anchor), "saving": float(best)})
     if hooks:
         # the old ways back that carry nothing now: dropped from their ends up
