@@ -122,6 +122,27 @@ def test_a_bend_of_a_thick_branch_is_no_hook():
     assert hooks == [] and keep.all()
 
 
+def test_two_twigs_touching_at_their_tips_are_no_hook():
+    """Two parallel twigs 4 cm apart whose tips touch: the skeleton runs up one, across
+    and down the other. The straight way between them is within reach of their points
+    (a sparse scan's spacing), but neither twig goes on beyond the turn: that is no fork,
+    and straightening it would hang one twig from the other's side."""
+    up = np.vstack([[0.0, 0.0, 0.0], line([0, 0, 0], [0, 0, 0.6])])
+    down = line([0.04, 0, 0.6], [0.04, 0, 0.0])
+    pos = np.vstack([up, down])
+    g = BranchGraph(pos, np.arange(-1, pos.shape[0] - 1), radius=np.full(pos.shape[0], 0.005))
+    xyz = np.vstack([line([0, 0, 0], [0, 0, 0.6], 0.02), line([0.04, 0, 0.6], [0.04, 0, 0], 0.02)])
+    _, keep, hooks = fork_hooks(g, xyz, 0.02, STEP)
+    assert hooks == [] and keep.all()
+    # the same way with the first twig going on beyond the turn is a fork's hook
+    on = np.vstack([pos, line([0, 0, 0.6], [0, 0, 1.0])])
+    par = np.r_[g.parent, up.shape[0] - 1, np.arange(pos.shape[0], on.shape[0] - 1)]
+    g2 = BranchGraph(on, par, radius=np.full(on.shape[0], 0.005))
+    xyz2 = np.vstack([xyz, line([0, 0, 0.6], [0, 0, 1.0], 0.02)])
+    _, _, hooks = fork_hooks(g2, xyz2, 0.02, STEP)
+    assert len(hooks) >= 1
+
+
 def test_the_pipeline_straightens_adtree_tree7s_trunk_at_its_fork():
     """AdTree tree7: the trunk ran 0.1 m up one leader above the fork and back down into
     the other (6.17 m of trunk for a 5.23 m tree, 9 cm of it downwards); straightened, 5.84 m

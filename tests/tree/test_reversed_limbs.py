@@ -128,9 +128,7 @@ def test_the_pipeline_turns_the_noisy_maples_reversed_limb():
     true_path = treeops.accumulate_down(truth.parent, truth.edge_length)[x]
     found = {}
     for on in (True, False):
-        # without the turn, hooks straightened at forks still thicken the hanging limb
-        # (to 30 mm: its supported length changes), so both are off for the baseline
-        sk = skeletonize(cloud, method="graph", reversed_limbs=on, fork_hooks=None if on else False)
+        sk = skeletonize(cloud, method="graph", reversed_limbs=on)
         g = sk.world_graph()
         i = int(np.argmin(np.linalg.norm(g.position - up, axis=1)))
         assert np.linalg.norm(g.position[i] - up) < 0.03

@@ -1041,7 +1041,10 @@ def fork_hooks(
     :data:`HOOK_REACH` node spacings of path reaches it by a straight way at least
     :data:`HOOK_SAVING` node spacings shorter, the way between turns back (it first climbs
     more than a node spacing farther from ``x`` than ``q`` is: a bend of a branch only
-    ever draws nearer), and the points cover the straight way: a point within the
+    ever draws nearer) at a node carrying other wood too (the wrong arm goes on beyond
+    the turn; where two twigs' tips touch, neither does) and standing outside ``q``'s
+    radius (within one cross-section of a thick stem the order of the nodes means
+    nothing), and the points cover the straight way: a point within the
     thicker end's radius plus ``spacing`` (the point spacing) of every step of one node
     spacing along it (nothing is drawn through empty space). Nodes are visited from the
     roots (their ancestors already straightened), each taking the nearest ancestor that
@@ -1066,7 +1069,8 @@ def fork_hooks(
     pts = [tuple(v) for v in pos.tolist()]
     pl = [0.0] * n  # path length from the root, on the straightened skeleton
     par = parent.tolist()
-    had_children = graph.n_children > 0
+    kids0 = graph.n_children
+    had_children = kids0 > 0
     for x in graph.order.tolist():
         p = par[x]
         if p < 0:
@@ -1075,12 +1079,21 @@ def fork_hooks(
         pl[x] = pl[p] + math.dist(px, pts[p])
         # a hook turns back: the way from q climbs away from x (farther than q is, by a
         # node spacing) before it comes down to it; a bend only ever draws nearer
-        ups, q, away = [], par[p], math.dist(px, pts[p])
+        # ... at a fork: the wrong arm goes on beyond the turn (the node where the way
+        # turns carries other wood; two twigs' tips touching turn where neither goes on),
+        # and the turn stands outside q's own wood (nodes zig-zagging within one cross-
+        # section of a thick stem are no arm)
+        ups, q, away, apex = [], par[p], math.dist(px, pts[p]), p
         while q >= 0 and pl[x] - pl[q] <= reach:
             dq = math.dist(px, pts[q])
-            if away > dq + node_spacing:
+            if (
+                away > dq + node_spacing
+                and kids0[apex] >= 2
+                and math.dist(pts[apex], pts[q]) > rad[q]
+            ):
                 ups.append((q, pl[x] - pl[q] - dq))
-            away = max(away, dq)
+            if dq > away:
+                away, apex = dq, q
             q = par[q]
         top = max((sv for _, sv in ups), default=0.0)
         anchor, best = -1, 0.0

@@ -320,14 +320,17 @@ class CleanupOptions:
         "again. Default: on for the graph method (the noisy synthetic maple's 67 mm limb); "
         "off for voxel (no preset has one; its one turn on the TreeLS spruce is unchecked).",
     )
-    fork_hooks: bool | None = _opt(
-        None,
+    fork_hooks: bool = _opt(
+        False,
         "--fork-hooks",
         "Straighten hooks at forks, where the skeleton entered one arm from a node up the "
-        "other and came back down (tree.cleanup.fork_hooks; only where the points cover "
-        "the straight way), then fit radii again. Default: on for the graph method (whose "
-        "level sets merge a fork's arms); off for voxel (its TreeLS spruce went 607 → "
-        "778 L with it).",
+        "other and came back down (tree.cleanup.fork_hooks; only where the way turns back "
+        "at a node carrying other wood, outside the anchor's radius, and the points cover "
+        "the straight way), then fit radii again. Opt-in: it takes the hook out of AdTree "
+        "tree7's trunk (6.17 -> 5.84 m) but lengthens the TreeLS spruce's (18.02 -> "
+        "18.59 m) and moves the synthetic volumes within their seed noise "
+        "(docs/tree.md, session 26).",
+        kind="enabled",
     )
     detours: bool = _opt(
         True,

@@ -805,15 +805,14 @@ def empty_tips_phase(run: _Run) -> None:
 def detour_phase(run: _Run) -> None:
     """Trunk detours out along a branch and back taken out of the trunk
     (:func:`biomorph.tree.cleanup.reroute_detours`: the straight way must be covered by the
-    stem's points) and hooks at forks straightened (:func:`biomorph.tree.cleanup.
-    fork_hooks`, graph method), then the radius stage once more if any was. Off with
-    ``CleanupOptions.detours = False`` (``--no-detours``) and ``fork_hooks = False``
-    (``--no-fork-hooks``; None: on for the graph method). The radius stage also runs here
+    stem's points) and, opt-in, hooks at forks straightened
+    (:func:`biomorph.tree.cleanup.fork_hooks`, ``CleanupOptions.fork_hooks = True``,
+    ``--fork-hooks``), then the radius stage once more if any was. Off with
+    ``CleanupOptions.detours = False`` (``--no-detours``). The radius stage also runs here
     when :func:`empty_tips_phase` pruned chains (once for both)."""
     co = run.opts.cleanup
-    hooks = co.fork_hooks if co.fork_hooks is not None else run.opts.method == "graph"
-    run.params.update(detours=co.detours, fork_hooks=hooks)
-    rerouted = _detours(run, co.detours, hooks)
+    run.params.update(detours=co.detours, fork_hooks=co.fork_hooks)
+    rerouted = _detours(run, co.detours, co.fork_hooks)
     if run.radii_pending:
         if not rerouted:  # fitted again from the pruned skeleton as it entered the stage
             assert run.skeleton is not None
