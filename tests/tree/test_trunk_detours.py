@@ -170,3 +170,23 @@ def test_the_bulk_gap_search_finds_exactly_the_stem_tests_empty_balls():
         assert trunk_shortcuts(g, pts, SPACING) == with_gaps
     finally:
         cleanup._slab_gaps = orig
+
+
+def test_a_sparse_stem_is_seen_in_slabs_a_share_of_its_radius_thick():
+    """The stem around a detour seen from below through a crown: a few points per slab of
+    a point spacing (the TreeLS spruce at 11-12.6 m), so no slab-by-slab ring. In slabs of
+    half its radius (``sparse``) the ring shows; a gap in the scan stays a gap."""
+    g, nl, no, nb = _detour_tree()
+    stem = _stem_points(0.10, 0.0, 10.0)
+    rng = np.random.default_rng(3)
+    band = (stem[:, 2] > 2.5) & (stem[:, 2] < 4.1)
+    thin = ~band | (rng.random(len(stem)) < 0.04)
+    xyz = np.vstack([stem[thin], g.position[nl : nl + no + nb]])
+    assert trunk_shortcuts(g, xyz, SPACING) == []
+    assert len(trunk_shortcuts(g, xyz, SPACING, sparse=True)) == 1
+    parent, keep, n = reroute_detours(g, xyz, SPACING, sparse=True)
+    assert n == 1 and not keep.all()
+    gap = np.vstack(
+        [_stem_points(0.10, 0.0, 10.0, gap=(2.95, 3.65)), g.position[nl : nl + no + nb]]
+    )
+    assert trunk_shortcuts(g, gap, SPACING, sparse=True) == []

@@ -743,6 +743,10 @@ SHORTCUT_MIN_RADIUS = 3.0
 #: ... and the stem's circle around the line in three of four slabs that can be fitted
 #: (whorl branches and needles in a slab pull some circles off)
 SHORTCUT_RING_SHARE = 0.75
+#: ``trunk_shortcuts(sparse=True)``: the stem test's slabs are this share of the stem's
+#: radius thick (half-thickness; at least a point spacing): the TreeLS spruce's stem at
+#: 11-12.6 m holds 1-9 points per slab of a point spacing, seen from below through the crown
+SPARSE_SLAB_RADII = 0.5
 
 
 def trunk_shortcuts(
@@ -751,6 +755,7 @@ def trunk_shortcuts(
     spacing: float,
     max_span: float | None = None,
     kdtree: cKDTree | None = None,
+    sparse: bool = False,
 ) -> list[tuple[int, int]]:
     """Detours of each tree's trunk out along a branch and back, as ``(i, j)`` pairs of
     trunk nodes (``j`` downstream of ``i``) to join directly.
@@ -766,7 +771,9 @@ def trunk_shortcuts(
     :data:`SHORTCUT_MIN_RADIUS` spacings thick (a stem the scan resolves), the line spans
     at most ``max_span`` (m; default a tenth of the tree's height,
     :data:`biomorph.tree.order.TRUNK_WAVELENGTH`), heads within 60° of vertical, and the
-    points show the stem around it (:func:`_stem_support`). No bridge through empty space:
+    points show the stem around it (:func:`_stem_support`; with ``sparse`` in slabs
+    :data:`SPARSE_SLAB_RADII` of the stem's radius thick, where a stem seen through a
+    crown leaves a few points per point-spacing slab). No bridge through empty space:
     the stem must be there in the scan. For each ``i`` the farthest qualifying ``j`` is
     taken, then the search goes on from ``j``. ``kdtree``: a k-d tree of ``xyz`` if the
     caller has one."""
@@ -819,11 +826,18 @@ def trunk_shortcuts(
                     js.append(j)
             # most lines fail the stem test at a slab with no point in reach: found for all
             # of them in one query (the same slabs; the test's answer is False there)
-            gap = _slab_gaps(kd, pos[p[i]], pos[p[js]], rad[p[i]], rad[p[js]], spacing)
-            for j, empty in zip(js, gap, strict=True):
+            slab = (
+                np.maximum(spacing, SPARSE_SLAB_RADII * np.minimum(rad[p[i]], rad[p[js]]))
+                if sparse
+                else np.full(len(js), spacing)
+            )
+            gap = _slab_gaps(kd, pos[p[i]], pos[p[js]], rad[p[i]], rad[p[js]], spacing, slab)
+            for j, empty, h in zip(js, gap, slab, strict=True):
                 if empty:
                     continue
-                if _stem_support(kd, xyz, pos[p[i]], pos[p[j]], rad[p[i]], rad[p[j]], spacing):
+                if _stem_support(
+                    kd, xyz, pos[p[i]], pos[p[j]], rad[p[i]], rad[p[j]], spacing, float(h)
+                ):
                     out.append((int(p[i]), int(p[j])))
                     i, done = j, True
                     break
@@ -873,7 +887,7 @@ def _slab_chunk(kd, xyz, c, reach, axes, spacing) -> list | None:
     ]
 
 
-def _slab_gaps(kd, a, b, ra: float, rb, spacing: float) -> NDArray[np.bool_]:
+def _slab_gaps(kd, a, b, ra: float, rb, spacing: float, slab=None) -> NDArray[np.bool_]:
     """For the lines from ``a`` to each row of ``b`` (radii ``ra`` to ``rb``): whether one
     of :func:`_stem_support`'s slabs has no point within its ball (the same slab centres
     and ball radii, computed the same way), where that test answers False. One
@@ -883,9 +897,10 @@ def _slab_gaps(kd, a, b, ra: float, rb, spacing: float) -> NDArray[np.bool_]:
     if b.shape[0] == 0:
         return out
     rb = np.asarray(rb, dtype=float).reshape(-1)
+    h = np.broadcast_to(np.asarray(spacing if slab is None else slab, dtype=float), rb.shape)
     ab = b - a
     ln = np.linalg.norm(ab, axis=1)
-    k = np.maximum(2, np.ceil(ln / (2 * spacing)).astype(np.int64) + 1)
+    k = np.maximum(2, np.ceil(ln / (2 * h)).astype(np.int64) + 1)
     line = np.repeat(np.arange(b.shape[0]), k)
     first = np.concatenate([[0], np.cumsum(k)[:-1]])
     idx = np.arange(int(k.sum())) - np.repeat(first, k)
@@ -893,13 +908,15 @@ def _slab_gaps(kd, a, b, ra: float, rb, spacing: float) -> NDArray[np.bool_]:
     ts = idx * (1.0 / (k - 1))[line]
     ts[first + k - 1] = 1.0
     r = ra + ts * (rb - ra)[line]
-    ball = np.hypot(r + SHORTCUT_REACH * spacing, spacing)
+    ball = np.hypot(r + SHORTCUT_REACH * spacing, h[line])
     d, _ = kd.query(a + ts[:, None] * ab[line], k=1, distance_upper_bound=float(ball.max()))
     out[np.unique(line[d > ball])] = True
     return out & (ln > 0)
 
 
-def _stem_support(kd, xyz, a, b, ra: float, rb: float, spacing: float) -> bool:
+def _stem_support(
+    kd, xyz, a, b, ra: float, rb: float, spacing: float, slab: float | None = None
+) -> bool:
     """Whether the scan shows a stem around the straight line ``a → b`` (radii ``ra`` to
     ``rb``): in every slab (two point spacings apart, one spacing thick) points within the
     radius plus :data:`SHORTCUT_REACH` spacings of the line (no gap); at least half of them
@@ -907,7 +924,9 @@ def _stem_support(kd, xyz, a, b, ra: float, rb: float, spacing: float) -> bool:
     points (algebraic fit) is centred within half the radius of the line, its radius within
     a factor 2 of the stem's. A circle fit finds the stem's own axis from an arc of it, so a line
     leaving the stem fails where it runs outside, however one-sided the scan. The slabs'
-    points are gathered a chunk at a time (:func:`_slab_chunk`)."""
+    points are gathered a chunk at a time (:func:`_slab_chunk`). ``slab``: the slabs'
+    half-thickness and half their spacing instead of one point spacing (m; a sparse stem
+    fills thicker slabs, :data:`SPARSE_SLAB_RADII`)."""
     ab = b - a
     ln = float(np.linalg.norm(ab))
     if ln <= 0:
@@ -916,7 +935,8 @@ def _stem_support(kd, xyz, a, b, ra: float, rb: float, spacing: float) -> bool:
     e1 = _cross3(u, (0.0, 0.0, 1.0) if abs(u[2]) < 0.9 else (1.0, 0.0, 0.0))
     e1 /= np.linalg.norm(e1)
     e2 = _cross3(u, e1)
-    k = max(2, int(np.ceil(ln / (2 * spacing))) + 1)
+    h = spacing if slab is None else float(slab)  # the slabs' half-thickness
+    k = max(2, int(np.ceil(ln / (2 * h))) + 1)
     ts = np.linspace(0.0, 1.0, k)
     r = ra + ts * (rb - ra)
     reach = r + SHORTCUT_REACH * spacing
@@ -927,7 +947,7 @@ def _stem_support(kd, xyz, a, b, ra: float, rb: float, spacing: float) -> bool:
     size = SLAB_CHUNK
     while done < k:
         chunk = walk[done : done + size]
-        got = _slab_chunk(kd, xyz, a + ts[chunk, None] * ab, reach[chunk], (e1, e2, u), spacing)
+        got = _slab_chunk(kd, xyz, a + ts[chunk, None] * ab, reach[chunk], (e1, e2, u), h)
         if got is None:
             # an empty slab (no ball points, or none near the line) is the answer wherever
             # the walk meets it
@@ -959,6 +979,7 @@ def reroute_detours(
     spacing: float,
     max_span: float | None = None,
     kdtree: cKDTree | None = None,
+    sparse: bool = False,
 ) -> tuple[NDArray[np.int64], NDArray[np.bool_], int]:
     """New parents that take each trunk detour (:func:`trunk_shortcuts`) out of the trunk;
     returns ``(parent, keep, detours)``: apply ``parent``, then keep the nodes in ``keep``.
@@ -979,7 +1000,7 @@ def reroute_detours(
     if rad is None:
         return parent, keep, done
     n_kids = graph.n_children
-    for i, j in trunk_shortcuts(graph, xyz, spacing, max_span, kdtree):
+    for i, j in trunk_shortcuts(graph, xyz, spacing, max_span, kdtree, sparse):
         path = [j]
         while path[-1] != i:
             path.append(int(parent[path[-1]]))

@@ -805,11 +805,13 @@ def empty_tips_phase(run: _Run) -> None:
 def detour_phase(run: _Run) -> None:
     """Trunk detours out along a branch and back taken out of the trunk
     (:func:`biomorph.tree.cleanup.reroute_detours`: the straight way must be covered by the
-    stem's points) and, opt-in, hooks at forks straightened
-    (:func:`biomorph.tree.cleanup.fork_hooks`, ``CleanupOptions.fork_hooks = True``,
-    ``--fork-hooks``), then the radius stage once more if any was. Off with
-    ``CleanupOptions.detours = False`` (``--no-detours``). The radius stage also runs here
-    when :func:`empty_tips_phase` pruned chains (once for both)."""
+    stem's points; for the graph method in slabs half the stem's radius thick, where a stem
+    seen through a crown leaves a few points per point spacing) and, opt-in, hooks at
+    forks straightened (:func:`biomorph.tree.cleanup.fork_hooks`,
+    ``CleanupOptions.fork_hooks = True``, ``--fork-hooks``), then the radius stage once
+    more if any was. Off with ``CleanupOptions.detours = False`` (``--no-detours``). The
+    radius stage also runs here when :func:`empty_tips_phase` pruned chains (once for
+    both)."""
     co = run.opts.cleanup
     run.params.update(detours=co.detours, fork_hooks=co.fork_hooks)
     rerouted = _detours(run, co.detours, co.fork_hooks)
@@ -838,7 +840,13 @@ def _detours(run: _Run, on: bool, hooks: bool = False) -> bool:
     g, sk = run.graph, run.skeleton
     n = 0
     if on:
-        parent, keep, n = reroute_detours(g, run.cloud.xyz, spacing, kdtree=run.point_index())
+        parent, keep, n = reroute_detours(
+            g,
+            run.cloud.xyz,
+            spacing,
+            kdtree=run.point_index(),
+            sparse=run.opts.method == "graph",
+        )
         run.info["trunk_detours"] = n
         if n:
             g = g.with_(parent=parent).subgraph(keep)
