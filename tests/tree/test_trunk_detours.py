@@ -163,13 +163,26 @@ def test_the_bulk_gap_search_finds_exactly_the_stem_tests_empty_balls():
     # the detour search finds the same shortcuts whether or not it skips the flagged lines
     g, nl, no, nb = _detour_tree()
     pts = np.vstack([_stem_points(0.10, 0.0, 10.0), g.position[nl : nl + no + nb]])
-    with_gaps = trunk_shortcuts(g, pts, SPACING)
+    with_gaps = {sp: trunk_shortcuts(g, pts, SPACING, sparse=sp) for sp in (False, True)}
     orig = cleanup._slab_gaps
     try:
-        cleanup._slab_gaps = lambda kd, a, b, ra, rb, sp: np.zeros(len(b), dtype=bool)
-        assert trunk_shortcuts(g, pts, SPACING) == with_gaps
+        cleanup._slab_gaps = lambda kd, a, b, ra, rb, sp, slab=None: np.zeros(len(b), bool)
+        for sp in (False, True):
+            assert trunk_shortcuts(g, pts, SPACING, sparse=sp) == with_gaps[sp]
     finally:
         cleanup._slab_gaps = orig
+    # thick slabs: the same flags as the slab balls of the stem test at that thickness
+    h = np.maximum(SPACING, 0.5 * np.minimum(0.10, rb))
+    gaps = _slab_gaps(kd, a, ends, 0.10, rb, SPACING, h)
+    for b, r, hh, flagged in zip(ends, rb, h, gaps, strict=True):
+        ln = float(np.linalg.norm(b - a))
+        k = max(2, int(np.ceil(ln / (2 * hh))) + 1)
+        ts = np.linspace(0.0, 1.0, k)
+        ball = np.hypot(0.10 + ts * (r - 0.10) + SHORTCUT_REACH * SPACING, hh)
+        counts = kd.query_ball_point(a + ts[:, None] * (b - a), ball, return_length=True)
+        assert bool(flagged) == bool((counts == 0).any())
+        if flagged:
+            assert not _stem_support(kd, xyz, a, b, 0.10, r, SPACING, hh)
 
 
 def test_a_sparse_stem_is_seen_in_slabs_a_share_of_its_radius_thick():
