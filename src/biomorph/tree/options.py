@@ -327,9 +327,8 @@ class CleanupOptions:
         "other and came back down (tree.cleanup.fork_hooks; only where the way turns back "
         "at a node carrying other wood, outside the anchor's radius, and the points cover "
         "the straight way), then fit radii again. Opt-in: it takes the hook out of AdTree "
-        "tree7's trunk (6.17 -> 5.84 m) but lengthens the TreeLS spruce's (18.02 -> "
-        "18.59 m) and moves the synthetic volumes within their seed noise "
-        "(docs/tree.md, session 26).",
+        "tree7's trunk (6.17 -> 5.84 m) but moves the synthetic classes within their "
+        "seed noise, one cell in and one out (docs/tree.md, session 26).",
         kind="enabled",
     )
     detours: bool = _opt(
