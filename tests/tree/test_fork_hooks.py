@@ -167,3 +167,20 @@ def test_the_pipeline_straightens_adtree_tree7s_trunk_at_its_fork():
     assert on_len < off_len - 0.2
     assert runs[True].info["fork_hooks"] >= 1 and "fork_hooks" not in runs[False].info
     assert runs[True].params["fork_hooks"] is True
+
+
+def test_fork_hooks_reach_the_summary_from_the_cli(tmp_path, capsys):
+    import json
+
+    from biomorph.cli import run
+    from tests.tree.test_cli import _write_xyz
+    from tests.tree.test_livny import make_cloud
+
+    xyz = _write_xyz(tmp_path / "tree.xyz", make_cloud(n=4000, seed=21))
+    args = ["tree", "skeletonize", str(xyz), "--no-ground", "--json"]
+    assert run([*args, "--fork-hooks", "--out", str(tmp_path / "on")]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["params"]["fork_hooks"] is True and "fork_hooks" in summary["info"]
+    assert run([*args, "--out", str(tmp_path / "off")]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["params"]["fork_hooks"] is False and "fork_hooks" not in summary["info"]
