@@ -266,3 +266,37 @@ def test_the_trunk_reaches_a_top_held_by_a_child_heading_off_at_first():
 def metrics_top_gap(g: BranchGraph, d: np.ndarray) -> float:
     """The tree's top minus the trunk's highest node (``trunk_top_gap``)."""
     return float(g.position[:, 2].max() - g.position[d == 0, 2].max())
+
+
+def _overtopping_branch(drop: float):
+    """A 10.2 m stem with a branch leaving at 6 m: 2 m out at 45°, then ``drop`` m down
+    (across the twigs of the crown) and up again to 11 m, above the stem's top."""
+    pos = [[0.0, 0.0, 0.1 * i] for i in range(103)]
+    parent = [-1] + list(range(102))
+    s = np.sqrt(0.5)
+    for i in range(1, 21):
+        pos.append([0.1 * i * s, 0, 6 + 0.1 * i * s])
+        parent.append(60 if i == 1 else len(pos) - 2)
+    x, z = pos[-1][0], pos[-1][2]
+    k = 10
+    for i in range(1, k + 1):
+        pos.append([x + 0.05 * i, 0, z - drop * i / k])
+        parent.append(len(pos) - 2)
+    x, z = pos[-1][0], pos[-1][2]
+    while pos[-1][2] < 11.0:
+        pos.append([pos[-1][0] + 0.01, 0, pos[-1][2] + 0.1])
+        parent.append(len(pos) - 2)
+    return BranchGraph(np.array(pos), np.array(parent))
+
+
+def test_the_trunk_does_not_follow_a_branch_down_and_up_to_an_overtopping_tip():
+    """The demo's birch: a branch leaving the stem runs out, drops across the crown's
+    twigs and climbs to a tip above the stem's top. Holding the tree's top is no reason
+    to take the trunk there: the way drops 1 m (10 node spacings; a stem does not go
+    down), so the trunk stays on the stem. Without the drop it takes the branch."""
+    g = _overtopping_branch(drop=1.0)
+    d = order.branch_order(g)
+    assert (d[:103] == 0).all() and (d[103:] == 1).all()
+    g = _overtopping_branch(drop=0.0)
+    d = order.branch_order(g)
+    assert (d[103:] == 0).all()

@@ -196,6 +196,13 @@ TRUNK_LOOK = 10
 #: doubling back for 30 cm) must not end the trunk
 TRUNK_REACH = 0.05
 TRUNK_TIE = 0.5
+#: a leader holding the tree's top takes the trunk only if the way up to that top never
+#: drops more than this many node spacings below where it has been: a stem does not go
+#: down. The trunks of the real clouds here drop at most 3.8 spacings (a hook at a fork,
+#: the skeleton's zig-zag); a way out along a branch, across the twigs of a crown whose
+#: branches overtop the stem and up another branch to the top drops 12.6 (the demo's
+#: birch: its trunk ran 21.6 m to a branch tip 5 m out, for a 15 m stem)
+TRUNK_DROP = 5.0
 
 
 def continuation(
@@ -344,13 +351,29 @@ def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float
                 if ok:  # the leaders: children climbing within ``reach`` of the highest
                     hi = max(h[top[w]] for w in ok)
                     ok = [w for w in ok if h[top[w]] >= hi - reach]
-                    # ... and of those the one holding the tree's top, if one does
-                    ok = [w for w in ok if top[w] == top[root]] or ok
+                    # ... and of those the one holding the tree's top, if one does and
+                    # the way up to it climbs as a stem does
+                    ok = [
+                        w
+                        for w in ok
+                        if top[w] == top[root]
+                        and _way_drop(graph.parent, v, int(top[w]), h) <= TRUNK_DROP * med_edge
+                    ] or ok
                 if int(cont[v]) not in ok:
                     cont[v] = max(ok, key=lambda w: carried[w]) if ok else -1
             if cont[v] < 0:
                 break
             v = int(cont[v])
+
+
+def _way_drop(parent, v: int, x: int, h) -> float:
+    """How far the way from ``v`` down the tree to its descendant ``x`` drops below the
+    highest point it has reached before, in ``h``."""
+    way = [x]
+    while way[-1] != v and parent[way[-1]] >= 0:
+        way.append(int(parent[way[-1]]))
+    z = np.asarray(h)[np.asarray(way[::-1], dtype=np.int64)]
+    return float((np.maximum.accumulate(z) - z).max())
 
 
 def _trunk_candidates(v, kids, ctx, axis, reach: float, cos_max: float) -> list[int]:
