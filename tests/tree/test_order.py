@@ -300,3 +300,19 @@ def test_the_trunk_does_not_follow_a_branch_down_and_up_to_an_overtopping_tip():
     g = _overtopping_branch(drop=0.0)
     d = order.branch_order(g)
     assert (d[103:] == 0).all()
+
+
+def test_the_trunk_ends_at_its_top_not_down_a_branch_hanging_from_it():
+    """A pine's leader merged with a drooping branch (no fork between them): the chain
+    climbs to 10 m, then hangs 1 m down to a twig's tip. The trunk ends at the top; the
+    tail is a branch of it (order 1)."""
+    pos = [[0.0, 0.0, 0.1 * i] for i in range(101)]
+    for i in range(1, 16):  # over the top and 1 m down, 0.1 m apart
+        pos.append([0.05 * i, 0.0, 10.0 - 1.0 * i / 15])
+    g = BranchGraph(np.array(pos), np.arange(-1, len(pos) - 1))
+    d = order.branch_order(g)
+    assert (d[:101] == 0).all() and (d[101:] == 1).all()
+    # a tail that only sags a node spacing or two stays the trunk's
+    pos = [[0.0, 0.0, 0.1 * i] for i in range(101)] + [[0.05, 0.0, 9.95], [0.1, 0.0, 9.9]]
+    d = order.branch_order(BranchGraph(np.array(pos), np.arange(-1, len(pos) - 1)))
+    assert (d == 0).all()

@@ -364,6 +364,21 @@ def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float
             if cont[v] < 0:
                 break
             v = int(cont[v])
+        _end_at_the_top(int(root), cont, h, TRUNK_DROP * med_edge)
+
+
+def _end_at_the_top(root: int, cont, h, drop: float) -> None:
+    """End the trunk from ``root`` (its chain of continuations ``cont``) at its highest
+    point in ``h`` when the chain then drops more than ``drop`` below it: a stem does not
+    go down, the tail is a branch hanging from the top (a pine's leader merged with a
+    drooping branch at the plot's tree 13: 0.77 m down to a twig's tip)."""
+    chain = [root]
+    while cont[chain[-1]] >= 0:
+        chain.append(int(cont[chain[-1]]))
+    z = np.asarray(h)[np.asarray(chain, dtype=np.int64)]
+    k = int(np.argmax(z))
+    if k + 1 < len(chain) and float(z[k] - z[k + 1 :].min()) > drop:
+        cont[chain[k]] = -1
 
 
 def _way_drop(parent, v: int, x: int, h) -> float:
