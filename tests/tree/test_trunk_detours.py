@@ -146,16 +146,23 @@ def test_the_bulk_gap_search_finds_exactly_the_stem_tests_empty_balls():
         [rng.uniform(-0.4, 0.4, 60), rng.uniform(-0.4, 0.4, 60), rng.uniform(0.3, 3.9, 60)]
     )
     rb = rng.uniform(0.05, 0.12, 60)
-    gaps = _slab_gaps(kd, a, ends, 0.10, rb, SPACING)
-    for b, r, flagged in zip(ends, rb, gaps, strict=True):
-        ln = float(np.linalg.norm(b - a))
-        k = max(2, int(np.ceil(ln / (2 * SPACING))) + 1)
-        ts = np.linspace(0.0, 1.0, k)
-        ball = np.hypot(0.10 + ts * (r - 0.10) + SHORTCUT_REACH * SPACING, SPACING)
-        counts = kd.query_ball_point(a + ts[:, None] * (b - a), ball, return_length=True)
-        assert bool(flagged) == bool((counts == 0).any())
-        if flagged:
-            assert not _stem_support(kd, xyz, a, b, 0.10, r, SPACING)
+
+    def check(slabs):
+        """Each line flagged exactly when one of its slab balls (half-thickness ``h``) is
+        empty, and a flagged line fails the stem test at that thickness."""
+        gaps = _slab_gaps(kd, a, ends, 0.10, rb, SPACING, slabs)
+        for b, r, h, flagged in zip(ends, rb, slabs, gaps, strict=True):
+            k = max(2, int(np.ceil(float(np.linalg.norm(b - a)) / (2 * h))) + 1)
+            ts = np.linspace(0.0, 1.0, k)
+            ball = np.hypot(0.10 + ts * (r - 0.10) + SHORTCUT_REACH * SPACING, h)
+            counts = kd.query_ball_point(a + ts[:, None] * (b - a), ball, return_length=True)
+            assert bool(flagged) == bool((counts == 0).any())
+            if flagged:
+                assert not _stem_support(kd, xyz, a, b, 0.10, r, SPACING, h)
+        return gaps
+
+    gaps = check(np.full(rb.size, SPACING))
+    assert (gaps == _slab_gaps(kd, a, ends, 0.10, rb, SPACING)).all()  # the default slabs
     # up the axis through the scanned stem: not flagged; across the gap: flagged
     up = np.array([[0.0, 0.0, 1.4], [0.0, 0.0, 3.0]])
     assert _slab_gaps(kd, a, up, 0.10, np.array([0.10, 0.10]), SPACING).tolist() == [False, True]
@@ -172,17 +179,7 @@ def test_the_bulk_gap_search_finds_exactly_the_stem_tests_empty_balls():
     finally:
         cleanup._slab_gaps = orig
     # thick slabs: the same flags as the slab balls of the stem test at that thickness
-    h = np.maximum(SPACING, 0.5 * np.minimum(0.10, rb))
-    gaps = _slab_gaps(kd, a, ends, 0.10, rb, SPACING, h)
-    for b, r, hh, flagged in zip(ends, rb, h, gaps, strict=True):
-        ln = float(np.linalg.norm(b - a))
-        k = max(2, int(np.ceil(ln / (2 * hh))) + 1)
-        ts = np.linspace(0.0, 1.0, k)
-        ball = np.hypot(0.10 + ts * (r - 0.10) + SHORTCUT_REACH * SPACING, hh)
-        counts = kd.query_ball_point(a + ts[:, None] * (b - a), ball, return_length=True)
-        assert bool(flagged) == bool((counts == 0).any())
-        if flagged:
-            assert not _stem_support(kd, xyz, a, b, 0.10, r, SPACING, hh)
+    check(np.maximum(SPACING, 0.5 * np.minimum(0.10, rb)))
 
 
 def test_a_sparse_stem_is_seen_in_slabs_a_share_of_its_radius_thick():

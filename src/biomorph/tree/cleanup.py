@@ -31,7 +31,7 @@ from biomorph.core import treeops
 from biomorph.core.curves import kasa_circle, segment_projection
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
-from biomorph.tree.neighbours import query_workers
+from biomorph.tree.neighbours import query_workers, segment_cover
 
 __all__ = [
     "remove_false_branches",
@@ -1122,8 +1122,11 @@ def fork_hooks(
             # the nearest ancestor saving about the most: the fork itself, not a stem node
             # below it whose straight way also cuts the fork's corner inside the wood
             for q, sv in ups:
-                if sv >= max(need, top - HOOK_CORNER * node_spacing) and _covered(
-                    kd, pos[q], pos[x], max(rad[q], rad[x]) + spacing, node_spacing
+                if sv >= max(need, top - HOOK_CORNER * node_spacing) and (
+                    segment_cover(
+                        kd, pos[q], pos[x], node_spacing, max(rad[q], rad[x]) + spacing, True
+                    )
+                    == 1.0
                 ):
                     anchor, best = q, sv
                     break
@@ -1147,12 +1150,3 @@ def fork_hooks(
                 v = u
             h["dropped"] = dropped
     return parent, keep, hooks
-
-
-def _covered(kd: cKDTree, a: NDArray, b: NDArray, ball: float, step: float) -> bool:
-    """A point within ``ball`` of every station ``step`` apart along ``a`` → ``b``."""
-    k = max(int(np.ceil(np.linalg.norm(b - a) / step)), 1)
-    t = (np.arange(k + 1) + 0.0) / k
-    st = a + t[:, None] * (b - a)
-    d, _ = kd.query(st, distance_upper_bound=ball)
-    return bool(np.isfinite(d).all())

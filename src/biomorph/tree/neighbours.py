@@ -1079,14 +1079,23 @@ def _piece_axis(
     return v[:, 2], float(1.0 - w[1] / max(w[2], 1e-30))
 
 
+def segment_cover(
+    kd: cKDTree, pa: NDArray, pb: NDArray, step: float, reach: float, ends: bool = False
+) -> float:
+    """The share of the stations ``step`` apart along ``pa → pb`` (at least one between
+    them; with ``ends`` the two ends too) that have a point of ``kd`` within ``reach``."""
+    m = max(int(np.ceil(float(np.linalg.norm(pb - pa)) / step)), 2)
+    t = np.linspace(0.0, 1.0, m + 1)
+    if not ends:
+        t = t[1:-1]
+    d, _ = kd.query(pa + t[:, None] * (pb - pa), k=1)
+    return float(np.mean(d <= reach))
+
+
 def _covered(xyz: NDArray, kd: cKDTree, pa: NDArray, pb: NDArray, rule: BridgeRule) -> bool:
     """Whether ``rule.cover`` of the samples (one per spacing) along ``pa → pb`` have a point
     within two spacings: a gap the kNN graph missed inside sampled wood."""
-    gap = float(np.linalg.norm(pb - pa))
-    m = max(int(np.ceil(gap / rule.spacing)), 2)
-    t = np.linspace(0.0, 1.0, m + 1)[1:-1]
-    d, _ = kd.query(pa + t[:, None] * (pb - pa), k=1)
-    return float(np.mean(d <= 2.0 * rule.spacing)) >= rule.cover
+    return segment_cover(kd, pa, pb, rule.spacing, 2.0 * rule.spacing) >= rule.cover
 
 
 def _continues(
