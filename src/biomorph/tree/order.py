@@ -341,6 +341,7 @@ def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float
         height = float(pos[graph.trees == graph.trees[root], 2].max() - pos[root, 2])
         reach = max(TRUNK_LOOK * med_edge, TRUNK_REACH * height)
         v = int(root)
+        chain = [v]
         while True:
             kids = idx[indptr[v] : indptr[v + 1]]
             if kids.size == 0:
@@ -364,17 +365,15 @@ def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float
             if cont[v] < 0:
                 break
             v = int(cont[v])
-        _end_at_the_top(int(root), cont, h, TRUNK_DROP * med_edge)
+            chain.append(v)
+        _end_at_the_top(chain, cont, h, TRUNK_DROP * med_edge)
 
 
-def _end_at_the_top(root: int, cont, h, drop: float) -> None:
-    """End the trunk from ``root`` (its chain of continuations ``cont``) at its highest
+def _end_at_the_top(chain: list[int], cont, h, drop: float) -> None:
+    """End the trunk (its nodes ``chain`` from the root, linked by ``cont``) at its highest
     point in ``h`` when the chain then drops more than ``drop`` below it: a stem does not
     go down, the tail is a branch hanging from the top (a pine's leader merged with a
     drooping branch at the plot's tree 13: 0.77 m down to a twig's tip)."""
-    chain = [root]
-    while cont[chain[-1]] >= 0:
-        chain.append(int(cont[chain[-1]]))
     z = np.asarray(h)[np.asarray(chain, dtype=np.int64)]
     k = int(np.argmax(z))
     if k + 1 < len(chain) and float(z[k] - z[k + 1 :].min()) > drop:
