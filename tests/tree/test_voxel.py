@@ -59,6 +59,61 @@ def test_preprocess_removes_small_components_and_fills_hollow_stem():
     assert not v3[15, 15, 15]  # without the disc the open ring stays hollow
 
 
+def test_disc_closing_fills_hollow_stems_not_the_crotches_of_forks():
+    """The disc closing is there for hollow stems (a ring in every slice); the crotch of a
+    fork in the crown is no ring, and welding its arms into a sheet made the skeleton run
+    arcs through the air (TreeLS spruce: 25 % of the points > 10 cm from every cylinder)."""
+    x, y, z = np.mgrid[:30, :30, :8]
+    d2 = (x - 15) ** 2 + (y - 15) ** 2
+    ring = (d2 <= 36) & (d2 >= 20) & ~((x > 18) & (np.abs(y - 15) <= 1))  # one gap
+    fork = np.zeros_like(ring)
+    fork[5:28, 5, :] = True
+    fork[5, 5:28, :] = True  # two arms at a right angle
+    for shape, inside in ((ring, (15, 15, 4)), (fork, (7, 7, 4))):
+        welded, _ = preprocess_volume(
+            shape.astype(np.int32),
+            closing=None,
+            disc_radius=6,
+            fill_slices=False,
+            enclosed_only=False,
+        )
+        vol, stats = preprocess_volume(
+            shape.astype(np.int32),
+            closing=None,
+            disc_radius=6,
+            fill_slices=False,
+            enclosed_only=True,
+        )
+        assert welded[inside]  # the plain disc fills both
+        if shape is ring:
+            assert vol[inside] and stats["disc_added"] > 50  # the stem's inside is filled
+        else:
+            assert not vol[inside] and stats["disc_added"] == 0  # the arms stay apart
+
+
+def test_enclosure_counts_rays_that_meet_the_scan():
+    from biomorph.tree.voxel import _enclosed
+
+    v = np.zeros((11, 11, 1), bool)
+    v[0, :, 0] = v[10, :, 0] = v[:, 0, 0] = v[:, 10, 0] = True  # a square frame
+    centre = np.array([[5, 5, 0]])
+    assert _enclosed(v, centre, 6, need=8)[0]
+    assert not _enclosed(v, centre, 4)[0]  # the frame lies beyond the reach
+    u = v.copy()
+    u[1:10, 10, 0] = False  # one side open (a U): the ray through it escapes
+    assert _enclosed(u, centre, 6)[0] and not _enclosed(u, centre, 6, need=8)[0]
+    corner = np.zeros_like(v)
+    corner[0, :, 0] = corner[:, 0, 0] = True  # the crotch of two arms: three rays escape
+    assert not _enclosed(corner, np.array([[3, 3, 0]]), 6, need=6)[0]
+    # a diamond whose voxels touch only at their corners: a digital diagonal would slip
+    # between two of them; the ray looks at the voxels it passes between
+    d = np.zeros((13, 13, 1), bool)
+    for k in range(7):
+        for a, b in ((6 + k, k), (6 - k, k), (6 + k, 12 - k), (6 - k, 12 - k)):
+            d[a, b, 0] = True
+    assert _enclosed(d, np.array([[6, 7, 0]]), 8, need=8)[0]
+
+
 def test_skeleton_graph_weights_roots_components():
     skel = np.zeros((10, 10, 12), bool)
     skel[2, 2, 1:11] = True  # vertical line, lowest voxel (2,2,1)
@@ -218,3 +273,20 @@ def test_a_stem_roots_on_its_own_wood_not_at_a_shrub_or_a_lost_voxel_beside_it()
     assert [tuple(v) for v in ijk2[parent < 0]] == [(4, 4, 3)]
     ijk3, parent3, _ = skeleton_graph(skel, **kw)  # no segmentation: the lowest voxel
     assert [tuple(v) for v in ijk3[parent3 < 0]] == [(8, 4, 0)]
+
+
+def test_disc_enclosed_reaches_the_voxel_run_from_the_cli(tmp_path, capsys):
+    import json
+
+    from biomorph.cli import run
+    from tests.tree.test_cli import _write_xyz
+    from tests.tree.test_livny import make_cloud
+
+    xyz = _write_xyz(tmp_path / "tree.xyz", make_cloud(n=4000, seed=21))
+    args = ["tree", "skeletonize", str(xyz), "--no-ground", "--json", "--method", "voxel"]
+    assert run([*args, "--disc-enclosed", "--out", str(tmp_path / "on")]) == 0
+    on = json.loads(capsys.readouterr().out)
+    assert on["params"]["voxel"] == {"disc_enclosed": True}
+    assert run([*args, "--out", str(tmp_path / "off")]) == 0
+    off = json.loads(capsys.readouterr().out)
+    assert off["params"]["voxel"] == {}

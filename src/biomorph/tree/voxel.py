@@ -10,7 +10,12 @@ t2 (ii) **preprocessing** -- optional density threshold (``min_points`` per voxe
    6/18/26-neighbourhood (``closing_radius`` iterations) or a ball of radius
    ``closing_radius`` voxels, then a closing with a *horizontal disc* of ``disc_radius``
    voxels (default: the stem radius fitted near the base of the cloud) to fill
-   hollow stems, and optionally (``fill_slices``) a per-slice hole fill for closed rings.
+   hollow stems -- with ``disc_enclosed`` (opt-in) only where its slice encloses the
+   voxel (seven of eight horizontal rays meet the scan within the disc's diameter, the
+   inside of a stem's ring; a disc as wide as the stem applied everywhere welds the
+   twigs and whorl branches of a crown into sheets, whose thinned arcs run through the
+   air) -- and
+   optionally (``fill_slices``) a per-slice hole fill for closed rings.
 t3 (iii) **thinning** -- Palágyi & Kuba 1999, 8 directional subiterations
    (:mod:`biomorph.tree.thinning`).
 t4 (iv, v) **graph** -- 26-adjacency of the skeleton voxels with weights 3/4/5 (face / edge /
@@ -155,6 +160,64 @@ def _octagon_factors(r: float) -> list[NDArray[np.int64]]:
     ]
 
 
+#: of the eight horizontal rays (axes and diagonals) from a voxel the disc closing would
+#: fill, this many must meet a voxel of the scan within the disc's diameter for it to be
+#: filled: 8 inside a closed ring, 7 inside a ring with one gap (occlusion) narrower than
+#: the disc; between two parallel twigs 6 (the rays along them escape), in the crotch of a
+#: fork at most 5, beside a lone twig fewer. (Diagonal rays look at the voxels they pass
+#: between: without that, the sparse stem rings of the 60,000-point synthetic conifer let
+#: them slip through, its stem stayed hollow and the skeleton grew a ladder inside it.)
+ENCLOSED_RAYS = 7
+
+_RAYS = np.array(
+    [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)], dtype=np.int64
+)
+
+
+@numba.njit(cache=True)
+def _enclosed_kernel(vol, ijk, rays, reach, need):
+    nx, ny = vol.shape[0], vol.shape[1]
+    out = np.zeros(ijk.shape[0], dtype=np.bool_)
+    for k in range(ijk.shape[0]):
+        i, j, z = ijk[k, 0], ijk[k, 1], ijk[k, 2]
+        hits = 0
+        for d in range(rays.shape[0]):
+            di, dj = rays[d, 0], rays[d, 1]
+            for s in range(1, reach + 1):
+                a, b = i + s * di, j + s * dj
+                if a < 0 or b < 0 or a >= nx or b >= ny:
+                    break
+                # a diagonal step also looks at the two voxels it passes between: a
+                # ring's voxels may touch only at their corners, and a digital diagonal
+                # slips through such a corner without ever meeting one
+                if vol[a, b, z] or (
+                    di != 0 and dj != 0 and (vol[a - di, b, z] or vol[a, b - dj, z])
+                ):
+                    hits += 1
+                    break
+            if hits + (rays.shape[0] - 1 - d) < need:
+                break  # cannot reach ``need`` any more
+        out[k] = hits >= need
+    return out
+
+
+def _enclosed(
+    vol: NDArray[np.bool_], ijk: NDArray[np.int64], reach: int, need: int = ENCLOSED_RAYS
+) -> NDArray[np.bool_]:
+    """Which voxels ``ijk`` are enclosed in their horizontal slice of ``vol``: at least
+    ``need`` of the eight rays along the axes and diagonals meet an occupied voxel within
+    ``reach`` steps (:data:`ENCLOSED_RAYS`)."""
+    if ijk.shape[0] == 0:
+        return np.zeros(0, dtype=bool)
+    return _enclosed_kernel(
+        np.ascontiguousarray(vol),
+        np.ascontiguousarray(ijk, dtype=np.int64),
+        _RAYS,
+        int(reach),
+        int(need),
+    )
+
+
 def _sparse_closing(
     vol: NDArray[np.bool_], offs: NDArray[np.int64] | list[NDArray[np.int64]]
 ) -> NDArray[np.bool_]:
@@ -252,12 +315,17 @@ def preprocess_volume(
     closing_radius: float = 1,
     disc_radius: float | None = 0,
     fill_slices: bool = True,
+    enclosed_only: bool = False,
 ) -> tuple[NDArray[np.bool_], dict[str, int]]:
     """Density threshold, small-component removal, binarisation and closings (step ii).
 
     ``closing``: ``"ball"`` (Euclidean ball of ``closing_radius`` voxels), ``6``, ``18`` or
     ``26`` (that neighbourhood, ``closing_radius`` iterations) or ``None``/``0`` for none.
     ``disc_radius``: horizontal disc radius in voxels (0/None: no disc closing).
+    ``enclosed_only``: the disc closing fills only voxels its slice encloses
+    (:func:`_enclosed`: the inside of a hollow stem's ring), not the gaps between twigs
+    and branches side by side in the crown, which a disc as wide as the stem welds into
+    sheets.
     Returns the binary volume and voxel counts after each stage.
     """
     stats: dict[str, int] = {"occupied": int((counts > 0).sum())}
@@ -282,7 +350,14 @@ def preprocess_volume(
     stats["closed"] = int(vol.sum())
     if disc_radius:
         dr = float(disc_radius)
-        vol = _sparse_closing(vol, _offsets("disc", dr) if dr <= 4 else _octagon_factors(dr))
+        closed = _sparse_closing(vol, _offsets("disc", dr) if dr <= 4 else _octagon_factors(dr))
+        added = np.argwhere(closed & ~vol)
+        if enclosed_only and added.size:
+            # a hollow stem is a ring in its slice; two twigs side by side are not
+            added = added[_enclosed(vol, added, max(2, math.ceil(2 * dr)), ENCLOSED_RAYS)]
+        vol = vol.copy()
+        vol[added[:, 0], added[:, 1], added[:, 2]] = True
+        stats["disc_added"] = int(added.shape[0])
     if fill_slices:
         vol = _fill_slice_holes(vol)
     stats["filled"] = int(vol.sum())
@@ -729,6 +804,7 @@ def skeletonize_voxel(
     closing_radius: float = 1,
     disc_radius: float | None = None,
     fill_slices: bool = False,
+    disc_enclosed: bool = False,
     keep_largest: int | None = None,
     min_component_voxels: int = 10,
     bridge_gap: float | None = None,
@@ -760,6 +836,10 @@ def skeletonize_voxel(
         fitted 0.1–0.6 m above the lowest point (circle fits), plus one voxel, at most
         ``max_disc_radius`` metres (0 disables). Radii above 4 voxels use a regular
         octagon (four line segments) instead of the digital disc.
+    disc_enclosed : the disc closing fills only voxels their slice encloses (the inside
+        of a hollow stem's ring, :data:`ENCLOSED_RAYS`), not the gaps between crown
+        branches side by side. Default False: the thesis's plain closing everywhere
+        (opt-in, measured both ways in docs/tree.md, session 27).
     fill_slices : also fill every enclosed hole in each horizontal slice (off by default:
         the disc closing fills hollow stems, and a slice-wise fill can close large loops of
         crown branches into bubbles).
@@ -822,6 +902,7 @@ def skeletonize_voxel(
         closing_radius=closing_radius,
         disc_radius=disc_radius,
         fill_slices=fill_slices,
+        enclosed_only=disc_enclosed,
     )
     if not vol.any():
         raise InputError(
