@@ -127,6 +127,10 @@ def test_the_voxel_method_roots_each_pine_at_its_stem():
     skel = skeletonize(read_points(shared_file("trees", "treels_pine_plot.laz")), method="voxel")
     assert 15 <= skel.metrics["n_trees"] <= 32
     g = skel.graph
+    # no chain crosses from one tree into another (a residual piece of one pine once
+    # re-routed its neighbour's limb, and both trunks ran through it: 24.6 m on 15.3 m)
+    c = np.flatnonzero(g.parent >= 0)
+    assert np.all(g.trees[c] == g.trees[g.parent[c]])
     assert pdist(g.position[g.roots][:, :2]).min() > 0.5
     big = [t for t in skel.metrics["trees"] if t["height"] > 10]
     assert len(big) >= 10

@@ -113,6 +113,45 @@ def test_a_branch_reached_by_a_shortcut_is_rerouted_through_its_base():
     assert abs(grown.position[on_stem[0], 2] - 1.0) < 0.12
 
 
+def test_a_piece_does_not_reroute_a_branch_of_the_neighbouring_tree():
+    """Two stems 1.6 m apart; a branch whose wood leaves stem A hangs in the model from
+    stem B (the crown partition gave it to B). The piece at its base, hosted on A, must not
+    re-route B's branch into A: a chain would cross from one tree into the other and both
+    trunks would run through it (TreeLS plot, voxel method: a 24.6 m trunk on a 15.3 m
+    pine)."""
+    rng = np.random.default_rng(4)
+    stem_a = _surface((0, 0, 0), (0, 0, 3), 0.10, rng)
+    stem_b = _surface((1.6, 0, 0), (1.6, 0, 3), 0.10, rng)
+    a, b = np.array([0.09, 0, 1.0]), np.array([0.8, 0, 1.5])
+    xyz = np.vstack([stem_a, stem_b, _surface(a, b, 0.02, rng)])
+    ga = _stem_model(top=3.0)
+    gb = ga.with_(position=ga.position + [1.6, 0, 0])
+    n0 = ga.n_nodes
+    s0 = n0 + int(np.argmin(np.abs(gb.position[:, 2] - 1.5)))
+    t = np.linspace(0.5, 1.0, 12)
+    on = a + t[:, None] * (b - a)
+    short = np.linspace(gb.position[s0 - n0], on[-1], 20)[1:-1]  # from B to the branch's end
+    pos = np.vstack([ga.position, gb.position, short, on[::-1]])
+    m = 2 * n0
+    parent = np.concatenate(
+        [
+            ga.parent,
+            np.where(gb.parent >= 0, gb.parent + n0, -1),
+            [s0],
+            m + np.arange(short.shape[0] - 1),
+        ]
+    )
+    parent = np.concatenate([parent, [m + short.shape[0] - 1], m + short.shape[0] + np.arange(11)])
+    model = BranchGraph(
+        pos, parent, radius=np.r_[ga.radius, gb.radius, np.full(pos.shape[0] - m, 0.02)]
+    )
+    assert model.roots.size == 2 and np.all(model.trees[m:] == model.trees[n0])
+    grown, info = residual_branches(model, xyz, SPACING, NODE)
+    assert info["joined"] == 0
+    c = np.flatnonzero(grown.parent >= 0)
+    assert np.all(grown.trees[c] == grown.trees[grown.parent[c]])
+
+
 def test_surface_distance_looks_past_branch_bases_on_a_thick_stem():
     """At a whorl the 8 nearest axis samples can all be thin branch bases; the refined
     look finds the stem's own surface."""

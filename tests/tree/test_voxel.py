@@ -275,7 +275,7 @@ def test_a_stem_roots_on_its_own_wood_not_at_a_shrub_or_a_lost_voxel_beside_it()
     assert [tuple(v) for v in ijk3[parent3 < 0]] == [(8, 4, 0)]
 
 
-def test_disc_enclosed_reaches_the_voxel_run_from_the_cli(tmp_path, capsys):
+def test_no_disc_enclosed_reaches_the_voxel_run_from_the_cli(tmp_path, capsys):
     import json
 
     from biomorph.cli import run
@@ -284,9 +284,9 @@ def test_disc_enclosed_reaches_the_voxel_run_from_the_cli(tmp_path, capsys):
 
     xyz = _write_xyz(tmp_path / "tree.xyz", make_cloud(n=4000, seed=21))
     args = ["tree", "skeletonize", str(xyz), "--no-ground", "--json", "--method", "voxel"]
-    assert run([*args, "--disc-enclosed", "--out", str(tmp_path / "on")]) == 0
-    on = json.loads(capsys.readouterr().out)
-    assert on["params"]["voxel"] == {"disc_enclosed": True}
-    assert run([*args, "--out", str(tmp_path / "off")]) == 0
+    assert run([*args, "--no-disc-enclosed", "--out", str(tmp_path / "off")]) == 0
     off = json.loads(capsys.readouterr().out)
-    assert off["params"]["voxel"] == {}
+    assert off["params"]["voxel"] == {"disc_enclosed": False}
+    assert run([*args, "--out", str(tmp_path / "on")]) == 0
+    on = json.loads(capsys.readouterr().out)
+    assert on["params"]["voxel"] == {}  # the default: inside rings only

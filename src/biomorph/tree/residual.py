@@ -301,6 +301,13 @@ def _classify(graph: BranchGraph, p: _Pieces, tau: float, ml: float) -> None:
             target[ok] = tb[tb >= 0]
             swap[ok] = True
             h[ok] = nearf[ok]
+    # a piece re-routes a branch of its own tree only: between two crowns it may touch a
+    # neighbour's branch, which the crown partition gave to the neighbour's stem (the
+    # TreeLS plot, voxel method: a pine's limb hung from the next pine's piece, and both
+    # trunks ran through it)
+    trees = graph.trees
+    across = (target >= 0) & (trees[np.maximum(target, 0)] != trees[h])
+    target[across] = -1
     p.keep = shoot | (target >= 0)
     p.target = np.where(p.keep, target, -1)
     p.swap = swap & p.keep

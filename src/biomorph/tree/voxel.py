@@ -10,7 +10,7 @@ t2 (ii) **preprocessing** -- optional density threshold (``min_points`` per voxe
    6/18/26-neighbourhood (``closing_radius`` iterations) or a ball of radius
    ``closing_radius`` voxels, then a closing with a *horizontal disc* of ``disc_radius``
    voxels (default: the stem radius fitted near the base of the cloud) to fill
-   hollow stems -- with ``disc_enclosed`` (opt-in) only where its slice encloses the
+   hollow stems -- with ``disc_enclosed`` (default) only where its slice encloses the
    voxel (seven of eight horizontal rays meet the scan within the disc's diameter, the
    inside of a stem's ring; a disc as wide as the stem applied everywhere welds the
    twigs and whorl branches of a crown into sheets, whose thinned arcs run through the
@@ -315,7 +315,7 @@ def preprocess_volume(
     closing_radius: float = 1,
     disc_radius: float | None = 0,
     fill_slices: bool = True,
-    enclosed_only: bool = False,
+    enclosed_only: bool = True,
 ) -> tuple[NDArray[np.bool_], dict[str, int]]:
     """Density threshold, small-component removal, binarisation and closings (step ii).
 
@@ -804,7 +804,7 @@ def skeletonize_voxel(
     closing_radius: float = 1,
     disc_radius: float | None = None,
     fill_slices: bool = False,
-    disc_enclosed: bool = False,
+    disc_enclosed: bool = True,
     keep_largest: int | None = None,
     min_component_voxels: int = 10,
     bridge_gap: float | None = None,
@@ -838,8 +838,8 @@ def skeletonize_voxel(
         octagon (four line segments) instead of the digital disc.
     disc_enclosed : the disc closing fills only voxels their slice encloses (the inside
         of a hollow stem's ring, :data:`ENCLOSED_RAYS`), not the gaps between crown
-        branches side by side. Default False: the thesis's plain closing everywhere
-        (opt-in, measured both ways in docs/tree.md, session 27).
+        branches side by side (False: the thesis's plain closing everywhere; measured
+        both ways in docs/tree.md, session 27).
     fill_slices : also fill every enclosed hole in each horizontal slice (off by default:
         the disc closing fills hollow stems, and a slice-wise fill can close large loops of
         crown branches into bubbles).
