@@ -165,7 +165,7 @@ def test_run_cylinders_bring_the_birch_preset_s_mid_class_towards_the_truth():
     assert "segments" not in str(out[False][2]["taper_model"])
 
 
-def test_run_cylinders_are_on_for_the_graph_method_and_the_cli_turns_them_off(tmp_path, capsys):
+def test_run_cylinders_are_on_for_both_methods_and_the_cli_turns_them_off(tmp_path, capsys):
     import json
 
     from biomorph.cli import run
@@ -180,12 +180,12 @@ def test_run_cylinders_are_on_for_the_graph_method_and_the_cli_turns_them_off(tm
     off = json.loads(capsys.readouterr().out)
     assert on["params"]["run_cylinders"] is True and off["params"]["run_cylinders"] is False
     assert on["metrics"]["nob"] == off["metrics"]["nob"] == 3  # the same Y
-    # the voxel method keeps them off unless asked
+    # the voxel method has them too (session 27), and turns them off the same way
     vox = [*args, "--method", "voxel"]
     assert run([*vox, "--out", str(tmp_path / "v0")]) == 0
-    assert json.loads(capsys.readouterr().out)["params"]["run_cylinders"] is False
-    assert run([*vox, "--out", str(tmp_path / "v1"), "--run-cylinders"]) == 0
     assert json.loads(capsys.readouterr().out)["params"]["run_cylinders"] is True
+    assert run([*vox, "--out", str(tmp_path / "v1"), "--no-run-cylinders"]) == 0
+    assert json.loads(capsys.readouterr().out)["params"]["run_cylinders"] is False
 
 
 def test_a_run_too_thin_for_the_scan_s_noise_only_bounds_the_radius():

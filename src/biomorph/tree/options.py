@@ -386,8 +386,8 @@ class RadiusOptions:
         "Where no circle fit is reliable, measure the radius with a cylinder fitted to a "
         "run of nodes along the branch and put the nodes on its axis "
         "(radius.segment_radii; the synthetic presets' 2.5-7 cm class within 20 % of the "
-        "truth on 15 of 16 runs, 11 without). Default: on for the graph method, off for "
-        "voxel (the rTwig voxel model's twig residual +0.15 with them).",
+        "truth on 15 of 16 runs, 11 without). Default: on for both methods (voxel since "
+        "session 27: the birch preset's 2.5-7 cm class 113-184 %, 154-242 % without).",
     )
     taper_exponent: float = _opt(
         2.0,

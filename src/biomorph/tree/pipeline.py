@@ -869,14 +869,14 @@ def segment_phase(run: _Run) -> None:
     """The final skeleton's radii again, with the cylinders of runs of nodes where no circle
     fit is reliable (:func:`biomorph.tree.radius.segment_radii`); the earlier radius passes,
     which the cleanup rules read, use circle fits alone. ``RadiusOptions.run_cylinders``
-    (``--run-cylinders/--no-run-cylinders``; None: on for the graph method, off for voxel);
+    (``--run-cylinders/--no-run-cylinders``; None: on, for both methods since session 27);
     off without the taper model."""
     from biomorph.tree import radius as rd
     from biomorph.tree.cleanup import smooth_chains
 
     ro = run.opts.radius
     graph, fit = run.graph, run.fit
-    on = ro.run_cylinders if ro.run_cylinders is not None else run.opts.method == "graph"
+    on = ro.run_cylinders if ro.run_cylinders is not None else True
     run.params.update(run_cylinders=on)
     if not (on and ro.method == "fit" and ro.taper) or graph is None or fit is None:
         return
