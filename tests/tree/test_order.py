@@ -316,3 +316,20 @@ def test_the_trunk_ends_at_its_top_not_down_a_branch_hanging_from_it():
     pos = [[0.0, 0.0, 0.1 * i] for i in range(101)] + [[0.05, 0.0, 9.95], [0.1, 0.0, 9.9]]
     d = order.branch_order(BranchGraph(np.array(pos), np.arange(-1, len(pos) - 1)))
     assert (d == 0).all()
+
+
+def test_below_breast_height_the_trunk_takes_the_child_that_climbs_past_it():
+    """At the base a 20 m limb lies along the ground (a fallen branch, a root flare the
+    scan caught) and carries more than twice the wood of the 8 m stem: the trunk still
+    climbs the stem. Before, it ran along the limb (a pine of the TreeLS plot, voxel
+    method: a 9.3 m limb from the base took the trunk, which ended 11.3 m under the top)."""
+    stem = [[0.0, 0.0, 0.1 * i] for i in range(81)]  # base, then 8 m up
+    limb = [[0.1 * i, 0.0, 0.05] for i in range(1, 201)]  # 20 m along the ground
+    pos = np.array(stem + limb)
+    parent = np.r_[np.arange(-1, 80), 0, 81 + np.arange(199)]
+    d = order.branch_order(BranchGraph(pos, parent))
+    assert (d[:81] == 0).all() and (d[81:] == 1).all()
+    # a limb that climbs past breast height keeps the supported rule's choice
+    limb = [[0.1 * i, 0.0, 0.05 + 0.02 * i] for i in range(1, 201)]  # rises to 4 m
+    d = order.branch_order(BranchGraph(np.array(stem + limb), parent))
+    assert (d[81:] == 0).all() and (d[1:81] == 1).all()

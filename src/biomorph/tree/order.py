@@ -332,7 +332,9 @@ def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float
     el = graph.edge_length
     med_edge = float(np.median(el[el > 0])) if (el > 0).any() else 0.0
     cos_max = np.cos(angle)
+    top_z = _subtree_top(graph.parent, graph.order, pos[:, 2])
     for root in graph.roots:
+        _climb_to_breast_height(int(root), cont, carried, indptr, idx, pos, top_z)
         axis = _trunk_axis(graph, int(root), cont)
         if axis is None:
             continue
@@ -367,6 +369,26 @@ def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float
             v = int(cont[v])
             chain.append(v)
         _end_at_the_top(chain, cont, h, TRUNK_DROP * med_edge)
+
+
+def _climb_to_breast_height(root: int, cont, carried, indptr, idx, pos, top_z) -> None:
+    """Below breast height the trunk continues only into children whose subtree climbs
+    past it (``top_z``: :func:`_subtree_top` of the heights): a stem rises, and a child
+    that never gets above 1.3 m is a root flare, a low branch along the ground or a
+    neighbour's fallen limb, however much wood it carries (a pine of the TreeLS plot,
+    voxel method: a 9.3 m limb lying from its base took the trunk, which then ended at
+    0.47 m, 11.3 m under the tree's top). ``cont`` is changed in place."""
+    z0 = float(pos[root, 2])
+    v = root
+    while pos[v, 2] - z0 < BREAST_HEIGHT:
+        kids = idx[indptr[v] : indptr[v + 1]]
+        if kids.size > 1:
+            ok = [int(w) for w in kids if pos[top_z[w], 2] - z0 >= BREAST_HEIGHT]
+            if ok and int(cont[v]) not in ok:
+                cont[v] = max(ok, key=lambda w: carried[w])
+        if cont[v] < 0:
+            return
+        v = int(cont[v])
 
 
 def _end_at_the_top(chain: list[int], cont, h, drop: float) -> None:
