@@ -70,19 +70,15 @@ def test_disc_closing_fills_hollow_stems_not_the_crotches_of_forks():
     fork[5:28, 5, :] = True
     fork[5, 5:28, :] = True  # two arms at a right angle
     for shape, inside in ((ring, (15, 15, 4)), (fork, (7, 7, 4))):
-        welded, _ = preprocess_volume(
-            shape.astype(np.int32),
-            closing=None,
-            disc_radius=6,
-            fill_slices=False,
-            enclosed_only=False,
-        )
-        vol, stats = preprocess_volume(
-            shape.astype(np.int32),
-            closing=None,
-            disc_radius=6,
-            fill_slices=False,
-            enclosed_only=True,
+        (welded, _), (vol, stats) = (
+            preprocess_volume(
+                shape.astype(np.int32),
+                closing=None,
+                disc_radius=6,
+                fill_slices=False,
+                enclosed_only=enc,
+            )
+            for enc in (False, True)
         )
         assert welded[inside]  # the plain disc fills both
         if shape is ring:
