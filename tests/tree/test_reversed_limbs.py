@@ -161,12 +161,12 @@ def test_no_reversed_limbs_reaches_the_summary(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["params"]["reversed_limbs"] is False
     assert run([*args, "--out", str(tmp_path / "on")]) == 0
     assert json.loads(capsys.readouterr().out)["params"]["reversed_limbs"] is True
-    # off by default for the voxel method, on when asked
+    # on by default for the voxel method too (session 27), off when asked
     assert run([*args, "--method", "voxel", "--out", str(tmp_path / "vox")]) == 0
-    assert json.loads(capsys.readouterr().out)["params"]["reversed_limbs"] is False
-    vox_on = [*args, "--method", "voxel", "--reversed-limbs", "--out", str(tmp_path / "v2")]
-    assert run(vox_on) == 0
     assert json.loads(capsys.readouterr().out)["params"]["reversed_limbs"] is True
+    vox_off = [*args, "--method", "voxel", "--no-reversed-limbs", "--out", str(tmp_path / "v2")]
+    assert run(vox_off) == 0
+    assert json.loads(capsys.readouterr().out)["params"]["reversed_limbs"] is False
 
 
 def test_a_turned_limbs_radii_are_its_own_fits():

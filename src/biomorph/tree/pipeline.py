@@ -729,12 +729,12 @@ def limbs_phase(run: _Run) -> None:
     scan joined across it (:func:`biomorph.tree.limbs.broken_ends`); the radius stage runs
     once more after
     :func:`detour_phase`. Needs the circle fits (``--radius fit``);
-    ``CleanupOptions.reversed_limbs`` (``--reversed-limbs/--no-reversed-limbs``; None: on
-    for the graph method, off for voxel)."""
+    ``CleanupOptions.reversed_limbs`` (``--reversed-limbs/--no-reversed-limbs``; None: on,
+    for both methods since session 27)."""
     from biomorph.tree.limbs import mend_limbs
 
     co = run.opts.cleanup
-    on = co.reversed_limbs if co.reversed_limbs is not None else run.opts.method == "graph"
+    on = co.reversed_limbs if co.reversed_limbs is not None else True
     run.params.update(reversed_limbs=on)
     graph, fit, skel = run.graph, run.fit, run.skeleton
     if not on or graph is None or fit is None or skel is None:
