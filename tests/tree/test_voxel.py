@@ -76,7 +76,7 @@ def test_disc_closing_fills_hollow_stems_not_the_crotches_of_forks():
                 closing=None,
                 disc_radius=6,
                 fill_slices=False,
-                enclosed_only=enc,
+                disc_enclosed=enc,
             )
             for enc in (False, True)
         )

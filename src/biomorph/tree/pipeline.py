@@ -729,12 +729,12 @@ def limbs_phase(run: _Run) -> None:
     scan joined across it (:func:`biomorph.tree.limbs.broken_ends`); the radius stage runs
     once more after
     :func:`detour_phase`. Needs the circle fits (``--radius fit``);
-    ``CleanupOptions.reversed_limbs`` (``--reversed-limbs/--no-reversed-limbs``; None: on,
-    for both methods since session 27)."""
+    ``CleanupOptions.reversed_limbs`` (``--reversed-limbs/--no-reversed-limbs``; on for both
+    methods, the voxel one since session 27)."""
     from biomorph.tree.limbs import mend_limbs
 
     co = run.opts.cleanup
-    on = co.reversed_limbs if co.reversed_limbs is not None else True
+    on = co.reversed_limbs
     run.params.update(reversed_limbs=on)
     graph, fit, skel = run.graph, run.fit, run.skeleton
     if not on or graph is None or fit is None or skel is None:
@@ -869,14 +869,14 @@ def segment_phase(run: _Run) -> None:
     """The final skeleton's radii again, with the cylinders of runs of nodes where no circle
     fit is reliable (:func:`biomorph.tree.radius.segment_radii`); the earlier radius passes,
     which the cleanup rules read, use circle fits alone. ``RadiusOptions.run_cylinders``
-    (``--run-cylinders/--no-run-cylinders``; None: on, for both methods since session 27);
-    off without the taper model."""
+    (``--run-cylinders/--no-run-cylinders``; on for both methods, the voxel one since
+    session 27); off without the taper model."""
     from biomorph.tree import radius as rd
     from biomorph.tree.cleanup import smooth_chains
 
     ro = run.opts.radius
     graph, fit = run.graph, run.fit
-    on = ro.run_cylinders if ro.run_cylinders is not None else True
+    on = ro.run_cylinders
     run.params.update(run_cylinders=on)
     if not (on and ro.method == "fit" and ro.taper) or graph is None or fit is None:
         return

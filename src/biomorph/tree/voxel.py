@@ -315,14 +315,14 @@ def preprocess_volume(
     closing_radius: float = 1,
     disc_radius: float | None = 0,
     fill_slices: bool = True,
-    enclosed_only: bool = True,
+    disc_enclosed: bool = True,
 ) -> tuple[NDArray[np.bool_], dict[str, int]]:
     """Density threshold, small-component removal, binarisation and closings (step ii).
 
     ``closing``: ``"ball"`` (Euclidean ball of ``closing_radius`` voxels), ``6``, ``18`` or
     ``26`` (that neighbourhood, ``closing_radius`` iterations) or ``None``/``0`` for none.
     ``disc_radius``: horizontal disc radius in voxels (0/None: no disc closing).
-    ``enclosed_only``: the disc closing fills only voxels its slice encloses
+    ``disc_enclosed``: the disc closing fills only voxels its slice encloses
     (:func:`_enclosed`: the inside of a hollow stem's ring), not the gaps between twigs
     and branches side by side in the crown, which a disc as wide as the stem welds into
     sheets.
@@ -352,9 +352,9 @@ def preprocess_volume(
         dr = float(disc_radius)
         closed = _sparse_closing(vol, _offsets("disc", dr) if dr <= 4 else _octagon_factors(dr))
         added = np.argwhere(closed & ~vol)
-        if enclosed_only and added.size:
+        if disc_enclosed and added.size:
             # a hollow stem is a ring in its slice; two twigs side by side are not
-            added = added[_enclosed(vol, added, max(2, math.ceil(2 * dr)), ENCLOSED_RAYS)]
+            added = added[_enclosed(vol, added, max(2, math.ceil(2 * dr)))]
         vol = vol.copy()
         vol[added[:, 0], added[:, 1], added[:, 2]] = True
         stats["disc_added"] = int(added.shape[0])
@@ -902,7 +902,7 @@ def skeletonize_voxel(
         closing_radius=closing_radius,
         disc_radius=disc_radius,
         fill_slices=fill_slices,
-        enclosed_only=disc_enclosed,
+        disc_enclosed=disc_enclosed,
     )
     if not vol.any():
         raise InputError(
