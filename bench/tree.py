@@ -12,6 +12,7 @@
     .venv/bin/python bench/tree.py --only runs    # run cylinders vs pytlidar's LSF cylinder
     .venv/bin/python bench/tree.py --only models [--models 5]  # uncertainty, chosen model
     .venv/bin/python bench/tree.py --only peers --with-models    # + column: 5 models, chosen
+    .venv/bin/python bench/tree.py --only peers --fine    # + column: --residual-threshold 0.5
 
 ``peers`` prints one table per real cloud: measure × (each reference model, biomorph graph,
 biomorph voxel, pytlidar -- PyPI's Python TreeQSM, install with ``pip install --no-deps
@@ -399,15 +400,22 @@ def method_options(method: str) -> tuple[str, dict]:
     """``"graph-runs"`` / ``"voxel-runs"``: the method without the run cylinders
     (``run_cylinders=False``; the graph method's default since session 19);
     ``"graph+runs"`` / ``"voxel+runs"``: with them; ``"graph-limbs"`` / ``"voxel-limbs"``:
-    without turning reversed limbs round (``reversed_limbs=False``, session 21); anything
-    else as given (its default)."""
+    without turning reversed limbs round (``reversed_limbs=False``, session 21);
+    ``"graph+fine"`` / ``"voxel+fine"``: ``--residual-threshold`` :data:`FINE_RESIDUAL`
+    (session 28); anything else as given (its default)."""
     if method.endswith("-limbs"):
         return method[: -len("-limbs")], {"reversed_limbs": False}
     if method.endswith("-runs"):
         return method[: -len("-runs")], {"run_cylinders": False}
+    if method.endswith("+fine"):
+        return method[: -len("+fine")], {"residual_threshold": FINE_RESIDUAL}
     base, _, extra = method.partition("+")
     return base, ({"run_cylinders": True} if extra == "runs" else {})
 
+
+#: ``--residual-threshold`` of the ``+fine`` methods and the ``--fine`` peer column: half
+#: a node spacing, for clean scans whose twigs the scanner resolves (docs/tree.md, session 28)
+FINE_RESIDUAL = 0.5
 
 #: graph variant shown beside the default by ``--variant`` (docs/tree.md "Topology, peers
 #: and speed"): the opt-in adaptive level merge of issue 13's session 7
@@ -491,7 +499,13 @@ def run_models(cloud, n: int) -> dict:
 
 
 def _peer_columns(
-    cloud, refs: dict, with_pytlidar: bool, variant: bool, runs: bool, models: int = 0
+    cloud,
+    refs: dict,
+    with_pytlidar: bool,
+    variant: bool,
+    runs: bool,
+    models: int = 0,
+    fine: bool = False,
 ) -> dict:
     """The peer table's columns: each reference, our methods (and variants), pytlidar;
     ``models`` > 1: also the graph method's chosen model of that many."""
@@ -503,6 +517,8 @@ def _peer_columns(
         cols["graph " + ", ".join(map(str, VARIANT.values()))] = run_biomorph(
             cloud, "graph", VARIANT
         )
+    if fine:
+        cols["graph+fine"] = run_biomorph(cloud, "graph+fine")
     cols["biomorph voxel"] = run_biomorph(cloud, "voxel")
     if runs:
         cols["graph-runs"] = run_biomorph(cloud, "graph-runs")
@@ -532,6 +548,7 @@ def peers(
     variant: bool = False,
     runs: bool = False,
     models: int = 0,
+    fine: bool = False,
 ) -> None:
     from biomorph.io import read_points
     from biomorph.tree.metrics import class_labels
@@ -545,7 +562,13 @@ def peers(
         xyz = cloud.xyz
         refs = reference_models(name, xyz)
         cols = _peer_columns(
-            cloud, refs, with_pytlidar and name not in SINGLE_TREE_ONLY, variant, runs, models
+            cloud,
+            refs,
+            with_pytlidar and name not in SINGLE_TREE_ONLY,
+            variant,
+            runs,
+            models,
+            fine,
         )
         meas = {}
         for k, c in cols.items():
@@ -1262,6 +1285,11 @@ def main() -> None:
         help="peers/sparse: also the graph variant VARIANT (adaptive level merge)",
     )
     ap.add_argument(
+        "--fine",
+        action="store_true",
+        help="peers: also the graph method with --residual-threshold 0.5 (column graph+fine)",
+    )
+    ap.add_argument(
         "--runs",
         action="store_true",
         help="peers: also the graph method without run cylinders (column graph-runs)",
@@ -1278,7 +1306,8 @@ def main() -> None:
         nargs="*",
         default=["graph", "voxel"],
         help="graph, voxel, graph+variant (truth), graph-runs / voxel-runs (--no-run-cylinders), "
-        "graph-limbs / voxel-limbs (--no-reversed-limbs)",
+        "graph-limbs / voxel-limbs (--no-reversed-limbs), graph+fine / voxel+fine "
+        "(--residual-threshold 0.5)",
     )
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument(
@@ -1319,7 +1348,12 @@ def main() -> None:
         real()
     if a.only in (None, "peers"):
         peers(
-            tuple(a.clouds), not a.no_pytlidar, a.variant, a.runs, a.models if a.with_models else 0
+            tuple(a.clouds),
+            not a.no_pytlidar,
+            a.variant,
+            a.runs,
+            a.models if a.with_models else 0,
+            a.fine,
         )
     if a.only in (None, "truth"):
         truth_table(a.seeds, tuple(a.sizes), tuple(a.methods))

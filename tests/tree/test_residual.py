@@ -214,3 +214,33 @@ def test_cli_switch(tmp_path, capsys):
     on = json.loads(capsys.readouterr().out)
     assert off["params"]["residual"] is False and "residual_pieces" not in off["info"]
     assert on["params"]["residual"] is True and on["info"]["residual_unexplained_points"] >= 0
+
+
+def test_a_finer_threshold_grows_a_shorter_shoot(tmp_path, capsys):
+    """``--residual-threshold`` scales the threshold and the shoot's reach (node
+    spacings): a shoot standing 15 cm off a 10 cm stem (5 cm beyond one radius) is left
+    out at 1 (it must reach 2 node spacings = 6 cm) and grown at 0.5 (3 cm)."""
+    rng = np.random.default_rng(3)
+    stem = _surface((0, 0, 0), (0, 0, 2), 0.10, rng)
+    shoot = _surface((0.09, 0, 1.0), (0.25, 0, 1.05), 0.012, rng)
+    xyz = np.vstack([stem, shoot])
+    g = _stem_model()
+    _, coarse = residual_branches(g, xyz, SPACING, NODE)
+    _, fine = residual_branches(g, xyz, SPACING, NODE, threshold=NODE / 2, min_length=NODE / 2)
+    assert coarse["pieces"] == 0 and coarse["nodes_added"] == 0
+    assert fine["pieces"] == 1 and fine["nodes_added"] >= 1
+    # the option reaches the pipeline from the CLI, in node spacings
+    import json
+
+    from biomorph.cli import run
+    from tests.tree.test_cli import _write_xyz
+
+    src = _write_xyz(tmp_path / "y.xyz", make_cloud(n=4000, seed=21))
+    args = ["tree", "skeletonize", str(src), "--json", "--no-ground", "--out", str(tmp_path / "o")]
+    assert run([*args, "--residual-threshold", "0.5"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    ns = out["params"]["node_spacing"]
+    assert out["params"]["residual_threshold"] == 0.5
+    assert out["info"]["residual_threshold"] == pytest.approx(0.5 * ns)
+    assert run([*args, "--residual-threshold", "0"]) == 2  # must be > 0
+    assert "residual-threshold" in capsys.readouterr().err

@@ -303,6 +303,17 @@ class CleanupOptions:
         "tree.residual), then fit radii again.",
         kind="enabled",
     )
+    residual_threshold: float = _opt(
+        1.0,
+        "--residual-threshold",
+        "Residual branches: points farther than this many node spacings outside every "
+        "surface are unexplained, and a shoot must reach as far again beyond them "
+        "(tree.residual). 0.5 for clean scans whose twigs the scanner resolves: rTwig "
+        "F1 vs TreeQSM 0.976 -> 0.984, 58 -> 80 tips (TreeQSM 82); on leafy or needle "
+        "clouds it grows clutter (AdTree tree1 181 -> 260 L; docs/tree.md, session 28).",
+        lo=0,
+        lo_open=True,
+    )
     empty_tips: bool = _opt(
         True,
         "--empty-tips",
@@ -523,6 +534,7 @@ _LEGACY = {
             "min_cylinder_radius",
             "tip_support",
             "residual",
+            "residual_threshold",
             "empty_tips",
             "inside_wood",
             "reversed_limbs",

@@ -701,10 +701,14 @@ def residual_phase(run: _Run) -> None:
     pieces of wood its cylinders leave unexplained, then the radius stage runs again on
     the grown skeleton. Off with ``CleanupOptions.residual = False``
     (``--no-residual``)."""
-    from biomorph.tree.residual import residual_branches
+    from biomorph.tree.residual import (
+        RESIDUAL_MIN_LENGTH,
+        RESIDUAL_THRESHOLD,
+        residual_branches,
+    )
 
     co = run.opts.cleanup
-    run.params.update(residual=co.residual)
+    run.params.update(residual=co.residual, residual_threshold=co.residual_threshold)
     if not co.residual or run.graph is None or run.graph.radius is None:
         return
     assert run.cloud is not None and run.skeleton is not None
@@ -714,7 +718,17 @@ def residual_phase(run: _Run) -> None:
     ns = float(run.params.get("node_spacing") or 0.0)
     if not (ps > 0 and ns > 0):
         return
-    grown, rec = residual_branches(run.graph, xyz, ps, ns, base=run.skeleton)
+    # --residual-threshold scales both of the module's lengths (node spacings)
+    f = co.residual_threshold
+    grown, rec = residual_branches(
+        run.graph,
+        xyz,
+        ps,
+        ns,
+        base=run.skeleton,
+        threshold=f * RESIDUAL_THRESHOLD * ns,
+        min_length=f * RESIDUAL_MIN_LENGTH * ns,
+    )
     run.info.update({f"residual_{k}": v for k, v in rec.items()})
     run.timings["residual"] = time.perf_counter() - t0
     if rec["nodes_added"]:
