@@ -1287,7 +1287,8 @@ def main() -> None:
     ap.add_argument(
         "--fine",
         action="store_true",
-        help="peers: also the graph method with --residual-threshold 0.5 (column graph+fine)",
+        help=f"peers: also the graph method with --residual-threshold {FINE_RESIDUAL} "
+        "(column graph+fine)",
     )
     ap.add_argument(
         "--runs",
@@ -1307,7 +1308,7 @@ def main() -> None:
         default=["graph", "voxel"],
         help="graph, voxel, graph+variant (truth), graph-runs / voxel-runs (--no-run-cylinders), "
         "graph-limbs / voxel-limbs (--no-reversed-limbs), graph+fine / voxel+fine "
-        "(--residual-threshold 0.5)",
+        f"(--residual-threshold {FINE_RESIDUAL})",
     )
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument(

@@ -242,5 +242,6 @@ def test_a_finer_threshold_grows_a_shorter_shoot(tmp_path, capsys):
     ns = out["params"]["node_spacing"]
     assert out["params"]["residual_threshold"] == 0.5
     assert out["info"]["residual_threshold"] == pytest.approx(0.5 * ns)
+    assert out["info"]["residual_min_length"] == pytest.approx(0.5 * ns)
     assert run([*args, "--residual-threshold", "0"]) == 2  # must be > 0
     assert "residual-threshold" in capsys.readouterr().err
