@@ -13,6 +13,7 @@
     .venv/bin/python bench/tree.py --only models [--models 5]  # uncertainty, chosen model
     .venv/bin/python bench/tree.py --only peers --with-models    # + column: 5 models, chosen
     .venv/bin/python bench/tree.py --only peers --fine    # + column: --residual-threshold 0.5
+    .venv/bin/python bench/tree.py --only peers --coarse  # + column: --residual-threshold 1
 
 ``peers`` prints one table per real cloud: measure × (each reference model, biomorph graph,
 biomorph voxel, pytlidar -- PyPI's Python TreeQSM, install with ``pip install --no-deps
@@ -402,20 +403,24 @@ def method_options(method: str) -> tuple[str, dict]:
     ``"graph+runs"`` / ``"voxel+runs"``: with them; ``"graph-limbs"`` / ``"voxel-limbs"``:
     without turning reversed limbs round (``reversed_limbs=False``, session 21);
     ``"graph+fine"`` / ``"voxel+fine"``: ``--residual-threshold`` :data:`FINE_RESIDUAL`
-    (session 28); anything else as given (its default)."""
+    (session 28); ``"graph+coarse"`` / ``"voxel+coarse"``: ``--residual-threshold 1`` (the
+    fixed default before session 29's ``auto``); anything else as given (its default)."""
     if method.endswith("-limbs"):
         return method[: -len("-limbs")], {"reversed_limbs": False}
     if method.endswith("-runs"):
         return method[: -len("-runs")], {"run_cylinders": False}
     if method.endswith("+fine"):
         return method[: -len("+fine")], {"residual_threshold": FINE_RESIDUAL}
+    if method.endswith("+coarse"):
+        return method[: -len("+coarse")], {"residual_threshold": 1.0}
     base, _, extra = method.partition("+")
     return base, ({"run_cylinders": True} if extra == "runs" else {})
 
 
 #: ``--residual-threshold`` of the ``+fine`` methods and the ``--fine`` peer column: half
-#: a node spacing, for clean scans whose twigs the scanner resolves (docs/tree.md, session 28)
-FINE_RESIDUAL = 0.5
+#: a node spacing (docs/tree.md, session 28), what ``auto`` chooses on a clean scan whose
+#: twigs present a surface (session 29)
+FINE_RESIDUAL = 0.5  # biomorph.tree.residual.RESIDUAL_FINE
 
 #: graph variant shown beside the default by ``--variant`` (docs/tree.md "Topology, peers
 #: and speed"): the opt-in adaptive level merge of issue 13's session 7
@@ -506,6 +511,7 @@ def _peer_columns(
     runs: bool,
     models: int = 0,
     fine: bool = False,
+    coarse: bool = False,
 ) -> dict:
     """The peer table's columns: each reference, our methods (and variants), pytlidar;
     ``models`` > 1: also the graph method's chosen model of that many."""
@@ -519,6 +525,8 @@ def _peer_columns(
         )
     if fine:
         cols["graph+fine"] = run_biomorph(cloud, "graph+fine")
+    if coarse:
+        cols["graph+coarse"] = run_biomorph(cloud, "graph+coarse")
     cols["biomorph voxel"] = run_biomorph(cloud, "voxel")
     if runs:
         cols["graph-runs"] = run_biomorph(cloud, "graph-runs")
@@ -549,6 +557,7 @@ def peers(
     runs: bool = False,
     models: int = 0,
     fine: bool = False,
+    coarse: bool = False,
 ) -> None:
     from biomorph.io import read_points
     from biomorph.tree.metrics import class_labels
@@ -569,6 +578,7 @@ def peers(
             runs,
             models,
             fine,
+            coarse,
         )
         meas = {}
         for k, c in cols.items():
@@ -1291,6 +1301,12 @@ def main() -> None:
         "(column graph+fine)",
     )
     ap.add_argument(
+        "--coarse",
+        action="store_true",
+        help="peers: also the graph method with --residual-threshold 1, the fixed default "
+        "before session 29 (column graph+coarse)",
+    )
+    ap.add_argument(
         "--runs",
         action="store_true",
         help="peers: also the graph method without run cylinders (column graph-runs)",
@@ -1308,7 +1324,8 @@ def main() -> None:
         default=["graph", "voxel"],
         help="graph, voxel, graph+variant (truth), graph-runs / voxel-runs (--no-run-cylinders), "
         "graph-limbs / voxel-limbs (--no-reversed-limbs), graph+fine / voxel+fine "
-        f"(--residual-threshold {FINE_RESIDUAL})",
+        f"(--residual-threshold {FINE_RESIDUAL}), graph+coarse / voxel+coarse "
+        "(--residual-threshold 1)",
     )
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument(
@@ -1355,6 +1372,7 @@ def main() -> None:
             a.runs,
             a.models if a.with_models else 0,
             a.fine,
+            a.coarse,
         )
     if a.only in (None, "truth"):
         truth_table(a.seeds, tuple(a.sizes), tuple(a.methods))

@@ -245,3 +245,58 @@ def test_a_finer_threshold_grows_a_shorter_shoot(tmp_path, capsys):
     assert out["info"]["residual_min_length"] == pytest.approx(0.5 * ns)
     assert run([*args, "--residual-threshold", "0"]) == 2  # must be > 0
     assert "residual-threshold" in capsys.readouterr().err
+
+
+def test_the_threshold_is_finer_only_where_the_twigs_present_a_surface():
+    """``--residual-threshold auto`` (session 29): half a node spacing where the points
+    about the twigs are a surface, never under 6 × the scan's scatter, else one."""
+    from biomorph.tree.residual import RESIDUAL_FINE, RESIDUAL_NOISE, residual_factor
+
+    assert residual_factor(False, 0.0005, 0.03) == 1.0  # an envelope: needles, leaves
+    assert residual_factor(True, 0.0005, 0.03) == RESIDUAL_FINE  # a clean scan's bark
+    assert residual_factor(True, 0.004, 0.03) == pytest.approx(RESIDUAL_NOISE * 0.004 / 0.03)
+    assert residual_factor(True, 0.008, 0.03) == 1.0  # 8 mm of noise: no finer than 1
+    assert residual_factor(True, 0.001, 0.0) == 1.0
+
+
+def test_the_surface_test_pools_the_trees_by_their_points():
+    from biomorph.tree.radius import twig_surface
+    from tests.tree.test_twig_offset import _model, _scan
+
+    rng = np.random.default_rng(4)
+    # twig 0 scanned as bark (a surface), twig 1 inside a 4-12 mm shell (an envelope)
+    bark = _scan([0.006])
+
+    def shell(n):
+        rad = rng.uniform(0.004, 0.012, n)
+        a = rng.uniform(0, 2 * np.pi, n)
+        return np.column_stack([rng.uniform(0, 0.5, n), 0.2 + rad * np.cos(a), rad * np.sin(a)])
+
+    g = _model(0.004, n_twigs=2)
+    free = np.zeros(g.n_nodes, bool)
+    few, many = shell(bark.shape[0] // 4), shell(4 * bark.shape[0])
+    surface, info = twig_surface(g, np.vstack([bark, few]), free, 0.004)
+    assert surface is True and info[0]["surface"] and not info[1]["surface"]
+    surface, info = twig_surface(g, np.vstack([bark, many]), free, 0.004)
+    assert surface is False and info[0]["points"] < info[1]["points"]
+    # no twig with enough points: no surface
+    assert twig_surface(g, bark[:10], free, 0.004)[0] is False
+
+
+@pytest.mark.parametrize(("name", "factor"), [("rtwig_cloud.txt", 0.5), ("adtree_tree1.xyz", 1.0)])
+def test_the_pipeline_reads_the_threshold_from_the_scan(name, factor):
+    # rTwig: bark twigs, a clean scan (1.3 mm scatter, 29 mm node spacing): half a node
+    # spacing, the twiglets TreeQSM models grow (58 -> 80 tips; TreeQSM 82); AdTree tree1:
+    # leaves about its twigs, an envelope: one node spacing, as before session 29
+    from biomorph.io import read_points
+    from tests.conftest import shared_file
+
+    cloud = read_points(shared_file("trees", name))
+    skel = skeletonize(cloud, method="graph")
+    assert skel.params["residual_threshold"] is None  # auto
+    assert skel.params["residual_factor"] == pytest.approx(factor)
+    assert skel.info["residual_surface"] is (factor < 1)
+    ns = skel.params["node_spacing"]
+    assert skel.info["residual_threshold"] == pytest.approx(factor * ns)
+    if factor < 1:
+        assert skel.graph.leaves.size >= 70  # 58 at one node spacing

@@ -303,14 +303,15 @@ class CleanupOptions:
         "tree.residual), then fit radii again.",
         kind="enabled",
     )
-    residual_threshold: float = _opt(
-        1.0,
+    residual_threshold: float | None = _opt(
+        None,
         "--residual-threshold",
         "Residual branches: points farther than this many node spacings outside every "
         "surface are unexplained, and a shoot must reach as far again beyond them "
-        "(tree.residual). 0.5 for clean scans whose twigs the scanner resolves: rTwig "
-        "F1 vs TreeQSM 0.976 -> 0.984, 58 -> 80 tips (TreeQSM 82); on leafy or needle "
-        "clouds it grows clutter (AdTree tree1 181 -> 260 L; docs/tree.md, session 28).",
+        "(tree.residual). Default (auto): 0.5 where the points about the twigs form a "
+        "surface (the twig offset's test), at least 6 x the scan's scatter, else 1 "
+        "(needles and leaves form an envelope whose tufts would become shoots); rTwig F1 "
+        "vs TreeQSM 0.976 -> 0.984 (docs/tree.md, sessions 28-29).",
         lo=0,
         lo_open=True,
     )

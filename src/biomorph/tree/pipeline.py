@@ -16,7 +16,7 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +32,9 @@ from biomorph.tree.options import (
     TIP_SUPPORT_LENGTH,
     SkeletonizeOptions,
 )
+
+if TYPE_CHECKING:
+    from biomorph.tree.metrics import SegmentCandidates
 
 __all__ = [
     "TreeSkeleton",
@@ -718,8 +721,15 @@ def residual_phase(run: _Run) -> None:
     ns = float(run.params.get("node_spacing") or 0.0)
     if not (ps > 0 and ns > 0):
         return
-    # --residual-threshold scales both of the module's lengths (node spacings)
+    # --residual-threshold scales both of the module's lengths (node spacings); auto
+    # (None): from the scan, finer where its twigs present a surface
+    from biomorph.tree.metrics import segment_candidates
+
+    cand = segment_candidates(run.graph, xyz, order=run.point_index().indices)
     f = co.residual_threshold
+    if f is None:
+        f = _residual_factor(run, ps, ns, cand)
+    run.params["residual_factor"] = f
     grown, rec = residual_branches(
         run.graph,
         xyz,
@@ -728,12 +738,39 @@ def residual_phase(run: _Run) -> None:
         base=run.skeleton,
         threshold=f * RESIDUAL_THRESHOLD * ns,
         min_length=f * RESIDUAL_MIN_LENGTH * ns,
+        candidates=cand,
     )
     run.info.update({f"residual_{k}": v for k, v in rec.items()})
     run.timings["residual"] = time.perf_counter() - t0
     if rec["nodes_added"]:
         run.graph = grown
         radius_phase(run, tick=False)
+
+
+def _residual_factor(
+    run: _Run, spacing: float, node_spacing: float, candidates: SegmentCandidates
+) -> float:
+    """``--residual-threshold auto``: :func:`biomorph.tree.residual.residual_factor` from
+    the twig offset's surface test on the model so far and the scan's scatter about its
+    stem circles (1 without circle fits or the taper model)."""
+    from biomorph.tree import radius as rd
+    from biomorph.tree.residual import RESIDUAL_THRESHOLD, residual_factor
+
+    graph, fit, ro = run.graph, run.fit, run.opts.radius
+    if (
+        graph is None
+        or fit is None
+        or fit.ok.size != graph.n_nodes
+        or not (ro.method == "fit" and ro.taper)
+    ):
+        return RESIDUAL_THRESHOLD
+    assert run.cloud is not None
+    measured = fit.reliable if fit.reliable is not None else fit.ok
+    surface, _ = rd.twig_surface(graph, run.cloud.xyz, measured, spacing, candidates=candidates)
+    scatter = rd.NOISE_PER_MAD * rd.surface_scatter(graph, fit)
+    run.info["residual_surface"] = surface
+    run.info["residual_scatter"] = scatter
+    return residual_factor(surface, scatter, node_spacing)
 
 
 def limbs_phase(run: _Run) -> None:

@@ -27,6 +27,7 @@ RANSAC and refit run in one numba kernel over all nodes (one seed, deterministic
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -64,6 +65,7 @@ __all__ = [
     "centre_thin_nodes",
     "CENTROID_MAX_RADIUS",
     "twig_offset",
+    "twig_surface",
     "TWIG_MIN_POINTS",
     "TWIG_MAX_OFFSET",
     "TWIG_SURFACE_RATIO",
@@ -1079,6 +1081,25 @@ def twig_offset(
     return (apply(kept) if kept else radius), info
 
 
+def twig_surface(
+    graph: BranchGraph,
+    xyz: NDArray[np.float64],
+    measured: NDArray[np.bool_],
+    spacing: float,
+    *,
+    candidates: SegmentCandidates | None = None,
+) -> tuple[bool, dict[int, dict]]:
+    """Do the points about the modelled twigs behave as a surface the model can reach (a
+    scanned twig's bark) rather than an envelope it never reaches (needles, leaves)? The
+    raw looks of :func:`twig_offset` and its test, per tree; pooled over the trees by
+    their points (the majority decides). Returns the answer and :func:`twig_offset`'s
+    record; False where no tree has :data:`TWIG_MIN_POINTS` points about its twigs."""
+    _, info = twig_offset(graph, xyz, measured, spacing, candidates=candidates)
+    pts = sum(v["points"] for v in info.values())
+    on = sum(v["points"] for v in info.values() if v["surface"])
+    return bool(pts and 2 * on > pts), info
+
+
 #: a scan's scatter about a surface per direction, from the mean absolute residual of its
 #: stem circles (which see only the radial part): range noise of spread σ along rays
 #: meeting a cylinder at uniform incidence has an RMS of σ/√2 both radially and
@@ -1110,6 +1131,15 @@ def _scatter(fit: RadiusFit, reliable: NDArray[np.bool_], stem: NDArray[np.bool_
 NOISE_DRAWS = 50_000
 
 
+@functools.lru_cache(maxsize=1)
+def _standard_normals() -> NDArray[np.float64]:
+    """:data:`NOISE_DRAWS` pairs of standard normal draws of seed 0 (read-only): each look
+    of :func:`twig_offset` reads its noise from them instead of drawing them again."""
+    z = np.random.default_rng(0).standard_normal((NOISE_DRAWS, 2))
+    z.flags.writeable = False
+    return z
+
+
 def _noise_median(rd: NDArray[np.float64], noise: float, reps: int = 16) -> float:
     """The median signed surface distance a look would read at cylinders of radii ``rd``
     if the model were exact and the scan scattered its points by ``noise`` (mean absolute
@@ -1121,12 +1151,14 @@ def _noise_median(rd: NDArray[np.float64], noise: float, reps: int = 16) -> floa
     radii drawn from ``rd``)."""
     if rd.size == 0 or noise <= 0:
         return 0.0
-    rng = np.random.default_rng(0)
     if rd.size * reps <= NOISE_DRAWS:
         r = np.repeat(rd, reps)
+        # the stream's first draws: the same values as drawing them afresh
+        e = NOISE_PER_MAD * noise * _standard_normals()[: r.size]
     else:
+        rng = np.random.default_rng(0)
         r = rd[rng.integers(0, rd.size, NOISE_DRAWS)]
-    e = rng.normal(0.0, NOISE_PER_MAD * noise, (r.size, 2))
+        e = rng.normal(0.0, NOISE_PER_MAD * noise, (r.size, 2))
     sd = np.hypot(r + e[:, 0], e[:, 1]) - r
     keep = np.abs(sd) <= r
     return float(np.median(sd[keep])) if keep.any() else 0.0

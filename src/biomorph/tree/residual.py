@@ -38,7 +38,7 @@ circle fits / taper model as every other branch and never exceed their parent.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -51,6 +51,9 @@ from biomorph.core.graph import BranchGraph
 from biomorph.errors import ParameterError
 from biomorph.tree.neighbours import contract, shortest_path_forest
 
+if TYPE_CHECKING:
+    from biomorph.tree.metrics import SegmentCandidates
+
 __all__ = [
     "RESIDUAL_THRESHOLD",
     "RESIDUAL_RADIUS",
@@ -59,6 +62,9 @@ __all__ = [
     "RESIDUAL_LINK",
     "RESIDUAL_MIN_LENGTH",
     "RESIDUAL_MIN_POINTS",
+    "RESIDUAL_FINE",
+    "RESIDUAL_NOISE",
+    "residual_factor",
     "residual_branches",
 ]
 
@@ -85,6 +91,32 @@ RESIDUAL_LINK = 2.5
 #: a piece is modelled only if it reaches this many node spacings from its attachment:
 #: shorter pieces would become a single vertex (no cylinder) and are needle or leaf tufts
 RESIDUAL_MIN_LENGTH = 1.0
+#: the finer threshold (node spacings, for ``threshold`` and ``min_length`` alike) where
+#: the scan's twigs present a surface (:func:`residual_factor`): shoots half a node spacing
+#: long are then twigs the scanner resolved (rTwig: 24 twiglets of 5-15 cm that TreeQSM
+#: models, left out at one node spacing; docs/tree.md, sessions 28-29)
+RESIDUAL_FINE = 0.5
+#: ... but never closer to the surface than this many times the scan's scatter about it
+#: (``σ``): range noise does not throw points 6 σ off a surface (a chance of 10⁻⁹ per point
+#: for Gaussian noise), so the noisy presets (8 mm) stay at about one node spacing
+RESIDUAL_NOISE = 6.0
+
+
+def residual_factor(surface: bool, scatter: float, node_spacing: float) -> float:
+    """The residual threshold in node spacings when the scan does not say
+    (``--residual-threshold auto``): 1 (:data:`RESIDUAL_THRESHOLD`) unless the points
+    about the modelled twigs behave as a ``surface`` (the twig offset's test,
+    :func:`biomorph.tree.radius.twig_surface`: needles and leaves about a shoot form an
+    envelope the model never reaches, and their tufts would become shoots); on a surface
+    :data:`RESIDUAL_FINE`, or :data:`RESIDUAL_NOISE` times the scan's ``scatter`` (m, its
+    points' spread about the surface) where that is more, at most 1."""
+    if not surface or node_spacing <= 0:
+        return RESIDUAL_THRESHOLD
+    return float(
+        min(RESIDUAL_THRESHOLD, max(RESIDUAL_FINE, RESIDUAL_NOISE * scatter / node_spacing))
+    )
+
+
 #: ... and hold at least this many points (a level piece of the graph method needs a few
 #: points to have a centroid worth a vertex; three collinear returns are not a shoot)
 RESIDUAL_MIN_POINTS = 4
@@ -100,6 +132,7 @@ def residual_branches(
     threshold: float | None = None,
     link: float | None = None,
     min_length: float | None = None,
+    candidates: SegmentCandidates | None = None,
 ) -> tuple[BranchGraph, dict[str, Any]]:
     """Grow the skeleton into the wood its cylinders leave unexplained (module doc).
 
@@ -108,6 +141,8 @@ def residual_branches(
     the pipeline passes the skeleton *before* its radius stage so that stage can run once
     more on the grown skeleton. ``threshold`` and ``min_length`` are in metres (defaults
     from ``node_spacing``), ``link`` in metres (default from ``point_spacing``).
+    ``candidates``: the points' :func:`~biomorph.tree.metrics.segment_candidates` on
+    ``graph``, if searched already.
 
     Returns the grown graph (new nodes after the old ones, ``radius`` copied from the
     attachment node, ``tree_id`` the attachment's tree, ``weight`` recomputed) and a
@@ -142,7 +177,7 @@ def residual_branches(
     xyz = np.asarray(xyz, dtype=float)
     if graph.n_nodes == 0 or xyz.shape[0] == 0:
         return base, info
-    pieces = _pieces(graph, xyz, tau, lk, ml, node_spacing, info)
+    pieces = _pieces(graph, xyz, tau, lk, ml, node_spacing, info, candidates)
     if pieces is None:
         return base, info
     _classify(graph, pieces, tau, ml)
@@ -183,11 +218,12 @@ def _pieces(
     ml: float,
     node_spacing: float,
     info: dict[str, Any],
+    candidates: SegmentCandidates | None = None,
 ) -> _Pieces | None:
     """Steps 1–3 of the module doc: unexplained points, their pieces, the candidates."""
     from biomorph.tree.metrics import surface_distance
 
-    sd_raw, rad, near_node = surface_distance(graph, xyz, refine=tau)
+    sd_raw, rad, near_node = surface_distance(graph, xyz, candidates=candidates, refine=tau)
     # what a cylinder's radius error can explain does not count: the distance beyond
     # RESIDUAL_RADIUS of the local radius (a 20 cm stem fitted 16 cm leaves its bark
     # 4 cm "outside"; a strip of it must not become a branch along the stem)
