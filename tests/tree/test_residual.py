@@ -300,3 +300,14 @@ def test_the_pipeline_reads_the_threshold_from_the_scan(name, factor):
     assert skel.info["residual_threshold"] == pytest.approx(factor * ns)
     if factor < 1:
         assert skel.graph.leaves.size >= 70  # 58 at one node spacing
+
+
+def test_without_circle_fits_the_threshold_stays_one_node_spacing():
+    # --radius allometric: no circle fits, no twig model to test: the fixed threshold
+    cloud = make_cloud(n=4000, seed=21)
+    skel = skeletonize(cloud, method="graph", radius="allometric")
+    assert skel.params["residual_factor"] == 1.0
+    assert "residual_surface" not in skel.info
+    # an explicit threshold is taken as given, the test is not run
+    fixed = skeletonize(cloud, method="graph", residual_threshold=0.7)
+    assert fixed.params["residual_factor"] == 0.7 and "residual_surface" not in fixed.info
