@@ -192,3 +192,34 @@ def test_render_up_axis_mapping_is_a_rotation():
     assert np.allclose(_VIEWS["front"][1], [0, 0, 1]) and np.allclose(_VIEWS["side"][1], [0, 0, 1])
     with pytest.raises(ParameterError):
         _to_zup(e, "x")
+
+
+def test_a_tall_object_gets_tall_side_views(tmp_path):
+    # a 20 m stem 2 m wide: front and side as tall as the figure, each as wide as its view
+    # (in a square panel it filled a tenth of the width); 13 m wide keeps the 2 x 2 grid
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    from biomorph.core.graph import BranchGraph
+    from biomorph.render import _layout, render_graph
+
+    z = np.linspace(0, 20, 41)
+    stem = np.c_[0.3 * np.sin(z), 0.2 * np.cos(z), z]
+    tips = stem[5::5] + [1.0, 0.5, 0.3]
+    pos = np.vstack([stem, tips])
+    parent = np.r_[-1, np.arange(40), np.arange(5, 41, 5)]
+    g = BranchGraph(pos, parent, radius=np.full(pos.shape[0], 0.1))
+    slots, slot3, tall = _layout(Figure(), pos)
+    assert tall and len(slots) == 3
+    assert _layout(Figure(), pos * [10, 10, 1])[2] is False  # 13 m wide: a grid
+    # the front and side panels are the figure's height, each as wide as its view
+    fig = Figure(figsize=(10, 10), layout="constrained")
+    slots, slot3, _ = _layout(fig, pos)
+    axes = [fig.add_subplot(s) for s in slots]
+    fig.canvas.draw()
+    boxes = [a.get_position() for a in axes]
+    assert boxes[0].height > 0.7 and boxes[1].height > 0.7  # a grid panel: under 0.45
+    assert boxes[0].width < 0.35 and boxes[2].height < 0.5  # the top view beside them
+    out = render_graph(g, tmp_path / "tall.png")
+    img = Image.open(out)
+    assert img.size[0] == img.size[1] and np.asarray(img.convert("L")).min() < 128

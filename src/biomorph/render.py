@@ -64,6 +64,9 @@ class _Scene:
     triangles: list[tuple[NDArray, NDArray]] = field(default_factory=list)
     #: (label, rgba) entries of the figure legend (what a colour means)
     legend: list[tuple[str, Any]] = field(default_factory=list)
+    #: indices into ``segments`` whose widths show radii at true scale (:func:`_width_pt`,
+    #: for a panel half the figure high): a taller panel widens them alike
+    true_scale: list[int] = field(default_factory=list)
 
     def all_xyz(self) -> NDArray[np.float64]:
         parts = [p for p, _, _ in self.points] + [s.reshape(-1, 3) for s, _, _ in self.segments]
@@ -103,10 +106,99 @@ def _frame(proj: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
     return 0.5 * (lo + hi), half
 
 
+#: the side views of an object this many times taller than wide (a conifer, a standing
+#: biped) get panels as tall as the figure, side by side, beside the top view and the
+#: perspective (a 17 m spruce 2.5 m wide filled 15 % of a square panel's width)
+TALL_RATIO = 2.0
+
+
+def _extent2(proj: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Width and height of one view's projected points (the 0.1-99.9 % quantiles above
+    1,000 points, as :func:`_frame`)."""
+    uv = proj[:, :2]
+    if uv.shape[0] > 1000:
+        lo, hi = np.quantile(uv, [0.001, 0.999], axis=0)
+    else:
+        lo, hi = uv.min(axis=0), uv.max(axis=0)
+    return np.asarray(hi - lo, dtype=float)
+
+
+def _layout(fig: Any, xyz: NDArray[np.float64]) -> tuple[list[Any], Any, bool]:
+    """Where the three views and the perspective go: a 2 x 2 grid, or, for an object over
+    :data:`TALL_RATIO` times taller than wide in the front and side views, those two as
+    tall as the figure and each as wide as its view, the top view and the perspective
+    stacked beside them. Returns the views' slots, the perspective's and whether tall."""
+    ext = [_extent2(xyz @ _VIEWS[name].T) for name in ("front", "side")]
+    if not all(e[1] > TALL_RATIO * max(e[0], 1e-12) for e in ext):
+        return [221, 222, 223], 224, False
+    ratios = [max(e[0] / e[1], 0.05) for e in ext]
+    gs = fig.add_gridspec(2, 3, width_ratios=[*ratios, max(0.5, sum(ratios))])
+    return [gs[:, 0], gs[:, 1], gs[0, 2]], gs[1, 2], True
+
+
+def _draw_view(ax: Any, scene: _Scene, name: str, rot: NDArray, widen: bool = False) -> None:
+    """One orthographic view of the scene: shaded faces far first, segments, points.
+    ``widen``: the panel is as tall as the figure, twice a grid panel's height (the
+    true-scale widths, :attr:`_Scene.true_scale`, doubled)."""
+    from matplotlib.collections import LineCollection, PolyCollection
+
+    light = np.array([0.3, -0.5, 0.8])
+    light /= np.linalg.norm(light)
+    ax.set_title(name, fontsize=9)
+    ax.set_aspect("equal")
+    ax.tick_params(labelsize=7)
+    for tri, colors in scene.triangles:
+        if tri.shape[0] > _MAX_2D_FACES:  # bounded preview time for huge meshes
+            pick = np.random.default_rng(0).choice(tri.shape[0], _MAX_2D_FACES, replace=False)
+            tri, colors = tri[pick], colors[pick]
+        proj = tri @ rot.T  # (m, 3, 3): right, up, toward viewer
+        depth = proj[:, :, 2].mean(axis=1)
+        order = np.argsort(depth)  # far first (painter's algorithm)
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        nlen = np.linalg.norm(normal, axis=1, keepdims=True)
+        normal = np.divide(normal, nlen, out=np.zeros_like(normal), where=nlen > 0)
+        shade = 0.35 + 0.65 * np.abs(normal @ (rot[2] * 0.6 + light * 0.4))
+        fc = colors.copy()
+        fc[:, :3] *= np.clip(shade, 0, 1)[:, None]
+        ax.add_collection(
+            PolyCollection(
+                proj[order][:, :, :2],
+                facecolors=fc[order],
+                edgecolors="none",
+                antialiased=False,
+            )
+        )
+    for i, (segs, colors, widths) in enumerate(scene.segments):
+        proj = segs @ rot.T
+        order = np.argsort(proj[:, :, 2].mean(axis=1))
+        if widen and i in scene.true_scale:
+            widths = np.clip(2.0 * widths, 0.4, 30.0)
+        ax.add_collection(
+            LineCollection(
+                proj[order][:, :, :2],
+                colors=colors[order],
+                linewidths=widths[order],
+                capstyle="round",
+            )
+        )
+    for pts, colors, size_pt in scene.points:
+        proj = pts @ rot.T
+        order = np.argsort(proj[:, 2])
+        ax.scatter(
+            proj[order, 0],
+            proj[order, 1],
+            s=size_pt,
+            c=colors[order],
+            linewidths=0,
+            rasterized=True,
+        )
+    ax.set_xlabel("m", fontsize=7, labelpad=1)
+    ax.set_ylabel("m", fontsize=7, labelpad=1)
+
+
 def _draw(
     scene: _Scene, out_png: PathLike, title: str | None, dpi: int = 100, size: float = 10.0
 ) -> Path:
-    from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.figure import Figure
     from mpl_toolkits.mplot3d import Axes3D  # noqa: F401 - registers the 3d projection
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
@@ -119,62 +211,17 @@ def _draw(
     centre = 0.5 * (lo + hi)
     extent = float(np.max(hi - lo)) or 1.0
     fig = Figure(figsize=(size, size), dpi=dpi, layout="constrained")
-    light = np.array([0.3, -0.5, 0.8])
-    light /= np.linalg.norm(light)
+    slots, slot3, tall = _layout(fig, xyz)
     for k, (name, rot) in enumerate(_VIEWS.items()):
-        ax = fig.add_subplot(2, 2, k + 1)
-        ax.set_title(name, fontsize=9)
-        ax.set_aspect("equal")
-        ax.tick_params(labelsize=7)
-        for tri, colors in scene.triangles:
-            if tri.shape[0] > _MAX_2D_FACES:  # bounded preview time for huge meshes
-                pick = np.random.default_rng(0).choice(tri.shape[0], _MAX_2D_FACES, replace=False)
-                tri, colors = tri[pick], colors[pick]
-            proj = tri @ rot.T  # (m, 3, 3): right, up, toward viewer
-            depth = proj[:, :, 2].mean(axis=1)
-            order = np.argsort(depth)  # far first (painter's algorithm)
-            normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-            nlen = np.linalg.norm(normal, axis=1, keepdims=True)
-            normal = np.divide(normal, nlen, out=np.zeros_like(normal), where=nlen > 0)
-            shade = 0.35 + 0.65 * np.abs(normal @ (rot[2] * 0.6 + light * 0.4))
-            fc = colors.copy()
-            fc[:, :3] *= np.clip(shade, 0, 1)[:, None]
-            ax.add_collection(
-                PolyCollection(
-                    proj[order][:, :, :2],
-                    facecolors=fc[order],
-                    edgecolors="none",
-                    antialiased=False,
-                )
-            )
-        for segs, colors, widths in scene.segments:
-            proj = segs @ rot.T
-            order = np.argsort(proj[:, :, 2].mean(axis=1))
-            ax.add_collection(
-                LineCollection(
-                    proj[order][:, :, :2],
-                    colors=colors[order],
-                    linewidths=widths[order],
-                    capstyle="round",
-                )
-            )
-        for pts, colors, size_pt in scene.points:
-            proj = pts @ rot.T
-            order = np.argsort(proj[:, 2])
-            ax.scatter(
-                proj[order, 0],
-                proj[order, 1],
-                s=size_pt,
-                c=colors[order],
-                linewidths=0,
-                rasterized=True,
-            )
-        c2, half = _frame(xyz @ rot.T)
-        ax.set_xlim(c2[0] - half, c2[0] + half)
+        ax = fig.add_subplot(slots[k])
+        _draw_view(ax, scene, name, rot, widen=tall and name != "top")
+        proj = xyz @ rot.T
+        c2, half = _frame(proj)
+        # a tall object's front and side: as wide as the view, not square
+        hw = max(0.55 * float(_extent2(proj)[0]), 0.05 * half) if tall and name != "top" else half
+        ax.set_xlim(c2[0] - hw, c2[0] + hw)
         ax.set_ylim(c2[1] - half, c2[1] + half)
-        ax.set_xlabel("m", fontsize=7, labelpad=1)
-        ax.set_ylabel("m", fontsize=7, labelpad=1)
-    ax3 = fig.add_subplot(2, 2, 4, projection="3d")
+    ax3 = fig.add_subplot(slot3, projection="3d")
     ax3.set_title("perspective", fontsize=9)
     ax3.set_proj_type("persp", focal_length=0.6)
     for tri, colors in scene.triangles:
@@ -299,6 +346,8 @@ def _add_graph(
     segs = np.stack([pos[e[:, 0]], pos[e[:, 1]]], axis=1)
     if graph.radius is not None:
         widths = _width_pt(graph.radius[e[:, 1]], extent)
+        if color is None:
+            scene.true_scale.append(len(scene.segments))
     else:
         widths = np.full(e.shape[0], 1.2)
     if color is not None:
