@@ -340,6 +340,27 @@ def test_the_summary_table_gives_the_wood_volume_height_and_dbh(good_xyz, tmp_pa
     rows2 = dict(summary_rows(two))
     assert rows2["wood volume (L)"] == f"{2e3 * tree['total_volume']:,.1f}"
     assert "height / trunk (m)" not in rows2 and "DBH (cm)" not in rows2
+    # what the run read from the scan: spacings and the residual threshold it chose
+    ns = data["params"]["node_spacing"]
+    assert f"/ {1e3 * ns:.1f}" in text
+    f = data["params"]["residual_factor"]
+    assert f"{f:.2f} (auto, twigs:" in text
+    assert (
+        run(
+            [
+                "tree",
+                "skeletonize",
+                str(good_xyz),
+                "--out",
+                str(out),
+                "--no-ground",
+                "--residual-threshold",
+                "0.8",
+            ]
+        )
+        == 0
+    )
+    assert "0.80 (set)" in capsys.readouterr().out
 
 
 def test_evaluate_reports_agreement_with_reference_models(good_xyz, tmp_path, capsys):
