@@ -88,6 +88,15 @@ def _rgba(values: NDArray, cmap: str = "viridis") -> NDArray[np.float64]:
     return matplotlib.colormaps[cmap](np.nan_to_num(t, nan=0.5))
 
 
+def _bounds(uv: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Lower and upper corner of 2-D points: the 0.1-99.9 % quantiles above 1,000 points,
+    so a few stray points (outliers, a far scanner hit) cannot shrink the object to a dot."""
+    if uv.shape[0] > 1000:
+        lo, hi = np.quantile(uv, [0.001, 0.999], axis=0)
+        return lo, hi
+    return uv.min(axis=0), uv.max(axis=0)
+
+
 def _frame(proj: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
     """Centre and half-width of a square window framing one view's projected points.
 
@@ -96,10 +105,7 @@ def _frame(proj: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
     points (outliers, a far scanner hit) cannot shrink the object to a dot.
     """
     uv = proj[:, :2]
-    if uv.shape[0] > 1000:
-        lo, hi = np.quantile(uv, [0.001, 0.999], axis=0)
-    else:
-        lo, hi = uv.min(axis=0), uv.max(axis=0)
+    lo, hi = _bounds(uv)
     half = 0.55 * float(np.max(hi - lo))
     if not np.isfinite(half) or half <= 0:
         half = 0.55 * (float(np.max(np.abs(uv))) or 1.0)
@@ -113,13 +119,8 @@ TALL_RATIO = 2.0
 
 
 def _extent2(proj: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Width and height of one view's projected points (the 0.1-99.9 % quantiles above
-    1,000 points, as :func:`_frame`)."""
-    uv = proj[:, :2]
-    if uv.shape[0] > 1000:
-        lo, hi = np.quantile(uv, [0.001, 0.999], axis=0)
-    else:
-        lo, hi = uv.min(axis=0), uv.max(axis=0)
+    """Width and height of one view's projected points (:func:`_bounds`)."""
+    lo, hi = _bounds(proj[:, :2])
     return np.asarray(hi - lo, dtype=float)
 
 

@@ -325,7 +325,8 @@ def test_the_summary_table_gives_the_wood_volume_height_and_dbh(good_xyz, tmp_pa
     from biomorph.tree.metrics import summary_rows
 
     out = tmp_path / "out"
-    assert run(["tree", "skeletonize", str(good_xyz), "--out", str(out), "--no-ground"]) == 0
+    args = ["tree", "skeletonize", str(good_xyz), "--out", str(out), "--no-ground"]
+    assert run(args) == 0
     text = capsys.readouterr().out
     data = json.loads((out / "summary.json").read_text())
     rows = dict(summary_rows(data["metrics"]))
@@ -345,21 +346,7 @@ def test_the_summary_table_gives_the_wood_volume_height_and_dbh(good_xyz, tmp_pa
     assert f"/ {1e3 * ns:.1f}" in text
     f = data["params"]["residual_factor"]
     assert f"{f:.2f} (auto, twigs:" in text
-    assert (
-        run(
-            [
-                "tree",
-                "skeletonize",
-                str(good_xyz),
-                "--out",
-                str(out),
-                "--no-ground",
-                "--residual-threshold",
-                "0.8",
-            ]
-        )
-        == 0
-    )
+    assert run([*args, "--residual-threshold", "0.8"]) == 0
     assert "0.80 (set)" in capsys.readouterr().out
 
 
