@@ -154,6 +154,14 @@ class PrepareOptions:
         lo_open=True,
     )
     outliers: bool = _opt(True, "--outliers", "Statistical outlier removal.", kind="enabled")
+    memory_check: bool = _opt(
+        True,
+        "--memory-check",
+        "Graph method: stop with a clear message when the cloud needs more memory than "
+        "is available (0.25 GB + 600 bytes per point, measured; tree.memory) instead of "
+        "being killed by the system, and say how far to thin it.",
+        kind="enabled",
+    )
     outlier_k: int = 16
     outlier_std: float = 2.0
     ground: str | None = _opt("auto", "--ground", "Remove the ground when detected.", kind="ground")
@@ -504,6 +512,7 @@ _LEGACY = {
     "filter": ("prepare", "filter"),
     "downsample": ("prepare", "downsample"),
     "outliers": ("prepare", "outliers"),
+    "memory_check": ("prepare", "memory_check"),
     "ground": ("prepare", "ground"),
     "foliage": ("prepare", "foliage"),
     "foliage_passes": ("prepare", "foliage_passes"),

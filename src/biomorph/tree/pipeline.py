@@ -333,6 +333,12 @@ def prepare_phase(run: _Run) -> None:
     po = run.opts.prepare
     go = run.opts.graph
     t0 = time.perf_counter()
+    check = run.opts.method == "graph" and po.memory_check
+    if check and po.downsample_voxel is None:  # the points the graph method will hold
+        from biomorph.tree.memory import check_memory
+
+        n = round(run.raw.n_points * (po.downsample or 1.0))
+        check_memory(run.raw.xyz, run.source, n_points=n)
     prep = prepare(
         run.raw,
         centre=po.centre,
@@ -346,6 +352,10 @@ def prepare_phase(run: _Run) -> None:
     )
     pc, knn, ground, steps = prep.cloud, prep.neighbours, prep.ground, prep.steps
     del prep  # ``knn`` alone holds the neighbour lists until the graph
+    if check and po.downsample_voxel is not None:  # as many as the voxels kept
+        from biomorph.tree.memory import check_memory
+
+        check_memory(pc.xyz, run.source)
     foliage, foliage_info = _foliage(run, pc, knn)
     if foliage_info:
         wood = foliage_info.pop("_wood")
