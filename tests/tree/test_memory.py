@@ -1,4 +1,4 @@
-"""The graph method stops with a clear message before it would run out of memory
+"""The skeleton stage stops with a clear message before it would run out of memory
 (tree.memory): a machine's available memory is simulated below the estimate."""
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def test_a_cloud_too_big_for_the_memory_gets_a_voxel_edge_that_fits():
     check_memory(xyz, "big.laz", available=graph_memory(40_000))  # fits: no error
 
 
-def test_the_pipeline_and_the_cli_stop_before_the_graph_method(monkeypatch, tmp_path, capsys):
+def test_the_pipeline_and_the_cli_stop_before_the_skeleton_stage(monkeypatch, tmp_path, capsys):
     from biomorph.cli import run
     from biomorph.tree.pipeline import skeletonize
     from tests.tree.test_cli import _write_xyz
@@ -48,7 +48,9 @@ def test_the_pipeline_and_the_cli_stop_before_the_graph_method(monkeypatch, tmp_
     half = round(len(cloud) * 0.5)
     with pytest.raises(InputError, match=f"{half:,} points need"):
         skeletonize(cloud, method="graph", downsample=0.5)
-    # --no-memory-check runs it anyway; the voxel method is not checked
+    # the voxel method by the same line; --no-memory-check runs it anyway
+    with pytest.raises(InputError, match="points need about"):
+        skeletonize(cloud, method="voxel")
     assert skeletonize(cloud, method="graph", memory_check=False).graph.n_nodes > 0
     src = _write_xyz(tmp_path / "y.xyz", cloud)
     out = tmp_path / "o"

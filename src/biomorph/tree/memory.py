@@ -1,10 +1,12 @@
-"""Will the graph method fit in this machine's memory? A clear stop before it runs out.
+"""Will the skeleton fit in this machine's memory? A clear stop before it runs out.
 
 The graph method's peak memory grows with the points: its k-nearest-neighbour lists (the
 outlier filter's 17 per point, the graph's), the Dijkstra graph and the per-point
 distances. Measured with ``bench/tree.py --one N`` (peak resident set of the whole
 process, synthetic maple, session 29): 848 MB at 1,000,000 points and 1,443 MB at
-2,000,000, i.e. about :data:`MEMORY_BASE` plus :data:`MEMORY_PER_POINT` per point. A
+2,000,000, i.e. about :data:`MEMORY_BASE` plus :data:`MEMORY_PER_POINT` per point. The
+voxel method stays under that line (851 / 1,378 MB on the same clouds, its cell size
+derived from them), so the same estimate guards both. A
 30-million-point scan of a large tree would need about 18 GB; where the machine has less,
 the process would be killed by the kernel with no message, so the pipeline stops first
 (:func:`check_memory`, exit 2) and says how far to thin the cloud
@@ -38,7 +40,8 @@ MEMORY_PER_POINT = 600
 
 
 def graph_memory(n_points: int) -> int:
-    """Estimated peak memory (bytes) of the graph method on ``n_points`` points."""
+    """Estimated peak memory (bytes) of the skeleton stage on ``n_points`` points (the
+    graph method's line; the voxel method stays under it)."""
     return MEMORY_BASE + MEMORY_PER_POINT * int(n_points)
 
 
@@ -90,7 +93,7 @@ def _spacing(xyz: NDArray[np.float64], sample: int = 100_000, seed: int = 0) -> 
 def check_memory(
     xyz: NDArray[np.float64], source: str, available: int | None = None, n_points: int | None = None
 ) -> None:
-    """Raise :class:`InputError` when the graph method on ``n_points`` points (default: all
+    """Raise :class:`InputError` when the skeleton stage on ``n_points`` points (default: all
     of ``xyz``) would need more memory (:func:`graph_memory`) than is ``available`` (default
     :func:`available_memory`; no check where it cannot be read). The message gives both
     figures and a ``--downsample-voxel`` edge that keeps about as many points as fit: over
@@ -111,7 +114,7 @@ def check_memory(
         v = float(np.ceil(v * 1000.0) / 1000.0)  # up to the millimetre
         hint = f"thin it first, e.g. --downsample-voxel {v:g} (about {fit:,} points), or " + hint
     raise InputError(
-        f"{source}: {n:,} points need about {need / 1e9:.1f} GB for the graph method "
+        f"{source}: {n:,} points need about {need / 1e9:.1f} GB to skeletonise "
         f"({MEMORY_BASE / 1e9:.2f} GB + {MEMORY_PER_POINT} bytes per point, measured); "
         f"{avail / 1e9:.1f} GB is available: {hint} (--no-memory-check runs it anyway)"
     )

@@ -157,7 +157,7 @@ class PrepareOptions:
     memory_check: bool = _opt(
         True,
         "--memory-check",
-        "Graph method: stop with a clear message when the cloud needs more memory than "
+        "Stop with a clear message when the cloud needs more memory than "
         "is available (0.25 GB + 600 bytes per point, measured; tree.memory) instead of "
         "being killed by the system, and say how far to thin it.",
         kind="enabled",

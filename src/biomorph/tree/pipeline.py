@@ -333,8 +333,8 @@ def prepare_phase(run: _Run) -> None:
     po = run.opts.prepare
     go = run.opts.graph
     t0 = time.perf_counter()
-    check = run.opts.method == "graph" and po.memory_check
-    if check and po.downsample_voxel is None:  # the points the graph method will hold
+    check = po.memory_check
+    if check and po.downsample_voxel is None:  # the points the skeleton stage will hold
         from biomorph.tree.memory import check_memory
 
         n = round(run.raw.n_points * (po.downsample or 1.0))
