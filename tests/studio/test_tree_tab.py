@@ -31,6 +31,7 @@ def test_tree_tab(studio, tmp_path):
     wait_for(lambda: tab.progress.value == 100.0, what="the progress bar to finish")
     assert len(tab.ticks) >= 3
     studio.expect_text("NOB (tips)")
+    assert "| residual threshold (node spacings) | " in tab.metrics_table()  # read from the scan
     assert tab.result.metrics["nob"] > 3
     studio.set_checkbox(tab.show_tubes, True)
     wait_for(lambda: tab.show_tubes.value, what="the tube layer")

@@ -136,7 +136,7 @@ def skeletonize(
 
     Example: biomorph tree skeletonize scan.laz --method graph --out out/ --json
     """
-    from biomorph.tree.metrics import summary_rows
+    from biomorph.tree.metrics import scan_rows, summary_rows
     from biomorph.tree.models import summary_rows as models_summary_rows
 
     assert options is not None
@@ -164,29 +164,11 @@ def skeletonize(
             ("trunk radius (m)", ", ".join(f"{r:.3f}" for r in m.get("trunk_radius", []))),
             *summary_rows(m),
             *models_summary_rows(skel.info.get("models")),
-            *_scan_rows(skel),
+            *scan_rows(skel.params, skel.info),
             ("seconds", skel.timings.get("total")),
             ("output", str(out)),
         ],
     )
-
-
-def _scan_rows(skel) -> list[tuple[str, str]]:
-    """What the run read from the scan: point and node spacing (mm) and the residual
-    stage's threshold (node spacings; ``auto``: the twigs' points a surface or an
-    envelope, :func:`biomorph.tree.residual.residual_factor`)."""
-    p, info = skel.params, skel.info
-    rows = []
-    ps, ns = info.get("point_spacing"), p.get("node_spacing") or info.get("node_spacing")
-    if ps and ns:
-        rows.append(("point / node spacing (mm)", f"{1e3 * ps:.1f} / {1e3 * ns:.1f}"))
-    f = p.get("residual_factor")
-    if f is not None:
-        how = "set"
-        if p.get("residual_threshold") is None:
-            how = "auto, twigs: " + ("a surface" if info.get("residual_surface") else "an envelope")
-        rows.append(("residual threshold (node spacings)", f"{f:.2f} ({how})"))
-    return rows
 
 
 @app.command()

@@ -47,6 +47,7 @@ __all__ = [
     "cylinder_fit",
     "qsm_report",
     "summary_rows",
+    "scan_rows",
 ]
 
 
@@ -751,4 +752,22 @@ def summary_rows(m: dict) -> list[tuple[str, str]]:
         rows.append(("height / trunk (m)", f"{t['height']:.2f} / {t['trunk_length']:.2f}"))
         if t.get("dbh") is not None and np.isfinite(t["dbh"]):
             rows.append(("DBH (cm)", f"{100 * t['dbh']:.1f}"))
+    return rows
+
+
+def scan_rows(params: dict, info: dict) -> list[tuple[str, str]]:
+    """What a run read from the scan, from its ``params`` and ``info``: point and node
+    spacing (mm) and the residual stage's threshold (node spacings; ``auto``: the twigs'
+    points a surface or an envelope, :func:`biomorph.tree.residual.residual_factor`);
+    label and text pairs for the CLI's summary table and the studio's."""
+    rows = []
+    ps, ns = info.get("point_spacing"), params.get("node_spacing") or info.get("node_spacing")
+    if ps and ns:
+        rows.append(("point / node spacing (mm)", f"{1e3 * ps:.1f} / {1e3 * ns:.1f}"))
+    f = params.get("residual_factor")
+    if f is not None:
+        how = "set"
+        if params.get("residual_threshold") is None:
+            how = "auto, twigs: " + ("a surface" if info.get("residual_surface") else "an envelope")
+        rows.append(("residual threshold (node spacings)", f"{f:.2f} ({how})"))
     return rows

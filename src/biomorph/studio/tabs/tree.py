@@ -453,7 +453,7 @@ class TreeTab(StudioTab):
                 return ", ".join(fmt(x) for x in v[:4]) + (" …" if len(v) > 4 else "")
             return str(v)
 
-        from biomorph.tree.metrics import summary_rows
+        from biomorph.tree.metrics import scan_rows, summary_rows
         from biomorph.tree.models import summary_rows as models_summary_rows
 
         rows = [
@@ -468,6 +468,7 @@ class TreeTab(StudioTab):
             ("max order", m.get("max_order")),
             *summary_rows(m),
             *models_summary_rows(self.result.info.get("models")),
+            *scan_rows(self.result.params, self.result.info),
             ("time (s)", t.get("total")),
         ]
         if self.truth is not None:
