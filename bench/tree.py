@@ -40,6 +40,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from biomorph.tree.residual import RESIDUAL_FINE
+
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "trees"
 
@@ -420,7 +422,7 @@ def method_options(method: str) -> tuple[str, dict]:
 #: ``--residual-threshold`` of the ``+fine`` methods and the ``--fine`` peer column: half
 #: a node spacing (docs/tree.md, session 28), what ``auto`` chooses on a clean scan whose
 #: twigs present a surface (session 29)
-FINE_RESIDUAL = 0.5  # biomorph.tree.residual.RESIDUAL_FINE
+FINE_RESIDUAL = RESIDUAL_FINE
 
 #: graph variant shown beside the default by ``--variant`` (docs/tree.md "Topology, peers
 #: and speed"): the opt-in adaptive level merge of issue 13's session 7
