@@ -70,6 +70,30 @@ def test_tree_tab(studio, tmp_path):
     studio.expect_text("models: wood volume")
     tab.models.value = 1
 
+    # cloud units: metres are checked, other units converted (tree.cloud.check_units)
+    assert tab.options().prepare.units is None
+    tab.units.value = "mm"
+    assert tab.options().prepare.units == "mm"
+    tab.units.value = "m"
+    metres = tab.cloud
+    from biomorph.core.pointcloud import PointCloud
+
+    tab.set_cloud(PointCloud(metres.xyz * 1000.0), "plant_mm")  # the same scan in mm
+    studio.click("Run")
+    wait_for(lambda: tab.last_error, timeout=60, what="the units message")
+    assert "taller than any tree" in tab.last_error and "mm (" in tab.last_error
+    tab.last_error = None
+    tab.units.value = "mm"
+    studio.click("Run")
+    wait_for(lambda: tab.result is not None or tab.last_error, timeout=90, what="the mm run")
+    assert tab.last_error is None, tab.last_error
+    assert tab.result.params["units"] == "mm" and np.ptp(tab.result.cloud.xyz[:, 2]) < 100
+    tab.units.value = "m"
+    tab.set_cloud(metres, "aspen")
+    studio.click("Run")
+    wait_for(lambda: tab.result is not None or tab.last_error, timeout=90, what="the skeleton")
+    assert tab.last_error is None, tab.last_error
+
     # cancel: a second run stopped at its next step keeps the first result
     first = tab.result
     tab._cancel.clear()

@@ -29,9 +29,14 @@ from scipy.spatial import cKDTree
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 from biomorph.tree.neighbours import NeighbourCache, query_blocks, query_ordered
+from biomorph.tree.options import UNITS
 
 __all__ = [
     "validate_cloud",
+    "UNITS",
+    "MAX_TREE_HEIGHT",
+    "to_metres",
+    "check_units",
     "centre",
     "filter_attribute",
     "downsample",
@@ -48,6 +53,55 @@ MIN_POINTS = 10
 
 def _name(cloud: PointCloud) -> str:
     return cloud.source or "point cloud"
+
+
+#: no tree stands this tall (the tallest measured, a coast redwood, about 116 m) and no
+#: forest plot spans this much height of trees and terrain: a cloud taller than this,
+#: read as metres, is in other units (plant scanners, photogrammetry and CloudCompare
+#: exports write centimetres or millimetres)
+MAX_TREE_HEIGHT = 200.0
+
+
+def to_metres(cloud: PointCloud, units: str) -> PointCloud:
+    """The cloud with its coordinates (and offset, and the LAS scales and offsets kept for
+    writing it back) converted from ``units`` (a key of :data:`UNITS`) to metres."""
+    if units not in UNITS:
+        raise ParameterError(f"units {units!r}; expected one of {', '.join(UNITS)}")
+    s = UNITS[units]
+    if s == 1.0:
+        return cloud
+    meta = dict(cloud.meta)
+    for key in ("scales", "offsets"):
+        if meta.get(key) is not None:
+            meta[key] = np.asarray(meta[key], dtype=np.float64) * s
+    return PointCloud(cloud.xyz * s, dict(cloud.attributes), cloud.offset * s, meta, cloud.source)
+
+
+def check_units(cloud: PointCloud) -> None:
+    """Raise :class:`InputError` when the cloud, read as metres, is taller than
+    :data:`MAX_TREE_HEIGHT` (the 0.1–99.9 percentile range of its heights, so a stray
+    point does not count): its coordinates are in other units, and the model would be a
+    tree kilometres tall. The message gives the heights it would have in centimetres and
+    in millimetres."""
+    z = cloud.xyz[:: max(1, cloud.n_points // 200_000), 2]
+    z = z[np.isfinite(z)]
+    if z.size < MIN_POINTS:
+        return  # validate_cloud reports it
+    lo, hi = np.percentile(z, [0.1, 99.9])
+    h = float(hi - lo)
+    if h <= MAX_TREE_HEIGHT:
+        return
+    readings = [
+        f"{u} ({h * UNITS[u]:.3g} m tall)"
+        for u in ("cm", "mm")
+        if 0.05 <= h * UNITS[u] <= MAX_TREE_HEIGHT
+    ]
+    guess = " or ".join(readings) if readings else "another unit"
+    raise InputError(
+        f"{_name(cloud)}: the cloud is {h:,.0f} m tall read as metres, taller than any "
+        f"tree ({MAX_TREE_HEIGHT:.0f} m); its coordinates look like {guess}: pass "
+        f"--units cm or --units mm (one of {', '.join(UNITS)}; --units m runs it as metres)"
+    )
 
 
 def validate_cloud(cloud: PointCloud) -> None:

@@ -46,6 +46,7 @@ __all__ = [
     "VoxelOptions",
     "STAGES",
     "METHODS",
+    "UNITS",
     "cli_default",
     "cli_fields",
     "cli_type",
@@ -94,6 +95,11 @@ class CliField:
 
 def _opt(default: Any, flag: str, help: str, **cli: Any) -> Any:
     return field(default=default, metadata={"cli": CliField(flag, help, **cli)})
+
+
+#: metres per unit of a cloud's coordinates (``PrepareOptions.units``, ``--units``;
+#: :func:`biomorph.tree.cloud.to_metres`)
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "ft": 0.3048}
 
 
 @dataclass(frozen=True)
@@ -152,6 +158,13 @@ class PrepareOptions:
         "Keep one random point per cube of this edge, m.",
         lo=0,
         lo_open=True,
+    )
+    units: str | None = _opt(
+        None,
+        "--units",
+        "Units of the cloud's coordinates: m, cm, mm or ft; every output is in metres "
+        "(default: metres, and a cloud taller than any tree, 200 m, stops with a message "
+        "naming the units it looks like; tree.cloud.check_units).",
     )
     outliers: bool = _opt(True, "--outliers", "Statistical outlier removal.", kind="enabled")
     memory_check: bool = _opt(
@@ -513,6 +526,7 @@ _LEGACY = {
     "downsample": ("prepare", "downsample"),
     "outliers": ("prepare", "outliers"),
     "memory_check": ("prepare", "memory_check"),
+    "units": ("prepare", "units"),
     "ground": ("prepare", "ground"),
     "foliage": ("prepare", "foliage"),
     "foliage_passes": ("prepare", "foliage_passes"),
@@ -597,6 +611,10 @@ class SkeletonizeOptions:
             )
         if self.order.rule not in ("supported", "angle"):
             raise ParameterError(f"order rule {self.order.rule!r}; expected 'supported' or 'angle'")
+        if self.prepare.units is not None and self.prepare.units not in UNITS:
+            raise ParameterError(
+                f"units {self.prepare.units!r}; expected one of {', '.join(UNITS)}"
+            )
         fol = self.prepare.foliage
         if isinstance(fol, str) and fol != "auto":
             raise ParameterError(f"foliage {fol!r}; expected 'auto', None or a factor > 1")

@@ -328,11 +328,15 @@ def skeletonize(
 
 def prepare_phase(run: _Run) -> None:
     """Centre, filter, downsample, de-noise, remove ground, foliage and clutter."""
-    from biomorph.tree.cloud import prepare
+    from biomorph.tree.cloud import check_units, prepare, to_metres
 
     po = run.opts.prepare
     go = run.opts.graph
     t0 = time.perf_counter()
+    if po.units is None:  # metres, unless the cloud is taller than any tree
+        check_units(run.raw)
+    else:
+        run.raw = to_metres(run.raw, po.units)
     check = po.memory_check
     if check and po.downsample_voxel is None:  # the points the skeleton stage will hold
         from biomorph.tree.memory import check_memory
@@ -388,6 +392,7 @@ def prepare_phase(run: _Run) -> None:
         {
             "method": run.opts.method,
             "seed": run.opts.seed,
+            "units": po.units or "m",
             "sparse_filter": po.sparse_filter,
             "foliage": foliage,
             "foliage_passes": po.foliage_passes,

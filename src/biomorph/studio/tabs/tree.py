@@ -104,6 +104,11 @@ class TreeTab(StudioTab):
                 "Radius", options=("fit", "allometric"), initial_value="fit"
             )
             self.cleanup = gui.add_checkbox("Cleanup", initial_value=True)
+            # a cloud in cm or mm (plant scanners, photogrammetry) read as metres is a
+            # tree kilometres tall: the run stops and names the units it looks like
+            self.units = gui.add_dropdown(
+                "Cloud units", options=("m", "cm", "mm", "ft"), initial_value="m"
+            )
             self.models = gui.add_slider(
                 "Models (nearest kept)", min=1, max=9, step=1, initial_value=1
             )
@@ -263,6 +268,7 @@ class TreeTab(StudioTab):
         from biomorph.tree.options import (
             CleanupOptions,
             GraphOptions,
+            PrepareOptions,
             RadiusOptions,
             SkeletonizeOptions,
             VoxelOptions,
@@ -280,6 +286,8 @@ class TreeTab(StudioTab):
             voxel=VoxelOptions(cell_size=float(self.cell.value)),
             cleanup=CleanupOptions(enabled=bool(self.cleanup.value)),
             radius=RadiusOptions(method=self.radius.value),
+            # metres: checked (tree.cloud.check_units); other units converted to metres
+            prepare=PrepareOptions(units=None if self.units.value == "m" else self.units.value),
         )
 
     def _progress(self, cancel: threading.Event) -> Any:
