@@ -138,7 +138,7 @@ def test_has_ground_and_prepare_removes_ground():
     assert p.cloud.n_points > 0.9 * nog.n_points
     p2 = prepare(nog, downsample=0.5)
     assert p2.ground is None and p2.steps["downsample"]["points_out"] == nog.n_points // 2
-    assert list(p2.steps) == ["centre", "downsample", "outliers", "ground"]
+    assert list(p2.steps) == ["centre", "duplicates", "downsample", "outliers", "ground"]
 
 
 def test_prepare_georeferenced_filter_and_no_tree():
@@ -162,3 +162,63 @@ def test_prepare_georeferenced_filter_and_no_tree():
     )
     with pytest.raises(InputError, match="no tree above the ground"):
         prepare(lawn)
+
+
+def test_exact_duplicates_are_dropped_before_any_density_is_measured():
+    from biomorph.tree.cloud import duplicate_points
+
+    rng = np.random.default_rng(3)
+    xyz = rng.normal(size=(500, 3))
+    twice = np.vstack([xyz, xyz[::-1], xyz[:10]])  # merged scans writing their overlap again
+    dup = duplicate_points(twice)
+    # the first of each copy stays, every later one goes; near-duplicates are not copies
+    assert not dup[:500].any() and dup[500:].all()
+    near = xyz.copy()
+    near[:, 0] = np.nextafter(near[:, 0], np.inf)
+    assert not duplicate_points(np.vstack([xyz, near])).any()
+    assert not duplicate_points(xyz[:1]).any() and duplicate_points(np.zeros((0, 3))).size == 0
+    p = prepare(PointCloud(twice), outliers=False, ground=None)
+    assert p.cloud.n_points == 500 and p.steps["duplicates"]["points_out"] == 500
+    # a hash collision is compared coordinate by coordinate, never taken for a copy
+    from biomorph.tree import cloud as cloud_mod
+
+    orig = cloud_mod._HASH
+    try:
+        cloud_mod._HASH = np.zeros(3, dtype=np.uint64)  # every point the same key
+        dup = duplicate_points(np.vstack([xyz[:50], xyz[:50]]))
+        assert not dup[:50].any() and dup[50:].all()
+    finally:
+        cloud_mod._HASH = orig
+
+
+def test_a_cloud_written_twice_gives_the_same_model(tmp_path):
+    from biomorph.tree.pipeline import skeletonize
+    from tests.tree.test_livny import make_cloud
+
+    cloud = make_cloud(n=3000, seed=4)
+    one = skeletonize(cloud, ground=None)
+    two = skeletonize(np.vstack([cloud, cloud]), ground=None)
+    assert two.info["prepare"]["duplicates"]["points_out"] == len(cloud)
+    assert two.info["point_spacing"] == pytest.approx(one.info["point_spacing"])
+    assert two.graph.n_nodes == one.graph.n_nodes
+    assert np.allclose(two.graph.radius, one.graph.radius)
+
+
+def test_the_spacing_of_a_cloud_on_a_grid_does_not_jump_between_grid_steps():
+    from biomorph.tree.neighbours import smooth_median
+
+    # nearest-neighbour distances of a cloud snapped to a 1 cm grid (lidR's
+    # voxelize_points, the TreeLS spruce): 1, sqrt 2 and sqrt 3 cm only, the median on a step
+    steps = np.array([0.01, np.sqrt(2) * 0.01, np.sqrt(3) * 0.01])
+    rng = np.random.default_rng(0)
+
+    def grid(shares):
+        return rng.permutation(np.repeat(steps, (np.asarray(shares) * 10_000).astype(int)))
+
+    a, b = grid([0.30, 0.19, 0.51]), grid([0.30, 0.21, 0.49])  # 2 % of the points moved
+    assert np.median(a) == pytest.approx(steps[2]) and np.median(b) == pytest.approx(steps[1])
+    assert abs(smooth_median(a) - smooth_median(b)) < 0.1 * (steps[2] - steps[1])
+    assert steps[1] < smooth_median(a) < steps[2]
+    # a continuous spread: the median itself
+    d = rng.rayleigh(0.01, 5000)
+    assert smooth_median(d) == float(np.median(d)) and smooth_median(np.array([])) == 0.0

@@ -165,8 +165,11 @@ def test_the_voxel_method_roots_the_spruce_at_its_stem_not_a_low_branch():
 def test_the_voxel_disc_closing_inside_rings_only_models_the_spruce_whorls():
     """``--disc-enclosed``: the hollow-stem disc closing fills rings only. Applied
     everywhere it welds the whorls into sheets whose thinned arcs run through the air, and
-    25 % of the wood points lie > 10 cm from every cylinder (6 % with it; the graph
-    method 5.5 %)."""
+    26 % of the wood points lie > 10 cm from every cylinder (10 % with it; the graph
+    method 4 %). Bound: the issue's 12 %. Until session 30 the spruce's spacing read
+    17.3 mm, a median on its 1 cm grid's √3 step, and its voxels were 52 mm (6 % far);
+    without its 3,242 duplicate points and with the grid's median smoothed
+    (neighbours.smooth_median) it reads 15.4 mm and its voxels are 46 mm."""
     from biomorph.tree.metrics import cylinder_fit
 
     cloud = read_points(shared_file("trees", "treels_spruce.laz"))
@@ -175,4 +178,18 @@ def test_the_voxel_disc_closing_inside_rings_only_models_the_spruce_whorls():
         skel = skeletonize(cloud, method="voxel", voxel={"disc_enclosed": enc})
         assert skel.cloud is not None
         far[enc] = cylinder_fit(skel.graph, skel.cloud.xyz)["far_share"]
-    assert far[True] < 0.10 < far[False] - 0.05, far
+    assert far[True] < 0.12 < far[False] - 0.05, far
+
+
+def test_the_spruce_reads_one_spacing_with_or_without_its_duplicate_points():
+    """The TreeLS spruce lies on a 1 cm grid and holds 3,242 exact duplicates: its median
+    nearest-neighbour distance sat on the grid's step (17.3 mm with them, 14.1 mm
+    without); the smoothed median reads 15.4 mm either way."""
+    from biomorph.tree.cloud import duplicate_points
+    from biomorph.tree.neighbours import estimate_spacing
+
+    xyz = read_points(shared_file("trees", "treels_spruce.laz")).xyz
+    dup = duplicate_points(xyz)
+    assert dup.sum() == 3242
+    a, b = estimate_spacing(xyz), estimate_spacing(xyz[~dup])
+    assert a == pytest.approx(b, rel=0.01) and 0.0145 < b < 0.0165

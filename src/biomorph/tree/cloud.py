@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
-from biomorph.tree.neighbours import NeighbourCache, query_blocks, query_ordered
+from biomorph.tree.neighbours import NeighbourCache, query_blocks, query_ordered, smooth_median
 from biomorph.tree.options import UNITS
 
 __all__ = [
@@ -37,6 +37,7 @@ __all__ = [
     "MAX_TREE_HEIGHT",
     "to_metres",
     "check_units",
+    "duplicate_points",
     "centre",
     "filter_attribute",
     "downsample",
@@ -102,6 +103,39 @@ def check_units(cloud: PointCloud) -> None:
         f"tree ({MAX_TREE_HEIGHT:.0f} m); its coordinates look like {guess}: pass "
         f"--units cm or --units mm (one of {', '.join(UNITS)}; --units m runs it as metres)"
     )
+
+
+#: odd 64-bit multipliers mixing a point's three coordinates' bit patterns into one key
+_HASH = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9], dtype=np.uint64)
+
+
+def duplicate_points(xyz: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Mask of the points that repeat an earlier point exactly (merged scans that wrote
+    their overlap twice, a file concatenated with itself). They carry nothing, but every
+    density the pipeline derives its constants from counts them: rTwig's cloud written
+    twice had a point spacing of 0 and a node spacing of 7 mm (29 mm once), and five
+    times over it modelled 153 L for 22 L. One key per point (its coordinates' bits,
+    mixed), sorted; the points sharing a key are then sorted by their coordinates and
+    compared, so a collision never drops a distinct point. 0.15 s per 10⁶ points."""
+    n = xyz.shape[0]
+    dup = np.zeros(n, dtype=bool)
+    if n < 2:
+        return dup
+    bits = np.ascontiguousarray(xyz, dtype=np.float64).view(np.uint64)
+    key = (bits * _HASH).sum(axis=1)  # wraps modulo 2^64
+    order = np.argsort(key)
+    ks = key[order]
+    same = np.flatnonzero(ks[1:] == ks[:-1])
+    if same.size == 0:
+        return dup
+    # the points whose key repeats, sorted by their coordinates (then index: the first
+    # stays): a copy sits next to its original, a collision does not
+    idx = np.unique(np.concatenate([order[same], order[same + 1]]))
+    sub = xyz[idx]
+    o = np.lexsort((idx, sub[:, 2], sub[:, 1], sub[:, 0]))
+    eq = (sub[o[1:]] == sub[o[:-1]]).all(axis=1)
+    dup[idx[o[1:][eq]]] = True
+    return dup
 
 
 def validate_cloud(cloud: PointCloud) -> None:
@@ -321,7 +355,8 @@ def remove_outliers(
 
 
 def point_spacing(cloud: PointCloud, max_samples: int = 200_000, seed: int = 0) -> float:
-    """Median nearest-neighbour distance (metres), over at most ``max_samples`` query points.
+    """Median nearest-neighbour distance (metres; :func:`~biomorph.tree.neighbours.
+    smooth_median`), over at most ``max_samples`` query points.
 
     Duplicate points (distance 0) are ignored; raises :class:`InputError` for fewer than two
     distinct points.
@@ -339,7 +374,7 @@ def point_spacing(cloud: PointCloud, max_samples: int = 200_000, seed: int = 0) 
     d = d[np.isfinite(d)]
     if d.size == 0:
         raise InputError(f"{_name(cloud)}: all points coincide; cannot estimate spacing")
-    return float(np.median(d))
+    return smooth_median(d)
 
 
 def has_ground(cloud: PointCloud, cell: float | None = None) -> bool:
@@ -435,6 +470,12 @@ def prepare(
         n0 = cur.n_points
         cur = _centre(cur)
         record("centre", n0, t0, offset=[float(v) for v in cur.offset])
+    t0 = time.perf_counter()
+    n0 = cur.n_points
+    dup = duplicate_points(cur.xyz)
+    if dup.any():
+        cur = cur.select(~dup)
+    record("duplicates", n0, t0)
     if filter is not None:
         t0 = time.perf_counter()
         n0 = cur.n_points

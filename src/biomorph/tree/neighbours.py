@@ -29,6 +29,7 @@ from biomorph.errors import InputError, ParameterError
 
 __all__ = [
     "estimate_spacing",
+    "smooth_median",
     "components",
     "NeighbourCache",
     "PointIndex",
@@ -793,7 +794,37 @@ def estimate_spacing(
     idx = np.random.default_rng(seed).choice(n, size=min(n, sample), replace=False)
     d, _ = query_ordered(tree, xyz[idx], 2)
     pos = d[:, 1][d[:, 1] > 0]
-    return float(np.median(pos)) if pos.size else 0.0
+    return smooth_median(pos) if pos.size else 0.0
+
+
+#: :func:`smooth_median` averages the values between these quantiles ...
+SMOOTH_MEDIAN_BAND = (0.45, 0.55)
+#: ... where at least this share of the values lie within 0.1 % of the median: a grid's
+#: step (the TreeLS spruce, thinned at 1 cm: 22 % of its nearest-neighbour distances are
+#: √3 cm); a scan's continuous spread puts about 0.1 % there (the other real clouds)
+GRID_ATOM_SHARE = 0.05
+
+
+def smooth_median(values: NDArray[np.float64]) -> float:
+    """The median of nearest-neighbour distances, made continuous where the cloud lies on
+    a grid. A cloud thinned on a voxel grid (CloudCompare's or lidR's subsampling, the
+    TreeLS spruce at 1 cm) has distances of 1, √2 and √3 edges only, and its median sits
+    on the step between two of them: dropping the spruce's 3,242 duplicate points (3.9 %)
+    moved it from 17.3 to 14.1 mm, and every constant derived from the spacing with it
+    (the graph model's volume 436 → 510 L). Where :data:`GRID_ATOM_SHARE` of the values
+    sit at the median, the mean of the values between the 45th and 55th percentiles
+    (:data:`SMOOTH_MEDIAN_BAND`), which moves by a fraction of a step when a few per cent
+    of the points change (spruce 15.4 mm with or without its duplicates); elsewhere the
+    median itself."""
+    v = np.asarray(values, dtype=np.float64)
+    if v.size == 0:
+        return 0.0
+    med = float(np.median(v))
+    if np.mean(np.abs(v - med) <= 1e-3 * med) < GRID_ATOM_SHARE:
+        return med
+    lo, hi = np.quantile(v, SMOOTH_MEDIAN_BAND)
+    band = v[(v >= lo) & (v <= hi)]
+    return float(band.mean()) if band.size else med
 
 
 def neighbour_graph(
