@@ -96,6 +96,10 @@ def test_tables_describe_the_tree():
     assert td["TrunkLength"][0] == pytest.approx(4.0)
     assert td["NumberBranches"][0] == 1 and td["MaxBranchOrder"][0] == 1
     assert td["DBHqsm"][0] == pytest.approx(2 * (0.1 - 0.04 * 1.3 / 4))
+    # TreeQSM's DBHcyl, right after DBHqsm: the stem circles' DBH, empty without one
+    assert TREEDATA_COLUMNS.index("DBHcyl") == TREEDATA_COLUMNS.index("DBHqsm") + 1
+    assert np.isnan(td["DBHcyl"][0])
+    assert treedata_table(g, cyl, dbh_fit={0: 0.19})["DBHcyl"][0] == 0.19
     # a 4 m tree: a measured stem with its fits, a fragment without (no fit quality: height)
     assert td["MeasuredStem"][0] == 1
     none = {"reliable": np.zeros(g.n_nodes, dtype=bool)}

@@ -100,3 +100,50 @@ def test_recentring_shifts_are_smoothed_along_the_branch():
         assert np.median(off) < 0.01, lam
         wiggle[lam] = out.total_length - 2.0
     assert wiggle[4.0] < wiggle[0.0]
+
+
+def _half_stem(seed=4, n=6000, r=0.17):
+    """A 17 cm stem 2 m tall seen from one scan position: the half facing +x."""
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(-np.pi / 2, np.pi / 2, n)
+    rr = r + rng.normal(0, 0.002, n)
+    return np.c_[rr * np.cos(a), rr * np.sin(a), rng.uniform(0, 2, n)]
+
+
+def test_the_dbh_from_stem_circles_searches_wider_where_the_stem_was_cut():
+    # the skeleton runs along the scanned face, 12 cm off the axis, and the searches about
+    # it (a 8 cm radius: 12 cm wide) held no 17 cm circle: the taper model's DBH was an
+    # extrapolation (the aspen preset scanned once: 24.0 cm for 32.6)
+    pts = _half_stem()
+    g = _chain((0.12, 0, 0), (0.12, 0, 2), 41)
+    g = g.with_(radius=np.full(41, 0.08), depth=np.zeros(41, dtype=np.int64))
+    cut = rd.fit_circles(g, pts, np.full(41, 0.08))
+    assert not rd.well_covered(cut).any()
+    bh = rd.breast_height_fits(g, pts, cut)
+    assert bh[0]["wider"] and bh[0]["fits"] >= 5
+    assert bh[0]["dbh"] == pytest.approx(0.34, rel=0.02)
+    # where the searches held the stem, its own circles give it, nothing searched again
+    whole = rd.fit_circles(g, pts, np.full(41, 0.2))
+    bh = rd.breast_height_fits(g, pts, whole)
+    assert not bh[0]["wider"] and bh[0]["dbh"] == pytest.approx(0.34, rel=0.02)
+    # only the band round 1.3 m counts: 1.0-1.6 m of this 2 m stem
+    band = np.abs(g.position[:, 2] - 1.3) <= rd.DBH_BAND
+    assert bh[0]["fits"] <= band.sum()
+    # no trunk order, no radii: nothing to say
+    assert rd.breast_height_fits(g.with_(depth=None), pts, whole) == {}
+
+
+def test_a_stem_scanned_from_one_position_reports_its_measured_dbh():
+    from biomorph.tree.metrics import dbh, summary_rows
+    from biomorph.tree.pipeline import skeletonize
+    from biomorph.tree.synthetic import generate_tree, simulate_scan
+
+    truth = generate_tree("aspen", seed=3)
+    cloud = simulate_scan(
+        truth, n_points=60_000, seed=3, noise=0.003, occlusion=True, scanners=1, ground=True
+    )
+    skel = skeletonize(cloud)
+    t = skel.metrics["trees"][0]
+    assert t["dbh_fit_wider"] and t["dbh_fit"] == pytest.approx(dbh(truth), rel=0.05)
+    row = dict(summary_rows(skel.metrics))["DBH (cm)"]
+    assert "model" in row and "searched wider" in row

@@ -205,6 +205,7 @@ def write_qsm_tables(
     graph: BranchGraph,
     segment: NDArray[np.int64] | None,
     quality: dict[str, NDArray] | None,
+    dbh_fit: dict[int, float | None] | None = None,
 ) -> dict[str, Path]:
     """``cylinders.csv``, ``branches.csv`` and ``treedata.csv`` (TreeQSM's tables, see
     :mod:`biomorph.tree.qsm`; an empty field is a value that does not exist, e.g. the DBH
@@ -216,9 +217,15 @@ def write_qsm_tables(
         "csv": _write_table(out / "cylinders.csv", cyl, CYLINDER_COLUMNS),
         "branches": _write_table(out / "branches.csv", branch_table(graph, cyl), BRANCH_COLUMNS),
         "treedata": _write_table(
-            out / "treedata.csv", treedata_table(graph, cyl, quality), TREEDATA_COLUMNS
+            out / "treedata.csv", treedata_table(graph, cyl, quality, dbh_fit), TREEDATA_COLUMNS
         ),
     }
+
+
+def _dbh_fits(skel: Any) -> dict[int, float | None]:
+    """The stem circles' DBH per tree label from a run's metrics (``DBHcyl``)."""
+    trees = (getattr(skel, "metrics", None) or {}).get("trees") or []
+    return {int(t["tree"]): t.get("dbh_fit") for t in trees if "tree" in t}
 
 
 def write_summary(path: PathLike, skel: Any, extra: dict | None = None) -> Path:
@@ -281,7 +288,7 @@ def write_per_tree(out: Path, skel: Any, world: bool) -> dict[str, Path]:
         s = None if seg is None else np.asarray(seg)[keep]
         written[f"tree_{int(t)}"] = write_graph(d / "skeleton.ply", sub)
         write_graph(d / "skeleton.mtg", sub)
-        write_qsm_tables(d, sub, s, q)
+        write_qsm_tables(d, sub, s, q, _dbh_fits(skel))
         if labels is not None:
             from biomorph.core.pointcloud import PointCloud
             from biomorph.io import write_points
@@ -384,7 +391,9 @@ def export_skeleton(
     if "mtg" in formats:
         written["mtg"] = write_graph(out / f"{stem}.mtg", gw)
     if "csv" in formats:
-        written.update(write_qsm_tables(out, gw, seg, getattr(skel, "quality", None)))
+        written.update(
+            write_qsm_tables(out, gw, seg, getattr(skel, "quality", None), _dbh_fits(skel))
+        )
     mesh = None
     if {"glb", "obj", "mesh_ply"} & set(formats):
         mesh = tube_mesh(g, sides=sides, segment=seg)

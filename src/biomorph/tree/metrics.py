@@ -751,8 +751,22 @@ def summary_rows(m: dict) -> list[tuple[str, str]]:
         t = trees[0]
         rows.append(("height / trunk (m)", f"{t['height']:.2f} / {t['trunk_length']:.2f}"))
         if t.get("dbh") is not None and np.isfinite(t["dbh"]):
-            rows.append(("DBH (cm)", f"{100 * t['dbh']:.1f}"))
+            rows.append(("DBH (cm)", _dbh_text(t)))
     return rows
+
+
+def _dbh_text(t: dict) -> str:
+    """The DBH row: the taper model's (TreeQSM's ``DBHqsm``) and the stem circles' at
+    breast height (``DBHcyl``, :func:`biomorph.tree.radius.breast_height_fits`)."""
+    text = f"{100 * t['dbh']:.1f} model"
+    fit, n = t.get("dbh_fit"), t.get("dbh_fits")
+    if fit is not None and n:
+        text += f"; {100 * fit:.1f} from {n} stem circles at 1.0-1.6 m"
+        if t.get("dbh_fit_wider"):
+            text += " (searched wider: a stem seen from one side)"
+    elif "dbh_fits" in t:
+        text += "; no stem circle at 1.0-1.6 m"
+    return text
 
 
 def scan_rows(params: dict, info: dict) -> list[tuple[str, str]]:

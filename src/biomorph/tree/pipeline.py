@@ -1110,6 +1110,24 @@ def metrics_phase(run: _Run) -> None:
     )
     for rec in metrics["trees"]:
         rec["kind"] = kinds.get(int(rec["tree"]), "tree")
+    if run.fit is not None and run.fit.radius.size == graph.n_nodes:
+        # the DBH as the stem's circles give it, beside the taper model's
+        from biomorph.tree.radius import breast_height_fits
+
+        bh = breast_height_fits(
+            graph,
+            pc.xyz,
+            run.fit,
+            spacing=run.point_spacing() or None,
+            kdtree=run.point_index(),
+            seed=run.opts.seed,
+        )
+        for rec in metrics["trees"]:
+            b = bh.get(int(rec["tree"]))
+            if b is not None:
+                rec["dbh_fit"] = None if not np.isfinite(b["dbh"]) else b["dbh"]
+                rec["dbh_fits"] = b["fits"]
+                rec["dbh_fit_wider"] = b["wider"]
     metrics["n_stems"] = sum(k == "tree" for k in kinds.values())
     metrics["n_fragments"] = len(kinds) - metrics["n_stems"]
     metrics.update(qsm)

@@ -25,8 +25,11 @@ number, 1-based, is the cylinder's id):
 ``treedata`` (one per tree): ``TotalVolume``, ``TrunkVolume``, ``BranchVolume`` (litres),
     ``TreeHeight``, ``TrunkLength``, ``BranchLength``, ``TotalLength`` (m),
     ``NumberBranches`` (order-1 branches, TreeQSM's count), ``MaxBranchOrder``,
-    ``TrunkArea``, ``BranchArea``, ``TotalArea`` (m²), ``DBHqsm`` (m), ``CrownDiamAve``
-    (m), ``CrownBaseHeight``, ``CrownLength`` (m), ``CrownRatio``; then ``tree_id`` and
+    ``TrunkArea``, ``BranchArea``, ``TotalArea`` (m²), ``DBHqsm`` (m, the taper model's),
+    ``DBHcyl`` (m, the stem's circles at 1.0–1.6 m,
+    :func:`biomorph.tree.radius.breast_height_fits`; TreeQSM's cylinder fitted at 1.1–1.5
+    m; empty without one), ``CrownDiamAve`` (m), ``CrownBaseHeight``, ``CrownLength``
+    (m), ``CrownRatio``; then ``tree_id`` and
     ``MeasuredStem`` (1: a tree standing on a stem the scan measured and reaching breast
     height, 0: a fragment — understorey, stump, piece of crown;
     :func:`biomorph.tree.metrics.tree_kinds`), and ``location_x/_y/_z`` (m, the base of
@@ -101,6 +104,7 @@ TREEDATA_COLUMNS = (
     "BranchArea",
     "TotalArea",
     "DBHqsm",
+    "DBHcyl",
     "CrownDiamAve",
     "CrownBaseHeight",
     "CrownLength",
@@ -243,11 +247,19 @@ def branch_table(graph: BranchGraph, cyl: dict[str, NDArray]) -> dict[str, NDArr
     }
 
 
+def _or_nan(v: float | None) -> float:
+    return float("nan") if v is None else float(v)
+
+
 def treedata_table(
-    graph: BranchGraph, cyl: dict[str, NDArray], quality: dict[str, NDArray] | None = None
+    graph: BranchGraph,
+    cyl: dict[str, NDArray],
+    quality: dict[str, NDArray] | None = None,
+    dbh_fit: dict[int, float | None] | None = None,
 ) -> dict[str, NDArray]:
     """TreeQSM tree attributes per tree (module doc); ``quality``: the per-node fit
-    quality (``reliable``) that tells a measured stem from a fragment."""
+    quality (``reliable``) that tells a measured stem from a fragment; ``dbh_fit``: the
+    stem circles' DBH per tree label (``DBHcyl``)."""
     from biomorph.tree.metrics import tree_attributes, tree_kinds
 
     _, area = _cylinder_volume_area(graph, cyl)
@@ -279,6 +291,7 @@ def treedata_table(
             "BranchArea": float(area[m & ~trunk].sum()),
             "TotalArea": float(area[m].sum()),
             "DBHqsm": a["dbh"],
+            "DBHcyl": _or_nan((dbh_fit or {}).get(int(a["tree"]))),
             "CrownDiamAve": a["crown_diameter"],
             "CrownBaseHeight": a["crown_base_height"],
             "CrownLength": a["crown_length"],

@@ -55,6 +55,8 @@ __all__ = [
     "cap_down",
     "taper_radii",
     "segment_radii",
+    "breast_height_fits",
+    "DBH_BAND",
     "MIN_RADIUS",
     "PIPE_EXPONENT",
     "RELIABLE_COVERAGE",
@@ -806,6 +808,80 @@ def fit_radii(
     if recentre and fit is not None and spacing:
         g = centre_thin_nodes(g, xyz, radius, fit.ok, spacing, search_depth, kdtree=kd)
     return g.with_(radius=radius, weight=g.subtree_length()), fit
+
+
+#: :func:`breast_height_fits` reads the stem's circles within this distance (m) of breast
+#: height (1.0–1.6 m: TreeQSM fits its ``DBHcyl`` cylinder to 1.1–1.5 m)
+DBH_BAND = 0.3
+#: ... searching this many times wider at most, in steps of 1.5, where the stem's own
+#: searches held no reliable circle there
+DBH_WIDER = (1.5, 2.25, 3.375)
+
+
+def breast_height_fits(
+    graph: BranchGraph,
+    xyz: NDArray[np.float64],
+    fit: RadiusFit,
+    *,
+    spacing: float | None = None,
+    kdtree: cKDTree | None = None,
+    seed: int = 0,
+    height: float = 1.3,
+) -> dict[int, dict]:
+    """Each tree's DBH from its stem's circle fits, as a forester measures it, beside the
+    taper model's (``DBHqsm``): twice the median radius of the well-covered circles
+    (:func:`well_covered`, not envelopes: :data:`STEM_INSIDE`) of the trunk's nodes
+    (order 0) within :data:`DBH_BAND` of ``height`` above the tree's lowest node.
+
+    Where the pipeline's searches held none there, the band's nodes are fitted again in
+    wider searches (:data:`DBH_WIDER` × the radius they had): a stem seen from one scan
+    position is half an arc, the skeleton runs along that face 0.6–0.8 radii off the axis,
+    and every circle its searches allowed was smaller than the stem (the aspen preset
+    scanned once: no usable fit below 3.5 m, and the taper model's DBH 24.0 cm for 32.6).
+    These fits are not fed back into the model: a wider search changes the stem's anchor,
+    and on the leafy real clouds the model then moved by 10–40 % (docs/tree.md, session
+    30). Returns per tree label ``{"dbh": m or NaN, "fits": count, "wider": bool}``;
+    trees without radii, depth or a trunk in the band are left out."""
+    out: dict[int, dict] = {}
+    if graph.depth is None or graph.radius is None or fit.radius.size != graph.n_nodes:
+        return out
+    labels = graph.trees
+    z = graph.position[:, 2]
+    depth = np.asarray(graph.depth)
+
+    def measured(f: RadiusFit) -> NDArray[np.bool_]:
+        good = well_covered(f)
+        if f.inside is not None:
+            good &= f.inside <= STEM_INSIDE * np.maximum(f.inliers, 1)
+        return good
+
+    good = measured(fit)
+    for t in np.unique(labels):
+        nodes = np.flatnonzero(labels == t)
+        h = z[nodes] - z[nodes].min()
+        trunk = nodes[(depth[nodes] == 0) & (np.abs(h - height) <= DBH_BAND)]
+        if trunk.size == 0:
+            continue
+        trunk = trunk[np.argsort(z[trunk])]
+        rec = {"dbh": float("nan"), "fits": 0, "wider": False}
+        if good[trunk].any():
+            rec.update(dbh=2 * float(np.median(fit.radius[trunk][good[trunk]])))
+            rec.update(fits=int(good[trunk].sum()))
+        elif trunk.size >= 2:
+            # the band's trunk as a chain (its own axes), searched wider
+            chain = BranchGraph(graph.position[trunk], np.arange(-1, trunk.size - 1))
+            base = np.maximum(graph.radius[trunk], np.maximum(fit.radius[trunk], 0.0))
+            for k, wider in enumerate(DBH_WIDER):
+                f = fit_circles(
+                    chain, xyz, wider * base, spacing=spacing, kdtree=kdtree, seed=seed + 1 + k
+                )
+                ok = measured(f)
+                if ok.any():
+                    rec.update(dbh=2 * float(np.median(f.radius[ok])), fits=int(ok.sum()))
+                    rec.update(wider=True)
+                    break
+        out[int(t)] = rec
+    return out
 
 
 def segment_radii(
