@@ -1264,6 +1264,71 @@ def twig_noise_table(seeds: int, n: int) -> None:
                 sys.stdout.flush()
 
 
+def single_scan_table(seeds: int, n: int, methods: tuple[str, ...]) -> None:
+    """The presets scanned from one position (3 mm noise, occlusion; a single-scan plot
+    protocol, or one side of a stem behind its neighbours): volume and classes against
+    the truth, length, F1, and the DBH error of the taper model (``DBHqsm``) and of the
+    stem's circles at 1.0-1.6 m (``DBHcyl``, :func:`biomorph.tree.radius.
+    breast_height_fits`), median and worst over the seeds (session 30)."""
+    from biomorph.tree.metrics import class_labels, compare_to_truth, dbh, volume_by_class
+    from biomorph.tree.pipeline import skeletonize
+    from biomorph.tree.synthetic import PRESETS, generate_tree, simulate_scan
+
+    labs = class_labels()
+    print(f"\n### Scanned from one position ({n:,} points, seeds 0..{seeds - 1}; % of the truth)\n")
+    print(
+        "| preset | method | volume (range) | "
+        + " | ".join(labs)
+        + " | length | F1 | DBH model: median (worst) | DBH circles: median (worst) |"
+    )
+    print("|---|---|---|" + "---|" * len(labs) + "---|---|---|---|")
+    for preset in sorted(PRESETS):
+        for method in methods:
+            rows = []
+            for seed in range(seeds):
+                truth = generate_tree(preset, seed=seed)
+                cloud = simulate_scan(
+                    truth, n_points=n, seed=seed, noise=0.003, occlusion=True, scanners=1
+                )
+                vt = volume_by_class(truth)
+                base, kw = method_options(method)
+                skel = skeletonize(cloud, method=base, **kw)
+                g = skel.world_graph()
+                vc = volume_by_class(g)
+                c = compare_to_truth(g, truth, cloud=cloud)
+                d = dbh(truth)
+                fit = skel.metrics["trees"][0].get("dbh_fit")
+                rows.append(
+                    [
+                        sum(v["volume"] for v in vc.values())
+                        / sum(v["volume"] for v in vt.values()),
+                        *[
+                            vc[k]["volume"] / vt[k]["volume"] if vt[k]["volume"] > 1e-6 else np.nan
+                            for k in labs
+                        ],
+                        c["tbl_ratio"],
+                        c["f1"],
+                        dbh(g) / d - 1,
+                        (fit if fit is not None else np.nan) / d - 1,
+                    ]
+                )
+            a = np.array(rows, dtype=float)
+            med = np.nanmedian(a, axis=0)
+
+            def worst(col: NDArray) -> float:
+                col = col[np.isfinite(col)]
+                return float(col[np.argmax(np.abs(col))]) if col.size else np.nan
+
+            cells = " | ".join(_fmt(100 * x, "{:.0f}") for x in med[1 : 1 + len(labs)])
+            print(
+                f"| {preset} | {method} | {100 * med[0]:.0f} ({100 * a[:, 0].min():.0f}-"
+                f"{100 * a[:, 0].max():.0f}) | {cells} | {100 * med[-4]:.0f} | {med[-3]:.3f} | "
+                f"{100 * med[-2]:+.1f} ({100 * worst(a[:, -2]):+.1f}) | "
+                f"{100 * med[-1]:+.1f} ({100 * worst(a[:, -1]):+.1f}) |"
+            )
+            sys.stdout.flush()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also time 1,000,000 points")
@@ -1282,6 +1347,7 @@ def main() -> None:
             "runs",
             "models",
             "twignoise",
+            "single",
         ),
     )
     ap.add_argument(
@@ -1392,8 +1458,15 @@ def main() -> None:
         run_twig_table(tuple(a.clouds))
     if a.only in (None, "models"):
         models_table(a.seeds, tuple(a.sizes), a.models, tuple(a.clouds), tuple(a.methods))
+    _opt_in_tables(a)
+
+
+def _opt_in_tables(a: argparse.Namespace) -> None:
+    """The tables only ``--only`` runs."""
     if a.only == "twignoise":
         twig_noise_table(a.seeds, a.points)
+    if a.only == "single":
+        single_scan_table(max(a.seeds, 4), a.points, tuple(a.methods))
 
 
 if __name__ == "__main__":
