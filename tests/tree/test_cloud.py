@@ -222,3 +222,39 @@ def test_the_spacing_of_a_cloud_on_a_grid_does_not_jump_between_grid_steps():
     # a continuous spread: the median itself
     d = rng.rayleigh(0.01, 5000)
     assert smooth_median(d) == float(np.median(d)) and smooth_median(np.array([])) == 0.0
+
+
+def test_the_files_own_classes_are_read_noise_dropped_and_ground_used():
+    # a scan classified by a processing chain (lidR, PDAL, LAStools): ground class 2,
+    # noise classes 7 / 18, and withheld points
+    from biomorph.tree.cloud import flagged_points
+
+    truth = generate_tree("aspen", seed=1)
+    scan = simulate_scan(truth, n_points=6000, seed=1)
+    is_ground = scan.attributes["is_ground"].astype(bool)
+    rng = np.random.default_rng(2)
+    far = rng.uniform([-20, -20, 10], [20, 20, 40], (60, 3))  # birds, multipath: far off
+    xyz = np.vstack([scan.xyz, far])
+    cls = np.r_[np.where(is_ground, 2, 1), np.full(30, 7), np.full(30, 18)].astype(np.uint8)
+    held = np.zeros(len(xyz), dtype=bool)
+    held[:5] = True
+    cloud = PointCloud(xyz, {"classification": cls, "withheld": held})
+    flagged = flagged_points(cloud)
+    assert flagged[-60:].all() and flagged[:5].all() and flagged.sum() == 65
+    p = prepare(cloud, outliers=False)
+    assert p.steps["flagged"]["points_out"] == len(xyz) - 65
+    assert p.steps["ground"]["method"] == "classified"
+    # the ground is the file's: every class-2 point (not withheld), nothing else
+    assert p.ground.n_points == int(is_ground[5:].sum())
+    assert (p.cloud.attributes["classification"] == 1).all()
+    # without a classification: the detected ground, as before
+    plain = prepare(PointCloud(scan.xyz), outliers=False)
+    assert plain.steps["ground"]["method"] == "grid" and "flagged" not in plain.steps
+    # "classified" asked of a file without classes: a clear error
+    from biomorph.tree.ground import remove_ground
+
+    with pytest.raises(InputError, match="needs a classification per point"):
+        remove_ground(PointCloud(scan.xyz, source="x.xyz"), method="classified")
+    # a file of noise only: nothing left, said so
+    with pytest.raises(InputError, match="classified as noise"):
+        prepare(PointCloud(far, {"classification": np.full(60, 7, np.uint8)}))

@@ -38,6 +38,8 @@ __all__ = [
     "to_metres",
     "check_units",
     "duplicate_points",
+    "LAS_NOISE",
+    "flagged_points",
     "centre",
     "filter_attribute",
     "downsample",
@@ -136,6 +138,26 @@ def duplicate_points(xyz: NDArray[np.float64]) -> NDArray[np.bool_]:
     eq = (sub[o[1:]] == sub[o[:-1]]).all(axis=1)
     dup[idx[o[1:][eq]]] = True
     return dup
+
+
+#: ASPRS LAS classes of noise: 7 (low point) and 18 (high noise, LAS 1.4)
+LAS_NOISE = (7, 18)
+
+
+def flagged_points(cloud: PointCloud) -> NDArray[np.bool_]:
+    """Mask of the points the file itself marks as not to be used: classified as noise
+    (:data:`LAS_NOISE`) or flagged ``withheld`` (LAS: "to be considered deleted"). A
+    processing chain (lidR, PDAL, LAStools, the scanner's software) marks them so; read
+    as wood they are outliers the skeleton would chase. All false without those
+    attributes."""
+    out = np.zeros(cloud.n_points, dtype=bool)
+    cls = cloud.attributes.get("classification")
+    if cls is not None:
+        out |= np.isin(np.asarray(cls), LAS_NOISE)
+    held = cloud.attributes.get("withheld")
+    if held is not None:
+        out |= np.asarray(held).astype(bool)
+    return out
 
 
 def validate_cloud(cloud: PointCloud) -> None:
@@ -426,6 +448,20 @@ class PreparedCloud:
     neighbours: NeighbourCache | None = field(default=None, repr=False)
 
 
+def _ground_method(cloud: PointCloud, ground: str) -> tuple[str, bool]:
+    """The ground method ``ground`` resolves to, and whether to run it: ``"auto"`` takes
+    the file's own ground (ASPRS class 2) where it has one, else the default method where
+    :func:`has_ground` finds a ground surface."""
+    from biomorph.tree.ground import DEFAULT_METHOD, LAS_GROUND
+
+    if ground != "auto":
+        return ground, True
+    cls = cloud.attributes.get("classification")
+    if cls is not None and np.count_nonzero(np.asarray(cls) == LAS_GROUND) >= MIN_POINTS:
+        return "classified", True
+    return DEFAULT_METHOD, has_ground(cloud)
+
+
 def prepare(
     cloud: PointCloud,
     *,
@@ -446,8 +482,11 @@ def prepare(
     filter : ``{"name": "Deviation", "max_value": 50}`` (or a tuple ``(name, max, min)``).
     downsample : a ratio (float) or keyword arguments of :func:`downsample`.
     outliers : ``True`` for defaults, a dict of :func:`remove_outliers` arguments, or False.
-    ground : ``"auto"`` (the default method of :func:`biomorph.tree.ground.remove_ground`,
-        only if :func:`has_ground` detects a ground surface), ``"csf"``, ``"grid"`` or None.
+    ground : ``"auto"`` (the file's own ground where it classifies one, ASPRS class 2; else
+        the default method of :func:`biomorph.tree.ground.remove_ground`,
+        only if :func:`has_ground` detects a ground surface), ``"classified"``, ``"csf"``,
+        ``"grid"`` or None. Points the file marks as noise (LAS classes 7 and 18) or
+        withheld are dropped first (:func:`flagged_points`).
     seed : random seed of the downsampling.
     neighbours : keep the outlier filter's neighbour lists (``PreparedCloud.neighbours``)
         for a later kNN query on the prepared points (the graph method's neighbour graph).
@@ -476,6 +515,18 @@ def prepare(
     if dup.any():
         cur = cur.select(~dup)
     record("duplicates", n0, t0)
+    flagged = flagged_points(cur)
+    if flagged.any():  # the file's own noise classes and withheld points
+        t0 = time.perf_counter()
+        n0 = cur.n_points
+        cur = cur.select(~flagged)
+        if cur.n_points < MIN_POINTS:
+            raise InputError(
+                f"{_name(cloud)}: {n0 - cur.n_points:,} of {n0:,} points are classified as "
+                f"noise (LAS classes {', '.join(map(str, LAS_NOISE))}) or withheld; "
+                f"expected at least {MIN_POINTS} others"
+            )
+        record("flagged", n0, t0)
     if filter is not None:
         t0 = time.perf_counter()
         n0 = cur.n_points
@@ -513,15 +564,11 @@ def prepare(
         record("outliers", n0, t0, **kw)
     ground_cloud = None
     if ground is not None:
-        from biomorph.tree.ground import DEFAULT_METHOD, remove_ground
+        from biomorph.tree.ground import remove_ground
 
         t0 = time.perf_counter()
         n0 = cur.n_points
-        method = ground
-        run = True
-        if ground == "auto":
-            method = DEFAULT_METHOD
-            run = has_ground(cur)
+        method, run = _ground_method(cur, ground)
         if run:
             veg, mask = remove_ground(cur, method=method, **(ground_params or {}))
             ground_cloud = cur.select(mask)

@@ -35,9 +35,11 @@ from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 
-__all__ = ["remove_ground", "ground_surface_grid", "DEFAULT_METHOD", "METHODS"]
+__all__ = ["remove_ground", "ground_surface_grid", "DEFAULT_METHOD", "METHODS", "LAS_GROUND"]
 
-METHODS = ("grid", "csf")
+METHODS = ("grid", "csf", "classified")
+#: ASPRS LAS class of ground points (``"classified"``: the file's own ground)
+LAS_GROUND = 2
 #: chosen by measurement (see module docstring)
 DEFAULT_METHOD = "grid"
 
@@ -166,7 +168,8 @@ def remove_ground(
 
     Parameters
     ----------
-    method : ``"grid"`` (default, see :func:`ground_surface_grid`; extra parameters
+    method : ``"classified"`` (the file's own ground: ASPRS class 2, :data:`LAS_GROUND`),
+        ``"grid"`` (default, see :func:`ground_surface_grid`; extra parameters
         ``cell``, ``window``, ``max_step``, ``slope`` and ``threshold`` = height above the
         terrain below which a point is ground, default 0.15 m) or ``"csf"`` (parameters
         ``cloth_resolution``, ``rigidness``, ``class_threshold``, ``iterations``,
@@ -191,6 +194,15 @@ def remove_ground(
         mask = above < threshold
     elif method == "csf":
         mask = _csf_mask(xyz, **params)
+        above = None
+    elif method == "classified":
+        cls = cloud.attributes.get("classification")
+        if cls is None:
+            raise InputError(
+                f"{name}: ground 'classified' needs a classification per point (LAS); "
+                "expected a classified file or another ground method"
+            )
+        mask = np.asarray(cls) == LAS_GROUND
         above = None
     else:
         raise ParameterError(

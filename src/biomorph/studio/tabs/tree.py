@@ -360,9 +360,13 @@ class TreeTab(StudioTab):
                 self.set_status("Cancelled; the previous result is kept.")
                 self.app.notify("Tree", "skeletonisation cancelled", color="yellow")
         except Exception as exc:  # noqa: BLE001 - shown in the page
-            if generation == self.generation:
-                self.progress.value = 0.0
-                self.fail(exc, "skeletonisation")
+            # under the tab's lock: a job failing at once (a cloud in other units) must not
+            # report before the Run action that started it has finished (which clears
+            # the tab's last error)
+            with self.lock:
+                if generation == self.generation:
+                    self.progress.value = 0.0
+                    self.fail(exc, "skeletonisation")
         finally:
             release()
             if generation == self.generation:
