@@ -39,7 +39,10 @@ def test_a_cloud_taller_than_any_tree_is_not_in_metres():
     xyz = c.xyz.copy()
     xyz[0, 2] = 10_000.0
     check_units(PointCloud(xyz))
-    assert MAX_TREE_HEIGHT == 200.0
+    # just under the bound is a (very tall) tree in metres, just over it is not
+    check_units(_column(MAX_TREE_HEIGHT / 0.998 - 0.1))
+    with pytest.raises(InputError):
+        check_units(_column(MAX_TREE_HEIGHT / 0.998 + 0.5))
 
 
 def test_to_metres_scales_coordinates_offset_and_the_las_grid():

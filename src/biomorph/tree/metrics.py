@@ -758,14 +758,17 @@ def summary_rows(m: dict) -> list[tuple[str, str]]:
 def _dbh_text(t: dict) -> str:
     """The DBH row: the taper model's (TreeQSM's ``DBHqsm``) and the stem circles' at
     breast height (``DBHcyl``, :func:`biomorph.tree.radius.breast_height_fits`)."""
+    from biomorph.tree.radius import DBH_BAND
+
+    band = f"{BREAST_HEIGHT - DBH_BAND:.1f}-{BREAST_HEIGHT + DBH_BAND:.1f} m"
     text = f"{100 * t['dbh']:.1f} model"
     fit, n = t.get("dbh_fit"), t.get("dbh_fits")
     if fit is not None and n:
-        text += f"; {100 * fit:.1f} from {n} stem circles at 1.0-1.6 m"
+        text += f"; {100 * fit:.1f} from {n} stem circles at {band}"
         if t.get("dbh_fit_wider"):
             text += " (searched wider: a stem seen from one side)"
     elif "dbh_fits" in t:
-        text += "; no stem circle at 1.0-1.6 m"
+        text += f"; no stem circle at {band}"
     return text
 
 

@@ -177,7 +177,13 @@ class PrepareOptions:
     )
     outlier_k: int = 16
     outlier_std: float = 2.0
-    ground: str | None = _opt("auto", "--ground", "Remove the ground when detected.", kind="ground")
+    ground: str | None = _opt(
+        "auto",
+        "--ground",
+        "Remove the ground: the file's own ground class (LAS class 2) where it has one, "
+        "else the ground surface when one is detected (tree.ground).",
+        kind="ground",
+    )
     foliage: float | str | None = _opt(
         "auto",
         "--foliage",

@@ -850,10 +850,7 @@ def breast_height_fits(
     depth = np.asarray(graph.depth)
 
     def measured(f: RadiusFit) -> NDArray[np.bool_]:
-        good = well_covered(f)
-        if f.inside is not None:
-            good &= f.inside <= STEM_INSIDE * np.maximum(f.inliers, 1)
-        return good
+        return well_covered(f) & _not_envelope(f)
 
     good = measured(fit)
     for t in np.unique(labels):
@@ -1722,11 +1719,18 @@ def _reliable_fits(
 ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """The reliable circle fits (:func:`taper_radii`, step 1) and the stem mask
     (:func:`_stem_mask`)."""
-    reliable = well_covered(fit)
     stem = _stem_mask(graph, carried)
-    if fit.inside is not None:  # a stem circle with points inside it is an envelope
-        reliable &= ~stem | (fit.inside <= STEM_INSIDE * fit.inliers)
-    return reliable, stem
+    # a stem circle with points inside it is an envelope
+    return well_covered(fit) & (~stem | _not_envelope(fit)), stem
+
+
+def _not_envelope(fit: RadiusFit) -> NDArray[np.bool_]:
+    """Circles with at most :data:`STEM_INSIDE` of their inliers' count of points well
+    inside them (a scanner sees a stem's surface, never its inside); all true without
+    that count."""
+    if fit.inside is None:
+        return np.ones(fit.radius.size, dtype=bool)
+    return fit.inside <= STEM_INSIDE * fit.inliers
 
 
 def _stem_mask(graph: BranchGraph, carried: NDArray) -> NDArray[np.bool_]:
