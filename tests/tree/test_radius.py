@@ -145,5 +145,6 @@ def test_a_stem_scanned_from_one_position_reports_its_measured_dbh():
     skel = skeletonize(cloud)
     t = skel.metrics["trees"][0]
     assert t["dbh_fit_wider"] and t["dbh_fit"] == pytest.approx(dbh(truth), rel=0.05)
+    assert t["dbh_fit_band"] == pytest.approx([1.3 - rd.DBH_BAND, 1.3 + rd.DBH_BAND])
     row = dict(summary_rows(skel.metrics))["DBH (cm)"]
-    assert "model" in row and "searched wider" in row
+    assert "model" in row and "searched wider" in row and "at 1.0-1.6 m" in row

@@ -758,9 +758,8 @@ def summary_rows(m: dict) -> list[tuple[str, str]]:
 def _dbh_text(t: dict) -> str:
     """The DBH row: the taper model's (TreeQSM's ``DBHqsm``) and the stem circles' at
     breast height (``DBHcyl``, :func:`biomorph.tree.radius.breast_height_fits`)."""
-    from biomorph.tree.radius import DBH_BAND
-
-    band = f"{BREAST_HEIGHT - DBH_BAND:.1f}-{BREAST_HEIGHT + DBH_BAND:.1f} m"
+    lo, hi = t.get("dbh_fit_band") or (1.0, 1.6)
+    band = f"{lo:.1f}-{hi:.1f} m"
     text = f"{100 * t['dbh']:.1f} model"
     fit, n = t.get("dbh_fit"), t.get("dbh_fits")
     if fit is not None and n:

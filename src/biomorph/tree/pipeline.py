@@ -1128,6 +1128,7 @@ def metrics_phase(run: _Run) -> None:
                 rec["dbh_fit"] = None if not np.isfinite(b["dbh"]) else b["dbh"]
                 rec["dbh_fits"] = b["fits"]
                 rec["dbh_fit_wider"] = b["wider"]
+                rec["dbh_fit_band"] = b["band"]
     metrics["n_stems"] = sum(k == "tree" for k in kinds.values())
     metrics["n_fragments"] = len(kinds) - metrics["n_stems"]
     metrics.update(qsm)

@@ -840,7 +840,8 @@ def breast_height_fits(
     scanned once: no usable fit below 3.5 m, and the taper model's DBH 24.0 cm for 32.6).
     These fits are not fed back into the model: a wider search changes the stem's anchor,
     and on the leafy real clouds the model then moved by 10–40 % (docs/tree.md, session
-    30). Returns per tree label ``{"dbh": m or NaN, "fits": count, "wider": bool}``;
+    30). Returns per tree label ``{"dbh": m or NaN, "fits": count, "wider": bool,
+    "band": [lo, hi] m above the tree's lowest node}``;
     trees without radii, depth or a trunk in the band are left out."""
     out: dict[int, dict] = {}
     if graph.depth is None or graph.radius is None or fit.radius.size != graph.n_nodes:
@@ -860,7 +861,8 @@ def breast_height_fits(
         if trunk.size == 0:
             continue
         trunk = trunk[np.argsort(z[trunk])]
-        rec = {"dbh": float("nan"), "fits": 0, "wider": False}
+        band = [height - DBH_BAND, height + DBH_BAND]
+        rec = {"dbh": float("nan"), "fits": 0, "wider": False, "band": band}
         if good[trunk].any():
             rec.update(dbh=2 * float(np.median(fit.radius[trunk][good[trunk]])))
             rec.update(fits=int(good[trunk].sum()))
