@@ -133,6 +133,25 @@ def test_the_dbh_from_stem_circles_searches_wider_where_the_stem_was_cut():
     assert rd.breast_height_fits(g.with_(depth=None), pts, whole) == {}
 
 
+def test_the_dbh_from_stem_circles_leaves_out_circles_the_taper_model_rejected():
+    # a quarter of the TreeLS spruce's points: one 55 cm needle envelope round an 11 cm stem
+    # was the band's only circle, and the DBH from the circles read 109 cm. A circle the
+    # taper model did not keep (over KEEP_MAX_RATIO x the model) is not the stem, and a band
+    # whose searches closed circles, only too large ones, is not searched wider
+    import dataclasses
+
+    pts = _half_stem()
+    g = _chain((0.12, 0, 0), (0.12, 0, 2), 41)
+    g = g.with_(radius=np.full(41, 0.08), depth=np.zeros(41, dtype=np.int64))
+    whole = rd.fit_circles(g, pts, np.full(41, 0.2))
+    assert rd.well_covered(whole).any()
+    kept = dataclasses.replace(whole, reliable=np.ones(41, dtype=bool))
+    assert rd.breast_height_fits(g, pts, kept)[0]["dbh"] == pytest.approx(0.34, rel=0.02)
+    rejected = dataclasses.replace(whole, reliable=np.zeros(41, dtype=bool))
+    bh = rd.breast_height_fits(g, pts, rejected)[0]
+    assert np.isnan(bh["dbh"]) and bh["fits"] == 0 and not bh["wider"]
+
+
 def test_a_stem_scanned_from_one_position_reports_its_measured_dbh():
     from biomorph.tree.metrics import dbh, summary_rows
     from biomorph.tree.pipeline import skeletonize

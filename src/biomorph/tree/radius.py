@@ -831,9 +831,12 @@ def breast_height_fits(
     """Each tree's DBH from its stem's circle fits, as a forester measures it, beside the
     taper model's (``DBHqsm``): twice the median radius of the well-covered circles
     (:func:`well_covered`, not envelopes: :data:`STEM_INSIDE`) of the trunk's nodes
-    (order 0) within :data:`DBH_BAND` of ``height`` above the tree's lowest node.
+    (order 0) within :data:`DBH_BAND` of ``height`` above the tree's lowest node, among
+    those the taper model kept as measured (``fit.reliable`` where set: none over
+    :data:`KEEP_MAX_RATIO` × the model).
 
-    Where the pipeline's searches held none there, the band's nodes are fitted again in
+    Where the pipeline's searches closed no circle there at all, the band's nodes are
+    fitted again in
     wider searches (:data:`DBH_WIDER` × the radius they had): a stem seen from one scan
     position is half an arc, the skeleton runs along that face 0.6–0.8 radii off the axis,
     and every circle its searches allowed was smaller than the stem (the aspen preset
@@ -853,7 +856,13 @@ def breast_height_fits(
     def measured(f: RadiusFit) -> NDArray[np.bool_]:
         return well_covered(f) & _not_envelope(f)
 
-    good = measured(fit)
+    seen = measured(fit)
+    good = seen.copy()
+    if fit.reliable is not None:
+        # the circles the taper model kept as measured (step 4: none over KEEP_MAX_RATIO x
+        # the model): a lone needle envelope in the band is not the stem's DBH (a quarter
+        # of the TreeLS spruce's points: one 55 cm circle on an 11 cm stem gave 109 cm)
+        good &= fit.reliable
     for t in np.unique(labels):
         nodes = np.flatnonzero(labels == t)
         h = z[nodes] - z[nodes].min()
@@ -866,10 +875,11 @@ def breast_height_fits(
         if good[trunk].any():
             rec.update(dbh=2 * float(np.median(fit.radius[trunk][good[trunk]])))
             rec.update(fits=int(good[trunk].sum()))
-        elif trunk.size >= 2:
-            # the band's trunk as a chain (its own axes), searched wider
+        elif trunk.size >= 2 and not seen[trunk].any():
+            # no circle closed in the band's searches (cut by them, not too large for the
+            # model): the band's trunk as a chain (its own axes), searched wider
             chain = BranchGraph(graph.position[trunk], np.arange(-1, trunk.size - 1))
-            base = np.maximum(graph.radius[trunk], np.maximum(fit.radius[trunk], 0.0))
+            base = graph.radius[trunk]
             for k, wider in enumerate(DBH_WIDER):
                 f = fit_circles(
                     chain, xyz, wider * base, spacing=spacing, kdtree=kdtree, seed=seed + 1 + k
