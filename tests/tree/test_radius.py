@@ -167,3 +167,25 @@ def test_a_stem_scanned_from_one_position_reports_its_measured_dbh():
     assert t["dbh_fit_band"] == pytest.approx([1.3 - rd.DBH_BAND, 1.3 + rd.DBH_BAND])
     row = dict(summary_rows(skel.metrics))["DBH (cm)"]
     assert "model" in row and "searched wider" in row and "at 1.0-1.6 m" in row
+
+
+def test_a_stem_anchor_between_two_populations_starts_from_the_densest_half():
+    # a quarter of the TreeLS spruce's points: the stem's lower half held 45 reliable fits,
+    # its 10-16 cm sections and needle envelopes of 20-50 cm round it, scattering 0.78 in
+    # log radius (x2.2); the trimmed median sat between them and anchored the taper at 24 cm
+    # (2,706 L for the full cloud's 491). Past the artefact factor (KEEP_MAX_RATIO) the
+    # trimming starts from the densest half of the fits
+    rng = np.random.default_rng(0)
+    stem = np.log(0.12) + rng.normal(0, 0.08, 22)
+    envelopes = np.log(rng.uniform(0.18, 0.55, 23))
+    y = np.r_[stem, envelopes]
+    cum = np.zeros(y.size)
+    every = np.ones(y.size, dtype=bool)
+    plain, scatter, _ = rd._robust_line(cum, y, 1.0)
+    assert scatter > np.log(rd.KEEP_MAX_RATIO) and np.exp(plain) > 0.16
+    a, sc, src = rd._tree_anchor(cum, y, every, every, None, 0.0)
+    assert src == "stem" and np.exp(a) == pytest.approx(0.12, rel=0.1)
+    assert sc < np.log(rd.KEEP_MAX_RATIO)
+    # one population (however it is spread below that factor): the plain trimmed median
+    y1 = np.log(0.12) + rng.normal(0, 0.15, 45)
+    assert rd._tree_anchor(cum, y1, every, every, None, 0.0)[0] == rd._robust_line(cum, y1, 1.0)[0]

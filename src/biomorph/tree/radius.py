@@ -1257,10 +1257,21 @@ def _cap_down_slack(parent, order, r, slack):
     return treeops.cap_down(parent, r, slack, order)
 
 
-def _robust_line(x: NDArray, y: NDArray, slope: float | None) -> tuple[float, float, float]:
+def _shortest_half(v: NDArray) -> NDArray[np.bool_]:
+    """The values in the shortest interval holding half of ``v`` (Rousseeuw's shorth)."""
+    o = np.sort(v)
+    h = max(o.size // 2, 1)
+    i = int(np.argmin(o[h - 1 :] - o[: o.size - h + 1]))
+    return (v >= o[i]) & (v <= o[i + h - 1])
+
+
+def _robust_line(
+    x: NDArray, y: NDArray, slope: float | None, *, start: NDArray[np.bool_] | None = None
+) -> tuple[float, float, float]:
     """``y ≈ a + b x`` by least squares with two rounds of 3-MAD trimming; returns
-    ``(a, b, scatter)`` (scatter = 1.4826 MAD of the kept residuals). ``slope`` fixes b."""
-    keep = np.ones(x.size, dtype=bool)
+    ``(a, b, scatter)`` (scatter = 1.4826 MAD of the kept residuals). ``slope`` fixes b;
+    ``start``: the points the first round is fitted on (default all)."""
+    keep = np.ones(x.size, dtype=bool) if start is None else start.copy()
     a, b = float(np.median(y)), slope or 0.0
     for _ in range(3):
         if slope is None:
@@ -1294,6 +1305,11 @@ def _tree_anchor(cum, y, rm, sm_, pooled, shift: float) -> tuple[float, float, s
     else the tree's own reliable fits (``rm``), else 1 cm at the root."""
     if sm_.sum() >= 3:  # anchored on the stem: its sections are the best seen
         a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0)
+        if sc > np.log(KEEP_MAX_RATIO):
+            # the stem's fits scatter wider than the factor that tells an artefact from a
+            # measurement: two populations (the stem and needle envelopes round it), and
+            # the trimmed median lies between them. Start from the densest half instead
+            a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0, start=_shortest_half(y[sm_] - cum[sm_]))
         if pooled is None or a <= pooled[0] + shift + np.log(STEM_POOL_RATIO):
             return a, sc, "stem"
         return pooled[0] + shift, pooled[2], "all trees (own stem fits too thick)"
