@@ -11,6 +11,19 @@ from tests.studio.conftest import wait_for
 pytestmark = pytest.mark.browser
 
 
+def _check_up_axis(tab, metres):
+    """A Y-up export is drawn turned Z-up and run so (tree.cloud.to_z_up)."""
+    from biomorph.core.pointcloud import PointCloud
+    from biomorph.tree.cloud import Y_UP_TO_Z_UP
+
+    assert tab.options().prepare.up is None
+    tab.set_cloud(PointCloud(metres.xyz @ Y_UP_TO_Z_UP), "photogrammetry")  # lying
+    tab.up.value = "y"
+    assert tab.options().prepare.up == "y"
+    assert np.ptp(tab._display_xyz()[:, 2]) == pytest.approx(np.ptp(metres.xyz[:, 2]))
+    tab.up.value = "z"
+
+
 def test_tree_tab(studio, tmp_path):
     app = studio.app
     assert "tree" in app.tabs, f"tree tab failed to build: {app.unavailable.get('tree')}"
@@ -89,6 +102,7 @@ def test_tree_tab(studio, tmp_path):
     assert tab.last_error is None, tab.last_error
     assert tab.result.params["units"] == "mm" and np.ptp(tab.result.cloud.xyz[:, 2]) < 100
     tab.units.value = "m"
+    _check_up_axis(tab, metres)
     tab.set_cloud(metres, "aspen")
     studio.click("Run")
     wait_for(lambda: tab.result is not None or tab.last_error, timeout=90, what="the skeleton")

@@ -29,7 +29,7 @@ from scipy.spatial import cKDTree
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 from biomorph.tree.neighbours import NeighbourCache, query_blocks, query_ordered, smooth_median
-from biomorph.tree.options import UNITS
+from biomorph.tree.options import UNITS, UP_AXES
 
 __all__ = [
     "validate_cloud",
@@ -37,6 +37,7 @@ __all__ = [
     "MAX_TREE_HEIGHT",
     "to_metres",
     "check_units",
+    "to_z_up",
     "duplicate_points",
     "LAS_NOISE",
     "flagged_points",
@@ -78,6 +79,29 @@ def to_metres(cloud: PointCloud, units: str) -> PointCloud:
         if meta.get(key) is not None:
             meta[key] = np.asarray(meta[key], dtype=np.float64) * s
     return PointCloud(cloud.xyz * s, dict(cloud.attributes), cloud.offset * s, meta, cloud.source)
+
+
+#: Y-up -> Z-up: (x, y, z) -> (x, -z, y), a rotation of +90 degrees about x (determinant
+#: 1: handedness kept, so a tree's spiral phyllotaxis and the model's twist are not mirrored)
+Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
+def to_z_up(cloud: PointCloud, up: str) -> PointCloud:
+    """The cloud turned so that its ``up`` axis (``"z"`` or ``"y"``) points along +Z: its
+    coordinates, its offset and the LAS scales and offsets kept for writing it back (the
+    grid permuted with the axes)."""
+    if up not in UP_AXES:
+        raise ParameterError(f"up axis {up!r}; expected one of {', '.join(UP_AXES)}")
+    if up == "z":
+        return cloud
+    rot = Y_UP_TO_Z_UP
+    meta = dict(cloud.meta)
+    if meta.get("scales") is not None:
+        meta["scales"] = np.abs(rot) @ np.asarray(meta["scales"], dtype=np.float64)
+    if meta.get("offsets") is not None:
+        meta["offsets"] = rot @ np.asarray(meta["offsets"], dtype=np.float64)
+    xyz = cloud.xyz @ rot.T
+    return PointCloud(xyz, dict(cloud.attributes), rot @ cloud.offset, meta, cloud.source)
 
 
 def check_units(cloud: PointCloud) -> None:

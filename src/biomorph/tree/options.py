@@ -47,6 +47,7 @@ __all__ = [
     "STAGES",
     "METHODS",
     "UNITS",
+    "UP_AXES",
     "cli_default",
     "cli_fields",
     "cli_type",
@@ -100,6 +101,11 @@ def _opt(default: Any, flag: str, help: str, **cli: Any) -> Any:
 #: metres per unit of a cloud's coordinates (``PrepareOptions.units``, ``--units``;
 #: :func:`biomorph.tree.cloud.to_metres`)
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "ft": 0.3048}
+
+#: the axis a cloud's coordinates point up along (``PrepareOptions.up``, ``--up``;
+#: :func:`biomorph.tree.cloud.to_z_up`): the tree pillar works Z-up (LAS, TreeQSM), and a
+#: Y-up export (glTF-style PLY / OBJ, photogrammetry and game tools) is turned so
+UP_AXES = ("z", "y")
 
 
 @dataclass(frozen=True)
@@ -165,6 +171,13 @@ class PrepareOptions:
         "Units of the cloud's coordinates: m, cm, mm or ft; every output is in metres "
         "(default: metres, and a cloud taller than any tree, 200 m, stops with a message "
         "naming the units it looks like; tree.cloud.check_units).",
+    )
+    up: str | None = _opt(
+        None,
+        "--up",
+        "Axis the cloud's coordinates point up along: z (default) or y (a Y-up export: "
+        "glTF-style PLY / OBJ, photogrammetry tools); a Y-up cloud is turned Z-up, "
+        "(x, y, z) -> (x, -z, y), and every output is in that Z-up frame.",
     )
     outliers: bool = _opt(True, "--outliers", "Statistical outlier removal.", kind="enabled")
     memory_check: bool = _opt(
@@ -533,6 +546,7 @@ _LEGACY = {
     "outliers": ("prepare", "outliers"),
     "memory_check": ("prepare", "memory_check"),
     "units": ("prepare", "units"),
+    "up": ("prepare", "up"),
     "ground": ("prepare", "ground"),
     "foliage": ("prepare", "foliage"),
     "foliage_passes": ("prepare", "foliage_passes"),
@@ -620,6 +634,10 @@ class SkeletonizeOptions:
         if self.prepare.units is not None and self.prepare.units not in UNITS:
             raise ParameterError(
                 f"units {self.prepare.units!r}; expected one of {', '.join(UNITS)}"
+            )
+        if self.prepare.up is not None and self.prepare.up not in UP_AXES:
+            raise ParameterError(
+                f"up axis {self.prepare.up!r}; expected one of {', '.join(UP_AXES)}"
             )
         fol = self.prepare.foliage
         if isinstance(fol, str) and fol != "auto":

@@ -328,11 +328,13 @@ def skeletonize(
 
 def prepare_phase(run: _Run) -> None:
     """Centre, filter, downsample, de-noise, remove ground, foliage and clutter."""
-    from biomorph.tree.cloud import check_units, prepare, to_metres
+    from biomorph.tree.cloud import check_units, prepare, to_metres, to_z_up
 
     po = run.opts.prepare
     go = run.opts.graph
     t0 = time.perf_counter()
+    if po.up is not None:  # turned Z-up first: the height the units check reads is z
+        run.raw = to_z_up(run.raw, po.up)
     if po.units is None:  # metres, unless the cloud is taller than any tree
         check_units(run.raw)
     else:
@@ -393,6 +395,7 @@ def prepare_phase(run: _Run) -> None:
             "method": run.opts.method,
             "seed": run.opts.seed,
             "units": po.units or "m",
+            "up": po.up or "z",
             "sparse_filter": po.sparse_filter,
             "foliage": foliage,
             "foliage_passes": po.foliage_passes,

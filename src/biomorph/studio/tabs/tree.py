@@ -109,6 +109,12 @@ class TreeTab(StudioTab):
             self.units = gui.add_dropdown(
                 "Cloud units", options=("m", "cm", "mm", "ft"), initial_value="m"
             )
+            # a Y-up export (glTF-style PLY, photogrammetry) shows lying on its side: turn
+            # it Z-up (tree.cloud.to_z_up); the cloud is redrawn turned before the run
+            from biomorph.tree.options import UP_AXES
+
+            self.up = gui.add_dropdown("Cloud up axis", options=UP_AXES, initial_value="z")
+            self.up.on_update(self.live("cloud up axis", self.draw_cloud))
             self.models = gui.add_slider(
                 "Models (nearest kept)", min=1, max=9, step=1, initial_value=1
             )
@@ -203,7 +209,9 @@ class TreeTab(StudioTab):
 
     def _display_xyz(self) -> np.ndarray:
         """Cloud coordinates as drawn: bottom centre of the bounding box at the origin."""
-        xyz = self.cloud.xyz
+        from biomorph.tree.cloud import to_z_up
+
+        xyz = to_z_up(self.cloud, self.up.value).xyz
         lo, hi = xyz.min(axis=0), xyz.max(axis=0)
         return xyz - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
 
@@ -287,7 +295,10 @@ class TreeTab(StudioTab):
             cleanup=CleanupOptions(enabled=bool(self.cleanup.value)),
             radius=RadiusOptions(method=self.radius.value),
             # metres: checked (tree.cloud.check_units); other units converted to metres
-            prepare=PrepareOptions(units=None if self.units.value == "m" else self.units.value),
+            prepare=PrepareOptions(
+                units=None if self.units.value == "m" else self.units.value,
+                up=None if self.up.value == "z" else self.up.value,
+            ),
         )
 
     def _progress(self, cancel: threading.Event) -> Any:
