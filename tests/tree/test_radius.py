@@ -189,3 +189,18 @@ def test_a_stem_anchor_between_two_populations_starts_from_the_densest_half():
     # one population (however it is spread below that factor): the plain trimmed median
     y1 = np.log(0.12) + rng.normal(0, 0.15, 45)
     assert rd._tree_anchor(cum, y1, every, every, None, 0.0)[0] == rd._robust_line(cum, y1, 1.0)[0]
+
+
+def test_a_search_cylinder_outside_the_cloud_holds_nothing():
+    # the stem tracker (tree.stem) walks past a cloud's top: a cylinder above the grid's
+    # cells read past their column (a segmentation fault); below and beside it too
+    rng = np.random.default_rng(2)
+    pts = cylinder_points((0, 0, 0), (0, 0, 2), 0.1, 3000, rng, noise=0.002)
+    top = pts.max(axis=0)  # above the grid's last column: past the end of its cells
+    for far in ((*top[:2], 50.0), (*top[:2], 5e4), (0, 0, -50.0), (40.0, 0, 1.0), (0, -40.0, 1)):
+        g = _chain(far, np.add(far, (0, 0, 0.1)), 3)
+        fit = rd.fit_circles(g, pts, np.full(3, 0.1))
+        assert not fit.ok.any() and (fit.inliers == 0).all()
+    # and the stem itself still fits beside them
+    g = _chain((0, 0, 0.5), (0, 0, 1.5), 5)
+    assert rd.fit_circles(g, pts, np.full(5, 0.1)).ok.all()

@@ -204,6 +204,9 @@ class _Run:
     #: :meth:`limb_mask` of the skeleton the radius stage last fitted (node for node with
     #: ``graph`` after it)
     limb_nodes: NDArray[np.bool_] | None = None
+    #: the stems followed through ``cloud`` so far (:func:`biomorph.tree.stem.stem_tracks`'
+    #: cache: the points do not change between the radius passes)
+    stem_tracks: list = field(default_factory=list)
 
     def limb_mask(self, graph: BranchGraph) -> NDArray[np.bool_] | None:
         """The nodes of ``graph`` at :attr:`limb_points` (None: no limb turned)."""
@@ -648,6 +651,27 @@ def _check_skeleton(run: _Run) -> None:
     run.tick("skeleton")
 
 
+def _stem_tracker(run: _Run):
+    """The taper model's stem anchor: the stem followed through the points
+    (:func:`biomorph.tree.stem.stem_tracks`)."""
+    import functools
+
+    from biomorph.tree.stem import stem_tracks
+
+    assert run.cloud is not None
+    spacing = run.point_spacing()
+    if not spacing:
+        return None
+    return functools.partial(
+        stem_tracks,
+        xyz=run.cloud.xyz,
+        spacing=spacing,
+        kdtree=run.point_index(),
+        seed=run.opts.seed,
+        cache=run.stem_tracks,
+    )
+
+
 def radius_phase(run: _Run, tick: bool = True) -> None:
     """Radii from circle fits (or the allometric model), then chain smoothing."""
     from biomorph.tree import livny
@@ -676,6 +700,7 @@ def radius_phase(run: _Run, tick: bool = True) -> None:
             seed=run.opts.seed,
             spacing=run.point_spacing() or None,
             kdtree=run.point_index(),
+            stems=_stem_tracker(run),
         )
         run.fit = fit
         run.quality = {
@@ -964,6 +989,7 @@ def segment_phase(run: _Run) -> None:
         exponent=ro.taper_exponent,
         kdtree=run.point_index(),
         trusted=limbs if limbs is not None and limbs.size == graph.n_nodes else None,
+        stems=_stem_tracker(run),
     )
     graph_r = graph.with_(radius=radius)
     if ro.recentre and fit.segment_centre is not None:

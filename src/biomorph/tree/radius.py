@@ -44,7 +44,16 @@ from biomorph.tree.neighbours import PointIndex, _build_grid
 from biomorph.tree.run_cylinders import SegmentFit, fit_segments
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from biomorph.tree.metrics import SegmentCandidates
+
+    #: per tree label the stem's tracked circles (nodes, radii), from (graph, fit, stem
+    #: mask, reliable mask): :func:`biomorph.tree.stem.stem_tracks`
+    StemTracker = Callable[
+        [BranchGraph, "RadiusFit", NDArray[np.bool_], NDArray[np.bool_]],
+        dict[int, tuple[NDArray[np.int64], NDArray[np.float64]]],
+    ]
 
 __all__ = [
     "RadiusFit",
@@ -439,6 +448,11 @@ def _slab_points(start, rank, pts, lo, cell, dims, pos, axes, t0, t1, depth, rs,
             box0[c] = int(max(i0, 0.0))
             box1[c] = int(min(i1, dims[c] - 1.0))
         m = 0
+        # a cylinder wholly outside the grid (a stem followed past the cloud's top,
+        # tree.stem) holds nothing: its z range would index past its column's cells
+        outside = box0[0] > box1[0] or box0[1] > box1[1] or box0[2] > box1[2]
+        if outside:
+            box1[0] = box0[0] - 1
         for ix in range(box0[0], box1[0] + 1):
             for iy in range(box0[1], box1[1] + 1):
                 col = (ix * ny + iy) * nz
@@ -699,9 +713,10 @@ def fit_radii(
     spacing: float | None = None,
     kdtree: cKDTree | None = None,
     trusted: NDArray[np.bool_] | None = None,
+    stems: StemTracker | None = None,
 ) -> tuple[BranchGraph, RadiusFit]:
     """Radii (and optionally re-centred positions) from the points; see the module doc.
-    ``trusted``: as :func:`taper_radii`.
+    ``trusted``, ``stems``: as :func:`taper_radii`.
 
     Radii never exceed ``slack`` times the parent's (:func:`cap_down`; pipe model: a
     branch is not thicker than the stem carrying it). With ``recentre`` the shifts to the
@@ -804,6 +819,7 @@ def fit_radii(
             exponent=taper_exponent,
             slack=slack,
             trusted=trusted,
+            stems=stems,
         )
     if recentre and fit is not None and spacing:
         g = centre_thin_nodes(g, xyz, radius, fit.ok, spacing, search_depth, kdtree=kd)
@@ -904,8 +920,9 @@ def segment_radii(
     slack: float = 1.1,
     kdtree: PointIndex | None = None,
     trusted: NDArray[np.bool_] | None = None,
+    stems: StemTracker | None = None,
 ) -> tuple[NDArray[np.float64], RadiusFit]:
-    """The taper model again (:func:`taper_radii`, ``trusted`` as there), now with the
+    """The taper model again (:func:`taper_radii`, ``trusted`` and ``stems`` as there), now with the
     cylinders of runs of nodes (:func:`biomorph.tree.run_cylinders.fit_segments`) as
     measurements where no circle fit is reliable, off the stem. Run once on the final
     skeleton (``fit``: its last circle fits; ``graph.radius``: the radii so far, the runs'
@@ -920,7 +937,13 @@ def segment_radii(
     noise = _scatter(fit, reliable, stem)
     if noise <= 0:
         return taper_radii(
-            graph, fit, min_radius=min_radius, exponent=exponent, slack=slack, trusted=trusted
+            graph,
+            fit,
+            min_radius=min_radius,
+            exponent=exponent,
+            slack=slack,
+            trusted=trusted,
+            stems=stems,
         )
     d, near = skeleton_distance(xyz, graph.parent, graph.position, order=kd.indices)
     bid, _ = branch_ids(graph, carried)
@@ -944,6 +967,7 @@ def segment_radii(
         slack=slack,
         segments=segs,
         trusted=trusted,
+        stems=stems,
     )
 
 
@@ -1297,21 +1321,36 @@ def _robust_line(
 STEM_POOL_RATIO = 3.0
 
 
-def _tree_anchor(cum, y, rm, sm_, pooled, shift: float) -> tuple[float, float, str]:
+def _tree_anchor(cum, y, rm, sm_, pooled, shift: float, track=None) -> tuple[float, float, str]:
     """One tree's taper-model level ``a``, its scatter and where it came from
     (:func:`taper_radii`, step 3): its stem's reliable fits (``sm_``), unless they lie over
     :data:`STEM_POOL_RATIO` above the ``pooled`` line of all trees' stems (shifted by
     ``shift`` for the wood this tree carries); without three stem fits the pooled line,
-    else the tree's own reliable fits (``rm``), else 1 cm at the root."""
+    else the tree's own reliable fits (``rm``), else 1 cm at the root.
+
+    The stem followed through the points section by section (``track()``: its nodes and
+    model ordinates, :func:`biomorph.tree.stem.stem_tracks`) anchors the model instead
+    where the stem path's fits put it above the band in which the tracked stem's own
+    model keeps a fit as measured (step 4: 3 of its scatters, at most
+    :data:`KEEP_MAX_RATIO`): those fits are needle envelopes or junctions, however
+    consistently (a sparse spruce's stem path through its whorls), or where they scatter
+    wider than :data:`KEEP_MAX_RATIO` (the factor that tells an artefact from a
+    measurement: two populations, the trimmed median between them). Without a track
+    the trimming then starts from the densest half of the fits."""
     if sm_.sum() >= 3:  # anchored on the stem: its sections are the best seen
         a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0)
-        if sc > np.log(KEEP_MAX_RATIO):
-            # the stem's fits scatter wider than the factor that tells an artefact from a
-            # measurement: two populations (the stem and needle envelopes round it), and
-            # the trimmed median lies between them. Start from the densest half instead
+        src = "stem"
+        got = track() if track is not None else None
+        if got is not None:
+            nodes, yt = got
+            at, _, st = _robust_line(cum[nodes], yt, 1.0)
+            band = min(3 * st, np.log(KEEP_MAX_RATIO))
+            if st <= np.log(KEEP_MAX_RATIO) and (a - at > band or sc > np.log(KEEP_MAX_RATIO)):
+                a, sc, src = at, st, "stem (tracked)"
+        if src == "stem" and sc > np.log(KEEP_MAX_RATIO):
             a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0, start=_shortest_half(y[sm_] - cum[sm_]))
         if pooled is None or a <= pooled[0] + shift + np.log(STEM_POOL_RATIO):
-            return a, sc, "stem"
+            return a, sc, src
         return pooled[0] + shift, pooled[2], "all trees (own stem fits too thick)"
     if pooled is not None:  # a fragment without a measured stem: the plot's stems
         return pooled[0] + shift, pooled[2], "all trees"
@@ -1319,6 +1358,23 @@ def _tree_anchor(cum, y, rm, sm_, pooled, shift: float) -> tuple[float, float, s
         a, _, sc = _robust_line(cum[rm], y[rm], 1.0)
         return a, sc, "tree"
     return float(np.log(0.01)), 1.0, "none"  # no fit at all: 1 cm at the root
+
+
+def _lazy_tracks(stems, graph, fit, stem, reliable, floor: float):
+    """Per tree label its tracked stem as the taper model's anchor reads it (nodes, model
+    ordinates ``log(r - floor)``), every tree tracked by ``stems`` once, on first use."""
+    tracked: dict = {}
+
+    def track_of(t: int):
+        if stems is None:
+            return None
+        if not tracked:
+            tracked[-1] = None  # asked: not again
+            for k, (nodes, rt) in stems(graph, fit, stem, reliable).items():
+                tracked[int(k)] = (nodes, np.log(np.maximum(rt - floor, 0.5 * rt)))
+        return tracked.get(t)
+
+    return track_of
 
 
 def taper_radii(
@@ -1333,9 +1389,15 @@ def taper_radii(
     within: bool = True,
     segments: SegmentFit | None = None,
     trusted: NDArray[np.bool_] | None = None,
+    stems: StemTracker | None = None,
 ) -> tuple[NDArray[np.float64], RadiusFit]:
     """Final radii: reliable circle fits where the scan measured the cross-section, a
     taper (pipe) model fitted on them elsewhere.
+
+    ``stems``: called as ``stems(graph, fit, stem, reliable)``, per tree label the stem's
+    circles followed through the points (nodes and radii,
+    :func:`biomorph.tree.stem.stem_tracks`), which anchor the model of a tree whose stem
+    path's own fits hold two populations (step 3, :func:`_tree_anchor`).
 
     ``trusted``: nodes whose reliable fits are their radii whatever the model says, the
     nodes between them filled from the nearest such fit along the tree (limbs turned round,
@@ -1414,8 +1476,7 @@ def taper_radii(
         within = False
     else:
         x = np.log(carried)
-    floor = float(min_radius)
-    r_fit = np.maximum(fit.radius, 1e-12)
+    floor, r_fit = float(min_radius), np.maximum(fit.radius, 1e-12)
     # the model describes r - floor; a fit barely above the floor keeps half its radius
     y = np.log(np.maximum(r_fit - floor, 0.5 * r_fit))
     bid, cont = branch_ids(graph, carried)
@@ -1431,6 +1492,7 @@ def taper_radii(
     # the stem is anchored on its own fits (lower half) and tapered once chosen: runs
     # there are left to that
     run = _fit_runs(graph, r_fit, reliable) & ~stem
+    track_of = _lazy_tracks(stems, graph, fit, stem, reliable, floor)
 
     def scaled(own: dict[int, float]) -> tuple[NDArray, NDArray, NDArray, dict]:
         """The model with the given per-branch slopes, its scale fitted per tree, and the
@@ -1455,12 +1517,21 @@ def taper_radii(
             m = trees == t
             rm = m & reliable
             sm_ = rm & stem
-            a, sc, src = _tree_anchor(cum, y, rm, sm_, pooled, b_fork * float(x_top[m][0]))
+            a, sc, src = _tree_anchor(
+                cum,
+                y,
+                rm,
+                sm_,
+                pooled,
+                b_fork * float(x_top[m][0]),
+                functools.partial(track_of, int(t)),
+            )
             model[m] = a + cum[m]
             # one-sided: a reliable fit thinner than the model is kept (artefacts — needle
             # envelopes, neighbouring twigs in the slab, junctions — inflate circles)
             keep[rm] = y[rm] - model[rm] <= min(3 * sc, np.log(KEEP_MAX_RATIO))
-            scale[int(t)] = (a, sc, src, int(sm_.sum()))
+            tr = track_of(int(t)) if src == "stem (tracked)" else None
+            scale[int(t)] = (a, sc, src, int(sm_.sum()) if tr is None else tr[0].size)
         return model, keep, cum, scale
 
     # first the tree slopes alone, to tell which fits the model keeps; then each branch's own
