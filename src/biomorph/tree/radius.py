@@ -560,6 +560,7 @@ def fit_circles(
     min_density: float = 0.1,
     seed: int = 0,
     kdtree: cKDTree | None = None,
+    axes: NDArray[np.float64] | None = None,
 ) -> RadiusFit:
     """RANSAC + least-squares circle per node in its cross-section plane (steps 1–3).
 
@@ -569,7 +570,8 @@ def fit_circles(
     clipped to [``tolerance_abs``, ``tolerance_max``] metres (a large circle through a few
     points of neighbouring twigs must not pass as a stem). ``spacing`` (median point
     spacing, m): with it, a fit also needs ``min_density`` of the points a fully sampled
-    arc of its coverage would hold.
+    arc of its coverage would hold. ``axes``: the planes' unit normals per node if known
+    (default :func:`node_axes`).
     """
     n = graph.n_nodes
     if search_factor <= 1:
@@ -581,7 +583,7 @@ def fit_circles(
     rs = np.maximum(search_factor * np.asarray(prior, dtype=float), min_search)
     rs = np.maximum(rs, 1e-4)
     t0, t1, indptr, u, w = _cross_sections(
-        graph.position, node_axes(graph), xyz, kd, rs, float(search_depth)
+        graph.position, node_axes(graph) if axes is None else axes, xyz, kd, rs, float(search_depth)
     )
     cx = np.zeros(n)
     cy = np.zeros(n)

@@ -115,6 +115,7 @@ def _walk(
             spacing=spacing,
             kdtree=kd,
             seed=seed + call,
+            axes=np.broadcast_to(axis, nodes.shape),
         )
         good = well_covered(f) & _not_envelope(f)
         inside = f.inside if f.inside is not None else np.zeros(TRACK_BATCH + 1, np.int64)
@@ -250,9 +251,7 @@ def stem_tracks(
             continue
         best = _cached(cache, pos[sm])
         if best is None:
-            best = _seeded(graph, fit, m, cand, sm, xyz, spacing, kdtree, seed)
-            if best is not None and best.n >= TRACK_MIN_CIRCLES:
-                cache.append(best)
+            best = _seeded(graph, fit, m, cand, xyz, spacing, kdtree, seed, cache)
         if best is None or best.n < TRACK_MIN_CIRCLES:
             continue
         # the stem's nodes the track covers (a circle within two radii of their height),
@@ -269,14 +268,32 @@ def stem_tracks(
 
 
 def _cached(cache: list[StemTrack], stem_pos: NDArray[np.float64]) -> StemTrack | None:
-    """The longest track of ``cache`` that :data:`TRACK_MIN_CIRCLES` of the tree's stem
-    nodes lie on (:func:`_covers`), if any."""
-    on = [tr for tr in cache if _covers(tr, stem_pos) >= TRACK_MIN_CIRCLES]
+    """The longest track of ``cache`` (of :data:`TRACK_MIN_CIRCLES` circles or more) that
+    as many of the tree's stem nodes lie on (:func:`_covers`), if any."""
+    on = [
+        tr
+        for tr in cache
+        if tr.n >= TRACK_MIN_CIRCLES and _covers(tr, stem_pos) >= TRACK_MIN_CIRCLES
+    ]
     return max(on, key=lambda tr: tr.n) if on else None
 
 
-def _seeded(graph, fit, m, cand, sm, xyz, spacing, kdtree, seed) -> StemTrack | None:
-    """The longest track from the tree's seeds (:func:`stem_tracks`)."""
+def _tried(cache: list[StemTrack], centre: NDArray[np.float64], radius: float) -> bool:
+    """Whether a seed section lies on a track of ``cache`` (one of its circles within its
+    radius, with a radius within :data:`TRACK_RATIO` of its): tracked from there, it would
+    follow that track again (the radius stage's later passes move a section by its
+    recentring, not to another stem; a tree's seeds on one stem give one track)."""
+    for tr in cache:
+        near = np.linalg.norm(tr.centre - centre, axis=1) <= radius
+        ratio = tr.radius[near] / radius
+        if ((ratio >= 1 / TRACK_RATIO) & (ratio <= TRACK_RATIO)).any():
+            return True
+    return False
+
+
+def _seeded(graph, fit, m, cand, xyz, spacing, kdtree, seed, cache) -> StemTrack | None:
+    """The longest track from the tree's seeds (:func:`stem_tracks`); every track is
+    appended to ``cache`` (a short one too: the same seed is not tracked again)."""
     z = graph.position[:, 2]
     base = float(z[m].min())
     height = float(z[m].max()) - base
@@ -288,9 +305,12 @@ def _seeded(graph, fit, m, cand, sm, xyz, spacing, kdtree, seed) -> StemTrack | 
             seeds.append(v)
     best: StemTrack | None = None
     for k, v in enumerate(seeds):
+        if _tried(cache, fit.centre[v], float(fit.radius[v])):
+            continue
         tr = track_stem(
             xyz, spacing, fit.centre[v], float(fit.radius[v]), kdtree=kdtree, seed=seed + k
         )
+        cache.append(tr)
         if best is None or tr.n > best.n:
             best = tr
     for level in range(INNER_LEVELS):
@@ -299,6 +319,7 @@ def _seeded(graph, fit, m, cand, sm, xyz, spacing, kdtree, seed) -> StemTrack | 
         inner = _inner(best, xyz, spacing, kdtree, seed + 100 * (level + 1))
         if inner is None:
             break
+        cache.append(inner)
         best = inner
     return best
 
