@@ -193,3 +193,24 @@ def test_the_spruce_reads_one_spacing_with_or_without_its_duplicate_points():
     assert dup.sum() == 3242
     a, b = estimate_spacing(xyz), estimate_spacing(xyz[~dup])
     assert a == pytest.approx(b, rel=0.01) and 0.0145 < b < 0.0165
+
+
+def test_a_quarter_of_the_spruce_anchors_on_its_stem_not_on_its_whorls():
+    """The density table's quarter of the TreeLS spruce (`bench/tree.py --only density`:
+    random draws of 100 %, 50 %, 25 % from seed 0): its skeleton's stem path circles out
+    through the whorls, half its anchor's fits were needle envelopes, and the model held
+    2,706 L for the full cloud's 491 (session 30). The stem followed through the points
+    (tree.stem) anchors it: 468 L, DBH 22 cm (full cloud 23.9)."""
+    cloud = read_points(shared_file("trees", "treels_spruce.laz"))
+    rng = np.random.default_rng(0)
+    for frac in (1.0, 0.5, 0.25):
+        n = int(round(frac * cloud.n_points))
+        keep = np.sort(rng.choice(cloud.n_points, n, replace=False))
+    skel = skeletonize(cloud.select(keep))
+    trees = skel.metrics["trees"]
+    volume = sum(t["total_volume"] for t in trees)
+    assert 0.35 < volume < 0.65  # m³; the full cloud's model 0.49
+    main = max(trees, key=lambda t: t["total_volume"])
+    assert 0.18 < main["dbh"] < 0.3
+    anchors = {m["anchor"] for m in skel.info["taper_model"].values()}
+    assert "stem (tracked)" in anchors
