@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from biomorph.core.graph import BranchGraph
+from biomorph.errors import ParameterError
 from biomorph.tree import radius as rd
 from biomorph.tree import stem as st
 from biomorph.tree.neighbours import PointIndex
@@ -75,7 +76,7 @@ def test_a_leaning_stem_is_followed_along_its_axis():
 
 def test_bad_seeds_are_refused():
     pts = _needled_stem()
-    with pytest.raises(ValueError, match="must be > 0"):
+    with pytest.raises(ParameterError, match="must be > 0"):
         st.track_stem(pts, 0.0, np.zeros(3), 0.1, kdtree=PointIndex(pts))
 
 

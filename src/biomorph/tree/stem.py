@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from biomorph.core.graph import BranchGraph
+from biomorph.errors import ParameterError
 from biomorph.tree.radius import RadiusFit, _not_envelope, fit_circles, well_covered
 
 __all__ = ["StemTrack", "track_stem", "stem_tracks", "TRACK_MIN_CIRCLES"]
@@ -173,7 +174,7 @@ def track_stem(
     through the points ``xyz`` (k-d tree ``kdtree``, point spacing ``spacing``); the seed
     section is included. See the module doc for the rules."""
     if spacing <= 0 or radius <= 0:
-        raise ValueError(f"spacing and radius must be > 0 m, got {spacing}, {radius}")
+        raise ParameterError(f"spacing and radius must be > 0 m, got {spacing}, {radius}")
     c0 = np.asarray(centre, dtype=float)
     ups = _walk(xyz, kdtree, spacing, c0, radius, 1.0, seed, search_factor)
     downs = _walk(xyz, kdtree, spacing, c0, radius, -1.0, seed + 50_000, search_factor)
