@@ -52,7 +52,7 @@ if TYPE_CHECKING:
     #: mask, reliable mask): :func:`biomorph.tree.stem.stem_tracks`
     StemTracker = Callable[
         [BranchGraph, "RadiusFit", NDArray[np.bool_], NDArray[np.bool_]],
-        dict[int, tuple[NDArray[np.int64], NDArray[np.float64]]],
+        dict[int, tuple[NDArray[np.int64], NDArray[np.float64], float]],
     ]
 
 __all__ = [
@@ -1323,6 +1323,13 @@ def _robust_line(
 STEM_POOL_RATIO = 3.0
 
 
+#: under this share of the stem path's nodes on the tracked stem (within two of its radii
+#: of its axis) the path runs mostly off the stem, and its fits are mostly not the stem's:
+#: the full real clouds' paths hold 0.68-1.0 of their nodes on it, a quarter of the TreeLS
+#: spruce's 0.32-0.60 (its path circles through the whorls)
+STEM_PATH_ON_TRACK = 0.5
+
+
 def _tree_anchor(cum, y, rm, sm_, pooled, shift: float, track=None) -> tuple[float, float, str]:
     """One tree's taper-model level ``a``, its scatter and where it came from
     (:func:`taper_radii`, step 3): its stem's reliable fits (``sm_``), unless they lie over
@@ -1338,17 +1345,24 @@ def _tree_anchor(cum, y, rm, sm_, pooled, shift: float, track=None) -> tuple[flo
     consistently (a sparse spruce's stem path through its whorls), or where they scatter
     wider than :data:`KEEP_MAX_RATIO` (the factor that tells an artefact from a
     measurement: two populations, the trimmed median between them). Without a track
-    the trimming then starts from the densest half of the fits."""
+    the trimming then starts from the densest half of the fits. Where the levels agree but
+    under :data:`STEM_PATH_ON_TRACK` of the stem path's nodes lie on the tracked stem, the
+    scatter (the band of :func:`taper_radii`, step 4) is the lesser of the two."""
     if sm_.sum() >= 3:  # anchored on the stem: its sections are the best seen
         a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0)
         src = "stem"
         got = track() if track is not None else None
         if got is not None:
-            nodes, yt = got
+            nodes, yt, share = got
             at, _, st = _robust_line(cum[nodes], yt, 1.0)
             band = min(3 * st, np.log(KEEP_MAX_RATIO))
             if st <= np.log(KEEP_MAX_RATIO) and (a - at > band or sc > np.log(KEEP_MAX_RATIO)):
                 a, sc, src = at, st, "stem (tracked)"
+            elif st <= np.log(KEEP_MAX_RATIO) and share < STEM_PATH_ON_TRACK:
+                # the level agrees, but the stem path runs mostly off the stem (through a
+                # sparse spruce's whorls): its fits' scatter is the envelopes', not the
+                # stem's, and the band of fits kept above the model takes the track's
+                sc = min(sc, st)
         if src == "stem" and sc > np.log(KEEP_MAX_RATIO):
             a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0, start=_shortest_half(y[sm_] - cum[sm_]))
         if pooled is None or a <= pooled[0] + shift + np.log(STEM_POOL_RATIO):
@@ -1372,8 +1386,8 @@ def _lazy_tracks(stems, graph, fit, stem, reliable, floor: float):
             return None
         if not tracked:
             tracked[-1] = None  # asked: not again
-            for k, (nodes, rt) in stems(graph, fit, stem, reliable).items():
-                tracked[int(k)] = (nodes, np.log(np.maximum(rt - floor, 0.5 * rt)))
+            for k, (nodes, rt, share) in stems(graph, fit, stem, reliable).items():
+                tracked[int(k)] = (nodes, np.log(np.maximum(rt - floor, 0.5 * rt)), share)
         return tracked.get(t)
 
     return track_of

@@ -220,12 +220,14 @@ def stem_tracks(
     kdtree: cKDTree,
     seed: int = 0,
     cache: list[StemTrack] | None = None,
-) -> dict[int, tuple[NDArray[np.int64], NDArray[np.float64]]]:
-    """Per tree label, the stem as tracked, ``(node, radius)``: the ``stem`` nodes (the lower
+) -> dict[int, tuple[NDArray[np.int64], NDArray[np.float64], float]]:
+    """Per tree label, the stem as tracked, ``(node, radius, share)``: the ``stem`` nodes (the lower
     half of the stem path, :func:`radius._stem_mask`) with a tracked circle within two
     radii of their height, each with the track's radius interpolated at its height (the
     stem's own fits' sampling: circles come every half radius, more per metre up the
-    stem), for the taper model's anchor (:func:`radius.taper_radii`).
+    stem), for the taper model's anchor (:func:`radius.taper_radii`), and the share of
+    those nodes within two radii of the track's axis (:func:`_covers`: under half, the
+    stem path runs mostly off the stem).
 
     Seeds are the tree's ``reliable`` stem fits nearest :data:`SEED_HEIGHTS` x 1.3 m above
     its lowest node (x a third of its height under 3.9 m); the track with the most circles
@@ -238,7 +240,7 @@ def stem_tracks(
     new tracks are appended. Trees
     whose track holds fewer than :data:`TRACK_MIN_CIRCLES` circles, or whose stem fits are
     thinner than two point spacings (a stem the scan does not resolve), are left out."""
-    out: dict[int, tuple[NDArray[np.int64], NDArray[np.float64]]] = {}
+    out: dict[int, tuple[NDArray[np.int64], NDArray[np.float64], float]] = {}
     if spacing <= 0:
         return out
     cache = [] if cache is None else cache
@@ -264,7 +266,8 @@ def stem_tracks(
         node = sm[near <= 2 * float(np.median(rc))]
         if node.size < TRACK_MIN_CIRCLES:
             continue
-        out[int(t)] = (node.astype(np.int64), np.interp(z[node], zc, rc))
+        share = _covers(best, pos[node]) / node.size
+        out[int(t)] = (node.astype(np.int64), np.interp(z[node], zc, rc), share)
     return out
 
 
