@@ -48,8 +48,9 @@ if TYPE_CHECKING:
 
     from biomorph.tree.metrics import SegmentCandidates
 
-    #: per tree label the stem's tracked circles (nodes, radii), from (graph, fit, stem
-    #: mask, reliable mask): :func:`biomorph.tree.stem.stem_tracks`
+    #: per tree label the stem as tracked (stem nodes, radii there, the share of the stem
+    #: path on it), from (graph, fit, stem mask, reliable mask):
+    #: :func:`biomorph.tree.stem.stem_tracks`
     StemTracker = Callable[
         [BranchGraph, "RadiusFit", NDArray[np.bool_], NDArray[np.bool_]],
         dict[int, tuple[NDArray[np.int64], NDArray[np.float64], float]],
@@ -854,10 +855,9 @@ def breast_height_fits(
     :data:`KEEP_MAX_RATIO` × the model).
 
     Where the pipeline's searches closed no circle there at all, the band's nodes are
-    fitted again in
-    wider searches (:data:`DBH_WIDER` × the radius they had): a stem seen from one scan
-    position is half an arc, the skeleton runs along that face 0.6–0.8 radii off the axis,
-    and every circle its searches allowed was smaller than the stem (the aspen preset
+    fitted again in wider searches (:data:`DBH_WIDER` × the radius they had): a stem seen
+    from one scan position is half an arc, the skeleton runs along that face 0.6–0.8 radii
+    off the axis, and every circle its searches allowed was smaller than the stem (the aspen preset
     scanned once: no usable fit below 3.5 m, and the taper model's DBH 24.0 cm for 32.6).
     These fits are not fed back into the model: a wider search changes the stem's anchor,
     and on the leafy real clouds the model then moved by 10–40 % (docs/tree.md, session
@@ -1378,19 +1378,19 @@ def _tree_anchor(cum, y, rm, sm_, pooled, shift: float, track=None) -> tuple[flo
 
 def _lazy_tracks(stems, graph, fit, stem, reliable, floor: float):
     """Per tree label its tracked stem as the taper model's anchor reads it (nodes, model
-    ordinates ``log(r - floor)``), every tree tracked by ``stems`` once, on first use."""
-    tracked: dict = {}
+    ordinates ``log(r - floor)``, the share of the stem path on it), every tree tracked by
+    ``stems`` once, on first use."""
 
-    def track_of(t: int):
+    @functools.cache
+    def tracked() -> dict:
         if stems is None:
-            return None
-        if not tracked:
-            tracked[-1] = None  # asked: not again
-            for k, (nodes, rt, share) in stems(graph, fit, stem, reliable).items():
-                tracked[int(k)] = (nodes, np.log(np.maximum(rt - floor, 0.5 * rt)), share)
-        return tracked.get(t)
+            return {}
+        return {
+            int(k): (nodes, np.log(np.maximum(rt - floor, 0.5 * rt)), share)
+            for k, (nodes, rt, share) in stems(graph, fit, stem, reliable).items()
+        }
 
-    return track_of
+    return lambda t: tracked().get(t)
 
 
 def taper_radii(
@@ -1410,10 +1410,11 @@ def taper_radii(
     """Final radii: reliable circle fits where the scan measured the cross-section, a
     taper (pipe) model fitted on them elsewhere.
 
-    ``stems``: called as ``stems(graph, fit, stem, reliable)``, per tree label the stem's
-    circles followed through the points (nodes and radii,
-    :func:`biomorph.tree.stem.stem_tracks`), which anchor the model of a tree whose stem
-    path's own fits hold two populations (step 3, :func:`_tree_anchor`).
+    ``stems``: called as ``stems(graph, fit, stem, reliable)``, per tree label the stem
+    followed through the points (:func:`biomorph.tree.stem.stem_tracks`: stem nodes, the
+    track's radii there, the share of the stem path on it), which anchors the model of a
+    tree whose stem path's own fits are envelopes, and narrows its band where the path
+    runs mostly off the stem (step 3, :func:`_tree_anchor`).
 
     ``trusted``: nodes whose reliable fits are their radii whatever the model says, the
     nodes between them filled from the nearest such fit along the tree (limbs turned round,

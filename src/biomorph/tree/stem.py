@@ -189,7 +189,8 @@ def track_stem(
 
 
 #: seed sections tried per tree: the reliable stem fits nearest these multiples of breast
-#: height (a third of the height on a tree under 3.9 m); the longest track is kept
+#: height (a third of the height on a tree under 3.9 m); the track with the most circles
+#: is kept
 SEED_HEIGHTS = (1.0, 0.5, 1.5)
 
 
