@@ -25,7 +25,8 @@ def test_creature_tab(studio, tmp_path):
     studio.set_number(tab.seed, 11)
     wait_for(lambda: tab.version > v0 and tab.creature is not first, what="a new creature")
     assert tab.generator.options.seed == 11 and tab.generator.options.legs == 4
-    assert "creature/parameters" in app.latency.summary()
+    # the latency log records an edit once its job returns, just after the redraw
+    wait_for(lambda: "creature/parameters" in app.latency.summary(), what="the edit's timing")
     studio.expect_text("Balance:")
 
     # a PCA component slider fixes that score and regenerates (issue 7)
