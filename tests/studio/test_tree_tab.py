@@ -24,6 +24,16 @@ def _check_up_axis(tab, metres):
     tab.up.value = "z"
 
 
+def _check_up_after_run(studio, tab):
+    """The up axis changed after a run: that skeleton lies in the other frame, dropped."""
+    assert tab.result is not None
+    studio.select(tab.up, "y")
+    wait_for(lambda: tab.result is None, what="the stale skeleton dropped")
+    studio.expect_text("last skeleton was dropped")
+    assert not tab._tube_handles and tab._skeleton_node is None
+    studio.select(tab.up, "z")
+
+
 def test_tree_tab(studio, tmp_path):
     app = studio.app
     assert "tree" in app.tabs, f"tree tab failed to build: {app.unavailable.get('tree')}"
@@ -126,3 +136,5 @@ def test_tree_tab(studio, tmp_path):
     wait_for(lambda: tab.last_error is not None, what="the bad-cloud error")
     studio.expect_text("Error")
     assert np.isfinite(tab.result.metrics["tbl"])
+
+    _check_up_after_run(studio, tab)

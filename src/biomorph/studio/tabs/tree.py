@@ -114,7 +114,7 @@ class TreeTab(StudioTab):
             from biomorph.tree.options import UP_AXES
 
             self.up = gui.add_dropdown("Cloud up axis", options=UP_AXES, initial_value="z")
-            self.up.on_update(self.live("cloud up axis", self.draw_cloud))
+            self.up.on_update(self.live("cloud up axis", self.up_changed))
             self.models = gui.add_slider(
                 "Models (nearest kept)", min=1, max=9, step=1, initial_value=1
             )
@@ -190,10 +190,21 @@ class TreeTab(StudioTab):
     def set_cloud(self, cloud: Any, name: str) -> None:
         """Use ``cloud`` from now on; a run on the previous cloud is cancelled and its
         result dropped (never drawn or exported under the new name)."""
+        self.cloud, self.cloud_name = cloud, name
+        self._drop_result()
+        lo, hi = cloud.bounds()
+        self.cloud_info.content = (
+            f"**{cloud.n_points:,} points**, extent {np.round(hi - lo, 2).tolist()} m"
+        )
+        self.draw_cloud()
+
+    def _drop_result(self) -> None:
+        """Cancel a run and drop the last result (its skeleton, tubes, legend and
+        figures): it no longer belongs to the cloud as set up."""
         self.generation += 1
         if self.job is not None and self.job.is_alive():
             self._cancel.set()
-        self.cloud, self.cloud_name, self.result = cloud, name, None
+        self.result = None
         self.legend_md.content = ""
         for node in ("skeleton", "tubes"):
             self.scene.remove_by_name(f"{self.root}/{node}")
@@ -201,10 +212,19 @@ class TreeTab(StudioTab):
         self._tubes, self._tube_handles = [], []
         self.metrics_md.content = ""
         self.progress.value = 0.0
-        lo, hi = cloud.bounds()
-        self.cloud_info.content = (
-            f"**{cloud.n_points:,} points**, extent {np.round(hi - lo, 2).tolist()} m"
-        )
+
+    def up_changed(self) -> None:
+        """The cloud's up axis changed: a skeleton run with the other axis (or running)
+        is dropped -- it lies in the other frame -- and the cloud is redrawn turned."""
+        if self.cloud is None:
+            return
+        ran_with = None if self.result is None else self.result.params.get("up")
+        running = self.job is not None and self.job.is_alive()
+        if running or (self.result is not None and (ran_with or "z") != self.up.value):
+            self._drop_result()
+            self.set_status(
+                f"Cloud up axis {self.up.value}: the last skeleton was dropped. Press Run."
+            )
         self.draw_cloud()
 
     def _display_xyz(self) -> np.ndarray:
