@@ -453,8 +453,9 @@ def model_measures(graph, xyz: NDArray, refs: dict, wood: NDArray | None = None)
         row["far wood"] = 100 * cylinder_fit(graph, wood)["far_share"]
     for lab in class_labels():
         row[f"V {lab}"] = vc[lab]["volume"] * 1e3
-        res = fit["classes"][lab]["residual"]
-        row[f"res {lab}"] = 100 * res if np.isfinite(res) else float("nan")
+        for key, tag in (("residual", "res"), ("axis_residual", "axres")):
+            res = fit["classes"][lab][key]
+            row[f"{tag} {lab}"] = 100 * res if np.isfinite(res) else float("nan")
     for name, ref in refs.items():
         row[f"F1 vs {name}"] = compare_to_reference(graph, ref, tolerance=0.05)["f1"]
     return row
@@ -601,6 +602,12 @@ def peers(
         rows += [("far wood", "wood points > 10 cm from every cylinder %", "{:.1f}")]
         rows += [
             (f"res {lab}", f"median signed residual {lab} % of r", "{:+.0f}")
+            for lab in class_labels()
+        ]
+        # each point to its nearest axis, not surface: an over-thick cylinder among thin
+        # ones no longer lends its inside points to their surfaces (metrics.cylinder_fit)
+        rows += [
+            (f"axres {lab}", f"same, nearest axis {lab} % of r", "{:+.0f}")
             for lab in class_labels()
         ]
         for key, label, f in rows:

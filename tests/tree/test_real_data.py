@@ -65,6 +65,15 @@ def test_plantscan3d_branch_agrees_with_its_mtg():
     assert c["f1"] >= 0.85
     assert 0.85 <= c["length_ratio"] <= 1.4
     assert skel.metrics["n_trees"] == 1
+    # the MTG's 2.5-7 cm branches are over-thick (their points lie at ~3/4 of its radius
+    # from its axes), which the nearest-surface residual hides and the nearest-axis one
+    # shows (-4 % / -25 % measured); ours fit the points by either (+2 % / -1 %)
+    from biomorph.tree.metrics import cylinder_fit
+
+    theirs = cylinder_fit(ref, pts)["classes"]["2.5-7cm"]
+    ours = cylinder_fit(skel.world_graph(), pts)["classes"]["2.5-7cm"]
+    assert theirs["residual"] > -0.10 and theirs["axis_residual"] < -0.18
+    assert abs(ours["residual"]) < 0.10 and abs(ours["axis_residual"]) < 0.10
 
 
 @pytest.mark.parametrize("name, min_pieces", [("adtree_tree1.xyz", 9), ("adtree_tree7.xyz", 13)])

@@ -52,6 +52,12 @@ TRACK_MEDIAN = 5
 TRACK_GAP_RADII = 10.0
 #: the axis from the circles over this many radii of height below the current one
 TRACK_AXIS_RADII = 20.0
+#: each slab's half-thickness, in running radii (at least a point spacing); the inner
+#: search's first slabs take half of it. Thicker slabs gather more of a sparse stem (a
+#: quarter of the TreeLS spruce's points holds 0-9 per slab on its shell) and follow it
+#: further (0.5 / 1 radius: 59-80 / 107-129 circles where 0.25 finds 7-35), but the
+#: quarters' volumes spread as widely (docs/tree.md, session 32)
+TRACK_DEPTH_RADII = 0.25
 #: slabs predicted and fitted per call of the circle fit
 TRACK_BATCH = 8
 #: a track shorter than this many circles says nothing about the stem
@@ -112,7 +118,7 @@ def _walk(
             xyz,
             np.full(TRACK_BATCH + 1, r),
             search_factor=search_factor,
-            search_depth=max(spacing, 0.25 * r),
+            search_depth=max(spacing, TRACK_DEPTH_RADII * r),
             spacing=spacing,
             kdtree=kd,
             seed=seed + call,
@@ -353,7 +359,7 @@ def _inner(
             xyz,
             np.full(2, 0.5 * r),
             search_factor=1.5,
-            search_depth=max(spacing, 0.125 * r),
+            search_depth=max(spacing, 0.5 * TRACK_DEPTH_RADII * r),
             spacing=spacing,
             kdtree=kd,
             seed=seed + j,
