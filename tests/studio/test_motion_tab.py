@@ -47,7 +47,6 @@ def test_motion_tab(studio, tmp_path):
         wait_for(lambda: tab.edited is not tab.source, what="an edited clip")
         # the latency log records the edit once its job returns, after the redraw
         wait_for(lambda: "motion/equalizer" in app.latency.summary(), what="the equalizer timing")
-        assert app.latency.summary()["motion/equalizer"]["n"] >= 1
     # speed, cycle and blend stages
     if tab.speed is not None:
         n0 = tab.edited.n_frames

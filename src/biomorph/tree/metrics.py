@@ -694,7 +694,7 @@ def axis_distance(
     if n == 0:
         return np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64)
     radius = np.asarray(graph.radius, dtype=float)
-    j = np.argmin(np.where(np.isfinite(c.d), c.d, np.inf), axis=1)
+    j = np.argmin(c.d, axis=1)
     rows = np.arange(n)
     v, p, t, d = c.node[rows, j], c.par[rows, j], c.t[rows, j], c.d[rows, j]
     rn = radius[v]

@@ -218,9 +218,9 @@ class TreeTab(StudioTab):
         is dropped -- it lies in the other frame -- and the cloud is redrawn turned."""
         if self.cloud is None:
             return
-        ran_with = None if self.result is None else self.result.params.get("up")
         running = self.job is not None and self.job.is_alive()
-        if running or (self.result is not None and (ran_with or "z") != self.up.value):
+        stale = self.result is not None and self.result.params.get("up", "z") != self.up.value
+        if running or stale:
             self._drop_result()
             self.set_status(
                 f"Cloud up axis {self.up.value}: the last skeleton was dropped. Press Run."
