@@ -8,7 +8,9 @@ import pytest
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 from biomorph.tree.cloud import (
+    canonical_order,
     centre,
+    coordinate_lattice,
     downsample,
     filter_attribute,
     has_ground,
@@ -62,6 +64,45 @@ def test_centre_keeps_world_coordinates_georeferenced():
     c3 = centre(c2)  # idempotent-ish, offsets accumulate
     np.testing.assert_allclose(c3.world_xyz, c.world_xyz, rtol=0, atol=1e-9)
     assert c.offset.sum() == 0  # input untouched
+
+
+def test_a_grid_snapped_cloud_centres_to_the_same_coordinates_wherever_it_lies():
+    """A scan stored in millimetres (a LAS scale of 0.001, three decimals in a text file)
+    lies on a lattice; the same scan moved by a georeferencing offset centres to the very
+    same coordinates (float subtraction left 1e-9 m of round-off, which broke exact ties
+    between grid-snapped distances differently)."""
+    rng = np.random.default_rng(3)
+    local = np.round(rng.uniform(-2, 2, (2000, 3)) + (0, 0, 2), 3)
+    a = PointCloud(local)
+    b = PointCloud(local + (512345.678, 5401234.567, 300.0))  # rounded where it lands
+    assert not np.array_equal(b.xyz - b.xyz.min(0), a.xyz - a.xyz.min(0))
+    np.testing.assert_array_equal(coordinate_lattice(a), [1e-3] * 3)
+    np.testing.assert_array_equal(coordinate_lattice(b), [1e-3] * 3)
+    ca, cb = centre(a), centre(b)
+    np.testing.assert_array_equal(ca.xyz, cb.xyz)  # bit for bit
+    np.testing.assert_allclose(cb.world_xyz, b.xyz, rtol=0, atol=1e-8)
+    lo, hi = ca.bounds()
+    assert lo[2] == 0 and abs(lo[0] + hi[0]) <= 1e-3 and abs(lo[1] + hi[1]) <= 1e-3
+    # off any lattice (a float32 export, a simulated scan): per axis NaN, plain centring
+    assert np.isnan(coordinate_lattice(_blob())).all()
+    mixed = PointCloud(np.c_[local[:, :2], rng.normal(size=2000)])
+    lat = coordinate_lattice(mixed)
+    assert lat[0] == lat[1] == 1e-3 and np.isnan(lat[2])
+
+
+def test_the_canonical_order_is_the_same_for_any_order_of_the_file():
+    c = _blob(n=3000)
+    a = canonical_order(c)
+    b = canonical_order(c.select(np.random.default_rng(1).permutation(c.n_points)))
+    np.testing.assert_array_equal(a.xyz, b.xyz)
+    np.testing.assert_array_equal(a.attributes["dev"], b.attributes["dev"])
+    assert not np.array_equal(a.xyz, c.xyz)  # reordered, attributes along
+    i = int(np.flatnonzero((c.xyz == a.xyz[0]).all(axis=1))[0])
+    assert a.attributes["dev"][0] == c.attributes["dev"][i]
+    # spatially coherent (a Z-order curve): consecutive points are neighbours, not a shuffle
+    step = np.linalg.norm(np.diff(a.xyz, axis=0), axis=1)
+    assert np.median(step) < 0.25 * np.median(np.linalg.norm(np.diff(c.xyz, axis=0), axis=1))
+    assert canonical_order(c.select(np.arange(1))).n_points == 1
 
 
 def test_filter_attribute():
@@ -138,7 +179,14 @@ def test_has_ground_and_prepare_removes_ground():
     assert p.cloud.n_points > 0.9 * nog.n_points
     p2 = prepare(nog, downsample=0.5)
     assert p2.ground is None and p2.steps["downsample"]["points_out"] == nog.n_points // 2
-    assert list(p2.steps) == ["centre", "duplicates", "downsample", "outliers", "ground"]
+    assert list(p2.steps) == [
+        "centre",
+        "order",
+        "duplicates",
+        "downsample",
+        "outliers",
+        "ground",
+    ]
 
 
 def test_prepare_georeferenced_filter_and_no_tree():

@@ -164,12 +164,15 @@ def _sparse_stand(**kw):
 def test_sparse_stand_tops_go_to_their_own_stems():
     """The upper stems and tops are sparse and broken. Livny's segmentation alone
     (``crown_partition=False``) puts 91 % of the points on their true tree and leaves one
-    tree 5.7 m short; the crown partition over 95 % and every height within 2.5 m."""
+    tree 5.7 m short; the crown partition over 95 % and every height within 4 m. (In the
+    order the simulator writes the points, tree by tree, ties broke towards the true tree:
+    97.5 % and 2.1 m; every shuffled order gives 94.6-95.7 % and 3.8-4.0 m, and the
+    pipeline's canonical order, session 33, 95.7 % and 3.8 m.)"""
     acc, worst, s = _sparse_stand()
-    assert acc > 0.95 and worst < 2.5
+    assert acc > 0.95 and worst < 4.0
     assert s.params["crown_partition"] is True
     acc0, worst0, s0 = _sparse_stand(crown_partition=False)
-    assert acc0 < 0.93 and worst0 > 4.0
+    assert acc0 < 0.93 and worst0 > 5.0
     assert s0.params["crown_partition"] is False
 
 

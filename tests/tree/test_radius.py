@@ -157,9 +157,12 @@ def test_a_stem_scanned_from_one_position_reports_its_measured_dbh():
     from biomorph.tree.pipeline import skeletonize
     from biomorph.tree.synthetic import generate_tree, simulate_scan
 
-    truth = generate_tree("aspen", seed=3)
+    # seed 2: the taper model's DBH is 26 % short (its circles at 1.3 m were rejected);
+    # searched wider the circles read the stem within 2 % (session 33; seed 3 before the
+    # points were put in canonical order)
+    truth = generate_tree("aspen", seed=2)
     cloud = simulate_scan(
-        truth, n_points=60_000, seed=3, noise=0.003, occlusion=True, scanners=1, ground=True
+        truth, n_points=60_000, seed=2, noise=0.003, occlusion=True, scanners=1, ground=True
     )
     skel = skeletonize(cloud)
     t = skel.metrics["trees"][0]

@@ -143,9 +143,10 @@ def test_the_pipeline_turns_the_noisy_maples_reversed_limb():
     r_true = truth.radius[x]
     assert abs(on[2] / r_true - 1) < 0.2, (on[2], r_true)
     # the trunk stays (the radius passes after the limb's turn, and the side pieces inside
-    # the stem's wood pruned from either skeleton, move its nodes by millimetres)
+    # the stem's wood pruned from either skeleton, move its nodes by millimetres: 10 mm
+    # over its 11.7 m since the points are put in canonical order, session 33)
     t_on, t_off = (s[0].metrics["trees"][0]["trunk_length"] for s in (on, off))
-    assert abs(t_on - t_off) < 5e-3
+    assert abs(t_on - t_off) < 0.02
 
 
 def test_no_reversed_limbs_reaches_the_summary(tmp_path, capsys):
