@@ -9,6 +9,7 @@
     .venv/bin/python bench/tree.py --only stand [--seeds 4]    # plot crown partition
     .venv/bin/python bench/tree.py --only density [--clouds ...]  # real clouds thinned
     .venv/bin/python bench/tree.py --only seeds [--clouds ...]    # repeatability, >= 4 seeds
+    .venv/bin/python bench/tree.py --only jitter [--clouds ...]   # ties broken otherwise
     .venv/bin/python bench/tree.py --only runs    # run cylinders vs pytlidar's LSF cylinder
     .venv/bin/python bench/tree.py --only models [--models 5]  # uncertainty, chosen model
     .venv/bin/python bench/tree.py --only peers --with-models    # + column: 5 models, chosen
@@ -926,10 +927,19 @@ def density_table(names: tuple[str, ...], methods: tuple[str, ...]) -> None:
                 sys.stdout.flush()
 
 
-def seed_table(names: tuple[str, ...], methods: tuple[str, ...], seeds: int) -> None:
+def seed_table(
+    names: tuple[str, ...], methods: tuple[str, ...], seeds: int, *, jitter: bool = False
+) -> None:
     """Repeatability: the same cloud through the same pipeline with ``seeds`` random seeds
     (the RANSAC circle fits draw from it): total volume, trunk length and tips, their
-    range and spread ((max - min) / mean)."""
+    range and spread ((max - min) / mean).
+
+    ``jitter``: seed 0 every time, but draw ``k > 0`` moves every point by up to
+    :data:`JITTER` m at random (uniform, seeded ``k``): on a grid-snapped scan that breaks
+    its ties between equal distances another way, which is all an export by another tool
+    may change. Then a last column checks that the cloud's points shuffled and moved by a
+    georeferencing offset (:data:`GEO_OFFSET`) give the file's model (volume, tips; exact
+    on a cloud stored on a decimal lattice, docs/tree.md session 33)."""
     from biomorph.io import read_points
     from biomorph.tree.metrics import tree_attributes
     from biomorph.tree.pipeline import skeletonize
@@ -937,29 +947,63 @@ def seed_table(names: tuple[str, ...], methods: tuple[str, ...], seeds: int) -> 
     if not DATA.is_dir():
         print(f"\n(real data not found at {DATA}; skipped)")
         return
-    print(f"\n### Repeatability over random seeds 0..{seeds - 1} (same cloud, same options)\n")
-    print("| cloud | method | volume L: range (spread) | trunk m: range (spread) | tips: range |")
-    print("|---|---|---|---|---|")
+    if jitter:
+        print(f"\n### Repeatability over {seeds} draws of ±{JITTER:g} m jitter (seed 0)\n")
+        print(
+            "| cloud | method | volume L: range (spread) | trunk m: range (spread) | tips: range "
+            "| shuffled + moved: volume L, tips |"
+        )
+        print("|---|---|---|---|---|---|")
+    else:
+        print(f"\n### Repeatability over random seeds 0..{seeds - 1} (same cloud, same options)\n")
+        print(
+            "| cloud | method | volume L: range (spread) | trunk m: range (spread) | tips: range |"
+        )
+        print("|---|---|---|---|---|")
 
     def span(v: list[float], f: str) -> str:
         return f"{f.format(min(v))}–{f.format(max(v))} ({(max(v) - min(v)) / np.mean(v):.0%})"
 
+    def model(c, method: str, seed: int) -> tuple[float, float, int]:
+        base, kw = method_options(method)
+        g = skeletonize(c, method=base, seed=seed, **kw).world_graph()
+        attrs = tree_attributes(g)
+        vol = sum(a["total_volume"] for a in attrs) * 1e3
+        return vol, max(a["trunk_length"] for a in attrs), int(g.leaves.size)
+
     for name in names:
         cloud = read_points(DATA / name)
         for method in methods:
-            vol, trunk, tips = [], [], []
-            for seed in range(seeds):
-                base, kw = method_options(method)
-                g = skeletonize(cloud, method=base, seed=seed, **kw).world_graph()
-                attrs = tree_attributes(g)
-                vol.append(sum(a["total_volume"] for a in attrs) * 1e3)
-                trunk.append(max(a["trunk_length"] for a in attrs))
-                tips.append(int(g.leaves.size))
-            print(
+            runs = []
+            for k in range(seeds):
+                if jitter:
+                    c = cloud
+                    if k:
+                        rng = np.random.default_rng(k)
+                        c = cloud.with_(
+                            xyz=cloud.xyz + rng.uniform(-JITTER, JITTER, cloud.xyz.shape)
+                        )
+                    runs.append(model(c, method, 0))
+                else:
+                    runs.append(model(cloud, method, k))
+            vol, trunk, tips = (list(v) for v in zip(*runs, strict=True))
+            row = (
                 f"| {name} | {method} | {span(vol, '{:.1f}')} | {span(trunk, '{:.2f}')} | "
                 f"{min(tips)}–{max(tips)} |"
             )
+            if jitter:
+                other = cloud.select(np.random.default_rng(0).permutation(cloud.n_points))
+                v, _, t = model(other.with_(xyz=other.xyz + GEO_OFFSET), method, 0)
+                same = "same" if (v, t) == (vol[0], tips[0]) else "differs"
+                row += f" {v:.1f}, {t} ({same}) |"
+            print(row)
             sys.stdout.flush()
+
+
+#: the jitter of :func:`seed_table` (m): far below any scanner's precision
+JITTER = 1e-9
+#: a georeferencing offset (m; UTM-like easting, northing, height)
+GEO_OFFSET = np.array([512345.678, 5401234.567, 300.0])
 
 
 def _radius_error(v: NDArray, r: float) -> str:
@@ -1351,6 +1395,7 @@ def main() -> None:
             "stand",
             "density",
             "seeds",
+            "jitter",
             "runs",
             "models",
             "twignoise",
@@ -1460,6 +1505,8 @@ def main() -> None:
         density_table(tuple(a.clouds), tuple(a.methods))
     if a.only in (None, "seeds"):
         seed_table(tuple(a.clouds), tuple(a.methods), max(a.seeds, 4))
+    if a.only == "jitter":
+        seed_table(tuple(a.clouds), tuple(a.methods), max(a.seeds, 4), jitter=True)
     if a.only in (None, "runs"):
         run_cylinder_table()
         run_twig_table(tuple(a.clouds))

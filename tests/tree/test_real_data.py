@@ -146,9 +146,9 @@ def test_the_voxel_method_roots_each_pine_at_its_stem():
     assert all(t["trunk_length"] < 1.4 * t["height"] and t["max_order"] <= 8 for t in big)
     # every trunk of a tree over 10 m reaches within 1 m of its top (session 27: one
     # ended at 0.47 m, a limb lying from its base had taken it) -- but the edge pine at
-    # (-4.5, 3.2), whose crown partition adopts sparse tops over 4-5 m bridges: in the
-    # file's order of the points its trunk reached 0.9 m below its top, in every shuffled
-    # order and in the canonical one (session 33) 5.3 m (docs/tree.md, limitations)
+    # (-4.5, 3.2), whose sparse top straight 4-5 m edges join as a branch: in the file's
+    # order of the points its trunk reached 0.9 m below its top, in every shuffled order
+    # and in the canonical one (session 33) 5.3 m (docs/tree.md, limitations)
     z = g.position[:, 2]
     short = []
     for t in np.unique(g.trees):
