@@ -934,13 +934,15 @@ def seed_table(
     (the RANSAC circle fits draw from it): total volume, trunk length and tips, their
     range and spread ((max - min) / mean).
 
-    ``jitter``: seed 0 every time, but draw ``k > 0`` moves every point by up to
-    :data:`JITTER` m at random (uniform, seeded ``k``): on a grid-snapped scan that breaks
-    its ties between equal distances another way, which is all an export by another tool
-    may change. Then a last column checks that the cloud's points shuffled and moved by a
-    georeferencing offset (:data:`GEO_OFFSET`) give the file's model (volume, tips; exact
+    ``jitter``: seed 0 every time, but draw ``k > 0`` moves every point at random (uniform,
+    seeded ``k``) by :data:`JITTER_SHARE` of the cloud's lattice step, less than the
+    resolution the file was stored at: on a grid-snapped scan that breaks its ties between
+    equal distances another way, as another tool's rounding may. Then a last column checks
+    that the points shuffled and moved by a georeferencing offset (:data:`GEO_OFFSET`)
+    give the file's model (volume, tips; exact
     on a cloud stored on a decimal lattice, docs/tree.md session 33)."""
     from biomorph.io import read_points
+    from biomorph.tree.cloud import coordinate_lattice
     from biomorph.tree.metrics import tree_attributes
     from biomorph.tree.pipeline import skeletonize
 
@@ -948,12 +950,15 @@ def seed_table(
         print(f"\n(real data not found at {DATA}; skipped)")
         return
     if jitter:
-        print(f"\n### Repeatability over {seeds} draws of ±{JITTER:g} m jitter (seed 0)\n")
         print(
-            "| cloud | method | volume L: range (spread) | trunk m: range (spread) | tips: range "
-            "| shuffled + moved: volume L, tips |"
+            f"\n### Repeatability over {seeds} draws of a jitter of ±{JITTER_SHARE:g} of the "
+            f"cloud's lattice step (±{JITTER:g} m off a lattice; seed 0)\n"
         )
-        print("|---|---|---|---|---|---|")
+        print(
+            "| cloud | method | jitter m | volume L: range (spread) | trunk m: range (spread) "
+            "| tips: range | shuffled + moved: volume L, tips |"
+        )
+        print("|---|---|---|---|---|---|---|")
     else:
         print(f"\n### Repeatability over random seeds 0..{seeds - 1} (same cloud, same options)\n")
         print(
@@ -973,6 +978,8 @@ def seed_table(
 
     for name in names:
         cloud = read_points(DATA / name)
+        step = coordinate_lattice(cloud)
+        amp = JITTER_SHARE * float(np.nanmax(step)) if np.isfinite(step).any() else JITTER
         for method in methods:
             runs = []
             for k in range(seeds):
@@ -980,9 +987,7 @@ def seed_table(
                     c = cloud
                     if k:
                         rng = np.random.default_rng(k)
-                        c = cloud.with_(
-                            xyz=cloud.xyz + rng.uniform(-JITTER, JITTER, cloud.xyz.shape)
-                        )
+                        c = cloud.with_(xyz=cloud.xyz + rng.uniform(-amp, amp, cloud.xyz.shape))
                     runs.append(model(c, method, 0))
                 else:
                     runs.append(model(cloud, method, k))
@@ -992,16 +997,23 @@ def seed_table(
                 f"{min(tips)}–{max(tips)} |"
             )
             if jitter:
+                row = row.replace(f"| {method} |", f"| {method} | {amp:g} |", 1)
+            if jitter:
                 other = cloud.select(np.random.default_rng(0).permutation(cloud.n_points))
                 v, _, t = model(other.with_(xyz=other.xyz + GEO_OFFSET), method, 0)
-                same = "same" if (v, t) == (vol[0], tips[0]) else "differs"
+                same = "same" if t == tips[0] and abs(v - vol[0]) <= 1e-9 * vol[0] else "differs"
                 row += f" {v:.1f}, {t} ({same}) |"
             print(row)
             sys.stdout.flush()
 
 
-#: the jitter of :func:`seed_table` (m): far below any scanner's precision
-JITTER = 1e-9
+#: the jitter of :func:`seed_table`: this share of the cloud's lattice step (its coarsest
+#: axis's; :func:`~biomorph.tree.cloud.coordinate_lattice`) -- below the resolution the
+#: file was stored at, but no longer on its lattice, so ties between equal distances break
+#: by the jitter (a jitter the lattice rounds away changes nothing) ...
+JITTER_SHARE = 0.1
+#: ... and off any lattice this many metres, far below any scanner's precision
+JITTER = 1e-5
 #: a georeferencing offset (m; UTM-like easting, northing, height)
 GEO_OFFSET = np.array([512345.678, 5401234.567, 300.0])
 
