@@ -80,6 +80,8 @@ def test_a_grid_snapped_cloud_centres_to_the_same_coordinates_wherever_it_lies()
     np.testing.assert_array_equal(coordinate_lattice(b), [1e-3] * 3)
     ca, cb = centre(a), centre(b)
     np.testing.assert_array_equal(ca.xyz, cb.xyz)  # bit for bit
+    steps = prepare(b, outliers=False, ground=None).steps
+    assert steps["centre"]["lattice"] == [1e-3] * 3 and "order" in steps
     np.testing.assert_allclose(cb.world_xyz, b.xyz, rtol=0, atol=1e-8)
     lo, hi = ca.bounds()
     assert lo[2] == 0 and abs(lo[0] + hi[0]) <= 1e-3 and abs(lo[1] + hi[1]) <= 1e-3

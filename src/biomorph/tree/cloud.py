@@ -264,7 +264,7 @@ def _on_lattice(v: NDArray[np.float64], q: float) -> bool:
     return bool(np.all(np.abs(s - np.rint(s)) <= LATTICE_TOLERANCE))
 
 
-def centre(cloud: PointCloud) -> PointCloud:
+def centre(cloud: PointCloud, lattice: NDArray[np.float64] | None = None) -> PointCloud:
     """Move the bottom centre of the bounding box to the origin.
 
     The shift is added to ``offset`` so ``world_xyz`` is unchanged. Coordinates are kept in
@@ -275,12 +275,13 @@ def centre(cloud: PointCloud) -> PointCloud:
     moved by any offset (a georeferenced export of a local scan) gets the very same
     centred coordinates, where subtracting floats left round-off of up to 10⁻⁹ m that
     decided exact ties between grid-snapped distances differently (AdTree tree7's volume
-    moved by 14 %, docs/tree.md, session 33).
+    moved by 14 %, docs/tree.md, session 33). ``lattice``: the cloud's
+    :func:`coordinate_lattice` if already known.
     """
     lo, hi = cloud.bounds()
     shift = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
     xyz = cloud.xyz - shift
-    q = coordinate_lattice(cloud)
+    q = coordinate_lattice(cloud) if lattice is None else np.asarray(lattice, dtype=float)
     for axis in np.flatnonzero(np.isfinite(q)):
         steps = np.rint((cloud.xyz[:, axis] - lo[axis]) / q[axis]).astype(np.int64)
         mid = int(steps.max()) // 2 if axis < 2 else 0
@@ -630,8 +631,15 @@ def prepare(
     if centre:
         t0 = time.perf_counter()
         n0 = cur.n_points
-        cur = _centre(cur)
-        record("centre", n0, t0, offset=[float(v) for v in cur.offset])
+        lattice = coordinate_lattice(cur)
+        cur = _centre(cur, lattice)
+        record(
+            "centre",
+            n0,
+            t0,
+            offset=[float(v) for v in cur.offset],
+            lattice=[float(q) if np.isfinite(q) else None for q in lattice],
+        )
     t0 = time.perf_counter()
     n0 = cur.n_points
     cur = canonical_order(cur)
