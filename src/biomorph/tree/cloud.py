@@ -30,7 +30,13 @@ from scipy.spatial import cKDTree
 
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
-from biomorph.tree.neighbours import NeighbourCache, query_blocks, query_ordered, smooth_median
+from biomorph.tree.neighbours import (
+    NeighbourCache,
+    morton_codes,
+    query_blocks,
+    query_ordered,
+    smooth_median,
+)
 from biomorph.tree.options import UNITS, UP_AXES
 
 __all__ = [
@@ -290,24 +296,6 @@ def centre(cloud: PointCloud, lattice: NDArray[np.float64] | None = None) -> Poi
     return cloud.with_(xyz=xyz, offset=cloud.offset + shift)
 
 
-#: bits per axis of the Morton code that :func:`canonical_order` sorts by (3 x 21 = 63)
-ORDER_BITS = 21
-
-
-def _spread_bits(v: NDArray[np.int64]) -> NDArray[np.uint64]:
-    """The low :data:`ORDER_BITS` bits of each value spread to every third bit."""
-    z = v.astype(np.uint64) & np.uint64((1 << ORDER_BITS) - 1)
-    for shift, mask in (
-        (32, 0x1F00000000FFFF),
-        (16, 0x1F0000FF0000FF),
-        (8, 0x100F00F00F00F00F),
-        (4, 0x10C30C30C30C30C3),
-        (2, 0x1249249249249249),
-    ):
-        z = (z | (z << np.uint64(shift))) & np.uint64(mask)
-    return z
-
-
 def canonical_order(cloud: PointCloud) -> PointCloud:
     """The points in an order set by their coordinates alone (attributes with them).
 
@@ -321,15 +309,7 @@ def canonical_order(cloud: PointCloud) -> PointCloud:
     Morton order give 1.40 and 1.43: shuffled orders of that scan give 1.47-1.60.)"""
     if cloud.n_points < 2:
         return cloud
-    lo = cloud.xyz.min(axis=0)
-    span = float((cloud.xyz.max(axis=0) - lo).max())
-    cell = max(span / ((1 << ORDER_BITS) - 1), 1e-12)
-    ijk = np.minimum(np.floor((cloud.xyz - lo) / cell), (1 << ORDER_BITS) - 1).astype(np.int64)
-    key = (
-        _spread_bits(ijk[:, 0])
-        | (_spread_bits(ijk[:, 1]) << np.uint64(1))
-        | (_spread_bits(ijk[:, 2]) << np.uint64(2))
-    )
+    key = morton_codes(cloud.xyz)  # the neighbour queries' spatial order, ties decided
     order = np.lexsort((cloud.xyz[:, 0], cloud.xyz[:, 1], cloud.xyz[:, 2], key))
     return cloud.select(order)
 

@@ -29,6 +29,7 @@ from biomorph.errors import InputError, ParameterError
 
 __all__ = [
     "estimate_spacing",
+    "morton_codes",
     "smooth_median",
     "components",
     "NeighbourCache",
@@ -100,13 +101,21 @@ def _morton_codes(xyz):  # pragma: no cover - numba
     return code
 
 
+def morton_codes(xyz: NDArray[np.float64]) -> NDArray[np.uint64]:
+    """Every point's 63-bit Morton (Z-order) code on a grid of 2²¹ cells per axis over the
+    bounding cube (:func:`_morton_codes`)."""
+    xyz = np.ascontiguousarray(xyz, dtype=np.float64)
+    if xyz.shape[0] == 0:
+        return np.zeros(0, dtype=np.uint64)
+    return _morton_codes(xyz)
+
+
 def spatial_order(xyz: NDArray[np.float64]) -> NDArray[np.int64]:
     """A permutation visiting the points along a Morton (Z-order) curve of 2²¹ cells per
     axis: neighbouring positions in it are neighbouring points in space."""
-    xyz = np.ascontiguousarray(xyz, dtype=np.float64)
-    if xyz.shape[0] == 0:
+    if len(xyz) == 0:
         return np.zeros(0, dtype=np.int64)
-    return np.argsort(_morton_codes(xyz), kind="stable")
+    return np.argsort(morton_codes(xyz), kind="stable")
 
 
 #: query points per block of :func:`query_ordered` (bounds its temporaries)
