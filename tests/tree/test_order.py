@@ -333,3 +333,15 @@ def test_below_breast_height_the_trunk_takes_the_child_that_climbs_past_it():
     limb = [[0.1 * i, 0.0, 0.05 + 0.02 * i] for i in range(1, 201)]  # rises to 4 m
     d = order.branch_order(BranchGraph(np.array(stem + limb), parent))
     assert (d[81:] == 0).all() and (d[1:81] == 1).all()
+
+
+def test_a_trunk_that_went_on_past_its_highest_point_turns_there():
+    """``order._turn_point``: the chain's highest node, where the trunk turns into another
+    child, when the way on drops more than ``drop`` below it or stays short of the tree's
+    top (``short``); -1 when the chain ends at its highest node or goes on as a stem."""
+    chain = list(range(6))
+    h = np.array([0.0, 1.0, 2.0, 1.9, 1.8, 1.7])
+    assert order._turn_point(chain, h, drop=0.5, short=1.5) == -1  # sags 0.3, reached 1.5
+    assert order._turn_point(chain, h, drop=0.5, short=3.0) == 2  # the top is 1 m higher
+    assert order._turn_point(chain, h - np.r_[0, 0, 0, 0, 0, 1.0], drop=0.5, short=1.5) == 2
+    assert order._turn_point(chain[:3], h, drop=0.5, short=3.0) == -1  # ends at its top

@@ -145,18 +145,19 @@ def test_the_voxel_method_roots_each_pine_at_its_stem():
     assert len(big) >= 10
     assert all(t["trunk_length"] < 1.4 * t["height"] and t["max_order"] <= 8 for t in big)
     # every trunk of a tree over 10 m reaches within 1 m of its top (session 27: one
-    # ended at 0.47 m, a limb lying from its base had taken it) -- but the edge pine at
-    # (-4.5, 3.2), whose sparse top straight 4-5 m edges join as a branch: in the file's
-    # order of the points its trunk reached 0.9 m below its top, in every shuffled order
-    # and in the canonical one (session 33) 5.3 m (docs/tree.md, limitations)
+    # ended at 0.47 m, a limb lying from its base had taken it) -- the edge pine at
+    # (-4.5, 3.2) within 1.5 m: its sparse tops hang from straight 4-5 m edges, and in
+    # canonical order (session 33) a heavier piece hanging down from 10.45 m took its
+    # trunk there, 5.3 m under its top, until the trunk turned back at its highest point
+    # into the child that climbs (order._turn_point): 1.25 m under the top
     z = g.position[:, 2]
-    short = []
     for t in np.unique(g.trees):
         m = g.trees == t
-        if np.ptp(z[m]) > 10 and z[m].max() - z[m & (g.depth == 0)].max() >= 1.0:
-            short.append(g.position[g.roots[g.trees[g.roots] == t][0], :2])
-    assert len(short) <= 1
-    assert all(np.hypot(*(xy - (-4.5, 3.2))) < 0.6 for xy in short), short
+        if np.ptp(z[m]) > 10:
+            gap = z[m].max() - z[m & (g.depth == 0)].max()
+            xy = g.position[g.roots[g.trees[g.roots] == t][0], :2]
+            edge = np.hypot(*(xy - (-4.5, 3.2))) < 0.6
+            assert gap < (1.5 if edge else 1.0), (t, xy, gap)
     # two 15 m pines the graph method finds (session 15: one rooted at a shrub beside it and
     # hung from a neighbour, one lost under its neighbour's crown) stand on their own stems
     for xy in ((1.2, -4.0), (4.3, 2.5)):

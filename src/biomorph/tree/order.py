@@ -344,31 +344,61 @@ def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float
         reach = max(TRUNK_LOOK * med_edge, TRUNK_REACH * height)
         v = int(root)
         chain = [v]
+        barred: dict[int, int] = {}  # a trunk node -> its child that led the trunk down
         while True:
-            kids = idx[indptr[v] : indptr[v + 1]]
-            if kids.size == 0:
+            walk = (graph.parent, carried, indptr, idx, el, pos, h, top)
+            _walk_trunk(v, chain, barred, cont, walk, (axis, reach, cos_max, med_edge), root)
+            # the way on from the trunk's highest point dropped below it, or ended short
+            # of the tree's top: that way is a branch hanging from it; the trunk turns
+            # there into another child that climbs, if one does (a heavier limb hanging
+            # down from a pine's crown, reached from above, had set the bar for its top)
+            k = _turn_point(chain, h, TRUNK_DROP * med_edge, float(h[top[root]]) - reach)
+            if k < 0 or len(barred) >= MAX_TRUNK_TURNS or chain[k] in barred:
                 break
-            if kids.size > 1 and pos[v, 2] - pos[root, 2] >= BREAST_HEIGHT:
-                ctx = (carried, indptr, idx, el, pos, h, top, int(top[root]))
-                ok = _trunk_candidates(v, kids, ctx, axis, reach, cos_max)
-                if ok:  # the leaders: children climbing within ``reach`` of the highest
-                    hi = max(h[top[w]] for w in ok)
-                    ok = [w for w in ok if h[top[w]] >= hi - reach]
-                    # ... and of those the one holding the tree's top, if one does and
-                    # the way up to it climbs as a stem does
-                    ok = [
-                        w
-                        for w in ok
-                        if top[w] == top[root]
-                        and _way_drop(graph.parent, v, int(top[w]), h) <= TRUNK_DROP * med_edge
-                    ] or ok
-                if int(cont[v]) not in ok:
-                    cont[v] = max(ok, key=lambda w: carried[w]) if ok else -1
-            if cont[v] < 0:
-                break
-            v = int(cont[v])
-            chain.append(v)
+            barred[chain[k]] = chain[k + 1]
+            del chain[k + 1 :]
+            v = chain[k]
         _end_at_the_top(chain, cont, h, TRUNK_DROP * med_edge)
+
+
+def _walk_trunk(v, chain, barred, cont, walk, rule, root: int) -> None:
+    """Follow the trunk up from ``v`` (the last node of ``chain``, which grows), choosing at
+    each fork above breast height among :func:`_trunk_candidates` the child that climbs
+    highest (within ``reach``: then the supported rule's choice, else the heaviest), the
+    one holding the tree's top if it climbs as a stem does; ``barred``: per node a child
+    the trunk may no longer take. ``walk`` is ``(parent, carried, indptr, idx,
+    edge_length, position, height along the axis,`` :func:`_subtree_top` ``)``, ``rule``
+    ``(axis, reach, cos_max, median edge)``; ``cont`` is changed in place."""
+    parent, carried, indptr, idx, el, pos, h, top = walk
+    axis, reach, cos_max, med_edge = rule
+    while True:
+        kids = idx[indptr[v] : indptr[v + 1]]
+        if v in barred:
+            kids = kids[kids != barred[v]]
+            if kids.size == 0:
+                cont[v] = -1
+        if kids.size == 0:
+            return
+        if (kids.size > 1 or v in barred) and pos[v, 2] - pos[root, 2] >= BREAST_HEIGHT:
+            ctx = (carried, indptr, idx, el, pos, h, top, int(top[root]))
+            ok = _trunk_candidates(v, kids, ctx, axis, reach, cos_max)
+            if ok:  # the leaders: children climbing within ``reach`` of the highest
+                hi = max(h[top[w]] for w in ok)
+                ok = [w for w in ok if h[top[w]] >= hi - reach]
+                # ... and of those the one holding the tree's top, if one does and
+                # the way up to it climbs as a stem does
+                ok = [
+                    w
+                    for w in ok
+                    if top[w] == top[root]
+                    and _way_drop(parent, v, int(top[w]), h) <= TRUNK_DROP * med_edge
+                ] or ok
+            if int(cont[v]) not in ok:
+                cont[v] = max(ok, key=lambda w: carried[w]) if ok else -1
+        if cont[v] < 0:
+            return
+        v = int(cont[v])
+        chain.append(v)
 
 
 def _climb_to_breast_height(root: int, cont, carried, indptr, idx, pos, top_z) -> None:
@@ -389,6 +419,21 @@ def _climb_to_breast_height(root: int, cont, carried, indptr, idx, pos, top_z) -
         if cont[v] < 0:
             return
         v = int(cont[v])
+
+
+#: at most this many trunk nodes are re-decided after the trunk's way dropped from them
+MAX_TRUNK_TURNS = 4
+
+
+def _turn_point(chain: list[int], h, drop: float, short: float) -> int:
+    """The index in ``chain`` of its highest node in ``h`` if the chain goes on past it and
+    then drops more than ``drop`` below it or stays below ``short`` (the tree's top less
+    the trunk rule's reach), else -1."""
+    z = np.asarray(h)[np.asarray(chain, dtype=np.int64)]
+    k = int(np.argmax(z))
+    if k + 1 >= len(chain):
+        return -1
+    return k if float(z[k] - z[k + 1 :].min()) > drop or z[k] < short else -1
 
 
 def _end_at_the_top(chain: list[int], cont, h, drop: float) -> None:
