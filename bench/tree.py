@@ -992,18 +992,15 @@ def seed_table(
                 else:
                     runs.append(model(cloud, method, k))
             vol, trunk, tips = (list(v) for v in zip(*runs, strict=True))
-            row = (
-                f"| {name} | {method} | {span(vol, '{:.1f}')} | {span(trunk, '{:.2f}')} | "
-                f"{min(tips)}–{max(tips)} |"
-            )
-            if jitter:
-                row = row.replace(f"| {method} |", f"| {method} | {amp:g} |", 1)
+            cells = [name, method, span(vol, "{:.1f}"), span(trunk, "{:.2f}")]
+            cells.append(f"{min(tips)}–{max(tips)}")
             if jitter:
                 other = cloud.select(np.random.default_rng(0).permutation(cloud.n_points))
                 v, _, t = model(other.with_(xyz=other.xyz + GEO_OFFSET), method, 0)
                 same = "same" if t == tips[0] and abs(v - vol[0]) <= 1e-9 * vol[0] else "differs"
-                row += f" {v:.1f}, {t} ({same}) |"
-            print(row)
+                cells.insert(2, f"{amp:g}")
+                cells.append(f"{v:.1f}, {t} ({same})")
+            print("| " + " | ".join(cells) + " |")
             sys.stdout.flush()
 
 

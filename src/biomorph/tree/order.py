@@ -345,9 +345,10 @@ def _keep_trunk_axis(graph, cont, carried, indptr, idx, angle: float, tie: float
         v = int(root)
         chain = [v]
         barred: dict[int, int] = {}  # a trunk node -> its child that led the trunk down
+        walk = (graph.parent, carried, indptr, idx, el, pos, h, top)
+        rule = (axis, reach, cos_max, med_edge)
         while True:
-            walk = (graph.parent, carried, indptr, idx, el, pos, h, top)
-            _walk_trunk(v, chain, barred, cont, walk, (axis, reach, cos_max, med_edge), root)
+            _walk_trunk(v, chain, barred, cont, walk, rule, root)
             # the way on from the trunk's highest point dropped below it, or ended short
             # of the tree's top: that way is a branch hanging from it; the trunk turns
             # there into another child that climbs, if one does (a heavier limb hanging
@@ -373,13 +374,13 @@ def _walk_trunk(v, chain, barred, cont, walk, rule, root: int) -> None:
     axis, reach, cos_max, med_edge = rule
     while True:
         kids = idx[indptr[v] : indptr[v + 1]]
-        if v in barred:
+        turn = v in barred  # re-decided without the child that led the trunk down
+        if turn:
             kids = kids[kids != barred[v]]
-            if kids.size == 0:
-                cont[v] = -1
+            cont[v] = -1 if kids.size == 0 else cont[v]
         if kids.size == 0:
             return
-        if (kids.size > 1 or v in barred) and pos[v, 2] - pos[root, 2] >= BREAST_HEIGHT:
+        if turn or (kids.size > 1 and pos[v, 2] - pos[root, 2] >= BREAST_HEIGHT):
             ctx = (carried, indptr, idx, el, pos, h, top, int(top[root]))
             ok = _trunk_candidates(v, kids, ctx, axis, reach, cos_max)
             if ok:  # the leaders: children climbing within ``reach`` of the highest
