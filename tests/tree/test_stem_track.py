@@ -110,7 +110,10 @@ def test_the_taper_model_anchors_on_the_tracked_stem_where_its_fits_hold_envelop
 
     plain, fp = rd.taper_radii(g, fit)
     tracked, ft = rd.taper_radii(g, fit, stems=stems)
-    assert ft.model[0]["anchor"] == "stem (tracked)" and fp.model[0]["anchor"] == "stem"
+    # the track anchors the model, or vets the stem path's fits (those above its band
+    # dropped as envelopes) and the rest do
+    assert ft.model[0]["anchor"] in ("stem (tracked)", "stem (fits on the track)")
+    assert fp.model[0]["anchor"] == "stem"
     truth = 0.12 - 0.01 * 1.3
     at = int(np.argmin(np.abs(z - 1.3)))
     assert tracked[at] == pytest.approx(truth, rel=0.1)

@@ -303,6 +303,7 @@ def skeletonize(
     run = _Run(opts, progress, load_cloud(cloud))
     prepare_phase(run)
     (graph_phase if opts.method == "graph" else voxel_phase)(run)
+    ground_base_phase(run)
     radius_phase(run)
     residual_phase(run)
     limbs_phase(run)
@@ -641,6 +642,21 @@ def _stem_bases(run: _Run) -> tuple[NDArray | None, NDArray | None]:
     if not go.crown_partition:
         return stems, segment_trees(graph, pts, tree)
     return stems, partition_trees(xyz, graph, pts, tree, gap)[0]
+
+
+def ground_base_phase(run: _Run) -> None:
+    """Each stem carried down to the ground the prepare stage removed
+    (:func:`biomorph.tree.roots.extend_to_ground`), node spacing the skeleton's median
+    edge; ``info["ground_base"]``: trees extended, metres added."""
+    from biomorph.tree.roots import extend_to_ground
+
+    graph = run.graph
+    if graph is None or run.ground is None or run.ground.n_points == 0:
+        return
+    el = graph.edge_length[graph.parent >= 0]
+    spacing = float(np.median(el)) if el.size else 0.0
+    run.graph, info = extend_to_ground(graph, run.ground.xyz, spacing)
+    run.info["ground_base"] = info
 
 
 def _check_skeleton(run: _Run) -> None:

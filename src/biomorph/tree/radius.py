@@ -1356,6 +1356,14 @@ def _tree_anchor(cum, y, rm, sm_, pooled, shift: float, track=None) -> tuple[flo
             nodes, yt, share = got
             at, _, st = _robust_line(cum[nodes], yt, 1.0)
             band = min(3 * st, np.log(KEEP_MAX_RATIO))
+            if st <= np.log(KEEP_MAX_RATIO):
+                # the stem path's fits where the track measured the stem: one above the
+                # track's band there is an envelope (needles round the stem), not a section
+                over = np.zeros(sm_.size, dtype=bool)
+                over[nodes] = sm_[nodes] & (y[nodes] - yt > band)
+                if over.any() and (sm_ & ~over).sum() >= 3:
+                    a, _, sc = _robust_line(cum[sm_ & ~over], y[sm_ & ~over], 1.0)
+                    src = "stem (fits on the track)"
             if st <= np.log(KEEP_MAX_RATIO) and (a - at > band or sc > np.log(KEEP_MAX_RATIO)):
                 a, sc, src = at, st, "stem (tracked)"
             elif st <= np.log(KEEP_MAX_RATIO) and share < STEM_PATH_ON_TRACK:
@@ -1363,7 +1371,7 @@ def _tree_anchor(cum, y, rm, sm_, pooled, shift: float, track=None) -> tuple[flo
                 # sparse spruce's whorls): its fits' scatter is the envelopes', not the
                 # stem's, and the band of fits kept above the model takes the track's
                 sc = min(sc, st)
-        if src == "stem" and sc > np.log(KEEP_MAX_RATIO):
+        if src.startswith("stem") and src != "stem (tracked)" and sc > np.log(KEEP_MAX_RATIO):
             a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0, start=_shortest_half(y[sm_] - cum[sm_]))
         if pooled is None or a <= pooled[0] + shift + np.log(STEM_POOL_RATIO):
             return a, sc, src

@@ -59,12 +59,21 @@ def densify(graph: BranchGraph, spacing: float) -> BranchGraph:
     )
 
 
+#: :func:`extend_tips` repeats its step at most this many times, each from the moved tips
+#: (a step reaches one ``reach`` ahead): on the rTwig cloud (node spacing 2.9 cm, reach two
+#: spacings) every tip stops within three passes; over RANSAC seeds 0-5 the median F1 at
+#: 5 cm against TreeQSM's axes goes 0.979 -> 0.981 and against SimpleForest's 0.986 ->
+#: 0.988 (worst seed 0.975 -> 0.978, 0.983 -> 0.986), the length 29.2 -> 29.6 m
+TIP_PASSES = 3
+
+
 def extend_tips(
     graph: BranchGraph,
     xyz: NDArray[np.float64],
     reach: float,
     kdtree: cKDTree | None = None,
     quantile: float = 0.9,
+    passes: int = TIP_PASSES,
 ) -> BranchGraph:
     """Move every tip forward along its last edge to the end of its points.
 
@@ -72,37 +81,55 @@ def extend_tips(
     half a node spacing (or more, after cleanup) short of the branch's last points. For each
     tip, points within ``reach`` (m) that lie ahead of it (positive projection on the last
     edge, lateral offset < ``reach / 2``) give the new tip at the ``quantile`` of their
-    projections. Returns a new graph; tips without points ahead stay.
+    projections. That step is repeated from the moved tips, ``passes`` times at most and
+    only for the tips the last step moved: a twig running on past one reach is followed
+    to its end. Returns a new graph; tips without points ahead
+    stay.
     """
     tips = graph.leaves[graph.parent[graph.leaves] >= 0]
     if tips.size == 0 or reach <= 0:
         return graph
     kd = kdtree or cKDTree(xyz)
-    pos = graph.position
+    pos = graph.position.copy()
     d = pos[tips] - pos[graph.parent[tips]]
     ln = np.linalg.norm(d, axis=1)
     ok = ln > 0
     tips, d = tips[ok], d[ok] / ln[ok, None]
-    cnt, idx = ball_lists(kd, pos[tips], reach)
-    owner = np.repeat(np.arange(tips.size), cnt)
-    rel = xyz[idx] - pos[tips][owner]
+    moved = False
+    for _ in range(max(int(passes), 1)):
+        if tips.size == 0:
+            break
+        step = _tip_steps(kd, xyz, pos[tips], d, reach, quantile)
+        pos[tips] += step[:, None] * d
+        moved |= bool((step > 0).any())
+        go = step > 0
+        tips, d = tips[go], d[go]
+    return graph.with_(position=pos) if moved else graph
+
+
+def _tip_steps(
+    kd: cKDTree, xyz: NDArray, at: NDArray, d: NDArray, reach: float, quantile: float
+) -> NDArray[np.float64]:
+    """Per tip at ``at`` heading ``d`` (unit), the ``quantile`` of the projections of the
+    points ahead of it within ``reach`` (lateral offset < ``reach / 2``); 0 with none."""
+    cnt, idx = ball_lists(kd, at, reach)
+    owner = np.repeat(np.arange(at.shape[0]), cnt)
+    rel = xyz[idx] - at[owner]
     t = np.einsum("ij,ij->i", rel, d[owner])
     lat = np.linalg.norm(rel - t[:, None] * d[owner], axis=1)
     keep = (t > 0) & (lat < 0.5 * reach)
     owner, t = owner[keep], t[keep]
+    step = np.zeros(at.shape[0])
     if owner.size == 0:
-        return graph
+        return step
     o = np.lexsort((t, owner))
     owner, t = owner[o], t[o]
-    counts = np.bincount(owner, minlength=tips.size)
+    counts = np.bincount(owner, minlength=at.shape[0])
     starts = np.concatenate([[0], np.cumsum(counts)])[:-1]
     has = counts > 0
     q = starts[has] + np.floor(quantile * (counts[has] - 1)).astype(np.int64)
-    step = np.zeros(tips.size)
     step[has] = t[q]
-    newpos = pos.copy()
-    newpos[tips] += step[:, None] * d
-    return graph.with_(position=newpos)
+    return step
 
 
 def smooth_branches(

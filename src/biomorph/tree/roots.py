@@ -16,6 +16,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from biomorph.core.curves import kasa_circle
+from biomorph.core.graph import BranchGraph
 from biomorph.errors import InputError, ParameterError
 
 __all__ = [
@@ -24,6 +25,9 @@ __all__ = [
     "stem_bases",
     "check_single_tree",
     "check_trunk_reaches_ground",
+    "extend_to_ground",
+    "STEM_BASE_MAX",
+    "GROUND_RING",
 ]
 
 #: a second stem counts (two trees touching in a one-tree run) when its base cluster holds at
@@ -425,3 +429,109 @@ def check_trunk_reaches_ground(
             f"{low:.2f} m high; expected a stem reaching within {max_gap:g} m of "
             "the ground (a crown-only scan, or a cloud cut above the base?)"
         )
+
+
+#: a tree's lowest node at most this far (m) above the ground under it stands on the
+#: ground: its stem continued through the band the ground filter removed (0.15 m for the
+#: grid method) and :func:`extend_to_ground` carries it down. The same half metre as the
+#: breast-height stems' "continues down to the ground" test (:func:`_stem_roots`); a crown
+#: piece or an understorey fragment higher up is left where it is
+STEM_BASE_MAX = 0.5
+#: the ground under a stem is read from the ground points in this ring (m, inner and outer
+#: radius in XY about the stem's lowest node): the ground filter also took the stem's own
+#: lowest points (up to its threshold above the terrain), which the inner radius leaves out
+#: for any stem thinner than a metre
+GROUND_RING = (0.5, 1.5)
+
+
+def extend_to_ground(
+    graph: BranchGraph, ground: NDArray[np.float64] | None, spacing: float
+) -> tuple[BranchGraph, dict[str, float | int]]:
+    """Carry each tree's stem down to the ground the prepare stage removed.
+
+    The ground filter takes every point within its threshold of the terrain, the foot of
+    each stem with them (0.15 m for the grid method; a TreeQSM model of a segmented tree
+    starts at its lowest point, a forester's stem at the ground). For each root standing at
+    most :data:`STEM_BASE_MAX` above the ground under it (a plane through the ``ground``
+    points in :data:`GROUND_RING` about it, :func:`_ground_height`), a straight vertical stretch of
+    nodes every ``spacing`` metres runs from the ground up to that root, which the radius
+    stage then measures or models like any other part of the stem. Returns the graph (the
+    new nodes appended; the same object when nothing was added) and ``{"trees": extended,
+    "length": metres added}``.
+    """
+    info: dict[str, float | int] = {"trees": 0, "length": 0.0}
+    if ground is None or len(ground) == 0 or graph.n_nodes == 0 or spacing <= 0:
+        return graph, info
+    kd = cKDTree(ground[:, :2])
+    roots = graph.roots
+    pos = graph.position
+    inner, outer = GROUND_RING
+    new_pos: list[NDArray] = []
+    new_par: list[int] = []
+    below: list[int] = []  # the root each new node stands under
+    parent = graph.parent.copy()
+    n = graph.n_nodes
+    # each tree's lowest root: its stem (another root of the same tree is a piece the
+    # skeleton left apart, a low branch, not a stem)
+    lab = graph.trees[roots]
+    o = np.lexsort((pos[roots, 2], lab))
+    roots, lab = roots[o], lab[o]
+    roots = roots[np.r_[True, lab[1:] != lab[:-1]]] if roots.size else roots
+    for r in roots:
+        near = np.asarray(kd.query_ball_point(pos[r, :2], outer), dtype=np.int64)
+        if near.size == 0:
+            continue
+        d = np.linalg.norm(ground[near, :2] - pos[r, :2], axis=1)
+        ring = near[d >= inner]
+        if ring.size == 0:
+            continue
+        gz = _ground_height(ground[ring] - np.r_[pos[r, :2], 0.0])
+        gap = float(pos[r, 2]) - gz
+        if not 0.0 < gap <= STEM_BASE_MAX:
+            continue
+        k = max(int(np.ceil(gap / spacing)), 1)
+        # k nodes from the ground (index n + len) up to just below the root
+        zs = gz + gap * np.arange(k) / k
+        first = n + len(new_pos)
+        for i, z in enumerate(zs):
+            new_pos.append(np.array([pos[r, 0], pos[r, 1], z]))
+            new_par.append(-1 if i == 0 else first + i - 1)
+            below.append(int(r))
+        parent[r] = first + k - 1
+        info["trees"] = int(info["trees"]) + 1
+        info["length"] = float(info["length"]) + gap
+    if not new_pos:
+        return graph, info
+    src = np.asarray(below, dtype=np.int64)
+
+    def grown(values: NDArray | None) -> NDArray | None:
+        # the new nodes take the values of the root they stand under
+        return None if values is None else np.concatenate([values, values[src]])
+
+    out = BranchGraph(
+        np.vstack([pos, np.asarray(new_pos)]),
+        np.concatenate([parent, np.asarray(new_par, dtype=np.int64)]),
+        radius=grown(graph.radius),
+        weight=grown(graph.weight),
+        depth=grown(graph.depth),
+        tree_id=grown(graph.tree_id),
+    )
+    return out, info
+
+
+def _ground_height(pts: NDArray[np.float64]) -> float:
+    """The height at the origin (XY) of a plane fitted to ``pts`` (a ring of ground points
+    about it) by least squares, refitted once without the points more than three robust
+    scatters off it (a plane, not a median: on a slope a scan holds more ground points on
+    its scanner's side)."""
+    a = np.column_stack([pts[:, :2], np.ones(len(pts))])
+    keep = np.ones(len(pts), dtype=bool)
+    coef = np.array([0.0, 0.0, float(np.median(pts[:, 2]))])
+    for _ in range(2):
+        if keep.sum() < 3:
+            break
+        coef = np.linalg.lstsq(a[keep], pts[keep, 2], rcond=None)[0]
+        res = pts[:, 2] - a @ coef
+        mad = 1.4826 * float(np.median(np.abs(res[keep] - np.median(res[keep]))))
+        keep = np.abs(res) <= 3 * mad if mad > 0 else keep
+    return float(coef[2])
