@@ -143,3 +143,27 @@ def test_a_needle_envelope_round_the_stem_is_left_for_the_stem_inside_it():
     assert inner is not None and inner.height > 4.0
     assert np.median(inner.radius) == pytest.approx(0.1, rel=0.05)
     assert st._inner(inner, pts, 0.02, kd, seed=0) is None  # nothing inside the stem
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_track_vets_the_stem_paths_fits_when_their_levels_agree(seed):
+    """Half the stem path's fits are needle envelopes 1.5-3.3x the stem, the other half on
+    the tracked stem: their trimmed level lies inside the track's band (0.21-0.26 above it
+    for a band of 0.26-0.33), so the path's fits anchored the model with their own scatter
+    (0.39-0.43), a band that keeps envelopes up to twice the model (a quarter of the TreeLS
+    spruce: 0.94 m³ for 0.44). Left out where the track measured the stem, the rest give
+    the stem's level and scatter."""
+    rng = np.random.default_rng(seed)
+    n = 40
+    cum = np.linspace(0, 1, n)
+    yt = np.log(0.1) + cum + rng.normal(0, 0.12, n)  # the track's radii (model ordinates)
+    y = yt + rng.normal(0, 0.02, n)
+    env = np.arange(n) % 2 == 1
+    y[env] += rng.uniform(0.4, 1.2, env.sum())
+    stem = np.ones(n, dtype=bool)
+    a_path, _, sc_path = rd._robust_line(cum, y, 1.0)
+    a_track, _, st = rd._robust_line(cum, yt, 1.0)
+    assert a_path - a_track < 3 * st and 0.35 < sc_path < np.log(rd.KEEP_MAX_RATIO)
+    a, sc, src = rd._tree_anchor(cum, y, stem, stem, None, 0.0, lambda: (np.arange(n), yt, 0.8))
+    assert src == "stem (fits on the track)"
+    assert abs(a - a_track) < 0.05 and sc < 0.2

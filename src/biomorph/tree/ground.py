@@ -35,7 +35,15 @@ from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
 from biomorph.core.pointcloud import PointCloud
 from biomorph.errors import InputError, ParameterError
 
-__all__ = ["remove_ground", "ground_surface_grid", "DEFAULT_METHOD", "METHODS", "LAS_GROUND"]
+__all__ = [
+    "remove_ground",
+    "ground_surface_grid",
+    "robust_plane",
+    "DEFAULT_METHOD",
+    "METHODS",
+    "LAS_GROUND",
+    "PLANE_FLOOR",
+]
 
 METHODS = ("grid", "csf", "classified")
 #: ASPRS LAS class of ground points (``"classified"``: the file's own ground)
@@ -95,6 +103,35 @@ def _csf_mask(
     return mask
 
 
+#: :func:`robust_plane` rejects a ground point only this far (m) or three robust scatters
+#: off the plane, whichever is more: plane residuals are large on real, curved terrain, and
+#: only gross outliers (low vegetation left in the ground class) should go
+PLANE_FLOOR = 0.3
+
+
+def robust_plane(
+    pts: NDArray[np.float64], floor: float = PLANE_FLOOR
+) -> tuple[NDArray[np.float64] | None, NDArray[np.bool_]]:
+    """``z = a x + b y + c`` through ground points by least squares, refitted without the
+    points more than ``max(3 robust scatters, floor)`` off it until the kept set stops
+    changing (10 rounds at most). Returns ``(a, b, c)`` (None under three points) and the
+    mask of the points kept."""
+    keep = np.ones(pts.shape[0], dtype=bool)
+    coef = None
+    for _ in range(10):
+        if keep.sum() < 3:
+            break
+        a = np.c_[pts[keep, :2], np.ones(keep.sum())]
+        coef = np.linalg.lstsq(a, pts[keep, 2], rcond=None)[0]
+        res = pts[:, 2] - np.c_[pts[:, :2], np.ones(pts.shape[0])] @ coef
+        mad = np.median(np.abs(res[keep] - np.median(res[keep]))) * 1.4826
+        new = np.abs(res - np.median(res[keep])) <= max(3 * mad, floor)
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    return coef, keep
+
+
 def ground_surface_grid(
     xyz: NDArray[np.float64],
     cell: float = 0.5,
@@ -132,20 +169,7 @@ def ground_surface_grid(
     ok_cell[occupied] = zgrid[occupied] - env[occupied] <= max_step + slope * window / 2
     cand = first[ok_cell.reshape(-1)[flat[first]]]
     pts = xyz[cand]
-    # robust plane: trimmed least squares on z = a x + b y + c
-    keep = np.ones(pts.shape[0], dtype=bool)
-    for _ in range(10):
-        if keep.sum() < 3:
-            break
-        A = np.c_[pts[keep, :2], np.ones(keep.sum())]
-        coef, *_ = np.linalg.lstsq(A, pts[keep, 2], rcond=None)
-        res = pts[:, 2] - np.c_[pts[:, :2], np.ones(pts.shape[0])] @ coef
-        mad = np.median(np.abs(res[keep] - np.median(res[keep]))) * 1.4826
-        # plane residuals are large on real, curved terrain: only reject gross outliers
-        new = np.abs(res - np.median(res[keep])) <= max(3 * mad, 0.3)
-        if np.array_equal(new, keep):
-            break
-        keep = new
+    _, keep = robust_plane(pts)
     pts = pts[keep] if keep.sum() >= 3 else pts
     if pts.shape[0] >= 3 and np.ptp(pts[:, 0]) > 0 and np.ptp(pts[:, 1]) > 0:
         try:

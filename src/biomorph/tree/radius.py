@@ -1347,32 +1347,38 @@ def _tree_anchor(cum, y, rm, sm_, pooled, shift: float, track=None) -> tuple[flo
     measurement: two populations, the trimmed median between them). Without a track
     the trimming then starts from the densest half of the fits. Where the levels agree but
     under :data:`STEM_PATH_ON_TRACK` of the stem path's nodes lie on the tracked stem, the
-    scatter (the band of :func:`taper_radii`, step 4) is the lesser of the two."""
+    scatter (the band of :func:`taper_radii`, step 4) is the lesser of the two. Before
+    either test, the stem path's fits at the nodes the track covers that lie more than its
+    band above the track's radius there are left out as envelopes (the source then reads
+    ``"stem (fits on the track)"``)."""
     if sm_.sum() >= 3:  # anchored on the stem: its sections are the best seen
-        a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0)
+        own = sm_  # the stem fits the level is read from
+        a, _, sc = _robust_line(cum[own], y[own], 1.0)
         src = "stem"
+        wide = np.log(KEEP_MAX_RATIO)
         got = track() if track is not None else None
         if got is not None:
             nodes, yt, share = got
             at, _, st = _robust_line(cum[nodes], yt, 1.0)
-            band = min(3 * st, np.log(KEEP_MAX_RATIO))
-            if st <= np.log(KEEP_MAX_RATIO):
+            band = min(3 * st, wide)
+            if st <= wide:
                 # the stem path's fits where the track measured the stem: one above the
                 # track's band there is an envelope (needles round the stem), not a section
                 over = np.zeros(sm_.size, dtype=bool)
-                over[nodes] = sm_[nodes] & (y[nodes] - yt > band)
-                if over.any() and (sm_ & ~over).sum() >= 3:
-                    a, _, sc = _robust_line(cum[sm_ & ~over], y[sm_ & ~over], 1.0)
+                over[nodes] = y[nodes] - yt > band
+                if (own & over).any() and (own & ~over).sum() >= 3:
+                    own = own & ~over
+                    a, _, sc = _robust_line(cum[own], y[own], 1.0)
                     src = "stem (fits on the track)"
-            if st <= np.log(KEEP_MAX_RATIO) and (a - at > band or sc > np.log(KEEP_MAX_RATIO)):
-                a, sc, src = at, st, "stem (tracked)"
-            elif st <= np.log(KEEP_MAX_RATIO) and share < STEM_PATH_ON_TRACK:
-                # the level agrees, but the stem path runs mostly off the stem (through a
-                # sparse spruce's whorls): its fits' scatter is the envelopes', not the
-                # stem's, and the band of fits kept above the model takes the track's
-                sc = min(sc, st)
-        if src.startswith("stem") and src != "stem (tracked)" and sc > np.log(KEEP_MAX_RATIO):
-            a, _, sc = _robust_line(cum[sm_], y[sm_], 1.0, start=_shortest_half(y[sm_] - cum[sm_]))
+                if a - at > band or sc > wide:
+                    a, sc, src = at, st, "stem (tracked)"
+                elif share < STEM_PATH_ON_TRACK:
+                    # the level agrees, but the stem path runs mostly off the stem (through
+                    # a sparse spruce's whorls): its fits' scatter is the envelopes', not
+                    # the stem's, and the band of fits kept above the model takes the track's
+                    sc = min(sc, st)
+        if src != "stem (tracked)" and sc > wide:
+            a, _, sc = _robust_line(cum[own], y[own], 1.0, start=_shortest_half(y[own] - cum[own]))
         if pooled is None or a <= pooled[0] + shift + np.log(STEM_POOL_RATIO):
             return a, sc, src
         return pooled[0] + shift, pooled[2], "all trees (own stem fits too thick)"

@@ -83,8 +83,8 @@ def extend_tips(
     edge, lateral offset < ``reach / 2``) give the new tip at the ``quantile`` of their
     projections. That step is repeated from the moved tips, ``passes`` times at most and
     only for the tips the last step moved: a twig running on past one reach is followed
-    to its end. Returns a new graph; tips without points ahead
-    stay.
+    to its end. Returns a new graph (the same one when no tip moved); tips without points
+    ahead stay.
     """
     tips = graph.leaves[graph.parent[graph.leaves] >= 0]
     if tips.size == 0 or reach <= 0:
@@ -101,8 +101,8 @@ def extend_tips(
             break
         step = _tip_steps(kd, xyz, pos[tips], d, reach, quantile)
         pos[tips] += step[:, None] * d
-        moved |= bool((step > 0).any())
         go = step > 0
+        moved |= bool(go.any())
         tips, d = tips[go], d[go]
     return graph.with_(position=pos) if moved else graph
 

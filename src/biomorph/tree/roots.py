@@ -18,6 +18,7 @@ from scipy.spatial import cKDTree
 from biomorph.core.curves import kasa_circle
 from biomorph.core.graph import BranchGraph
 from biomorph.errors import InputError, ParameterError
+from biomorph.tree.ground import robust_plane
 
 __all__ = [
     "find_roots",
@@ -452,9 +453,11 @@ def extend_to_ground(
     The ground filter takes every point within its threshold of the terrain, the foot of
     each stem with them (0.15 m for the grid method; a TreeQSM model of a segmented tree
     starts at its lowest point, a forester's stem at the ground). For each root standing at
-    most :data:`STEM_BASE_MAX` above the ground under it (a plane through the ``ground``
-    points in :data:`GROUND_RING` about it, :func:`_ground_height`), a straight vertical stretch of
-    nodes every ``spacing`` metres runs from the ground up to that root, which the radius
+    most :data:`STEM_BASE_MAX` above the ground under it (the height under it of a plane
+    through the ``ground`` points in :data:`GROUND_RING` about it,
+    :func:`biomorph.tree.ground.robust_plane`: a median of the ring is biased on a slope,
+    where a scan holds more ground points on its scanner's side), a straight vertical
+    stretch of nodes every ``spacing`` metres runs from the ground up to that root, which the radius
     stage then measures or models like any other part of the stem. Returns the graph (the
     new nodes appended; the same object when nothing was added) and ``{"trees": extended,
     "length": metres added}``.
@@ -485,7 +488,8 @@ def extend_to_ground(
         ring = near[d >= inner]
         if ring.size == 0:
             continue
-        gz = _ground_height(ground[ring] - np.r_[pos[r, :2], 0.0])
+        coef, _ = robust_plane(ground[ring] - np.r_[pos[r, :2], 0.0])
+        gz = float(coef[2]) if coef is not None else float(np.median(ground[ring, 2]))
         gap = float(pos[r, 2]) - gz
         if not 0.0 < gap <= STEM_BASE_MAX:
             continue
@@ -517,21 +521,3 @@ def extend_to_ground(
         tree_id=grown(graph.tree_id),
     )
     return out, info
-
-
-def _ground_height(pts: NDArray[np.float64]) -> float:
-    """The height at the origin (XY) of a plane fitted to ``pts`` (a ring of ground points
-    about it) by least squares, refitted once without the points more than three robust
-    scatters off it (a plane, not a median: on a slope a scan holds more ground points on
-    its scanner's side)."""
-    a = np.column_stack([pts[:, :2], np.ones(len(pts))])
-    keep = np.ones(len(pts), dtype=bool)
-    coef = np.array([0.0, 0.0, float(np.median(pts[:, 2]))])
-    for _ in range(2):
-        if keep.sum() < 3:
-            break
-        coef = np.linalg.lstsq(a[keep], pts[keep, 2], rcond=None)[0]
-        res = pts[:, 2] - a @ coef
-        mad = 1.4826 * float(np.median(np.abs(res[keep] - np.median(res[keep]))))
-        keep = np.abs(res) <= 3 * mad if mad > 0 else keep
-    return float(coef[2])
