@@ -1,7 +1,8 @@
 """QSM measures of the tree pipeline on the real clouds, beside the reference models.
 
 For every cloud in ``../shared/data/trees`` (or ``--data``): total / trunk wood volume,
-volume per diameter class (< 2.5, 2.5–7, 7–20, > 20 cm), trunk length, height, number of
+volume per diameter class (< 2.5, 2.5–7, 7–20, > 20 cm), trunk length, height (and, over
+the trees taller than 3 m, the median and largest trunk length / height), number of
 order-1 branches, max order (of the tallest tree of a plot), share of points farther than
 10 cm from every cylinder and the median signed residual per class
 (``tree.metrics.cylinder_fit``), with wall and CPU time. Where a
@@ -141,6 +142,9 @@ def ours(path: Path, method: str, twig_radius: float | None = None) -> dict:
         "trunk_top_gap": max(r["trunk_top_gap"] for r in m["trees"] if r.get("height", 0.0) > 3.0)
         if any(r.get("height", 0.0) > 3.0 for r in m["trees"])
         else t["trunk_top_gap"],
+        # each tree over 3 m: its trunk's length over its height (a straight stem 1.0;
+        # above, the trunk path wanders through the crown where the stem is hidden)
+        **_trunk_ratios(m["trees"]),
         "order1": t["branches_order1"],
         "max_order": t["max_order"],
         "n_trees": m["n_trees"],
@@ -153,6 +157,14 @@ def ours(path: Path, method: str, twig_radius: float | None = None) -> dict:
         "wall": wall,
         "cpu": cpu,
     }
+
+
+def _trunk_ratios(trees: list[dict]) -> dict[str, float]:
+    """Median and largest trunk length / height over the trees taller than 3 m."""
+    r = [t["trunk_length"] / t["height"] for t in trees if t.get("height", 0.0) > 3.0]
+    if not r:
+        return {}
+    return {"trunk/height median": float(np.median(r)), "trunk/height max": float(max(r))}
 
 
 def _fmt(v: object) -> str:
@@ -168,6 +180,8 @@ def table(name: str, rows: dict[str, dict]) -> None:
         "trunk_length",
         "height",
         "trunk_top_gap",
+        "trunk/height median",
+        "trunk/height max",
         "order1",
         "max_order",
         "n_trees",
