@@ -33,6 +33,7 @@ def _stem(z0: float, tree: int = 0, x: float = 0.0) -> tuple[np.ndarray, np.ndar
 def test_a_stem_standing_in_the_removed_band_reaches_the_ground(slope):
     pos, par = _stem(0.18)
     g = BranchGraph(pos, par, radius=np.full(10, 0.12), tree_id=np.zeros(10, np.int64))
+    g = g.with_(weight=g.subtree_length())
     out, info = extend_to_ground(g, _ground(slope), spacing=0.05)
     assert info["trees"] == 1 and info["length"] == pytest.approx(0.18, abs=0.01)
     root = out.roots
@@ -45,6 +46,9 @@ def test_a_stem_standing_in_the_removed_band_reaches_the_ground(slope):
     assert out.edge_length[out.parent >= 0].max() <= 0.05 + 1e-9
     assert out.total_length == pytest.approx(g.total_length + 0.18, abs=0.01)
     assert np.all(out.radius[g.n_nodes :] == 0.12) and np.all(out.tree_id == 0)
+    # the weight stays the supported length: the new foot carries the whole stem
+    assert np.allclose(out.weight, out.subtree_length())
+    assert out.weight[root[0]] == pytest.approx(out.total_length, abs=1e-9)
 
 
 def test_crown_pieces_and_low_branch_pieces_stay_where_they_are():

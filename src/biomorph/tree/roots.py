@@ -516,8 +516,8 @@ def extend_to_ground(
         np.vstack([pos, np.asarray(new_pos)]),
         np.concatenate([parent, np.asarray(new_par, dtype=np.int64)]),
         radius=grown(graph.radius),
-        weight=grown(graph.weight),
         depth=grown(graph.depth),
         tree_id=grown(graph.tree_id),
     )
-    return out, info
+    # the weight is the supported length: the stem below a root carries the whole tree
+    return (out if graph.weight is None else out.with_(weight=out.subtree_length())), info
